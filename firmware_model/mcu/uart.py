@@ -1,0 +1,86 @@
+"""MB90F549 UART (UART0, asynchronous 8N1) with its dedicated baud-rate generator.
+
+At a 16 MHz machine clock the generator gives 9615.38 bit/s for "9600": 1664 ticks a bit,
+16640 ticks a byte (start + 8 data + stop). The firmware's transmit ISR reloads the data register
+while the previous byte shifts out, so a frame leaves back to back with no idle bits between
+bytes; the model therefore hands the transmitter a whole burst and raises the
+transmission-complete interrupt when the last stop bit ends. Received bytes arrive from the
+radio with the tick at which each stop bit ended.
+"""
+from __future__ import annotations
+
+from typing import Callable, Protocol
+
+from ..timing import BITS_PER_BYTE_8N1, TICK_HZ
+from .scheduler import Scheduler
+
+BAUD_DIVISORS = {1200: 13312, 2400: 6656, 4800: 3328, 9600: 1664, 19200: 832, 38400: 416}
+"""Nominal baud -> ticks a bit (16 x the dedicated generator's count at 16 MHz)."""
+
+
+class SerialLine(Protocol):
+    """What the UART's TX pin drives (the PTR2000's data input)."""
+
+    def transmit(self, data: bytes, t0: int, byte_ticks: int) -> None: ...
+
+    def sync(self, now: int) -> None: ...
+
+
+class Uart:
+    """One UART channel. Set ``line`` (TX side), ``on_rx`` and ``on_tx_done`` before use."""
+
+    __slots__ = ("sched", "bit_ticks", "byte_ticks", "line", "on_rx", "on_tx_done",
+                 "busy_until", "bytes_sent", "bytes_received", "name")
+
+    def __init__(self, sched: Scheduler, baud: int = 9600, byte_ticks: int | None = None,
+                 name: str = "UART0") -> None:
+        self.sched = sched
+        self.name = name
+        if byte_ticks is None:
+            if baud not in BAUD_DIVISORS:
+                raise ValueError(f"the MB90F549 baud generator has no {baud} baud setting; "
+                                 f"choose one of {sorted(BAUD_DIVISORS)}")
+            self.bit_ticks = BAUD_DIVISORS[baud]
+            byte_ticks = self.bit_ticks * BITS_PER_BYTE_8N1
+        else:
+            self.bit_ticks = byte_ticks / BITS_PER_BYTE_8N1
+        self.byte_ticks = byte_ticks
+        self.line: SerialLine | None = None
+        self.on_rx: Callable[[bytes, int, int], None] | None = None
+        self.on_tx_done: Callable[[int], None] | None = None
+        self.busy_until = 0
+        self.bytes_sent = 0
+        self.bytes_received = 0
+
+    @property
+    def baud(self) -> float:
+        """The real bit rate (bit/s)."""
+        return TICK_HZ / self.bit_ticks
+
+    def send(self, data: bytes) -> int:
+        """Shift ``data`` out from now; returns the tick the last stop bit ends."""
+        now = self.sched.now
+        if now < self.busy_until:
+            raise RuntimeError(f"{self.name}: transmitter busy until tick {self.busy_until}")
+        end = now + len(data) * self.byte_ticks
+        self.busy_until = end
+        self.bytes_sent += len(data)
+        if self.line is not None:
+            self.line.transmit(data, now, self.byte_ticks)
+        self.sched.at(end, self._tx_complete, end)
+        return end
+
+    def _tx_complete(self, end: int) -> None:
+        if self.on_tx_done is not None:
+            self.on_tx_done(end)
+
+    def receive(self, data: bytes, t0: int, dt: int) -> None:
+        """Bytes from the line: byte i's stop bit ended at tick ``t0 + i * dt``."""
+        self.bytes_received += len(data)
+        if self.on_rx is not None:
+            self.on_rx(data, t0, dt)
+
+    def sync(self, now: int) -> None:
+        """Take every byte whose stop bit ended by ``now`` (before a timer ISR reads state)."""
+        if self.line is not None:
+            self.line.sync(now)

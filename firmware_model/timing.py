@@ -1,0 +1,68 @@
+"""Time base shared by every model: integer MB90F549 machine-clock ticks.
+
+One tick is one cycle of the 16 MHz machine clock (62.5 ns). PROTOCOL.md §2 gives the defaults.
+"""
+from __future__ import annotations
+
+TICK_HZ = 16_000_000
+"""Machine clock of the MB90F549 child (ticks per second)."""
+
+UART_BIT_TICKS_9600 = 1664
+"""Bit time of the MB90F549 UART at nominal 9600 baud: 16 MHz / (16 x 104) = 9615.38 bit/s."""
+
+BITS_PER_BYTE_8N1 = 10
+"""Start bit, eight data bits, stop bit."""
+
+CHILD_BYTE_TICKS = UART_BIT_TICKS_9600 * BITS_PER_BYTE_8N1
+"""16640 ticks: one 8N1 byte on air from a child at "9600"."""
+
+PC_BYTE_TICKS = 16_667
+"""One 8N1 byte from the father PC's 16550-style UART at exact 9600 baud.
+
+10/9600 s = 16666.67 ticks, rounded to the nearest whole tick (error 0.33 tick a byte, 21 ns).
+"""
+
+TTRANS_TICKS = 80_000
+"""Ttrans, 5 ms: PTR2000 RX->TX (and TX->RX) switch time (paper §IV.C, Fig. 7)."""
+
+TMAX_TICKS = 9_600_000
+"""Tmax, 600 ms: most time one robot may hold the channel; also the takeover timeout."""
+
+MISS_LIMIT = 3
+"""Consecutive missed turns after which every member drops the robot (paper §IV.C)."""
+
+FRAME_OVERHEAD = 14
+"""Header 3 + Destination 1 + Source 1 + Number 2 + Type 1 + Length 4 + End 2 bytes."""
+
+
+def ms_to_ticks(ms: float) -> int:
+    """Milliseconds to whole ticks (rounded to nearest)."""
+    return round(ms * TICK_HZ / 1000)
+
+
+def s_to_ticks(seconds: float) -> int:
+    """Seconds to whole ticks (rounded to nearest)."""
+    return round(seconds * TICK_HZ)
+
+
+def ticks_to_ms(ticks: int) -> float:
+    """Ticks to milliseconds."""
+    return ticks * 1000 / TICK_HZ
+
+
+def ticks_to_s(ticks: int) -> float:
+    """Ticks to seconds."""
+    return ticks / TICK_HZ
+
+
+def max_frame_bytes(byte_ticks: int, tmax: int = TMAX_TICKS) -> int:
+    """Largest frame (bytes, overhead included) whose air time fits in Tmax (PROTOCOL.md §3).
+
+    576 at the child's 16640 ticks a byte; 575 for the father's 16667.
+    """
+    return tmax // byte_ticks
+
+
+def max_content_bytes(byte_ticks: int, tmax: int = TMAX_TICKS) -> int:
+    """Largest Content (bytes) one turn can carry: 562 for a child at the defaults."""
+    return max_frame_bytes(byte_ticks, tmax) - FRAME_OVERHEAD
