@@ -1,0 +1,217 @@
+"""Frame wire format (PROTOCOL.md §3, paper Fig. 8)."""
+from __future__ import annotations
+
+import pickle
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from firmware_model.radio.errors import ContentError, FrameError, WireError
+from firmware_model.radio.frame import (
+    BROADCAST,
+    CHILD_IDS,
+    END,
+    FATHER,
+    FRAME_FORMAT,
+    HEADER,
+    MAX_CONTENT,
+    ROBOT_IDS,
+    Frame,
+    FrameType,
+    field_at,
+    parse_frame,
+    parse_frame_cached,
+)
+
+SETTINGS = settings(max_examples=200, deadline=None)
+
+printable = st.lists(st.integers(0x20, 0x7E), max_size=80).map(bytes)
+frames = st.builds(
+    Frame,
+    dst=st.integers(0, 9),
+    src=st.integers(0, 6),
+    num=st.integers(0, 99),
+    type=st.integers(0, 9),
+    content=printable,
+)
+
+PAPER = Frame(dst=2, src=1, num=5, type=2, content=b"movex(10)")
+PAPER_BYTES = b"\x0f\x0a\x05" + b"2" + b"1" + b"05" + b"2" + b"0009" + b"movex(10)" + b"\x17\x19"
+
+
+def test_constants():
+    assert HEADER == b"\x0f\x0a\x05" and END == b"\x17\x19"
+    assert (BROADCAST, FATHER) == (7, 0)
+    assert list(CHILD_IDS) == [1, 2, 3, 4, 5, 6] and list(ROBOT_IDS) == list(range(7))
+    assert MAX_CONTENT == 562
+    assert [t.value for t in FrameType] == [0, 1, 2, 3, 4, 5]  # 5: BOOT extension
+    assert FrameType.BROADCAST_INFO == 3 and FrameType.FAILURE == 4
+
+
+def test_paper_example_exact_bytes():
+    assert PAPER.encode() == PAPER_BYTES
+    assert len(PAPER_BYTES) == PAPER.nbytes == 23
+    assert PAPER.length == 9
+    assert parse_frame(PAPER_BYTES) == PAPER
+    assert PAPER.frame_type is FrameType.INSTRUCTION
+
+
+def test_heartbeat_bytes():
+    hb = Frame(dst=BROADCAST, src=3, num=99, type=FrameType.BROADCAST_INFO)
+    assert hb.encode() == b"\x0f\x0a\x0573993" + b"0000" + b"\x17\x19"
+    assert hb.nbytes == 14
+    assert Frame(dst=1, src=0, num=0, type=9).frame_type is None
+
+
+def test_construct_declaration_builds_and_parses():
+    c = FRAME_FORMAT.parse(PAPER_BYTES)
+    assert (c.dst, c.src, c.num, c.type, c.length, c.content) == (2, 1, 5, 2, 9, b"movex(10)")
+    assert FRAME_FORMAT.build(dict(dst=2, src=1, num=5, type=2, content=b"movex(10)")) == PAPER_BYTES
+
+
+@SETTINGS
+@given(frames)
+def test_round_trip(frame):
+    data = frame.encode()
+    assert len(data) == frame.nbytes == 14 + frame.length
+    assert data[:3] == HEADER and data[-2:] == END
+    assert data[8:12] == b"%04d" % frame.length
+    assert parse_frame(data, max_content=9999) == frame
+    assert FRAME_FORMAT.build(FRAME_FORMAT.parse(data)) == data
+
+
+def _err(data: bytes, **kw) -> FrameError:
+    with pytest.raises(FrameError) as ei:
+        parse_frame(data, **kw)
+    return ei.value
+
+
+def _put(data: bytes, i: int, b: int) -> bytes:
+    return data[:i] + bytes([b]) + data[i + 1 :]
+
+
+@pytest.mark.parametrize(
+    "offset, byte, field",
+    [
+        (0, 0x00, "header"),
+        (1, 0x0F, "header"),
+        (2, 0x06, "header"),
+        (3, ord("A"), "destination"),
+        (4, ord("7"), "source"),
+        (4, ord("9"), "source"),
+        (5, ord(" "), "number"),
+        (6, ord("x"), "number"),
+        (7, ord("-"), "type"),
+        (8, ord("a"), "length"),
+        (11, 0x17, "length"),
+        (12, 0x0F, "content"),
+        (20, 0x7F, "content"),
+        (21, 0x19, "end"),
+        (22, 0x17, "end"),
+    ],
+)
+def test_error_names_offset_and_field(offset, byte, field):
+    err = _err(_put(PAPER_BYTES, offset, byte))
+    assert (err.offset, err.field, err.byte) == (offset, field, byte)
+    assert str(err).startswith(f"byte {offset} ({field}): 0x{byte:02x}")
+
+
+def test_error_message_example():
+    err = _err(_put(PAPER_BYTES, 4, ord("9")))
+    assert str(err) == "byte 4 (source): 0x39 '9' is not a robot ID '0'-'6'"
+    assert isinstance(err, WireError) and isinstance(err, ValueError)
+    assert not isinstance(err, ContentError)
+
+
+def test_length_bound_reported_at_first_digit_that_exceeds_it():
+    base = Frame(1, 0, 0, 2, b"").encode()
+    # 0563 > 562: only the 4th digit makes it too big
+    err = _err(base[:8] + b"0563" + b"x" * 563 + END)
+    assert (err.offset, err.field, err.byte) == (11, "length", ord("3"))
+    # 06..: already >= 600 at the 2nd digit
+    err = _err(base[:8] + b"0600" + b"x" * 600 + END)
+    assert (err.offset, err.field) == (9, "length")
+    assert "0600" in str(err) and "562" in str(err)
+    # 1...: >= 1000 at the 1st digit
+    assert _err(base[:8] + b"1000").offset == 8
+    # accepted when max_content allows it
+    big = Frame(1, 0, 0, 2, b"y" * 600)
+    assert parse_frame(big.encode(), max_content=600) == big
+    assert _err(big.encode(), max_content=599).offset == 9  # "06" already >= 600
+    assert _err(Frame(1, 0, 0, 2, b"y" * 563).encode()).offset == 11  # "0563"
+
+
+def test_trailing_and_truncated():
+    err = _err(PAPER_BYTES + b"\x0f")
+    assert (err.offset, err.field, err.byte) == (23, "trailing", 0x0F)
+    for n in range(len(PAPER_BYTES)):
+        err = _err(PAPER_BYTES[:n])
+        assert err.offset == n and err.byte is None
+        assert err.field == field_at(n, 9 if n >= 12 else None)
+        assert "truncated" in str(err)
+
+
+@SETTINGS
+@given(frames, st.sets(st.integers(0, 200), min_size=1, max_size=4))
+def test_first_bad_byte_is_reported(frame, positions):
+    data = frame.encode()
+    positions = {p % len(data) for p in positions}
+    bad = bytearray(data)
+    for p in positions:
+        bad[p] = 0x00  # invalid in every field
+    err = _err(bytes(bad), max_content=9999)
+    first = min(positions)
+    assert err.offset == first and err.byte == 0
+    assert err.field == field_at(first, frame.length)
+
+
+@SETTINGS
+@given(st.binary(max_size=64))
+def test_parse_never_raises_anything_else(data):
+    try:
+        parse_frame(data)
+    except FrameError as err:
+        assert err.offset is not None and 0 <= err.offset <= len(data)
+
+
+@pytest.mark.parametrize(
+    "kw, field, offset",
+    [
+        (dict(dst=10), "destination", 3),
+        (dict(dst=-1), "destination", 3),
+        (dict(src=7), "source", 4),
+        (dict(num=100), "number", 5),
+        (dict(type=10), "type", 7),
+        (dict(src=True), "source", 4),
+        (dict(content=b"ab\ncd"), "content", 14),
+        (dict(content="text"), "content", None),
+        (dict(content=b"x" * 10000), "length", 8),
+    ],
+)
+def test_frame_validation(kw, field, offset):
+    args = dict(dst=1, src=0, num=0, type=2, content=b"")
+    args.update(kw)
+    with pytest.raises(FrameError) as ei:
+        Frame(**args)
+    assert (ei.value.field, ei.value.offset) == (field, offset)
+
+
+def test_frame_accepts_bytearray_and_is_hashable():
+    f = Frame(1, 2, 3, 4, bytearray(b"stop()"))
+    assert f.content == b"stop()" and isinstance(f.content, bytes)
+    assert hash(f) == hash(Frame(1, 2, 3, 4, b"stop()"))
+
+
+def test_parse_frame_cached():
+    a = parse_frame_cached(PAPER_BYTES)
+    assert a == PAPER and parse_frame_cached(PAPER_BYTES) is a
+    with pytest.raises(FrameError):
+        parse_frame_cached(PAPER_BYTES[:-1])
+
+
+def test_error_pickles_and_compares():
+    err = _err(_put(PAPER_BYTES, 4, ord("9")))
+    again = pickle.loads(pickle.dumps(err))
+    assert again == err and str(again) == str(err) and hash(again) == hash(err)
+    assert again.field == "source" and again.offset == 4 and again.byte == 0x39
