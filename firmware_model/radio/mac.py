@@ -1,0 +1,773 @@
+"""The rotational TDMA MAC (paper §IV.C, Figs. 6-7; PROTOCOL.md §4) as a sans-IO state machine.
+
+Events go in (``on_frame``, ``on_corrupt``, ``on_timer``, ``on_tx_done``, ``submit``), actions and
+observations come out as lists, and the single timer the MAC needs is exposed as ``deadline`` (a
+tick, or None). The MAC owns no clock and does no I/O: the child firmware, the father station and
+the tests drive it. Every time is an integer tick of the 16 MHz machine clock.
+
+Rules, with the paper's part and this project's designed part (docs/mac.md gives the bounds):
+
+* Ring order is ascending ID over the live members; the owner of a turn sends exactly one frame.
+  When a turn closes at tick E the next member raises TXEN at E and sends at E + Ttrans.
+* If the owner's header has not been heard by E + Tmax, that turn is a *miss*; the next member
+  raises TXEN at E + Tmax (and so on, E + 2 Tmax ...). After ``miss_limit`` consecutive misses a
+  robot is *disabled* (dropped) by every member at the same tick.
+* Any valid frame resynchronises the hearer: the turn belongs to whoever actually sent it.
+* Designed here — start-up: a robot powers on in LISTEN and never transmits until it is invited
+  (polled) or has heard nothing for ``claim_ticks`` (longer than any silence a live ring makes,
+  staggered by ID), when it *claims* the channel as a ring of one.
+* Designed here — join/rejoin: the member whose turn precedes a gap of absent team IDs invites
+  one of them (Content command ``poll(id,mask)``; mask = the ring as a bit mask) at most every
+  ``poll_every`` of its turns (every turn while it is alone). After a polling frame every member
+  waits a short window ``Twin``; the invited robot answers by sending its frame at E + Ttrans and
+  is then a member for everyone who hears it. A member that reads its own ID missing from a poll
+  mask knows it was dropped and goes back to LISTEN.
+* Designed here — collisions and corruption: a frame that fails after a valid header still
+  closes the turn (at the end its Length promises, or E + Tmax when unknown); it is not a miss.
+  A member that hears nobody for a whole round of misses concludes its radio is cut off and goes
+  back to LISTEN; a lone member that hears another robot goes back to LISTEN too. A lone member
+  waits ``Twin + id * Tslot`` between its frames, so two robots that claimed together drift
+  apart by at least one Tslot and the later one hears the earlier.
+* Designed here — delivery: each message gets the sender's next Number; it is acknowledged by
+  its destination (by every member, for a broadcast) with ``ack(src,num)`` piggybacked in the
+  destination's next frame; the sender retransmits with the same Number at each of its turns
+  until acknowledged, at most ``max_attempts`` times, then reports it failed with a reason.
+  Receivers deliver once per (Source, Number) and re-acknowledge duplicates.
+"""
+from __future__ import annotations
+
+from bisect import bisect_right
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Iterable
+
+from ..timing import (
+    CHILD_BYTE_TICKS,
+    FRAME_OVERHEAD,
+    MISS_LIMIT,
+    TMAX_TICKS,
+    TTRANS_TICKS,
+    max_content_bytes,
+)
+from .content import Command, cmd, format_content, parse_content, split_layers
+from .errors import ContentError
+from .frame import BROADCAST, Frame, FrameType
+from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
+
+LISTEN = "listen"
+MEMBER = "member"
+_NOTHING: tuple = ()
+
+# Phases while MEMBER.
+WAIT = "wait"        # waiting for the header of ``owner`` until ``deadline``
+WINDOW = "window"    # a poll window for the invited ``owner`` until ``deadline``
+HOLD = "hold"        # my turn starts at ``deadline`` (after a corrupted frame or a lone pause)
+SWITCH = "switch"    # TXEN is high; my frame starts at ``deadline`` (= turn start + Ttrans)
+SEND = "send"        # my frame is on air; ``on_tx_done`` ends the turn
+QUIET = "quiet"      # a frame failed before its Length: wait for the channel to fall quiet
+
+
+class SubmitError(ValueError):
+    """A message the MAC refuses at submission (too long for one turn, bad destination, full)."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Actions (for the driver) and observations (for traces, tests and the application)
+
+
+@dataclass(frozen=True, slots=True)
+class TxEnable:
+    """Drive the PTR2000's TXEN pin: True = switch to transmit, False = back to receive."""
+
+    on: bool
+
+
+@dataclass(frozen=True, slots=True)
+class Transmit:
+    """Send these bytes now (the radio has been in TX for Ttrans)."""
+
+    frame: Frame
+    data: bytes
+
+
+@dataclass(frozen=True, slots=True)
+class Miss:
+    """``robot``'s header was not heard by the turn's deadline (observer's view)."""
+
+    robot: int
+
+
+@dataclass(frozen=True, slots=True)
+class Disable:
+    """``robot`` missed ``miss_limit`` consecutive turns and is dropped from the ring."""
+
+    robot: int
+
+
+@dataclass(frozen=True, slots=True)
+class Join:
+    """``robot`` became a member in this observer's view (``again``: it had been dropped)."""
+
+    robot: int
+    again: bool
+
+
+@dataclass(frozen=True, slots=True)
+class ModeChange:
+    """This robot changed mode (LISTEN/MEMBER) for ``reason``."""
+
+    mode: str
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
+class Deliver:
+    """A message for this robot (or broadcast) accepted once: hand it to the application."""
+
+    src: int
+    dst: int
+    num: int
+    type: int
+    commands: tuple[Command, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Duplicate:
+    """A retransmission of a message already delivered: re-acknowledged, not delivered again."""
+
+    src: int
+    num: int
+
+
+@dataclass(frozen=True, slots=True)
+class BadContent:
+    """A frame whose Content does not parse: the turn counts, nothing is delivered or acked."""
+
+    src: int
+    num: int
+    error: ContentError
+
+
+@dataclass(frozen=True, slots=True)
+class BadChecksum:
+    """A frame refused because its checksum was missing or wrong (checksum extension on)."""
+
+    first: int
+    end: int
+
+
+@dataclass(frozen=True, slots=True)
+class Outcome:
+    """A submitted message ended: ``delivered`` (acknowledged) or failed with ``reason``."""
+
+    message: "Message"
+    delivered: bool
+    reason: str
+
+
+@dataclass(eq=False, slots=True)
+class Message:
+    """A message submitted to the MAC, from submission to its outcome."""
+
+    src: int
+    dst: int
+    num: int
+    type: int
+    commands: tuple[Command, ...]
+    content: bytes
+    submitted: int
+    attempts: int = 0
+    waited: int = 0
+    awaiting: set[int] = field(default_factory=set)
+    acked: set[int] = field(default_factory=set)
+    state: str = "queued"   # queued | sent | delivered | failed
+    reason: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class MacConfig:
+    """MAC timing (ticks) and policy. Defaults are the paper's experiment (PROTOCOL.md §2)."""
+
+    ttrans: int = TTRANS_TICKS
+    tmax: int = TMAX_TICKS
+    miss_limit: int = MISS_LIMIT
+    byte_ticks: int = CHILD_BYTE_TICKS
+    twin: int = 160_000
+    """Poll window (10 ms): an invited robot's header must be heard by E + twin.
+    It starts at E + Ttrans, so its 3 header bytes end by E + 80000 + 3 x 16667 = E + 130001."""
+    tslot: int = 320_000
+    """ID stagger (20 ms) for claims and lone pauses: at least twice (Ttrans + 4 bytes)."""
+    team: frozenset[int] = frozenset(range(7))
+    """The robots that may ever join: only these are invited."""
+    poll_every: int = 4
+    """A member with absent team robots in its gap invites one of them every this many turns."""
+    quiet_gap: int = 2 * CHILD_BYTE_TICKS
+    """No byte for this long after a frame failed before its Length: the frame is over.
+    (A frame's bytes are back to back; idle noise keeps the channel from ever going quiet,
+    and then the wait ends at Tmax after the failed header.)"""
+    max_attempts: int = 4
+    """Transmissions of a message (first + retries) before it fails."""
+    max_age: int = 60 * 16_000_000
+    """A message not delivered this many ticks after submission fails as expired."""
+    max_queue: int = 32
+    mac_reserve: int = 64
+    """Content bytes the MAC keeps free for its own commands when a load fills frames."""
+    checksum: bool = False
+    """Opt-in integrity extension (firmware_model.radio.integrity): every frame sent ends
+    with ``crc(NNNNN)`` and frames received without a good one are refused."""
+
+    def claim_ticks(self, robot: int) -> int:
+        """Silence after which a listening robot claims the channel (start-up).
+
+        Longer than any silence a live ring of this team can make (every other member missing
+        one turn each: (|team|-1) x Tmax), plus one Tmax, staggered by ID so the lowest claims
+        first."""
+        return len(self.team) * self.tmax + robot * self.tslot
+
+
+@lru_cache(maxsize=2048)
+def _layers(content: bytes) -> tuple[tuple[Command, ...], tuple[Command, ...]]:
+    """Parse Content once per distinct byte string: every receiver of a frame shares it."""
+    return split_layers(parse_content(content))
+
+
+def _mask(ids: Iterable[int]) -> int:
+    m = 0
+    for i in ids:
+        m |= 1 << i
+    return m
+
+
+def _unmask(mask: int) -> set[int]:
+    return {i for i in range(7) if mask >> i & 1}
+
+
+class RotationalMac:
+    """One robot's MAC. Create, call ``power_on(now)``, then feed it events."""
+
+    def __init__(self, robot_id: int, config: MacConfig | None = None) -> None:
+        if not 0 <= robot_id <= 6:
+            raise ValueError(f"robot ID must be 0-6, got {robot_id}")
+        self.id = robot_id
+        self.cfg = cfg = config or MacConfig()
+        self.max_content = max_content_bytes(cfg.byte_ticks, cfg.tmax)
+        self.mode = LISTEN
+        self.phase = WAIT
+        self.ring: tuple[int, ...] = ()
+        self.owner: int | None = None     # whose header we wait for (WAIT/WINDOW)
+        self.poller: int | None = None    # who opened the current WINDOW
+        self.turn_start = 0
+        self.deadline: int | None = None
+        self.misses: dict[int, int] = {}
+        self.ever_member: set[int] = set()
+        self._silent = 0                  # consecutive misses with no frame heard at all
+        self._queue: list[Message] = []
+        self._inflight: Message | None = None
+        self._next_num = 0
+        self._last_num = 0               # Number a control frame repeats (PROTOCOL.md §3)
+        self._acks: list[tuple[int, int]] = []
+        self._acks_deferred = False
+        self._last_rx: dict[int, int] = {}
+        self._turns_since_poll = 0
+        self._poll_ptr: dict[int, int] = {}
+        self._sent_poll: int | None = None
+        self._quiet_limit = 0
+        self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
+        self._booting = False             # next frame is the power-on (Type '5') heartbeat
+        self.frames_sent = 0
+        self.turns = 0
+        self._hb_cache: dict[tuple, tuple[Frame, bytes]] = {}
+
+    # -- queries ---------------------------------------------------------------------------
+
+    @property
+    def lone(self) -> bool:
+        return self.mode == MEMBER and self.ring == (self.id,)
+
+    @property
+    def pending(self) -> int:
+        """Messages submitted and not yet ended (queued or awaiting acknowledgement)."""
+        return len(self._queue) + (1 if self._inflight is not None else 0)
+
+    def succ(self, robot: int, ring: tuple[int, ...] | None = None) -> int:
+        """The member after ``robot`` in ascending cyclic ID order (``robot`` need not be one)."""
+        ring = self.ring if ring is None else ring
+        i = bisect_right(ring, robot)
+        return ring[i] if i < len(ring) else ring[0]
+
+    # -- events in ---------------------------------------------------------------------------
+
+    def power_on(self, now: int) -> list:
+        """Start in LISTEN; claim after ``claim_ticks`` of silence (PROTOCOL.md §4 start-up)."""
+        self.mode = LISTEN
+        self._booting = True
+        self.deadline = now + self.cfg.claim_ticks(self.id)
+        return [TxEnable(False)]
+
+    def submit(self, dst: int, commands: Iterable[Command], now: int,
+               type: int = FrameType.INSTRUCTION) -> Message:
+        """Queue a message; raises SubmitError if it can never be sent in one turn."""
+        commands = tuple(commands)
+        if not 0 <= dst <= BROADCAST or dst == self.id:
+            raise SubmitError(f"destination must be a robot ID 0-6 other than {self.id}, "
+                              f"or {BROADCAST} (broadcast); got {dst}")
+        if not 0 <= int(type) <= 9:
+            raise SubmitError(f"type must be a digit 0-9, got {type}")
+        mac_cmds = [c for c in commands if c.spec.layer == "mac"]
+        if mac_cmds:
+            raise SubmitError(f"{mac_cmds[0].name}() is a MAC command and cannot be submitted")
+        content = format_content(commands)
+        limit = self.max_content - (CRC_TEXT_LEN if self.cfg.checksum else 0)
+        if len(content) > limit:
+            raise SubmitError(
+                f"Content of {len(content)} bytes makes a "
+                f"{len(content) + FRAME_OVERHEAD + self.max_content - limit}-byte frame, longer "
+                f"than one turn allows ({self.max_content + FRAME_OVERHEAD} bytes fit in Tmax"
+                f"{', checksum included' if limit < self.max_content else ''}); "
+                f"split the message")
+        if self.pending >= self.cfg.max_queue:
+            raise SubmitError(f"queue full ({self.cfg.max_queue} messages pending)")
+        msg = Message(self.id, dst, self._next_num, int(type), commands, content, now)
+        self._last_num = self._next_num
+        self._next_num = (self._next_num + 1) % 100
+        self._queue.append(msg)
+        return msg
+
+    def on_frame(self, frame: Frame, first: int, end: int, now: int) -> list:
+        """A valid frame was heard; its first header byte ended at ``first``, its End at ``end``."""
+        src = frame.src
+        if not frame.content and self.mode is MEMBER and src in self.ring \
+                and len(self.ring) > 1 and src != self.id and frame.type != FrameType.BOOT:
+            # Fast path, a heartbeat from a member: resynchronise and hand the turn on.
+            self.misses[src] = 0
+            self._silent = 0
+            ring = self.ring
+            i = bisect_right(ring, src)
+            nxt = ring[i] if i < len(ring) else ring[0]
+            if nxt == self.id:
+                out = []
+                self._my_turn(end, now, out)
+                return out
+            self.phase = WAIT
+            self.owner = nxt
+            self.turn_start = end
+            self.deadline = end + self.cfg.tmax
+            return _NOTHING
+        out: list = []
+        if src == self.id:
+            return out  # our own ID from the air: not ours (we are deaf while sending)
+        content = frame.content
+        if self.cfg.checksum:
+            if not crc_ok(frame):
+                out.append(BadChecksum(first, end))
+                out.extend(self.on_corrupt(first, None, end, now))
+                return out
+            content = strip_crc(content)
+        if frame.type == FrameType.BOOT:
+            self._last_rx.pop(src, None)   # it powered on: its Numbers restart at '00'
+        try:
+            mac_cmds, app_cmds = _layers(content) if content else ((), ())
+            bad = None
+        except ContentError as exc:
+            mac_cmds, app_cmds, bad = (), (), exc
+        polls = [c for c in mac_cmds if c.name == "poll"]
+
+        if self.mode == MEMBER and self.lone and not (
+                self.phase == WINDOW and src == self.owner):
+            self._to_listen(out, now, "heard another robot while alone")
+        if self.mode == MEMBER and src in self.ring:
+            for p in polls:
+                if not (p.args[1] >> self.id & 1):
+                    self._to_listen(out, now, f"left out of robot {src}'s ring (its poll mask)")
+                    break
+        if self.mode == LISTEN:
+            self.deadline = now + self.cfg.claim_ticks(self.id)
+            for p in polls:
+                if p.args[0] == self.id:
+                    ring = _unmask(p.args[1]) | {self.id, src}
+                    self.mode = MEMBER
+                    self.ring = tuple(sorted(ring))
+                    self.misses = {r: 0 for r in self.ring}
+                    self.ever_member |= set(self.ring)
+                    self._silent = 0
+                    self._turns_since_poll = self.cfg.poll_every
+                    out.append(ModeChange(MEMBER, f"invited by robot {src}"))
+                    self._my_turn(end, now, out)
+                    break
+            return out
+
+        # MEMBER from here on.
+        if src not in self.ring:
+            if any(p.args[1] == 1 << src for p in polls):
+                # A robot that claimed the channel alone: it is not in our ring and must be
+                # invited (it goes back to LISTEN when it hears us). Resynchronise only.
+                self._next_turn(src, end, now, out)
+                return out
+            self._admit(src, out)
+        self.misses[src] = 0
+        self._silent = 0
+        if bad is not None:
+            out.append(BadContent(src, frame.num, bad))
+        else:
+            for c in mac_cmds:
+                if c.name == "ack" and c.args[0] == self.id:
+                    self._on_ack(src, c.args[1], now, out)
+            if app_cmds and (frame.dst == self.id or frame.dst == BROADCAST):
+                self._acks.append((src, frame.num))
+                if self._last_rx.get(src) == frame.num:
+                    out.append(Duplicate(src, frame.num))
+                else:
+                    self._last_rx[src] = frame.num
+                    out.append(Deliver(src, frame.dst, frame.num, frame.type, app_cmds))
+
+        invited = [p.args[0] for p in polls if p.args[0] not in self.ring]
+        if invited:
+            self._window(invited[0], src, end, now)
+        else:
+            self._next_turn(src, end, now, out)
+        return out
+
+    def on_corrupt(self, first: int, src: int | None, expected_end: int | None,
+                   now: int) -> list:
+        """A frame failed after a valid header: the turn is used (not a miss) and closes at the
+        end its Length promised, or ``first + Tmax`` when the Length was never read."""
+        out: list = []
+        if self.mode == LISTEN:
+            self.deadline = now + self.cfg.claim_ticks(self.id)
+            return out
+        if self.phase not in (WAIT, WINDOW, QUIET):
+            return out
+        after = src if src is not None and src != self.id and (
+            src in self.ring or src == self.owner) else self.owner
+        if expected_end is None:
+            # The Length was never read: the frame is over when no byte has come for
+            # ``quiet_gap`` ticks, and at the latest Tmax after its header began.
+            if self.phase != QUIET or self._quiet_miss:
+                self._quiet_limit = first + self.cfg.tmax
+            self._quiet_miss = False
+            self.phase = QUIET
+            self.owner = after
+            self.deadline = min(now + self.cfg.quiet_gap, max(self._quiet_limit, now))
+            return out
+        self._quiet_miss = False
+        self._next_turn(after, max(expected_end, now), now, out)
+        return out
+
+    def on_garbage(self, first: int, last: int, now: int) -> list:
+        """Bytes that form no frame were heard. In the owner's slot they are probably its frame
+        with a corrupted Header: if the channel then falls quiet the turn closes (no miss);
+        if it never does (idle noise), the owner misses at E + Tmax as usual."""
+        if self.mode is MEMBER and self.phase == WAIT and \
+                last > self.turn_start + self.cfg.ttrans:
+            self.phase = QUIET
+            self._quiet_miss = True
+            self._quiet_limit = self.turn_start + self.cfg.tmax
+            self.deadline = min(last + self.cfg.quiet_gap, self._quiet_limit)
+        return _NOTHING
+
+    def on_timer(self, now: int, rx_busy: bool = False, last_rx: int | None = None) -> list:
+        """The deadline expired. ``rx_busy``: a frame is being received right now;
+        ``last_rx``: tick of the last byte heard (any byte)."""
+        out: list = []
+        if self.deadline is None or now < self.deadline:
+            return out
+        if self.mode == LISTEN:
+            if rx_busy:
+                self.deadline = now + 2 * self.cfg.byte_ticks  # someone is on air: not silent
+                return out
+            self.mode = MEMBER
+            self.ring = (self.id,)
+            self.misses = {self.id: 0}
+            self.ever_member.add(self.id)
+            self._silent = 0
+            self._turns_since_poll = self.cfg.poll_every
+            out.append(ModeChange(MEMBER, "claimed the silent channel"))
+            self._my_turn(now, now, out)
+            return out
+        phase = self.phase
+        if phase == SWITCH:
+            self._send(now, out)
+        elif phase == HOLD:
+            if rx_busy:
+                self.deadline = now + 2 * self.cfg.byte_ticks  # someone is sending: hear it
+            else:
+                self._my_turn(now, now, out)
+        elif phase == QUIET and not rx_busy:
+            gap = self.cfg.quiet_gap
+            quiet = last_rx is None or now - last_rx >= gap
+            if self._quiet_miss and not quiet and now >= self._quiet_limit:
+                self.phase = WAIT                              # only noise: a real miss
+                self._quiet_miss = False
+                return self.on_timer(now, rx_busy, last_rx)
+            if quiet or now >= self._quiet_limit:
+                self._quiet_miss = False
+                self._next_turn(self.owner, now, now, out)     # the failed frame is over
+            else:
+                self.deadline = min(last_rx + gap, self._quiet_limit)
+        elif rx_busy:
+            self.deadline = now + 2 * self.cfg.byte_ticks  # a header is in; let it finish
+        elif phase == WINDOW:
+            self._after_window(self.poller, now, out)
+        else:  # WAIT: the owner missed its turn
+            o = self.owner
+            n = self.misses.get(o, 0) + 1
+            self.misses[o] = n
+            out.append(Miss(o))
+            self._silent += 1
+            if n >= self.cfg.miss_limit:
+                self._drop(o, out)
+            if len(self.ring) >= 2 and \
+                    self._silent >= max(self.cfg.miss_limit, len(self.ring) - 1):
+                self._to_listen(out, now, "heard nobody for a whole round")
+                return out
+            self._next_turn(o, now, now, out)
+        return out
+
+    def on_tx_done(self, now: int) -> list:
+        """The last bit of our End left the radio: our turn closes at ``now``."""
+        out: list = [TxEnable(False)]
+        self.frames_sent += 1
+        if self.mode != MEMBER:
+            return out
+        if self._sent_poll is not None:
+            self._window(self._sent_poll, self.id, now, now)
+        else:
+            self._next_turn(self.id, now, now, out)
+        return out
+
+    def force_turn(self, now: int) -> list:
+        """Fault injection: believe the turn is ours right now (a member that missed a frame
+        and wrongly takes over). Used to force collisions in tests and fault studies."""
+        out: list = []
+        if self.mode == MEMBER and self.phase in (WAIT, WINDOW, HOLD):
+            self._my_turn(now, now, out)
+        return out
+
+    # -- turn machinery ----------------------------------------------------------------------
+
+    def _next_turn(self, after: int, start: int, now: int, out: list) -> None:
+        """The turn after ``after`` begins at ``start``: its owner may raise TXEN then."""
+        if not self.ring:
+            return
+        if self.lone and after == self.id:
+            self._hold(start + self.cfg.twin + self.id * self.cfg.tslot, now, out)
+            return
+        nxt = self.succ(after)
+        if nxt == self.id:
+            self._my_turn(start, now, out)
+        else:
+            self.phase = WAIT
+            self.owner = nxt
+            self.turn_start = start
+            self.deadline = start + self.cfg.tmax
+
+    def _window(self, invited: int, poller: int, end: int, now: int) -> None:
+        self.phase = WINDOW
+        self.owner = invited
+        self.poller = poller
+        self.turn_start = end
+        self.deadline = end + self.cfg.twin
+
+    def _after_window(self, poller: int, now: int, out: list) -> None:
+        if self.lone:
+            self._hold(self.turn_start + self.cfg.twin + self.id * self.cfg.tslot, now, out)
+        else:
+            self._next_turn(poller, now, now, out)
+
+    def _hold(self, start: int, now: int, out: list) -> None:
+        if start <= now:
+            self._my_turn(now, now, out)
+        else:
+            self.phase = HOLD
+            self.owner = self.id
+            self.deadline = start
+
+    def _my_turn(self, start: int, now: int, out: list) -> None:
+        if start > now:
+            self._hold(start, now, out)
+            return
+        self.phase = SWITCH
+        self.owner = self.id
+        self.turn_start = now
+        self.deadline = now + self.cfg.ttrans
+        out.append(TxEnable(True))
+
+    def _send(self, now: int, out: list) -> None:
+        frame, data = self._build_frame(now, out)
+        self.phase = SEND
+        self.deadline = None
+        self.turns += 1
+        out.append(Transmit(frame, data))
+
+    # -- membership --------------------------------------------------------------------------
+
+    def _admit(self, robot: int, out: list) -> None:
+        again = robot in self.ever_member
+        self.ring = tuple(sorted(set(self.ring) | {robot}))
+        self.ever_member.add(robot)
+        self.misses[robot] = 0
+        out.append(Join(robot, again))
+
+    def _drop(self, robot: int, out: list) -> None:
+        self.ring = tuple(r for r in self.ring if r != robot)
+        self.misses.pop(robot, None)
+        out.append(Disable(robot))
+        m = self._inflight
+        if m is not None and robot in m.awaiting:
+            m.awaiting.discard(robot)
+            if m.dst == robot:
+                self._finish(m, False, f"destination {robot} dropped from the ring after "
+                             f"{m.attempts} attempt(s)", out)
+            elif not m.awaiting:
+                self._finish(m, bool(m.acked), "" if m.acked else
+                             "no member left to acknowledge the broadcast", out)
+
+    def _to_listen(self, out: list, now: int, reason: str) -> None:
+        self.mode = LISTEN
+        self.ring = ()
+        self.phase = WAIT
+        self.owner = None
+        self.misses = {}
+        self._silent = 0
+        self._acks.clear()
+        self.deadline = now + self.cfg.claim_ticks(self.id)
+        out.append(ModeChange(LISTEN, reason))
+
+    # -- delivery ----------------------------------------------------------------------------
+
+    def _on_ack(self, src: int, num: int, now: int, out: list) -> None:
+        m = self._inflight
+        if m is None or m.num != num or src not in m.awaiting:
+            return
+        m.awaiting.discard(src)
+        m.acked.add(src)
+        if not m.awaiting:
+            self._finish(m, True, "", out)
+
+    def _finish(self, m: Message, delivered: bool, reason: str, out: list) -> None:
+        m.state = "delivered" if delivered else "failed"
+        m.reason = reason
+        if self._inflight is m:
+            self._inflight = None
+        elif m in self._queue:
+            self._queue.remove(m)
+        out.append(Outcome(m, delivered, reason))
+
+    def _pick_message(self, now: int, out: list) -> Message | None:
+        """The message to carry this turn (retransmission first), failing what must fail."""
+        cfg = self.cfg
+        m = self._inflight
+        if m is not None:
+            if now - m.submitted > cfg.max_age:
+                self._finish(m, False, f"expired: not acknowledged within "
+                             f"{cfg.max_age // 16_000} ms", out)
+            elif m.attempts >= cfg.max_attempts:
+                missing = ",".join(str(r) for r in sorted(m.awaiting))
+                self._finish(m, False, f"no acknowledgement from {missing} after "
+                             f"{m.attempts} attempts", out)
+            else:
+                return m
+        while self._queue:
+            m = self._queue[0]
+            if now - m.submitted > cfg.max_age:
+                self._finish(m, False, f"expired: not sent within {cfg.max_age // 16_000} ms",
+                             out)
+                continue
+            if m.dst != BROADCAST and m.dst not in self.ring:
+                m.waited += 1
+                if m.waited >= cfg.max_attempts:
+                    self._finish(m, False, f"destination {m.dst} not in the ring", out)
+                    continue
+                return None
+            if m.dst == BROADCAST and len(self.ring) < 2:
+                m.waited += 1
+                if m.waited >= cfg.max_attempts:
+                    self._finish(m, False, "broadcast with no other member in the ring", out)
+                    continue
+                return None
+            self._queue.pop(0)
+            m.awaiting = {m.dst} if m.dst != BROADCAST else set(self.ring) - {self.id}
+            self._inflight = m
+            return m
+        return None
+
+    def _poll_target(self) -> int | None:
+        """An absent team robot in the gap after me to invite this turn, if one is due."""
+        cfg = self.cfg
+        self._turns_since_poll += 1
+        if not self.lone and self._turns_since_poll < cfg.poll_every:
+            return None
+        ring = self.ring
+        nxt = self.succ(self.id)
+        gap = []
+        i = (self.id + 1) % 7
+        while i != nxt and i != self.id:
+            if i in cfg.team and i not in ring:
+                gap.append(i)
+            i = (i + 1) % 7
+        if self.lone:
+            gap = [r for r in sorted(cfg.team) if r != self.id]
+            gap = [r for r in gap if r > self.id] + [r for r in gap if r < self.id]
+        if not gap:
+            return None
+        k = self._poll_ptr.get(nxt, 0) % len(gap)
+        self._poll_ptr[nxt] = k + 1
+        self._turns_since_poll = 0
+        return gap[k]
+
+    def _build_frame(self, now: int, out: list) -> tuple[Frame, bytes]:
+        """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
+        if self._booting:
+            self._booting = False
+            self._sent_poll = None
+            frame = self._frame(BROADCAST, self._last_num, FrameType.BOOT, b"")
+            return frame, frame.encode()
+        msg = self._pick_message(now, out)
+        poll_to = self._poll_target()
+        crc_room = CRC_TEXT_LEN if self.cfg.checksum else 0
+        extra: list[Command] = []
+        if poll_to is not None:
+            extra.append(cmd("poll", poll_to, _mask(self.ring)))
+        acks = self._acks
+        room = self.max_content - crc_room - (len(msg.content) if msg is not None else 0)
+        if msg is not None and (acks and self._acks_deferred or room < 0):
+            msg = None                          # acks waited a turn already: they go first
+            room = self.max_content - crc_room
+        carried: list[Command] = []
+        used = sum(len(c.text()) for c in extra)
+        if used > room:
+            extra, used, poll_to = [], 0, None
+        kept = []
+        for a in acks:
+            c = cmd("ack", a[0], a[1])
+            n = len(c.text())
+            if used + n <= room:
+                carried.append(c)
+                used += n
+            else:
+                kept.append(a)
+        self._acks = kept
+        self._acks_deferred = bool(kept)
+        self._sent_poll = poll_to
+        mac_part = carried + extra
+        if msg is not None:
+            msg.attempts += 1
+            msg.state = "sent"
+            content = msg.content + (format_content(mac_part) if mac_part else b"")
+            frame = self._frame(msg.dst, msg.num, msg.type, content)
+            return frame, frame.encode()
+        num = self._last_num
+        content = format_content(mac_part) if mac_part else b""
+        key = (num, content)
+        hit = self._hb_cache.get(key)
+        if hit is None:
+            frame = self._frame(BROADCAST, num, FrameType.BROADCAST_INFO, content)
+            hit = (frame, frame.encode())
+            if len(self._hb_cache) < 256:
+                self._hb_cache[key] = hit
+        return hit
+
+    def _frame(self, dst: int, num: int, type: int, content: bytes) -> Frame:
+        if self.cfg.checksum:
+            return seal(dst, self.id, num, int(type), content)
+        return Frame(dst=dst, src=self.id, num=num, type=type, content=content)

@@ -1,0 +1,158 @@
+"""The radio half of the firmware: UART -> deframer -> rotational MAC -> UART and TXEN.
+
+This is the code a child's MB90F549 runs in its UART and reload-timer interrupt handlers, and
+the code the father PC runs: only the peripherals handed in differ (simulated on a Scheduler,
+or real ones in the bench). It knows nothing about the world it runs in.
+
+Interrupt order at one tick: UART bytes whose stop bit ended at tick t are taken before a timer
+interrupt at tick t reads any state (``on_timer`` first brings the UART up to date).
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from .mcu.gpio import OutputPin
+from .mcu.ptr2000 import Ptr2000
+from .mcu.reload_timer import ReloadTimer
+from .mcu.scheduler import Scheduler
+from .mcu.uart import Uart
+from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
+from .radio.mac import MacConfig, RotationalMac, Transmit, TxEnable
+
+Observer = Callable[["RadioStation", object, int], None]
+
+
+class RadioStation:
+    """One robot's radio firmware on its peripherals (UART0, TXEN pin, reload timer 0)."""
+
+    def __init__(self, robot_id: int, sched: Scheduler, uart: Uart, txen: OutputPin,
+                 config: MacConfig | None = None, observer: Observer | None = None) -> None:
+        cfg = config or MacConfig()
+        if cfg.byte_ticks != uart.byte_ticks:
+            from dataclasses import replace
+            cfg = replace(cfg, byte_ticks=uart.byte_ticks)
+        self.id = robot_id
+        self.sched = sched
+        self.uart = uart
+        self.txen = txen
+        self.mac = RotationalMac(robot_id, cfg)
+        self.deframer = Deframer(max_content=self.mac.max_content, byte_ticks=uart.byte_ticks)
+        self.timer = ReloadTimer(sched, self._on_timer)
+        self.observer = observer
+        self.garbage_bytes = 0
+        self.frames_heard = 0
+        self.frames_failed = 0
+        self._stall = 2 * uart.byte_ticks
+        uart.on_rx = self._on_rx
+        uart.on_tx_done = self._on_tx_done
+
+    # -- interrupt handlers ----------------------------------------------------------------
+
+    def power_on(self) -> None:
+        self._apply(self.mac.power_on(self.sched.now))
+
+    def _on_rx(self, data: bytes, t0: int, dt: int) -> None:
+        now = self.sched.now
+        mac = self.mac
+        evs = self.deframer.feed(data, t0, dt)
+        if len(evs) == 1 and type(evs[0]) is FrameReceived:   # the common case
+            ev = evs[0]
+            self.frames_heard += 1
+            actions = mac.on_frame(ev.frame, ev.first, ev.end, now)
+            if actions:
+                self._act(actions)
+            dl = mac.deadline
+            timer = self.timer
+            if dl != timer.expiry:
+                if dl is None:
+                    timer.stop()
+                else:
+                    timer.arm_at(dl)
+            return
+        for ev in evs:
+            if type(ev) is FrameReceived:
+                self.frames_heard += 1
+                self._apply(mac.on_frame(ev.frame, ev.first, ev.end, now), ev)
+            elif type(ev) is Garbage:
+                self.garbage_bytes += ev.count
+                self._apply(mac.on_garbage(ev.first, ev.last, now))
+            elif type(ev) is FrameFailed:
+                self.frames_failed += 1
+                # A frame that fails where its End should be while bytes keep coming had its
+                # Length corrupted downwards: its promised end is early, so do not trust it.
+                exp = None if ev.error.field == "end" else ev.expected_end
+                self._apply(mac.on_corrupt(ev.first, ev.src, exp, now), ev)
+
+    def _on_timer(self, now: int) -> None:
+        self.uart.sync(now)
+        d = self.deframer
+        busy = False
+        if d.in_frame:
+            if d.last_tick is not None and now - d.last_tick <= self._stall:
+                busy = True
+            else:
+                ev = d.abort(now)
+                if ev is not None:
+                    self.frames_failed += 1
+                    self._apply(self.mac.on_corrupt(ev.first, ev.src, ev.expected_end, now), ev)
+        self._apply(self.mac.on_timer(now, busy, d.last_tick))
+
+    def _on_tx_done(self, end: int) -> None:
+        self._apply(self.mac.on_tx_done(end))
+
+    # -- the application side --------------------------------------------------------------
+
+    def submit(self, dst: int, commands, type: int = 2):
+        """Queue a message for the radio (see RotationalMac.submit)."""
+        msg = self.mac.submit(dst, commands, self.sched.now, type)
+        if self.observer is not None:
+            self.observer(self, msg, self.sched.now)
+        self._apply(())
+        return msg
+
+    def force_turn(self) -> None:
+        """Fault injection: this robot wrongly takes the turn now (see RotationalMac)."""
+        self.uart.sync(self.sched.now)      # bytes complete by now are taken first
+        self._apply(self.mac.force_turn(self.sched.now))
+
+    # -- actions ---------------------------------------------------------------------------
+
+    def _apply(self, actions, cause=None) -> None:
+        if actions:
+            self._act(actions)
+        dl = self.mac.deadline
+        if dl is None:
+            if self.timer.expiry is not None:
+                self.timer.stop()
+        elif dl != self.timer.expiry:
+            self.timer.arm_at(dl)
+
+    def _act(self, actions) -> None:
+        now = self.sched.now
+        obs = self.observer
+        for a in actions:
+            t = type(a)
+            if t is TxEnable:
+                self.txen.set(a.on, now)
+            elif t is Transmit:
+                self.uart.send(a.data)
+                if obs is not None:
+                    obs(self, a, now)
+            elif obs is not None:
+                obs(self, a, now)
+
+
+def build_station(robot_id: int, sched: Scheduler, byte_ticks: int | None = None,
+                  config: MacConfig | None = None,
+                  observer: Observer | None = None) -> tuple[RadioStation, Ptr2000]:
+    """A station on simulated peripherals: UART0 at "9600" (or ``byte_ticks``), TXEN on P40,
+    wired to a PTR2000 model. Returns the station and its radio (to attach to a channel)."""
+    uart = Uart(sched, byte_ticks=byte_ticks) if byte_ticks else Uart(sched, baud=9600)
+    cfg = config or MacConfig()
+    radio = Ptr2000(robot_id, ttrans=cfg.ttrans)
+    radio.uart = uart
+    uart.line = radio
+    txen = OutputPin("P40/TXEN")
+    txen.listeners.append(radio.set_txen)
+    station = RadioStation(robot_id, sched, uart, txen, cfg, observer)
+    return station, radio

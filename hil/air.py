@@ -1,0 +1,370 @@
+"""The virtual air: one shared 433 MHz channel for every PTR2000 in the simulated world.
+
+What a receiver hears (PROTOCOL.md §1):
+* a transmission reaches every radio that is listening when its first bit goes out, each byte
+  at the tick its stop bit ends at the sender's rate (a radio that starts listening in the
+  middle of a transmission hears nothing of it);
+* when two transmissions overlap, every listening radio hears garbage (random bytes at its own
+  UART rate) from the start of the overlap until the channel is clear; bytes completed before
+  the overlap are heard intact; the transmitters themselves are deaf and notice nothing;
+* with ``ber`` each byte a receiver hears is corrupted (one bit flipped) with that probability,
+  independently per receiver;
+* with ``noise`` a listening radio hears random bytes, back to back at its UART rate, whenever
+  no transmission reaches it (a PTR2000 outputs noise with no carrier).
+
+Speed without changing a tick: bytes exactly as sent cannot make the firmware act before the
+frame's last byte (the deframer only reports a frame at its End), so a clean reception is
+delivered in one burst at the end of the transmission, or up to ``now`` whenever the firmware
+looks at its UART first (its timer interrupt calls ``sync``). Bytes that differ from what was
+sent — corrupted by ``ber``, collision garbage, idle noise that contains a header — can make
+the firmware act at any byte, so they are delivered one by one at their own ticks. Idle noise
+without a header is delivered in bursts (it can only be discarded). Every random draw comes
+from a per-radio stream consumed in byte order. ``byte_by_byte=True`` delivers every byte at
+its own tick; the tests check both give the same trace.
+"""
+from __future__ import annotations
+
+import math
+import random
+from typing import Callable
+
+from firmware_model.mcu.ptr2000 import NEVER, Ptr2000
+from firmware_model.mcu.scheduler import Scheduler
+
+HEADER = b"\x0f\x0a\x05"
+NOISE_LOOKAHEAD = 1024
+"""Bytes of a radio's noise stream scanned ahead for a header (then re-scanned)."""
+
+
+class ByteStream:
+    """A seeded source of random bytes, consumed in order whatever the request sizes."""
+
+    __slots__ = ("rng", "buf", "pos")
+
+    def __init__(self, rng: random.Random) -> None:
+        self.rng = rng
+        self.buf = b""
+        self.pos = 0
+
+    def _fill(self, n: int) -> None:
+        if len(self.buf) - self.pos < n:
+            need = max(4096, n)
+            self.buf = self.buf[self.pos:] + self.rng.randbytes(need)
+            self.pos = 0
+
+    def peek(self, n: int) -> bytes:
+        self._fill(n)
+        return self.buf[self.pos:self.pos + n]
+
+    def take(self, n: int) -> bytes:
+        self._fill(n)
+        out = self.buf[self.pos:self.pos + n]
+        self.pos += n
+        return out
+
+
+class Transmission:
+    """One burst on air from ``radio``: byte i occupies [t0 + i*bt, t0 + (i+1)*bt)."""
+
+    __slots__ = ("radio", "data", "t0", "bt", "end", "collided", "aborted", "n")
+
+    def __init__(self, radio: Ptr2000, data: bytes, t0: int, bt: int) -> None:
+        self.radio = radio
+        self.data = data
+        self.t0 = t0
+        self.bt = bt
+        self.n = len(data)
+        self.end = t0 + len(data) * bt
+        self.collided = False
+        self.aborted = False
+
+
+class Reception:
+    """Bytes one radio hears, byte i complete at ``t0 + (i+1)*bt``; ``pos`` delivered so far.
+
+    ``data`` is None for collision garbage (drawn from the radio's garbage stream)."""
+
+    __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream")
+
+    def __init__(self, data: bytes | None, t0: int, bt: int, n: int,
+                 tx: Transmission | None = None, stream: ByteStream | None = None) -> None:
+        self.data = data
+        self.t0 = t0
+        self.bt = bt
+        self.pos = 0
+        self.n = n
+        self.tx = tx
+        self.stream = stream
+
+    def flush(self, radio: Ptr2000, now: int) -> None:
+        """Deliver every byte whose stop bit ended by ``now``."""
+        pos = self.pos
+        k = (now - self.t0) // self.bt
+        if k > self.n:
+            k = self.n
+        if k > pos:
+            self.pos = k
+            data = self.data[pos:k] if self.data is not None else self.stream.take(k - pos)
+            radio.deliver(data, self.t0 + (pos + 1) * self.bt, self.bt)
+
+
+class Air:
+    """The shared channel. ``attach`` radios, then let their UARTs transmit."""
+
+    def __init__(self, sched: Scheduler, seed: int = 0, ber: float = 0.0, noise: bool = False,
+                 byte_by_byte: bool = False) -> None:
+        if not 0.0 <= ber < 1.0:
+            raise ValueError(f"byte error rate must be in [0, 1), got {ber}")
+        self.sched = sched
+        self.seed = seed
+        self.ber = ber
+        self._log1mp = math.log1p(-ber) if ber > 0 else 0.0
+        self.noise = noise
+        self.byte_by_byte = byte_by_byte
+        self.radios: list[Ptr2000] = []
+        self.active: list[Transmission] = []
+        self.collision_until = -1
+        self._garbage: list[ByteStream] = []
+        self._noise: list[ByteStream] = []
+        self._noise_gen: list[int] = []
+        self._err_rng: list[random.Random] = []
+        self.occupations = 0
+        self.collisions = 0
+        self.on_transmission: Callable[[Transmission], None] | None = None
+        self.on_collision: Callable[[int, list[int]], None] | None = None
+
+    def attach(self, radio: Ptr2000) -> None:
+        radio.channel = self
+        radio.idx = len(self.radios)
+        self.radios.append(radio)
+        name = f"{self.seed}:{radio.robot}"
+        self._garbage.append(ByteStream(random.Random(f"{name}:garbage")))
+        self._noise.append(ByteStream(random.Random(f"{name}:noise")))
+        self._noise_gen.append(0)
+        self._err_rng.append(random.Random(f"{name}:ber"))
+        self._idle_from(radio, self.sched.now)
+
+    # -- the radios' side -----------------------------------------------------------------
+
+    def transmit(self, radio: Ptr2000, data: bytes, t0: int, bt: int) -> None:
+        tx = Transmission(radio, data, t0, bt)
+        self.occupations += 1
+        overlapping = [a for a in self.active if a.end > t0]
+        if overlapping or t0 < self.collision_until:
+            self.active.append(tx)
+            self._collide(tx, overlapping, t0)
+        else:
+            self.active.append(tx)
+            plain = self.ber == 0.0 and not self.byte_by_byte
+            noise = self.noise
+            for r in self.radios:
+                if r is radio or not r.alive or t0 < r.rx_from:
+                    continue
+                if noise:
+                    self._noise_upto(r, t0)
+                    self._noise_gen[r.idx] += 1
+                r.rx = Reception(data, t0, bt, tx.n, tx) if plain else self._reception(r, tx)
+        self.sched.at(tx.end, self._end, tx)
+
+    def sync(self, radio: Ptr2000, now: int) -> None:
+        """Bring what ``radio`` has heard up to ``now`` (before its firmware looks)."""
+        rx = radio.rx
+        if rx is not None:
+            rx.flush(radio, now)
+        elif self.noise and radio.listening(now):
+            self._noise_upto(radio, now)
+
+    def deafen(self, radio: Ptr2000, now: int) -> None:
+        """``radio`` stops hearing at ``now`` (TXEN raised or radio dead)."""
+        self.sync(radio, now)
+        radio.rx = None
+        self._noise_gen[radio.idx] += 1
+
+    def rx_restart(self, radio: Ptr2000, when: int) -> None:
+        """``radio`` hears the air again from tick ``when`` (TXEN lowered)."""
+        self._idle_from(radio, when)
+
+    def kill(self, radio: Ptr2000, now: int) -> None:
+        """Fault injection: the radio goes silent (mid-frame too) and deaf."""
+        self.deafen(radio, now)
+        radio.alive = False
+        for tx in list(self.active):
+            if tx.radio is radio and not tx.aborted:
+                self._abort(tx, now)
+
+    def revive(self, radio: Ptr2000, now: int) -> None:
+        radio.alive = True
+        self._idle_from(radio, now if radio.rx_from == NEVER else max(now, radio.rx_from))
+
+    # -- receptions -----------------------------------------------------------------------
+
+    def _reception(self, r: Ptr2000, tx: Transmission) -> Reception:
+        data = tx.data
+        n = tx.n
+        first_bad = n
+        if self.ber > 0.0:
+            rng = self._err_rng[r.idx]
+            pos = -1
+            buf = None
+            while True:
+                pos += 1 + int(math.log(1.0 - rng.random()) / self._log1mp)
+                if pos >= n:
+                    break
+                if buf is None:
+                    buf = bytearray(data)
+                    first_bad = pos
+                buf[pos] ^= 1 << rng.randrange(8)
+            if buf is not None:
+                data = bytes(buf)
+        rx = Reception(data, tx.t0, tx.bt, n, tx)
+        self._bytewise(r, rx, 0 if self.byte_by_byte else first_bad, n - 1)
+        return rx
+
+    def _bytewise(self, r: Ptr2000, rx: Reception, lo: int, hi: int) -> None:
+        """Deliver bytes lo..hi-1 (0-based) each at its own tick; the last byte of a reception
+        is delivered by the end-of-transmission event, in radio order, in every mode."""
+        at = self.sched.at
+        t0, bt = rx.t0, rx.bt
+        for i in range(lo + 1, hi + 1):
+            t = t0 + i * bt
+            at(t, self._sync_rx, r, rx, t)
+
+    def _sync_rx(self, r: Ptr2000, rx: Reception, t: int) -> None:
+        if r.rx is rx:
+            rx.flush(r, t)
+
+    # -- idle noise -----------------------------------------------------------------------
+
+    def _idle_from(self, r: Ptr2000, t: int) -> None:
+        r.noise_from = max(r.noise_from, t)
+        if self.noise:
+            self._noise_gen[r.idx] += 1
+            self._scan_noise(r, r.noise_from)
+
+    def _scan_noise(self, r: Ptr2000, start: int) -> None:
+        """Find the next header in the noise this radio will hear from ``start`` and make sure
+        it is delivered byte by byte (it can make the firmware act); re-scan further on."""
+        bt = r.uart.byte_ticks
+        ahead = self._noise[r.idx].peek(NOISE_LOOKAHEAD)
+        k = ahead.find(HEADER)
+        gen = self._noise_gen[r.idx]
+        if k < 0:
+            self.sched.at(start + (NOISE_LOOKAHEAD - 2) * bt, self._noise_rescan, r, gen)
+        else:
+            self.sched.at(start + (k + 1) * bt, self._noise_header, r, gen)
+
+    def _noise_rescan(self, r: Ptr2000, gen: int) -> None:
+        if gen != self._noise_gen[r.idx] or r.rx is not None or not r.listening(self.sched.now):
+            return
+        self._noise_upto(r, self.sched.now)
+        self._noise_gen[r.idx] += 1
+        self._scan_noise(r, r.noise_from)
+
+    def _noise_header(self, r: Ptr2000, gen: int) -> None:
+        if gen != self._noise_gen[r.idx] or r.rx is not None or not r.listening(self.sched.now):
+            return
+        now = self.sched.now
+        self._noise_upto(r, now)
+        # A header in the noise: the rest of this idle period goes byte by byte (bounded by a
+        # maximum frame), then bursts again.
+        bt = r.uart.byte_ticks
+        for i in range(1, 600):
+            self.sched.at(now + i * bt, self._noise_byte, r, gen)
+        self.sched.at(now + 600 * bt, self._noise_rescan, r, gen)
+
+    def _noise_byte(self, r: Ptr2000, gen: int) -> None:
+        if gen == self._noise_gen[r.idx] and r.rx is None and r.listening(self.sched.now):
+            self._noise_upto(r, self.sched.now)
+
+    def _noise_upto(self, r: Ptr2000, t: int) -> None:
+        if not self.noise:
+            return
+        start = r.noise_from
+        if r.rx_from > start:
+            start = r.rx_from
+        bt = r.uart.byte_ticks
+        n = (t - start) // bt
+        if n > 0:
+            r.noise_from = start + n * bt
+            r.deliver(self._noise[r.idx].take(n), start + bt, bt)
+
+    # -- collisions and ends --------------------------------------------------------------
+
+    def _collide(self, tx: Transmission, overlapping: list[Transmission], t0: int) -> None:
+        self.collisions += 1
+        for a in overlapping:
+            a.collided = True
+        tx.collided = True
+        cend = max([a.end for a in overlapping] + [tx.end, self.collision_until])
+        extended = cend > self.collision_until
+        if extended:
+            self.collision_until = cend
+            self.sched.at(cend, self._collision_end, cend)
+        for r in self.radios:
+            if r is tx.radio:
+                continue
+            rx = r.rx
+            if rx is not None and rx.data is None:     # already hearing garbage: extend it
+                old = rx.n
+                rx.n = (cend - rx.t0) // rx.bt
+                self._bytewise(r, rx, old - 1, rx.n - 1)
+                continue
+            if not r.listening(t0):
+                continue
+            if rx is not None:
+                rx.flush(r, t0)
+            else:
+                self._noise_upto(r, t0)
+            self._noise_gen[r.idx] += 1
+            bt = r.uart.byte_ticks
+            g = Reception(None, t0, bt, (cend - t0) // bt, None, self._garbage[r.idx])
+            r.rx = g
+            self._bytewise(r, g, 0, g.n - 1)
+        if self.on_collision is not None:
+            involved = overlapping + [tx]
+            self.on_collision(t0, sorted({a.radio.robot for a in involved}))
+
+    def _collision_end(self, cend: int) -> None:
+        """The channel is clear again: receivers stop hearing garbage."""
+        if cend != self.collision_until:
+            return  # the collision was extended; a later event ends it
+        for r in self.radios:
+            rx = r.rx
+            if rx is not None and rx.data is None:
+                rx.flush(r, cend)
+                r.rx = None
+                self._idle_from(r, cend)
+
+    def _abort(self, tx: Transmission, now: int) -> None:
+        """The sender died at ``now``: only bytes complete by then were on air."""
+        tx.aborted = True
+        for r in self.radios:
+            rx = r.rx
+            if rx is not None and rx.tx is tx:
+                rx.flush(r, now)
+                rx.n = rx.pos
+                r.rx = None
+                self._idle_from(r, now)
+        self.active.remove(tx)
+        tx.end = now
+        if self.on_transmission is not None:
+            self.on_transmission(tx)
+
+    def _end(self, tx: Transmission) -> None:
+        if tx.aborted:
+            return
+        self.active.remove(tx)
+        now = tx.end
+        if not tx.collided:
+            noise = self.noise
+            for r in self.radios:
+                rx = r.rx
+                if rx is not None and rx.tx is tx:
+                    rx.flush(r, now)
+                    r.rx = None
+                    if noise:
+                        self._idle_from(r, now)
+                    elif now > r.noise_from:
+                        r.noise_from = now
+        if self.on_transmission is not None:
+            self.on_transmission(tx)

@@ -1,0 +1,64 @@
+"""JSON Lines trace of a run: one event a line, schema in docs/trace.md.
+
+The first line is the ``meta`` event; every later line has ``t`` (tick, non-decreasing) and
+``ev``. Keys are written in a fixed order and numbers as integers, so the same seed gives a
+byte-identical file.
+"""
+from __future__ import annotations
+
+import json
+import os
+from typing import IO, Any, Iterator
+
+TRACE_VERSION = 1
+
+
+class TraceWriter:
+    """Writes events to ``path`` atomically: the file appears complete at ``close()`` or not at
+    all (a run that fails leaves no partial trace behind)."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self._tmp = f"{path}.partial"
+        self._f: IO[str] = open(self._tmp, "w", encoding="ascii", newline="\n")
+        self._dumps = json.JSONEncoder(separators=(",", ":"), ensure_ascii=True).encode
+        self.count = 0
+
+    def write(self, ev: dict[str, Any]) -> None:
+        self._f.write(self._dumps(ev))
+        self._f.write("\n")
+        self.count += 1
+
+    def close(self) -> None:
+        self._f.close()
+        os.replace(self._tmp, self.path)
+
+    def discard(self) -> None:
+        self._f.close()
+        try:
+            os.unlink(self._tmp)
+        except FileNotFoundError:
+            pass
+
+
+class TraceError(ValueError):
+    """A trace file that cannot be read: says which line and why."""
+
+
+def read_trace(path: str) -> Iterator[dict[str, Any]]:
+    """Yield the events of a trace file, checking the meta line comes first."""
+    try:
+        f = open(path, encoding="ascii")
+    except OSError as exc:
+        raise TraceError(f"cannot read trace {path}: {exc.strerror}") from None
+    with f:
+        for n, line in enumerate(f, 1):
+            try:
+                ev = json.loads(line)
+            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+                raise TraceError(f"{path}:{n}: not a JSON line ({exc})") from None
+            if not isinstance(ev, dict) or "ev" not in ev:
+                raise TraceError(f"{path}:{n}: not a trace event (no 'ev')")
+            if n == 1 and ev["ev"] != "meta":
+                raise TraceError(f"{path}:1: the first line must be the meta event")
+            yield ev

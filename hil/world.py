@@ -1,0 +1,401 @@
+"""The simulated world: N robots' radio firmware on one virtual air, driven as fast as the CPU
+goes by one integer-tick scheduler.
+
+Everything random (noise, byte errors, load) is drawn from streams seeded by ``seed``, so the
+same configuration gives the same trace to the tick.
+"""
+from __future__ import annotations
+
+import random
+from collections import Counter
+from dataclasses import dataclass, field, replace
+from typing import Callable, Iterable
+
+from firmware_model.mcu.scheduler import Scheduler
+from firmware_model.radio.content import Command, cmd
+from firmware_model.radio.frame import BROADCAST
+from firmware_model.radio.mac import (
+    BadContent, Deliver, Disable, Duplicate, Join, MacConfig, Message, Miss, ModeChange,
+    Outcome, SubmitError, Transmit,
+)
+from firmware_model.station import RadioStation, build_station
+from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to_ticks
+
+from .air import Air, Transmission
+from .trace import TRACE_VERSION, TraceWriter
+
+
+class ConfigError(ValueError):
+    """A simulation setting that cannot work (bad robot list, fault time, load ...)."""
+
+
+FAULT_KINDS = ("fail", "recover", "steal")
+
+
+@dataclass(frozen=True)
+class Fault:
+    """At ``at`` seconds: ``robot``'s radio goes silent ('fail') or comes back ('recover'), or
+    the robot wrongly takes the turn ('steal', forcing a collision)."""
+
+    kind: str
+    robot: int
+    at: float
+
+
+@dataclass
+class SimConfig:
+    """One simulation run. Times in seconds; IDs 0 (father) to 6."""
+
+    robots: tuple[int, ...] = (1, 2, 3, 4)
+    duration: float = 10.0
+    seed: int = 0
+    faults: tuple[Fault, ...] = ()
+    ber: float = 0.0
+    noise: bool = False
+    load: str | float = "idle"
+    load_until: float | None = None
+    """No new messages after this many seconds (lets a run drain its queues)."""
+    power_on: dict[int, float] = field(default_factory=dict)
+    byte_by_byte: bool = False
+    mac: MacConfig | None = None
+
+    def validate(self) -> None:
+        if not self.robots:
+            raise ConfigError("no robots: give at least one ID with --robots")
+        for r in self.robots:
+            if not isinstance(r, int) or not 0 <= r <= 6:
+                raise ConfigError(f"robot ID {r!r} is not 0-6 (0 is the father, 1-6 children)")
+        if len(set(self.robots)) != len(self.robots):
+            raise ConfigError(f"robot IDs repeat in {list(self.robots)}")
+        if not self.duration > 0:
+            raise ConfigError(f"duration must be positive, got {self.duration}")
+        if not 0.0 <= self.ber < 1.0:
+            raise ConfigError(f"byte error rate must be in [0, 1), got {self.ber}")
+        for f in self.faults:
+            if f.robot not in self.robots:
+                raise ConfigError(f"--{f.kind} names robot {f.robot}, which is not in the ring "
+                                  f"{list(self.robots)}")
+            if f.at < 0:
+                raise ConfigError(f"--{f.kind} time must not be negative, got {f.at}")
+        if isinstance(self.load, str):
+            if self.load not in ("idle", "saturate"):
+                raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
+        elif not self.load > 0:
+            raise ConfigError(f"load rate must be positive messages/s, got {self.load}")
+        for r, t in self.power_on.items():
+            if r not in self.robots or t < 0:
+                raise ConfigError(f"bad power-on time {t} for robot {r}")
+
+
+@dataclass
+class RobotStats:
+    frames_sent: int = 0
+    received: int = 0
+    duplicates: int = 0
+    submitted: int = 0
+    delivered: int = 0
+    failed: int = 0
+    refused: int = 0
+    missed: int = 0
+
+
+def _random_commands(rng: random.Random) -> list[Command]:
+    """One to three plausible application commands (seeded)."""
+    out = []
+    for _ in range(rng.randint(1, 3)):
+        k = rng.randrange(7)
+        if k == 0:
+            out.append(cmd("movex", rng.randint(-200, 200)))
+        elif k == 1:
+            out.append(cmd("movey", rng.randint(-200, 200)))
+        elif k == 2:
+            out.append(cmd("movez", rng.randint(-100, 100)))
+        elif k == 3:
+            out.append(cmd("moveto", rng.randint(-300, 300), rng.randint(-300, 300),
+                           rng.randint(0, 200)))
+        elif k == 4:
+            out.append(cmd("joint", rng.randint(1, 4), rng.randint(-90, 90)))
+        elif k == 5:
+            out.append(cmd("wheel", rng.randint(-100, 100)))
+        else:
+            out.append(cmd("paw", rng.randint(0, 1)))
+    return out
+
+
+def _filled_commands(size: int) -> list[Command]:
+    """Commands whose Content is ``size`` bytes or up to 7 fewer (a full-size message)."""
+    out = []
+    left = size
+    while left >= 16:
+        out.append(cmd("movex", 123456789))   # 'movex(123456789)' = 16 bytes
+        left -= 16
+    if left >= 8:
+        out.append(cmd("movex", int("1" * (left - 7))))
+    return out
+
+
+class World:
+    """Robots, air and scheduler; ``run()`` advances simulated time."""
+
+    def __init__(self, config: SimConfig, trace: TraceWriter | None = None,
+                 on_event: Callable[[dict], None] | None = None) -> None:
+        config.validate()
+        self.cfg = config
+        self.sched = Scheduler()
+        self.trace = trace
+        self.on_event = on_event
+        self.air = Air(self.sched, seed=config.seed, ber=config.ber, noise=config.noise,
+                       byte_by_byte=config.byte_by_byte)
+        self.air.on_transmission = self._on_transmission
+        self.air.on_collision = self._on_collision
+        base = config.mac or MacConfig()
+        base = replace(base, team=frozenset(config.robots))
+        self.mac_config = base
+        self.stations: dict[int, RadioStation] = {}
+        self.radios = {}
+        self.stats: dict[int, RobotStats] = {r: RobotStats() for r in config.robots}
+        self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
+        self._membership_seen: set[tuple[int, str, int]] = set()
+        self._miss_seen: set[tuple[int, int]] = set()
+        self.outcomes: list[Outcome] = []
+        self.messages: list[Message] = []
+        self.deliveries: Counter = Counter()        # (src, num, submit-serial, receiver)
+        self.collisions = 0
+        self.corrupt_deliveries = 0
+        self._rngs = {r: random.Random(f"{config.seed}:load:{r}") for r in config.robots}
+        self._serial: dict[tuple[int, int], int] = {}
+        self.byte_ticks = {r: (PC_BYTE_TICKS if r == 0 else CHILD_BYTE_TICKS)
+                           for r in config.robots}
+        for r in sorted(config.robots):
+            cfg = replace(base, byte_ticks=self.byte_ticks[r])
+            st, radio = build_station(r, self.sched, byte_ticks=self.byte_ticks[r], config=cfg,
+                                      observer=self._observe)
+            self.air.attach(radio)
+            radio.alive = False
+            self.stations[r] = st
+            self.radios[r] = radio
+            self.sched.at(s_to_ticks(config.power_on.get(r, 0.0)), self._power_on, r)
+        for f in config.faults:
+            self.sched.at(s_to_ticks(f.at), self._fault, f)
+        self.end_tick = s_to_ticks(config.duration)
+        self._emit({"ev": "meta", "version": TRACE_VERSION, "tick_hz": TICK_HZ,
+                    "byte_ticks": {str(r): self.byte_ticks[r] for r in sorted(config.robots)},
+                    "ttrans": base.ttrans, "tmax": base.tmax, "twin": base.twin,
+                    "tslot": base.tslot, "miss_limit": base.miss_limit,
+                    "robots": sorted(config.robots), "seed": config.seed,
+                    "ber": config.ber, "noise": config.noise,
+                    "load": config.load, "duration_ticks": self.end_tick}, meta=True)
+
+    # -- running --------------------------------------------------------------------------
+
+    def run(self, until: int | None = None) -> None:
+        """Advance to tick ``until`` (default: the configured duration)."""
+        self.sched.run_until(self.end_tick if until is None else min(until, self.end_tick))
+
+    @property
+    def now(self) -> int:
+        return self.sched.now
+
+    # -- events from the parts ------------------------------------------------------------
+
+    def _emit(self, ev: dict, meta: bool = False) -> None:
+        if not meta:
+            ev = {"t": self.sched.now, **ev}
+        if self.trace is not None:
+            self.trace.write(ev)
+        if self.on_event is not None:
+            self.on_event(ev)
+
+    def _power_on(self, r: int) -> None:
+        radio = self.radios[r]
+        self.air.revive(radio, self.sched.now)
+        self._emit({"ev": "power", "robot": r})
+        self.stations[r].power_on()
+        load = self.cfg.load
+        if load == "saturate":
+            for _ in range(2):
+                self._submit_full(r)
+        elif not isinstance(load, str):
+            self._schedule_arrival(r)
+
+    def _fault(self, f: Fault) -> None:
+        radio = self.radios[f.robot]
+        now = self.sched.now
+        self._emit({"ev": "fault", "robot": f.robot, "kind": f.kind})
+        if f.kind == "fail":
+            self.air.kill(radio, now)
+        elif f.kind == "recover":
+            self.air.revive(radio, now)
+        elif f.kind == "steal":
+            self.stations[f.robot].force_turn()
+
+    def inject(self, kind: str, robot: int, at_tick: int) -> None:
+        """Schedule a fault at a tick: 'fail', 'recover' (radio), 'steal' (take the turn)."""
+        if kind not in FAULT_KINDS:
+            raise ConfigError(f"unknown fault {kind!r}; one of {', '.join(FAULT_KINDS)}")
+        self.sched.at(at_tick, self._fault, Fault(kind, robot, at_tick / TICK_HZ))
+
+    def _on_transmission(self, tx: Transmission) -> None:
+        r = tx.radio.robot
+        self.stats[r].frames_sent += 1
+        if self.trace is None and self.on_event is None:
+            return
+        d = tx.data
+        ev = {"ev": "frame", "src": r}
+        try:
+            ev.update(dst=d[3] - 48, num=int(d[5:7]), type=d[7] - 48, len=int(d[8:12]))
+        except (IndexError, ValueError):
+            ev.update(dst=None, num=None, type=None, len=None)
+        ev.update(start=tx.t0, end=tx.end, bytes=len(d) if not tx.aborted else
+                  (tx.end - tx.t0) // tx.bt, collided=tx.collided, aborted=tx.aborted)
+        self._emit(ev)
+
+    def _on_collision(self, t0: int, robots: list[int]) -> None:
+        self.collisions += 1
+        self._emit({"ev": "collision", "robots": robots})
+
+    def _observe(self, st: RadioStation, a: object, now: int) -> None:
+        r = st.id
+        t = type(a)
+        if t is Transmit:
+            return
+        if t is Miss:
+            key = (now, a.robot)
+            if key not in self._miss_seen and self.radios[r].alive:
+                # Counted once per turn, and only by observers that can hear the air.
+                self._miss_seen.add(key)
+                if a.robot in self.stats:
+                    self.stats[a.robot].missed += 1
+            self._emit({"ev": "miss", "robot": a.robot, "by": r})
+        elif t is Disable:
+            self._membership("disable", a.robot, now)
+            self._emit({"ev": "disable", "robot": a.robot, "by": r})
+        elif t is Join:
+            kind = "rejoin" if a.again else "join"
+            self._membership(kind, a.robot, now)
+            self._emit({"ev": kind, "robot": a.robot, "by": r})
+        elif t is ModeChange:
+            self._membership(a.mode, r, now)
+            self._emit({"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason})
+        elif t is Deliver:
+            self.stats[r].received += 1
+            # Ground truth the firmware cannot see: is this what the sender submitted?
+            serial = self._serial.get((a.src, a.num), 0)
+            m = self.messages[serial - 1] if serial else None
+            intact = m is not None and m.dst == a.dst and m.type == a.type and \
+                m.commands == a.commands
+            if intact:
+                self.deliveries[(a.src, a.num, serial, r)] += 1
+            else:
+                self.corrupt_deliveries += 1
+            self._emit({"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
+                        "type": a.type, "to": r, "intact": intact})
+        elif t is Duplicate:
+            self.stats[r].duplicates += 1
+            self._emit({"ev": "duplicate", "src": a.src, "num": a.num, "to": r})
+        elif t is BadContent:
+            self._emit({"ev": "bad_content", "src": a.src, "num": a.num, "to": r,
+                        "reason": str(a.error)})
+        elif t is Outcome:
+            m = a.message
+            self.outcomes.append(a)
+            s = self.stats[r]
+            if a.delivered:
+                s.delivered += 1
+                self._emit({"ev": "delivered", "src": m.src, "dst": m.dst, "num": m.num,
+                            "attempts": m.attempts})
+            else:
+                s.failed += 1
+                self._emit({"ev": "fail", "src": m.src, "dst": m.dst, "num": m.num,
+                            "reason": a.reason})
+            if self.cfg.load == "saturate":
+                self._submit_full(r)
+        elif t is Message:
+            self.stats[r].submitted += 1
+            self.messages.append(a)
+            self._serial[(a.src, a.num)] = len(self.messages)
+            self._emit({"ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
+                        "type": a.type, "len": len(a.content)})
+
+    def _membership(self, kind: str, robot: int, now: int) -> None:
+        key = (now, kind, robot)
+        if key not in self._membership_seen:
+            self._membership_seen.add(key)
+            self.membership.append(key)
+
+    # -- load -----------------------------------------------------------------------------
+
+    def submit(self, src: int, dst: int, commands: Iterable[Command], type: int = 2):
+        """Submit a message at ``src`` now; a refused one is counted and re-raised."""
+        try:
+            return self.stations[src].submit(dst, list(commands), type)
+        except SubmitError:
+            self.stats[src].refused += 1
+            raise
+
+    def _others(self, r: int) -> list[int]:
+        return [x for x in sorted(self.cfg.robots) if x != r]
+
+    def _load_on(self) -> bool:
+        lu = self.cfg.load_until
+        return lu is None or self.sched.now < s_to_ticks(lu)
+
+    def _submit_full(self, r: int) -> None:
+        if not self._load_on():
+            return
+        st = self.stations[r]
+        others = self._others(r)
+        if not others:
+            return
+        dst = self._rngs[r].choice(others)
+        size = st.mac.max_content - st.mac.cfg.mac_reserve
+        try:
+            self.submit(r, dst, _filled_commands(size))
+        except SubmitError:
+            pass
+
+    def _schedule_arrival(self, r: int) -> None:
+        rate = float(self.cfg.load)
+        dt = max(1, round(self._rngs[r].expovariate(rate) * TICK_HZ))
+        self.sched.after(dt, self._arrival, r)
+
+    def _arrival(self, r: int) -> None:
+        if not self._load_on():
+            return
+        rng = self._rngs[r]
+        others = self._others(r)
+        if others:
+            dst = rng.choice(others + [BROADCAST]) if len(others) > 1 else others[0]
+            try:
+                self.submit(r, dst, _random_commands(rng))
+            except SubmitError:
+                pass
+        self._schedule_arrival(r)
+
+    # -- results --------------------------------------------------------------------------
+
+    def ring_views(self) -> dict[int, tuple[int, ...]]:
+        """Each robot's current ring (empty while it listens)."""
+        return {r: st.mac.ring for r, st in self.stations.items()}
+
+    def summary(self) -> dict:
+        """The figures of the paper's simulator (Fig. 9) and the delivery accounting."""
+        robots = {}
+        for r in sorted(self.stations):
+            st, s = self.stations[r], self.stats[r]
+            robots[r] = {"frames_sent": s.frames_sent, "received": s.received,
+                         "pending": st.mac.pending, "missed": s.missed,
+                         "submitted": s.submitted, "delivered": s.delivered,
+                         "failed": s.failed, "refused": s.refused,
+                         "duplicates_dropped": s.duplicates, "mode": st.mac.mode,
+                         "ring": list(st.mac.ring)}
+        total = lambda k: sum(v[k] for v in robots.values())  # noqa: E731
+        dup_deliveries = sum(c - 1 for c in self.deliveries.values() if c > 1)
+        return {"duration_ticks": self.sched.now, "robots": robots,
+                "occupations": self.air.occupations, "collisions": self.collisions,
+                "membership_changes": [{"t": t, "ev": k, "robot": r}
+                                       for t, k, r in self.membership],
+                "submitted": total("submitted"), "delivered": total("delivered"),
+                "failed": total("failed"), "pending": total("pending"),
+                "duplicate_deliveries": dup_deliveries,
+                "corrupt_deliveries": self.corrupt_deliveries}

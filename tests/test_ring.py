@@ -1,0 +1,296 @@
+"""The rotational MAC in the simulated world: the paper's scenarios, timed to the tick."""
+from __future__ import annotations
+
+import random
+
+import pytest
+
+from firmware_model.radio.content import cmd
+from firmware_model.radio.mac import MacConfig, SubmitError
+from firmware_model.timing import (
+    CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, TTRANS_TICKS, s_to_ticks,
+)
+from hil.world import Fault, SimConfig, World
+
+MAC = MacConfig()
+
+
+def run(robots=(1, 2, 3, 4), duration=10.0, until=None, **kw):
+    evs: list[dict] = []
+    w = World(SimConfig(robots=robots, duration=duration, **kw), on_event=evs.append)
+    w.run(until)
+    return w, evs
+
+
+def frames(evs, after=0):
+    return [e for e in evs if e["ev"] == "frame" and e["start"] >= after]
+
+
+def formed_at(evs, robots):
+    """Tick from which every robot is a member of a ring holding all of them."""
+    views = {r: set() for r in robots}
+    t_all = None
+    for e in evs:
+        if e["ev"] in ("join", "rejoin"):
+            views[e["by"]].add(e["robot"])
+        elif e["ev"] == "disable":
+            views[e["by"]].discard(e["robot"])
+        elif e["ev"] == "mode":
+            views[e["robot"]] = {e["robot"]} if e["mode"] == "member" else set()
+            if e["mode"] == "member" and e["reason"].startswith("invited"):
+                views[e["robot"]] = None  # learnt from the poll mask: known complete
+        ok = all(v is None or v >= set(robots) for v in views.values()) and all(
+            v is not None or True for v in views.values())
+        if ok and t_all is None and e["ev"] != "meta":
+            t_all = e.get("t", -1)
+        elif not ok:
+            t_all = None
+    return t_all
+
+
+def test_idle_turns_are_frame_bytes_times_16640_plus_ttrans():
+    w, evs = run(duration=8.0)
+    assert all(v == (1, 2, 3, 4) for v in w.ring_views().values())
+    fs = frames(evs, after=s_to_ticks(4.0))
+    assert len(fs) > 40
+    for a, b in zip(fs, fs[1:]):
+        assert a["len"] == 0 and a["bytes"] == 14          # heartbeats: Type '3', dst '7'
+        assert (a["type"], a["dst"]) == (3, 7)
+        assert b["start"] - a["start"] == 14 * CHILD_BYTE_TICKS + TTRANS_TICKS == 312_960
+        assert b["src"] == {1: 2, 2: 3, 3: 4, 4: 1}[a["src"]]
+    # four robots: 78.24 ms a cycle (PROTOCOL.md §4)
+    ones = [f for f in fs if f["src"] == 1]
+    assert ones[1]["start"] - ones[0]["start"] == 4 * 312_960 == s_to_ticks(0.07824)
+
+
+def test_father_turn_uses_the_pc_uart_byte_time():
+    w, evs = run(robots=(0, 1, 2), duration=8.0)
+    fs = frames(evs, after=s_to_ticks(5.0))
+    for a, b in zip(fs, fs[1:]):
+        bt = PC_BYTE_TICKS if a["src"] == 0 else CHILD_BYTE_TICKS
+        assert b["start"] - a["start"] == a["bytes"] * bt + TTRANS_TICKS
+
+
+def _last_frame_of(evs, src, before):
+    return [f for f in frames(evs) if f["src"] == src and f["end"] <= before][-1]
+
+
+def test_paper_simulation_r1_dies_three_misses_then_dropped():
+    """Paper §V.A / Fig. 9: four robots; R1 fails; after exactly three missed turns every
+    member drops it at the same tick and the ring is R2 -> R3 -> R4."""
+    probe, pevs = run(duration=5.0)
+    e1 = _last_frame_of(pevs, 1, s_to_ticks(5.0))["end"]
+    # R1's radio dies just after one of its turns, so the next three are missed.
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2, 3, 4), duration=12.0), on_event=evs.append)
+    w.inject("fail", 1, e1 + 1)
+    w.run()
+    after = [e for e in evs if e.get("t", -1) > e1]
+    misses = [e for e in after if e["ev"] == "miss" and e["robot"] == 1]
+    disables = [e for e in after if e["ev"] == "disable"]
+    assert {e["by"] for e in disables} == {2, 3, 4} and {e["robot"] for e in disables} == {1}
+    t_drop = disables[0]["t"]
+    assert all(e.get("t", -1) == t_drop for e in disables)            # every member at the same tick
+    for observer in (2, 3, 4):
+        mine = [e.get("t", -1) for e in misses if e["by"] == observer and e.get("t", -1) <= t_drop]
+        assert len(mine) == 3                                   # exactly three misses
+    miss_ticks = sorted({e.get("t", -1) for e in misses if e.get("t", -1) <= t_drop})
+    assert miss_ticks[-1] == t_drop
+    fs = frames(evs, after=e1)
+    for t_miss in miss_ticks:
+        # E = end of R4's frame before R1's turn; the miss is at E + Tmax, and R2 takes over
+        # at E + Tmax + Ttrans, to the tick.
+        e4 = max(f["end"] for f in fs if f["src"] == 4 and f["end"] < t_miss)
+        assert t_miss == e4 + TMAX_TICKS
+        nxt = min((f for f in fs if f["start"] > t_miss), key=lambda f: f["start"])
+        assert nxt["src"] == 2 and nxt["start"] == e4 + TMAX_TICKS + TTRANS_TICKS
+    # afterwards the ring is R2 -> R3 -> R4 in everybody's view, and R1 is never waited for
+    later = frames(evs, after=t_drop + s_to_ticks(0.5))
+    assert {f["src"] for f in later} == {2, 3, 4}
+    assert [w.ring_views()[r] for r in (2, 3, 4)] == [(2, 3, 4)] * 3
+    assert not [e for e in evs if e["ev"] == "miss" and e.get("t", -1) > t_drop and e["by"] != 1]
+
+
+def test_two_silent_robots_take_over_at_e_plus_2_tmax():
+    probe, pevs = run(duration=5.0)
+    e2 = _last_frame_of(pevs, 2, s_to_ticks(5.0))["end"]
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2, 3, 4), duration=7.0), on_event=evs.append)
+    w.inject("fail", 3, e2 + 1)
+    w.inject("fail", 4, e2 + 1)
+    w.run()
+    nxt = frames(evs, after=e2)[0]
+    assert nxt["src"] == 1 and nxt["start"] == e2 + 2 * TMAX_TICKS + TTRANS_TICKS
+    live = [e for e in evs if e["ev"] == "miss" and e["by"] in (1, 2) and e["t"] < nxt["start"]]
+    assert sorted((e["t"], e["robot"]) for e in live) == [
+        (e2 + TMAX_TICKS, 3), (e2 + TMAX_TICKS, 3),
+        (e2 + 2 * TMAX_TICKS, 4), (e2 + 2 * TMAX_TICKS, 4)]
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_startup_in_random_power_on_orders(seed):
+    rng = random.Random(seed)
+    robots = tuple(sorted(rng.sample(range(7), rng.randint(2, 7))))
+    power = {r: round(rng.uniform(0.0, 3.0), 6) for r in robots}
+    last = max(power.values())
+    w, evs = run(robots=robots, duration=last + 10.0, power_on=power)
+    views = w.ring_views()
+    assert all(v == robots for v in views.values()), (robots, power, views)
+    # Bound (docs/mac.md): the lowest powered robot claims after |team| x Tmax + id x Tslot of
+    # silence, then each absent robot is invited within poll_every turns of its predecessor.
+    joined = max(e.get("t", -1) for e in evs if e["ev"] in ("join", "rejoin", "mode"))
+    bound = s_to_ticks(last) + MAC.tmax * len(robots) + 6 * MAC.tslot + s_to_ticks(2.0)
+    assert joined <= bound
+    assert not [e for e in evs if e["ev"] == "disable"]
+
+
+def test_simultaneous_claims_collide_once_and_recover():
+    # Robot 1 powers on one Tslot after robot 2: both claim the silent channel at the same tick.
+    w, evs = run(robots=(1, 2), duration=8.0,
+                 power_on={1: MAC.tslot / TICK_HZ, 2: 0.0})
+    cols = [e for e in evs if e["ev"] == "collision"]
+    assert len(cols) == 1
+    assert w.ring_views() == {1: (1, 2), 2: (1, 2)}
+    assert max(f["start"] for f in frames(evs)) > cols[0]["t"] + s_to_ticks(4.0)
+
+
+def test_forced_collision_recovers_without_dropping_anyone():
+    probe, pevs = run(duration=5.0)
+    e1 = _last_frame_of(pevs, 1, s_to_ticks(5.0))["end"]
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2, 3, 4), duration=9.0), on_event=evs.append)
+    w.inject("steal", 3, e1)      # R3 wrongly believes it owns the turn R2 now starts
+    w.run()
+    cols = [e for e in evs if e["ev"] == "collision"]
+    assert len(cols) == 1 and cols[0]["robots"] == [2, 3]
+    assert not [e for e in evs if e["ev"] in ("disable", "mode") and e.get("t", -1) > e1]
+    assert all(v == (1, 2, 3, 4) for v in w.ring_views().values())
+    # the ring is back in order within 2 Tmax + a cycle
+    clean = [f for f in frames(evs, after=cols[0]["t"]) if not f["collided"]]
+    assert clean[0]["start"] <= cols[0]["t"] + 2 * MAC.tmax + 4 * 312_960
+    seq = [f["src"] for f in clean[-12:]]
+    assert all(b == {1: 2, 2: 3, 3: 4, 4: 1}[a] for a, b in zip(seq, seq[1:]))
+
+
+def test_rejoin_of_a_recovered_robot_within_bound():
+    w, evs = run(duration=20.0, faults=(Fault("fail", 2, 5.0), Fault("recover", 2, 11.0)))
+    drops = [e for e in evs if e["ev"] == "disable" and e["robot"] == 2]
+    assert {e["by"] for e in drops} == {1, 3, 4}
+    back = [e for e in evs if e["ev"] == "rejoin" and e["robot"] == 2]
+    assert {e["by"] for e in back} == {1, 3, 4}
+    t_back = min(e.get("t", -1) for e in back)
+    # bound (docs/mac.md): a lone pause + poll_every turns of its predecessor + one window
+    assert s_to_ticks(11.0) < t_back <= s_to_ticks(11.0) + s_to_ticks(2.0)
+    assert all(v == (1, 2, 3, 4) for v in w.ring_views().values())
+
+
+@pytest.mark.parametrize("ber", [1e-3, 1e-2])
+def test_delivery_accounting_under_byte_errors_with_checksum(ber):
+    """With the checksum extension: every message ends delivered or failed with a reason,
+    nothing is delivered twice, to the wrong robot, or corrupted."""
+    w, evs = run(robots=(0, 1, 2, 3, 4), duration=120.0, seed=3, ber=ber, load=2.0,
+                 load_until=45.0, mac=MacConfig(checksum=True))
+    s = w.summary()
+    assert s["submitted"] > 200
+    assert s["pending"] == 0
+    assert s["submitted"] == s["delivered"] + s["failed"]
+    assert s["duplicate_deliveries"] == 0
+    assert s["corrupt_deliveries"] == 0
+    for e in evs:
+        if e["ev"] == "deliver":
+            assert e["dst"] in (e["to"], 7) and e["src"] != e["to"] and e["intact"]
+        if e["ev"] == "fail":
+            assert e["reason"]
+    # every acknowledged unicast was delivered at its destination
+    got = {(e["src"], e["num"], e["to"]) for e in evs if e["ev"] == "deliver"}
+    for e in evs:
+        if e["ev"] == "delivered" and e["dst"] != 7:
+            assert (e["src"], e["num"], e["dst"]) in got
+    if ber <= 1e-3:
+        assert s["failed"] == 0
+
+
+def test_paper_format_accounting_under_byte_errors():
+    """Without the checksum (the paper's frame) accounting still closes, but a corrupted frame
+    can be acted on: the world counts those deliveries from ground truth."""
+    w, evs = run(robots=(0, 1, 2, 3, 4), duration=120.0, seed=3, ber=1e-3, load=2.0,
+                 load_until=45.0)
+    s = w.summary()
+    assert s["pending"] == 0 and s["submitted"] == s["delivered"] + s["failed"]
+    assert s["corrupt_deliveries"] == sum(1 for e in evs if e["ev"] == "deliver"
+                                          and not e["intact"]) > 0
+
+
+def test_saturated_ring_delivers_full_size_messages():
+    w, evs = run(robots=(1, 2, 3), duration=40.0, load="saturate")
+    s = w.summary()
+    assert s["delivered"] > 10 and s["duplicate_deliveries"] == 0
+    sizes = [f["bytes"] for f in frames(evs, after=s_to_ticks(5.0))]
+    assert max(sizes) <= 576 and max(sizes) >= 500
+
+
+def _content_of(size: int):
+    """Commands whose Content is exactly ``size`` bytes (size >= 8)."""
+    from firmware_model.radio.content import format_content
+    cmds = []
+    while size - len(format_content(cmds)) >= 16 + 8:
+        cmds.append(cmd("movex", 123456789))                # 16 bytes each
+    rest = size - len(format_content(cmds))
+    if rest > 16:
+        cmds.append(cmd("movex", int("1" * (rest - 8 - 7))))
+        rest = size - len(format_content(cmds))
+    cmds.append(cmd("movex", int("1" * (rest - 7))))
+    assert len(format_content(cmds)) == size
+    return cmds
+
+
+def test_submission_refuses_a_frame_longer_than_tmax():
+    w = World(SimConfig(robots=(0, 1, 2), duration=1.0))
+    child, father = w.stations[1], w.stations[0]
+    child.submit(2, _content_of(562))                       # 576 bytes x 16640 <= Tmax
+    father.submit(1, _content_of(561))                      # 575 bytes x 16667 <= Tmax
+    with pytest.raises(SubmitError, match="577-byte frame"):
+        child.submit(2, _content_of(563))
+    with pytest.raises(SubmitError, match="576-byte frame"):
+        father.submit(1, _content_of(562))
+    with pytest.raises(SubmitError, match="destination"):
+        child.submit(1, [cmd("stop")])                      # to itself
+    with pytest.raises(SubmitError, match="MAC command"):
+        child.submit(2, [cmd("ack", 1, 5)])
+
+
+def test_same_seed_same_trace_bytes(tmp_path):
+    from hil.trace import TraceWriter
+    paths = []
+    for i in range(2):
+        p = tmp_path / f"t{i}.jsonl"
+        tw = TraceWriter(str(p))
+        w = World(SimConfig(robots=(0, 1, 2, 3), duration=20.0, seed=11, ber=2e-3, noise=True,
+                            load=3.0, faults=(Fault("fail", 2, 6.0), Fault("recover", 2, 12.0))),
+                  tw)
+        w.run()
+        tw.close()
+        paths.append(p.read_bytes())
+    assert paths[0] == paths[1] and len(paths[0]) > 10_000
+    tw = TraceWriter(str(tmp_path / "other.jsonl"))
+    w = World(SimConfig(robots=(0, 1, 2, 3), duration=20.0, seed=12, ber=2e-3, noise=True,
+                        load=3.0), tw)
+    w.run()
+    tw.close()
+    assert (tmp_path / "other.jsonl").read_bytes() != paths[0]
+
+
+@pytest.mark.parametrize("ber,noise", [(0.0, False), (3e-3, False), (3e-3, True)])
+def test_batched_delivery_equals_byte_by_byte(ber, noise):
+    def trace(bb):
+        evs: list[dict] = []
+        w = World(SimConfig(robots=(0, 1, 2, 3), duration=25.0, seed=5, ber=ber, noise=noise,
+                            load=3.0, byte_by_byte=bb,
+                            faults=(Fault("fail", 1, 7.3), Fault("recover", 1, 14.1))),
+                  on_event=evs.append)
+        w.inject("steal", 3, s_to_ticks(18.0))
+        w.run()
+        return evs
+    fast, slow = trace(False), trace(True)
+    assert len(fast) > 500
+    assert fast == slow
