@@ -1,0 +1,374 @@
+"""CAN 2.0A (11-bit identifier) bit level: CRC-15, bit stuffing, exact frame lengths, bit timing.
+
+Everything here follows Bosch CAN 2.0 part A / ISO 11898-1 (classical CAN). Bits are ints,
+``0`` = dominant, ``1`` = recessive, most significant bit first as on the wire.
+
+Data/remote frame layout (unstuffed)::
+
+    SOF(1) ID(11) RTR(1) IDE(1)=0 r0(1)=0 DLC(4) DATA(8*n) CRC(15) | CRCdel(1) ACK(1) ACKdel(1) EOF(7)
+    \\______________________ stuffed, CRC covered (CRC not) _____/   \\____ fixed form, not stuffed __/
+
+followed on the bus by the 3-bit intermission (IFS) before the next SOF may start.
+Unstuffed length without IFS is ``44 + 8*n`` bits; with IFS ``47 + 8*n``.
+
+Stuffing: after five consecutive equal bits the transmitter inserts one complementary bit; the
+stuff bit counts as the first bit of the next run. Stuffing covers SOF through the last CRC bit,
+so a stuff bit *is* inserted after the last CRC bit when the CRC ends a run of five (that is
+what makes the classic worst-case bound ``floor((34 + 8n - 1) / 4)`` stuff bits).
+
+Error and overload frames (constants below): an active error flag is 6 dominant bits; because
+the other nodes answer the first flag with their own flags, superposition makes the dominant
+part 6..12 bits on the wire. The error delimiter is 8 recessive bits. An overload frame is
+built the same way (6 flag bits, 6..12 superposed, 8 delimiter bits).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Iterable, Sequence
+
+from firmware_model.timing import TICK_HZ
+
+__all__ = [
+    "CRC15_POLY",
+    "MAX_ID",
+    "SOF_TO_CRC_OVERHEAD_BITS",
+    "FRAME_OVERHEAD_BITS",
+    "CRC_DELIM_BITS",
+    "ACK_BITS",
+    "EOF_BITS",
+    "IFS_BITS",
+    "TRAILER_BITS",
+    "ERROR_FLAG_BITS",
+    "ERROR_FLAG_MAX_BITS",
+    "ERROR_DELIMITER_BITS",
+    "ERROR_FRAME_BITS",
+    "OVERLOAD_FLAG_BITS",
+    "OVERLOAD_FLAG_MAX_BITS",
+    "OVERLOAD_DELIMITER_BITS",
+    "OVERLOAD_FRAME_BITS",
+    "SUSPEND_TRANSMISSION_BITS",
+    "BUS_IDLE_RECESSIVE_BITS",
+    "BUS_OFF_RECOVERY_SEQUENCES",
+    "StuffError",
+    "crc15",
+    "frame_bits",
+    "stuff",
+    "unstuff",
+    "stuff_count",
+    "wire_bits",
+    "frame_length_bits",
+    "worst_case_length_bits",
+    "min_length_bits",
+    "dlc_to_len",
+    "BitTiming",
+]
+
+CRC15_POLY = 0x4599
+"""x^15 + x^14 + x^10 + x^8 + x^7 + x^4 + x^3 + 1 with the x^15 term implicit."""
+
+MAX_ID = 0x7FF
+
+SOF_TO_CRC_OVERHEAD_BITS = 34
+"""SOF 1 + ID 11 + RTR 1 + IDE 1 + r0 1 + DLC 4 + CRC 15: the stuffed region minus the data."""
+
+CRC_DELIM_BITS = 1
+ACK_BITS = 2
+"""ACK slot + ACK delimiter."""
+EOF_BITS = 7
+IFS_BITS = 3
+"""Intermission between frames."""
+TRAILER_BITS = CRC_DELIM_BITS + ACK_BITS + EOF_BITS
+"""10 fixed-form bits after the CRC sequence (never stuffed)."""
+FRAME_OVERHEAD_BITS = SOF_TO_CRC_OVERHEAD_BITS + TRAILER_BITS
+"""44: unstuffed frame length without data and without IFS."""
+
+ERROR_FLAG_BITS = 6
+"""Error flag sent by one node (active: dominant; passive: recessive)."""
+ERROR_FLAG_MAX_BITS = 12
+"""Longest superposition of error flags on the wire (each node flags within 6 bits of the first)."""
+ERROR_DELIMITER_BITS = 8
+ERROR_FRAME_BITS = ERROR_FLAG_BITS + ERROR_DELIMITER_BITS
+"""14: error frame with all flags superposed exactly (no IFS)."""
+OVERLOAD_FLAG_BITS = 6
+OVERLOAD_FLAG_MAX_BITS = 12
+OVERLOAD_DELIMITER_BITS = 8
+OVERLOAD_FRAME_BITS = OVERLOAD_FLAG_BITS + OVERLOAD_DELIMITER_BITS
+"""14: overload frame with flags superposed exactly (no IFS)."""
+SUSPEND_TRANSMISSION_BITS = 8
+"""Extra recessive bits an error-passive node waits after IFS following its own transmission."""
+BUS_IDLE_RECESSIVE_BITS = 11
+"""A bus-off node counts sequences of this many consecutive recessive bits ..."""
+BUS_OFF_RECOVERY_SEQUENCES = 128
+"""... and becomes error-active again after this many of them."""
+
+
+class StuffError(ValueError):
+    """Six consecutive equal bits found inside a stuffed bit stream."""
+
+    def __init__(self, index: int, value: int) -> None:
+        super().__init__(f"stuff error: sixth consecutive {value!s} at bit index {index}")
+        self.index = index
+        self.value = value
+
+
+def crc15(bits: Iterable[int]) -> int:
+    """CAN CRC-15 (poly 0x4599, init 0, no reflection, no final xor) over a bit sequence.
+
+    Feed it the unstuffed bits from SOF through the end of the data field. The catalogue check
+    value (ASCII "123456789", MSB first) is 0x059E.
+    """
+    crc = 0
+    for b in bits:
+        nxt = (crc >> 14) ^ (b & 1)
+        crc = (crc << 1) & 0x7FFF
+        if nxt:
+            crc ^= CRC15_POLY
+    return crc
+
+
+def dlc_to_len(dlc: int) -> int:
+    """Data bytes meant by a DLC (ISO 11898-1: 9..15 mean 8)."""
+    return dlc if dlc <= 8 else 8
+
+
+def _check(can_id: int, data: bytes, rtr: bool, dlc: int | None) -> int:
+    """Validate and return the DLC to put on the wire."""
+    if not isinstance(can_id, int) or isinstance(can_id, bool):
+        raise TypeError(f"CAN id must be an int, not {type(can_id).__name__}")
+    if not 0 <= can_id <= MAX_ID:
+        raise ValueError(f"CAN 2.0A id must be in 0..0x7FF, got {can_id:#x}")
+    if len(data) > 8:
+        raise ValueError(f"a CAN 2.0A frame carries at most 8 data bytes, got {len(data)}")
+    if rtr:
+        if data:
+            raise ValueError("a remote (RTR) frame has no data field; pass its length as dlc")
+        if dlc is None:
+            return 0
+    elif dlc is None:
+        return len(data)
+    if not isinstance(dlc, int) or isinstance(dlc, bool) or not 0 <= dlc <= 15:
+        raise ValueError(f"DLC must be an int in 0..15 (9..15 mean 8 bytes), got {dlc!r}")
+    if not rtr and dlc_to_len(dlc) != len(data):
+        raise ValueError(f"DLC {dlc} means {dlc_to_len(dlc)} data bytes but {len(data)} were given")
+    return dlc
+
+
+def _int_bits(value: int, width: int) -> list[int]:
+    return [(value >> i) & 1 for i in range(width - 1, -1, -1)]
+
+
+def _frame_bits(can_id: int, data: bytes, rtr: bool, dlc: int) -> list[int]:
+    bits = [0]
+    bits += _int_bits(can_id, 11)
+    bits.append(1 if rtr else 0)
+    bits += (0, 0)  # IDE (base format), r0
+    bits += _int_bits(dlc, 4)
+    for byte in data:
+        bits += _int_bits(byte, 8)
+    bits += _int_bits(crc15(bits), 15)
+    return bits
+
+
+def frame_bits(can_id: int, data: bytes = b"", rtr: bool = False, dlc: int | None = None) -> list[int]:
+    """Unstuffed SOF, ID, RTR, IDE, r0, DLC, data, CRC (34 + 8n bits). Dominant = 0."""
+    data = bytes(data)
+    return _frame_bits(can_id, data, rtr, _check(can_id, data, rtr, dlc))
+
+
+def stuff(bits: Sequence[int]) -> list[int]:
+    """Insert a complementary bit after every five equal consecutive bits (stuff bits count)."""
+    out: list[int] = []
+    last = -1
+    run = 0
+    for b in bits:
+        out.append(b)
+        if b == last:
+            run += 1
+        else:
+            last = b
+            run = 1
+        if run == 5:
+            last ^= 1
+            out.append(last)
+            run = 1
+    return out
+
+
+def stuff_count(bits: Sequence[int]) -> int:
+    """Number of stuff bits ``stuff(bits)`` would insert."""
+    n = 0
+    last = -1
+    run = 0
+    for b in bits:
+        if b == last:
+            run += 1
+        else:
+            last = b
+            run = 1
+        if run == 5:
+            n += 1
+            last ^= 1
+            run = 1
+    return n
+
+
+def unstuff(bits: Sequence[int]) -> list[int]:
+    """Remove stuff bits; raise :class:`StuffError` on six equal consecutive bits.
+
+    A stream that ends right after five equal bits (its stuff bit cut off) is accepted.
+    """
+    out: list[int] = []
+    last = -1
+    run = 0
+    expect_stuff = False
+    for i, b in enumerate(bits):
+        if expect_stuff:
+            if b == last:
+                raise StuffError(i, b)
+            expect_stuff = False
+            last = b
+            run = 1
+            continue
+        out.append(b)
+        if b == last:
+            run += 1
+        else:
+            last = b
+            run = 1
+        if run == 5:
+            expect_stuff = True
+    return out
+
+
+@lru_cache(maxsize=4096)
+def _wire(can_id: int, data: bytes, rtr: bool, dlc: int) -> tuple[int, ...]:
+    stuffed = stuff(_frame_bits(can_id, data, rtr, dlc))
+    # CRC delimiter, ACK slot (recessive as sent), ACK delimiter, EOF.
+    return tuple(stuffed) + (1,) * TRAILER_BITS
+
+
+def wire_bits(can_id: int, data: bytes = b"", rtr: bool = False, dlc: int | None = None) -> list[int]:
+    """The transmitted bit sequence: stuffed(SOF..CRC) + CRCdel + ACK slot(1) + ACKdel + EOF.
+
+    The ACK slot is shown as the transmitter sends it (recessive); acknowledging receivers
+    overwrite it with a dominant bit on the bus. The intermission is not included.
+    """
+    data = bytes(data)
+    return list(_wire(can_id, data, rtr, _check(can_id, data, rtr, dlc)))
+
+
+@lru_cache(maxsize=8192)
+def _length(can_id: int, data: bytes, rtr: bool, dlc: int) -> int:
+    return len(_wire(can_id, data, rtr, dlc))
+
+
+def frame_length_bits(
+    can_id: int,
+    data: bytes = b"",
+    rtr: bool = False,
+    include_ifs: bool = True,
+    dlc: int | None = None,
+) -> int:
+    """Exact bits on the wire, stuff bits included, +3 intermission bits when ``include_ifs``."""
+    data = bytes(data)
+    n = _length(can_id, data, rtr, _check(can_id, data, rtr, dlc))
+    return n + IFS_BITS if include_ifs else n
+
+
+def _dlc_bytes(dlc: int) -> int:
+    if not isinstance(dlc, int) or isinstance(dlc, bool) or not 0 <= dlc <= 15:
+        raise ValueError(f"DLC must be an int in 0..15, got {dlc!r}")
+    return dlc_to_len(dlc)
+
+
+def worst_case_length_bits(dlc: int, include_ifs: bool = True) -> int:
+    """Upper bound on a data frame's length with ``dlc`` bytes: ``8n + 47 + floor((34+8n-1)/4)``.
+
+    The stuffed region has ``g = 34 + 8n`` bits; the first stuff bit needs 5 bits, each later
+    one can come after 4 (the stuff bit starts the next run), hence ``floor((g - 1) / 4)``
+    (Davis, Burns, Bril, Lukkien 2007, correcting Tindell's ``/5``). 135 bits for 8 bytes,
+    55 for 0 bytes, IFS included. Real frames never exceed it; the CRC makes it not always
+    reachable.
+    """
+    n = _dlc_bytes(dlc)
+    g = SOF_TO_CRC_OVERHEAD_BITS + 8 * n
+    total = g + TRAILER_BITS + (g - 1) // 4
+    return total + IFS_BITS if include_ifs else total
+
+
+def min_length_bits(dlc: int, include_ifs: bool = True) -> int:
+    """Length with no stuff bit at all: ``44 + 8n`` (+3 IFS): 111 bits for 8 bytes with IFS."""
+    n = _dlc_bytes(dlc)
+    total = FRAME_OVERHEAD_BITS + 8 * n
+    return total + IFS_BITS if include_ifs else total
+
+
+@dataclass(frozen=True)
+class BitTiming:
+    """Nominal bit timing in MB90F549-controller style settings, in 16 MHz machine ticks.
+
+    ``prescaler``: machine-clock ticks per time quantum (1..64). A bit is
+    ``1 (sync) + tseg1 + tseg2`` quanta; ``tseg1`` (1..16) is propagation + phase-1 segment,
+    ``tseg2`` (1..8) the phase-2 segment, ``sjw`` (1..4, at most ``tseg1`` and ``tseg2``) the
+    resynchronisation jump width. The sample point is at the end of tseg1.
+
+    The default is 500 kbit/s: 2 ticks a quantum, 1 + 11 + 4 = 16 quanta, 32 ticks a bit,
+    sample point 75 %. Bit rates above 1 Mbit/s (CAN 2.0 / 82C250 limit) are rejected.
+    """
+
+    prescaler: int = 2
+    tseg1: int = 11
+    tseg2: int = 4
+    sjw: int = 1
+
+    def __post_init__(self) -> None:
+        for name, lo, hi in (("prescaler", 1, 64), ("tseg1", 1, 16), ("tseg2", 1, 8), ("sjw", 1, 4)):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
+                raise ValueError(f"BitTiming.{name} must be an int in {lo}..{hi}, got {v!r}")
+        if self.sjw > self.tseg2 or self.sjw > self.tseg1:
+            raise ValueError(
+                f"BitTiming.sjw ({self.sjw}) must not exceed tseg1 ({self.tseg1}) or tseg2 ({self.tseg2})"
+            )
+        if self.ticks_per_bit < TICK_HZ // 1_000_000:
+            raise ValueError(
+                f"bit time of {self.ticks_per_bit} ticks is faster than 1 Mbit/s, the CAN 2.0 limit"
+            )
+
+    @property
+    def tq_per_bit(self) -> int:
+        return 1 + self.tseg1 + self.tseg2
+
+    @property
+    def ticks_per_tq(self) -> int:
+        return self.prescaler
+
+    @property
+    def ticks_per_bit(self) -> int:
+        return self.prescaler * (1 + self.tseg1 + self.tseg2)
+
+    @property
+    def bitrate(self) -> float:
+        """Bits per second (exact when TICK_HZ divides evenly)."""
+        return TICK_HZ / self.ticks_per_bit
+
+    @property
+    def sample_point(self) -> float:
+        """Sample point as a fraction of the bit time (0.75 for the default)."""
+        return (1 + self.tseg1) / self.tq_per_bit
+
+    @property
+    def sample_point_ticks(self) -> int:
+        """Ticks from the start of a bit to its sample point."""
+        return (1 + self.tseg1) * self.prescaler
+
+    @classmethod
+    def from_bitrate(cls, bitrate: int, tq_per_bit: int = 16, sample_point: float = 0.75,
+                     sjw: int = 1) -> "BitTiming":
+        """Settings giving exactly ``bitrate`` with ``tq_per_bit`` quanta; ValueError if impossible."""
+        ticks = TICK_HZ / bitrate
+        if ticks != int(ticks) or int(ticks) % tq_per_bit:
+            raise ValueError(f"{bitrate} bit/s is not reachable with {tq_per_bit} quanta from {TICK_HZ} Hz")
+        tseg1 = round(sample_point * tq_per_bit) - 1
+        return cls(int(ticks) // tq_per_bit, tseg1, tq_per_bit - 1 - tseg1, sjw)

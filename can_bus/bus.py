@@ -1,0 +1,759 @@
+"""A simulated CAN 2.0A bus on the integer-tick :class:`~firmware_model.mcu.scheduler.Scheduler`.
+
+Timing is bit-exact (every length is a whole number of bit times, stuff bits included) but the
+bus is event driven: a frame costs two scheduler events (end of EOF, end of intermission), never
+one per bit.
+
+Nodes
+-----
+A node is any object; the bus looks up these optional methods once, at :meth:`CanBus.attach`:
+
+* ``pending() -> CanFrame | None``: the node's highest-priority frame waiting to be sent. If the
+  node has it, the node keeps its own queue and the bus asks at every arbitration; otherwise the
+  bus keeps a per-node priority queue filled by ``bus.request(node, frame)``.
+* ``on_frame(frame, start_tick, end_tick)``: a frame was received (every node that is not
+  bus-off receives every frame it did not send; filtering is the node's business).
+* ``on_tx_done(frame, end_tick)``: the node's frame was sent and acknowledged. A node with its
+  own queue removes the frame here.
+* ``on_arbitration_lost(frame)``: called at the SOF tick of the frame that beat ``frame``.
+* ``on_error(event: CanErrorEvent)``: the node detected an error (its counters already updated).
+* ``on_state_change(old: ErrorState, new: ErrorState, tick)``.
+
+``start_tick`` is the SOF tick, ``end_tick`` the end of the last EOF bit; the bus is free for
+the next SOF 3 bit times (intermission) later. ``bus.trace(frame, start, end, winner)`` sees
+every successful frame; ``bus.error_trace(kind, frame, start, flag_tick, idle_tick, node)``
+every destroyed one (``idle_tick`` is None for a stuck-dominant episode, whose end is unknown
+when the error is detected).
+
+Arbitration
+-----------
+When the bus becomes idle (end of intermission), or at the tick of a ``request`` on an idle bus
+(the arbitration runs as an event at that tick, so every request made at the same tick joins),
+every node that is not bus-off, not in suspend-transmission and has a pending frame sends SOF
+at that same tick. Lowest ``(id, rtr)`` wins (wired-AND, dominant 0: a data frame beats a
+remote frame of the same id); losers become receivers and compete again at the next idle.
+Identical frames sent by several nodes merge (all of them get ``on_tx_done``); two different
+frames with the same id and RTR (forbidden in CAN) both get a bit error at the first differing
+wire bit. A frame occupies ``frame_length_bits(...) * ticks_per_bit`` ticks, IFS included.
+
+Error model (ISO 11898-1 fault confinement, the common rules)
+-------------------------------------------------------------
+* Error-active: TEC < 128 and REC < 128; error-passive: either >= 128; bus-off: TEC > 255.
+* Transmitter: TEC += 8 on an error it detects, TEC -= 1 (not below 0) after a successful frame.
+  Exception kept: an error-passive transmitter whose ACK error nobody else flags keeps its TEC
+  (so a node alone on the bus stops at TEC 128, error-passive, and never goes bus-off).
+* Receiver: REC += 1 on an error; after a successful reception REC -= 1 if 1..127, and a REC
+  above 127 is set to 127 (the standard allows 119..127).
+* An error is detected by all nodes at the same bit, so all error flags coincide: an error
+  frame is 6 flag + 8 delimiter bits, then 3 intermission bits (17 bit times after the flag
+  starts). The flag starts the bit after the error (an ACK error: at the ACK delimiter).
+  REC += 8 for a dominant bit after the own error flag and the 14th/every 8th dominant bit
+  rule only occur with a stuck-dominant bus (see below), where they are applied.
+* An error-passive node that has just transmitted (successfully or not) waits 8 more bit
+  times (suspend transmission) after the intermission before it may start a frame; if another
+  node starts a frame meanwhile, it becomes a receiver of it and the suspension ends.
+* Bus-off recovery, modelled exactly on the rule "128 occurrences of 11 consecutive recessive
+  bits": the node counts from the end of the error flag that sent it bus-off. Every frame,
+  error frame or stuck episode ends with exactly 11 recessive bits (ACK delimiter + EOF + IFS,
+  or error delimiter + IFS), then idle bits add on: a run of ``r`` recessive bits ending at a
+  SOF (or at recovery) counts ``r // 11`` occurrences. On an idle bus the node therefore
+  recovers ``128 * 11 = 1408`` bit times after its error flag ended, i.e. ``127 * 11 = 1397``
+  bit times after the bus became idle; on a busy bus each frame contributes one occurrence
+  (plus whatever idle follows it), so recovery takes 128 frames' worth or longer. On recovery
+  TEC = REC = 0 and the node's pending frames are offered again. (Exceptions: when every flag
+  is passive the recessive run is longer: 17 bits after the error bit, or, for a lone
+  passive transmitter's ACK error, the trailing recessive bits of the CRC field + 19. A node
+  sent bus-off during a stuck-dominant episode counts from the release.) Recovery is
+  automatic (no software request is modelled). Not modelled: the TEC exception for a stuff
+  error on a recessive stuff bit during arbitration, overload frames, and flag superposition
+  longer than 6 bits (all nodes detect each error at the same bit).
+
+Fault injection
+---------------
+* ``inject_bit_error(node=None, count=1, bit=None)``: the next ``count`` frames (sent by
+  ``node``, or by anyone) get a bit error detected by the transmitter and all receivers at wire
+  bit ``bit`` (0 = SOF; default: the last bit of the stuffed CRC field; values past the ACK
+  delimiter are clamped to it).
+* ``hold_dominant(node, True/False)``: the bus reads dominant while any node holds it. A frame
+  in flight is destroyed at the hold tick ``H`` (flag start ``F = H``; its transmitter detects
+  a bit error, the others a stuff error); otherwise every node sees a SOF and a stuff error six
+  bits later (``F = H + 6`` bits). Counting from ``F``: detection (+8 / +1), REC += 8 for
+  receivers if bit 7 is still dominant, then at the 14th dominant bit and every 8 more
+  TEC += 8 for the transmitter and REC += 8 for receivers (ISO rule for dominant bits after
+  an error flag). So an error-active transmitter goes bus-off at ``F + 254`` bits and a fresh
+  receiver error-passive at ``F + 126`` bits. No frame can start while held. After the last
+  release at ``R`` the bus is idle again at ``max(R, F + 6 bits) + 11`` bits.
+"""
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+from enum import Enum
+from functools import lru_cache
+from typing import Any, Callable
+
+import can
+
+from can_bus.bits import (
+    BUS_IDLE_RECESSIVE_BITS,
+    BUS_OFF_RECOVERY_SEQUENCES,
+    ERROR_DELIMITER_BITS,
+    ERROR_FLAG_BITS,
+    IFS_BITS,
+    SUSPEND_TRANSMISSION_BITS,
+    TRAILER_BITS,
+    BitTiming,
+    _check,
+    _wire,
+)
+from firmware_model.mcu.scheduler import Event, Scheduler
+
+__all__ = [
+    "CanFrame",
+    "CanBus",
+    "CanErrorEvent",
+    "ErrorState",
+    "NodeStatus",
+    "ERROR_FRAME_TOTAL_BITS",
+]
+
+ERROR_FRAME_TOTAL_BITS = ERROR_FLAG_BITS + ERROR_DELIMITER_BITS + IFS_BITS
+"""17: bus time from the start of a (superposed) error flag to the next possible SOF."""
+
+_REC_AFTER_PASSIVE_RX = 127
+_ELEVEN = BUS_IDLE_RECESSIVE_BITS
+_RECOVERY = BUS_OFF_RECOVERY_SEQUENCES
+
+
+class ErrorState(str, Enum):
+    ACTIVE = "error-active"
+    PASSIVE = "error-passive"
+    BUS_OFF = "bus-off"
+
+
+ACTIVE, PASSIVE, BUS_OFF = ErrorState.ACTIVE, ErrorState.PASSIVE, ErrorState.BUS_OFF
+
+
+@dataclass(frozen=True)
+class CanFrame:
+    """A CAN 2.0A data or remote frame. ``dlc`` defaults to ``len(data)`` (0 for remote)."""
+
+    id: int
+    data: bytes = b""
+    rtr: bool = False
+    dlc: int | None = None
+
+    def __post_init__(self) -> None:
+        data = bytes(self.data)
+        object.__setattr__(self, "data", data)
+        object.__setattr__(self, "rtr", bool(self.rtr))
+        object.__setattr__(self, "dlc", _check(self.id, data, self.rtr, self.dlc))
+
+    def to_message(self, timestamp: float = 0.0) -> can.Message:
+        return can.Message(
+            timestamp=timestamp,
+            arbitration_id=self.id,
+            is_extended_id=False,
+            is_remote_frame=self.rtr,
+            dlc=self.dlc,
+            data=self.data,
+        )
+
+    @classmethod
+    def from_message(cls, msg: can.Message) -> "CanFrame":
+        if msg.is_extended_id:
+            raise ValueError("extended (29-bit) identifiers are not CAN 2.0A")
+        if msg.is_fd or msg.is_error_frame:
+            raise ValueError("only classical data/remote frames convert to CanFrame")
+        if msg.is_remote_frame:
+            return cls(msg.arbitration_id, b"", True, msg.dlc)
+        data = bytes(msg.data or b"")
+        return cls(msg.arbitration_id, data, False, msg.dlc if msg.dlc is not None else len(data))
+
+
+@lru_cache(maxsize=8192)
+def _frame_info(frame: CanFrame) -> tuple[tuple[int, ...], int, int]:
+    """(wire bits without IFS, stuffed SOF..CRC length, trailing recessive bits of that part)."""
+    wire = _wire(frame.id, frame.data, frame.rtr, frame.dlc)
+    n = len(wire) - TRAILER_BITS
+    tail = 0
+    while tail < n and wire[n - 1 - tail] == 1:
+        tail += 1
+    return wire, n, tail
+
+
+@dataclass(frozen=True)
+class CanErrorEvent:
+    """One error seen by one node. ``kind``: 'bit', 'stuff' or 'ack'. Counters after update."""
+
+    kind: str
+    tick: int
+    frame: CanFrame | None
+    transmitter: bool
+    tec: int
+    rec: int
+    state: ErrorState
+
+
+@dataclass(frozen=True)
+class NodeStatus:
+    tec: int
+    rec: int
+    state: ErrorState
+
+
+class _Node:
+    __slots__ = (
+        "node", "tec", "rec", "state", "suspend_until", "occ", "recover_ev", "queue", "seq",
+        "pending_fn", "on_frame", "on_tx_done", "on_lost", "on_error", "on_state", "attached",
+        "entry",
+    )
+
+    def __init__(self, node: Any) -> None:
+        self.node = node
+        self.tec = 0
+        self.rec = 0
+        self.state = ACTIVE
+        self.suspend_until = 0
+        self.occ = 0
+        self.recover_ev: Event | None = None
+        self.queue: list[tuple[int, bool, int, CanFrame]] = []
+        self.seq = 0
+        self.entry: tuple[int, bool, int, CanFrame] | None = None
+        self.pending_fn = getattr(node, "pending", None)
+        self.on_frame = getattr(node, "on_frame", None)
+        self.on_tx_done = getattr(node, "on_tx_done", None)
+        self.on_lost = getattr(node, "on_arbitration_lost", None)
+        self.on_error = getattr(node, "on_error", None)
+        self.on_state = getattr(node, "on_state_change", None)
+        self.attached = True
+
+
+class _Hold:
+    __slots__ = ("flag", "tx", "rx", "released", "step", "ev")
+
+    def __init__(self, flag: int, tx: list[_Node], rx: list[_Node]) -> None:
+        self.flag = flag
+        self.tx = tx
+        self.rx = rx
+        self.released: int | None = None
+        self.step = 0
+        self.ev: Event | None = None
+
+
+_IDLE, _FRAME, _TAIL, _HELD = range(4)
+
+
+def _prio(cand: tuple[CanFrame, Any]) -> tuple[int, bool]:
+    return cand[0].id, cand[0].rtr
+
+
+class CanBus:
+    """Bit-exact, event-per-frame CAN 2.0A bus. See the module docstring for the model."""
+
+    def __init__(self, scheduler: Scheduler, timing: BitTiming | None = None) -> None:
+        self.sched = scheduler
+        self.timing = timing if timing is not None else BitTiming()
+        self.tpb = self.timing.ticks_per_bit
+        self.trace: Callable[[CanFrame, int, int, Any], None] | None = None
+        self.error_trace: Callable[[str, CanFrame | None, int, int, int, Any], None] | None = None
+        self.frames_ok = 0
+        self.error_frames = 0
+        self._nodes: list[_Node] = []
+        self._by_id: dict[int, _Node] = {}
+        self._phase = _IDLE
+        self._busy_until: int | None = None
+        self._idle_since = scheduler.now
+        self._trailing = _ELEVEN
+        self._arb_ev: Event | None = None
+        self._seg_ev: Event | None = None
+        self._cur_frame: CanFrame | None = None
+        self._cur_start = 0
+        self._cur_tx: list[_Node] = []
+        self._cur_rx: list[_Node] = []
+        self._inject: dict[int | None, list[int | None]] = {}
+        self._holders: set[int] = set()
+        self._hold: _Hold | None = None
+
+    # ------------------------------------------------------------------ public API
+    def attach(self, node: Any) -> None:
+        if id(node) in self._by_id:
+            raise ValueError(f"{node!r} is already attached")
+        ns = _Node(node)
+        self._nodes.append(ns)
+        self._by_id[id(node)] = ns
+
+    def detach(self, node: Any) -> None:
+        """Remove a node; it gets no further callbacks and its bus-kept queue is dropped."""
+        ns = self._ns(node)
+        ns.attached = False
+        if ns.recover_ev is not None:
+            ns.recover_ev.cancel()
+        self._nodes.remove(ns)
+        del self._by_id[id(node)]
+        self._holders.discard(id(node))
+        self._inject.pop(id(ns), None)
+        if not self._holders and self._hold is not None and self._hold.released is None:
+            self._hold_release()
+
+    def request(self, node: Any, frame: CanFrame | can.Message | None = None) -> None:
+        """Ask to transmit. Nodes with ``pending()`` just wake the bus (``frame`` is ignored,
+        the bus sends what ``pending()`` returns); others have ``frame`` queued by priority."""
+        ns = self._ns(node)
+        if ns.pending_fn is None:
+            if frame is None:
+                raise ValueError("a node without pending() must pass the frame to request()")
+            if not isinstance(frame, CanFrame):
+                frame = CanFrame.from_message(frame)
+            ns.seq += 1
+            heapq.heappush(ns.queue, (frame.id, frame.rtr, ns.seq, frame))
+        self._kick()
+
+    def inject_bit_error(self, node: Any = None, count: int = 1, bit: int | None = None) -> None:
+        if count < 0 or (bit is not None and bit < 0):
+            raise ValueError("count and bit must be >= 0")
+        key = None if node is None else id(self._ns(node))
+        if count:
+            self._inject.setdefault(key, []).extend([bit] * count)
+
+    def hold_dominant(self, node: Any, on: bool = True) -> None:
+        ns = self._ns(node)
+        if on:
+            if id(node) in self._holders:
+                return
+            self._holders.add(id(node))
+            if len(self._holders) == 1:
+                self._hold_start()
+        elif id(node) in self._holders:
+            self._holders.discard(id(ns.node))
+            if not self._holders:
+                self._hold_release()
+
+    def status(self, node: Any) -> NodeStatus:
+        ns = self._ns(node)
+        if self._hold is not None:
+            self._settle(self.sched.now)
+        return NodeStatus(ns.tec, ns.rec, ns.state)
+
+    def tec(self, node: Any) -> int:
+        return self.status(node).tec
+
+    def rec(self, node: Any) -> int:
+        return self.status(node).rec
+
+    def error_state(self, node: Any) -> ErrorState:
+        return self.status(node).state
+
+    def queued(self, node: Any) -> list[CanFrame]:
+        """Frames in the bus-kept queue of a node without pending(), highest priority first."""
+        return [e[3] for e in sorted(self._ns(node).queue)]
+
+    @property
+    def idle(self) -> bool:
+        return self._phase == _IDLE and not self._holders
+
+    @property
+    def busy_until(self) -> int | None:
+        """Tick the bus becomes idle (None when idle or held with no release yet)."""
+        return self._busy_until
+
+    @property
+    def held(self) -> bool:
+        return bool(self._holders)
+
+    # ------------------------------------------------------------------ internals
+    def _ns(self, node: Any) -> _Node:
+        try:
+            return self._by_id[id(node)]
+        except KeyError:
+            raise ValueError(f"{node!r} is not attached to this bus") from None
+
+    def _kick(self) -> None:
+        if self._phase != _IDLE or self._holders:
+            return
+        now = self.sched.now
+        ev = self._arb_ev
+        if ev is not None:
+            if ev.when <= now:
+                return
+            ev.cancel()
+        self._arb_ev = self.sched.at(now, self._arbitrate)
+
+    def _update(self, ns: _Node, tick: int) -> None:
+        old = ns.state
+        if old is BUS_OFF:
+            return
+        if ns.tec > 255:
+            new = BUS_OFF
+            ns.occ = 0
+            ns.suspend_until = 0
+        elif ns.tec >= 128 or ns.rec >= 128:
+            new = PASSIVE
+        else:
+            new = ACTIVE
+        if new is not old:
+            ns.state = new
+            if ns.on_state is not None and ns.attached:
+                ns.on_state(old, new, tick)
+
+    def _recover(self, ns: _Node, tick: int) -> None:
+        if ns.recover_ev is not None:
+            ns.recover_ev.cancel()
+            ns.recover_ev = None
+        ns.tec = ns.rec = ns.occ = 0
+        ns.state = ACTIVE
+        if ns.on_state is not None and ns.attached:
+            ns.on_state(BUS_OFF, ACTIVE, tick)
+
+    def _recover_event(self, ns: _Node) -> None:
+        ns.recover_ev = None
+        self._recover(ns, self.sched.now)
+        self._kick()
+
+    def _start_segment(self, now: int) -> None:
+        """A dominant bit (SOF or a stuck bus) starts at ``now`` after an idle period."""
+        run = self._trailing + (now - self._idle_since) // self.tpb
+        for ns in self._nodes:
+            if ns.state is BUS_OFF:
+                if ns.recover_ev is not None:
+                    ns.recover_ev.cancel()
+                    ns.recover_ev = None
+                ns.occ += run // _ELEVEN
+                if ns.occ >= _RECOVERY:
+                    self._recover(ns, now)
+            elif ns.suspend_until > now:
+                ns.suspend_until = 0
+
+    def _arbitrate(self) -> None:
+        self._arb_ev = None
+        if self._phase != _IDLE or self._holders:
+            return
+        now = self.sched.now
+        cands: list[tuple[CanFrame, _Node]] = []
+        wake: int | None = None
+        for ns in self._nodes:
+            if ns.state is BUS_OFF:
+                continue
+            if ns.pending_fn is not None:
+                f = ns.pending_fn()
+                if f is None:
+                    continue
+                if not isinstance(f, CanFrame):
+                    f = CanFrame.from_message(f)
+            elif ns.queue:
+                f = ns.queue[0][3]
+            else:
+                continue
+            if ns.suspend_until > now:
+                if wake is None or ns.suspend_until < wake:
+                    wake = ns.suspend_until
+                continue
+            cands.append((f, ns))
+        if not cands:
+            if wake is not None:
+                self._arb_ev = self.sched.at(wake, self._arbitrate)
+            return
+
+        if len(cands) == 1:
+            winners = cands
+        else:
+            best = min(cands, key=_prio)[0]
+            bid, brtr = best.id, best.rtr
+            winners = [c for c in cands if c[0].id == bid and c[0].rtr == brtr]
+        frame = winners[0][0]
+        tx = [ns for _, ns in winners]
+        for ns in tx:
+            ns.entry = ns.queue[0] if ns.pending_fn is None else None
+
+        self._start_segment(now)
+        if len(tx) == 1:
+            t0 = tx[0]
+            rx = [ns for ns in self._nodes if ns is not t0 and ns.state is not BUS_OFF]
+        else:
+            rx = [ns for ns in self._nodes if ns.state is not BUS_OFF and ns not in tx]
+        self._phase = _FRAME
+        self._cur_frame = frame
+        self._cur_start = now
+        self._cur_tx = tx
+        self._cur_rx = rx
+        wire, nstuffed, _ = _frame_info(frame)
+        tpb = self.tpb
+
+        # Earliest error in this frame, if any: (bit index, kind).
+        err: tuple[int, str] | None = None
+        for f, _ in winners[1:]:
+            if f != frame:
+                w2 = _frame_info(f)[0]
+                k = next((i for i, (a, b) in enumerate(zip(wire, w2)) if a != b), min(len(wire), len(w2)) - 1)
+                if err is None or k < err[0]:
+                    err = (k, "bit")
+        if self._inject:
+            inj = self._inject
+            for ns in tx:
+                key = id(ns) if id(ns) in inj else (None if None in inj else 0)
+                if key != 0:
+                    lst = inj[key]
+                    bit = lst.pop(0)
+                    if not lst:
+                        del inj[key]
+                    k = nstuffed - 1 if bit is None else min(bit, nstuffed + 2)
+                    if err is None or k < err[0]:
+                        err = (k, "bit")
+                    break
+        if not rx and (err is None or err[0] > nstuffed + 1):
+            err = (nstuffed + 1, "ack")
+
+        if err is None:
+            self._busy_until = now + (len(wire) + IFS_BITS) * tpb
+            self._seg_ev = self.sched.at(now + len(wire) * tpb, self._frame_done)
+        else:
+            self._busy_until = now + (err[0] + 1 + ERROR_FRAME_TOTAL_BITS) * tpb
+            self._seg_ev = self.sched.at(now + (err[0] + 1) * tpb, self._frame_error, err[1])
+
+        for f, ns in cands:
+            if ns.on_lost is not None and ns not in tx:
+                ns.on_lost(f)
+
+    def _frame_done(self) -> None:
+        now = self.sched.now
+        tpb = self.tpb
+        frame = self._cur_frame
+        idle_at = now + IFS_BITS * tpb
+        self._phase = _TAIL
+        self._busy_until = idle_at
+        self.frames_ok += 1
+        for ns in self._cur_tx:
+            if ns.tec > 0:
+                ns.tec -= 1
+                self._update(ns, now)
+            if ns.state is PASSIVE:
+                ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
+            if ns.entry is not None:
+                try:
+                    ns.queue.remove(ns.entry)
+                    heapq.heapify(ns.queue)
+                except ValueError:
+                    pass
+                ns.entry = None
+        for ns in self._cur_rx:
+            if ns.state is BUS_OFF:
+                continue
+            r = ns.rec
+            if r > 127:
+                ns.rec = _REC_AFTER_PASSIVE_RX
+                self._update(ns, now)
+            elif r > 0:
+                ns.rec = r - 1
+        self._seg_ev = self.sched.at(idle_at, self._segment_end, _ELEVEN)
+        start = self._cur_start
+        if self.trace is not None:
+            self.trace(frame, start, now, self._cur_tx[0].node)
+        for ns in self._cur_tx:
+            if ns.on_tx_done is not None and ns.attached:
+                ns.on_tx_done(frame, now)
+        for ns in self._cur_rx:
+            if ns.on_frame is not None and ns.attached and ns.state is not BUS_OFF:
+                ns.on_frame(frame, start, now)
+
+    def _frame_error(self, kind: str) -> None:
+        now = self.sched.now
+        tpb = self.tpb
+        frame = self._cur_frame
+        idle_at = now + ERROR_FRAME_TOTAL_BITS * tpb
+        self._phase = _TAIL
+        self._busy_until = idle_at
+        self.error_frames += 1
+        all_passive = True
+        for ns in self._cur_tx:
+            if not (kind == "ack" and ns.state is PASSIVE):
+                ns.tec += 8
+                self._update(ns, now)
+            if ns.state is ACTIVE:
+                all_passive = False
+            if ns.state is PASSIVE:
+                ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
+            ns.entry = None
+        for ns in self._cur_rx:
+            if ns.state is BUS_OFF:
+                continue
+            ns.rec += 1
+            self._update(ns, now)
+            if ns.state is ACTIVE:
+                all_passive = False
+        trailing = _ELEVEN
+        if all_passive:
+            if kind == "ack":
+                trailing = _frame_info(frame)[2] + 2 + ERROR_FRAME_TOTAL_BITS
+            else:
+                trailing = ERROR_FRAME_TOTAL_BITS
+        self._seg_ev = self.sched.at(idle_at, self._segment_end, trailing)
+        if self.error_trace is not None:
+            self.error_trace(kind, frame, self._cur_start, now, idle_at, self._cur_tx[0].node)
+        for ns in self._cur_tx:
+            if ns.on_error is not None and ns.attached:
+                ns.on_error(CanErrorEvent(kind, now, frame, True, ns.tec, ns.rec, ns.state))
+        for ns in self._cur_rx:
+            if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
+                ns.on_error(CanErrorEvent(kind, now, frame, False, ns.tec, ns.rec, ns.state))
+
+    def _segment_end(self, trailing: int) -> None:
+        now = self.sched.now
+        self._seg_ev = None
+        self._phase = _IDLE
+        self._busy_until = None
+        self._idle_since = now
+        self._trailing = trailing
+        self._cur_tx = self._cur_rx = []
+        self._cur_frame = None
+        tpb = self.tpb
+        for ns in self._nodes:
+            if ns.state is BUS_OFF:
+                need = _RECOVERY - ns.occ
+                t = now + max(0, _ELEVEN * need - trailing) * tpb
+                if t == now:
+                    self._recover(ns, now)
+                else:
+                    if ns.recover_ev is not None:
+                        ns.recover_ev.cancel()
+                    ns.recover_ev = self.sched.at(t, self._recover_event, ns)
+        self._arbitrate()
+
+    # ------------------------------------------------------------------ stuck dominant
+    def _hold_start(self) -> None:
+        now = self.sched.now
+        h = self._hold
+        if h is not None:  # re-held before a short release was processed
+            h.released = None
+            return
+        if self._arb_ev is not None:
+            self._arb_ev.cancel()
+            self._arb_ev = None
+        if self._seg_ev is not None:
+            self._seg_ev.cancel()
+            self._seg_ev = None
+        if self._phase == _FRAME:
+            tx, rx, flag = self._cur_tx, self._cur_rx, now
+            for ns in tx:
+                ns.entry = None
+        else:
+            if self._phase == _IDLE:
+                self._start_segment(now)
+            tx, flag = [], now + ERROR_FLAG_BITS * self.tpb
+            rx = [ns for ns in self._nodes if ns.state is not BUS_OFF]
+        self._phase = _HELD
+        self._busy_until = None
+        self._hold = _Hold(flag, tx, rx)
+        self._hold_schedule()
+
+    def _hold_release(self) -> None:
+        h = self._hold
+        if h is None:
+            return
+        now = self.sched.now
+        h.released = now
+        self._settle(now)
+        if h.step > 0:
+            self._hold_finish()
+        else:
+            self._hold_schedule()
+
+    def _hold_tick_time(self, step: int) -> int:
+        h = self._hold
+        if step == 0:
+            return h.flag
+        if step == 1:
+            return h.flag + 7 * self.tpb
+        return h.flag + (14 + 8 * (step - 2)) * self.tpb
+
+    def _can_change(self) -> bool:
+        h = self._hold
+        return any(ns.state is not BUS_OFF for ns in h.tx) or any(ns.state is ACTIVE for ns in h.rx)
+
+    def _settle(self, upto: int) -> None:
+        h = self._hold
+        tpb = self.tpb
+        limit = upto if h.released is None else min(upto, h.released)
+        while True:
+            s = h.step
+            t = self._hold_tick_time(s)
+            if t > (upto if s == 0 else limit):
+                return
+            if s >= 2 and not self._can_change():
+                bits = (limit - h.flag) // tpb
+                total = 1 + (bits - 14) // 8
+                more = total - (s - 2)
+                for ns in h.rx:
+                    if ns.state is not BUS_OFF:
+                        ns.rec += 8 * more
+                h.step += more
+                return
+            h.step = s + 1
+            if s == 0:
+                for ns in h.tx:
+                    if ns.state is not BUS_OFF:
+                        ns.tec += 8
+                        self._update(ns, t)
+                for ns in h.rx:
+                    if ns.state is not BUS_OFF:
+                        ns.rec += 1
+                        self._update(ns, t)
+                frame = self._cur_frame if h.tx else None
+                for ns in h.tx:
+                    if ns.on_error is not None and ns.attached:
+                        ns.on_error(CanErrorEvent("bit", t, frame, True, ns.tec, ns.rec, ns.state))
+                for ns in h.rx:
+                    if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
+                        ns.on_error(CanErrorEvent("stuff", t, frame, False, ns.tec, ns.rec, ns.state))
+                self.error_frames += 1
+                if self.error_trace is not None:
+                    self.error_trace("bit" if h.tx else "stuff", frame,
+                                     self._cur_start if h.tx else t - ERROR_FLAG_BITS * tpb, t, None,
+                                     h.tx[0].node if h.tx else None)
+            else:
+                if s >= 2:
+                    for ns in h.tx:
+                        if ns.state is not BUS_OFF:
+                            ns.tec += 8
+                            self._update(ns, t)
+                for ns in h.rx:
+                    if ns.state is not BUS_OFF:
+                        ns.rec += 8
+                        self._update(ns, t)
+
+    def _hold_schedule(self) -> None:
+        h = self._hold
+        if h.ev is not None:
+            h.ev.cancel()
+            h.ev = None
+        if h.step == 0:
+            t = h.flag
+        elif self._can_change():
+            t = self._hold_tick_time(h.step)
+            if h.released is not None and t > h.released:
+                return
+        else:
+            return
+        h.ev = self.sched.at(max(t, self.sched.now), self._hold_tick)
+
+    def _hold_tick(self) -> None:
+        h = self._hold
+        h.ev = None
+        self._settle(self.sched.now)
+        if h.released is not None:
+            self._hold_finish()
+        else:
+            self._hold_schedule()
+
+    def _hold_finish(self) -> None:
+        h = self._hold
+        if h.ev is not None:
+            h.ev.cancel()
+        tpb = self.tpb
+        idle_at = max(h.released, h.flag + ERROR_FLAG_BITS * tpb) + (ERROR_DELIMITER_BITS + IFS_BITS) * tpb
+        for ns in h.tx:
+            if ns.state is PASSIVE:
+                ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
+        self._hold = None
+        self._phase = _TAIL
+        self._busy_until = idle_at
+        self._seg_ev = self.sched.at(idle_at, self._segment_end, _ELEVEN)
