@@ -191,19 +191,23 @@ def _print_summary(world: World, wall: float, as_json: bool) -> None:
     if as_json:
         print(json.dumps(s, indent=1))
         return
+    from rich import box
     from rich.console import Console
     from rich.table import Table
     con = Console()
-    t = Table(title=f"RPRS ring, {sim_s:g} s simulated, seed {world.cfg.seed}")
-    for col in ("robot", "mode", "frames sent", "msgs received", "pending", "turns missed",
-                "submitted", "delivered", "failed"):
-        t.add_column(col, justify="right")
+    con.print(f"[bold]RPRS ring, {sim_s:g} s simulated, seed {world.cfg.seed}[/bold]")
+    t = Table(box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 1), collapse_padding=True)
+    for col in ("robot", "mode", "sent", "recv", "pending", "missed", "submitted", "delivered",
+                "failed"):
+        t.add_column(col, justify="right", no_wrap=True)
     for r, v in s["robots"].items():
         name = "father 0" if r == 0 else f"R{r}"
         t.add_row(name, v["mode"], str(v["frames_sent"]), str(v["received"]),
                   str(v["pending"]), str(v["missed"]), str(v["submitted"]),
                   str(v["delivered"]), str(v["failed"]))
     con.print(t)
+    con.print("sent: frames sent, recv: messages received, pending: messages not yet ended, "
+              "missed: turns missed")
     changes = s["membership_changes"]
     shown = ", ".join(f"{ticks_to_s(c['t']):.3f}s {c['ev']} {c['robot']}" for c in changes[:12])
     more = f" (+{len(changes) - 12} more)" if len(changes) > 12 else ""

@@ -1,0 +1,120 @@
+"""The ``rprs`` command line: outputs, files, and one-line errors with status 2."""
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+
+import pytest
+
+from hil.cli import main
+
+
+def rprs(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_sim_json_summary(capsys):
+    code, out, err = rprs(capsys, "sim", "--robots", "0,1,2", "--duration", "6", "--load", "2",
+                          "--json")
+    assert code == 0
+    s = json.loads(out)
+    assert set(s["robots"]) == {"0", "1", "2"}
+    assert s["submitted"] == s["delivered"] + s["failed"] + s["pending"]
+    assert all(v["frames_sent"] > 10 for v in s["robots"].values())
+    assert s["occupations"] == sum(v["frames_sent"] for v in s["robots"].values())
+
+
+def test_sim_table_names_the_papers_columns(capsys):
+    code, out, _ = rprs(capsys, "sim", "--duration", "5", "--fail", "2@4")
+    assert code == 0
+    for word in ("frames", "received", "pending", "missed", "membership changes",
+                 "channel occupations", "delivered"):
+        assert word in out
+
+
+def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
+    a, b = tmp_path / "a.jsonl", tmp_path / "b.jsonl"
+    for p in (a, b):
+        assert rprs(capsys, "sim", "--duration", "8", "--seed", "4", "--load", "3",
+                    "--ber", "0.002", "--fail", "3@3", "--recover", "3@6",
+                    "--trace", str(p))[0] == 0
+    assert a.read_bytes() == b.read_bytes()
+    lines = a.read_text().splitlines()
+    meta = json.loads(lines[0])
+    assert meta["ev"] == "meta" and meta["tick_hz"] == 16_000_000
+    assert meta["byte_ticks"] == {"1": 16640, "2": 16640, "3": 16640, "4": 16640}
+    assert (meta["ttrans"], meta["tmax"], meta["seed"]) == (80_000, 9_600_000, 4)
+    evs = [json.loads(x) for x in lines[1:]]
+    assert all(x["t"] <= y["t"] for x, y in zip(evs, evs[1:]))
+    kinds = {e["ev"] for e in evs}
+    assert {"frame", "miss", "disable", "rejoin", "submit", "deliver"} <= kinds
+    f = next(e for e in evs if e["ev"] == "frame")
+    assert {"src", "dst", "num", "type", "len", "start", "end"} <= set(f)
+    assert not list(tmp_path.glob("*.partial"))
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["sim", "--robots", "9"], "robot ID 9 is out of range"),
+    (["sim", "--robots", "1,1"], "repeat"),
+    (["sim", "--robots", "a,b"], "comma-separated"),
+    (["sim", "--fail", "x@y"], "ID@SECONDS"),
+    (["sim", "--fail", "5@1"], "not in the ring"),
+    (["sim", "--duration", "-1"], "positive"),
+    (["sim", "--duration", "nan"], "positive"),
+    (["sim", "--ber", "2"], "probability"),
+    (["sim", "--load", "lots"], "idle, saturate"),
+    (["sim", "--trace", "/nonexistent-dir/t.jsonl"], "cannot write trace"),
+    (["encode", "--src", "9", "--dst", "1", "movex(1)"], "source must be 0-6"),
+    (["encode", "--src", "1", "--dst", "2", "movex(1"], "content byte"),
+    (["encode", "--src", "1", "--dst", "2", "fly(1)"], "unknown command"),
+    (["decode", "zz"], "not hexadecimal"),
+    (["decode"], "give the frame"),
+    (["bogus"], "invalid choice"),
+])
+def test_user_mistakes_are_one_line_and_status_2(capsys, args, needle):
+    code, out, err = rprs(capsys, *args)
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("rprs: error: ")
+    assert needle in err
+    assert "Traceback" not in err
+
+
+def test_encode_the_papers_example(capsys):
+    code, out, _ = rprs(capsys, "encode", "--src", "1", "--dst", "2", "--num", "5", "--type",
+                        "2", "movex(10)")
+    assert code == 0
+    assert bytes.fromhex(out.strip()) == b"\x0f\x0a\x05" + b"21052" + b"0009" + \
+        b"movex(10)" + b"\x17\x19"
+
+
+def test_decode_reports_frames_and_garbage(capsys):
+    frame = "0f0a053231303532303030396d6f766578283130291719"
+    code, out, err = rprs(capsys, "decode", "ffee", frame, "0f0a")
+    assert code == 0
+    rows = [json.loads(x) for x in out.splitlines()]
+    assert rows[0] == {"offset": 0, "garbage": 2}
+    assert rows[1]["offset"] == 2 and rows[1]["frame"]["commands"] == [["movex", [10]]]
+    assert rows[-1] == {"offset": 25, "garbage": 2}
+    assert "1 frame(s)" in err
+
+
+def test_decode_stream_from_stdin_bytes(monkeypatch, capsys):
+    frame = bytes.fromhex("0f0a053231303532303030396d6f766578283130291719")
+    data = b"\x00\x0f\x0a\x05" + frame + frame[:10]      # partial header, frame, truncated
+    stdin = io.TextIOWrapper(io.BufferedReader(io.BytesIO(data)))
+    monkeypatch.setattr(sys, "stdin", stdin)
+    code, out, err = rprs(capsys, "decode", "--stream")
+    rows = [json.loads(x) for x in out.splitlines()]
+    assert code == 0
+    assert [r["frame"]["src"] for r in rows if "frame" in r] == [1]
+    assert any("truncated" in r.get("error", "") for r in rows)
+
+
+def test_console_script_runs_without_traceback():
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "7"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1
