@@ -160,6 +160,9 @@ class Air:
             for r in self.radios:
                 if r is radio or not r.alive or t0 < r.rx_from:
                     continue
+                old = r.rx
+                if old is not None:          # a frame that ended exactly at t0: take it all
+                    old.flush(r, t0)
                 if noise:
                     self._noise_upto(r, t0)
                     self._noise_gen[r.idx] += 1
@@ -347,6 +350,20 @@ class Air:
                 self._idle_from(r, now)
         self.active.remove(tx)
         tx.end = now
+        if tx.collided:
+            # The collision lasts only as long as the transmissions still on air.
+            rest = [a.end for a in self.active if a.collided]
+            until = max(rest) if rest else now
+            if until < self.collision_until:
+                self.collision_until = until
+                for r in self.radios:
+                    g = r.rx
+                    if g is not None and g.data is None:
+                        g.n = min(g.n, (until - g.t0) // g.bt)
+                if until == now:
+                    self._collision_end(now)
+                else:
+                    self.sched.at(until, self._collision_end, until)
         if self.on_transmission is not None:
             self.on_transmission(tx)
 
