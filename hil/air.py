@@ -308,9 +308,11 @@ class Air:
                 continue
             rx = r.rx
             if rx is not None and rx.data is None:     # already hearing garbage: extend it
+                rx.flush(r, t0)
                 old = rx.n
                 rx.n = (cend - rx.t0) // rx.bt
-                self._bytewise(r, rx, old - 1, rx.n - 1)
+                # its old last byte is no longer the last: bytes still ahead go one by one
+                self._bytewise(r, rx, max(old - 1, rx.pos), rx.n - 1)
                 continue
             if not r.listening(t0):
                 continue
