@@ -327,7 +327,14 @@ class CanBus:
         elif id(node) in self._holders:
             self._holders.discard(id(ns.node))
             if not self._holders:
-                self._hold_release()
+                # Released from an event at this same tick, never from inside the hold's own
+                # bookkeeping: a node's error/state callback may release the bus (a firmware
+                # isolating itself) while the bus is still settling that hold.
+                self.sched.at(self.sched.now, self._release_if_free)
+
+    def _release_if_free(self) -> None:
+        if not self._holders and self._hold is not None:
+            self._hold_release()
 
     def status(self, node: Any) -> NodeStatus:
         ns = self._ns(node)

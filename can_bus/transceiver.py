@@ -1,0 +1,341 @@
+"""Philips (PCA)82C250 CAN transceiver between one CAN controller and the :class:`CanBus`.
+
+The transceiver is the object attached to the bus: it implements the bus node interface (see
+:mod:`can_bus.bus`) and forwards to its controller, so a controller sees the bus only through
+its 82C250::
+
+    ctrl = CanController(sched)                  # firmware_model.mcu.can_controller
+    xcvr = Transceiver82C250(bus, ctrl)          # attaches itself to ``bus``
+
+A controller is any object with the bus node methods it wants (``pending``, ``on_frame``,
+``on_tx_done``, ``on_arbitration_lost``, ``on_error``, ``on_state_change``, looked up once at
+:meth:`Transceiver82C250.connect`); it asks for an arbitration with :meth:`request`, reads its
+error counters with :meth:`status` and may look at ``bus_idle`` and ``ticks_per_bit``.
+``connect`` sets ``controller.transceiver = self``.
+
+Rs pin (pin 8) modes
+--------------------
+* ``HIGH_SPEED``: Rs to ground (0 .. 1.8 kOhm); edges as fast as possible, up to 1 Mbit/s.
+* ``SLOPE_CONTROL``: Rs to ground through ``rs_ohms`` (16.5 .. 140 kOhm, the range Philips
+  application note AN96116 gives). The slew rate is proportional to the current out of Rs
+  (AN96116 eq. 4: single-ended ``SR = 0.5 Vcc / (7.6e-3 us/kOhm * R)``, 7 V/us at 47 kOhm,
+  2.35 V/us at 140 kOhm), so an edge takes a time proportional to ``R``. **Assumption**: the
+  usable bit rate is inversely proportional to ``R`` and anchored at the datasheet's
+  125 kbit/s for the slowest slope (140 kOhm)::
+
+      max_bitrate(R) = min(1 Mbit/s, 125 kbit/s * 140 kOhm / R) = min(1e6, 1.75e10 / R)
+
+  (372 kbit/s at 47 kOhm, 1 Mbit/s at 17.5 kOhm and below). If the bus bit rate is above the
+  limit, this node's own edges are too slow to be read back correctly at the sample point:
+  every frame it transmits gets a bit error (injected with ``CanBus.inject_bit_error`` at the
+  bus's default bit, the last bit of the stuffed CRC field; *where* in the frame the misread
+  happens is not modelled, nor the fact that a misread in the arbitration field would look like
+  lost arbitration). Reception is not affected. The check is exact in ticks:
+  ``TICK_HZ * R <= 1.75e10 * ticks_per_bit``.
+* ``STANDBY``: Rs high. Transmitter off, receiver in low-power mode. The controller gets no
+  frames, no errors and is offered no arbitration (its requests stay pending until the
+  transceiver is back in a normal mode). A dominant bus level is passed to RxD so the MCU can
+  wake up: ``on_wake(tick)`` fires once, on the first dominant bus activity after entering
+  standby: at the SOF tick of any frame, or for a bus stuck dominant with no frame in flight at
+  the tick the error flag starts (6 bit times after the bus went dominant: the bus model gives
+  no earlier hook). The SOF is seen through ``pending()``, which the bus does not call for a
+  node it counts bus-off: such a node wakes only on a stuck bus. Mode changes take effect at
+  the next arbitration; a frame of this node already on the bus completes. A mode change that
+  lifts the slope limit after an error was armed for a frame that then lost arbitration still
+  costs the next transmitted frame one bit error (an injected error cannot be withdrawn).
+
+  Simplification: in standby the node stays attached to the bus, so the bus still counts it
+  as a receiver (its REC follows the traffic, and it counts as an acknowledging receiver; a
+  real 82C250 in standby does not drive the ACK slot). The controller's error state
+  (``on_state_change``) is still forwarded, as the controller mirrors the bus's counters.
+
+TXD / RXD
+---------
+Frames go from the controller's TXD to the bus whole (``pending()``); RXD reaches the
+controller as whole frames. :attr:`rxd` is only the static level: 0 while the bus is held
+dominant, else 1. The 82C250 has **no TXD dominant time-out**: :meth:`stick_txd` (fault
+injection) holds the whole bus dominant with ``CanBus.hold_dominant`` for as long as it lasts.
+In standby the transmitter is off, so a stuck TXD does not hold the bus (entering standby
+releases the hold; leaving it with TXD still stuck holds the bus again). Hold changes reach the
+bus through a scheduler event at the same tick (after the current event), so the firmware may
+call :meth:`standby` from an ISR running inside a bus callback.
+"""
+from __future__ import annotations
+
+from enum import Enum
+from typing import Any, Callable
+
+from can_bus.bus import CanBus, CanErrorEvent, CanFrame, ErrorState, NodeStatus
+from firmware_model.timing import TICK_HZ
+
+__all__ = [
+    "RsMode",
+    "Transceiver82C250",
+    "HIGH_SPEED_MAX_OHMS",
+    "SLOPE_MIN_OHMS",
+    "SLOPE_MAX_OHMS",
+    "SLOPE_BITRATE_OHMS",
+    "MAX_BITRATE",
+    "max_bitrate",
+    "slew_rate",
+]
+
+HIGH_SPEED_MAX_OHMS = 1_800
+"""Rs resistance below which the 82C250 is in high-speed mode (AN96116: V_Rs < 0.3 Vcc)."""
+SLOPE_MIN_OHMS = 16_500
+SLOPE_MAX_OHMS = 140_000
+"""Slope-control resistor range given by AN96116 (10 uA < -I_Rs < 200 uA)."""
+MAX_BITRATE = 1_000_000
+"""82C250 / CAN 2.0 maximum bit rate (bit/s)."""
+SLOPE_BITRATE_OHMS = 125_000 * SLOPE_MAX_OHMS
+"""Model constant (bit/s x Ohm): 125 kbit/s at the slowest slope, 140 kOhm."""
+
+
+class RsMode(str, Enum):
+    HIGH_SPEED = "high-speed"
+    SLOPE_CONTROL = "slope-control"
+    STANDBY = "standby"
+
+
+HIGH_SPEED, SLOPE_CONTROL, STANDBY = RsMode.HIGH_SPEED, RsMode.SLOPE_CONTROL, RsMode.STANDBY
+
+
+def slew_rate(rs_ohms: int) -> float:
+    """Typical single-ended CANH/CANL slew rate (V/us) for a slope resistor (AN96116 eq. 4)."""
+    return 2.5 / (7.6e-3 * rs_ohms / 1000)
+
+
+def max_bitrate(rs_ohms: int) -> int:
+    """Usable bit rate (bit/s, rounded down) with ``rs_ohms`` on Rs (model; see module doc)."""
+    if rs_ohms < HIGH_SPEED_MAX_OHMS:
+        return MAX_BITRATE
+    return min(MAX_BITRATE, SLOPE_BITRATE_OHMS // rs_ohms)
+
+
+def _check_ohms(rs_ohms: int) -> int:
+    if not isinstance(rs_ohms, int) or isinstance(rs_ohms, bool) or rs_ohms < 0:
+        raise ValueError(f"rs_ohms must be an int >= 0, got {rs_ohms!r}")
+    if HIGH_SPEED_MAX_OHMS <= rs_ohms < SLOPE_MIN_OHMS or rs_ohms > SLOPE_MAX_OHMS:
+        raise ValueError(
+            f"Rs resistor of {rs_ohms} Ohm: use < {HIGH_SPEED_MAX_OHMS} Ohm (high-speed) or "
+            f"{SLOPE_MIN_OHMS}..{SLOPE_MAX_OHMS} Ohm (slope control)"
+        )
+    return rs_ohms
+
+
+class Transceiver82C250:
+    """One 82C250 on ``bus``; ``rs_ohms`` is the resistor fitted between Rs and the port pin
+    that drives it (0: high-speed). ``standby=True`` starts with the pin high."""
+
+    __slots__ = (
+        "bus", "sched", "name", "rs_ohms", "controller", "on_wake", "wakeups",
+        "_standby", "_stuck", "_held", "_want_hold", "_hold_ev", "_slope_bad", "_inj_armed", "_wake_armed", "_sof_ev",
+        "_c_pending", "_c_frame", "_c_tx_done", "_c_lost", "_c_error", "_c_state",
+    )
+
+    def __init__(self, bus: CanBus, controller: Any = None, rs_ohms: int = 0,
+                 standby: bool = False, name: str = "82C250") -> None:
+        self.bus = bus
+        self.sched = bus.sched
+        self.name = name
+        self.rs_ohms = _check_ohms(rs_ohms)
+        self.on_wake: Callable[[int], None] | None = None
+        self.wakeups = 0
+        self._standby = bool(standby)
+        self._stuck = False
+        self._held = False
+        self._want_hold = False
+        self._hold_ev = None
+        self._inj_armed = False
+        self._wake_armed = self._standby
+        self._sof_ev = None
+        self.controller = None
+        self._c_pending = self._c_frame = self._c_tx_done = None
+        self._c_lost = self._c_error = self._c_state = None
+        self._slope_bad = self._compute_slope_bad()
+        bus.attach(self)
+        if controller is not None:
+            self.connect(controller)
+
+    def __repr__(self) -> str:
+        return f"<{self.name} {self.mode.value}>"
+
+    # ------------------------------------------------------------------ wiring
+    def connect(self, controller: Any) -> None:
+        """Wire ``controller`` to TXD/RXD (replacing any previous one)."""
+        self.controller = controller
+        self._c_pending = getattr(controller, "pending", None)
+        self._c_frame = getattr(controller, "on_frame", None)
+        self._c_tx_done = getattr(controller, "on_tx_done", None)
+        self._c_lost = getattr(controller, "on_arbitration_lost", None)
+        self._c_error = getattr(controller, "on_error", None)
+        self._c_state = getattr(controller, "on_state_change", None)
+        try:
+            controller.transceiver = self
+        except AttributeError:
+            pass
+
+    # ------------------------------------------------------------------ controller side
+    def request(self) -> None:
+        """The controller has a (new) transmit request: wake the bus's arbitration."""
+        if not self._standby:
+            self.bus.request(self)
+
+    def status(self) -> NodeStatus:
+        """This node's TEC, REC and error state, as counted by the bus."""
+        return self.bus.status(self)
+
+    @property
+    def ticks_per_bit(self) -> int:
+        return self.bus.tpb
+
+    @property
+    def bus_idle(self) -> bool:
+        """No frame, error frame or stuck level on the bus now."""
+        return self.bus.idle
+
+    # ------------------------------------------------------------------ Rs pin
+    @property
+    def mode(self) -> RsMode:
+        if self._standby:
+            return STANDBY
+        return HIGH_SPEED if self.rs_ohms < HIGH_SPEED_MAX_OHMS else SLOPE_CONTROL
+
+    def standby(self, on: bool = True) -> None:
+        """Drive the Rs port pin high (standby) or low (the resistor's normal mode)."""
+        on = bool(on)
+        if on == self._standby:
+            return
+        self._standby = on
+        if on:
+            self._wake_armed = True
+        else:
+            self._wake_armed = False
+            if self._sof_ev is not None:
+                self._sof_ev.cancel()
+                self._sof_ev = None
+        self._update_hold()
+        if not on:
+            self.bus.request(self)  # pending requests of the controller may go now
+
+    def set_mode(self, mode: RsMode | str, rs_ohms: int | None = None) -> None:
+        """Select a mode; ``rs_ohms`` changes the fitted resistor (needed for SLOPE_CONTROL
+        when the current one is a high-speed value)."""
+        mode = RsMode(mode)
+        if rs_ohms is not None:
+            self.rs_ohms = _check_ohms(rs_ohms)
+        if mode is HIGH_SPEED and self.rs_ohms >= HIGH_SPEED_MAX_OHMS:
+            self.rs_ohms = 0
+        elif mode is SLOPE_CONTROL and self.rs_ohms < SLOPE_MIN_OHMS:
+            raise ValueError(f"slope control needs {SLOPE_MIN_OHMS}..{SLOPE_MAX_OHMS} Ohm on Rs")
+        self._slope_bad = self._compute_slope_bad()
+        self.standby(mode is STANDBY)
+
+    @property
+    def max_bitrate(self) -> int:
+        """Usable bit rate in the current resistor's normal mode (bit/s)."""
+        return max_bitrate(self.rs_ohms)
+
+    @property
+    def slope_limited(self) -> bool:
+        """True when the bus bit rate is above what the slope resistor allows."""
+        return self._slope_bad
+
+    def _compute_slope_bad(self) -> bool:
+        r = self.rs_ohms
+        return r >= HIGH_SPEED_MAX_OHMS and TICK_HZ * r > SLOPE_BITRATE_OHMS * self.bus.tpb
+
+    # ------------------------------------------------------------------ TXD fault, RXD
+    def stick_txd(self, on: bool = True) -> None:
+        """Fault injection: TXD stuck dominant (no time-out in the 82C250)."""
+        self._stuck = bool(on)
+        self._update_hold()
+
+    @property
+    def txd_stuck(self) -> bool:
+        return self._stuck
+
+    @property
+    def holding_bus(self) -> bool:
+        """True while this transceiver holds the bus dominant."""
+        return self._held
+
+    @property
+    def rxd(self) -> int:
+        """Static RXD level: 0 (dominant) while the bus is held dominant, else 1."""
+        return 0 if self.bus.held else 1
+
+    def _update_hold(self) -> None:
+        # Applied by an event at the same tick: the firmware may switch to standby from an ISR
+        # that runs inside a bus callback, and CanBus.hold_dominant is not re-entrant there.
+        want = self._stuck and not self._standby
+        if want != self._want_hold:
+            self._want_hold = want
+            if self._hold_ev is None:
+                self._hold_ev = self.sched.at(self.sched.now, self._apply_hold)
+
+    def _apply_hold(self) -> None:
+        self._hold_ev = None
+        want = self._want_hold
+        if want != self._held:
+            self._held = want
+            self.bus.hold_dominant(self, want)
+
+    # ------------------------------------------------------------------ wake-up
+    def _sof_check(self) -> None:
+        # Runs at the tick of an arbitration, after it: a frame started iff the bus is busy.
+        self._sof_ev = None
+        if self._wake_armed and not self.bus.idle:
+            self._wake(self.sched.now)
+
+    def _wake(self, tick: int) -> None:
+        self._wake_armed = False
+        self.wakeups += 1
+        if self.on_wake is not None:
+            self.on_wake(tick)
+
+    # ------------------------------------------------------------------ bus node interface
+    def pending(self) -> CanFrame | None:
+        if self._standby:
+            if self._wake_armed and self._sof_ev is None:
+                self._sof_ev = self.sched.at(self.sched.now, self._sof_check)
+            return None
+        fn = self._c_pending
+        if fn is None:
+            return None
+        f = fn()
+        if f is not None and self._slope_bad and not self._inj_armed:
+            self._inj_armed = True
+            self.bus.inject_bit_error(self, 1)
+        return f
+
+    def on_frame(self, frame: CanFrame, start: int, end: int) -> None:
+        if not self._standby and self._c_frame is not None:
+            self._c_frame(frame, start, end)
+
+    def on_tx_done(self, frame: CanFrame, end: int) -> None:
+        # Sent before a switch to standby (the frame already on the bus completes).
+        if self._c_tx_done is not None:
+            self._c_tx_done(frame, end)
+
+    def on_arbitration_lost(self, frame: CanFrame) -> None:
+        if not self._standby and self._c_lost is not None:
+            self._c_lost(frame)
+
+    def on_error(self, ev: CanErrorEvent) -> None:
+        if ev.transmitter:
+            if ev.kind == "bit" and not self.bus.held:
+                self._inj_armed = False  # our armed slope error was consumed
+            if self._c_error is not None:
+                self._c_error(ev)  # our own frame failed: the controller must know
+            return
+        if self._standby:
+            if self._wake_armed:
+                self._wake(ev.tick)
+            return
+        if self._c_error is not None:
+            self._c_error(ev)
+
+    def on_state_change(self, old: ErrorState, new: ErrorState, tick: int) -> None:
+        if self._c_state is not None:
+            self._c_state(old, new, tick)

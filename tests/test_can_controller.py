@@ -1,0 +1,410 @@
+"""MB90F549 CAN controller model behind an 82C250 on the simulated bus."""
+from __future__ import annotations
+
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from can_bus.bits import BitTiming, frame_length_bits, wire_bits
+from can_bus.bus import CanBus, CanFrame, ErrorState
+from can_bus.transceiver import Transceiver82C250
+from firmware_model.mcu.can_controller import (
+    AMS_ALL,
+    AMS_AMR0,
+    AMS_AMR1,
+    AMS_FULL,
+    CSR_HALT,
+    CSR_NIE,
+    CSR_NT,
+    CSR_TOE,
+    LEIR_RCE,
+    LEIR_TCE,
+    NS_ACTIVE,
+    NS_BUS_OFF,
+    NS_PASSIVE,
+    NS_WARNING,
+    CanController,
+    btr_from_timing,
+    timing_from_btr,
+)
+from firmware_model.mcu.scheduler import Scheduler
+
+TPB = 32  # 500 kbit/s
+
+
+def flen(f: CanFrame, ifs: bool = True) -> int:
+    return frame_length_bits(f.id, f.data, f.rtr, include_ifs=ifs, dlc=f.dlc)
+
+
+class Rig:
+    """``n`` controllers, each behind its own 82C250, on one bus; records IRQs with ticks."""
+
+    def __init__(self, n: int = 2, timing: BitTiming | None = None, start: bool = True) -> None:
+        self.sched = Scheduler()
+        self.bus = CanBus(self.sched, timing)
+        self.log: list[tuple[CanFrame, int, int, object]] = []
+        self.errs: list[tuple] = []
+        self.bus.trace = lambda f, s, e, w: self.log.append((f, s, e, w))
+        self.bus.error_trace = lambda *a: self.errs.append(a)
+        self.ctrls: list[CanController] = []
+        self.xcvrs: list[Transceiver82C250] = []
+        self.irqs: list[tuple[str, str, int, int]] = []
+        for i in range(n):
+            c = CanController(self.sched, timing, name=f"CAN{i}")
+            x = Transceiver82C250(self.bus, c, name=f"X{i}")
+            c.enable_irq(tx=0xFFFF, rx=0xFFFF)
+            c.on_tx_irq = self._rec(c, "tx")
+            c.on_rx_irq = self._rec(c, "rx")
+            c.on_status_irq = self._rec(c, "ns")
+            if start:
+                c.start()
+            self.ctrls.append(c)
+            self.xcvrs.append(x)
+
+    def _rec(self, c, kind):
+        return lambda v: self.irqs.append((c.name, kind, v, self.sched.now))
+
+    def run(self, t: int) -> None:
+        self.sched.run_until(t)
+
+    def of(self, name: str, kind: str) -> list[tuple[int, int]]:
+        return [(v, t) for n, k, v, t in self.irqs if n == name and k == kind]
+
+
+# ---------------------------------------------------------------- registers
+def test_reset_state_and_btr():
+    sched = Scheduler()
+    c = CanController(sched)
+    assert c.CSR == CSR_HALT and c.halted and c.BVALR == c.TREQR == c.RCR == c.TCR == 0
+    assert c.BTR == 0x3A01 == btr_from_timing(BitTiming())  # TS2=3, TS1=10, RSJ=0, PSC=1
+    assert timing_from_btr(c.BTR) == BitTiming()
+    c.BTR = btr_from_timing(BitTiming.from_bitrate(125_000))
+    assert c.timing.ticks_per_bit == 128
+    # BTR is writable only while halted; a bit time different from the bus's is refused.
+    bus = CanBus(sched)
+    Transceiver82C250(bus, c)
+    with pytest.raises(ValueError):
+        c.start()
+    assert c.halted
+    c.set_timing(BitTiming())
+    c.start()
+    assert c.CSR == CSR_TOE
+    with pytest.raises(RuntimeError):
+        c.BTR = 0x3A01
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 64), st.integers(1, 16), st.integers(1, 8), st.integers(1, 4))
+def test_btr_round_trip(psc, ts1, ts2, sjw):
+    assume(sjw <= ts1 and sjw <= ts2 and psc * (1 + ts1 + ts2) >= 16)
+    t = BitTiming(psc, ts1, ts2, sjw)
+    assert timing_from_btr(btr_from_timing(t)) == t
+
+
+def test_toe_off_sends_nothing():
+    r = Rig(2, start=False)
+    a, b = r.ctrls
+    a.configure_tx(0, 0x100)
+    a.transmit(0, b"\x01")
+    a.CSR = CSR_NIE  # HALT cleared but TOE = 0: the TX pin is a port
+    b.start()
+    r.run(10_000)
+    assert r.log == [] and a.TREQR == 1
+    a.CSR = CSR_TOE
+    r.run(20_000)
+    assert [(f.id, s) for f, s, *_ in r.log] == [(0x100, 10_000)]
+
+
+# ---------------------------------------------------------------- transmission
+def test_lowest_buffer_first_not_lowest_id_and_exact_irq_ticks():
+    r = Rig(2, start=False)
+    a, b = r.ctrls
+    a.configure_tx(2, 0x100)
+    a.configure_tx(5, 0x050)
+    a.configure_tx(9, 0x010)
+    b.configure_rx(0, 0, AMS_ALL)
+    for buf in (9, 5, 2):
+        a.transmit(buf, bytes([buf]))
+    assert a.TREQR == (1 << 2) | (1 << 5) | (1 << 9)
+    b.start()
+    a.start()
+    r.run(100_000)
+    f2, f5, f9 = (CanFrame(i, bytes([k])) for i, k in ((0x100, 2), (0x050, 5), (0x010, 9)))
+    e2 = flen(f2, False) * TPB
+    s5 = flen(f2) * TPB
+    e5 = s5 + flen(f5, False) * TPB
+    s9 = s5 + flen(f5) * TPB
+    e9 = s9 + flen(f9, False) * TPB
+    assert [(f, s, e) for f, s, e, _ in r.log] == [(f2, 0, e2), (f5, s5, e5), (f9, s9, e9)]
+    assert r.of("CAN0", "tx") == [(2, e2), (5, e5), (9, e9)]
+    assert r.of("CAN1", "rx") == [(0, e2), (0, e5), (0, e9)]
+    assert a.TREQR == 0 and a.TCR == (1 << 2) | (1 << 5) | (1 << 9)
+    assert a.LEIR == LEIR_TCE | 9 and b.LEIR == LEIR_RCE | 0
+    assert a.frames_sent == 3 and b.read(0) == f9 and b.ROVRR == 1  # never read: overruns
+    a.TCR = ~(1 << 5)  # clear by writing 0
+    assert a.TCR == (1 << 2) | (1 << 9)
+
+
+def test_lower_buffer_requested_mid_frame_waits_for_the_next_arbitration():
+    r = Rig(2)
+    a, b = r.ctrls
+    a.configure_tx(3, 0x300)
+    a.configure_tx(0, 0x400)
+    a.transmit(3, b"x")
+    r.run(10 * TPB)
+    a.transmit(0, b"y")  # lower buffer (higher priority) but frame 3 is on the bus
+    r.run(100_000)
+    assert [f.id for f, *_ in r.log] == [0x300, 0x400]
+    assert [v for v, _ in r.of("CAN0", "tx")] == [3, 0]
+
+
+def test_interrupt_enables_gate_callbacks_not_flags():
+    r = Rig(2)
+    a, b = r.ctrls
+    a.enable_irq(tx=0)
+    b.enable_irq(rx=0b10)
+    a.configure_tx(0, 0x123)
+    b.configure_rx(0, 0x123)
+    a.transmit(0)
+    r.run(10_000)
+    assert r.irqs == [] and a.TCR == 1 and b.RCR == 1
+    assert b.take(0) == CanFrame(0x123) and b.RCR == 0
+
+
+def test_cancel_before_during_and_after_error():
+    r = Rig(2)
+    a, b = r.ctrls
+    xa = r.xcvrs[0]
+    a.configure_tx(0, 0x100)
+    # Not yet arbitrated: gone at once.
+    a.transmit(0)
+    assert a.cancel(0) is True and a.TREQR == 0
+    r.run(5_000)
+    assert r.log == []
+    # On the bus: the cancel waits; the frame completes, so TC is set and the cancel is void.
+    a.transmit(0, b"\x01")
+    r.run(5_000 + 10 * TPB)
+    assert a.cancel(0) is False and a.TCANR == 1
+    r.run(20_000)
+    assert len(r.log) == 1 and a.TCR == 1 and a.TREQR == 0 and a.TCANR == 0
+    # On the bus and destroyed by an error: the cancel takes effect, no retransmission.
+    a.clear_tc(0)
+    r.bus.inject_bit_error(xa, 1)
+    a.transmit(0, b"\x02")
+    r.run(20_000 + 10 * TPB)
+    assert a.cancel(0) is False
+    r.run(40_000)
+    assert len(r.log) == 1 and len(r.errs) == 1
+    assert a.TREQR == 0 and a.TCANR == 0 and a.TCR == 0 and a.tec == 8
+
+
+def test_transmit_errors_on_misuse():
+    r = Rig(1)
+    (a,) = r.ctrls
+    with pytest.raises(RuntimeError):
+        a.transmit(0)  # not a valid transmit buffer
+    a.configure_tx(0, 0x100)
+    a.transmit(0)
+    with pytest.raises(RuntimeError):
+        a.transmit(0)  # request already pending
+    with pytest.raises(ValueError):
+        a.configure_tx(16, 0x100)
+    with pytest.raises(ValueError):
+        a.configure_rx(1, 0x800)
+
+
+def test_remote_frame_transmit_and_receive():
+    r = Rig(2)
+    a, b = r.ctrls
+    b.configure_rx(4, 0x181)
+    a.configure_tx(1, 0x181)
+    a.transmit(1, b"\xAA\xBB")
+    r.run(10_000)
+    assert b.DTR[4][:2] == b"\xAA\xBB" and b.RRTRR == 0
+    b.clear_rc(4)
+    a.configure_tx(1, 0x181, rtr=True)
+    a.transmit(1, dlc=4)
+    r.run(20_000)
+    assert r.log[-1][0] == CanFrame(0x181, rtr=True, dlc=4)
+    assert b.read(4).rtr and b.RRTRR == 1 << 4 and b.DLCR[4] == 4
+    assert b.DTR[4][:2] == b"\xAA\xBB"  # a remote frame leaves DTR unchanged
+
+
+# ---------------------------------------------------------------- acceptance
+def test_acceptance_exact_masks_accept_all_and_priority():
+    r = Rig(2)
+    a, b = r.ctrls
+    b.set_masks(amr0=0x00F, amr1=0x700)
+    b.configure_rx(0, 0x181)             # exact
+    b.configure_rx(1, 0x0C0, AMS_AMR0)   # 0x0C0..0x0CF
+    b.configure_rx(2, 0x005, AMS_AMR1)   # any of the top 3 bits: 0x005, 0x105, ... 0x705
+    b.configure_rx(15, 0, AMS_ALL)       # everything else
+    b.configure_tx(3, 0x181)             # a transmit buffer never receives
+    assert b.AMSR == (AMS_AMR0 << 2) | (AMS_AMR1 << 4) | (AMS_ALL << 30)
+    a.configure_tx(0, 0)
+    expect = {0x181: 0, 0x0C3: 1, 0x0CF: 1, 0x0D3: 15, 0x605: 2, 0x606: 15, 0x180: 15}
+    got = {}
+    for can_id, buf in expect.items():
+        a.configure_tx(0, can_id)
+        a.transmit(0)
+        r.run(r.sched.now + 200 * TPB)
+        (v, _), = r.of("CAN1", "rx")[-1:]
+        got[can_id] = v
+        assert b.take(v).id == can_id and b.IDR[v] == can_id
+    assert got == expect and b.ROVRR == 0
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 0x7FF), st.integers(0, 0x7FF), st.integers(0, 0x7FF),
+       st.sampled_from([AMS_FULL, AMS_ALL, AMS_AMR0, AMS_AMR1]))
+def test_acceptance_rule(rx_id, code, mask, ams):
+    r = Rig(2)
+    a, b = r.ctrls
+    b.set_masks(amr0=mask, amr1=~mask & 0x7FF)
+    b.configure_rx(7, code, ams)
+    a.configure_tx(0, rx_id)
+    a.transmit(0)
+    r.run(10_000)
+    care = {AMS_FULL: 0x7FF, AMS_ALL: 0, AMS_AMR0: ~mask & 0x7FF, AMS_AMR1: mask}[ams]
+    assert bool(b.RCR) == ((rx_id ^ code) & care == 0)
+
+
+def test_overrun_single_buffer_and_multilevel_buffers():
+    r = Rig(2)
+    a, b = r.ctrls
+    b.configure_rx(0, 0x181)
+    b.configure_rx(3, 0x185)
+    b.configure_rx(4, 0x185)  # same filter: a two-level buffer
+    a.configure_tx(0, 0x181)
+    a.configure_tx(1, 0x185)
+
+    def send(buf, data):
+        a.transmit(buf, data)
+        r.run(r.sched.now + 200 * TPB)
+
+    send(0, b"\x01")
+    send(0, b"\x02")  # buffer 0 still unread: overwritten, ROVR0
+    assert b.ROVRR == 1 and b.read(0).data == b"\x02" and b.overruns == 1
+    b.ROVRR = 0
+    b.take(0)
+    send(0, b"\x03")
+    assert b.ROVRR == 0 and b.read(0).data == b"\x03"
+    send(1, b"\x10")
+    send(1, b"\x11")  # buffer 3 full: goes to 4
+    assert [v for v, _ in r.of("CAN1", "rx")[-2:]] == [3, 4] and b.ROVRR == 0
+    send(1, b"\x12")  # both full: the lowest-priority one (4) is overwritten
+    assert b.read(3).data == b"\x10" and b.read(4).data == b"\x12" and b.ROVRR == 1 << 4
+    b.take(3)
+    send(1, b"\x13")  # buffer 3 free again
+    assert b.read(3).data == b"\x13"
+
+
+def test_halted_controller_takes_no_frames():
+    r = Rig(2)
+    a, b = r.ctrls
+    b.configure_rx(0, 0, AMS_ALL)
+    b.halt()
+    a.configure_tx(0, 0x10)
+    a.transmit(0)
+    r.run(10_000)
+    assert len(r.log) == 1 and b.RCR == 0  # (the bus still counts b as acknowledging)
+    b.start()
+    a.transmit(0)
+    r.run(20_000)
+    assert b.RCR == 1
+
+
+# ---------------------------------------------------------------- errors, bus-off
+def test_error_counters_and_node_status_visible_to_firmware():
+    r = Rig(2)
+    a, b = r.ctrls
+    a.CSR = a.CSR | CSR_NIE
+    b.CSR = b.CSR | CSR_NIE
+    f = CanFrame(0x123, b"\x11\x22")
+    n = len(wire_bits(f.id, f.data)) - 10  # stuffed SOF..CRC: the default injection bit + 1
+    r.bus.inject_bit_error(r.xcvrs[0], count=12)
+    a.configure_tx(0, f.id)
+    a.transmit(0, f.data)
+    r.run(1)
+    while len(r.errs) < 3:
+        r.sched.step()
+    assert (a.tec, a.rec, b.tec, b.rec) == (24, 0, 0, 3)
+    assert a.RTEC == 24 and b.RTEC == 3 << 8 and a.node_status == NS_ACTIVE
+    while len(r.errs) < 12:
+        r.sched.step()
+    flag12 = r.errs[-1][3]
+    assert flag12 == r.errs[-1][2] + n * TPB
+    assert a.tec == 96 and a.node_status == NS_WARNING and a.CSR & CSR_NT
+    assert (a.CSR >> 8) & 3 == NS_WARNING
+    assert r.of("CAN0", "ns") == [(NS_WARNING, flag12)]
+    a.CSR = a.CSR & ~CSR_NT
+    assert not a.CSR & CSR_NT
+    r.run(10**6)
+    # The 13th attempt succeeds: TEC 95, back to error active (NT again); b's REC 11.
+    assert (a.tec, b.rec) == (95, 11) and a.node_status == NS_ACTIVE
+    assert [v for v, _ in r.of("CAN0", "ns")] == [NS_WARNING, NS_ACTIVE]
+    assert a.error_state is ErrorState.ACTIVE and r.of("CAN1", "ns") == []
+
+
+def _bus_off_rig():
+    r = Rig(2)
+    a, b = r.ctrls
+    a.CSR = a.CSR | CSR_NIE
+    f = CanFrame(0x123, b"\x11\x22")
+    r.bus.inject_bit_error(r.xcvrs[0], count=32)
+    a.configure_tx(0, f.id)
+    a.transmit(0, f.data)
+    b.configure_rx(0, f.id)
+    return r, a, b, f
+
+
+def test_bus_off_halts_then_firmware_restart_and_bus_recovery():
+    r, a, b, f = _bus_off_rig()
+    restarts = []
+
+    def isr(ns):
+        r.irqs.append(("CAN0", "ns", ns, r.sched.now))
+        if ns == NS_BUS_OFF:
+            assert a.halted
+            restarts.append(r.sched.now)
+            a.start()  # clear HALT at once; the 128 x 11 recessive bits still have to pass
+
+    a.on_status_irq = isr
+    r.run(1)
+    while len(r.errs) < 32:
+        r.sched.step()
+    flags = [e[3] for e in r.errs]
+    idle = r.errs[-1][4]
+    recovery = idle + 127 * 11 * TPB  # same numbers as the bare bus test
+    assert (flags[15], flags[31], recovery) == (34784, 74208, 119456)
+    assert a.bus_off and a.node_status == NS_BUS_OFF and not a.halted and a.TREQR == 1
+    r.run(recovery - 1)
+    assert a.bus_off and r.log == []
+    r.run(recovery + 1000 * TPB)
+    assert r.of("CAN0", "ns") == [(NS_WARNING, flags[11]), (NS_PASSIVE, flags[15]),
+                                  (NS_BUS_OFF, flags[31]), (NS_ACTIVE, recovery)]
+    assert restarts == [flags[31]]
+    end = recovery + flen(f, False) * TPB
+    assert [(x[0], x[1], x[2]) for x in r.log] == [(f, recovery, end)]
+    assert r.of("CAN0", "tx") == [(0, end)] and r.of("CAN1", "rx") == [(0, end)]
+    assert (a.tec, a.rec, a.node_status, a.bus_off) == (0, 0, NS_ACTIVE, False)
+
+
+def test_bus_off_late_restart_resumes_at_halt_clear():
+    r, a, b, f = _bus_off_rig()
+    r.run(1)
+    while len(r.errs) < 32:
+        r.sched.step()
+    recovery = r.errs[-1][4] + 127 * 11 * TPB
+    assert a.halted and a.bus_off
+    r.run(recovery + 5000)
+    # The bus has recovered the node, but the controller stays halted and bus-off.
+    assert r.bus.error_state(r.xcvrs[0]) is ErrorState.ACTIVE
+    assert a.halted and a.node_status == NS_BUS_OFF and (a.CSR >> 8) & 3 == 3 and r.log == []
+    t = recovery + 7000
+    r.run(t)
+    a.start()
+    assert a.node_status == NS_ACTIVE and not a.bus_off
+    r.run(t + 1000 * TPB)
+    assert [(x[0], x[1]) for x in r.log] == [(f, t)]
+    assert r.of("CAN0", "ns")[-1] == (NS_ACTIVE, t)
