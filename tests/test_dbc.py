@@ -1,0 +1,205 @@
+"""can_bus/rprs.dbc and can_bus.dbc: the frame contract of docs/can.md."""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import can
+import cantools
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import can_bus
+from can_bus import dbc
+from can_bus.bus import CanFrame
+
+DBC = Path(can_bus.__file__).parent / "rprs.dbc"
+
+# signal: (start bit, length, signed, scale, unit)
+U8 = lambda start, unit=None: (start, 8, False, 1, unit)  # noqa: E731
+EVENT = {"kind": U8(0), "seq": U8(8), "code": U8(16)}
+JOINT_CMD = {"angle": (0, 16, True, 0.01, "deg"), "speed": (16, 16, False, 0.1, "deg/s"),
+             "seq": U8(32), "mode": U8(40)}
+JOINT_STATUS = {"angle": (0, 16, True, 0.01, "deg"), "speed": (16, 16, True, 0.1, "deg/s"),
+                "state": U8(32), "seq": U8(40)}
+SUBS = ["JOINT1", "JOINT2", "JOINT3", "JOINT4", "WHEEL", "PAW"]
+
+# name: (id, dlc, sender, receivers, signals) -- docs/can.md
+EXPECTED: dict[str, tuple[int, int, str, list[str], dict]] = {
+    "ESTOP": (0x010, 1, "MCU", SUBS, {"reason": U8(0)}),
+    "WHEEL_CMD": (0x105, 7, "MCU", ["WHEEL"], {"speed": (0, 16, True, 1, "mm/s"),
+                                               "distance": (16, 32, True, 1, "mm"),
+                                               "seq": U8(48)}),
+    "PAW_CMD": (0x106, 3, "MCU", ["PAW"], {"action": U8(0), "force": U8(8, "%"), "seq": U8(16)}),
+    "WHEEL_STATUS": (0x185, 8, "WHEEL", ["MCU"], {"speed": (0, 16, True, 1, "mm/s"),
+                                                  "odometer": (16, 32, True, 1, "mm"),
+                                                  "state": U8(48), "seq": U8(56)}),
+    "PAW_STATUS": (0x186, 4, "PAW", ["MCU"], {"opening": U8(0, "%"), "grip": U8(8),
+                                              "state": U8(16), "seq": U8(24)}),
+}
+for _n in range(1, 7):
+    EXPECTED[f"EVENT{_n}"] = (0x0C0 + _n, 3, SUBS[_n - 1], ["MCU"], EVENT)
+for _n in range(1, 5):
+    EXPECTED[f"JOINT{_n}_CMD"] = (0x100 + _n, 6, "MCU", [f"JOINT{_n}"], JOINT_CMD)
+    EXPECTED[f"JOINT{_n}_STATUS"] = (0x180 + _n, 6, f"JOINT{_n}", ["MCU"], JOINT_STATUS)
+
+CHOICES = {
+    "state": {0: "idle", 1: "moving", 2: "holding", 3: "stalled", 4: "fault"},
+    "kind": {1: "done", 2: "fault", 3: "refused"},
+    "mode": {0: "move", 1: "hold", 2: "relax"},
+    "action": {0: "close", 1: "open"},
+}
+
+
+def test_dbc_is_package_data_and_loads_strictly():
+    assert DBC.is_file()
+    db = cantools.database.load_file(str(DBC), strict=True)
+    assert len(db.messages) == len(EXPECTED) == 19
+    assert dbc.load() is dbc.load()  # cached
+    assert dbc.dbc_path().read_text() == DBC.read_text()
+    assert [n.name for n in db.nodes] == ["MCU", "JOINT1", "JOINT2", "JOINT3", "JOINT4", "WHEEL", "PAW"]
+    assert all(n.comment for n in db.nodes)
+    assert db.buses[0].baudrate == 500_000
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_every_frame_of_the_contract(name):
+    fid, length, sender, receivers, signals = EXPECTED[name]
+    m = dbc.load().get_message_by_name(name)
+    assert (m.frame_id, m.length, m.is_extended_frame) == (fid, length, False)
+    assert dbc.frame_id(name) == fid and dbc.frame_name(fid) == name and dbc.dlc(name) == length
+    assert m.senders == [sender]
+    assert m.comment
+    assert {s.name for s in m.signals} == set(signals)
+    for s in m.signals:
+        start, size, signed, scale, unit = signals[s.name]
+        assert (s.start, s.length, s.is_signed, s.scale, s.offset) == (start, size, signed, scale, 0)
+        assert s.byte_order == "little_endian"
+        assert (s.unit or None) == unit
+        assert s.receivers == receivers
+        assert s.minimum is not None and s.maximum is not None
+        # [min|max] fits in the raw range
+        lo = -(1 << (size - 1)) if signed else 0
+        hi = (1 << (size - 1)) - 1 if signed else (1 << size) - 1
+        assert lo * scale - 1e-9 <= s.minimum <= s.maximum <= hi * scale + 1e-9
+        assert s.comment
+        if s.name in CHOICES:
+            assert dict(s.choices) == CHOICES[s.name]
+    if name.endswith("_STATUS"):
+        assert m.cycle_time == 100
+
+
+def test_name_helpers():
+    assert [dbc.joint_cmd_name(n) for n in (1, 4)] == ["JOINT1_CMD", "JOINT4_CMD"]
+    assert dbc.joint_status_name(2) == "JOINT2_STATUS"
+    assert [dbc.event_name(n) for n in (1, 6)] == ["EVENT1", "EVENT6"]
+    assert [dbc.cmd_name(n) for n in (3, 5, 6)] == ["JOINT3_CMD", "WHEEL_CMD", "PAW_CMD"]
+    assert [dbc.status_name(n) for n in (4, 5, 6)] == ["JOINT4_STATUS", "WHEEL_STATUS", "PAW_STATUS"]
+    for bad in (0, 5, True, "1"):
+        with pytest.raises(dbc.DbcError):
+            dbc.joint_cmd_name(bad)
+    with pytest.raises(dbc.DbcError, match="NOPE"):
+        dbc.frame_id("NOPE")
+    with pytest.raises(dbc.DbcError, match="0x7ff"):
+        dbc.frame_name(0x7FF)
+
+
+def test_little_endian_layout():
+    f = dbc.encode_raw("JOINT1_CMD", angle=-2, speed=0x1234, seq=0xAB, mode=2)
+    assert f == CanFrame(0x101, bytes([0xFE, 0xFF, 0x34, 0x12, 0xAB, 0x02]))
+    f = dbc.encode("WHEEL_STATUS", speed=-1, odometer=0x01020304, state=1, seq=9)
+    assert f.data == bytes([0xFF, 0xFF, 0x04, 0x03, 0x02, 0x01, 0x01, 0x09])
+    assert dbc.encode("JOINT2_CMD", angle=12.34, speed=7.5, seq=1, mode="hold").data == \
+        bytes([0xD2, 0x04, 0x4B, 0x00, 0x01, 0x01])
+
+
+def _raw_signals(name: str):
+    e = {s.name: dbc.signal_range(name, s.name, raw=True) for s in dbc.message(name).signals}
+    return st.fixed_dictionaries({k: st.integers(lo, hi) for k, (lo, hi) in e.items()})
+
+
+@settings(max_examples=300, deadline=None)
+@given(data=st.data(), name=st.sampled_from(sorted(EXPECTED)))
+def test_round_trip_raw_and_physical(data, name):
+    raw = data.draw(_raw_signals(name))
+    frame = dbc.encode_raw(name, **raw)
+    assert frame.id == EXPECTED[name][0] and frame.dlc == EXPECTED[name][1]
+    assert dbc.decode_raw(frame) == (name, raw)
+    got_name, phys = dbc.decode(frame)
+    assert got_name == name
+    for sig, value in phys.items():
+        s = dbc.message(name).get_signal_by_name(sig)
+        assert math.isclose(value, raw[sig] * s.scale, abs_tol=1e-9)
+    # physical values encode back to the same bytes, and python-can messages decode too
+    assert dbc.encode(name, **phys) == frame
+    assert dbc.decode(frame.to_message()) == (name, phys)
+
+
+@pytest.mark.parametrize("name,signal,value,rng", [
+    ("JOINT1_CMD", "angle", 327.68, "-327.68..327.67"),
+    ("JOINT3_CMD", "speed", -0.1, "0..6553.5"),
+    ("JOINT4_CMD", "mode", 3, "0..2"),
+    ("EVENT2", "kind", 0, "1..3"),
+    ("PAW_CMD", "force", 101, "0..100"),
+    ("PAW_STATUS", "grip", 2, "0..1"),
+    ("WHEEL_CMD", "distance", 2**31, "-2147483648..2147483647"),
+    ("ESTOP", "reason", 256, "0..255"),
+])
+def test_out_of_range_raises_dbc_error_with_signal_and_range(name, signal, value, rng):
+    m = dbc.message(name)
+    signals = {s.name: (s.minimum if s.minimum > 0 else 0) for s in m.signals}
+    signals[signal] = value
+    with pytest.raises(dbc.DbcError) as exc:
+        dbc.encode(name, **signals)
+    msg = str(exc.value)
+    assert name in msg and repr(signal) in msg and rng in msg
+
+
+def test_encode_errors():
+    with pytest.raises(dbc.DbcError, match="missing signal.*mode"):
+        dbc.encode("JOINT1_CMD", angle=0, speed=0, seq=0)
+    with pytest.raises(dbc.DbcError, match="unknown signal.*bogus"):
+        dbc.encode("PAW_CMD", action=0, force=0, seq=0, bogus=1)
+    with pytest.raises(dbc.DbcError, match="no value named 'sideways'"):
+        dbc.encode("PAW_CMD", action="sideways", force=0, seq=0)
+    with pytest.raises(dbc.DbcError, match="must be an int"):
+        dbc.encode_raw("PAW_CMD", action=0, force=1.5, seq=0)
+    with pytest.raises(dbc.DbcError, match="raw signal 'angle' = 32768 is out of range -32768..32767"):
+        dbc.encode_raw("JOINT1_STATUS", angle=32768, speed=0, state=0, seq=0)
+    with pytest.raises(dbc.DbcError, match="unknown frame name 'JOINT5_CMD'"):
+        dbc.encode("JOINT5_CMD")
+
+
+def test_decode_errors_name_the_frame():
+    with pytest.raises(dbc.DbcError, match="unknown CAN id 0x200"):
+        dbc.decode(CanFrame(0x200, b"\x00"))
+    with pytest.raises(dbc.DbcError, match=r"JOINT1_CMD \(0x101\): expected 6 data bytes, got 5"):
+        dbc.decode(CanFrame(0x101, bytes(5)))
+    with pytest.raises(dbc.DbcError, match="PAW_STATUS.*expected 4 data bytes, got 8"):
+        dbc.decode(can.Message(arbitration_id=0x186, is_extended_id=False, data=bytes(8)))
+    with pytest.raises(dbc.DbcError, match="EVENT1.*remote"):
+        dbc.decode(CanFrame(0x0C1, rtr=True, dlc=3))
+    with pytest.raises(dbc.DbcError, match="extended"):
+        dbc.decode(can.Message(arbitration_id=0x101, is_extended_id=True, data=bytes(6)))
+    with pytest.raises(dbc.DbcError):
+        dbc.decode(b"\x01\x02")
+
+
+def test_cantools_cli_decodes_a_candump_log(tmp_path):
+    frames = [
+        dbc.encode("JOINT2_CMD", angle=-12.5, speed=30, seq=17, mode="move"),
+        dbc.encode("EVENT2", kind="done", seq=17, code=0),
+        dbc.encode("WHEEL_STATUS", speed=-150, odometer=1234, state=1, seq=3),
+    ]
+    lines = [f"  can0  {f.id:03X}   [{f.dlc}]  " + " ".join(f"{b:02X}" for b in f.data) for f in frames]
+    log = "\n".join(lines) + "\n"
+    out = subprocess.run(
+        [sys.executable, "-m", "cantools", "decode", str(DBC)],
+        input=log, capture_output=True, text=True, timeout=120, check=True,
+    ).stdout
+    assert "JOINT2_CMD(" in out and "angle: -12.5 deg" in out and "mode: move" in out
+    assert "EVENT2(" in out and "kind: done" in out
+    assert "WHEEL_STATUS(" in out and "odometer: 1234 mm" in out and "state: moving" in out
