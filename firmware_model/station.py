@@ -17,7 +17,7 @@ from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
 from .mcu.uart import Uart
 from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
-from .radio.mac import MacConfig, RotationalMac, Transmit, TxEnable
+from .radio.mac import Deliver, MacConfig, RotationalMac, Transmit, TxEnable
 
 Observer = Callable[["RadioStation", object, int], None]
 
@@ -39,6 +39,8 @@ class RadioStation:
         self.deframer = Deframer(max_content=self.mac.max_content, byte_ticks=uart.byte_ticks)
         self.timer = ReloadTimer(sched, self._on_timer)
         self.observer = observer
+        self.app: Callable[[Deliver, int], None] | None = None
+        """The application (the child's dispatcher) gets every message delivered to it."""
         self.garbage_bytes = 0
         self.frames_heard = 0
         self.frames_failed = 0
@@ -138,8 +140,11 @@ class RadioStation:
                 self.uart.send(a.data)
                 if obs is not None:
                     obs(self, a, now)
-            elif obs is not None:
-                obs(self, a, now)
+            else:
+                if t is Deliver and self.app is not None:
+                    self.app(a, now)
+                if obs is not None:
+                    obs(self, a, now)
 
 
 def build_station(robot_id: int, sched: Scheduler, byte_ticks: int | None = None,

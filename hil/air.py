@@ -129,6 +129,7 @@ class Air:
         self._noise_gen: list[int] = []
         self._err_rng: list[random.Random] = []
         self.occupations = 0
+        self.sent: dict[int, int] = {}      # transmissions started, per robot
         self.collisions = 0
         self.on_transmission: Callable[[Transmission], None] | None = None
         self.on_collision: Callable[[int, list[int]], None] | None = None
@@ -149,6 +150,7 @@ class Air:
     def transmit(self, radio: Ptr2000, data: bytes, t0: int, bt: int) -> None:
         tx = Transmission(radio, data, t0, bt)
         self.occupations += 1
+        self.sent[radio.robot] = self.sent.get(radio.robot, 0) + 1
         overlapping = [a for a in self.active if a.end > t0]
         if overlapping or t0 < self.collision_until:
             self.active.append(tx)

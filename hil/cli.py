@@ -131,6 +131,9 @@ def _add_sim_options(p: argparse.ArgumentParser, demo: bool = False) -> None:
     p.add_argument("--load", type=_load, default=1.0 if demo else "idle",
                    metavar="idle|saturate|RATE", help="traffic: heartbeats only, always a "
                    "full-size message queued, or messages/s per robot (default: %(default)s)")
+    if not demo:
+        p.add_argument("--can", action="store_true", help="simulate every child's CAN side "
+                       "too: controller, 82C250, dispatcher, joint/wheel/paw submodules")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -141,7 +144,8 @@ def _sim_config(a: argparse.Namespace) -> SimConfig:
         tuple(Fault("recover", r, t) for r, t in a.recover)
     return SimConfig(robots=a.robots, duration=a.duration, seed=a.seed,
                      faults=tuple(sorted(faults, key=lambda f: (f.at, f.kind, f.robot))),
-                     ber=a.ber, noise=a.noise, load=a.load, power_on=dict(a.power))
+                     ber=a.ber, noise=a.noise, load=a.load, power_on=dict(a.power),
+                     can=getattr(a, "can", True))
 
 
 def _run_world(cfg: SimConfig, trace_path: str | None, progress: bool) -> tuple[World, float]:
@@ -213,7 +217,8 @@ def _print_summary(world: World, wall: float, as_json: bool) -> None:
     more = f" (+{len(changes) - 12} more)" if len(changes) > 12 else ""
     con.print(f"ring membership changes: {len(changes)}" + (f": {shown}{more}" if changes
                                                              else ""))
-    con.print(f"channel occupations: {s['occupations']}   collisions: {s['collisions']}")
+    con.print(f"channel occupations: {s['occupations']}   collisions: {s['collisions']}"
+              + (f"   CAN frames: {world.can_frames}" if world.cfg.can else ""))
     con.print(f"messages: submitted {s['submitted']}, delivered {s['delivered']}, "
               f"failed {s['failed']}, pending {s['pending']}, "
               f"duplicate deliveries {s['duplicate_deliveries']}")

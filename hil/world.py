@@ -11,6 +11,13 @@ from collections import Counter
 from dataclasses import dataclass, field, replace
 from typing import Callable, Iterable
 
+from can_bus.bits import BitTiming
+from can_bus.bus import CanBus
+from can_bus.submodules import make_submodules
+from can_bus.transceiver import Transceiver82C250
+from firmware_model.child import ChildFirmware
+from firmware_model.kinematics import HOME
+from firmware_model.mcu.can_controller import CanController
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.radio.content import Command, cmd
 from firmware_model.radio.frame import BROADCAST
@@ -23,6 +30,10 @@ from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to
 
 from .air import Air, Transmission
 from .trace import TRACE_VERSION, TraceWriter
+
+
+CAN_TIMING = BitTiming()
+"""500 kbit/s: 2 ticks a time quantum, 16 quanta a bit (docs/can.md)."""
 
 
 class ConfigError(ValueError):
@@ -58,6 +69,8 @@ class SimConfig:
     power_on: dict[int, float] = field(default_factory=dict)
     byte_by_byte: bool = False
     mac: MacConfig | None = None
+    can: bool = False
+    """Give every child its CAN side: controller, 82C250, dispatcher and six submodules."""
 
     def validate(self) -> None:
         if not self.robots:
@@ -89,7 +102,6 @@ class SimConfig:
 
 @dataclass
 class RobotStats:
-    frames_sent: int = 0
     received: int = 0
     duplicates: int = 0
     submitted: int = 0
@@ -100,21 +112,22 @@ class RobotStats:
 
 
 def _random_commands(rng: random.Random) -> list[Command]:
-    """One to three plausible application commands (seeded)."""
+    """One to three plausible application commands (seeded): small tip moves, targets in the
+    arm's workspace, joint angles and wheel speeds within their limits."""
     out = []
     for _ in range(rng.randint(1, 3)):
         k = rng.randrange(7)
         if k == 0:
-            out.append(cmd("movex", rng.randint(-200, 200)))
+            out.append(cmd("movex", rng.randint(-10, 10)))
         elif k == 1:
-            out.append(cmd("movey", rng.randint(-200, 200)))
+            out.append(cmd("movey", rng.randint(-10, 10)))
         elif k == 2:
-            out.append(cmd("movez", rng.randint(-100, 100)))
+            out.append(cmd("movez", rng.randint(-10, 10)))
         elif k == 3:
-            out.append(cmd("moveto", rng.randint(-300, 300), rng.randint(-300, 300),
-                           rng.randint(0, 200)))
+            out.append(cmd("moveto", rng.randint(180, 240), rng.randint(-60, 60),
+                           rng.randint(60, 140)))
         elif k == 4:
-            out.append(cmd("joint", rng.randint(1, 4), rng.randint(-90, 90)))
+            out.append(cmd("joint", 1, rng.randint(-90, 90)))
         elif k == 5:
             out.append(cmd("wheel", rng.randint(-100, 100)))
         else:
@@ -152,6 +165,10 @@ class World:
         base = replace(base, team=frozenset(config.robots))
         self.mac_config = base
         self.stations: dict[int, RadioStation] = {}
+        self.children: dict[int, ChildFirmware] = {}
+        self.can_buses: dict[int, CanBus] = {}
+        self.submodules: dict[int, dict] = {}
+        self.can_frames = 0
         self.radios = {}
         self.stats: dict[int, RobotStats] = {r: RobotStats() for r in config.robots}
         self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
@@ -174,6 +191,8 @@ class World:
             radio.alive = False
             self.stations[r] = st
             self.radios[r] = radio
+            if config.can and r != 0:
+                self._build_can_side(r, st)
             self.sched.at(s_to_ticks(config.power_on.get(r, 0.0)), self._power_on, r)
         for f in config.faults:
             self.sched.at(s_to_ticks(f.at), self._fault, f)
@@ -184,7 +203,25 @@ class World:
                     "tslot": base.tslot, "miss_limit": base.miss_limit,
                     "robots": sorted(config.robots), "seed": config.seed,
                     "ber": config.ber, "noise": config.noise,
-                    "load": config.load, "duration_ticks": self.end_tick}, meta=True)
+                    "load": config.load, "duration_ticks": self.end_tick,
+                    **({"can_bitrate": CAN_TIMING.bitrate and int(CAN_TIMING.bitrate)}
+                       if config.can else {})}, meta=True)
+
+    def _build_can_side(self, r: int, st: RadioStation) -> None:
+        bus = CanBus(self.sched, CAN_TIMING)
+        ctrl = CanController(self.sched, CAN_TIMING)
+        xcvr = Transceiver82C250(bus, ctrl, name=f"82C250-R{r}")
+        self.children[r] = ChildFirmware(st, ctrl, xcvr)
+        self.can_buses[r] = bus
+        self.submodules[r] = make_submodules(self.sched, bus, initial_angles=HOME)
+        bus.trace = lambda frame, start, end, winner, r=r: self._on_can(r, frame, start, end)
+
+    def _on_can(self, r: int, frame, start: int, end: int) -> None:
+        self.can_frames += 1
+        if self.trace is None and self.on_event is None:
+            return
+        self._emit({"ev": "can", "bus": r, "id": frame.id, "data": frame.data.hex(),
+                    "start": start, "end": end})
 
     # -- running --------------------------------------------------------------------------
 
@@ -237,7 +274,6 @@ class World:
 
     def _on_transmission(self, tx: Transmission) -> None:
         r = tx.radio.robot
-        self.stats[r].frames_sent += 1
         if self.trace is None and self.on_event is None:
             return
         d = tx.data
@@ -383,7 +419,7 @@ class World:
         robots = {}
         for r in sorted(self.stations):
             st, s = self.stations[r], self.stats[r]
-            robots[r] = {"frames_sent": s.frames_sent, "received": s.received,
+            robots[r] = {"frames_sent": self.air.sent.get(r, 0), "received": s.received,
                          "pending": st.mac.pending, "missed": s.missed,
                          "submitted": s.submitted, "delivered": s.delivered,
                          "failed": s.failed, "refused": s.refused,
@@ -397,5 +433,6 @@ class World:
                                        for t, k, r in self.membership],
                 "submitted": total("submitted"), "delivered": total("delivered"),
                 "failed": total("failed"), "pending": total("pending"),
+                "can_frames": self.can_frames,
                 "duplicate_deliveries": dup_deliveries,
                 "corrupt_deliveries": self.corrupt_deliveries}

@@ -1,0 +1,223 @@
+"""The child robot's firmware: radio station, dispatcher and the CAN driver (paper Fig. 4).
+
+Wiring, as the MB90F549 runs it:
+
+* UART0 + PTR2000 + reload timer 0: the radio station (``station.py``) and the MAC;
+* messages the MAC delivers go to the dispatcher (``dispatcher.py``), which plans the motion
+  (``kinematics.py``) and hands CAN frames to the CAN driver below;
+* CAN controller 0 (``mcu/can_controller.py``) through a Philips 82C250;
+* reload timer 1: the dispatcher's job deadlines and the CAN supervision.
+
+CAN buffer allocation (the lowest buffer number wins among pending requests, and the buffers
+follow identifier order, so the controller's priority is the bus's):
+
+=========  ==================  =================================================
+buffer     direction           frames
+=========  ==================  =================================================
+0          transmit            ESTOP 0x010
+1-4        transmit            JOINT1-4_CMD 0x101-0x104
+5, 6       transmit            WHEEL_CMD 0x105, PAW_CMD 0x106
+8, 9       receive, AMR0       EVENT1-6 0x0C1-0x0C6 (mask 0x007)
+10, 11     receive, AMR1       JOINT/WHEEL/PAW_STATUS 0x181-0x186 (mask 0x007)
+=========  ==================  =================================================
+
+Supervision (docs/dispatcher.md): bus-off fails the running jobs (code 40) and restarts the
+controller after ``RESTART_DELAY``. A bus on which nothing has been received for ``BLOCKED``
+while the controller is error-passive or bus-off is blocked (a stuck-dominant TXD: the 82C250
+has no TXD time-out): the firmware reports code 41 and isolates itself by putting its 82C250 in
+standby (Rs high turns the transmitter off, which releases a stuck TXD), then tries the bus
+again every ``RETRY``.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from can_bus.bus import CanFrame
+
+from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, Dispatcher
+from .mcu.can_controller import AMS_AMR0, AMS_AMR1, CSR_NIE, CSR_NT, CanController
+from .mcu.reload_timer import ReloadTimer
+from .mcu.scheduler import Scheduler
+from .radio.mac import Deliver
+from .station import RadioStation
+from .timing import TICK_HZ
+
+TX_BUFFERS = {0x010: 0, 0x101: 1, 0x102: 2, 0x103: 3, 0x104: 4, 0x105: 5, 0x106: 6}
+RX_EVENT = (8, 9)
+RX_STATUS = (10, 11)
+
+RESTART_DELAY = TICK_HZ // 10      # 100 ms after bus-off before clearing HALT
+BLOCKED = TICK_HZ // 20            # 50 ms with nothing received while passive/bus-off
+RETRY = TICK_HZ                    # leave standby and try the bus again every 1 s
+
+
+class CanDriver:
+    """The firmware's CAN driver: a software queue per transmit buffer, receive ISRs, and the
+    bus supervision. ``on_frame(frame, now)`` gets every received frame."""
+
+    def __init__(self, sched: Scheduler, controller: CanController, transceiver: Any,
+                 on_frame: Callable[[CanFrame, int], None],
+                 on_fault: Callable[[int, int], None],
+                 on_status: Callable[[], None] = lambda: None) -> None:
+        self.sched = sched
+        self.on_status = on_status
+        self.can = controller
+        self.xcvr = transceiver
+        self.on_frame = on_frame
+        self.on_fault = on_fault
+        self._queue: dict[int, list[CanFrame]] = {b: [] for b in TX_BUFFERS.values()}
+        self.last_rx: int | None = None
+        self.isolated = False
+        self.bus_offs = 0
+        self.isolations = 0
+        self._restart_at: int | None = None
+        self._retry_at: int | None = None
+        c = controller
+        for can_id, buf in TX_BUFFERS.items():
+            c.configure_tx(buf, can_id)
+        c.set_masks(amr0=0x007, amr1=0x007)
+        for b in RX_EVENT:
+            c.configure_rx(b, 0x0C0, AMS_AMR0)
+        for b in RX_STATUS:
+            c.configure_rx(b, 0x180, AMS_AMR1)
+        mask_tx = sum(1 << b for b in TX_BUFFERS.values())
+        mask_rx = sum(1 << b for b in RX_EVENT + RX_STATUS)
+        c.enable_irq(tx=mask_tx, rx=mask_rx)
+        c.on_rx_irq = self._rx_irq
+        c.on_tx_irq = self._tx_irq
+        c.on_status_irq = self._status_irq
+        c.CSR = c.CSR | CSR_NIE
+        c.start()
+
+    # -- sending ----------------------------------------------------------------------------
+
+    def send(self, frame: CanFrame) -> None:
+        """Queue ``frame`` on its identifier's buffer (a newer command waits for the older)."""
+        buf = TX_BUFFERS.get(frame.id)
+        if buf is None:
+            raise ValueError(f"no transmit buffer for CAN id {frame.id:#05x}")
+        q = self._queue[buf]
+        q.append(frame)
+        if len(q) == 1 and not self.isolated:
+            self._load(buf)
+
+    def _load(self, buf: int) -> None:
+        f = self._queue[buf][0]
+        self.can.transmit(buf, f.data, len(f.data))
+
+    def _tx_irq(self, buf: int) -> None:
+        self.can.clear_tc(buf)
+        q = self._queue[buf]
+        if q:
+            q.pop(0)
+        if q and not self.isolated:
+            self._load(buf)
+
+    # -- receiving --------------------------------------------------------------------------
+
+    def _rx_irq(self, buf: int) -> None:
+        frame = self.can.take(buf)
+        if frame is None:
+            return
+        self.last_rx = self.sched.now
+        self.on_frame(frame, self.sched.now)
+
+    # -- supervision ------------------------------------------------------------------------
+
+    def _status_irq(self, ns: int) -> None:
+        c = self.can
+        c.CSR = c.CSR & ~CSR_NT            # clear the node status transition flag
+        if c.bus_off:
+            self.bus_offs += 1
+            self.on_fault(CODE_BUS_OFF, self.sched.now)
+            self._restart_at = self.sched.now + RESTART_DELAY
+        self.on_status()            # error-passive or bus-off: the blocked-bus watch starts
+
+    def deadline(self) -> int | None:
+        """When the supervision next needs the timer."""
+        ticks = [t for t in (self._restart_at, self._retry_at) if t is not None]
+        if not self.isolated and self.can.error_state.value != "error-active":
+            ticks.append((self.last_rx or 0) + BLOCKED)
+        return min(ticks) if ticks else None
+
+    def on_timer(self, now: int) -> None:
+        c = self.can
+        if self._restart_at is not None and now >= self._restart_at:
+            self._restart_at = None
+            if c.halted:
+                c.start()
+        if self._retry_at is not None and now >= self._retry_at:
+            self._retry_at = None
+            self.isolated = False
+            self.last_rx = now
+            self.xcvr.standby(False)
+            if c.halted:
+                c.start()
+            for buf, q in self._queue.items():
+                if q:
+                    self._load(buf)
+        if not self.isolated and c.error_state.value != "error-active" and \
+                now - (self.last_rx or 0) >= BLOCKED:
+            self.isolate(now)
+
+    def isolate(self, now: int) -> None:
+        """Report the blocked bus and take this node off it (82C250 standby)."""
+        self.isolated = True
+        self.isolations += 1
+        self.xcvr.standby(True)
+        for buf in TX_BUFFERS.values():
+            self.can.cancel(buf)
+        self.on_fault(CODE_BLOCKED, now)
+        self._retry_at = now + RETRY
+
+
+class ChildFirmware:
+    """A child robot: the radio station and, through the dispatcher, its CAN side."""
+
+    def __init__(self, station: RadioStation, controller: CanController,
+                 transceiver: Any) -> None:
+        self.station = station
+        self.sched = station.sched
+        self.id = station.id
+        self.dispatcher = Dispatcher(self.id)
+        self.can = CanDriver(self.sched, controller, transceiver, self._on_can, self._on_fault,
+                             self._pump)
+        self.timer = ReloadTimer(self.sched, self._on_timer, name="TMR1")
+        station.app = self._on_message
+
+    def _on_message(self, d: Deliver, now: int) -> None:
+        self.dispatcher.on_message(d.src, d.dst, d.commands, now)
+        self._pump()
+
+    def _on_can(self, frame: CanFrame, now: int) -> None:
+        self.dispatcher.on_can(frame, now)
+        self._pump()
+
+    def _on_fault(self, code: int, now: int) -> None:
+        self.dispatcher.on_bus_fault(code, now)
+        self._pump()
+
+    def _on_timer(self, now: int) -> None:
+        self.dispatcher.on_timer(now)
+        self.can.on_timer(now)
+        self._pump()
+
+    def start_action(self, n: int) -> None:
+        """Start preset action ``n`` (paper §V.B) as if commanded locally."""
+        self.dispatcher.start_action(n, self.sched.now)
+        self._pump()
+
+    def _pump(self) -> None:
+        d = self.dispatcher
+        for f in d.take_can():
+            self.can.send(f)
+        for dst, commands, type_ in d.take_radio():
+            try:
+                self.station.submit(dst, commands, type_)
+            except ValueError:
+                pass  # refused (queue full, destination not valid): nothing else to do here
+        ticks = [t for t in (d.deadline, self.can.deadline()) if t is not None]
+        if ticks:
+            self.timer.arm_at(min(ticks))
+        else:
+            self.timer.stop()

@@ -1,0 +1,353 @@
+"""The central planning module's dispatcher (paper Fig. 4, §V.B): radio commands in, CAN out.
+
+Sans-IO like the MAC: ``on_message`` (a Content message the MAC delivered), ``on_can`` (a frame
+the CAN controller received) and ``on_timer`` go in; CAN frames to send (``take_can()``),
+radio messages to submit (``take_radio()``) and one ``deadline`` (tick) come out. The radio turn
+and the CAN work are asynchronous: a move that takes seconds is a *job* that waits for the
+submodules' done events while the ring keeps turning (paper §V.B: the action cycle and the
+communication cycle are independent).
+
+Failure information goes back to the requester as a Type '4' frame whose Content is
+``fail(code)`` followed by the command that failed. Codes (docs/dispatcher.md):
+
+====  =========================================================
+1     target out of the arm's reach
+2     target needs a joint outside its limits
+3     parameter out of range (wheel speed, paw, joint number)
+10+n  submodule n reported a fault (stalled, limit, overcurrent)
+20+n  submodule n refused the command
+30+n  submodule n did not respond (no done in time, or silent)
+40    the CAN controller went bus-off
+41    the CAN bus is blocked (stuck dominant): the child isolated itself
+====  =========================================================
+
+Submodule numbers: joints 1-4, wheel 5, paw 6 (docs/can.md).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from can_bus import dbc
+from can_bus.bus import CanFrame
+
+from .kinematics import (
+    HOME, JOINT_LIMITS, WHEEL_MAX_SPEED, Unreachable, forward, inverse,
+)
+from .radio.content import Command, cmd
+from .radio.frame import BROADCAST, FrameType
+from .timing import TICK_HZ
+
+WHEEL, PAW = 5, 6
+DEFAULT_SPEED = {1: 60.0, 2: 60.0, 3: 90.0, 4: 90.0}
+"""deg/s the dispatcher plans joint motion with (the nodes' rated speeds)."""
+
+MARGIN = TICK_HZ // 2
+"""Extra time (0.5 s) a submodule gets beyond the planned motion time to report done."""
+
+SILENCE = 3 * TICK_HZ // 10
+"""A node whose status frames (every 100 ms) stop for 300 ms is not responding."""
+
+PAW_STROKE = TICK_HZ  # 1 s: planning bound for a paw stroke (the node takes 0.8 s)
+
+ACTIONS: dict[int, tuple[float, float, float, float]] = {
+    0: HOME,
+    1: (90.0, 45.0, -90.0, 45.0),    # end link turned to the left (paper Fig. 11 (a))
+    2: (-90.0, 45.0, -90.0, 45.0),   # end link turned to the right
+}
+"""Preset poses of ``act(n, ...)``: joint angles in degrees."""
+
+CODE_RANGE = 3
+CODE_FAULT = 10
+CODE_REFUSED = 20
+CODE_SILENT = 30
+CODE_BUS_OFF = 40
+CODE_BLOCKED = 41
+
+
+@dataclass(eq=False)
+class Job:
+    """Work in progress on the submodules for one command from ``requester``."""
+
+    requester: int
+    command: Command
+    waiting: dict[int, int]              # node -> seq whose done we wait for
+    deadline: int
+    notice: int | None = None            # act(n): broadcast act(n,1) when done
+    started: int = 0
+
+
+@dataclass
+class NodeView:
+    """What the MCU knows of one submodule from its status frames."""
+
+    seq: int = 0
+    state: int = 0
+    value: float = 0.0                   # angle (deg), speed (mm/s) or opening (%)
+    last_seen: int | None = None
+    extra: dict = field(default_factory=dict)
+
+
+class Dispatcher:
+    """Turns Content commands into CAN commands and submodule reports into radio replies."""
+
+    def __init__(self, robot_id: int) -> None:
+        self.id = robot_id
+        self.nodes = {n: NodeView() for n in range(1, 7)}
+        self._seq = {n: 0 for n in range(1, 7)}     # last command sequence number per node
+        self.target = list(HOME)             # commanded joint angles (deg)
+        self.jobs: list[Job] = []
+        self._can: list[CanFrame] = []
+        self._radio: list[tuple[int, tuple[Command, ...], int]] = []
+        self.deadline: int | None = None
+        self.isolated = False
+        self.log: list[tuple[int, str]] = []
+
+    # -- outputs -------------------------------------------------------------------------
+
+    def take_can(self) -> list[CanFrame]:
+        out, self._can = self._can, []
+        return out
+
+    def take_radio(self) -> list[tuple[int, tuple[Command, ...], int]]:
+        out, self._radio = self._radio, []
+        return out
+
+    # -- inputs --------------------------------------------------------------------------
+
+    def on_message(self, src: int, dst: int, commands: tuple[Command, ...], now: int) -> None:
+        """A message the radio delivered (once). Broadcast notices from others are noted."""
+        for c in commands:
+            handler = getattr(self, f"_cmd_{c.name}", None)
+            if handler is None:
+                continue
+            if dst == BROADCAST and c.name in ("act", "fail"):
+                self.log.append((now, f"robot {src}: {c.text()}"))
+                continue
+            handler(src, c, now)
+        self._update_deadline()
+
+    def on_can(self, frame: CanFrame, now: int) -> None:
+        try:
+            name, sig = dbc.decode(frame)
+        except dbc.DbcError:
+            return
+        if name.endswith("_STATUS"):
+            n = _node_of(name)
+            v = self.nodes[n]
+            v.last_seen = now
+            v.state = int(sig["state"])
+            v.seq = int(sig["seq"])
+            v.value = float(sig.get("angle", sig.get("speed", sig.get("opening", 0.0))))
+            v.extra = sig
+        elif name.startswith("EVENT"):
+            n = int(name[5:])
+            self.nodes[n].last_seen = now
+            kind, seq, code = int(sig["kind"]), int(sig["seq"]), int(sig["code"])
+            for job in list(self.jobs):
+                if job.waiting.get(n) != seq:
+                    continue
+                if kind == 1:
+                    del job.waiting[n]
+                    if not job.waiting:
+                        self._job_done(job, now)
+                elif kind == 2:
+                    self._job_failed(job, CODE_FAULT + n, now)
+                else:
+                    self._job_failed(job, CODE_REFUSED + n, now)
+            if kind == 2:
+                self.log.append((now, f"submodule {n} fault code {code}"))
+        self._update_deadline()
+
+    def on_timer(self, now: int) -> None:
+        for job in list(self.jobs):
+            late = [n for n in job.waiting if now >= job.deadline or (
+                self.nodes[n].last_seen is not None and now - self.nodes[n].last_seen >= SILENCE
+                and now - job.started >= SILENCE)]
+            if late:
+                self._job_failed(job, CODE_SILENT + late[0], now)
+        self._update_deadline()
+
+    def on_bus_fault(self, code: int, now: int) -> None:
+        """The CAN side is unusable (bus-off 40, blocked 41): every job fails with the code;
+        with no job running the father (ID 0) is told."""
+        if not self.jobs:
+            self._fail(0, code, cmd("status"))
+        for job in list(self.jobs):
+            self._job_failed(job, code, now)
+        self.isolated = code == CODE_BLOCKED
+        self._update_deadline()
+
+    # -- commands (the Content command table's app layer) ----------------------------------
+
+    def _cmd_movex(self, src: int, c: Command, now: int) -> None:
+        self._move_relative(src, c, now, c.args[0], 0.0, 0.0)
+
+    def _cmd_movey(self, src: int, c: Command, now: int) -> None:
+        self._move_relative(src, c, now, 0.0, c.args[0], 0.0)
+
+    def _cmd_movez(self, src: int, c: Command, now: int) -> None:
+        self._move_relative(src, c, now, 0.0, 0.0, c.args[0])
+
+    def _cmd_moveto(self, src: int, c: Command, now: int) -> None:
+        p = forward(tuple(self.target))
+        self._move_to(src, c, now, float(c.args[0]), float(c.args[1]), float(c.args[2]), p.phi)
+
+    def _cmd_joint(self, src: int, c: Command, now: int) -> None:
+        i, angle = int(c.args[0]), float(c.args[1])
+        if i not in JOINT_LIMITS:
+            self._fail(src, CODE_RANGE, c)
+            return
+        lo, hi = JOINT_LIMITS[i]
+        if not lo <= angle <= hi:
+            self._fail(src, 2, c)
+            return
+        q = list(self.target)
+        q[i - 1] = round(angle, 2)
+        self._drive_joints(src, c, now, q)
+
+    def _cmd_wheel(self, src: int, c: Command, now: int) -> None:
+        speed = c.args[0]
+        if not -WHEEL_MAX_SPEED <= speed <= WHEEL_MAX_SPEED:
+            self._fail(src, CODE_RANGE, c)
+            return
+        seq = self._next_seq(WHEEL)
+        self._can.append(dbc.encode("WHEEL_CMD", speed=int(round(speed)), distance=0, seq=seq))
+
+    def _cmd_paw(self, src: int, c: Command, now: int) -> None:
+        seq = self._next_seq(PAW)
+        self._can.append(dbc.encode("PAW_CMD", action=int(c.args[0]), force=50, seq=seq))
+        self.jobs.append(Job(src, c, {PAW: seq}, now + PAW_STROKE + MARGIN, started=now))
+
+    def _cmd_act(self, src: int, c: Command, now: int) -> None:
+        n, phase = int(c.args[0]), int(c.args[1])
+        if phase != 0:
+            return
+        self.start_action(n, now, requester=src, command=c)
+
+    def _cmd_stop(self, src: int, c: Command, now: int) -> None:
+        for job in list(self.jobs):
+            self._job_failed(job, None, now)
+        for i in range(1, 5):
+            self.target[i - 1] = round(self.nodes[i].value, 2) if self.nodes[i].last_seen \
+                is not None else self.target[i - 1]
+            self._can.append(dbc.encode(f"JOINT{i}_CMD", angle=self.target[i - 1], speed=0,
+                                        seq=self._next_seq(i), mode=1))
+        self._can.append(dbc.encode("WHEEL_CMD", speed=0, distance=0,
+                                    seq=self._next_seq(WHEEL)))
+
+    def _cmd_status(self, src: int, c: Command, now: int) -> None:
+        reply = [cmd("joint", i, round(self.nodes[i].value, 2)) for i in range(1, 5)]
+        reply.append(cmd("wheel", int(round(self.nodes[WHEEL].value))))
+        reply.append(cmd("paw", 1 if self.nodes[PAW].value >= 50 else 0))
+        self._radio.append((src, tuple(reply), int(FrameType.BROADCAST_INFO)))
+
+    # -- actions (paper §V.B, Fig. 11) ------------------------------------------------------
+
+    def start_action(self, n: int, now: int, requester: int = BROADCAST,
+                     command: Command | None = None) -> bool:
+        """Run preset action ``n``: announce ``act(n,0)`` to everyone, move, and announce
+        ``act(n,1)`` when every joint reports done."""
+        command = command or cmd("act", n, 0)
+        if n not in ACTIONS:
+            self._fail(requester, CODE_RANGE, command)
+            return False
+        self._radio.append((BROADCAST, (cmd("act", n, 0),), int(FrameType.BROADCAST_INFO)))
+        job = self._drive_joints(requester, command, now, list(ACTIONS[n]))
+        if job is not None:
+            job.notice = n
+        else:  # already there
+            self._radio.append((BROADCAST, (cmd("act", n, 1),),
+                                int(FrameType.BROADCAST_INFO)))
+        return True
+
+    # -- planning --------------------------------------------------------------------------
+
+    def _move_relative(self, src: int, c: Command, now: int, dx: float, dy: float,
+                       dz: float) -> None:
+        p = forward(tuple(self.target))
+        self._move_to(src, c, now, p.x + dx, p.y + dy, p.z + dz, p.phi)
+
+    def _move_to(self, src: int, c: Command, now: int, x: float, y: float, z: float,
+                 phi: float) -> None:
+        try:
+            q = inverse(x, y, z, phi)
+        except Unreachable as exc:
+            self.log.append((now, f"{c.text()}: {exc}"))
+            self._fail(src, exc.code, c)
+            return
+        self._drive_joints(src, c, now, list(q))
+
+    def _drive_joints(self, src: int, c: Command, now: int, q: list[float]) -> Job | None:
+        """Coordinated motion: the joints that move arrive at about the same time.
+
+        Planned from where the joints are (their last status, at most 100 ms old), not from
+        where they were last sent, so a command that arrives mid-motion gets a sensible speed;
+        no joint is given less than a quarter of its rated speed, so a stale position costs
+        little time."""
+        moves = {i: q[i - 1] for i in range(1, 5) if abs(q[i - 1] - self.target[i - 1]) >= 0.005}
+        if not moves:
+            return None
+        dist = {i: abs(a - self._position(i)) for i, a in moves.items()}
+        duration = max(max(d / DEFAULT_SPEED[i] for i, d in dist.items()), 0.001)   # seconds
+        waiting = {}
+        for i, d in dist.items():
+            speed = min(DEFAULT_SPEED[i], max(DEFAULT_SPEED[i] / 4, round(d / duration, 1)))
+            seq = self._next_seq(i)
+            self._can.append(dbc.encode(f"JOINT{i}_CMD", angle=round(moves[i], 2),
+                                        speed=speed, seq=seq, mode=0))
+            waiting[i] = seq
+            self.target[i - 1] = round(moves[i], 2)
+        job = Job(src, c, waiting, now + int(duration * 2 * TICK_HZ) + 2 * MARGIN,
+                  started=now)
+        self.jobs.append(job)
+        return job
+
+    def _position(self, i: int) -> float:
+        """Joint ``i``'s angle as last reported, or as last commanded before any report."""
+        v = self.nodes[i]
+        return v.value if v.last_seen is not None else self.target[i - 1]
+
+    def _next_seq(self, n: int) -> int:
+        """The next command sequence number for node ``n``. A new command replaces the one
+        the node is running (it reports no done for that one), so earlier jobs stop waiting
+        for node ``n``; a job left waiting for nothing ends as superseded (no reply)."""
+        self._seq[n] = seq = (self._seq[n] + 1) % 256
+        for job in list(self.jobs):
+            if n in job.waiting:
+                del job.waiting[n]
+                if not job.waiting:
+                    self.jobs.remove(job)
+                    self.log.append((job.started, f"{job.command.text()}: superseded"))
+        return seq
+
+    def _job_done(self, job: Job, now: int) -> None:
+        self.jobs.remove(job)
+        if job.notice is not None:
+            self._radio.append((BROADCAST, (cmd("act", job.notice, 1),),
+                                int(FrameType.BROADCAST_INFO)))
+
+    def _job_failed(self, job: Job, code: int | None, now: int) -> None:
+        if job in self.jobs:
+            self.jobs.remove(job)
+        if code is not None:
+            self._fail(job.requester, code, job.command)
+
+    def _fail(self, dst: int, code: int, c: Command) -> None:
+        if dst == self.id:
+            return
+        self._radio.append((dst, (cmd("fail", code), c), int(FrameType.FAILURE)))
+
+    def _update_deadline(self) -> None:
+        ticks = [j.deadline for j in self.jobs]
+        for j in self.jobs:
+            for n in j.waiting:
+                seen = self.nodes[n].last_seen
+                if seen is not None:
+                    ticks.append(max(seen, j.started) + SILENCE)
+        self.deadline = min(ticks) if ticks else None
+
+
+def _node_of(name: str) -> int:
+    if name.startswith("JOINT"):
+        return int(name[5])
+    return WHEEL if name.startswith("WHEEL") else PAW

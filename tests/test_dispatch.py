@@ -1,0 +1,210 @@
+"""Content commands in, DBC-encoded CAN frames out, through a simulated child (``--can``)."""
+from __future__ import annotations
+
+import pytest
+
+from can_bus import dbc
+from can_bus.bus import CanFrame
+from firmware_model.kinematics import HOME, JOINT_LIMITS, forward, inverse
+from firmware_model.radio.content import cmd
+from firmware_model.timing import TICK_HZ, s_to_ticks
+from hil.world import SimConfig, World
+
+START = s_to_ticks(4.0)        # the ring has formed by then
+
+
+def child_world(duration=14.0, robots=(0, 1)):
+    evs: list[dict] = []
+    w = World(SimConfig(robots=robots, duration=duration, can=True), on_event=evs.append)
+    w.run(START)
+    return w, evs
+
+
+def can_frames(evs, bus=1, since=0, ids=None):
+    out = []
+    for e in evs:
+        if e.get("ev") == "can" and e["bus"] == bus and e["start"] >= since:
+            if ids is None or e["id"] in ids:
+                name, sig = dbc.decode(CanFrame(e["id"], bytes.fromhex(e["data"])))
+                out.append((e["t"], name, sig))
+    return out
+
+
+def replies(evs, to=0):
+    return [e for e in evs if e.get("ev") == "deliver" and e["to"] == to]
+
+
+def send(w, commands, dst=1):
+    return w.submit(0, dst, commands)
+
+
+def commands_after(evs, since):
+    return [(n, s) for _, n, s in can_frames(evs, since=since) if n.endswith("_CMD")
+            or n == "ESTOP"]
+
+
+@pytest.mark.parametrize("command,dx,dy,dz", [
+    (cmd("movex", 20), 20, 0, 0), (cmd("movey", -15), 0, -15, 0),
+    (cmd("movez", 10), 0, 0, 10)])
+def test_relative_moves_become_joint_commands_from_the_kinematics(command, dx, dy, dz):
+    w, evs = child_world()
+    send(w, [command])
+    w.run()
+    p = forward(HOME)
+    want = inverse(p.x + dx, p.y + dy, p.z + dz, p.phi)
+    sent = {n: s for n, s in commands_after(evs, START)}
+    for i, a in enumerate(want, 1):
+        if abs(a - HOME[i - 1]) >= 0.005:
+            assert sent[f"JOINT{i}_CMD"]["angle"] == pytest.approx(a, abs=0.005)
+            assert sent[f"JOINT{i}_CMD"]["mode"] == 0
+        else:
+            assert f"JOINT{i}_CMD" not in sent
+    for i, a in enumerate(want, 1):             # the joints got there and said so
+        assert w.submodules[1][f"JOINT{i}"].angle_deg == pytest.approx(a, abs=0.01)
+    done = [s for _, n, s in can_frames(evs, since=START) if n.startswith("EVENT")]
+    assert done and all(s["kind"] == 1 for s in done)
+    assert not replies(evs)                    # success needs no reply
+
+
+def test_moveto_and_joint_and_wheel_and_paw_reach_their_submodules():
+    w, evs = child_world()
+    send(w, [cmd("moveto", 200, 50, 120), cmd("joint", 4, 30)])
+    w.run(START + s_to_ticks(4))
+    t1 = w.now
+    send(w, [cmd("wheel", -120), cmd("paw", 0)])
+    w.run()
+    first = dict(commands_after(evs, START))
+    q = inverse(200, 50, 120, forward(HOME).phi)
+    assert first["JOINT1_CMD"]["angle"] == pytest.approx(q[0], abs=0.005)
+    assert first["JOINT4_CMD"]["angle"] in (pytest.approx(q[3], abs=0.005), 30)
+    last_j4 = [s for n, s in commands_after(evs, START) if n == "JOINT4_CMD"][-1]
+    assert last_j4["angle"] == 30
+    later = dict(commands_after(evs, t1))
+    assert later["WHEEL_CMD"]["speed"] == -120 and later["WHEEL_CMD"]["distance"] == 0
+    assert later["PAW_CMD"]["action"] == 0
+    subs = w.submodules[1]
+    assert subs["JOINT4"].angle_deg == pytest.approx(30, abs=0.01)
+    assert subs["WHEEL"].odometer_mm < -100
+    assert subs["PAW"].opening_units == 0 or subs["PAW"].grip == 0
+
+
+@pytest.mark.parametrize("command,code", [
+    (cmd("moveto", 900, 0, 0), 1),            # out of reach
+    (cmd("movez", -200), 2),                  # reachable only past a joint limit
+    (cmd("joint", 2, 150), 2),                # joint 2 is -10..120 deg
+    (cmd("wheel", 500), 3),                   # 300 mm/s at most
+])
+def test_impossible_commands_come_back_as_type_4_failures(command, code):
+    w, evs = child_world()
+    send(w, [command])
+    w.run()
+    back = replies(evs)
+    assert len(back) == 1
+    r = back[0]
+    assert r["src"] == 1 and r["type"] == 4
+    msgs = [m for m in w.messages if m.src == 1]
+    assert [c.text() for c in msgs[0].commands] == [f"fail({code})", command.text()]
+    assert not [n for n, _ in commands_after(evs, START) if n != "ESTOP"]
+
+
+def test_a_long_move_does_not_block_the_ring():
+    w, evs = child_world(duration=16.0, robots=(0, 1, 2))
+    send(w, [cmd("act", 1, 0)])                # 90 deg of base yaw: 1.5 s at 60 deg/s
+    w.run()
+    frames = [e for e in evs if e.get("ev") == "frame" and e["start"] > START]
+    gaps = [b["start"] - a["end"] for a, b in zip(frames, frames[1:])]
+    assert max(gaps) == 80_000                  # every turn handed on after Ttrans
+    notices = [e for e in evs if e.get("ev") == "deliver" and e["src"] == 1 and e["dst"] == 7]
+    texts = [[c.text() for c in m.commands] for m in w.messages if m.src == 1]
+    assert ["act(1,0)"] in texts and ["act(1,1)"] in texts
+    assert {e["to"] for e in notices} == {0, 2}
+    starts = [m.submitted for m in w.messages if m.src == 1]
+    assert starts[1] - starts[0] >= s_to_ticks(1.5)    # done only when the joint got there
+    assert w.submodules[1]["JOINT1"].angle_deg == pytest.approx(90, abs=0.01)
+
+
+def test_stop_holds_the_joints_and_stops_the_wheel():
+    w, evs = child_world()
+    send(w, [cmd("wheel", 200), cmd("act", 2, 0)])
+    w.run(START + s_to_ticks(1.0))
+    t = w.now
+    send(w, [cmd("stop")])
+    w.run()
+    sent = dict(commands_after(evs, t))
+    assert all(sent[f"JOINT{i}_CMD"]["mode"] == 1 for i in range(1, 5))
+    assert sent["WHEEL_CMD"]["speed"] == 0
+    assert abs(w.submodules[1]["JOINT1"].angle_deg) < 90
+    assert w.submodules[1]["WHEEL"].v_ums == 0
+
+
+def test_status_reply_reports_the_joints():
+    w, evs = child_world()
+    send(w, [cmd("status")])
+    w.run()
+    msg = [m for m in w.messages if m.src == 1][0]
+    assert msg.dst == 0 and msg.type == 3
+    got = {c.args[0]: c.args[1] for c in msg.commands if c.name == "joint"}
+    assert got == {i: pytest.approx(HOME[i - 1], abs=0.01) for i in range(1, 5)}
+
+
+def test_a_stalled_joint_is_reported_over_the_radio():
+    w, evs = child_world()
+    w.submodules[1]["JOINT1"].stall()
+    send(w, [cmd("act", 1, 0)])
+    w.run()
+    fails = [m for m in w.messages if m.src == 1 and m.type == 4]
+    assert fails and fails[0].commands[0].text() == "fail(11)"
+    assert fails[0].dst == 0
+
+
+def test_a_silent_joint_is_reported_as_not_responding():
+    w, evs = child_world()
+    w.submodules[1]["JOINT3"].silent(True)
+    send(w, [cmd("act", 0, 0)] if False else [cmd("joint", 3, -60)])
+    w.run()
+    fails = [m for m in w.messages if m.src == 1 and m.type == 4]
+    assert fails and fails[0].commands[0].text() == "fail(33)"
+
+
+def test_stuck_txd_blocks_the_bus_and_the_child_isolates_itself():
+    w, evs = child_world(duration=12.0)
+    send(w, [cmd("act", 1, 0)])
+    w.run(START + s_to_ticks(1.0))
+    child = w.children[1]
+    xcvr = child.can.xcvr
+    t_stuck = w.now
+    xcvr.stick_txd(True)                       # the 82C250 has no TXD dominant time-out
+    w.run(t_stuck + s_to_ticks(0.5))
+    assert child.can.isolated and child.can.isolations == 1
+    assert xcvr.mode.value == "standby"
+    fails = [m for m in w.messages if m.src == 1 and m.type == 4]
+    assert fails and fails[-1].commands[0].text() == "fail(41)"
+    # with the faulty transmitter off the bus, the submodules talk again
+    t_iso = w.now
+    w.run(t_iso + s_to_ticks(0.5))
+    status = [f for f in can_frames(evs, since=t_iso) if f[1].endswith("_STATUS")]
+    assert len(status) >= 20
+    # the fault goes away: the next retry brings the child back onto the bus
+    xcvr.stick_txd(False)
+    w.run(t_iso + s_to_ticks(2.5))
+    assert not child.can.isolated
+    send(w, [cmd("joint", 2, 60)])
+    w.run()
+    assert w.submodules[1]["JOINT2"].angle_deg == pytest.approx(60, abs=0.01)
+
+
+def test_can_trace_events_and_meta_bitrate(tmp_path):
+    from hil.trace import TraceWriter, read_trace
+    p = tmp_path / "t.jsonl"
+    tw = TraceWriter(str(p))
+    w = World(SimConfig(robots=(1, 2), duration=3.0, can=True), tw)
+    w.run()
+    tw.close()
+    evs = list(read_trace(str(p)))
+    assert evs[0]["can_bitrate"] == 500_000
+    cans = [e for e in evs if e["ev"] == "can"]
+    assert {e["bus"] for e in cans} == {1, 2}
+    e = cans[0]
+    f = CanFrame(e["id"], bytes.fromhex(e["data"]))
+    from can_bus.bits import frame_length_bits
+    assert e["end"] - e["start"] == frame_length_bits(f.id, f.data, include_ifs=False) * 32
