@@ -14,31 +14,14 @@ can = pytest.importorskip("can")
 
 pytestmark = pytest.mark.vcan
 
+from can_bus.bridge import socketcan_missing
+
 CHANNEL = os.environ.get("RPRS_VCAN_CHANNEL", "vcan0")
-IFF_UP = 0x1
 CANFD_MTU = 72
 
 
 def _missing():
-    """Why SocketCAN on CHANNEL can't be used here, or None if it can."""
-    if not hasattr(socket, "AF_CAN"):
-        return "no AF_CAN in this Python/platform"
-    try:
-        sock = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
-    except OSError as exc:
-        return f"no AF_CAN in this kernel ({exc.strerror})"
-    sock.close()
-    try:
-        socket.if_nametoindex(CHANNEL)
-    except OSError:
-        return f"no {CHANNEL} interface"
-    try:
-        with open(f"/sys/class/net/{CHANNEL}/flags") as f:
-            if not int(f.read(), 16) & IFF_UP:
-                return f"{CHANNEL} interface is down"
-    except OSError:
-        pass
-    return None
+    return socketcan_missing(CHANNEL)
 
 
 def _mtu():

@@ -1,0 +1,228 @@
+"""The bridge to python-can: our CAN nodes on any python-can bus, in real time.
+
+``PythonCanBus`` offers the node interface of the simulated ``can_bus.bus.CanBus`` (``attach``,
+``request``; nodes' ``pending``/``on_frame``/``on_tx_done``), so the MB90F549 controller model
+and the submodule nodes run unchanged on SocketCAN (``socketcan:vcan0``), python-can's
+``virtual`` bus, ``udp_multicast`` or a real adapter. The wire does the arbitration; local
+nodes sharing one ``PythonCanBus`` also hear each other's frames, as on a real bus.
+
+It needs a scheduler with ``post`` (``hil.realtime.RealTimeScheduler``): python-can's reader
+thread hands every received frame to the scheduler's thread. ``log`` writes every frame sent or
+received with python-can's writers, chosen by the file's extension (candump ``.log``,
+``.asc``, ``.blf``, ``.csv``, ``.trc``).
+"""
+from __future__ import annotations
+
+import errno
+from typing import Any
+
+import can
+
+from .bits import BitTiming, frame_length_bits
+from .bus import CanFrame, ErrorState, NodeStatus
+
+
+class CanOpenError(Exception):
+    """A CAN interface that cannot be opened; the message says which and why, in one line."""
+
+
+KNOWN_INTERFACES = ("socketcan", "virtual", "udp_multicast", "pcan", "kvaser", "slcan",
+                    "vector", "ixxat", "gs_usb", "serial", "neovi", "nican", "seeedstudio",
+                    "usb2can", "cantact", "canalystii", "systec", "etas", "socketcand")
+
+
+def parse_spec(spec: str) -> tuple[str, str]:
+    """``INTERFACE:CHANNEL`` (e.g. ``socketcan:vcan0``, ``virtual:bench``) -> the two parts."""
+    interface, sep, channel = spec.partition(":")
+    if not sep or not interface or not channel:
+        raise CanOpenError(f"CAN bus {spec!r} is not INTERFACE:CHANNEL, e.g. socketcan:vcan0 "
+                           f"or virtual:bench")
+    if interface not in can.VALID_INTERFACES:
+        raise CanOpenError(f"unknown python-can interface {interface!r}; one of "
+                           f"{', '.join(i for i in KNOWN_INTERFACES if i in can.VALID_INTERFACES)}")
+    return interface, channel
+
+
+IFF_UP = 0x1
+
+
+def socketcan_missing(channel: str = "vcan0") -> str | None:
+    """Why SocketCAN on ``channel`` cannot be used on this machine, or None if it can."""
+    import socket
+    if not hasattr(socket, "AF_CAN"):
+        return "no AF_CAN in this Python/platform"
+    try:
+        sock = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
+    except OSError as exc:
+        return f"no AF_CAN in this kernel ({exc.strerror})"
+    sock.close()
+    try:
+        socket.if_nametoindex(channel)
+    except OSError:
+        return f"no {channel} interface"
+    try:
+        with open(f"/sys/class/net/{channel}/flags") as f:
+            if not int(f.read(), 16) & IFF_UP:
+                return f"{channel} interface is down"
+    except (OSError, ValueError):
+        pass
+    return None
+
+
+def open_bus(spec: str, bitrate: int | None = None, **kwargs: Any) -> can.BusABC:
+    """Open a python-can bus from ``INTERFACE:CHANNEL`` with one-line errors."""
+    interface, channel = parse_spec(spec)
+    if interface == "socketcan":
+        why = socketcan_missing(channel)
+        if why is not None:
+            hint = (f"create it with: ip link add dev {channel} type vcan && ip link set up "
+                    f"{channel}" if "interface" in why else
+                    "load the can and can-raw modules, or use virtual:NAME (docs/vcan.md)")
+            raise CanOpenError(f"cannot open CAN bus {spec}: {why}; {hint}")
+    try:
+        if interface == "virtual":
+            kwargs.setdefault("receive_own_messages", False)
+        if bitrate is not None and interface not in ("virtual", "socketcan", "udp_multicast"):
+            kwargs["bitrate"] = bitrate
+        return can.Bus(interface=interface, channel=channel, **kwargs)
+    except can.CanError as exc:
+        raise CanOpenError(f"cannot open CAN bus {spec}: {exc}") from None
+    except OSError as exc:
+        why = "no such device" if exc.errno == errno.ENODEV else exc.strerror or str(exc)
+        raise CanOpenError(f"cannot open CAN bus {spec}: {why}") from None
+    except (ImportError, ValueError, TypeError) as exc:
+        raise CanOpenError(f"cannot open CAN bus {spec}: {exc}") from None
+
+
+class PythonCanBus:
+    """Local CAN nodes on a python-can bus (real time)."""
+
+    def __init__(self, sched: Any, bus: can.BusABC, timing: BitTiming | None = None,
+                 log: str | None = None) -> None:
+        self.sched = sched
+        self.bus = bus
+        self.timing = timing or BitTiming()
+        self.nodes: list[Any] = []
+        self._queues: dict[int, list[CanFrame]] = {}
+        self._busy: set[int] = set()
+        self.sent = 0
+        self.received = 0
+        self.send_errors = 0
+        self.trace = None          # callable(frame, start, end, node) like CanBus.trace
+        self._writer = can.Logger(log) if log else None
+        self._notifier = can.Notifier(bus, [self._from_thread], timeout=0.05)
+
+    # -- what a transceiver model reads of its bus ------------------------------------------
+
+    @property
+    def tpb(self) -> int:
+        """Ticks a bit at the configured bit rate."""
+        return self.timing.ticks_per_bit
+
+    idle = True          # the wire's state is not visible through python-can
+    held = False
+
+    def status(self, node: Any) -> NodeStatus:
+        """Error counters are the adapter's business; python-can does not report them."""
+        return NodeStatus(0, 0, ErrorState.ACTIVE)
+
+    def hold_dominant(self, node: Any, on: bool = True) -> None:
+        raise NotImplementedError("a stuck-dominant TXD can only be injected on the simulated "
+                                  "bus (can_bus.bus.CanBus)")
+
+    def inject_bit_error(self, node: Any = None, count: int = 1, bit: int | None = None) -> None:
+        raise NotImplementedError("bit errors can only be injected on the simulated bus")
+
+    # -- the CanBus node interface --------------------------------------------------------
+
+    def attach(self, node: Any) -> None:
+        self.nodes.append(node)
+
+    def detach(self, node: Any) -> None:
+        if node in self.nodes:
+            self.nodes.remove(node)
+
+    def request(self, node: Any, frame: CanFrame | can.Message | None = None) -> None:
+        """``node`` has something to send (its ``pending()``, or ``frame``)."""
+        if frame is not None and not hasattr(node, "pending"):
+            if isinstance(frame, can.Message):
+                frame = CanFrame.from_message(frame)
+            self._queues.setdefault(id(node), []).append(frame)
+        if id(node) not in self._busy:
+            self._send_next(node)
+
+    # -- sending ----------------------------------------------------------------------------
+
+    def _next_frame(self, node: Any) -> CanFrame | None:
+        if hasattr(node, "pending"):
+            return node.pending()
+        q = self._queues.get(id(node))
+        if not q:
+            return None
+        q.sort(key=lambda f: (f.id, f.rtr))
+        return q[0]
+
+    def _send_next(self, node: Any) -> None:
+        frame = self._next_frame(node)
+        if frame is None:
+            self._busy.discard(id(node))
+            return
+        self._busy.add(id(node))
+        now = self.sched.now
+        msg = frame.to_message(timestamp=now / 16_000_000)
+        try:
+            self.bus.send(msg, timeout=0.1)
+        except can.CanError:
+            self.send_errors += 1
+            self.sched.after(16_000, self._send_next, node)    # retry in 1 ms
+            return
+        self.sent += 1
+        end = now + frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
+            * self.timing.ticks_per_bit
+        if self._writer is not None:
+            self._writer.on_message_received(msg)
+        if self.trace is not None:
+            self.trace(frame, now, end, node)
+        for other in self.nodes:                 # local nodes hear it too, at its end
+            if other is not node and hasattr(other, "on_frame"):
+                self.sched.at(end, other.on_frame, frame, now, end)
+        self.sched.at(end, self._tx_done, node, frame, end)
+
+    def _tx_done(self, node: Any, frame: CanFrame, end: int) -> None:
+        if hasattr(node, "pending"):
+            if hasattr(node, "on_tx_done"):
+                node.on_tx_done(frame, end)
+        else:
+            q = self._queues.get(id(node))
+            if q and frame in q:
+                q.remove(frame)
+            if hasattr(node, "on_tx_done"):
+                node.on_tx_done(frame, end)
+        self._send_next(node)
+
+    # -- receiving --------------------------------------------------------------------------
+
+    def _from_thread(self, msg: can.Message) -> None:
+        if msg.is_error_frame or msg.is_extended_id or msg.is_fd:
+            return
+        self.sched.post(self._deliver, msg)
+
+    def _deliver(self, msg: can.Message) -> None:
+        frame = CanFrame.from_message(msg)
+        end = self.sched.now
+        start = end - frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
+            * self.timing.ticks_per_bit
+        self.received += 1
+        if self._writer is not None:
+            self._writer.on_message_received(msg)
+        if self.trace is not None:
+            self.trace(frame, start, end, None)
+        for node in self.nodes:
+            if hasattr(node, "on_frame"):
+                node.on_frame(frame, start, end)
+
+    def close(self) -> None:
+        self._notifier.stop()
+        if self._writer is not None:
+            self._writer.stop()
+        self.bus.shutdown()
