@@ -38,7 +38,8 @@ from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, Dispatcher
 from .mcu.can_controller import AMS_AMR0, AMS_AMR1, CSR_NIE, CSR_NT, CanController
 from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
-from .radio.mac import Deliver
+from .radio.mac import Deliver, Join, ModeChange
+from .sequence import ActionSequence
 from .station import RadioStation
 from .timing import TICK_HZ
 
@@ -184,9 +185,47 @@ class ChildFirmware:
                              self._pump)
         self.timer = ReloadTimer(self.sched, self._on_timer, name="TMR1")
         station.app = self._on_message
+        self.sequence: ActionSequence | None = None
+        self.on_action: Callable[[int, int, str, int], None] | None = None
+        self.dispatcher.on_notice = self._on_notice
+        self.dispatcher.on_action = self._on_action
+        outer = station.observer
+
+        def observe(st: RadioStation, a: object, now: int) -> None:
+            if outer is not None:
+                outer(st, a, now)
+            if type(a) in (Join, ModeChange) and self.sequence is not None:
+                self._kickoff()
+                self._pump()
+        station.observer = observe
+
+    def run_sequence(self, order: tuple[int, ...], cycles: int) -> None:
+        """Take part in the paper's action-sequence experiment (firmware_model/sequence.py)."""
+        self.sequence = ActionSequence(self.id, tuple(order), cycles)
+        self._kickoff()
+
+    def _kickoff(self) -> None:
+        seq = self.sequence
+        if seq is not None and not seq.started:
+            n = seq.kickoff(self.station.mac.ring)
+            if n is not None:
+                self.dispatcher.start_action(n, self.sched.now)
+
+    def _on_notice(self, src: int, action: int, now: int) -> None:
+        if self.sequence is not None:
+            n = self.sequence.on_done(src, action)
+            if n is not None:
+                self.dispatcher.start_action(n, now)
+
+    def _on_action(self, action: int, phase: str, now: int) -> None:
+        if self.on_action is not None:
+            self.on_action(self.id, action, phase, now)
+        if phase == "done":
+            self._on_notice(self.id, action, now)
 
     def _on_message(self, d: Deliver, now: int) -> None:
         self.dispatcher.on_message(d.src, d.dst, d.commands, now)
+        self._kickoff()
         self._pump()
 
     def _on_can(self, frame: CanFrame, now: int) -> None:

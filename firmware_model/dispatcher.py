@@ -101,6 +101,8 @@ class Dispatcher:
         self.deadline: int | None = None
         self.isolated = False
         self.log: list[tuple[int, str]] = []
+        self.on_notice = None      # callable(src, action, now): a robot's act(n,1) notice heard
+        self.on_action = None      # callable(action, phase, now): our own action starts/ends
 
     # -- outputs -------------------------------------------------------------------------
 
@@ -122,6 +124,8 @@ class Dispatcher:
                 continue
             if dst == BROADCAST and c.name in ("act", "fail"):
                 self.log.append((now, f"robot {src}: {c.text()}"))
+                if c.name == "act" and c.args[1] == 1 and self.on_notice is not None:
+                    self.on_notice(src, int(c.args[0]), now)
                 continue
             handler(src, c, now)
         self._update_deadline()
@@ -252,13 +256,19 @@ class Dispatcher:
             self._fail(requester, CODE_RANGE, command)
             return False
         self._radio.append((BROADCAST, (cmd("act", n, 0),), int(FrameType.BROADCAST_INFO)))
+        if self.on_action is not None:
+            self.on_action(n, "start", now)
         job = self._drive_joints(requester, command, now, list(ACTIONS[n]))
         if job is not None:
             job.notice = n
         else:  # already there
-            self._radio.append((BROADCAST, (cmd("act", n, 1),),
-                                int(FrameType.BROADCAST_INFO)))
+            self._action_done(n, now)
         return True
+
+    def _action_done(self, n: int, now: int) -> None:
+        self._radio.append((BROADCAST, (cmd("act", n, 1),), int(FrameType.BROADCAST_INFO)))
+        if self.on_action is not None:
+            self.on_action(n, "done", now)
 
     # -- planning --------------------------------------------------------------------------
 
@@ -323,8 +333,7 @@ class Dispatcher:
     def _job_done(self, job: Job, now: int) -> None:
         self.jobs.remove(job)
         if job.notice is not None:
-            self._radio.append((BROADCAST, (cmd("act", job.notice, 1),),
-                                int(FrameType.BROADCAST_INFO)))
+            self._action_done(job.notice, now)
 
     def _job_failed(self, job: Job, code: int | None, now: int) -> None:
         if job in self.jobs:

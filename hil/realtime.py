@@ -24,11 +24,12 @@ _NS_PER_TICK_NUM = TICK_HZ          # ticks = ns * TICK_HZ / 1e9
 class RealTimeScheduler(Scheduler):
     """Runs events at their wall-clock tick; ``post`` is the thread-safe way in."""
 
-    __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events")
+    __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started")
 
     def __init__(self) -> None:
         super().__init__(0)
         self._t0 = time.monotonic_ns()
+        self._started = False
         self._inbox: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
         self.max_late = 0
@@ -53,12 +54,20 @@ class RealTimeScheduler(Scheduler):
 
     def run_for(self, seconds: float) -> None:
         """Run for ``seconds`` of wall-clock time (or until ``stop()``)."""
-        self._run(self.wall() + round(seconds * TICK_HZ))
+        self._run((self.wall() if self._started else self.now) + round(seconds * TICK_HZ))
 
     def run_forever(self) -> None:
         self._run(None)
 
+    def run_until(self, end: int) -> None:
+        """Run until the wall clock reaches tick ``end`` (the simulation API, in real time)."""
+        self._run(end)
+
     def _run(self, end: int | None) -> None:
+        if not self._started:
+            # The wall clock starts when running starts (building the world takes time).
+            self._started = True
+            self._t0 = time.monotonic_ns() - self.now * 1_000_000_000 // _NS_PER_TICK_NUM
         heap = self._heap
         inbox = self._inbox
         while not self._stop.is_set():

@@ -19,6 +19,7 @@ from firmware_model.child import ChildFirmware
 from firmware_model.kinematics import HOME
 from firmware_model.mcu.can_controller import CanController
 from firmware_model.mcu.scheduler import Scheduler
+from firmware_model.sequence import ACTION_NAMES
 from firmware_model.radio.content import Command, cmd
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
@@ -29,6 +30,7 @@ from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to_ticks
 
 from .air import Air, Transmission
+from .realtime import RealTimeScheduler
 from .trace import TRACE_VERSION, TraceWriter
 
 
@@ -41,6 +43,8 @@ class ConfigError(ValueError):
 
 
 FAULT_KINDS = ("fail", "recover", "steal")
+STANDBY = 100
+"""Key of the father's standby PC (PC2, also ID 0 on the air) in ``World.radios``."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +75,12 @@ class SimConfig:
     mac: MacConfig | None = None
     can: bool = False
     """Give every child its CAN side: controller, 82C250, dispatcher and six submodules."""
+    sequence: tuple[tuple[int, ...], int] | None = None
+    """(row order, cycles): the children run the paper's action sequence (needs ``can``)."""
+    realtime: bool = False
+    """Run on the wall clock (hil.realtime) instead of as fast as the CPU goes."""
+    father_standby: bool = False
+    """A second father PC (PC2) as hot standby for ID 0 (needs 0 in ``robots``)."""
 
     def validate(self) -> None:
         if not self.robots:
@@ -84,6 +94,17 @@ class SimConfig:
             raise ConfigError(f"duration must be positive, got {self.duration}")
         if not 0.0 <= self.ber < 1.0:
             raise ConfigError(f"byte error rate must be in [0, 1), got {self.ber}")
+        if self.sequence is not None:
+            order, cycles = self.sequence
+            if not self.can:
+                raise ConfigError("the action sequence needs the children's CAN side (can)")
+            if not order or any(r not in self.robots or r == 0 for r in order):
+                raise ConfigError(f"the action-sequence row {list(order)} must be children "
+                                  f"of the ring {list(self.robots)}")
+            if cycles < 1:
+                raise ConfigError(f"cycles must be at least 1, got {cycles}")
+        if self.father_standby and 0 not in self.robots:
+            raise ConfigError("a standby father PC needs the father (ID 0) in the ring")
         for f in self.faults:
             if f.robot not in self.robots:
                 raise ConfigError(f"--{f.kind} names robot {f.robot}, which is not in the ring "
@@ -154,7 +175,7 @@ class World:
                  on_event: Callable[[dict], None] | None = None) -> None:
         config.validate()
         self.cfg = config
-        self.sched = Scheduler()
+        self.sched = RealTimeScheduler() if config.realtime else Scheduler()
         self.trace = trace
         self.on_event = on_event
         self.air = Air(self.sched, seed=config.seed, ber=config.ber, noise=config.noise,
@@ -169,6 +190,8 @@ class World:
         self.can_buses: dict[int, CanBus] = {}
         self.submodules: dict[int, dict] = {}
         self.can_frames = 0
+        self.actions: list[tuple[int, int, int, str]] = []   # (tick, robot, action, phase)
+        self._tx_starts: list[int] = []
         self.radios = {}
         self.stats: dict[int, RobotStats] = {r: RobotStats() for r in config.robots}
         self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
@@ -194,6 +217,17 @@ class World:
             if config.can and r != 0:
                 self._build_can_side(r, st)
             self.sched.at(s_to_ticks(config.power_on.get(r, 0.0)), self._power_on, r)
+        self.standby_station: RadioStation | None = None
+        if config.father_standby:
+            cfg = replace(base, byte_ticks=PC_BYTE_TICKS, standby=True)
+            st, radio = build_station(0, self.sched, byte_ticks=PC_BYTE_TICKS, config=cfg,
+                                      observer=self._observe)
+            self.air.attach(radio)
+            radio.alive = False
+            self.standby_station = st
+            self.radios[STANDBY] = radio
+            self.stations_extra = {STANDBY: st}
+            self.sched.at(s_to_ticks(config.power_on.get(0, 0.0)), self._power_on_standby)
         for f in config.faults:
             self.sched.at(s_to_ticks(f.at), self._fault, f)
         self.end_tick = s_to_ticks(config.duration)
@@ -211,10 +245,19 @@ class World:
         bus = CanBus(self.sched, CAN_TIMING)
         ctrl = CanController(self.sched, CAN_TIMING)
         xcvr = Transceiver82C250(bus, ctrl, name=f"82C250-R{r}")
-        self.children[r] = ChildFirmware(st, ctrl, xcvr)
+        child = ChildFirmware(st, ctrl, xcvr)
+        self.children[r] = child
+        child.on_action = self._on_action
+        if self.cfg.sequence is not None and r in self.cfg.sequence[0]:
+            child.run_sequence(*self.cfg.sequence)
         self.can_buses[r] = bus
         self.submodules[r] = make_submodules(self.sched, bus, initial_angles=HOME)
         bus.trace = lambda frame, start, end, winner, r=r: self._on_can(r, frame, start, end)
+
+    def _on_action(self, robot: int, action: int, phase: str, now: int) -> None:
+        self.actions.append((now, robot, action, phase))
+        self._emit({"ev": "action", "robot": robot, "phase": phase,
+                    "name": ACTION_NAMES.get(action, str(action))})
 
     def _on_can(self, r: int, frame, start: int, end: int) -> None:
         self.can_frames += 1
@@ -255,6 +298,11 @@ class World:
         elif not isinstance(load, str):
             self._schedule_arrival(r)
 
+    def _power_on_standby(self) -> None:
+        self.air.revive(self.radios[STANDBY], self.sched.now)
+        self._emit({"ev": "power", "robot": 0, "pc": 2})
+        self.standby_station.power_on()
+
     def _fault(self, f: Fault) -> None:
         radio = self.radios[f.robot]
         now = self.sched.now
@@ -274,6 +322,7 @@ class World:
 
     def _on_transmission(self, tx: Transmission) -> None:
         r = tx.radio.robot
+        self._tx_starts.append(tx.t0)
         if self.trace is None and self.on_event is None:
             return
         d = tx.data
@@ -292,6 +341,9 @@ class World:
 
     def _observe(self, st: RadioStation, a: object, now: int) -> None:
         r = st.id
+        if st is self.standby_station and type(a) is ModeChange:
+            self._emit({"ev": "mode", "robot": 0, "pc": 2, "mode": a.mode, "reason": a.reason})
+            return
         t = type(a)
         if t is Transmit:
             return
@@ -409,6 +461,10 @@ class World:
         self._schedule_arrival(r)
 
     # -- results --------------------------------------------------------------------------
+
+    def frames_between(self, t0: int, t1: int) -> int:
+        """Transmissions that started in [t0, t1] (counted by the air as they start)."""
+        return sum(1 for t in self._tx_starts if t0 <= t <= t1)
 
     def ring_views(self) -> dict[int, tuple[int, ...]]:
         """Each robot's current ring (empty while it listens)."""

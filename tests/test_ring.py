@@ -294,3 +294,34 @@ def test_batched_delivery_equals_byte_by_byte(ber, noise):
     fast, slow = trace(False), trace(True)
     assert len(fast) > 500
     assert fast == slow
+
+
+def test_father_failover_takes_id0s_turn_without_a_miss():
+    """Paper §III.A: PC1 and PC2 back each other up. PC2 (hot standby) takes ID 0's turn when
+    PC1 dies, before anyone misses it; PC1, back, becomes the standby."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(0, 1, 2, 3), duration=26.0, father_standby=True, load=1.0,
+                        faults=(Fault("fail", 0, 10.0), Fault("recover", 0, 18.0))),
+              on_event=evs.append)
+    w.run()
+    fail_t = s_to_ticks(10.0)
+    takeover = [e for e in evs if e["ev"] == "mode" and e.get("pc") == 2 and "took over" in
+                e["reason"]]
+    assert len(takeover) == 1 and fail_t < takeover[0]["t"] < fail_t + s_to_ticks(0.5)
+    # nobody who can hear misses robot 0, and robot 0 is never dropped
+    assert not [e for e in evs if e["ev"] == "miss" and e["robot"] == 0 and e["by"] != 0]
+    assert not [e for e in evs if e["ev"] == "disable" and e["robot"] == 0]
+    # ID 0's turn came right after robot 3's, later by only the standby's watch (4 bytes)
+    fs = frames(evs, after=fail_t)
+    first0 = next(f for f in fs if f["src"] == 0)
+    before = max(f["end"] for f in fs if f["end"] < first0["start"])
+    assert first0["start"] == before + 2 * TTRANS_TICKS + 4 * PC_BYTE_TICKS
+    assert sum(1 for f in fs if f["src"] == 0) > 100
+    # PC1 back: it hears ID 0 on the air and stands by
+    back = [e for e in evs if e["ev"] == "mode" and e.get("pc") is None and e["robot"] == 0
+            and e["t"] > s_to_ticks(18.0)]
+    assert back and "another PC is active" in back[0]["reason"]
+    assert w.stations[0].mac.standby and not w.standby_station.mac.standby
+    s = w.summary()
+    assert s["duplicate_deliveries"] == 0
+    assert s["submitted"] == s["delivered"] + s["failed"] + s["pending"]

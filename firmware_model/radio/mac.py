@@ -65,6 +65,7 @@ HOLD = "hold"        # my turn starts at ``deadline`` (after a corrupted frame o
 SWITCH = "switch"    # TXEN is high; my frame starts at ``deadline`` (= turn start + Ttrans)
 SEND = "send"        # my frame is on air; ``on_tx_done`` ends the turn
 QUIET = "quiet"      # a frame failed before its Length: wait for the channel to fall quiet
+WATCH = "watch"      # hot standby: ID 0's turn; is the active PC's header coming?
 
 
 class SubmitError(ValueError):
@@ -212,6 +213,10 @@ class MacConfig:
     max_queue: int = 32
     mac_reserve: int = 64
     """Content bytes the MAC keeps free for its own commands when a load fills frames."""
+    standby: bool = False
+    """Hot standby for the father (PROTOCOL.md §4 failover, paper's PC1/PC2): follow the ring
+    as a replica of ID 0 and take ID 0's turn only when the active PC's header does not come
+    (docs/mac.md)."""
     checksum: bool = False
     """Opt-in integrity extension (firmware_model.radio.integrity): every frame sent ends
     with ``crc(NNNNN)`` and frames received without a good one are refused."""
@@ -274,6 +279,8 @@ class RotationalMac:
         self._quiet_limit = 0
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
         self._booting = False             # next frame is the power-on (Type '5') heartbeat
+        self.standby = self.cfg.standby      # a replica of ID 0 that does not transmit
+        self._seen: dict[int, int] = {}      # LISTEN: source -> tick last heard
         self.frames_sent = 0
         self.turns = 0
         self._hb_cache: dict[tuple, tuple[Frame, bytes]] = {}
@@ -301,8 +308,13 @@ class RotationalMac:
         """Start in LISTEN; claim after ``claim_ticks`` of silence (PROTOCOL.md §4 start-up)."""
         self.mode = LISTEN
         self._booting = True
-        self.deadline = now + self.cfg.claim_ticks(self.id)
+        self.deadline = now + self._claim_ticks()
         return [TxEnable(False)]
+
+    def _claim_ticks(self) -> int:
+        # A standby claims after every other robot would have (the active PC claims first).
+        extra = 7 * self.cfg.tslot if self.standby else 0
+        return self.cfg.claim_ticks(self.id) + extra
 
     def submit(self, dst: int, commands: Iterable[Command], now: int,
                type: int = FrameType.INSTRUCTION) -> Message:
@@ -355,7 +367,10 @@ class RotationalMac:
             return _NOTHING
         out: list = []
         if src == self.id:
-            return out  # our own ID from the air: not ours (we are deaf while sending)
+            # Our own ID from the air (we are deaf while sending): another PC is ID 0.
+            if self.id != 0:
+                return out
+            return self._active_frame(frame, end, now, out)
         content = frame.content
         if self.cfg.checksum:
             if not crc_ok(frame):
@@ -381,7 +396,8 @@ class RotationalMac:
                     self._to_listen(out, now, f"left out of robot {src}'s ring (its poll mask)")
                     break
         if self.mode == LISTEN:
-            self.deadline = now + self.cfg.claim_ticks(self.id)
+            self._seen[src] = end
+            self.deadline = now + self._claim_ticks()
             for p in polls:
                 if p.args[0] == self.id:
                     ring = _unmask(p.args[1]) | {self.id, src}
@@ -418,7 +434,8 @@ class RotationalMac:
                     out.append(Duplicate(src, frame.num))
                 else:
                     self._last_rx[src] = frame.num
-                    out.append(Deliver(src, frame.dst, frame.num, frame.type, app_cmds))
+                    if not self.standby:       # the active PC delivers; its standby only
+                        out.append(Deliver(src, frame.dst, frame.num, frame.type, app_cmds))
 
         invited = [p.args[0] for p in polls if p.args[0] not in self.ring]
         if invited:
@@ -433,9 +450,9 @@ class RotationalMac:
         end its Length promised, or ``first + Tmax`` when the Length was never read."""
         out: list = []
         if self.mode == LISTEN:
-            self.deadline = now + self.cfg.claim_ticks(self.id)
+            self.deadline = now + self._claim_ticks()
             return out
-        if self.phase not in (WAIT, WINDOW, QUIET):
+        if self.phase not in (WAIT, WINDOW, QUIET, WATCH):
             return out
         after = src if src is not None and src != self.id and (
             src in self.ring or src == self.owner) else self.owner
@@ -485,6 +502,15 @@ class RotationalMac:
             self._my_turn(now, now, out)
             return out
         phase = self.phase
+        if phase == WATCH:
+            if rx_busy:                    # the active PC is sending: follow it
+                self.phase = WAIT
+                self.deadline = self.turn_start + self.cfg.tmax
+            else:
+                self.standby = False
+                out.append(ModeChange(MEMBER, "took over ID 0's turn: the active PC is silent"))
+                self._my_turn(now, now, out)
+            return out
         if phase == SWITCH:
             self._send(now, out)
         elif phase == HOLD:
@@ -533,6 +559,53 @@ class RotationalMac:
             self._window(self._sent_poll, self.id, now, now)
         else:
             self._next_turn(self.id, now, now, out)
+        return out
+
+    def _active_frame(self, frame: Frame, end: int, now: int, out: list) -> list:
+        """A frame with ID 0 that we did not send: the active PC of the father's pair."""
+        if not self.standby:
+            if self.mode == LISTEN or self.lone:
+                if self.lone:
+                    self._to_listen(out, now, "another PC is active as ID 0")
+                self.standby = True            # the other PC is active: stand by for it
+            else:
+                return out                     # two active PCs: the collision rules apply
+        content = strip_crc(frame.content) if self.cfg.checksum and crc_ok(frame) \
+            else frame.content
+        try:
+            mac_cmds, app_cmds = _layers(content) if content else ((), ())
+        except ContentError:
+            mac_cmds, app_cmds = (), ()
+        if self.mode == LISTEN:
+            horizon = end - self.cfg.claim_ticks(0)
+            ring = {r for r, t in self._seen.items() if t >= horizon} | {self.id}
+            self.mode = MEMBER
+            self.ring = tuple(sorted(ring))
+            self.misses = {r: 0 for r in self.ring}
+            self.ever_member |= set(self.ring)
+            self._booting = False
+            out.append(ModeChange(MEMBER, "standing by for the active PC (ID 0)"))
+        sent_acks = {(c.args[0], c.args[1]) for c in mac_cmds if c.name == "ack"}
+        self._acks = [a for a in self._acks if a not in sent_acks]
+        if app_cmds:                           # keep our Numbers after the active PC's
+            self._last_num = frame.num
+            self._next_num = (frame.num + 1) % 100
+        self.misses[self.id] = 0
+        self._silent = 0
+        invited = [c.args[0] for c in mac_cmds if c.name == "poll" and c.args[0] not in self.ring]
+        if invited:
+            self._window(invited[0], self.id, end, now)
+        else:
+            ring = self.ring
+            i = bisect_right(ring, self.id)
+            nxt = ring[i] if i < len(ring) else ring[0]
+            if nxt == self.id:
+                self._hold(end + self.cfg.twin + self.id * self.cfg.tslot, now, out)
+            else:
+                self.phase = WAIT
+                self.owner = nxt
+                self.turn_start = end
+                self.deadline = end + self.cfg.tmax
         return out
 
     def force_turn(self, now: int) -> list:
@@ -586,6 +659,13 @@ class RotationalMac:
         if start > now:
             self._hold(start, now, out)
             return
+        if self.standby:
+            # The active PC's header starts at start + Ttrans and is complete 3 bytes later.
+            self.phase = WATCH
+            self.owner = self.id
+            self.turn_start = start
+            self.deadline = start + self.cfg.ttrans + 4 * self.cfg.byte_ticks
+            return
         self.phase = SWITCH
         self.owner = self.id
         self.turn_start = now
@@ -630,7 +710,7 @@ class RotationalMac:
         self.misses = {}
         self._silent = 0
         self._acks.clear()
-        self.deadline = now + self.cfg.claim_ticks(self.id)
+        self.deadline = now + self._claim_ticks()
         out.append(ModeChange(LISTEN, reason))
 
     # -- delivery ----------------------------------------------------------------------------
