@@ -239,7 +239,7 @@ def cmd_sim(a: argparse.Namespace, demo: bool = False) -> int:
     return 0
 
 
-def cmd_demo(a: argparse.Namespace) -> int:
+def cmd_demo_ring(a: argparse.Namespace) -> int:
     if not a.fail and not a.recover and not a.json:
         a.fail = [(1, 8.0)]
         a.recover = [(1, 16.0)]
@@ -247,6 +247,96 @@ def cmd_demo(a: argparse.Namespace) -> int:
               "and exchange seeded commands;\nR1's radio goes silent at 8 s (dropped after "
               "three missed turns) and comes back at 16 s (invited back).\n")
     return cmd_sim(a, demo=True)
+
+
+def cmd_demo_actions(a: argparse.Namespace) -> int:
+    """The paper's experiment (§V.B, Fig. 11): robots in a row take turns moving their arms."""
+    from firmware_model.sequence import ACTION_NAMES
+    n, cycles = a.robots, a.cycles
+    order = tuple(range(1, n + 1))
+    steps = 2 * n * cycles
+    robots = ((0,) if a.father else ()) + order
+    limit = a.timeout
+    cfg = SimConfig(robots=robots, duration=limit, seed=a.seed, ber=a.ber, noise=a.noise,
+                    can=True, sequence=(order, cycles), realtime=a.realtime)
+    try:
+        cfg.validate()
+    except ConfigError as exc:
+        raise UserError(str(exc)) from None
+    print(f"Action sequence (paper Fig. 11): R1..R{n} in a row, {cycles} cycle(s); each robot "
+          f"turns its end link left, then all return, in order.")
+    print(f"{'real time' if a.realtime else 'simulated'}; ring: "
+          f"{', '.join('father 0' if r == 0 else f'R{r}' for r in robots)}; "
+          f"Tmax 600 ms, Ttrans 5 ms, 9600 baud\n")
+    trace = None
+    if a.trace:
+        try:
+            trace = TraceWriter(a.trace)
+        except OSError as exc:
+            raise UserError(f"cannot write trace {a.trace}: {exc.strerror}") from None
+    letters = "abcdefghijklmnopqrstuvwxyz"
+    done = [0]
+
+    def show(ev: dict) -> None:
+        if ev.get("ev") != "action":
+            return
+        t = ticks_to_s(ev["t"])
+        if ev["phase"] == "done":
+            tag = f"({letters[done[0] % 26]})"
+            done[0] += 1
+        else:
+            tag = "   "
+        print(f"  {t:8.3f} s  {tag} R{ev['robot']} {ev['phase']:5s} {ev['name']}", flush=True)
+
+    try:
+        world = World(cfg, trace, on_event=show)
+        step = TICK_HZ // 10
+        while world.now < world.end_tick and done[0] < steps:
+            world.run(world.now + step)
+    except BaseException:
+        if trace is not None:
+            trace.discard()
+        raise
+    if trace is not None:
+        trace.close()
+    acts = world.actions
+    frames = sum(world.air.sent.values())
+    if done[0] < steps:
+        print(f"\nstopped after {ticks_to_s(world.now):g} s with {done[0]} of {steps} actions "
+              f"done")
+        return 1
+    durations = [t2 - t1 for (t1, r1, a1, p1), (t2, r2, a2, p2) in zip(acts, acts[1:])
+                 if p1 == "start" and p2 == "done" and r1 == r2]
+    longest = max(durations) / TICK_HZ if durations else 0
+    t0, t1 = acts[0][0], acts[-1][0]
+    turns = world.frames_between(t0, t1)
+    print(f"\n{cycles} cycle(s) done in {ticks_to_s(t1 - t0):.2f} s; each action took up to "
+          f"{longest:.2f} s (Tmax 0.6 s), and the ring took {turns} turns meanwhile: the "
+          f"action cycle and the communication cycle ran asynchronously.")
+    print(f"channel occupations {frames}, collisions {world.collisions}, CAN frames "
+          f"{world.can_frames}")
+    return 0
+
+
+def _add_action_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--robots", type=_digit(1, 6, "number of robots"), default=3,
+                   help="robots in the row: R1..RN (default: %(default)s)")
+    p.add_argument("--cycles", type=_digit(1, 99, "cycles"), default=2,
+                   help="action cycles (default: %(default)s)")
+    p.add_argument("--realtime", action="store_true", help="run on the wall clock")
+    p.add_argument("--father", action="store_true", help="the father (ID 0) joins the ring")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--ber", type=_probability, default=0.0, metavar="P")
+    p.add_argument("--noise", action="store_true")
+    p.add_argument("--timeout", type=_positive, default=300.0, metavar="SECONDS",
+                   help="give up after this much (simulated) time")
+    p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+
+
+def _demo_default(a: argparse.Namespace) -> int:
+    p = _Parser(prog="rprs demo action-sequence")
+    _add_action_options(p)
+    return cmd_demo_actions(p.parse_args([]))
 
 
 # -- encode / decode --------------------------------------------------------------------
@@ -325,6 +415,76 @@ def cmd_decode(a: argparse.Namespace) -> int:
     return 0
 
 
+# -- real time: child, submodules, father, radio hub ------------------------------------
+
+def _realtime_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--duration", type=_positive, metavar="SECONDS",
+                   help="stop after this long (default: until Ctrl-C or SIGTERM)")
+    p.add_argument("--events", action="store_true",
+                   help="print MAC events as JSON lines on stdout")
+
+
+def _run(runner, a: argparse.Namespace, describe: str, summary) -> int:
+    print(describe, file=sys.stderr, flush=True)
+    runner.run(a.duration)
+    print(summary(), file=sys.stderr, flush=True)
+    return 0
+
+
+def cmd_child(a: argparse.Namespace) -> int:
+    from .runner import Runner, RunError, build_child, summary_line
+    if not a.radio and not a.can:
+        raise UserError("give --radio PORT, --can INTERFACE:CHANNEL, or both")
+    runner = Runner()
+    try:
+        station, child = build_child(runner, a.id, a.radio, a.can, txen=a.txen,
+                                     can_log=a.can_log,
+                                     events=sys.stdout if a.events else None)
+    except RunError as exc:
+        runner.run(0)
+        raise UserError(str(exc)) from None
+    parts = [f"child {a.id}"] + ([f"radio {a.radio} (TXEN: {a.txen})"] if a.radio else []) + \
+        ([f"CAN {a.can}"] if a.can else [])
+    return _run(runner, a, "running " + ", ".join(parts) + "; Ctrl-C stops",
+                lambda: summary_line(station))
+
+
+def cmd_submodules(a: argparse.Namespace) -> int:
+    from .runner import Runner, RunError, build_submodules
+    runner = Runner()
+    try:
+        nodes = build_submodules(runner, a.can, a.can_log)
+    except RunError as exc:
+        runner.run(0)
+        raise UserError(str(exc)) from None
+    return _run(runner, a, f"running joints 1-4, wheel and paw on CAN {a.can}; Ctrl-C stops",
+                lambda: "submodules: " + ", ".join(
+                    f"{k} {n.sent} sent" for k, n in nodes.items()))
+
+
+def cmd_father(a: argparse.Namespace) -> int:
+    from .runner import Runner, RunError, build_father, feed_orders, summary_line
+    runner = Runner()
+    try:
+        station = build_father(runner, a.radio, txen=a.txen, standby=a.standby,
+                               events=sys.stdout)
+    except RunError as exc:
+        runner.run(0)
+        raise UserError(str(exc)) from None
+    if not a.no_input:
+        feed_orders(runner, station, sys.stdin)
+    role = "standby PC" if a.standby else "PC"
+    return _run(runner, a, f"father (ID 0, {role}) on {a.radio}; type orders like "
+                f"'2 movex(10)' or '7 act(1,0)' (DST COMMANDS), Ctrl-C stops",
+                lambda: summary_line(station))
+
+
+def _txen_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--txen", choices=("none", "rts", "dtr"), default="none",
+                   help="serial line wired to the radio's TXEN (default: none, for the pty hub "
+                   "and self-switching modules)")
+
+
 # -- main -------------------------------------------------------------------------------
 
 def build_parser() -> argparse.ArgumentParser:
@@ -334,10 +494,40 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sim", help="simulate a ring of robots faster than real time")
     _add_sim_options(s)
     s.set_defaults(func=cmd_sim)
-    d = sub.add_parser("demo", help="the ring demo: father + 4 children, traffic, a failure "
-                       "and a recovery")
-    _add_sim_options(d, demo=True)
-    d.set_defaults(func=cmd_demo)
+    d = sub.add_parser("demo", help="demos: the paper's action sequence (default), the ring")
+    demos = d.add_subparsers(dest="demo", metavar="DEMO", parser_class=_Parser)
+    d.set_defaults(func=_demo_default)
+    act = demos.add_parser("action-sequence", help="the paper's experiment (Fig. 11)")
+    _add_action_options(act)
+    act.set_defaults(func=cmd_demo_actions)
+    ring = demos.add_parser("ring", help="father + 4 children, traffic, a failure and a "
+                            "recovery")
+    _add_sim_options(ring, demo=True)
+    ring.set_defaults(func=cmd_demo_ring)
+    ch = sub.add_parser("child", help="run a child robot in real time on a serial port "
+                        "and/or a CAN bus")
+    ch.add_argument("--id", type=_digit(1, 6, "child ID"), required=True)
+    ch.add_argument("--radio", metavar="PORT", help="serial port or pyserial URL")
+    ch.add_argument("--can", metavar="INTERFACE:CHANNEL",
+                    help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can")
+    ch.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
+    _txen_option(ch)
+    _realtime_common(ch)
+    ch.set_defaults(func=cmd_child)
+    sm = sub.add_parser("submodules", help="run a child's joint/wheel/paw submodules on a CAN "
+                        "bus in real time")
+    sm.add_argument("--can", metavar="INTERFACE:CHANNEL", required=True)
+    sm.add_argument("--can-log", metavar="FILE")
+    _realtime_common(sm)
+    sm.set_defaults(func=cmd_submodules)
+    fa = sub.add_parser("father", help="the father station (ID 0) on a serial port")
+    fa.add_argument("--radio", metavar="PORT", required=True)
+    fa.add_argument("--standby", action="store_true",
+                    help="start as the hot standby PC (takes ID 0's turn if the active dies)")
+    fa.add_argument("--no-input", action="store_true", help="do not read orders from stdin")
+    _txen_option(fa)
+    _realtime_common(fa)
+    fa.set_defaults(func=cmd_father)
     e = sub.add_parser("encode", help="print a frame as hex")
     e.add_argument("--src", type=_digit(0, 6, "source"), required=True)
     e.add_argument("--dst", type=_digit(0, 9, "destination"), required=True)

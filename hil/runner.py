@@ -1,0 +1,238 @@
+"""The real-time runner: the same firmware objects as the simulator, on wall-clock ticks, a
+real serial port for the radio and a python-can bus for CAN.
+
+``rprs child --id N --radio PORT --can INTERFACE:CHANNEL``   a child robot
+``rprs submodules --can INTERFACE:CHANNEL``                  its six executive submodules
+``rprs father --radio PORT [--standby]``                     the father station (ID 0)
+
+Ctrl-C or SIGTERM stops cleanly: the radio's TXEN is released, ports and buses are closed, and
+a one-line summary is printed. Events are printed as one JSON object a line on stdout when
+``--events`` is given (the format of the simulator's trace, docs/trace.md), and the father
+prints what it receives.
+"""
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+from dataclasses import replace
+from typing import Any, Callable, TextIO
+
+from can_bus.bridge import CanOpenError, PythonCanBus, open_bus
+from can_bus.submodules import make_submodules
+from can_bus.transceiver import Transceiver82C250
+from firmware_model.child import ChildFirmware
+from firmware_model.kinematics import HOME
+from firmware_model.mcu.can_controller import CanController
+from firmware_model.radio.content import parse_content
+from firmware_model.radio.errors import WireError
+from firmware_model.radio.mac import (
+    Deliver, Disable, Join, MacConfig, Message, Miss, ModeChange, Outcome, SubmitError, Transmit,
+)
+from firmware_model.station import RadioStation, build_station
+from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
+
+from .realtime import RealTimeScheduler
+from .serial_radio import PortError, SerialChannel, open_port
+
+
+class RunError(Exception):
+    """A setup problem the user can fix (port, bus, arguments): one line."""
+
+
+def _events_printer(out: TextIO | None, robot: int) -> Callable[[RadioStation, object, int], None]:
+    """An observer turning the station's outputs into trace-like JSON lines."""
+    def emit(ev: dict) -> None:
+        if out is not None:
+            out.write(json.dumps(ev, separators=(",", ":")) + "\n")
+            out.flush()
+
+    def observe(st: RadioStation, a: object, now: int) -> None:
+        t = type(a)
+        if t is Transmit:
+            f = a.frame
+            emit({"t": now, "ev": "tx", "robot": robot, "dst": f.dst, "num": f.num,
+                  "type": f.type, "len": len(f.content)})
+        elif t is Miss:
+            emit({"t": now, "ev": "miss", "robot": a.robot, "by": robot})
+        elif t is Disable:
+            emit({"t": now, "ev": "disable", "robot": a.robot, "by": robot})
+        elif t is Join:
+            emit({"t": now, "ev": "rejoin" if a.again else "join", "robot": a.robot,
+                  "by": robot})
+        elif t is ModeChange:
+            emit({"t": now, "ev": "mode", "robot": robot, "mode": a.mode, "reason": a.reason})
+        elif t is Deliver:
+            emit({"t": now, "ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
+                  "type": a.type, "to": robot,
+                  "content": "".join(c.text() for c in a.commands)})
+        elif t is Outcome:
+            m = a.message
+            emit({"t": now, "ev": "delivered" if a.delivered else "fail", "src": m.src,
+                  "dst": m.dst, "num": m.num, "reason": a.reason})
+        elif t is Message:
+            emit({"t": now, "ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
+                  "type": a.type, "len": len(a.content)})
+    return observe
+
+
+class Runner:
+    """One real-time process: a scheduler, the things it owns, and clean shutdown."""
+
+    def __init__(self) -> None:
+        self.sched = RealTimeScheduler()
+        self._closers: list[Callable[[], None]] = []
+        self._stopping = threading.Event()
+
+    def on_close(self, fn: Callable[[], None]) -> None:
+        self._closers.append(fn)
+
+    def stop(self, *_: Any) -> None:
+        self._stopping.set()
+        self.sched.stop()
+
+    def run(self, seconds: float | None = None) -> None:
+        """Run until Ctrl-C/SIGTERM (or ``seconds``), then close everything."""
+        old = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                old[sig] = signal.signal(sig, self.stop)
+        try:
+            if seconds is None:
+                self.sched.run_forever()
+            else:
+                self.sched.run_for(seconds)
+        finally:
+            for sig, h in old.items():
+                signal.signal(sig, h)
+            for fn in reversed(self._closers):
+                try:
+                    fn()
+                except Exception:   # noqa: BLE001 - closing must go on
+                    pass
+
+
+def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_ticks: int,
+                   config: MacConfig, observer) -> tuple[RadioStation, SerialChannel]:
+    try:
+        port = open_port(port_spec)
+    except PortError as exc:
+        raise RunError(str(exc)) from None
+    station, radio = build_station(robot, runner.sched, byte_ticks=byte_ticks,
+                                   config=replace(config, byte_ticks=byte_ticks),
+                                   observer=observer)
+    try:
+        channel = SerialChannel(runner.sched, port, txen)
+    except PortError as exc:
+        port.close()
+        raise RunError(str(exc)) from None
+    channel.attach(radio)
+    channel.start()
+    runner.on_close(channel.close)
+    runner.on_close(lambda: station.txen.set(False, runner.sched.now))
+    return station, channel
+
+
+def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
+    try:
+        bus = PythonCanBus(runner.sched, open_bus(spec), log=log)
+    except CanOpenError as exc:
+        raise RunError(str(exc)) from None
+    except (OSError, ValueError) as exc:
+        raise RunError(f"cannot write CAN log {log}: {exc}") from None
+    runner.on_close(bus.close)
+    return bus
+
+
+def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
+                txen: str = "none", config: MacConfig | None = None, can_log: str | None = None,
+                events: TextIO | None = None) -> tuple[RadioStation, ChildFirmware | None]:
+    """A child on real ports (either may be None: radio only, or CAN only)."""
+    if not 1 <= robot <= 6:
+        raise RunError(f"a child's ID is 1-6, got {robot}")
+    cfg = config or MacConfig()
+    observer = _events_printer(events, robot)
+    if radio:
+        station, _ = _radio_station(runner, robot, radio, txen, CHILD_BYTE_TICKS, cfg, observer)
+    else:
+        station, _ = build_station(robot, runner.sched, config=cfg, observer=observer)
+    child = None
+    if can:
+        bus = _can_bus(runner, can, can_log)
+        ctrl = CanController(runner.sched)
+        child = ChildFirmware(station, ctrl, Transceiver82C250(bus, ctrl))
+    if radio:
+        runner.sched.post(station.power_on)
+    return station, child
+
+
+def build_submodules(runner: Runner, can: str, can_log: str | None = None) -> dict:
+    bus = _can_bus(runner, can, can_log)
+    return make_submodules(runner.sched, bus, initial_angles=HOME)
+
+
+def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool = False,
+                 config: MacConfig | None = None,
+                 events: TextIO | None = None) -> RadioStation:
+    cfg = replace(config or MacConfig(), standby=standby)
+    station, _ = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
+                                _events_printer(events, 0))
+    runner.sched.post(station.power_on)
+    return station
+
+
+def parse_order(line: str) -> tuple[int, list]:
+    """``DST COMMANDS`` (e.g. ``2 movex(10)``, ``7 act(1,0)``) -> (dst, commands)."""
+    dst_text, _, text = line.strip().partition(" ")
+    try:
+        dst = int(dst_text)
+    except ValueError:
+        raise ValueError(f"start with the destination ID (0-7), e.g. '2 movex(10)'; "
+                         f"got {dst_text!r}") from None
+    if not 0 <= dst <= 7:
+        raise ValueError(f"destination must be 0-7, got {dst}")
+    if not text.strip():
+        raise ValueError("no commands after the destination")
+    try:
+        commands = list(parse_content(text.strip().encode("ascii")))
+    except (WireError, UnicodeEncodeError) as exc:
+        raise ValueError(str(exc)) from None
+    return dst, commands
+
+
+def feed_orders(runner: Runner, station: RadioStation, stream: TextIO,
+                err: TextIO = sys.stderr) -> threading.Thread:
+    """Read ``DST COMMANDS`` lines from ``stream`` and submit them from the station."""
+    def submit(dst: int, commands: list) -> None:
+        try:
+            station.submit(dst, commands)
+        except SubmitError as exc:
+            err.write(f"refused: {exc}\n")
+            err.flush()
+
+    def loop() -> None:
+        for line in stream:
+            if not line.strip() or line.lstrip().startswith("#"):
+                continue
+            try:
+                dst, commands = parse_order(line)
+            except ValueError as exc:
+                err.write(f"bad order: {exc}\n")
+                err.flush()
+                continue
+            runner.sched.post(submit, dst, commands)
+
+    t = threading.Thread(target=loop, name="orders", daemon=True)
+    t.start()
+    return t
+
+
+def summary_line(station: RadioStation) -> str:
+    m = station.mac
+    return (f"robot {station.id}: {m.mode}, ring {list(m.ring)}, frames sent {m.frames_sent}, "
+            f"heard {station.frames_heard}, failed {station.frames_failed}, "
+            f"pending {m.pending}")
+
+
+TICKS_PER_MS = TICK_HZ // 1000

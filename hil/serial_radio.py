@@ -1,0 +1,151 @@
+"""A robot's radio on a real serial port: a pty of the radio hub, a USB-serial PTR2000, or any
+pyserial URL (``rfc2217://``, ``socket://``, ``loop://``).
+
+``SerialChannel`` takes the place of the simulated air for one robot: the firmware's UART
+sends through the PTR2000 model to ``port.write``; bytes read from the port (by a reader
+thread) are posted into the real-time scheduler and reach the UART if the radio model is
+listening (TXEN low for at least Ttrans). With a real radio module, TXEN can be wired to the
+USB-serial adapter's RTS or DTR line (``txen="rts"|"dtr"``); ``"none"`` is for modules that
+switch themselves (and for the pty hub, which has no modem lines). The firmware waits Ttrans
+after raising TXEN before its first byte, as on the MB90F549.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from typing import Any
+
+import serial
+
+from firmware_model.mcu.ptr2000 import Ptr2000
+
+
+class PortError(Exception):
+    """A serial port that cannot be used; one line saying which and why."""
+
+
+TXEN_LINES = ("none", "rts", "dtr")
+
+
+def open_port(spec: str, baud: int = 9600) -> serial.SerialBase:
+    """Open a serial port or pyserial URL with one-line errors."""
+    if not spec:
+        raise PortError("no radio port given (e.g. /dev/ttyUSB0, /dev/pts/5, socket://host:port)")
+    if "://" not in spec and not os.path.exists(spec):
+        raise PortError(f"serial port {spec} does not exist")
+    try:
+        port = serial.serial_for_url(spec, baudrate=baud, bytesize=8, parity="N", stopbits=1,
+                                     timeout=0.05, write_timeout=2.0, exclusive=True) \
+            if "://" not in spec else serial.serial_for_url(spec, baudrate=baud, timeout=0.05,
+                                                            write_timeout=2.0)
+    except serial.SerialException as exc:
+        msg = str(exc)
+        if "busy" in msg.lower() or "lock" in msg.lower():
+            raise PortError(f"serial port {spec} is busy (another program has it open)") from None
+        raise PortError(f"cannot open serial port {spec}: {msg.splitlines()[0]}") from None
+    except (ValueError, OSError) as exc:
+        raise PortError(f"cannot open serial port {spec}: {exc}") from None
+    return port
+
+
+class SerialChannel:
+    """The air as one robot's serial port sees it. ``attach(radio)`` wires a Ptr2000 model."""
+
+    def __init__(self, sched: Any, port: serial.SerialBase, txen: str = "none") -> None:
+        if txen not in TXEN_LINES:
+            raise PortError(f"TXEN line must be one of {', '.join(TXEN_LINES)}, got {txen!r}")
+        self.sched = sched
+        self.port = port
+        self.txen = txen
+        self.radio: Ptr2000 | None = None
+        self.bytes_out = 0
+        self.bytes_in = 0
+        self.bytes_deaf = 0          # heard while the radio model was switching or sending
+        self.errors: list[str] = []
+        self._stop = threading.Event()
+        self._reader = threading.Thread(target=self._read_loop, name="radio-rx", daemon=True)
+
+    def attach(self, radio: Ptr2000) -> None:
+        radio.channel = self
+        self.radio = radio
+        if self.txen != "none":
+            self._set_line(False)
+
+    def start(self) -> None:
+        self._reader.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._reader.is_alive():
+            self._reader.join(timeout=1.0)
+        try:
+            if self.txen != "none":
+                self._set_line(False)
+            self.port.close()
+        except (serial.SerialException, OSError):
+            pass
+
+    # -- what the Ptr2000 model calls ---------------------------------------------------------
+
+    def transmit(self, radio: Ptr2000, data: bytes, t0: int, bt: int) -> None:
+        try:
+            self.port.write(data)
+            self.bytes_out += len(data)
+        except (serial.SerialException, OSError) as exc:
+            self.errors.append(f"write failed: {exc}")
+
+    def sync(self, radio: Ptr2000, now: int) -> None:
+        """Bytes arrive by themselves (the reader thread posts them)."""
+
+    def deafen(self, radio: Ptr2000, now: int) -> None:
+        """TXEN raised: assert the TXEN line of a real module."""
+        if self.txen != "none":
+            self._set_line(True)
+
+    def rx_restart(self, radio: Ptr2000, when: int) -> None:
+        """TXEN lowered: wait until the UART has really sent everything, then release TXEN."""
+        if self.txen != "none":
+            try:
+                self.port.flush()
+            except (serial.SerialException, OSError):
+                pass
+            self._set_line(False)
+
+    def _set_line(self, level: bool) -> None:
+        try:
+            if self.txen == "rts":
+                self.port.rts = level
+            elif self.txen == "dtr":
+                self.port.dtr = level
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self.errors.append(f"cannot drive {self.txen.upper()}: {exc}")
+
+    # -- receiving ------------------------------------------------------------------------------
+
+    def _read_loop(self) -> None:
+        port = self.port
+        while not self._stop.is_set():
+            try:
+                data = port.read(max(1, port.in_waiting))
+            except (serial.SerialException, OSError, TypeError) as exc:
+                if not self._stop.is_set():
+                    self.errors.append(f"read failed: {exc}")
+                    self.sched.post(self._lost, str(exc))
+                return
+            if data:
+                self.sched.post(self._arrived, data)
+
+    def _arrived(self, data: bytes) -> None:
+        radio = self.radio
+        self.bytes_in += len(data)
+        if radio is None:
+            return
+        now = self.sched.now
+        if not radio.listening(now):
+            self.bytes_deaf += len(data)
+            return
+        bt = radio.uart.byte_ticks
+        radio.deliver(data, now - (len(data) - 1) * bt, bt)
+
+    def _lost(self, why: str) -> None:
+        self.sched.stop()
