@@ -26,7 +26,7 @@ class CanOpenError(Exception):
     """A CAN interface that cannot be opened; the message says which and why, in one line."""
 
 
-KNOWN_INTERFACES = ("socketcan", "virtual", "udp_multicast", "pcan", "kvaser", "slcan",
+KNOWN_INTERFACES = ("socketcan", "virtual", "rprs_unix", "udp_multicast", "pcan", "kvaser", "slcan",
                     "vector", "ixxat", "gs_usb", "serial", "neovi", "nican", "seeedstudio",
                     "usb2can", "cantact", "canalystii", "systec", "etas", "socketcand")
 
