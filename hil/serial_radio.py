@@ -45,6 +45,10 @@ def open_port(spec: str, baud: int = 9600) -> serial.SerialBase:
         raise PortError(f"cannot open serial port {spec}: {msg.splitlines()[0]}") from None
     except (ValueError, OSError) as exc:
         raise PortError(f"cannot open serial port {spec}: {exc}") from None
+    try:
+        port.reset_input_buffer()       # whatever arrived before we listened is stale
+    except (serial.SerialException, OSError, AttributeError):
+        pass
     return port
 
 

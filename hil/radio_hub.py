@@ -1,0 +1,571 @@
+"""The pty radio hub: one pseudo-terminal per robot, and the shared air between them.
+
+Each node gets a pty whose slave side (``/dev/pts/N``) any serial program opens like a serial
+port: a robot process (``rprs child --radio /dev/pts/N``), screen, minicom, pyserial. The hub
+holds the master sides and plays the one half-duplex 9600-baud channel of PROTOCOL.md §1-2 with
+the simulator's own :class:`hil.air.Air` (``byte_by_byte=True``) running on a
+:class:`hil.realtime.RealTimeScheduler`, so collisions, byte errors, idle noise and their seeded
+random streams are exactly the simulator's:
+
+* bytes a node writes go on air at the hub's byte time (16667 ticks, 1.0417 ms, at 9600 8N1);
+  a write arriving while the node's previous bytes are still on air continues the same burst
+  back to back (it is not a collision with itself);
+* every other node whose link is up receives each byte at the tick its stop bit ends (it is
+  written to that node's pty master then); a node never hears its own bytes;
+* two nodes on air at once: every node (the transmitters too) hears garbage until the air is
+  clear; ``ber``: each byte corrupted with that probability per receiver; ``noise``: random
+  bytes at the byte rate to every listening node while nothing reaches it;
+* ``drops``: (node, start_s, end_s) windows, in seconds after ``start()``, during which the
+  node's link is down: its writes vanish (counted as ``lost``), it hears nothing, and a burst it
+  had on air stops where it was.
+
+The hub models no radio switching time and no deafness: every robot process runs its own
+PTR2000 model (TXEN, Ttrans) and ignores what it could not have heard.
+
+Threads: a reader thread ``select``s over the masters and ``post``s (node, bytes) into the
+scheduler, whose thread owns all air state. Writes to masters are non-blocking: bytes a slow
+reader has no room for are dropped and counted. A node writing faster than the air carries
+stops being read once ``BACKLOG_LIMIT`` bytes wait, so its writer blocks as on a real serial
+port instead of the hub buffering without bound.
+"""
+from __future__ import annotations
+
+import argparse
+import errno
+import math
+import os
+import select
+import signal
+import sys
+import termios
+import threading
+import time
+import tty
+from typing import Any, Iterable, Sequence
+
+from firmware_model.timing import BITS_PER_BYTE_8N1, TICK_HZ, s_to_ticks
+
+from .air import Air
+from .realtime import RealTimeScheduler
+
+MAX_NODES = 7
+"""Robot IDs 0-6: at most seven radios share the channel."""
+
+MAX_BURST = 1024
+"""Bytes put on air in one Transmission; longer backlogs continue back to back."""
+
+BACKLOG_LIMIT = 4096
+"""Bytes a node may have waiting for the air before the hub stops reading its pty."""
+
+READ_SIZE = 4096
+POLL_S = 0.02
+"""The reader thread re-checks backlogs and the stop flag at least this often."""
+
+
+def byte_ticks_for(baud: float) -> int:
+    """Ticks one 8N1 byte occupies the air at ``baud`` (16667 at 9600)."""
+    return round(BITS_PER_BYTE_8N1 * TICK_HZ / baud)
+
+
+def check_args(nodes: int, baud: float, ber: float,
+               drops: Iterable[tuple[int, float, float]] = ()) -> None:
+    """Raise ValueError (one line) for arguments the hub cannot run with."""
+    if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
+        raise ValueError(f"nodes must be an integer from 1 to {MAX_NODES} (robot IDs 0-6), "
+                         f"got {nodes!r}")
+    if isinstance(baud, bool) or not isinstance(baud, (int, float)) \
+            or not 0 < baud < math.inf:
+        raise ValueError(f"baud must be a positive number, got {baud!r}")
+    if isinstance(ber, bool) or not isinstance(ber, (int, float)) or not 0.0 <= ber < 1.0:
+        raise ValueError(f"byte error rate must be in [0, 1), got {ber!r}")
+    for d in drops:
+        try:
+            node, start, end = d
+        except (TypeError, ValueError):
+            raise ValueError(f"a drop is (node, start_s, end_s), got {d!r}") from None
+        if isinstance(node, bool) or not isinstance(node, int) or not 0 <= node < nodes:
+            raise ValueError(f"drop node {node!r} is not one of the hub's nodes 0-{nodes - 1}")
+        if not (isinstance(start, (int, float)) and isinstance(end, (int, float))
+                and 0 <= start < end < math.inf):
+            raise ValueError(f"drop window {start!r}-{end!r} s of node {node} must satisfy "
+                             f"0 <= start < end (finite seconds)")
+
+
+def parse_drop(text: str) -> tuple[int, float, float]:
+    """``ID@START-END`` (seconds after the hub starts) -> (node, start, end); ValueError if not."""
+    rid, sep, window = text.partition("@")
+    start, sep2, end = window.partition("-")
+    try:
+        node, s, e = int(rid), float(start), float(end)
+    except ValueError:
+        node = None
+    if not sep or not sep2 or node is None:
+        raise ValueError(f"{text!r} is not ID@START-END, e.g. 2@5-8.5")
+    if not 0 <= node < MAX_NODES:
+        raise ValueError(f"node {node} in {text!r} is not 0-{MAX_NODES - 1}")
+    if not (0 <= s < e < math.inf):
+        raise ValueError(f"window in {text!r} must satisfy 0 <= START < END (seconds)")
+    return node, s, e
+
+
+class _Uart:
+    __slots__ = ("byte_ticks",)
+
+    def __init__(self, byte_ticks: int) -> None:
+        self.byte_ticks = byte_ticks
+
+
+class _Node:
+    """The radio-side interface hil.air.Air drives (see firmware_model.mcu.ptr2000.Ptr2000):
+    always listening while the link is up, no TXEN and no Ttrans."""
+
+    __slots__ = ("hub", "robot", "idx", "alive", "rx_from", "rx", "noise_from", "uart",
+                 "channel", "down")
+
+    def __init__(self, hub: "RadioHub", robot: int, byte_ticks: int) -> None:
+        self.hub = hub
+        self.robot = robot
+        self.idx = robot
+        self.alive = True
+        self.rx_from = 0
+        self.rx: Any = None
+        self.noise_from = 0
+        self.uart = _Uart(byte_ticks)
+        self.channel: Any = None
+        self.down = 0                # drop windows currently open
+
+    def listening(self, t: int) -> bool:
+        return self.alive and t >= self.rx_from
+
+    def deliver(self, data: bytes, t0: int, dt: int) -> None:
+        self.hub._deliver(self.robot, data)
+
+
+class _HubAir(Air):
+    """The simulator's Air, with one difference that only matters without transmitter
+    deafness: in a collision the node that started the later burst hears garbage like every
+    other node (the simulator skips it because a PTR2000 transmitting is deaf anyway)."""
+
+    def __init__(self, *args: Any, **kw: Any) -> None:
+        super().__init__(*args, **kw)
+        self.in_noise = False
+
+    def _collide(self, tx, overlapping, t0):  # type: ignore[override]
+        sender = tx.radio
+        tx.radio = _Stand(sender.robot)     # Air._collide skips only ``r is tx.radio``
+        try:
+            super()._collide(tx, overlapping, t0)
+        finally:
+            tx.radio = sender
+
+    def _noise_upto(self, r, t):  # type: ignore[override]
+        self.in_noise = True
+        try:
+            super()._noise_upto(r, t)
+        finally:
+            self.in_noise = False
+
+
+class _Stand:
+    __slots__ = ("robot",)
+
+    def __init__(self, robot: int) -> None:
+        self.robot = robot
+
+
+class RadioHub:
+    """N ptys sharing one simulated half-duplex radio channel (see the module docstring)."""
+
+    def __init__(self, nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
+                 seed: int = 0, link_dir: str | None = None,
+                 drops: Sequence[tuple[int, float, float]] = ()) -> None:
+        drops = [tuple(d) for d in drops]
+        check_args(nodes, baud, ber, drops)
+        self.nodes = nodes
+        self.baud = baud
+        self.ber = float(ber)
+        self.noise = bool(noise)
+        self.seed = seed
+        self.drops: list[tuple[int, float, float]] = drops  # type: ignore[assignment]
+        self.byte_ticks = byte_ticks_for(baud)
+        self.link_dir = link_dir
+        self.links: list[str] = []
+        self.masters: list[int] = []
+        self._slaves: list[int] = []
+        self.paths: list[str] = []
+        self._made_dir = False
+        self._lock = threading.Lock()
+        self._backlog = [0] * nodes
+        self.bytes_in = [0] * nodes
+        self.bytes_out = [0] * nodes
+        self.dropped = [0] * nodes
+        self.lost = [0] * nodes
+        self.noise_bytes = [0] * nodes
+        self.collisions = 0
+        self._clear_at = -1
+        self.sched: RealTimeScheduler | None = None
+        self.air: _HubAir | None = None
+        self._radios: list[_Node] = []
+        self._pending = [bytearray() for _ in range(nodes)]
+        self._tx_end = [0] * nodes
+        self._tx_event: list[Any] = [None] * nodes
+        self._threads: list[threading.Thread] = []
+        self._stopping = threading.Event()
+        self._started = False
+        self._closed = False
+        self._wake_r = self._wake_w = -1
+        self._t_start = 0.0
+        try:
+            for _ in range(nodes):
+                master, slave = os.openpty()
+                self.masters.append(master)
+                self._slaves.append(slave)
+                tty.setraw(slave, termios.TCSANOW)
+                os.set_blocking(master, False)
+                self.paths.append(os.ttyname(slave))
+            if link_dir is not None:
+                self._make_links(link_dir)
+            self._wake_r, self._wake_w = os.pipe()
+            os.set_blocking(self._wake_r, False)
+            os.set_blocking(self._wake_w, False)
+        except BaseException:
+            self._release()
+            raise
+
+    # -- setup and teardown ---------------------------------------------------------------
+
+    def _make_links(self, link_dir: str) -> None:
+        if not os.path.isdir(link_dir):
+            os.makedirs(link_dir)
+            self._made_dir = True
+        for i, path in enumerate(self.paths):
+            link = os.path.join(link_dir, f"node{i}")
+            if os.path.islink(link):
+                os.unlink(link)          # a stale link from a hub that did not exit cleanly
+            elif os.path.lexists(link):
+                raise FileExistsError(f"{link} exists and is not a symlink; not replacing it")
+            os.symlink(path, link)
+            self.links.append(link)
+
+    def _release(self) -> None:
+        for link in self.links:
+            try:
+                if os.path.islink(link):
+                    os.unlink(link)
+            except OSError:
+                pass
+        self.links = []
+        if self._made_dir and self.link_dir is not None:
+            try:
+                os.rmdir(self.link_dir)
+            except OSError:
+                pass
+            self._made_dir = False
+        for fd in self.masters + self._slaves + [self._wake_r, self._wake_w]:
+            if fd >= 0:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+        self.masters, self._slaves = [], []
+        self._wake_r = self._wake_w = -1
+
+    def _setup(self) -> None:
+        if self._closed:
+            raise RuntimeError("the radio hub is closed")
+        if self._started or self._stopping.is_set():
+            raise RuntimeError("the radio hub runs only once")
+        self._started = True
+        self.sched = RealTimeScheduler()
+        self._t_start = time.monotonic()
+        self.air = _HubAir(self.sched, seed=self.seed, ber=self.ber, noise=self.noise,
+                           byte_by_byte=True)
+        self.air.on_collision = self._on_collision
+        for i in range(self.nodes):
+            r = _Node(self, i, self.byte_ticks)
+            self._radios.append(r)
+            self.air.attach(r)
+        for node, start, end in self.drops:
+            self.sched.at(s_to_ticks(start), self._link_down, node)
+            self.sched.at(s_to_ticks(end), self._link_up, node)
+        if self.noise:
+            self.sched.at(self.byte_ticks, self._pump)
+        reader = threading.Thread(target=self._reader, name="radio-hub-reader", daemon=True)
+        self._threads.append(reader)
+        reader.start()
+
+    def start(self) -> "RadioHub":
+        """Run the hub in a background thread; returns at once."""
+        self._setup()
+        t = threading.Thread(target=self._run_sched, name="radio-hub-air", daemon=True)
+        self._threads.append(t)
+        t.start()
+        return self
+
+    def run_forever(self) -> None:
+        """Run the hub in the calling thread until ``stop()`` (from another thread or a
+        signal handler)."""
+        self._setup()
+        try:
+            self._run_sched()
+        finally:
+            self.stop()
+
+    def _run_sched(self) -> None:
+        try:
+            self.sched.run_forever()
+        finally:
+            self._stopping.set()
+            self._wake()
+
+    def stop(self) -> None:
+        """Stop the air and the reader; join the threads (idempotent, thread-safe)."""
+        self._stopping.set()
+        if self.sched is not None:
+            self.sched.stop()
+        self._wake()
+        me = threading.current_thread()
+        for t in self._threads:
+            if t is not me:
+                t.join(timeout=5.0)
+
+    def close(self) -> None:
+        """``stop()``, then close every fd and remove the links."""
+        if self._closed:
+            return
+        self.stop()
+        self._closed = True
+        self._release()
+
+    def __enter__(self) -> "RadioHub":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def _wake(self) -> None:
+        if self._wake_w >= 0:
+            try:
+                os.write(self._wake_w, b"x")
+            except OSError:
+                pass
+
+    # -- the reader thread ----------------------------------------------------------------
+
+    def _reader(self) -> None:
+        masters = list(self.masters)
+        wake = self._wake_r
+        sched = self.sched
+        while not self._stopping.is_set():
+            with self._lock:
+                fds = [fd for i, fd in enumerate(masters) if self._backlog[i] < BACKLOG_LIMIT]
+            try:
+                ready, _, _ = select.select(fds + [wake], [], [], POLL_S)
+            except (OSError, ValueError):
+                return
+            if wake in ready:
+                try:
+                    os.read(wake, 64)
+                except OSError:
+                    pass
+            if self._stopping.is_set():
+                return
+            for fd in ready:
+                if fd == wake:
+                    continue
+                i = masters.index(fd)
+                try:
+                    data = os.read(fd, READ_SIZE)
+                except BlockingIOError:
+                    continue
+                except OSError as e:
+                    if e.errno == errno.EIO:   # no slave open (cannot happen: we hold one)
+                        continue
+                    return
+                if data:
+                    with self._lock:
+                        self._backlog[i] += len(data)
+                    sched.post(self._on_write, i, data)
+
+    # -- the air (scheduler thread only) --------------------------------------------------
+
+    def _on_write(self, i: int, data: bytes) -> None:
+        self.bytes_in[i] += len(data)
+        r = self._radios[i]
+        if not r.alive:
+            self.lost[i] += len(data)
+            self._consumed(i, len(data))
+            return
+        self._pending[i] += data
+        if self._tx_event[i] is None:
+            if self._tx_end[i] > self.sched.now:
+                self._tx_event[i] = self.sched.at(self._tx_end[i], self._send, i)
+            else:
+                self._send(i)
+
+    def _send(self, i: int) -> None:
+        self._tx_event[i] = None
+        pend = self._pending[i]
+        if not pend:
+            return
+        chunk = bytes(pend[:MAX_BURST])
+        del pend[:MAX_BURST]
+        now = self.sched.now
+        t0 = max(now, self._tx_end[i])
+        self.air.transmit(self._radios[i], chunk, t0, self.byte_ticks)
+        self._tx_end[i] = t0 + len(chunk) * self.byte_ticks
+        self._consumed(i, len(chunk))
+        if pend:
+            self._tx_event[i] = self.sched.at(self._tx_end[i], self._send, i)
+
+    def _consumed(self, i: int, n: int) -> None:
+        with self._lock:
+            before = self._backlog[i]
+            self._backlog[i] = before - n
+        if before >= BACKLOG_LIMIT > before - n:
+            self._wake()                 # the reader may read this node again
+
+    def _deliver(self, i: int, data: bytes) -> None:
+        if self.air.in_noise:
+            self.noise_bytes[i] += len(data)
+        try:
+            n = os.write(self.masters[i], data)
+        except BlockingIOError:
+            n = 0
+        except OSError:
+            n = 0
+        self.bytes_out[i] += n
+        self.dropped[i] += len(data) - n
+
+    def _on_collision(self, t0: int, robots: list[int]) -> None:
+        if t0 >= self._clear_at:
+            self.collisions += 1         # a new collision, not the extension of one
+        self._clear_at = self.air.collision_until
+
+    def _pump(self) -> None:
+        """Idle noise reaches the ptys byte by byte, not in the Air's lazy bursts."""
+        now = self.sched.now
+        for r in self._radios:
+            if r.rx is None and r.alive:
+                self.air.sync(r, now)
+        self.sched.at(max(now, self.sched.wall()) + self.byte_ticks, self._pump)
+
+    def _link_down(self, i: int) -> None:
+        r = self._radios[i]
+        r.down += 1
+        if r.down == 1:
+            self.air.kill(r, self.sched.now)
+            n = len(self._pending[i])
+            if n:
+                self.lost[i] += n
+                self._pending[i].clear()
+                self._consumed(i, n)
+            if self._tx_event[i] is not None:
+                self._tx_event[i].cancel()
+                self._tx_event[i] = None
+            self._tx_end[i] = min(self._tx_end[i], self.sched.now)
+
+    def _link_up(self, i: int) -> None:
+        r = self._radios[i]
+        r.down -= 1
+        if r.down == 0:
+            self.air.revive(r, self.sched.now)
+
+    # -- reporting ------------------------------------------------------------------------
+
+    def stats(self) -> dict[str, Any]:
+        """Counters so far (callable from any thread)."""
+        air = self.air
+        sent = dict(air.sent) if air is not None else {}
+        per_node = [{
+            "node": i,
+            "path": self.paths[i] if i < len(self.paths) else None,
+            "bytes_in": self.bytes_in[i],       # written by the node's program
+            "bytes_out": self.bytes_out[i],     # heard by it (written to its pty)
+            "transmissions": sent.get(i, 0),
+            "dropped": self.dropped[i],         # heard, but its reader had no room
+            "lost": self.lost[i],               # written while its link was down
+            "noise": self.noise_bytes[i],
+        } for i in range(self.nodes)]
+        return {
+            "nodes": self.nodes,
+            "bytes_in": sum(self.bytes_in),
+            "bytes_out": sum(self.bytes_out),
+            "transmissions": sum(sent.values()),
+            "collisions": self.collisions,
+            "dropped": sum(self.dropped),
+            "lost": sum(self.lost),
+            "noise": sum(self.noise_bytes),
+            "seconds": (time.monotonic() - self._t_start) if self._started else 0.0,
+            "max_late_ms": (self.sched.max_late * 1000 / TICK_HZ) if self.sched else 0.0,
+            "per_node": per_node,
+        }
+
+
+def summary_line(st: dict[str, Any]) -> str:
+    c = st["collisions"]
+    return (f"radio-hub: {st['seconds']:.1f} s, {st['bytes_in']} bytes in, "
+            f"{st['bytes_out']} bytes out, {st['transmissions']} transmissions, "
+            f"{c} collision{'s' if c != 1 else ''}, {st['noise']} noise bytes, "
+            f"{st['dropped']} dropped (slow reader), {st['lost']} lost (link down)")
+
+
+def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
+                seed: int = 0, link_dir: str | None = None,
+                drops: Sequence[tuple[int, float, float]] = ()) -> int:
+    """The ``rprs radio-hub`` command: print the node paths, run until SIGINT/SIGTERM, print a
+    summary. Bad arguments raise ValueError with a one-line message."""
+    check_args(nodes, baud, ber, [tuple(d) for d in drops])
+    done = threading.Event()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        done.set()
+
+    hub = RadioHub(nodes, baud=baud, ber=ber, noise=noise, seed=seed, link_dir=link_dir,
+                   drops=drops)
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        for i, path in enumerate(hub.paths):
+            line = f"node {i}: {path}"
+            if hub.links:
+                line += f" ({hub.links[i]})"
+            print(line)
+        sys.stdout.flush()
+        hub.start()
+        while not done.wait(0.5):
+            pass
+    finally:
+        hub.close()
+        for s, h in old.items():
+            signal.signal(s, h)
+    print(summary_line(hub.stats()))
+    sys.stdout.flush()
+    return 0
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The ``radio-hub`` options, for the CLI's subparser (values checked by run_hub_cli)."""
+    def drop(text: str) -> tuple[int, float, float]:
+        try:
+            return parse_drop(text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+
+    p.add_argument("--nodes", type=int, default=4, help="number of ptys/robots, 1-7 (4)")
+    p.add_argument("--baud", type=float, default=9600, help="air bit rate, 8N1 (9600)")
+    p.add_argument("--ber", type=float, default=0.0, help="byte error rate per receiver (0)")
+    p.add_argument("--noise", action="store_true", help="idle nodes hear random bytes")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random stream (0)")
+    p.add_argument("--link-dir", default=None, metavar="DIR",
+                   help="also create DIR/node0 ... symlinks to the ptys")
+    p.add_argument("--drop", type=drop, action="append", default=[], metavar="ID@START-END",
+                   help="node ID's link is down from START to END s after start (repeatable)")
+
+
+def main_radio_hub(args: argparse.Namespace) -> int:
+    """Entry for the parsed ``radio-hub`` subcommand (see ``add_arguments``)."""
+    baud = args.baud
+    if isinstance(baud, float) and baud.is_integer():
+        baud = int(baud)
+    return run_hub_cli(args.nodes, baud, args.ber, args.noise, args.seed, args.link_dir,
+                       args.drop)

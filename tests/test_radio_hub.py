@@ -1,0 +1,359 @@
+"""The pty radio hub (hil/radio_hub.py): real ptys, the simulator's Air, wall-clock pacing.
+
+Timing bounds are generous (a loaded 2-core machine wakes threads late) but one-sided bounds
+that physics guarantees are exact: no byte can arrive before its stop bit has ended."""
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from firmware_model.radio.frame import Frame
+from hil.radio_hub import RadioHub, check_args, parse_drop, run_hub_cli
+
+serial = pytest.importorskip("serial")
+
+BYTE_S = 10 / 9600          # 1.0417 ms: one 8N1 byte at 9600
+FRAME = Frame(dst=7, src=0, num=12, type=3, content=b"movex(10)moveto(1.5,-2,0)").encode()
+
+
+@pytest.fixture
+def hubs():
+    made: list[RadioHub] = []
+    fds: list[int] = []
+
+    def make(*args, **kw) -> RadioHub:
+        h = RadioHub(*args, **kw)
+        made.append(h)
+        return h
+
+    make.fds = fds
+    yield make
+    for fd in fds:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+    for h in made:
+        h.close()
+
+
+def open_node(hubs, path: str) -> int:
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    hubs.fds.append(fd)
+    return fd
+
+
+def read_for(fd: int, seconds: float) -> bytes:
+    """Everything that arrives on ``fd`` within ``seconds``."""
+    out = bytearray()
+    end = time.monotonic() + seconds
+    while (left := end - time.monotonic()) > 0:
+        r, _, _ = select.select([fd], [], [], left)
+        if r:
+            try:
+                out += os.read(fd, 65536)
+            except BlockingIOError:
+                pass
+    return bytes(out)
+
+
+def read_n(fd: int, n: int, timeout: float) -> tuple[bytes, list[float]]:
+    """Read until ``n`` bytes came; the monotonic time each chunk was seen."""
+    out = bytearray()
+    times: list[float] = []
+    end = time.monotonic() + timeout
+    while len(out) < n and (left := end - time.monotonic()) > 0:
+        r, _, _ = select.select([fd], [], [], left)
+        if r:
+            try:
+                chunk = os.read(fd, n - len(out))
+            except BlockingIOError:
+                continue
+            t = time.monotonic()
+            out += chunk
+            times += [t] * len(chunk)
+    return bytes(out), times
+
+
+def test_frame_reaches_every_other_node_intact_and_not_the_sender(hubs):
+    hub = hubs(3).start()
+    fds = [open_node(hubs, p) for p in hub.paths]
+    os.write(fds[0], FRAME)
+    got1, _ = read_n(fds[1], len(FRAME), 3.0)
+    got2, _ = read_n(fds[2], len(FRAME), 3.0)
+    assert got1 == FRAME
+    assert got2 == FRAME
+    assert read_for(fds[0], 0.1) == b""          # a node never hears its own bytes
+    assert read_for(fds[1], 0.05) == b""         # and nothing else arrives
+    st = hub.stats()
+    assert st["transmissions"] >= 1 and st["collisions"] == 0
+    assert st["per_node"][0]["bytes_in"] == len(FRAME)
+    assert st["per_node"][0]["bytes_out"] == 0
+    assert [n["bytes_out"] for n in st["per_node"][1:]] == [len(FRAME)] * 2
+
+
+def test_bytes_are_paced_at_the_air_byte_time(hubs):
+    hub = hubs(2).start()
+    tx, rx = (open_node(hubs, p) for p in hub.paths)
+    time.sleep(0.05)
+    data = bytes(range(48))
+    t_write = time.monotonic()
+    os.write(tx, data)
+    got, times = read_n(rx, 48, 5.0)
+    assert got == data
+    first, last = times[0] - t_write, times[-1] - t_write
+    # a byte is written to the pty only once its stop bit has ended on the hub's wall clock
+    assert first >= BYTE_S
+    assert first < 0.25, f"first byte {first * 1e3:.1f} ms after the write"
+    assert last >= 48 * BYTE_S                    # 50 ms: never faster than the air
+    assert last - first >= 40 * BYTE_S            # spread out, not one burst at the end
+    assert last < 1.0, f"48 bytes took {last * 1e3:.0f} ms"
+
+
+def test_write_while_on_air_continues_the_same_burst(hubs):
+    hub = hubs(2).start()
+    tx, rx = (open_node(hubs, p) for p in hub.paths)
+    a, b = b"A" * 60, b"B" * 60
+    t_write = time.monotonic()
+    os.write(tx, a)
+    time.sleep(0.02)                              # the first burst is still on air (62 ms)
+    os.write(tx, b)
+    got, times = read_n(rx, 120, 5.0)
+    assert got == a + b                           # no self-collision
+    assert times[-1] - t_write >= 120 * BYTE_S    # back to back, after the first burst
+    assert hub.stats()["collisions"] == 0
+
+
+def test_two_nodes_at_once_collide_into_garbage(hubs):
+    hub = hubs(3).start()
+    fds = [open_node(hubs, p) for p in hub.paths]
+    a = bytes(0x41 + i % 26 for i in range(400))  # 417 ms on air each
+    b = bytes(0x61 + i % 26 for i in range(400))
+    os.write(fds[0], a)
+    os.write(fds[1], b)
+    got = read_for(fds[2], 1.5)
+    assert len(got) >= 300                        # garbage at the byte rate while overlapped
+    assert len(got) <= 850
+    assert a[-100:] not in got and b[-100:] not in got
+    same = sum(1 for x, y, z in zip(got[-300:], a[-300:], b[-300:]) if x == y or x == z)
+    assert same < 30                              # random bytes, not either frame
+    # the transmitters are not deaf in the hub: they hear garbage too, never their own bytes
+    assert a[-100:] not in read_for(fds[0], 0.05)
+    st = hub.stats()
+    assert st["collisions"] == 1
+    assert st["per_node"][2]["bytes_out"] == len(got)
+
+
+def test_ber_corrupts_bytes_seeded(hubs):
+    data = bytes(range(200))
+    results = []
+    for seed in (7, 7, 8):
+        hub = hubs(2, ber=0.5, seed=seed).start()
+        tx, rx = (open_node(hubs, p) for p in hub.paths)
+        os.write(tx, data)
+        got, _ = read_n(rx, 200, 5.0)
+        assert len(got) == 200
+        bad = sum(1 for x, y in zip(got, data) if x != y)
+        assert 60 <= bad <= 140
+        # one bit flipped per corrupted byte
+        assert all(bin(x ^ y).count("1") == 1 for x, y in zip(got, data) if x != y)
+        results.append(got)
+        hub.close()
+    assert results[0] == results[1]               # same seed, same corruption
+    assert results[0] != results[2]
+
+
+def test_noise_fills_an_idle_link_at_the_byte_rate(hubs):
+    hub = hubs(2, noise=True, seed=3)
+    t0 = time.monotonic()
+    hub.start()
+    fd = open_node(hubs, hub.paths[1])
+    got = read_for(fd, 0.4)
+    elapsed = time.monotonic() - t0
+    assert len(got) >= 100                        # ~380 expected
+    assert len(got) <= elapsed / BYTE_S + 2       # never faster than the air
+    assert len(set(got)) > 50
+    st = hub.stats()
+    assert st["per_node"][1]["noise"] >= len(got)
+    assert st["transmissions"] == 0
+
+
+def test_dropped_link_hears_nothing_and_its_writes_vanish(hubs):
+    hub = hubs(3, drops=[(1, 0.0, 1.5)])
+    t0 = time.monotonic()
+    hub.start()
+    fds = [open_node(hubs, p) for p in hub.paths]
+    os.write(fds[0], b"to-all-but-1")
+    os.write(fds[1], b"from-1-lost")
+    time.sleep(0.3)
+    assert time.monotonic() - t0 < 1.4, "machine too slow for the drop window"
+    assert read_for(fds[1], 0.05) == b""          # down: hears nothing
+    heard2 = read_for(fds[2], 0.05)
+    assert heard2 == b"to-all-but-1"              # node 1's bytes never went on air
+    assert read_for(fds[0], 0.05) == b""
+    time.sleep(max(0.0, 1.6 - (time.monotonic() - t0)))
+    os.write(fds[0], b"after")
+    got, _ = read_n(fds[1], 5, 3.0)
+    assert got == b"after"                        # the link is back
+    st = hub.stats()
+    assert st["per_node"][1]["lost"] == len(b"from-1-lost")
+    assert st["per_node"][1]["transmissions"] == 0
+
+
+def test_links_created_and_removed(hubs, tmp_path):
+    d = tmp_path / "radio"
+    hub = hubs(3, link_dir=str(d))
+    for i, path in enumerate(hub.paths):
+        link = d / f"node{i}"
+        assert link.is_symlink()
+        assert os.readlink(link) == path
+    assert hub.links == [str(d / f"node{i}") for i in range(3)]
+    hub.start()
+    fd0, fd1 = open_node(hubs, str(d / "node0")), open_node(hubs, str(d / "node1"))
+    os.write(fd0, b"hello")
+    assert read_n(fd1, 5, 3.0)[0] == b"hello"
+    hub.close()
+    assert not d.exists()                         # the hub made the dir: it removes it
+
+    keep = tmp_path / "keep"
+    keep.mkdir()
+    (keep / "node0").symlink_to("/nonexistent")   # a stale link from a crashed hub
+    with RadioHub(1, link_dir=str(keep)) as h:
+        assert os.readlink(keep / "node0") == h.paths[0]
+    assert keep.is_dir() and list(keep.iterdir()) == []
+
+
+def test_slave_is_raw_no_echo_no_translation(hubs):
+    hub = hubs(2).start()
+    special = b"\x0a\x0d\x03\x11\x13\x04\x1a\x7f\x00\xff\x0d\x0a"
+    s0 = serial.Serial(hub.paths[0], timeout=0.2)
+    s1 = serial.Serial(hub.paths[1], timeout=3.0)
+    try:
+        s0.write(special)
+        s0.flush()
+        assert s1.read(len(special)) == special
+        assert s0.read(64) == b""                 # no echo, no own bytes
+    finally:
+        s0.close()
+        s1.close()
+    # raw from the start too, for a program that does not set the line itself
+    fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
+    os.write(fd0, special)
+    assert read_n(fd1, len(special), 3.0)[0] == special
+    assert read_for(fd0, 0.1) == b""
+
+
+def test_slow_reader_is_dropped_and_the_hub_never_blocks(hubs):
+    hub = hubs(2, baud=1_000_000).start()         # 10 us a byte: fill a pty quickly
+    data = bytes(i % 251 for i in range(60_000))
+    fd0 = os.open(hub.paths[0], os.O_RDWR | os.O_NOCTTY)   # blocking writer
+    hubs.fds.append(fd0)
+    w = threading.Thread(target=os.write, args=(fd0, data), daemon=True)
+    w.start()                                     # node 1 never reads
+    w.join(20.0)
+    assert not w.is_alive(), "writer blocked: the hub stopped taking bytes"
+    deadline = time.monotonic() + 20.0
+    while time.monotonic() < deadline:
+        n1 = hub.stats()["per_node"][1]
+        if n1["bytes_out"] + n1["dropped"] >= len(data):
+            break
+        time.sleep(0.05)
+    n1 = hub.stats()["per_node"][1]
+    assert n1["bytes_out"] + n1["dropped"] == len(data)
+    assert n1["dropped"] > 0
+    assert 0 < n1["bytes_out"] < len(data)
+    # node 1 finally reads: the bytes kept are the oldest ones, in order
+    fd1 = open_node(hubs, hub.paths[1])
+    kept = read_for(fd1, 0.2)
+    assert len(kept) == n1["bytes_out"]
+    assert kept[:1000] == data[:1000]
+
+
+def test_stop_leaves_no_threads_and_closes_fds(hubs, tmp_path):
+    before = set(threading.enumerate())
+    hub = RadioHub(2, noise=True, link_dir=str(tmp_path / "l"))
+    masters = list(hub.masters)
+    hub.start()
+    time.sleep(0.05)
+    assert len(set(threading.enumerate()) - before) == 2
+    hub.stop()
+    assert set(threading.enumerate()) - before == set()
+    hub.close()
+    hub.close()                                   # idempotent
+    for fd in masters:
+        with pytest.raises(OSError):
+            os.fstat(fd)
+    assert not (tmp_path / "l").exists()
+
+
+def test_run_forever_in_the_calling_thread(hubs):
+    hub = hubs(2)
+    t = threading.Thread(target=hub.run_forever)
+    t.start()
+    fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
+    os.write(fd0, b"xyz")
+    assert read_n(fd1, 3, 3.0)[0] == b"xyz"
+    hub.stop()
+    t.join(5.0)
+    assert not t.is_alive()
+
+
+@pytest.mark.parametrize("kw, msg", [
+    (dict(nodes=0), "nodes"), (dict(nodes=8), "nodes"), (dict(baud=0), "baud"),
+    (dict(baud=-9600), "baud"), (dict(ber=1.0), "error rate"), (dict(ber=-0.1), "error rate"),
+    (dict(drops=[(3, 0, 1)]), "drop node"), (dict(drops=[(0, 2, 1)]), "window"),
+])
+def test_bad_arguments(kw, msg):
+    args = dict(nodes=2, baud=9600, ber=0.0, drops=())
+    args.update(kw)
+    with pytest.raises(ValueError, match=msg):
+        check_args(**args)
+    with pytest.raises(ValueError, match=msg):
+        run_hub_cli(**args)
+    with pytest.raises(ValueError, match=msg):
+        RadioHub(**args)
+
+
+def test_parse_drop():
+    assert parse_drop("2@5-8.5") == (2, 5.0, 8.5)
+    for bad in ("2@5", "x@1-2", "2-5", "9@1-2", "1@3-2"):
+        with pytest.raises(ValueError):
+            parse_drop(bad)
+
+
+def test_cli_prints_paths_and_summary_on_signal(tmp_path):
+    code = ("import sys; from hil.radio_hub import run_hub_cli; "
+            f"sys.exit(run_hub_cli(2, link_dir={str(tmp_path / 'r')!r}))")
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        lines = [p.stdout.readline() for _ in range(2)]
+        assert lines[0].startswith("node 0: /dev/")
+        assert lines[1].startswith("node 1: /dev/")
+        assert str(tmp_path / "r" / "node1") in lines[1]
+        path1 = lines[1].split()[2]
+        fd = os.open(lines[0].split()[2], os.O_RDWR | os.O_NOCTTY)
+        fd1 = os.open(path1, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            os.write(fd, b"ping")
+            assert read_n(fd1, 4, 5.0)[0] == b"ping"
+        finally:
+            os.close(fd)
+            os.close(fd1)
+        p.send_signal(signal.SIGTERM)
+        out, err = p.communicate(timeout=10)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, err
+    assert out.strip().splitlines()[-1].startswith("radio-hub: ")
+    assert "4 bytes in" in out
+    assert not (tmp_path / "r").exists()
