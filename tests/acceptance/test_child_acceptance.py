@@ -1,0 +1,74 @@
+"""Acceptance tests for a child robot, through its external interfaces only (radio + CAN).
+
+They run against every ``--target`` (default: model and process); against a flashed board
+with ``pytest tests/acceptance --target board --radio /dev/ttyUSB0 --txen rts --can
+pcan:PCAN_USBBUS1``. See docs/acceptance.md.
+"""
+from __future__ import annotations
+
+import pytest
+
+from firmware_model.radio.content import cmd
+
+pytestmark = pytest.mark.acceptance
+
+
+def _done(dut, msg):
+    return lambda: msg.state in ("delivered", "failed")
+
+
+def test_the_child_is_in_the_fathers_ring(dut):
+    assert dut.in_ring()
+    assert dut.run_until(lambda: len(dut.frames()) > 0, 5.0), "no CAN traffic on the bus"
+
+
+def test_a_joint_command_reaches_its_joint_and_completes(dut):
+    n0 = len(dut.frames("EVENT1"))
+    msg = dut.send([cmd("joint", 1, 25)])
+    assert dut.run_until(lambda: any(s["angle"] == 25 for _, _, s in dut.frames("JOINT1_CMD")),
+                         10.0)
+    assert dut.run_until(lambda: len(dut.frames("EVENT1")) > n0, 10.0)
+    assert dut.frames("EVENT1")[-1][2]["kind"] == 1            # done
+    assert dut.run_until(_done(dut, msg), 10.0) and msg.state == "delivered"
+    if dut.submodules:
+        assert dut.submodules["JOINT1"].angle_deg == pytest.approx(25, abs=0.01)
+
+
+def test_an_unreachable_target_comes_back_as_failure_information(dut):
+    n0 = len(dut.replies(4))
+    dut.send([cmd("moveto", 900, 0, 0)])
+    assert dut.run_until(lambda: len(dut.replies(4)) > n0, 10.0)
+    reply = dut.replies(4)[-1]
+    assert [c.text() for c in reply.commands] == ["fail(1)", "moveto(900,0,0)"]
+
+
+def test_an_action_is_announced_and_reported_done(dut):
+    k0 = len(dut.replies())
+    dut.send([cmd("act", 2, 0)])
+    notices = lambda: [c.text() for d in dut.replies()[k0:] for c in d.commands]  # noqa: E731
+    assert dut.run_until(lambda: "act(2,1)" in notices(), 15.0)
+    assert notices().index("act(2,0)") < notices().index("act(2,1)")
+    assert any(s["angle"] == -90 for _, _, s in dut.frames("JOINT1_CMD"))
+
+
+def test_status_reply_reports_four_joints(dut):
+    k0 = len(dut.replies(3))
+    dut.send([cmd("status")])
+    assert dut.run_until(lambda: any(c.name == "joint" for d in dut.replies(3)[k0:]
+                                     for c in d.commands), 10.0)
+    got = [c for d in dut.replies(3)[k0:] for c in d.commands if c.name == "joint"]
+    assert [c.args[0] for c in got] == [1, 2, 3, 4]
+
+
+def test_a_stalled_joint_is_reported(dut):
+    if not dut.submodules:
+        pytest.skip("the board's own submodules answer (--real-submodules): cannot stall one")
+    joint = dut.submodules["JOINT2"]
+    dut._call(joint.stall)
+    try:
+        k0 = len(dut.replies(4))
+        dut.send([cmd("joint", 2, 80)])
+        assert dut.run_until(lambda: len(dut.replies(4)) > k0, 10.0)
+        assert dut.replies(4)[-1].commands[0].text() == "fail(12)"
+    finally:
+        dut._call(joint.clear_fault)
