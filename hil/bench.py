@@ -1,0 +1,222 @@
+"""Bench scripts for a person with USB radios (or the pty radio hub): ``rprs bench ...``.
+
+``link``     listen and count what arrives: bytes, good frames, garbage, who is talking;
+``cycle``    listen and time the ring: the gap between one frame's End and the next Header
+             (spec: Ttrans, 5 ms), each robot's cycle, misses (gaps of about Tmax), against
+             PROTOCOL.md;
+``latency``  join the ring as a member (the father by default) and ask a robot for its
+             status: round-trip time (request submitted -> reply delivered), acknowledgement
+             time, and loss.
+
+The listener never transmits. Times are the wall-clock arrival of bytes at this PC, so they
+include the serial port's latency (a few ms on USB adapters); medians and 99th percentiles
+are quoted.
+"""
+from __future__ import annotations
+
+import statistics
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
+from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, TTRANS_TICKS
+
+from .serial_radio import PortError, open_port
+
+
+@dataclass
+class HeardFrame:
+    src: int
+    dst: int
+    num: int
+    type: int
+    nbytes: int
+    start: int     # estimated tick of the first bit of the Header (end - bytes x byte time)
+    end: int       # tick the last byte arrived
+
+
+@dataclass
+class Listening:
+    """What a passive listener collected."""
+
+    frames: list[HeardFrame] = field(default_factory=list)
+    garbage: int = 0
+    failed: int = 0
+    bytes: int = 0
+    seconds: float = 0.0
+
+
+class Sniffer:
+    """Reads a serial port in a thread and deframes what arrives, with arrival ticks."""
+
+    def __init__(self, port_spec: str, byte_ticks: int = PC_BYTE_TICKS) -> None:
+        self.port = open_port(port_spec)
+        self.bt = byte_ticks
+        self.result = Listening()
+        self._deframer = Deframer(byte_ticks=byte_ticks)
+        self._stop = threading.Event()
+        self._t0 = time.monotonic_ns()
+        self._thread = threading.Thread(target=self._loop, name="sniffer", daemon=True)
+        self._lock = threading.Lock()
+
+    def tick(self) -> int:
+        return (time.monotonic_ns() - self._t0) * TICK_HZ // 1_000_000_000
+
+    def start(self) -> "Sniffer":
+        self._thread.start()
+        return self
+
+    def stop(self) -> Listening:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.port.close()
+        self.result.seconds = self.tick() / TICK_HZ
+        return self.result
+
+    def snapshot(self) -> list[HeardFrame]:
+        with self._lock:
+            return list(self.result.frames)
+
+    def _loop(self) -> None:
+        res = self.result
+        while not self._stop.is_set():
+            try:
+                data = self.port.read(max(1, self.port.in_waiting))
+            except (OSError, ValueError, TypeError):
+                return
+            if not data:
+                continue
+            now = self.tick()
+            bt = self.bt
+            with self._lock:
+                res.bytes += len(data)
+                for ev in self._deframer.feed(data, now - (len(data) - 1) * bt, bt):
+                    if isinstance(ev, FrameReceived):
+                        f = ev.frame
+                        n = f.nbytes
+                        res.frames.append(HeardFrame(f.src, f.dst, f.num, f.type, n,
+                                                     ev.end - n * bt, ev.end))
+                    elif isinstance(ev, Garbage):
+                        res.garbage += ev.count
+                    elif isinstance(ev, FrameFailed):
+                        res.failed += 1
+
+
+def listen(port: str, seconds: float, progress: Callable[[float], None] | None = None) \
+        -> Listening:
+    s = Sniffer(port).start()
+    end = time.monotonic() + seconds
+    try:
+        while time.monotonic() < end:
+            time.sleep(min(0.1, max(0.0, end - time.monotonic())))
+            if progress is not None:
+                progress(min(seconds, seconds - (end - time.monotonic())))
+    finally:
+        res = s.stop()
+    return res
+
+
+def _pct(values: list[float], p: float) -> float:
+    v = sorted(values)
+    if not v:
+        return float("nan")
+    k = min(len(v) - 1, max(0, round(p / 100 * (len(v) - 1))))
+    return v[k]
+
+
+def cycle_report(res: Listening) -> dict[str, Any]:
+    """Turn timing against the spec from what a listener heard."""
+    fs = res.frames
+    gaps = [(b.start - a.end) * 1000 / TICK_HZ for a, b in zip(fs, fs[1:])]
+    spec = TTRANS_TICKS * 1000 / TICK_HZ
+    tmax = TMAX_TICKS * 1000 / TICK_HZ
+    turns = [g for g in gaps if g < tmax / 2]
+    misses = [g for g in gaps if g >= tmax * 0.9]
+    per: dict[int, list[int]] = {}
+    for f in fs:
+        per.setdefault(f.src, []).append(f.start)
+    cycles = {r: statistics.median([(b - a) * 1000 / TICK_HZ for a, b in zip(v, v[1:])])
+              for r, v in per.items() if len(v) > 2}
+    err = [abs(g - spec) for g in turns]
+    return {
+        "frames": len(fs), "robots": sorted(per),
+        "frames_per_robot": {r: len(v) for r, v in sorted(per.items())},
+        "turn_gap_ms_median": statistics.median(turns) if turns else None,
+        "turn_gap_error_ms_median": statistics.median(err) if err else None,
+        "turn_gap_error_ms_p99": _pct(err, 99) if err else None,
+        "spec_gap_ms": spec,
+        "misses": len(misses),
+        "cycle_ms_median": cycles,
+        "garbage_bytes": res.garbage, "failed_frames": res.failed, "seconds": res.seconds,
+    }
+
+
+@dataclass
+class LatencyResult:
+    sent: int
+    replies: int
+    round_trip_ms: list[float]
+    ack_ms: list[float]
+    failed: list[str]
+
+
+def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
+            progress: Callable[[int], None] | None = None) -> LatencyResult:
+    """Ask ``dst`` for its status ``count`` times, one at a time, from ``station`` (a member
+    on the real-time ``runner``, which the caller runs in a thread)."""
+    from firmware_model.radio.content import cmd
+    from firmware_model.radio.mac import Deliver, Outcome
+
+    replies: list[tuple[int, int]] = []
+    outcomes: list[tuple[int, Any]] = []
+    prev = station.observer
+
+    def observe(st: Any, a: object, now: int) -> None:
+        if prev is not None:
+            prev(st, a, now)
+        if type(a) is Deliver and a.src == dst:
+            replies.append((now, a.num))
+        elif type(a) is Outcome:
+            outcomes.append((now, a))
+    station.observer = observe
+    rtt, ack, failed = [], [], []
+    sent = 0
+    for i in range(count):
+        box: list[Any] = []
+        ev = threading.Event()
+
+        def submit() -> None:
+            try:
+                box.append((runner.sched.now, station.submit(dst, [cmd("status")], 2)))
+            except ValueError as exc:
+                box.append((runner.sched.now, exc))
+            ev.set()
+        n_rep = len(replies)
+        runner.sched.post(submit)
+        ev.wait(5.0)
+        t_sub, msg = box[0] if box else (0, None)
+        if not hasattr(msg, "state"):
+            failed.append(str(msg))
+            continue
+        sent += 1
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and (len(replies) == n_rep or msg.state == "sent"
+                                          or msg.state == "queued"):
+            time.sleep(0.005)
+        done = [o for t, o in outcomes if o.message is msg]
+        if done and done[0].delivered:
+            ack.append((next(t for t, o in outcomes if o.message is msg) - t_sub) * 1000 /
+                       TICK_HZ)
+        elif done:
+            failed.append(done[0].reason)
+        if len(replies) > n_rep:
+            rtt.append((replies[n_rep][0] - t_sub) * 1000 / TICK_HZ)
+        if progress is not None:
+            progress(i + 1)
+    station.observer = prev
+    return LatencyResult(sent, len(rtt), rtt, ack, failed)
+
+
+__all__ = ["Sniffer", "listen", "cycle_report", "latency", "LatencyResult", "PortError"]
