@@ -136,6 +136,8 @@ class RadioStation:
             t = type(a)
             if t is TxEnable:
                 self.txen.set(a.on, now)
+                if obs is not None:
+                    obs(self, a, now)
             elif t is Transmit:
                 self.uart.send(a.data)
                 if obs is not None:

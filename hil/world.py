@@ -24,7 +24,7 @@ from firmware_model.radio.content import Command, cmd
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
     BadContent, Deliver, Disable, Duplicate, Join, MacConfig, Message, Miss, ModeChange,
-    Outcome, SubmitError, Transmit,
+    Outcome, SubmitError, Transmit, TxEnable,
 )
 from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to_ticks
@@ -346,6 +346,11 @@ class World:
             return
         t = type(a)
         if t is Transmit:
+            return
+        if t is TxEnable:
+            if self.trace is not None or self.on_event is not None:
+                self._emit({"ev": "txen", "robot": r, "on": a.on,
+                            **({"pc": 2} if st is self.standby_station else {})})
             return
         if t is Miss:
             key = (now, a.robot)
