@@ -44,7 +44,7 @@ class RadioStation:
         self.garbage_bytes = 0
         self.frames_heard = 0
         self.frames_failed = 0
-        self._stall = 2 * uart.byte_ticks
+        self._stall = max(cfg.stall_gap, 2 * uart.byte_ticks)
         uart.on_rx = self._on_rx
         uart.on_tx_done = self._on_tx_done
 
@@ -83,6 +83,8 @@ class RadioStation:
                 # A frame that fails where its End should be while bytes keep coming had its
                 # Length corrupted downwards: its promised end is early, so do not trust it.
                 exp = None if ev.error.field == "end" else ev.expected_end
+                if self.observer is not None:
+                    self.observer(self, ev, now)
                 self._apply(mac.on_corrupt(ev.first, ev.src, exp, now), ev)
 
     def _on_timer(self, now: int) -> None:

@@ -32,6 +32,9 @@ from firmware_model.mcu.ptr2000 import NEVER, Ptr2000
 from firmware_model.mcu.scheduler import Scheduler
 
 HEADER = b"\x0f\x0a\x05"
+SKEW_LIMIT = 0.04
+"""Largest rate difference (fraction) at which an 8N1 UART still frames bytes: sampling at
+mid-bit drifts half a bit over the 9.5 bits from the start edge to the stop bit."""
 NOISE_LOOKAHEAD = 1024
 """Bytes of a radio's noise stream scanned ahead for a header (then re-scanned)."""
 
@@ -84,10 +87,11 @@ class Reception:
 
     ``data`` is None for collision garbage (drawn from the radio's garbage stream)."""
 
-    __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream")
+    __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream", "holes")
 
     def __init__(self, data: bytes | None, t0: int, bt: int, n: int,
-                 tx: Transmission | None = None, stream: ByteStream | None = None) -> None:
+                 tx: Transmission | None = None, stream: ByteStream | None = None,
+                 holes: frozenset[int] | None = None) -> None:
         self.data = data
         self.t0 = t0
         self.bt = bt
@@ -95,6 +99,7 @@ class Reception:
         self.n = n
         self.tx = tx
         self.stream = stream
+        self.holes = holes            # byte indices the receiver's UART lost (overrun)
 
     def flush(self, radio: Ptr2000, now: int) -> None:
         """Deliver every byte whose stop bit ended by ``now``."""
@@ -105,7 +110,19 @@ class Reception:
         if k > pos:
             self.pos = k
             data = self.data[pos:k] if self.data is not None else self.stream.take(k - pos)
-            radio.deliver(data, self.t0 + (pos + 1) * self.bt, self.bt)
+            holes = self.holes
+            if holes is None:
+                radio.deliver(data, self.t0 + (pos + 1) * self.bt, self.bt)
+                return
+            start = None                      # deliver the runs between lost bytes
+            for i in range(pos, k + 1):
+                if i < k and i not in holes:
+                    if start is None:
+                        start = i
+                elif start is not None:
+                    radio.deliver(data[start - pos:i - pos], self.t0 + (start + 1) * self.bt,
+                                  self.bt)
+                    start = None
 
 
 class Air:
@@ -128,6 +145,11 @@ class Air:
         self._noise: list[ByteStream] = []
         self._noise_gen: list[int] = []
         self._err_rng: list[random.Random] = []
+        self.drop = 0.0
+        self._drop_rng: list[random.Random] = []
+        self._skew: dict[int, float] = {}
+        self._phantom: Ptr2000 | None = None
+        self.bursts = 0
         self.occupations = 0
         self.sent: dict[int, int] = {}      # transmissions started, per robot
         self.collisions = 0
@@ -143,7 +165,68 @@ class Air:
         self._noise.append(ByteStream(random.Random(f"{name}:noise")))
         self._noise_gen.append(0)
         self._err_rng.append(random.Random(f"{name}:ber"))
+        self._drop_rng.append(random.Random(f"{name}:drop"))
         self._idle_from(radio, self.sched.now)
+
+    # -- fault injection (hil.faults drives these) -----------------------------------------
+
+    def set_ber(self, ber: float) -> None:
+        """Byte error rate from now on (each received byte, per receiver)."""
+        if not 0.0 <= ber < 1.0:
+            raise ValueError(f"byte error rate must be in [0, 1), got {ber}")
+        self.ber = ber
+        self._log1mp = math.log1p(-ber) if ber > 0 else 0.0
+
+    def set_drop(self, p: float) -> None:
+        """Probability that a receiver's UART loses a byte (overrun), from now on."""
+        if not 0.0 <= p < 1.0:
+            raise ValueError(f"byte drop probability must be in [0, 1), got {p}")
+        self.drop = p
+
+    def set_noise(self, on: bool) -> None:
+        """Idle noise on or off from now on."""
+        now = self.sched.now
+        if on == self.noise:
+            return
+        for r in self.radios:
+            if self.noise:
+                self.sync(r, now)
+            r.noise_from = max(r.noise_from, now)
+        self.noise = on
+        if on:
+            for r in self.radios:
+                if r.rx is None:
+                    self._idle_from(r, now)
+
+    def set_skew(self, radio: Ptr2000, eps: float) -> None:
+        """``radio``'s UART runs ``eps`` (fraction) off the others' rate: a receiver whose
+        rate differs from a sender's by more than SKEW_LIMIT cannot frame its bytes."""
+        self._skew[radio.idx] = eps
+
+    def burst(self, seconds: float, byte_ticks: int = 16_667) -> None:
+        """A burst of interference now: random bytes on air for ``seconds`` from a transmitter
+        that is no robot; it collides with whatever else is sent meanwhile."""
+        if self._phantom is None:
+            self._phantom = Ptr2000(-1)
+            self._phantom.idx = -1
+            self._phantom.alive = False     # never a receiver
+        n = max(1, round(seconds * 16_000_000 / byte_ticks))
+        self.bursts += 1
+        self.inject(self._burst_rng().randbytes(n), byte_ticks)
+
+    def _burst_rng(self) -> random.Random:
+        if not hasattr(self, "_brng"):
+            self._brng = random.Random(f"{self.seed}:burst")
+        return self._brng
+
+    def inject(self, data: bytes, byte_ticks: int = 16_667) -> None:
+        """Put ``data`` on air now from a transmitter that is no robot (forged frames,
+        interference)."""
+        if self._phantom is None:
+            self._phantom = Ptr2000(-1)
+            self._phantom.idx = -1
+            self._phantom.alive = False
+        self.transmit(self._phantom, data, self.sched.now, byte_ticks)
 
     # -- the radios' side -----------------------------------------------------------------
 
@@ -221,7 +304,19 @@ class Air:
                 buf[pos] ^= 1 << rng.randrange(8)
             if buf is not None:
                 data = bytes(buf)
-        rx = Reception(data, tx.t0, tx.bt, n, tx)
+        holes = None
+        if self.drop > 0.0:
+            rng = self._drop_rng[r.idx]
+            lost = [i for i in range(n) if rng.random() < self.drop]
+            if lost:
+                holes = frozenset(lost)
+                first_bad = min(first_bad, lost[0])
+        skew = self._skew
+        if skew and abs(skew.get(tx.radio.idx, 0.0) - skew.get(r.idx, 0.0)) > SKEW_LIMIT:
+            # the receiver's UART samples at the wrong rate: framing errors, every byte
+            data = self._garbage[r.idx].take(n)
+            first_bad = 0
+        rx = Reception(data, tx.t0, tx.bt, n, tx, holes=holes)
         self._bytewise(r, rx, 0 if self.byte_by_byte else first_bad, n - 1)
         return rx
 

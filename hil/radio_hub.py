@@ -178,8 +178,17 @@ class RadioHub:
 
     def __init__(self, nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
                  seed: int = 0, link_dir: str | None = None,
-                 drops: Sequence[tuple[int, float, float]] = ()) -> None:
+                 drops: Sequence[tuple[int, float, float]] = (),
+                 faults: Sequence[Any] = ()) -> None:
         drops = [tuple(d) for d in drops]
+        from .faults import AIR_KINDS
+        for f in faults:
+            if f.kind not in AIR_KINDS:
+                raise ValueError(f"the radio hub takes air faults ({', '.join(AIR_KINDS)}), "
+                                 f"not {f.spec()}")
+            if f.robot is not None and not 0 <= f.robot < nodes:
+                raise ValueError(f"fault {f.spec()}: the hub has nodes 0-{nodes - 1}")
+        self.faults = list(faults)
         check_args(nodes, baud, ber, drops)
         self.nodes = nodes
         self.baud = baud
@@ -288,8 +297,12 @@ class RadioHub:
         for node, start, end in self.drops:
             self.sched.at(s_to_ticks(start), self._link_down, node)
             self.sched.at(s_to_ticks(end), self._link_up, node)
+        self._pumping = self.noise
         if self.noise:
             self.sched.at(self.byte_ticks, self._pump)
+        from .faults import schedule as schedule_fault
+        for f in self.faults:       # the simulator's fault mechanism, on the hub's air
+            schedule_fault(self.sched, f, self._fault_start, self._fault_end)
         reader = threading.Thread(target=self._reader, name="radio-hub-reader", daemon=True)
         self._threads.append(reader)
         reader.start()
@@ -450,6 +463,24 @@ class RadioHub:
                 self.air.sync(r, now)
         self.sched.at(max(now, self.sched.wall()) + self.byte_ticks, self._pump)
 
+    def _fault_start(self, f: Any) -> None:
+        self._fault(f, "start")
+
+    def _fault_end(self, f: Any) -> None:
+        self._fault(f, "end")
+
+    def _fault(self, f: Any, phase: str) -> None:
+        from .faults import apply_air_fault
+        if f.kind == "fail":
+            self._link_down(f.robot)
+        elif f.kind == "recover":
+            self._link_up(f.robot)
+        else:
+            apply_air_fault(self.air, self._radios.__getitem__, f, phase, self.ber, self.noise)
+            if f.kind == "noise" and phase == "start" and not self._pumping:
+                self._pumping = True
+                self.sched.at(self.sched.now + self.byte_ticks, self._pump)
+
     def _link_down(self, i: int) -> None:
         r = self._radios[i]
         r.down += 1
@@ -512,7 +543,8 @@ def summary_line(st: dict[str, Any]) -> str:
 
 def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
                 seed: int = 0, link_dir: str | None = None,
-                drops: Sequence[tuple[int, float, float]] = ()) -> int:
+                drops: Sequence[tuple[int, float, float]] = (),
+                faults: Sequence[Any] = ()) -> int:
     """The ``rprs radio-hub`` command: print the node paths, run until SIGINT/SIGTERM, print a
     summary. Bad arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])
@@ -522,7 +554,7 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
         done.set()
 
     hub = RadioHub(nodes, baud=baud, ber=ber, noise=noise, seed=seed, link_dir=link_dir,
-                   drops=drops)
+                   drops=drops, faults=faults)
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         for i, path in enumerate(hub.paths):
@@ -561,6 +593,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--drop", type=drop, action="append", default=[], metavar="ID@START-END",
                    help="node ID's link is down from START to END s after start (repeatable)")
 
+    def fault(text: str):
+        from .faults import AIR_KINDS, FaultError, parse_fault
+        try:
+            f = parse_fault(text)
+        except FaultError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+        if f.kind not in AIR_KINDS:
+            raise argparse.ArgumentTypeError(f"the hub takes air faults ({', '.join(AIR_KINDS)})")
+        return f
+    p.add_argument("--fault", type=fault, action="append", default=[], metavar="SPEC",
+                   help="an air fault, as in rprs sim --fault: ber@T1-T2:P, noise@T1-T2, "
+                   "burst@T:S, drop@T1-T2:P, fail:N@T, recover:N@T (repeatable)")
+
 
 def main_radio_hub(args: argparse.Namespace) -> int:
     """Entry for the parsed ``radio-hub`` subcommand (see ``add_arguments``)."""
@@ -568,4 +613,4 @@ def main_radio_hub(args: argparse.Namespace) -> int:
     if isinstance(baud, float) and baud.is_integer():
         baud = int(baud)
     return run_hub_cli(args.nodes, baud, args.ber, args.noise, args.seed, args.link_dir,
-                       args.drop)
+                       args.drop, getattr(args, "fault", []))

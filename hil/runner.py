@@ -37,6 +37,28 @@ from .realtime import RealTimeScheduler
 from .serial_radio import PortError, SerialChannel, open_port
 
 
+REALTIME_MARGINS = {
+    "twin": 50 * TICK_HZ // 1000,
+    "tslot": 100 * TICK_HZ // 1000,
+    "quiet_gap": 20 * TICK_HZ // 1000,
+    "stall_gap": 20 * TICK_HZ // 1000,
+    "standby_watch": 30 * TICK_HZ // 1000,
+}
+"""MAC margins for robots on PCs (docs/bench.md): bytes reach a PC program milliseconds late
+(USB-serial latency, pty and scheduler), so the invitation window, the ID stagger and the
+quiet/stall gaps are widened. Every robot of one ring must use the same values; a flashed
+MB90F549 on a bench with PCs is built with them too (the simulator keeps the MCU-exact
+defaults)."""
+
+
+def realtime_config(config: MacConfig | None = None) -> MacConfig:
+    """``config`` with the real-time margins (fields left at their defaults only)."""
+    cfg = config or MacConfig()
+    base = MacConfig()
+    changes = {k: v for k, v in REALTIME_MARGINS.items() if getattr(cfg, k) == getattr(base, k)}
+    return replace(cfg, **changes)
+
+
 class RunError(Exception):
     """A setup problem the user can fix (port, bus, arguments): one line."""
 
@@ -151,7 +173,7 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
     """A child on real ports (either may be None: radio only, or CAN only)."""
     if not 1 <= robot <= 6:
         raise RunError(f"a child's ID is 1-6, got {robot}")
-    cfg = config or MacConfig()
+    cfg = realtime_config(config)
     observer = _events_printer(events, robot)
     if radio:
         station, _ = _radio_station(runner, robot, radio, txen, CHILD_BYTE_TICKS, cfg, observer)
@@ -173,9 +195,9 @@ def build_submodules(runner: Runner, can: str, can_log: str | None = None) -> di
 
 
 def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool = False,
-                 config: MacConfig | None = None,
-                 events: TextIO | None = None) -> RadioStation:
-    cfg = replace(config or MacConfig(), standby=standby)
+                 config: MacConfig | None = None, events: TextIO | None = None,
+                 pc: int | None = None) -> RadioStation:
+    cfg = replace(realtime_config(config), standby=standby, pc=pc or (2 if standby else 1))
     station, _ = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
                                 _events_printer(events, 0))
     runner.sched.post(station.power_on)

@@ -24,12 +24,16 @@ from firmware_model.radio.content import Command, cmd
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
     BadContent, Deliver, Disable, Duplicate, Join, MacConfig, Message, Miss, ModeChange,
-    Outcome, SubmitError, Transmit, TxEnable,
+    Outcome, Refused, SubmitError, Transmit, TxEnable,
 )
+from firmware_model.radio.deframer import FrameFailed
 from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to_ticks
 
 from .air import Air, Transmission
+from .faults import (
+    AIR_KINDS, CAN_KINDS, KINDS, Fault, FaultError, apply_air_fault, schedule as schedule_fault,
+)
 from .realtime import RealTimeScheduler
 from .trace import TRACE_VERSION, TraceWriter
 
@@ -42,19 +46,9 @@ class ConfigError(ValueError):
     """A simulation setting that cannot work (bad robot list, fault time, load ...)."""
 
 
-FAULT_KINDS = ("fail", "recover", "steal")
+FAULT_KINDS = KINDS
 STANDBY = 100
 """Key of the father's standby PC (PC2, also ID 0 on the air) in ``World.radios``."""
-
-
-@dataclass(frozen=True)
-class Fault:
-    """At ``at`` seconds: ``robot``'s radio goes silent ('fail') or comes back ('recover'), or
-    the robot wrongly takes the turn ('steal', forcing a collision)."""
-
-    kind: str
-    robot: int
-    at: float
 
 
 @dataclass
@@ -81,6 +75,11 @@ class SimConfig:
     """Run on the wall clock (hil.realtime) instead of as fast as the CPU goes."""
     father_standby: bool = False
     """A second father PC (PC2) as hot standby for ID 0 (needs 0 in ``robots``)."""
+    mac_kind: str = "rotational"
+    """The MAC every robot runs: the paper's rotational MAC, or a peer for comparison
+    (aloha, slotted, csma; firmware_model/radio/peer_macs.py)."""
+    peer: object | None = None
+    """PeerConfig for the peer MACs."""
 
     def validate(self) -> None:
         if not self.robots:
@@ -103,14 +102,22 @@ class SimConfig:
                                   f"of the ring {list(self.robots)}")
             if cycles < 1:
                 raise ConfigError(f"cycles must be at least 1, got {cycles}")
+        from firmware_model.radio.peer_macs import KINDS as MAC_KINDS
+        if self.mac_kind not in MAC_KINDS:
+            raise ConfigError(f"unknown MAC {self.mac_kind!r}; one of {', '.join(MAC_KINDS)}")
+        if self.mac_kind != "rotational" and (self.father_standby or self.sequence):
+            raise ConfigError("the standby father and the action sequence need the rotational "
+                              "MAC")
         if self.father_standby and 0 not in self.robots:
             raise ConfigError("a standby father PC needs the father (ID 0) in the ring")
         for f in self.faults:
-            if f.robot not in self.robots:
-                raise ConfigError(f"--{f.kind} names robot {f.robot}, which is not in the ring "
-                                  f"{list(self.robots)}")
+            if f.robot is not None and f.robot not in self.robots:
+                raise ConfigError(f"fault {f.spec()} names robot {f.robot}, which is not in the "
+                                  f"ring {list(self.robots)}")
             if f.at < 0:
-                raise ConfigError(f"--{f.kind} time must not be negative, got {f.at}")
+                raise ConfigError(f"fault {f.spec()}: time must not be negative")
+            if f.kind in CAN_KINDS and not self.can:
+                raise ConfigError(f"fault {f.spec()} needs the children's CAN side (--can)")
         if isinstance(self.load, str):
             if self.load not in ("idle", "saturate"):
                 raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
@@ -124,6 +131,8 @@ class SimConfig:
 @dataclass
 class RobotStats:
     received: int = 0
+    refused_frames: int = 0
+    bad_frames: int = 0
     duplicates: int = 0
     submitted: int = 0
     delivered: int = 0
@@ -202,15 +211,28 @@ class World:
         self.deliveries: Counter = Counter()        # (src, num, submit-serial, receiver)
         self.collisions = 0
         self.corrupt_deliveries = 0
+        self.wrong_deliveries = 0
         self._rngs = {r: random.Random(f"{config.seed}:load:{r}") for r in config.robots}
         self._serial: dict[tuple[int, int], int] = {}
         self.byte_ticks = {r: (PC_BYTE_TICKS if r == 0 else CHILD_BYTE_TICKS)
                            for r in config.robots}
+        skew = {f.robot: f.value for f in config.faults if f.kind == "skew"}
+        for r, eps in skew.items():
+            self.byte_ticks[r] = round(self.byte_ticks[r] * (1 + eps))
         for r in sorted(config.robots):
             cfg = replace(base, byte_ticks=self.byte_ticks[r])
+            if r in skew:
+                cfg = _skewed(cfg, skew[r])
             st, radio = build_station(r, self.sched, byte_ticks=self.byte_ticks[r], config=cfg,
                                       observer=self._observe)
+            if config.mac_kind != "rotational":
+                from firmware_model.radio.peer_macs import make_mac
+                st.mac = make_mac(config.mac_kind, r, st.mac.cfg, seed=config.seed,
+                                  peer=config.peer)
             self.air.attach(radio)
+            if r in skew:
+                self.air.set_skew(radio, skew[r])
+                radio.ttrans = base.ttrans   # the PTR2000 switches in 5 ms whatever the MCU clock
             radio.alive = False
             self.stations[r] = st
             self.radios[r] = radio
@@ -219,7 +241,7 @@ class World:
             self.sched.at(s_to_ticks(config.power_on.get(r, 0.0)), self._power_on, r)
         self.standby_station: RadioStation | None = None
         if config.father_standby:
-            cfg = replace(base, byte_ticks=PC_BYTE_TICKS, standby=True)
+            cfg = replace(base, byte_ticks=PC_BYTE_TICKS, standby=True, pc=2)
             st, radio = build_station(0, self.sched, byte_ticks=PC_BYTE_TICKS, config=cfg,
                                       observer=self._observe)
             self.air.attach(radio)
@@ -228,14 +250,17 @@ class World:
             self.radios[STANDBY] = radio
             self.stations_extra = {STANDBY: st}
             self.sched.at(s_to_ticks(config.power_on.get(0, 0.0)), self._power_on_standby)
+        self.fault_count: dict[str, int] = {}
         for f in config.faults:
-            self.sched.at(s_to_ticks(f.at), self._fault, f)
+            if f.kind != "skew":
+                schedule_fault(self.sched, f, self._fault, self._fault_end)
         self.end_tick = s_to_ticks(config.duration)
         self._emit({"ev": "meta", "version": TRACE_VERSION, "tick_hz": TICK_HZ,
                     "byte_ticks": {str(r): self.byte_ticks[r] for r in sorted(config.robots)},
                     "ttrans": base.ttrans, "tmax": base.tmax, "twin": base.twin,
                     "tslot": base.tslot, "miss_limit": base.miss_limit,
                     "robots": sorted(config.robots), "seed": config.seed,
+                    "mac": config.mac_kind,
                     "ber": config.ber, "noise": config.noise,
                     "load": config.load, "duration_ticks": self.end_tick,
                     **({"can_bitrate": CAN_TIMING.bitrate and int(CAN_TIMING.bitrate)}
@@ -304,26 +329,58 @@ class World:
         self.standby_station.power_on()
 
     def _fault(self, f: Fault) -> None:
-        radio = self.radios[f.robot]
-        now = self.sched.now
-        self._emit({"ev": "fault", "robot": f.robot, "kind": f.kind})
-        if f.kind == "fail":
-            self.air.kill(radio, now)
-        elif f.kind == "recover":
-            self.air.revive(radio, now)
-        elif f.kind == "steal":
-            self.stations[f.robot].force_turn()
+        self.fault_count[f.kind] = self.fault_count.get(f.kind, 0) + 1
+        self._emit({"ev": "fault", "robot": f.robot, "kind": f.kind, "phase": "start",
+                    **({"spec": f.spec()} if f.kind not in ("fail", "recover", "steal")
+                       else {})})
+        self._fault_act(f, "start")
 
-    def inject(self, kind: str, robot: int, at_tick: int) -> None:
-        """Schedule a fault at a tick: 'fail', 'recover' (radio), 'steal' (take the turn)."""
-        if kind not in FAULT_KINDS:
-            raise ConfigError(f"unknown fault {kind!r}; one of {', '.join(FAULT_KINDS)}")
-        self.sched.at(at_tick, self._fault, Fault(kind, robot, at_tick / TICK_HZ))
+    def _fault_end(self, f: Fault) -> None:
+        self._emit({"ev": "fault", "robot": f.robot, "kind": f.kind, "phase": "end"})
+        self._fault_act(f, "end")
+
+    def _fault_act(self, f: Fault, phase: str) -> None:
+        k = f.kind
+        if k in AIR_KINDS:
+            apply_air_fault(self.air, self.radios.__getitem__, f, phase, self.cfg.ber,
+                            self.cfg.noise)
+        elif k == "steal":
+            self.stations[f.robot].force_turn()
+        elif k == "busoff":
+            child = self.children[f.robot]
+            self.can_buses[f.robot].inject_bit_error(child.can.xcvr, count=32)
+        elif k == "stuck":
+            self.children[f.robot].can.xcvr.stick_txd(phase == "start")
+        elif k == "silent":
+            self.submodules[f.robot][f.node].silent(phase == "start")
+        elif k == "stall":
+            node = self.submodules[f.robot][f.node]
+            node.stall() if phase == "start" else node.clear_fault()
+
+    def inject(self, kind: str, robot: int | None, at_tick: int, until_tick: int | None = None,
+               value: float | None = None, node: str | None = None) -> None:
+        """Schedule a fault at a tick (tests): any kind of hil.faults."""
+        if kind not in KINDS or kind == "skew":
+            raise ConfigError(f"unknown fault {kind!r}; one of {', '.join(KINDS)}")
+        f = Fault(kind, robot, at_tick / TICK_HZ,
+                  until_tick / TICK_HZ if until_tick is not None else None, value, node)
+        self.sched.at(at_tick, self._fault, f)
+        if until_tick is not None:
+            self.sched.at(until_tick, self._fault_end, f)
+
+    def inject_bytes(self, data: bytes, at_tick: int) -> None:
+        """Put raw bytes on air at a tick from a transmitter that is no robot (forged frames,
+        out-of-turn or spoofed Sources, over-long Lengths)."""
+        self.sched.at(at_tick, self.air.inject, data)
 
     def _on_transmission(self, tx: Transmission) -> None:
         r = tx.radio.robot
         self._tx_starts.append(tx.t0)
         if self.trace is None and self.on_event is None:
+            return
+        if r < 0:                      # injected bytes or interference, not a robot
+            self._emit({"ev": "interference", "start": tx.t0, "end": tx.end,
+                        "bytes": (tx.end - tx.t0) // tx.bt, "collided": tx.collided})
             return
         d = tx.data
         ev = {"ev": "frame", "src": r}
@@ -381,18 +438,29 @@ class World:
                 self.deliveries[(a.src, a.num, serial, r)] += 1
             else:
                 self.corrupt_deliveries += 1
+            if a.dst not in (r, BROADCAST):
+                self.wrong_deliveries += 1
             self._emit({"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
                         "type": a.type, "to": r, "intact": intact})
         elif t is Duplicate:
             self.stats[r].duplicates += 1
             self._emit({"ev": "duplicate", "src": a.src, "num": a.num, "to": r})
+        elif t is Refused:
+            self.stats[r].refused_frames += 1
+            self._emit({"ev": "refused", "src": a.src, "num": a.num, "to": r,
+                        "reason": a.reason})
+        elif t is FrameFailed:
+            self.stats[r].bad_frames += 1
+            if self.trace is not None or self.on_event is not None:
+                self._emit({"ev": "bad_frame", "to": r, "field": a.error.field,
+                            "reason": str(a.error)})
         elif t is BadContent:
             self._emit({"ev": "bad_content", "src": a.src, "num": a.num, "to": r,
                         "reason": str(a.error)})
         elif t is Outcome:
             m = a.message
             self.outcomes.append(a)
-            s = self.stats[r]
+            s = self.stats[m.src]
             if a.delivered:
                 s.delivered += 1
                 self._emit({"ev": "delivered", "src": m.src, "dst": m.dst, "num": m.num,
@@ -404,7 +472,7 @@ class World:
             if self.cfg.load == "saturate":
                 self._submit_full(r)
         elif t is Message:
-            self.stats[r].submitted += 1
+            self.stats[a.src].submitted += 1
             self.messages.append(a)
             self._serial[(a.src, a.num)] = len(self.messages)
             self._emit({"ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
@@ -418,10 +486,18 @@ class World:
 
     # -- load -----------------------------------------------------------------------------
 
+    def station_of(self, robot: int) -> RadioStation:
+        """The station that speaks for ``robot`` now (for the father: its active PC)."""
+        st = self.stations[robot]
+        sb = self.standby_station
+        if robot == 0 and sb is not None and st.mac.standby and not sb.mac.standby:
+            return sb
+        return st
+
     def submit(self, src: int, dst: int, commands: Iterable[Command], type: int = 2):
         """Submit a message at ``src`` now; a refused one is counted and re-raised."""
         try:
-            return self.stations[src].submit(dst, list(commands), type)
+            return self.station_of(src).submit(dst, list(commands), type)
         except SubmitError:
             self.stats[src].refused += 1
             raise
@@ -471,6 +547,31 @@ class World:
         """Transmissions that started in [t0, t1] (counted by the air as they start)."""
         return sum(1 for t in self._tx_starts if t0 <= t <= t1)
 
+    def alive(self) -> tuple[int, ...]:
+        """Robots whose radio works now (the father counts if either PC's does)."""
+        out = [r for r in self.cfg.robots if self.radios[r].alive]
+        if 0 in self.cfg.robots and 0 not in out and STANDBY in self.radios and \
+                self.radios[STANDBY].alive:
+            out.append(0)
+        return tuple(sorted(out))
+
+    def ring_complete(self) -> bool:
+        """Every robot whose radio works is a member of a ring of exactly those robots (for
+        the father: exactly one of its PCs is active)."""
+        alive = self.alive()
+        for r in alive:
+            if r == 0 and self.standby_station is not None:
+                pcs = ((self.stations[0].mac, self.radios[0]),
+                       (self.standby_station.mac, self.radios[STANDBY]))
+                macs = [m for m, radio in pcs if radio.alive and not m.standby]
+                if len(macs) != 1:
+                    return False
+            else:
+                macs = [self.stations[r].mac]
+            if any(m.mode != "member" or m.ring != alive for m in macs):
+                return False
+        return True
+
     def ring_views(self) -> dict[int, tuple[int, ...]]:
         """Each robot's current ring (empty while it listens)."""
         return {r: st.mac.ring for r, st in self.stations.items()}
@@ -480,11 +581,14 @@ class World:
         robots = {}
         for r in sorted(self.stations):
             st, s = self.stations[r], self.stats[r]
+            pending = st.mac.pending + (self.standby_station.mac.pending
+                                        if r == 0 and self.standby_station else 0)
             robots[r] = {"frames_sent": self.air.sent.get(r, 0), "received": s.received,
-                         "pending": st.mac.pending, "missed": s.missed,
+                         "pending": pending, "missed": s.missed,
                          "submitted": s.submitted, "delivered": s.delivered,
                          "failed": s.failed, "refused": s.refused,
-                         "duplicates_dropped": s.duplicates, "mode": st.mac.mode,
+                         "duplicates_dropped": s.duplicates, "refused_frames":
+                         s.refused_frames, "bad_frames": s.bad_frames, "mode": st.mac.mode,
                          "ring": list(st.mac.ring)}
         total = lambda k: sum(v[k] for v in robots.values())  # noqa: E731
         dup_deliveries = sum(c - 1 for c in self.deliveries.values() if c > 1)
@@ -496,4 +600,15 @@ class World:
                 "failed": total("failed"), "pending": total("pending"),
                 "can_frames": self.can_frames,
                 "duplicate_deliveries": dup_deliveries,
-                "corrupt_deliveries": self.corrupt_deliveries}
+                "corrupt_deliveries": self.corrupt_deliveries,
+                "wrong_robot_deliveries": self.wrong_deliveries}
+
+
+def _skewed(cfg: MacConfig, eps: float) -> MacConfig:
+    """A robot whose clock runs ``eps`` fast: every interval it times is that much longer
+    in true ticks (rounded to the reload timer's even ticks)."""
+    def k(t: int) -> int:
+        v = round(t * (1 + eps))
+        return v + (v & 1)
+    return replace(cfg, ttrans=k(cfg.ttrans), tmax=k(cfg.tmax), twin=k(cfg.twin),
+                   tslot=k(cfg.tslot), quiet_gap=k(cfg.quiet_gap))

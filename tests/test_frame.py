@@ -45,7 +45,7 @@ def test_constants():
     assert (BROADCAST, FATHER) == (7, 0)
     assert list(CHILD_IDS) == [1, 2, 3, 4, 5, 6] and list(ROBOT_IDS) == list(range(7))
     assert MAX_CONTENT == 562
-    assert [t.value for t in FrameType] == [0, 1, 2, 3, 4, 5]  # 5: BOOT extension
+    assert [t.value for t in FrameType] == [0, 1, 2, 3, 4, 5, 6]  # 5 BOOT, 6 JOIN
     assert FrameType.BROADCAST_INFO == 3 and FrameType.FAILURE == 4
 
 

@@ -88,6 +88,9 @@ class FrameType(IntEnum):
     BOOT = 5
     """Extension (docs/mac.md): the heartbeat of a robot that has just powered on. Its Numbers
     restart at '00', so receivers forget the duplicates they remember from it."""
+    JOIN = 6
+    """Extension (docs/mac.md): the frame with which an invited robot answers an invitation
+    (only such a frame, or a BOOT frame, admits a robot in an invitation window)."""
 
 
 # --------------------------------------------------------------------------------------------

@@ -57,6 +57,11 @@ from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
 LISTEN = "listen"
 MEMBER = "member"
 _NOTHING: tuple = ()
+PC2_CHECK_EVERY = 8
+"""An active PC2 listens for PC1 on one of its turns in this many (docs/mac.md, failover)."""
+TAKEOVER_TOLERANCE = 0.05
+"""Clock difference (fraction of Tmax) between robots within which a takeover heard before
+our own timer expires is still taken as one (a fast clock's Tmax ends first)."""
 
 # Phases while MEMBER.
 WAIT = "wait"        # waiting for the header of ``owner`` until ``deadline``
@@ -150,6 +155,16 @@ class BadContent:
 
 
 @dataclass(frozen=True, slots=True)
+class Refused:
+    """A frame refused and never acted on (docs/mac.md, spoofing and bounds): its Source is
+    not in the team, not the robot whose turn it is, our own ID, or a robot we disabled."""
+
+    src: int
+    num: int
+    reason: str
+
+
+@dataclass(frozen=True, slots=True)
 class BadChecksum:
     """A frame refused because its checksum was missing or wrong (checksum extension on)."""
 
@@ -206,6 +221,8 @@ class MacConfig:
     """No byte for this long after a frame failed before its Length: the frame is over.
     (A frame's bytes are back to back; idle noise keeps the channel from ever going quiet,
     and then the wait ends at Tmax after the failed header.)"""
+    stall_gap: int = 2 * CHILD_BYTE_TICKS
+    """A frame whose bytes stop coming for this long is abandoned (the sender died)."""
     max_attempts: int = 4
     """Transmissions of a message (first + retries) before it fails."""
     max_age: int = 60 * 16_000_000
@@ -213,6 +230,13 @@ class MacConfig:
     max_queue: int = 32
     mac_reserve: int = 64
     """Content bytes the MAC keeps free for its own commands when a load fills frames."""
+    pc: int = 1
+    """Which of the father's PCs this is (1 or 2): on ID 0's turn a standby PC waits
+    ``pc`` x ``standby_watch`` for the active PC's header, and if two active PCs ever hear
+    each other, the higher number stands by."""
+    standby_watch: int = 4 * 16_667
+    """How long after Ttrans a standby waits for the active PC's header before it takes the
+    turn (ticks): 4 bytes in simulation; a PC on a USB adapter needs tens of ms."""
     standby: bool = False
     """Hot standby for the father (PROTOCOL.md §4 failover, paper's PC1/PC2): follow the ring
     as a replica of ID 0 and take ID 0's turn only when the active PC's header does not come
@@ -279,8 +303,12 @@ class RotationalMac:
         self._quiet_limit = 0
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
         self._booting = False             # next frame is the power-on (Type '5') heartbeat
+        self._answering = False           # next frame answers an invitation (Type '6')
         self.standby = self.cfg.standby      # a replica of ID 0 that does not transmit
+        self._watched = False
+        self._check_turns = 0               # PC2 after a takeover: turns still to watch
         self._seen: dict[int, int] = {}      # LISTEN: source -> tick last heard
+        self._heard_disabled: dict[int, int] = {}   # disabled robot -> frames heard since
         self.frames_sent = 0
         self.turns = 0
         self._hb_cache: dict[tuple, tuple[Frame, bytes]] = {}
@@ -348,6 +376,8 @@ class RotationalMac:
     def on_frame(self, frame: Frame, first: int, end: int, now: int) -> list:
         """A valid frame was heard; its first header byte ended at ``first``, its End at ``end``."""
         src = frame.src
+        if self.phase is SWITCH or self.phase is SEND:
+            return _NOTHING            # deaf while switching or sending (only raw input gets here)
         if not frame.content and self.mode is MEMBER and src in self.ring \
                 and len(self.ring) > 1 and src != self.id and frame.type != FrameType.BOOT:
             # Fast path, a heartbeat from a member: resynchronise and hand the turn on.
@@ -369,8 +399,13 @@ class RotationalMac:
         if src == self.id:
             # Our own ID from the air (we are deaf while sending): another PC is ID 0.
             if self.id != 0:
+                out.append(Refused(src, frame.num, "our own robot ID from the air"))
                 return out
             return self._active_frame(frame, end, now, out)
+        if src not in self.cfg.team:
+            out.append(Refused(src, frame.num, f"robot {src} is not in the team"))
+            out.extend(self.on_corrupt(first, None, end, now))
+            return out
         content = frame.content
         if self.cfg.checksum:
             if not crc_ok(frame):
@@ -387,17 +422,22 @@ class RotationalMac:
             mac_cmds, app_cmds, bad = (), (), exc
         polls = [c for c in mac_cmds if c.name == "poll"]
 
-        if self.mode == MEMBER and self.lone and not (
-                self.phase == WINDOW and src == self.owner):
+        answering = self.phase == WINDOW and src == self.owner and \
+            frame.type in (FrameType.BOOT, FrameType.JOIN)
+        if self.mode == MEMBER and self.lone and not answering:
             self._to_listen(out, now, "heard another robot while alone")
         if self.mode == MEMBER and src in self.ring:
             for p in polls:
+                if p.args[1] == 1 << src:
+                    continue           # a lone claimer's mask says nothing about our ring
                 if not (p.args[1] >> self.id & 1):
                     self._to_listen(out, now, f"left out of robot {src}'s ring (its poll mask)")
                     break
         if self.mode == LISTEN:
             self._seen[src] = end
             self.deadline = now + self._claim_ticks()
+            if self._queue or self._inflight is not None:
+                self._expire(now, out)
             for p in polls:
                 if p.args[0] == self.id:
                     ring = _unmask(p.args[1]) | {self.id, src}
@@ -407,19 +447,38 @@ class RotationalMac:
                     self.ever_member |= set(self.ring)
                     self._silent = 0
                     self._turns_since_poll = self.cfg.poll_every
+                    self._answering = True
                     out.append(ModeChange(MEMBER, f"invited by robot {src}"))
                     self._my_turn(end, now, out)
                     break
             return out
 
         # MEMBER from here on.
+        invited_now = answering
         if src not in self.ring:
             if any(p.args[1] == 1 << src for p in polls):
                 # A robot that claimed the channel alone: it is not in our ring and must be
                 # invited (it goes back to LISTEN when it hears us). Resynchronise only.
                 self._next_turn(src, end, now, out)
                 return out
+            if src in self.ever_member and not invited_now:
+                # We disabled it: only an invitation, or three cycles of evidence, bring it
+                # back; until then its frames set the timing but are not acted on.
+                n = self._heard_disabled.get(src, 0) + 1
+                self._heard_disabled[src] = n
+                if n < self.cfg.miss_limit:
+                    out.append(Refused(src, frame.num, f"robot {src} was disabled and not "
+                                       f"invited back"))
+                    self._next_turn(src, end, now, out)
+                    return out
+            self._heard_disabled.pop(src, None)
             self._admit(src, out)
+        elif self.phase in (WAIT, WINDOW) and self.owner is not None and src != self.owner \
+                and not invited_now and not self._takeover(src, first, out):
+            out.append(Refused(src, frame.num, f"out of turn: it was robot {self.owner}'s turn"))
+            self.misses[src] = 0
+            self._next_turn(src, end, now, out)     # the owner is whoever is sending
+            return out
         self.misses[src] = 0
         self._silent = 0
         if bad is not None:
@@ -428,7 +487,10 @@ class RotationalMac:
             for c in mac_cmds:
                 if c.name == "ack" and c.args[0] == self.id:
                     self._on_ack(src, c.args[1], now, out)
-            if app_cmds and (frame.dst == self.id or frame.dst == BROADCAST):
+            if app_cmds and (frame.dst == self.id or frame.dst == BROADCAST) and \
+                    not self._check_turns:
+                # (A PC2 on probation after a takeover leaves new messages alone: PC1 may still
+                # be active and take them; the sender retries if nobody acknowledges.)
                 self._acks.append((src, frame.num))
                 if self._last_rx.get(src) == frame.num:
                     out.append(Duplicate(src, frame.num))
@@ -449,6 +511,8 @@ class RotationalMac:
         """A frame failed after a valid header: the turn is used (not a miss) and closes at the
         end its Length promised, or ``first + Tmax`` when the Length was never read."""
         out: list = []
+        if self.phase is SWITCH or self.phase is SEND:
+            return out
         if self.mode == LISTEN:
             self.deadline = now + self._claim_ticks()
             return out
@@ -479,7 +543,7 @@ class RotationalMac:
             self.phase = QUIET
             self._quiet_miss = True
             self._quiet_limit = self.turn_start + self.cfg.tmax
-            self.deadline = min(last + self.cfg.quiet_gap, self._quiet_limit)
+            self.deadline = max(now, min(last + self.cfg.quiet_gap, self._quiet_limit))
         return _NOTHING
 
     def on_timer(self, now: int, rx_busy: bool = False, last_rx: int | None = None) -> list:
@@ -502,14 +566,28 @@ class RotationalMac:
             self._my_turn(now, now, out)
             return out
         phase = self.phase
+        if self.standby and (self._queue or self._inflight is not None):
+            self._expire(now, out)
         if phase == WATCH:
             if rx_busy:                    # the active PC is sending: follow it
+                if not self.standby:
+                    self.standby = True
+                    self._check_turns = 0
+                    out.append(ModeChange(MEMBER, "PC1 is still active: standing by"))
                 self.phase = WAIT
                 self.deadline = self.turn_start + self.cfg.tmax
             else:
-                self.standby = False
-                out.append(ModeChange(MEMBER, "took over ID 0's turn: the active PC is silent"))
+                if self.standby:
+                    self.standby = False
+                    if self.cfg.pc > 1:
+                        self._check_turns = 3
+                    out.append(ModeChange(MEMBER,
+                                          "took over ID 0's turn: the active PC is silent"))
+                elif self._check_turns > 0:
+                    self._check_turns -= 1
+                self._watched = True
                 self._my_turn(now, now, out)
+                self._watched = False
             return out
         if phase == SWITCH:
             self._send(now, out)
@@ -561,15 +639,52 @@ class RotationalMac:
             self._next_turn(self.id, now, now, out)
         return out
 
+    def _watch_ticks(self) -> int:
+        """How long after a turn begins we listen for the other PC's header (docs/mac.md).
+
+        An active PC2 checking for PC1 waits W past Ttrans; a standby waits Ttrans +
+        (pc + 2) W, longer than a checking PC2 needs to raise TXEN, wait Ttrans and get its
+        header out, so a standby never takes a turn from a live active PC."""
+        w = max(4 * self.cfg.byte_ticks, self.cfg.standby_watch)
+        if self.standby:
+            return 2 * self.cfg.ttrans + (self.cfg.pc + 2) * w
+        return self.cfg.ttrans + w
+
+    def _takeover(self, src: int, first: int, out: list) -> bool:
+        """Is a frame from ``src`` (not the robot we wait for) a rightful takeover seen with a
+        slower clock? True when ``src`` follows the expected owner(s) in ring order and its
+        header came at least one Tmax per skipped robot (one Twin for an unanswered
+        invitation) after the turn began, within TAKEOVER_TOLERANCE; the skipped robots are
+        then counted as missed, as our own timer would have (rule 3 of docs/mac.md)."""
+        cfg = self.cfg
+        elapsed = first - cfg.byte_ticks - self.turn_start
+        slack = 1.0 - TAKEOVER_TOLERANCE
+        if self.phase == WINDOW:
+            return src == self.succ(self.poller) and elapsed >= cfg.twin * slack
+        skipped = []
+        o = self.owner
+        while o != src and len(skipped) <= len(self.ring):
+            skipped.append(o)
+            o = self.succ(o)
+        if o != src or elapsed < len(skipped) * cfg.tmax * slack or self.id in skipped:
+            return False
+        for r in skipped:
+            n = self.misses.get(r, 0) + 1
+            self.misses[r] = n
+            out.append(Miss(r))
+            if n >= cfg.miss_limit:
+                self._drop(r, out)
+        return True
+
     def _active_frame(self, frame: Frame, end: int, now: int, out: list) -> list:
         """A frame with ID 0 that we did not send: the active PC of the father's pair."""
         if not self.standby:
-            if self.mode == LISTEN or self.lone:
-                if self.lone:
+            if self.mode == LISTEN or self.lone or self.cfg.pc > 1:
+                if self.mode == MEMBER:
                     self._to_listen(out, now, "another PC is active as ID 0")
                 self.standby = True            # the other PC is active: stand by for it
             else:
-                return out                     # two active PCs: the collision rules apply
+                return out                     # PC1 stays active; PC2 will yield
         content = strip_crc(frame.content) if self.cfg.checksum and crc_ok(frame) \
             else frame.content
         try:
@@ -659,12 +774,16 @@ class RotationalMac:
         if start > now:
             self._hold(start, now, out)
             return
-        if self.standby:
+        if self.standby or (not self._watched and self.id == 0 and self.cfg.pc > 1 and (
+                self._check_turns > 0 or self.turns % PC2_CHECK_EVERY == 0)):
             # The active PC's header starts at start + Ttrans and is complete 3 bytes later.
+            # An active PC2 still watches its first turns after a takeover and then one turn
+            # in PC2_CHECK_EVERY: if PC1 were active too, both would send in the same slot,
+            # each deaf to the other, for ever.
             self.phase = WATCH
             self.owner = self.id
             self.turn_start = start
-            self.deadline = start + self.cfg.ttrans + 4 * self.cfg.byte_ticks
+            self.deadline = start + self._watch_ticks()
             return
         self.phase = SWITCH
         self.owner = self.id
@@ -733,6 +852,18 @@ class RotationalMac:
             self._queue.remove(m)
         out.append(Outcome(m, delivered, reason))
 
+    def _expire(self, now: int, out: list) -> None:
+        """Fail what is too old, also while this robot takes no turns (listening, standing
+        by): every message ends within ``max_age`` whatever happens to the robot."""
+        limit = now - self.cfg.max_age
+        m = self._inflight
+        if m is not None and m.submitted < limit:
+            self._finish(m, False, f"expired: not acknowledged within "
+                         f"{self.cfg.max_age // 16_000} ms", out)
+        while self._queue and self._queue[0].submitted < limit:
+            self._finish(self._queue[0], False, f"expired: not sent within "
+                         f"{self.cfg.max_age // 16_000} ms", out)
+
     def _pick_message(self, now: int, out: list) -> Message | None:
         """The message to carry this turn (retransmission first), failing what must fail."""
         cfg = self.cfg
@@ -797,10 +928,11 @@ class RotationalMac:
 
     def _build_frame(self, now: int, out: list) -> tuple[Frame, bytes]:
         """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
-        if self._booting:
-            self._booting = False
+        if self._booting or self._answering:
+            kind = FrameType.BOOT if self._booting else FrameType.JOIN
+            self._booting = self._answering = False
             self._sent_poll = None
-            frame = self._frame(BROADCAST, self._last_num, FrameType.BOOT, b"")
+            frame = self._frame(BROADCAST, self._last_num, kind, b"")
             return frame, frame.encode()
         msg = self._pick_message(now, out)
         poll_to = self._poll_target()

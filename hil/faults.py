@@ -1,0 +1,155 @@
+"""Fault injection: one grammar and one seeded mechanism for the simulator and the radio hub.
+
+A fault is written ``KIND[:TARGET]@WHEN[:VALUE]`` (times in seconds from the start):
+
+=========================  ===============================================================
+``fail:R@T``               robot R's radio goes silent at T (mid-frame too); R=0: the father
+``recover:R@T``            robot R's radio comes back
+``steal:R@T``              robot R wrongly takes the turn at T (two robots both believe they
+                           own it: a forced collision)
+``ber@T1-T2:P``            byte error rate P between T1 and T2
+``noise@T1-T2``            idle noise (random bytes when nobody transmits) between T1 and T2
+``burst@T:S``              interference: S seconds of random bytes on air from T
+``drop@T1-T2:P``           each received byte is lost (UART overrun) with probability P
+``skew:R:E``               robot R's clock (UART and timers) runs E (fraction, e.g. 0.02) fast
+``busoff:R@T``             child R's CAN controller driven bus-off (bit errors on its frames)
+``stuck:R@T1-T2``          child R's 82C250 TXD stuck dominant from T1 to T2
+``silent:R.NODE@T1-T2``    submodule NODE (JOINT1-4, WHEEL, PAW) of child R stops answering
+``stall:R.NODE@T[-T2]``    joint or wheel NODE of child R stalls at T (cleared at T2)
+=========================  ===============================================================
+
+Air faults (``ber``, ``noise``, ``burst``, ``drop``, ``fail``/``recover`` of a node) act on
+``hil.air.Air``, which both the simulator and the pty radio hub use, so the same spec means
+the same thing on both. Randomness comes from the air's and the world's seeded streams.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+KINDS = ("fail", "recover", "steal", "ber", "noise", "burst", "drop", "skew", "busoff",
+         "stuck", "silent", "stall")
+AIR_KINDS = ("fail", "recover", "ber", "noise", "burst", "drop")
+CAN_KINDS = ("busoff", "stuck", "silent", "stall")
+NODES = ("JOINT1", "JOINT2", "JOINT3", "JOINT4", "WHEEL", "PAW")
+
+
+class FaultError(ValueError):
+    """A fault spec that does not parse or cannot apply; one line."""
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One fault: ``kind`` on ``robot`` (None for the air) from ``at`` to ``until`` seconds."""
+
+    kind: str
+    robot: int | None = None
+    at: float = 0.0
+    until: float | None = None
+    value: float | None = None
+    node: str | None = None
+
+    @property
+    def end(self) -> float:
+        """When the fault stops acting (instantaneous faults: when they happen)."""
+        return self.until if self.until is not None else self.at
+
+    def spec(self) -> str:
+        target = "" if self.robot is None else f":{self.robot}" + (
+            f".{self.node}" if self.node else "")
+        if self.kind == "skew":
+            return f"skew{target}:{self.value:g}"
+        when = f"@{self.at:g}" + (f"-{self.until:g}" if self.until is not None else "")
+        val = f":{self.value:g}" if self.value is not None else ""
+        return f"{self.kind}{target}{when}{val}"
+
+
+_NUM = r"[0-9]+(?:\.[0-9]*)?"
+_SPEC = re.compile(rf"^(?P<kind>[a-z]+)(?::(?P<robot>[0-6])(?:\.(?P<node>[A-Z0-9]+))?)?"
+                   rf"(?:@(?P<at>{_NUM})(?:-(?P<until>{_NUM}))?)?(?::(?P<value>{_NUM}))?$")
+
+
+def parse_fault(text: str) -> Fault:
+    """Parse one ``KIND[:TARGET]@WHEN[:VALUE]`` spec (see the module docstring)."""
+    m = _SPEC.match(text.strip())
+    if not m:
+        raise FaultError(f"{text!r} is not a fault spec like fail:1@5, ber@10-20:0.01, "
+                         f"burst@12:0.05, stuck:2@3-6 or silent:1.JOINT2@4-8")
+    kind = m["kind"]
+    if kind not in KINDS:
+        raise FaultError(f"unknown fault kind {kind!r}; one of {', '.join(KINDS)}")
+    robot = int(m["robot"]) if m["robot"] is not None else None
+    node = m["node"]
+    at = float(m["at"]) if m["at"] is not None else None
+    until = float(m["until"]) if m["until"] is not None else None
+    value = float(m["value"]) if m["value"] is not None else None
+    needs_robot = kind in ("fail", "recover", "steal", "skew", "busoff", "stuck", "silent",
+                           "stall")
+    if needs_robot and robot is None:
+        raise FaultError(f"{kind} needs a robot: {kind}:ID@...")
+    if not needs_robot and robot is not None:
+        raise FaultError(f"{kind} acts on the air, not on one robot: {kind}@...")
+    if kind in ("silent", "stall"):
+        if node not in NODES:
+            raise FaultError(f"{kind} needs a submodule: {kind}:ROBOT.NODE@..., NODE one of "
+                             f"{', '.join(NODES)}")
+        if kind == "stall" and node == "PAW":
+            raise FaultError("the paw cannot stall; stall a joint or the wheel")
+    elif node is not None:
+        raise FaultError(f"{kind} takes no submodule")
+    if kind in CAN_KINDS and robot == 0:
+        raise FaultError(f"{kind} needs a child (1-6): the father has no CAN bus")
+    if kind == "skew":
+        if at is not None or value is None:
+            raise FaultError("skew is for the whole run: skew:ID:FRACTION, e.g. skew:2:0.02")
+        if not -0.2 < value < 0.2:
+            raise FaultError(f"skew {value} is not a small fraction (|E| < 0.2)")
+        return Fault(kind, robot, 0.0, None, value)
+    if at is None:
+        raise FaultError(f"{kind} needs a time: {kind}...@SECONDS")
+    ranged = kind in ("ber", "noise", "drop", "stuck", "silent")
+    if ranged and until is None:
+        raise FaultError(f"{kind} needs a window: @START-END")
+    if not ranged and until is not None and kind != "stall":
+        raise FaultError(f"{kind} happens at one instant: @SECONDS")
+    if until is not None and until <= at:
+        raise FaultError(f"the window {at:g}-{until:g} is empty")
+    if kind in ("ber", "drop"):
+        if value is None or not 0.0 < value < 1.0:
+            raise FaultError(f"{kind} needs a probability in (0, 1): {kind}@T1-T2:P")
+    elif kind == "burst":
+        if value is None or not 0.0 < value <= 10.0:
+            raise FaultError("burst needs a duration in seconds (0-10]: burst@T:SECONDS")
+    elif value is not None:
+        raise FaultError(f"{kind} takes no value")
+    return Fault(kind, robot, at, until, value, node)
+
+
+def apply_air_fault(air, radio_of, fault: Fault, phase: str, base_ber: float = 0.0,
+                    base_noise: bool = False) -> None:
+    """Start (``phase='start'``) or end (``'end'``) an air fault on ``air``; ``radio_of(id)``
+    finds a robot's radio."""
+    now = air.sched.now
+    k = fault.kind
+    if k == "fail":
+        air.kill(radio_of(fault.robot), now)
+    elif k == "recover":
+        air.revive(radio_of(fault.robot), now)
+    elif k == "ber":
+        air.set_ber(fault.value if phase == "start" else base_ber)
+    elif k == "drop":
+        air.set_drop(fault.value if phase == "start" else 0.0)
+    elif k == "noise":
+        air.set_noise(True if phase == "start" else base_noise)
+    elif k == "burst":
+        air.burst(fault.value)
+    else:
+        raise FaultError(f"{k} is not an air fault")
+
+
+def schedule(sched, fault: Fault, start, end=None) -> None:
+    """Call ``start(fault)`` at its time and ``end(fault)`` when its window closes."""
+    at = round(fault.at * 16_000_000)
+    sched.at(max(at, sched.now), start, fault)
+    if fault.until is not None and end is not None:
+        sched.at(round(fault.until * 16_000_000), end, fault)
