@@ -132,32 +132,72 @@ def _add_sim_options(p: argparse.ArgumentParser, demo: bool = False) -> None:
     p.add_argument("--load", type=_load, default=1.0 if demo else "idle",
                    metavar="idle|saturate|RATE", help="traffic: heartbeats only, always a "
                    "full-size message queued, or messages/s per robot (default: %(default)s)")
+    p.add_argument("--fault", type=_fault, action="append", default=[], metavar="SPEC",
+                   help="inject a fault (repeatable): fail:1@5, steal:2@7, ber@10-20:0.01, "
+                   "noise@3-6, burst@12:0.05, drop@5-9:0.002, skew:3:0.02, busoff:1@8, "
+                   "stuck:2@3-6, silent:1.JOINT2@4-8, stall:1.JOINT1@5 (docs/guarantees.md)")
+    p.add_argument("--checksum", action="store_true",
+                   help="the opt-in crc() integrity extension on every robot")
+    p.add_argument("--father-standby", action="store_true",
+                   help="a second father PC as hot standby for ID 0")
     if not demo:
         p.add_argument("--can", action="store_true", help="simulate every child's CAN side "
                        "too: controller, 82C250, dispatcher, joint/wheel/paw submodules")
+        p.add_argument("--mac", choices=("rotational", "aloha", "slotted", "csma"),
+                       default="rotational", help="the MAC every robot runs (peers for "
+                       "comparison; default: the paper's rotational MAC)")
+        p.add_argument("--frame-bytes", type=_digit(14, 576, "frame size"), metavar="N",
+                       help="peer MACs: frame size of the load (default 80)")
+        p.add_argument("--vcd", metavar="FILE", help="write a waveform (GTKWave) here")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def _fault(text: str):
+    from .faults import FaultError, parse_fault
+    try:
+        return parse_fault(text)
+    except FaultError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _sim_config(a: argparse.Namespace) -> SimConfig:
+    from firmware_model.radio.mac import MacConfig
     faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
-        tuple(Fault("recover", r, t) for r, t in a.recover)
+        tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
+    peer = None
+    if getattr(a, "frame_bytes", None):
+        from firmware_model.radio.peer_macs import PeerConfig
+        peer = PeerConfig(frame_bytes=a.frame_bytes)
     return SimConfig(robots=a.robots, duration=a.duration, seed=a.seed,
-                     faults=tuple(sorted(faults, key=lambda f: (f.at, f.kind, f.robot))),
+                     faults=tuple(sorted(faults, key=lambda f: (f.at, f.kind,
+                                                                 -1 if f.robot is None
+                                                                 else f.robot))),
                      ber=a.ber, noise=a.noise, load=a.load, power_on=dict(a.power),
-                     can=getattr(a, "can", True))
+                     can=getattr(a, "can", True), mac=MacConfig(checksum=a.checksum),
+                     father_standby=a.father_standby,
+                     mac_kind=getattr(a, "mac", "rotational"), peer=peer)
 
 
-def _run_world(cfg: SimConfig, trace_path: str | None, progress: bool) -> tuple[World, float]:
-    trace = None
+def _run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
+               vcd_path: str | None = None) -> tuple[World, float]:
+    trace = vcd = None
     if trace_path:
         try:
             trace = TraceWriter(trace_path)
         except OSError as exc:
             raise UserError(f"cannot write trace {trace_path}: {exc.strerror}") from None
+    if vcd_path:
+        from .vcd import VcdError, VcdTraceWriter
+        try:
+            vcd = VcdTraceWriter(vcd_path)
+        except (OSError, VcdError) as exc:
+            if trace is not None:
+                trace.discard()
+            raise UserError(f"cannot write waveform {vcd_path}: {exc}") from None
     try:
-        world = World(cfg, trace)
+        world = World(cfg, trace, on_event=vcd.write if vcd is not None else None)
         t0 = time.perf_counter()
         end = world.end_tick
         if progress:
@@ -177,9 +217,13 @@ def _run_world(cfg: SimConfig, trace_path: str | None, progress: bool) -> tuple[
     except BaseException:
         if trace is not None:
             trace.discard()
+        if vcd is not None:
+            vcd.discard()
         raise
     if trace is not None:
         trace.close()
+    if vcd is not None:
+        vcd.close()
     return world, wall
 
 
@@ -235,7 +279,7 @@ def cmd_sim(a: argparse.Namespace, demo: bool = False) -> int:
     except ConfigError as exc:
         raise UserError(str(exc)) from None
     progress = not a.no_progress and sys.stderr.isatty() and cfg.duration >= 60
-    world, wall = _run_world(cfg, a.trace, progress)
+    world, wall = _run_world(cfg, a.trace, progress, getattr(a, "vcd", None))
     _print_summary(world, wall, a.json)
     return 0
 
@@ -468,7 +512,7 @@ def cmd_father(a: argparse.Namespace) -> int:
     runner = Runner()
     try:
         station = build_father(runner, a.radio, txen=a.txen, standby=a.standby,
-                               config=_mac_config(a), events=sys.stdout)
+                               config=_mac_config(a), events=sys.stdout, pc=a.pc)
     except RunError as exc:
         runner.run(0)
         raise UserError(str(exc)) from None
@@ -611,6 +655,60 @@ def _txen_option(p: argparse.ArgumentParser) -> None:
                    "and self-switching modules)")
 
 
+# -- plot, monitor, soak -------------------------------------------------------------------
+
+def cmd_plot(a: argparse.Namespace) -> int:
+    from .plot import PlotError, plot_trace
+    from .trace import TraceError, read_trace
+    try:
+        info = plot_trace(read_trace(a.trace), a.output, a.start, a.end)
+    except (TraceError, PlotError) as exc:
+        raise UserError(str(exc)) from None
+    print(f"wrote {a.output}: {info['turns']} turns from {info['window_s'][0]:.3f} s to "
+          f"{info['window_s'][1]:.3f} s, {info['misses']} missed, {info['collided']} collided",
+          file=sys.stderr)
+    return 0
+
+
+def cmd_monitor(a: argparse.Namespace) -> int:
+    from .monitor import run_monitor_radio, run_monitor_sim
+    from .serial_radio import PortError
+    if a.radio:
+        try:
+            return run_monitor_radio(a.radio)
+        except PortError as exc:
+            raise UserError(str(exc)) from None
+    cfg = _sim_config(a)
+    try:
+        cfg.validate()
+    except ConfigError as exc:
+        raise UserError(str(exc)) from None
+    return run_monitor_sim(cfg, a.speed)
+
+
+def cmd_soak(a: argparse.Namespace) -> int:
+    from .soak import report, run_soak
+    robots = a.robots
+    modes = {"on": [True], "off": [False], "both": [True, False]}[a.checksum_mode]
+    results = []
+    for ck in modes:
+        update, close = _bench_progress(a.hours * 3600, f"soak, checksum {'on' if ck else 'off'}")
+        try:
+            results.append(run_soak(a.hours, a.seed, robots=robots, checksum=ck, can=not a.no_can,
+                                    load=a.rate, progress=update))
+        finally:
+            close()
+    if a.json:
+        print(json.dumps([{"checksum": r.checksum, "invariants": r.invariants,
+                           "summary": {k: v for k, v in r.summary.items()
+                                       if k not in ("membership_changes",)},
+                           "faults": r.faults, "reform_s_max": max(r.reform_s, default=None),
+                           "wall_s": round(r.wall_s, 1)} for r in results]))
+    else:
+        print(report(results))
+    return 0 if all(all(r.invariants.values()) for r in results if r.checksum) else 1
+
+
 # -- main -------------------------------------------------------------------------------
 
 def build_parser() -> argparse.ArgumentParser:
@@ -651,11 +749,39 @@ def build_parser() -> argparse.ArgumentParser:
     fa.add_argument("--radio", metavar="PORT", required=True)
     fa.add_argument("--standby", action="store_true",
                     help="start as the hot standby PC (takes ID 0's turn if the active dies)")
+    fa.add_argument("--pc", type=_digit(1, 2, "PC number"),
+                    help="which of the father's two PCs this is (default: 2 with --standby, "
+                    "else 1); PC1 decides first")
     fa.add_argument("--no-input", action="store_true", help="do not read orders from stdin")
     _txen_option(fa)
     _mac_options(fa)
     _realtime_common(fa)
     fa.set_defaults(func=cmd_father)
+    pl = sub.add_parser("plot", help="draw the paper's Fig. 7 timeline from a trace")
+    pl.add_argument("trace", metavar="TRACE")
+    pl.add_argument("-o", "--output", required=True, metavar="FILE.png|svg")
+    pl.add_argument("--start", type=float, metavar="S", help="window start (s)")
+    pl.add_argument("--end", type=float, metavar="S", help="window end (s)")
+    pl.set_defaults(func=cmd_plot)
+    mo = sub.add_parser("monitor", help="live terminal view of the ring (paper Fig. 9): the "
+                        "simulator, or --radio PORT")
+    _add_sim_options(mo)
+    mo.add_argument("--speed", type=_positive, default=1.0,
+                    help="simulated seconds per wall second (default 1)")
+    mo.add_argument("--radio", metavar="PORT", help="listen to a radio hub pty or a USB radio")
+    mo.set_defaults(func=cmd_monitor, duration=3600.0)
+    so = sub.add_parser("soak", help="hours of simulated time with random faults and "
+                        "traffic; ends with the invariants")
+    so.add_argument("--hours", type=_positive, default=1.0)
+    so.add_argument("--seed", type=int, default=0)
+    so.add_argument("--robots", type=_robot_list, default=(0, 1, 2, 3, 4))
+    so.add_argument("--rate", type=_positive, default=0.5, metavar="MSG/S",
+                    help="messages per second per robot (default 0.5)")
+    so.add_argument("--checksum", dest="checksum_mode", choices=("on", "off", "both"),
+                    default="on", help="the integrity extension (both: compare)")
+    so.add_argument("--no-can", action="store_true", help="radio only (faster; no CAN faults)")
+    so.add_argument("--json", action="store_true")
+    so.set_defaults(func=cmd_soak)
     hub = sub.add_parser("radio-hub", help="ptys that play the shared radio channel, for "
                          "robot processes and serial programs")
     from .radio_hub import add_arguments as _hub_args

@@ -1,0 +1,406 @@
+"""Value Change Dump (VCD) waveform of a trace, for GTKWave (docs/visualisation.md).
+
+Timescale ``100 ps``: one 16 MHz tick (62.5 ns) is exactly 625 units, so every trace event
+lands on its exact tick. Signals (scope ``rprs``):
+
+``rprs.owner``      3-bit integer: Source of the frame on air, held after its End until the next
+                    frame starts (the last turn owner); ``x`` during a collision and before the
+                    first frame.
+``rprs.collision``  1 while two or more transmissions (frames, interference) are on air.
+``rprs.interference`` 1 while bytes from no robot are on air (``interference`` events:
+                    injected bytes, ``burst`` faults).
+``rprs.can_<r>``    11-bit ID of the CAN frame on child ``r``'s bus from SOF to end of EOF, ``z``
+                    between frames (only in a ``--can`` trace).
+``rprs.R<r>.txen``  the robot's TXEN pin (``pc2_txen`` too for the father's standby PC).
+``rprs.R<r>.tx``    1 from the first bit of the robot's frame to the last bit of its End.
+``rprs.R<r>.rx``    1 while another robot's frame is on air and this robot's TXEN is low;
+                    ``x`` when what is on air is garbage (a collision, interference), ``z``
+                    while the robot's radio is failed (``fault`` fail .. recover).
+``rprs.R<r>.miss``  an event (arrow in GTKWave) at each tick a miss of this robot is reported.
+
+Frames and CAN frames are logged at their end (``t`` = ``end``), so changes are reordered
+through a bounded look-back buffer (twice Tmax): memory does not grow with the trace length.
+The output is written to ``PATH.partial`` and renamed when complete, so a failed run leaves no
+partial file.
+"""
+from __future__ import annotations
+
+import heapq
+import os
+from fractions import Fraction
+from typing import Any, Iterable, Iterator
+
+from vcd import VCDWriter
+
+from .trace import TraceError
+
+__all__ = ["VcdError", "VcdTraceWriter", "write_vcd", "TIMESCALE", "checked_events",
+           "TickReorder"]
+
+TIMESCALE = "100 ps"
+"""VCD time unit; 625 units a 16 MHz tick."""
+
+_TIMESCALES = [(m, u, Fraction(m) * f) for u, f in
+               (("s", Fraction(1)), ("ms", Fraction(1, 10**3)), ("us", Fraction(1, 10**6)),
+                ("ns", Fraction(1, 10**9)), ("ps", Fraction(1, 10**12)),
+                ("fs", Fraction(1, 10**15))) for m in (100, 10, 1)]
+
+
+class VcdError(ValueError):
+    """The VCD file cannot be written (bad output path). Unusable input raises
+    :class:`hil.trace.TraceError` (also a ``ValueError``)."""
+
+
+def timescale_for(tick_hz: int) -> tuple[str, int]:
+    """The coarsest standard VCD timescale in which one tick is a whole number of units:
+    ``("100 ps", 625)`` for 16 MHz."""
+    tick = Fraction(1, tick_hz)
+    for mag, unit, size in _TIMESCALES:
+        units = tick / size
+        if units.denominator == 1:
+            return f"{mag} {unit}", int(units)
+    raise TraceError(f"tick_hz {tick_hz} has no exact VCD timescale (1 fs resolution)")
+
+
+# -- input checking shared with hil.plot ---------------------------------------------------
+
+def _int(ev: dict, key: str, n: int) -> int:
+    try:
+        v = ev[key]
+    except KeyError:
+        raise TraceError(f"event {n} ({ev.get('ev')}): missing '{key}'") from None
+    if not isinstance(v, int) or isinstance(v, bool):
+        raise TraceError(f"event {n} ({ev.get('ev')}): '{key}' is {v!r}, not an integer")
+    return v
+
+
+def need(ev: dict, n: int, *keys: str) -> None:
+    """Raise TraceError unless ``ev`` has every key."""
+    for k in keys:
+        if k not in ev:
+            raise TraceError(f"event {n} ({ev.get('ev')}): missing '{k}'")
+
+
+def need_int(ev: dict, n: int, key: str) -> int:
+    return _int(ev, key, n)
+
+
+def check_meta(meta: Any) -> dict:
+    """Check the meta event (the first of a trace) has what the tools need; return it."""
+    if not isinstance(meta, dict) or meta.get("ev") != "meta":
+        raise TraceError("the first event must be the meta event")
+    robots = meta.get("robots")
+    if (not isinstance(robots, list) or not robots
+            or not all(isinstance(r, int) and 0 <= r <= 6 for r in robots)):
+        raise TraceError(f"meta: robots is {robots!r}, not a list of IDs 0-6")
+    for k in ("tick_hz", "tmax", "ttrans"):
+        if _int(meta, k, 1) <= 0:
+            raise TraceError(f"meta: {k} must be positive, got {meta[k]}")
+    return meta
+
+
+def checked_events(events: Iterable[dict]) -> tuple[dict, Iterator[tuple[int, dict]]]:
+    """Check the meta event comes first; return it and an iterator of ``(number, event)`` for
+    the rest that checks ``t`` is an integer tick, non-decreasing (event 1 is the meta)."""
+    it = iter(events)
+    try:
+        meta = next(it)
+    except StopIteration:
+        raise TraceError("empty trace: no meta line") from None
+    meta = check_meta(meta)
+
+    def rest() -> Iterator[tuple[int, dict]]:
+        last = 0
+        for n, ev in enumerate(it, 2):
+            if not isinstance(ev, dict) or "ev" not in ev:
+                raise TraceError(f"event {n}: not a trace event (no 'ev')")
+            t = _int(ev, "t", n)
+            if t < last:
+                raise TraceError(f"event {n} ({ev['ev']}): tick {t} is before tick {last} "
+                                 f"of the event before (events out of order)")
+            last = t
+            yield n, ev
+
+    return meta, rest()
+
+
+class TickReorder:
+    """Items logged late (a frame at its end) come out in tick order: push ``(tick, item)``
+    with ``tick`` at most ``lookback`` before the newest event's tick; ``ready(now)`` pops
+    everything before ``now - lookback``."""
+
+    def __init__(self, lookback: int) -> None:
+        self.lookback = lookback
+        self._heap: list[tuple[int, int, int, Any]] = []
+        self._seq = 0
+        self.done = -1     # every item before this tick has been popped
+
+    def push(self, tick: int, item: Any, prio: int = 0, n: int = 0) -> None:
+        if tick < self.done:
+            raise TraceError(f"event {n}: tick {tick} lies more than {self.lookback} ticks "
+                             f"before the event's own tick (frame longer than 2 Tmax?)")
+        self._seq += 1
+        heapq.heappush(self._heap, (tick, prio, self._seq, item))
+
+    def ready(self, now: int | None) -> Iterator[tuple[int, Any]]:
+        """Pop items in (tick, prio, push order) before ``now - lookback`` (all if None)."""
+        limit = None if now is None else now - self.lookback
+        h = self._heap
+        while h and (limit is None or h[0][0] < limit):
+            tick, _, _, item = heapq.heappop(h)
+            self.done = max(self.done, tick)
+            yield tick, item
+        if limit is not None:
+            self.done = max(self.done, limit)
+
+    def __len__(self) -> int:
+        return len(self._heap)
+
+
+# -- the writer ----------------------------------------------------------------------------
+
+class VcdTraceWriter:
+    """Stream trace events into a VCD file: ``write(ev)`` each event (meta first), then
+    ``close()`` (returns the summary) or ``discard()``. Usable as ``World(on_event=w.write)``.
+    """
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self._tmp = f"{path}.partial"
+        try:
+            self._f = open(self._tmp, "w", encoding="ascii", newline="\n")
+        except OSError as exc:
+            raise VcdError(f"cannot write VCD {path}: {exc.strerror}") from None
+        self._w: VCDWriter | None = None
+        self._n = 0
+        self._closed = False
+
+    # state, set up by the meta event
+    def _start(self, meta: dict) -> None:
+        meta = check_meta(meta)
+        self.meta = meta
+        self.tick_hz = meta["tick_hz"]
+        timescale, self.units = timescale_for(self.tick_hz)
+        self.timescale = timescale
+        self.robots: list[int] = sorted(meta["robots"])
+        self.buses = [r for r in self.robots if r != 0] if "can_bitrate" in meta else []
+        self.lookback = 2 * meta["tmax"] + 2 * meta["ttrans"]
+        self._q = TickReorder(self.lookback)
+        ring = ",".join(str(r) for r in self.robots)
+        w = VCDWriter(self._f, timescale=timescale, date="(simulated)",
+                      version="rprs hil.vcd",
+                      comment=f"RPRS ring {ring} seed {meta.get('seed')} "
+                              f"tick {10**9 / self.tick_hz:g} ns = {self.units} units")
+        self._w = w
+        self.v_owner = w.register_var("rprs", "owner", "integer", size=3, init="x")
+        self.v_coll = w.register_var("rprs", "collision", "wire", size=1, init=0)
+        self.v_noise = w.register_var("rprs", "interference", "wire", size=1, init=0)
+        self.v_can = {b: w.register_var("rprs", f"can_{b}", "wire", size=11, init="z")
+                      for b in self.buses}
+        self.v_txen, self.v_tx, self.v_rx, self.v_miss = {}, {}, {}, {}
+        for r in self.robots:
+            sc = f"rprs.R{r}"
+            self.v_txen[(r, 1)] = w.register_var(sc, "txen", "wire", size=1, init="x")
+            if r == 0:
+                self.v_txen[(0, 2)] = w.register_var(sc, "pc2_txen", "wire", size=1, init="z")
+            self.v_tx[r] = w.register_var(sc, "tx", "wire", size=1, init=0)
+            self.v_rx[r] = w.register_var(sc, "rx", "wire", size=1, init=0)
+            self.v_miss[r] = w.register_var(sc, "miss", "event")
+        # live state
+        self.on_air: dict[int, int] = {}        # frame id -> src
+        self.txen = {r: False for r in self.robots}
+        self.dead: set[int] = set()
+        self.can_on: dict[int, list[int]] = {b: [] for b in self.buses}
+        self.owner: int | str = "x"
+        self._fid = 0
+        self._misses: set[tuple[int, int]] = set()
+        self.frames = self.collided = self.can_frames = self.misses = self.interference = 0
+        self.last_tick = 0
+
+    def write(self, ev: dict) -> None:
+        """Add one event (the meta event first)."""
+        if self._closed:
+            raise VcdError("VCD writer already closed")
+        self._n += 1
+        if self._n == 1:
+            self._start(ev)
+            return
+        n = self._n
+        if not isinstance(ev, dict) or "ev" not in ev:
+            raise TraceError(f"event {n}: not a trace event (no 'ev')")
+        t = _int(ev, "t", n)
+        if t < self.last_tick:
+            raise TraceError(f"event {n} ({ev['ev']}): tick {t} is before tick "
+                             f"{self.last_tick} of the event before (events out of order)")
+        self.last_tick = t
+        kind = ev["ev"]
+        q = self._q
+        if kind == "frame":
+            src = self._robot(ev, "src", n)
+            start, end = _int(ev, "start", n), _int(ev, "end", n)
+            if not start <= end:
+                raise TraceError(f"event {n} (frame): start {start} is after end {end}")
+            self._fid += 1
+            self.frames += 1
+            self.collided += bool(ev.get("collided"))
+            q.push(start, ("fs", self._fid, src), 1, n)
+            q.push(end, ("fe", self._fid, src), 0, n)
+        elif kind == "txen":
+            r = self._robot(ev, "robot", n)
+            need(ev, n, "on")
+            q.push(t, ("txen", (r, 2 if ev.get("pc") == 2 and r == 0 else 1), bool(ev["on"])),
+                   2, n)
+        elif kind == "fault":
+            need(ev, n, "kind")
+            r = None if ev.get("robot") is None else self._robot(ev, "robot", n)
+            if r is not None and ev["kind"] in ("fail", "recover"):
+                down = (ev["kind"] == "fail") == (ev.get("phase", "start") != "end")
+                q.push(t, ("dead", r, down), 2, n)
+        elif kind == "interference":
+            start, end = _int(ev, "start", n), _int(ev, "end", n)
+            if not start <= end:
+                raise TraceError(f"event {n} (interference): start {start} is after end {end}")
+            self._fid += 1
+            self.interference += 1
+            q.push(start, ("fs", self._fid, -1), 1, n)
+            q.push(end, ("fe", self._fid, -1), 0, n)
+        elif kind == "miss":
+            r = self._robot(ev, "robot", n)
+            if (r, t) not in self._misses:       # reported once per observer
+                self._misses.add((r, t))
+                self.misses += 1
+                q.push(t, ("miss", r), 2, n)
+        elif kind == "can":
+            b = _int(ev, "bus", n)
+            if b not in self.v_can:
+                raise TraceError(f"event {n} (can): bus {b} is not a child of the ring "
+                                 f"{self.robots} (or the meta line lacks can_bitrate)")
+            cid, start, end = _int(ev, "id", n), _int(ev, "start", n), _int(ev, "end", n)
+            if not 0 <= cid < 2048:
+                raise TraceError(f"event {n} (can): id {cid} is not an 11-bit identifier")
+            if not start <= end:
+                raise TraceError(f"event {n} (can): start {start} is after end {end}")
+            self.can_frames += 1
+            q.push(start, ("cs", b, cid), 1, n)
+            q.push(end, ("ce", b, cid), 0, n)
+        self._flush(t)
+
+    def _robot(self, ev: dict, key: str, n: int) -> int:
+        r = _int(ev, key, n)
+        if r not in self.v_tx:
+            raise TraceError(f"event {n} ({ev['ev']}): robot {r} is not in the ring "
+                             f"{self.robots} of the meta line")
+        return r
+
+    def _flush(self, now: int | None) -> None:
+        """Apply every edge that can no longer be preceded by a late one, a tick at a time."""
+        batch: list[tuple[int, Any]] = []
+        for tick, item in self._q.ready(now):
+            if batch and tick != batch[0][0]:
+                self._apply(batch)
+                batch = []
+            batch.append((tick, item))
+        if batch:
+            self._apply(batch)
+
+    def _apply(self, batch: list[tuple[int, Any]]) -> None:
+        """All the edges at one tick, then the derived signals once (no zero-width glitch)."""
+        w = self._w
+        ts = batch[0][0] * self.units
+        for _, item in batch:
+            k = item[0]
+            if k == "fs":
+                self.on_air[item[1]] = item[2]
+            elif k == "fe":
+                self.on_air.pop(item[1], None)
+            elif k == "txen":
+                (r, pc), on = item[1], item[2]
+                w.change(self.v_txen[(r, pc)], ts, int(on))
+                if pc == 1:
+                    self.txen[r] = on
+            elif k == "dead":
+                (self.dead.add if item[2] else self.dead.discard)(item[1])
+            elif k == "miss":
+                w.change(self.v_miss[item[1]], ts, True)
+            elif k == "cs":
+                self.can_on[item[1]].append(item[2])
+            elif k == "ce":
+                if item[2] in self.can_on[item[1]]:
+                    self.can_on[item[1]].remove(item[2])
+        srcs = list(self.on_air.values())          # -1: interference, no robot
+        busy = len(srcs)
+        noise = -1 in srcs
+        w.change(self.v_coll, ts, int(busy >= 2))
+        w.change(self.v_noise, ts, int(noise))
+        if busy == 1 and not noise:
+            self.owner = srcs[0]
+        elif busy >= 2:
+            self.owner = "x"
+        w.change(self.v_owner, ts, self.owner)
+        for r in self.robots:
+            mine = r in srcs
+            w.change(self.v_tx[r], ts, int(mine))
+            others = busy - srcs.count(r)
+            if r in self.dead:
+                rx: int | str = "z"
+            elif self.txen[r] or mine or others == 0:
+                rx = 0
+            elif busy >= 2 or noise:
+                rx = "x"
+            else:
+                rx = 1
+            w.change(self.v_rx[r], ts, rx)
+        for b, on in self.can_on.items():
+            w.change(self.v_can[b], ts, on[0] if len(on) == 1 else ("z" if not on else "x"))
+
+    def close(self) -> dict:
+        """Finish the file (atomically renamed into place); return a summary."""
+        if self._closed:
+            raise VcdError("VCD writer already closed")
+        try:
+            if self._n == 0:
+                raise TraceError("empty trace: no meta line")
+            self._flush(None)
+            end = max(self.last_tick, int(self.meta.get("duration_ticks") or 0))
+            self._w.close(end * self.units)
+            self._f.close()
+            os.replace(self._tmp, self.path)
+        except BaseException:
+            self.discard()
+            raise
+        self._closed = True
+        return {"path": self.path, "timescale": self.timescale, "units_per_tick": self.units,
+                "robots": self.robots, "frames": self.frames, "collided_frames": self.collided,
+                "misses": self.misses, "can_frames": self.can_frames,
+                "interference": self.interference, "end_tick": end,
+                "signals": 3 + len(self.buses) + 4 * len(self.robots) + (0 in self.robots)}
+
+    def discard(self) -> None:
+        """Drop the partial file."""
+        self._closed = True
+        try:
+            self._f.close()
+        finally:
+            try:
+                os.unlink(self._tmp)
+            except FileNotFoundError:
+                pass
+
+
+def write_vcd(events: Iterable[dict], path: str) -> dict:
+    """Write the VCD waveform of a trace's events (meta first) to ``path``, atomically.
+
+    Returns a summary: ``path``, ``timescale``, ``units_per_tick``, ``robots``, ``frames``,
+    ``collided_frames``, ``misses`` (deduplicated), ``can_frames``, ``interference``,
+    ``end_tick``, ``signals``.
+    Raises :class:`hil.trace.TraceError` for unusable events (nothing is left at ``path``) and
+    :class:`VcdError` when the file cannot be created. Both are ``ValueError``s.
+    """
+    w = VcdTraceWriter(path)
+    try:
+        for ev in events:
+            w.write(ev)
+    except BaseException:
+        w.discard()
+        raise
+    return w.close()

@@ -1,0 +1,225 @@
+"""``rprs monitor`` (hil/monitor.py), headless with textual's pilot.
+
+The simulator app starts paused and the tests advance its world with ``advance(seconds)``, so
+what they check does not depend on how fast the machine is; one test runs the timer for real.
+"""
+from __future__ import annotations
+
+import asyncio
+import os
+import time
+from collections import deque
+
+import pytest
+
+pytest.importorskip("textual")
+
+from firmware_model.radio.frame import Frame  # noqa: E402
+from firmware_model.timing import TICK_HZ, TMAX_TICKS  # noqa: E402
+from hil.bench import HeardFrame  # noqa: E402
+from hil.monitor import RadioMonitorApp, SimMonitorApp  # noqa: E402
+from hil.world import SimConfig  # noqa: E402
+
+SIZE = (140, 40)
+
+
+def run(coro):
+    return asyncio.run(coro)
+
+
+def sim(robots=(1, 2, 3, 4), **kw) -> SimMonitorApp:
+    return SimMonitorApp(SimConfig(robots=robots, duration=600.0, **kw), paused=True)
+
+
+def test_a_pane_per_robot_and_the_ring_after_advancing():
+    app = sim(load=2.0)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            for r in (1, 2, 3, 4):
+                assert app.query_one(f"#robot-{r}") is not None
+            app.advance(5.0)
+            await pilot.pause()
+            head = app.shown("#header")
+            assert "ring [1 2 3 4]" in head and "out:" not in head
+            assert "t = 5.000 s" in head and "PAUSED" in head
+            assert app.ring() == ((1, 2, 3, 4), True)
+            for r in (1, 2, 3, 4):
+                pane = app.shown(f"#robot-{r}")
+                assert pane.startswith("member") and "missed 0" in pane
+            # messages received show source, Number and Content (paper Fig. 9's list box)
+            rs = [r for r in (1, 2, 3, 4) if app.received[r]]
+            assert rs
+            r = rs[0]
+            m = app.received[r][-1]
+            dst = "all" if m.dst == 7 else str(m.dst)
+            assert f" {m.src}#{m.num:02d}→{dst} {m.content[:10]}" in app.shown(f"#robot-{r}")
+    run(go())
+
+
+def test_kill_and_revive_with_keys():
+    app = sim()
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            app.advance(5.0)
+            occ = app.world.air.occupations
+            assert "ring [1 2 3 4]" in app.shown("#header")
+            await pilot.press("k")
+            assert "kill which robot?" in app.shown("#hint")
+            await pilot.press("1")
+            assert not app.world.radios[1].alive
+            assert app.shown("#robot-1").startswith("RADIO OFF")
+            assert "radio of robot 1 killed" in app.shown("#events")
+            app.advance(4.0)                   # 3 misses of robot 1 and more
+            await pilot.pause()
+            head = app.shown("#header")
+            assert "ring [2 3 4]" in head and "out: 1" in head
+            assert app.ring()[0] == (2, 3, 4)
+            assert app.world.air.occupations > occ
+            assert "robot 1 dropped from the ring" in "\n".join(app.events)
+            await pilot.press("r", "1")
+            assert app.world.radios[1].alive
+            app.advance(6.0)
+            await pilot.pause()
+            assert "ring [1 2 3 4]" in app.shown("#header")
+            assert app.ring() == ((1, 2, 3, 4), True)
+            # a digit without k/r/s does nothing; a robot not simulated is refused
+            await pilot.press("2")
+            assert app.world.radios[2].alive
+            await pilot.press("k", "6")
+            assert "robot 6 is not in this simulation" in app.shown("#hint")
+    run(go())
+
+
+def test_noise_toggle_and_steal():
+    app = sim(robots=(0, 1, 2))
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            app.advance(4.0)
+            await pilot.press("n")
+            assert app.world.air.noise and "noise ON" in app.shown("#header")
+            before = sum(st.garbage_bytes for st in app.world.stations.values())
+            app.advance(1.0)
+            after = sum(st.garbage_bytes for st in app.world.stations.values())
+            assert after - before > 100          # ~200 noise bytes/s between the frames
+            await pilot.press("n")               # noise heard up to now is delivered
+            assert not app.world.air.noise and "noise off" in app.shown("#header")
+            off = sum(st.garbage_bytes for st in app.world.stations.values())
+            app.advance(1.0)
+            assert sum(st.garbage_bytes for st in app.world.stations.values()) == off
+            c = app.world.collisions
+            await pilot.press("s", "2")          # robot 2 wrongly takes the turn
+            for _ in range(10):                  # (a collision if someone else is on air)
+                app.advance(0.007)
+                if app.world.collisions > c:
+                    break
+                app.fault("steal", 2)
+            assert app.world.collisions > c
+            assert "collision between robots" in "\n".join(app.events)
+            assert "robot 2 steals the turn" in "\n".join(app.events)
+            app.advance(4.0)
+            assert app.ring() == ((0, 1, 2), True)     # the ring recovers
+    run(go())
+
+
+def test_timer_pause_speed_and_quit(tmp_path):
+    app = SimMonitorApp(SimConfig(robots=(1, 2, 3), duration=600.0), speed=8.0)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            t0 = time.monotonic()
+            await pilot.pause(0.5)
+            wall = time.monotonic() - t0
+            assert 0.3 * 8 * wall * TICK_HZ < app.world.now <= 8 * (wall + 1.0) * TICK_HZ
+            await pilot.press("space")
+            assert app.paused
+            await pilot.pause(0.15)
+            t2 = app.world.now
+            await pilot.pause(0.25)
+            assert app.world.now == t2 and "PAUSED" in app.shown("#header")
+            await pilot.press("plus")
+            assert app.speed == 16.0 and "×16" in app.shown("#header")
+            await pilot.press("minus", "minus", "minus", "minus", "minus")
+            assert app.speed == 0.5 and "×1/2" in app.shown("#header")
+            await pilot.press("space")
+            assert not app.paused
+            svg = app.save_screenshot("monitor.svg", path=str(tmp_path))
+            assert "robot" in open(svg, encoding="utf-8").read()
+            await pilot.press("q")
+            await pilot.pause()
+        assert app.return_code == 0
+    run(go())
+
+
+def test_the_world_stops_at_its_duration():
+    app = SimMonitorApp(SimConfig(robots=(1, 2), duration=2.0), paused=True)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            app.advance(5.0)
+            await pilot.pause()
+            assert app.finished and "FINISHED" in app.shown("#header")
+            assert app.world.now == 2 * TICK_HZ
+    run(go())
+
+
+def test_radio_monitor_on_the_hub_shows_the_robot():
+    pytest.importorskip("serial")
+    from hil.radio_hub import RadioHub
+
+    with RadioHub(3) as hub:
+        hub.start()
+        app = RadioMonitorApp(hub.paths[0])
+        fd = os.open(hub.paths[2], os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            async def go():
+                async with app.run_test(size=SIZE) as pilot:
+                    await pilot.pause(0.1)
+                    for n in (7, 8):
+                        os.write(fd, Frame(dst=7, src=2, num=n, type=3,
+                                           content=b"movex(10)").encode())
+                    end = time.monotonic() + 5.0
+                    while app.count[2] < 2 and time.monotonic() < end:
+                        await pilot.pause(0.05)
+                    await pilot.pause(0.15)
+                    assert app.count[2] == 2
+                    pane = app.shown("#robot-2")
+                    assert pane.startswith("in ring") and "frames 2" in pane
+                    assert "#08→all movex(10)" in pane
+                    assert app.shown("#robot-1") == "not heard"
+                    head = app.shown("#header")
+                    assert "ring [2]" in head and "turn: 2" in head
+                    assert "occupations 2" in head
+                    assert "disabled" in app.shown("#hint")
+                    await pilot.press("k")
+                    assert "only listens" in app.shown("#hint")
+                    await pilot.press("q")
+            run(go())
+        finally:
+            os.close(fd)
+            app.close()
+    assert app.return_code == 0
+
+
+def test_radio_monitor_infers_missed_turns():
+    """A gap of about Tmax or more between two frames is charged to the members skipped."""
+    app = RadioMonitorApp.__new__(RadioMonitorApp)       # no port: only the bookkeeping
+    app.robots = tuple(range(7))
+    app.window = 3.0
+    app.events = deque(maxlen=10)
+    app.heard = {r: deque(maxlen=10) for r in app.robots}
+    app.count = {r: 0 for r in app.robots}
+    app.missed = {r: 0 for r in app.robots}
+    app.last_heard = {}
+    app.last = None
+    app._ring_seen = set()
+    bt = 16667
+    t = 0
+    for src in (1, 2, 3, 1, 2, 3):                       # ring 1 2 3, tight turns
+        app.feed(HeardFrame(src, 7, 0, 3, 14, t, t + 14 * bt), b"")
+        t += 14 * bt + 80_000
+    t += TMAX_TICKS                                      # robot 1 misses its turn
+    app.feed(HeardFrame(2, 7, 1, 3, 14, t, t + 14 * bt), b"")
+    assert app.missed == {0: 0, 1: 1, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0}
