@@ -55,12 +55,18 @@ class Fault:
         return self.until if self.until is not None else self.at
 
     def spec(self) -> str:
+        """The spec text this fault parses back from."""
+        def num(x: float) -> str:
+            return f"{x:.6f}".rstrip("0").rstrip(".")
+        return self._spec(num)
+
+    def _spec(self, num) -> str:
         target = "" if self.robot is None else f":{self.robot}" + (
             f".{self.node}" if self.node else "")
         if self.kind == "skew":
-            return f"skew{target}:{self.value:g}"
-        when = f"@{self.at:g}" + (f"-{self.until:g}" if self.until is not None else "")
-        val = f":{self.value:g}" if self.value is not None else ""
+            return f"skew{target}:{num(self.value)}"
+        when = f"@{num(self.at)}" + (f"-{num(self.until)}" if self.until is not None else "")
+        val = f":{num(self.value)}" if self.value is not None else ""
         return f"{self.kind}{target}{when}{val}"
 
 

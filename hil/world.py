@@ -62,6 +62,9 @@ class SimConfig:
     ber: float = 0.0
     noise: bool = False
     load: str | float = "idle"
+    payload: int | None = None
+    """Content bytes of each message under ``load='saturate'`` (default: as large as a turn
+    allows, less the MAC's reserve)."""
     load_until: float | None = None
     """No new messages after this many seconds (lets a run drain its queues)."""
     power_on: dict[int, float] = field(default_factory=dict)
@@ -517,7 +520,8 @@ class World:
         if not others:
             return
         dst = self._rngs[r].choice(others)
-        size = st.mac.max_content - st.mac.cfg.mac_reserve
+        size = self.cfg.payload if self.cfg.payload is not None else \
+            st.mac.max_content - st.mac.cfg.mac_reserve
         try:
             self.submit(r, dst, _filled_commands(size))
         except SubmitError:

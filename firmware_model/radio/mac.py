@@ -376,11 +376,12 @@ class RotationalMac:
     def on_frame(self, frame: Frame, first: int, end: int, now: int) -> list:
         """A valid frame was heard; its first header byte ended at ``first``, its End at ``end``."""
         src = frame.src
-        if self.phase is SWITCH or self.phase is SEND:
+        phase = self.phase
+        if phase is SWITCH or phase is SEND:
             return _NOTHING            # deaf while switching or sending (only raw input gets here)
-        if not frame.content and self.mode is MEMBER and src in self.ring \
-                and len(self.ring) > 1 and src != self.id and frame.type != FrameType.BOOT:
-            # Fast path, a heartbeat from a member: resynchronise and hand the turn on.
+        if src == self.owner and phase is WAIT and not frame.content and frame.type == 3 \
+                and src != self.id:
+            # Fast path, the expected owner's heartbeat: hand the turn on.
             self.misses[src] = 0
             self._silent = 0
             ring = self.ring
@@ -573,14 +574,13 @@ class RotationalMac:
                 if not self.standby:
                     self.standby = True
                     self._check_turns = 0
-                    out.append(ModeChange(MEMBER, "PC1 is still active: standing by"))
+                    out.append(ModeChange(MEMBER, "the other PC is still active: standing by"))
                 self.phase = WAIT
                 self.deadline = self.turn_start + self.cfg.tmax
             else:
                 if self.standby:
                     self.standby = False
-                    if self.cfg.pc > 1:
-                        self._check_turns = 3
+                    self._check_turns = 3      # probation: a takeover may have been mistaken
                     out.append(ModeChange(MEMBER,
                                           "took over ID 0's turn: the active PC is silent"))
                 elif self._check_turns > 0:

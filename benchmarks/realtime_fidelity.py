@@ -1,0 +1,147 @@
+"""Real-time fidelity: how close real processes keep to the spec, and dispatcher latency.
+
+    python benchmarks/realtime_fidelity.py [--seconds 10]
+
+1. Four ``rprs child`` processes on the pty radio hub, timed by a passive listener: the gap
+   from a frame's End to the next Header against Ttrans (5 ms): median and 99th percentile of
+   the error, in ms (includes the pty/hub latency a USB adapter would add too).
+2. Dispatcher latency, from the End of a radio frame carrying a command to the first CAN
+   frame it causes: in simulation (ticks, exact) and in real time (ms, a child process on
+   the hub and the rprs_unix CAN bus).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import can
+
+from firmware_model.radio.content import cmd
+from firmware_model.timing import TICK_HZ, s_to_ticks
+from hil import bench
+from hil.radio_hub import RadioHub
+from hil.world import SimConfig, World
+
+
+def spawn(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "hil.cli", *args],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def turn_timing(seconds: float) -> dict:
+    hub = RadioHub(nodes=5, seed=1).start()
+    kids = [spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", "1,2,3,4")
+            for i in range(1, 5)]
+    sn = bench.Sniffer(hub.paths[4]).start()
+    try:
+        end = time.monotonic() + 30
+        while time.monotonic() < end and len({f.src for f in sn.snapshot()[-8:]}) < 4:
+            time.sleep(0.1)
+        t0 = sn.tick()
+        time.sleep(seconds)
+        frames = [f for f in sn.snapshot() if f.start >= t0]
+    finally:
+        sn.stop()
+        for k in kids:
+            k.terminate()
+        for k in kids:
+            k.wait(timeout=5)
+        hub.stop()
+        hub.close()
+    err = [abs((b.start - a.end) / 16e3 - 5.0) for a, b in zip(frames, frames[1:])]
+    return {"frames": len(frames), "median_ms": statistics.median(err),
+            "p99_ms": sorted(err)[int(0.99 * (len(err) - 1))]}
+
+
+def latency_sim(samples: int) -> list[int]:
+    out = []
+    for k in range(samples):
+        evs: list[dict] = []
+        w = World(SimConfig(robots=(0, 1), duration=12.0, can=True), on_event=evs.append)
+        w.run(s_to_ticks(4.0 + 0.013 * k))
+        w.submit(0, 1, [cmd("joint", 1, 10 + k)])
+        w.run()
+        ends = [e["end"] for e in evs if e["ev"] == "frame" and e["src"] == 0 and e["len"] > 0
+                and e["dst"] == 1]
+        cans = [e["start"] for e in evs if e["ev"] == "can" and e["id"] == 0x101]
+        out.append(cans[0] - ends[0])
+    return out
+
+
+def latency_realtime(samples: int) -> list[float]:
+    """ms from the End of the father's command frame (heard by a listener on the hub) to the
+    JOINT1_CMD on the CAN bus (read by a bus in this process); one monotonic clock."""
+    from hil.runner import Runner, build_father
+    tmp = tempfile.mkdtemp(prefix="rprs-lat-")
+    hub = RadioHub(nodes=3, seed=1).start()
+    spec = f"rprs_unix:{tmp}/can"
+    kid = spawn("child", "--id", "1", "--radio", hub.paths[1], "--can", spec, "--team", "0,1")
+    runner = Runner()
+    father = build_father(runner, hub.paths[0],
+                          config=__import__("firmware_model.radio.mac").radio.mac.MacConfig(
+                              team=frozenset((0, 1))))
+    import threading
+    th = threading.Thread(target=runner.run, daemon=True)
+    th.start()
+    bus = can.Bus(interface="rprs_unix", channel=f"{tmp}/can")
+    sn = bench.Sniffer(hub.paths[2]).start()
+    out = []
+    try:
+        end = time.monotonic() + 30
+        while time.monotonic() < end and 1 not in father.mac.ring:
+            time.sleep(0.05)
+        for k in range(samples):
+            while bus.recv(0.0) is not None:
+                pass
+            n0 = len(sn.snapshot())
+            runner.sched.post(father.submit, 1, [cmd("joint", 1, 10 + k)])
+            msg = bus.recv(3.0)
+            while msg is not None and msg.arbitration_id != 0x101:
+                msg = bus.recv(3.0)
+            t_can = time.monotonic_ns()
+            frames = [f for f in sn.snapshot()[n0:] if f.src == 0 and f.dst == 1]
+            if msg is None or not frames:
+                continue
+            t_end = sn._t0 + frames[0].end * 1_000_000_000 // TICK_HZ
+            out.append((t_can - t_end) / 1e6)
+            time.sleep(0.3)
+    finally:
+        sn.stop()
+        bus.shutdown()
+        runner.stop()
+        th.join(timeout=5)
+        kid.terminate()
+        kid.wait(timeout=5)
+        hub.stop()
+        hub.close()
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--seconds", type=float, default=10.0)
+    p.add_argument("--samples", type=int, default=20)
+    a = p.parse_args()
+    t = turn_timing(a.seconds)
+    print(f"turn hand-over of 4 rprs child processes on the pty hub ({t['frames']} frames): "
+          f"error against Ttrans median {t['median_ms']:.2f} ms, p99 {t['p99_ms']:.2f} ms")
+    sim = latency_sim(min(a.samples, 10))
+    print(f"dispatcher latency in simulation (frame End -> JOINT1_CMD start): median "
+          f"{statistics.median(sim)} ticks ({statistics.median(sim) / 16:.1f} us), "
+          f"max {max(sim)} ticks")
+    rt = latency_realtime(a.samples)
+    if rt:
+        print(f"dispatcher latency in real time (child process, pty hub, rprs_unix CAN; "
+              f"{len(rt)} samples): median {statistics.median(rt):.2f} ms, "
+              f"p99 {sorted(rt)[int(0.99 * (len(rt) - 1))]:.2f} ms")
+    else:
+        print("dispatcher latency in real time: no sample (child did not answer)")
+
+
+if __name__ == "__main__":
+    main()
