@@ -71,7 +71,14 @@ class RadioStation:
                 dl = mac.deadline
                 timer = self.timer
                 if dl != timer.expiry:
-                    if dl is None:
+                    ev = timer._ev
+                    if dl is not None and ev is not None and ev.when <= dl and dl > now \
+                            and not ev.cancelled:
+                        delay = dl - now        # ReloadTimer.arm_at's lazy path, inlined
+                        delay += delay & 1
+                        timer.delay = delay
+                        timer.expiry = now + delay
+                    elif dl is None:
                         timer.stop()
                     else:
                         timer.arm_at(dl)
