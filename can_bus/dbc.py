@@ -235,7 +235,30 @@ def _check_signals(e: _Msg, signals: dict[str, Any], raw: bool) -> dict[str, Any
     return out
 
 
+_ENCODED: dict[tuple, CanFrame] = {}
+_DECODED: dict[tuple, tuple[str, dict[str, Any]]] = {}
+_CACHE_MAX = 4096
+"""Encoding and decoding are pure functions of their inputs; periodic status frames repeat
+the same values, so the results are memoised (bounded; decoded dicts are copied out)."""
+
+
 def _encode(name: str, signals: dict[str, Any], raw: bool) -> CanFrame:
+    try:
+        key = (name, raw, tuple(sorted(signals.items())))
+        hit = _ENCODED.get(key)
+    except TypeError:               # an unhashable value: let the checks below report it
+        key = hit = None
+    if hit is not None:
+        return hit
+    frame = _encode_uncached(name, signals, raw)
+    if key is not None:
+        if len(_ENCODED) >= _CACHE_MAX:
+            _ENCODED.clear()
+        _ENCODED[key] = frame
+    return frame
+
+
+def _encode_uncached(name: str, signals: dict[str, Any], raw: bool) -> CanFrame:
     e = _by_name(name)
     signals = _check_signals(e, signals, raw)
     try:
@@ -286,11 +309,19 @@ def decode(frame: FrameLike) -> tuple[str, dict[str, Any]]:
     Choices are not decoded (``state`` is 0..4, not ``'idle'``). Unknown id, remote frame or a
     data length other than the DBC's raise :class:`DbcError`.
     """
+    if type(frame) is CanFrame:
+        hit = _DECODED.get((frame.id, frame.rtr, frame.data))
+        if hit is not None:
+            return hit[0], dict(hit[1])
     e, data = _lookup(frame)
     try:
         values = e.msg.decode(data, decode_choices=False, scaling=True)
     except Exception as exc:  # pragma: no cover - cannot happen with the length check
         raise DbcError(f"{e.name} ({e.id:#05x}): cannot decode {data.hex()}: {exc}") from exc
+    if type(frame) is CanFrame:
+        if len(_DECODED) >= _CACHE_MAX:
+            _DECODED.clear()
+        _DECODED[(frame.id, frame.rtr, frame.data)] = (e.name, dict(values))
     return e.name, values
 
 
