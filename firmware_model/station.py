@@ -39,6 +39,9 @@ class RadioStation:
         self.deframer = Deframer(max_content=self.mac.max_content, byte_ticks=uart.byte_ticks)
         self.timer = ReloadTimer(sched, self._on_timer)
         self.observer = observer
+        self.report_io = True
+        """Pass TxEnable/Transmit actions to the observer too (a trace wants them; a fast
+        simulation without a trace does not)."""
         self.app: Callable[[Deliver, int], None] | None = None
         """The application (the child's dispatcher) gets every message delivered to it."""
         self.garbage_bytes = 0
@@ -165,11 +168,11 @@ class RadioStation:
             t = type(a)
             if t is TxEnable:
                 self.txen.set(a.on, now)
-                if obs is not None:
+                if obs is not None and self.report_io:
                     obs(self, a, now)
             elif t is Transmit:
                 self.uart.send(a.data)
-                if obs is not None:
+                if obs is not None and self.report_io:
                     obs(self, a, now)
             else:
                 if t is Deliver and self.app is not None:

@@ -217,6 +217,7 @@ class World:
         self.wrong_deliveries = 0
         self._rngs = {r: random.Random(f"{config.seed}:load:{r}") for r in config.robots}
         self._serial: dict[tuple[int, int], int] = {}
+        self._by_key: dict[tuple[int, int], list[int]] = {}
         self.byte_ticks = {r: (PC_BYTE_TICKS if r == 0 else CHILD_BYTE_TICKS)
                            for r in config.robots}
         skew = {f.robot: f.value for f in config.faults if f.kind == "skew"}
@@ -232,6 +233,7 @@ class World:
                 from firmware_model.radio.peer_macs import make_mac
                 st.mac = make_mac(config.mac_kind, r, st.mac.cfg, seed=config.seed,
                                   peer=config.peer)
+            st.report_io = trace is not None or on_event is not None
             self.air.attach(radio)
             if r in skew:
                 self.air.set_skew(radio, skew[r])
@@ -432,11 +434,16 @@ class World:
             self._emit({"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason})
         elif t is Deliver:
             self.stats[r].received += 1
-            # Ground truth the firmware cannot see: is this what the sender submitted?
-            serial = self._serial.get((a.src, a.num), 0)
-            m = self.messages[serial - 1] if serial else None
-            intact = m is not None and m.dst == a.dst and m.type == a.type and \
-                m.commands == a.commands
+            # Ground truth the firmware cannot see: is this what the sender submitted? (Any
+            # message with this Source and Number: Numbers wrap, and the father's two PCs
+            # number their own queues.)
+            serial = 0
+            for cand in reversed(self._by_key.get((a.src, a.num), ())):
+                m = self.messages[cand - 1]
+                if m.dst == a.dst and m.type == a.type and m.commands == a.commands:
+                    serial = cand
+                    break
+            intact = serial != 0
             if intact:
                 self.deliveries[(a.src, a.num, serial, r)] += 1
             else:
@@ -478,6 +485,10 @@ class World:
             self.stats[a.src].submitted += 1
             self.messages.append(a)
             self._serial[(a.src, a.num)] = len(self.messages)
+            keyed = self._by_key.setdefault((a.src, a.num), [])
+            keyed.append(len(self.messages))
+            if len(keyed) > 8:
+                del keyed[0]
             self._emit({"ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
                         "type": a.type, "len": len(a.content)})
 

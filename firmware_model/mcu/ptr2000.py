@@ -41,9 +41,8 @@ class Ptr2000:
         if level == self.txen:
             return
         if level:
-            self.sync(now)
             if self.channel is not None:
-                self.channel.deafen(self, now)
+                self.channel.deafen(self, now)     # takes what was heard up to now first
             self.txen = True
             self.tx_ready = now + self.ttrans
             self.rx_from = NEVER

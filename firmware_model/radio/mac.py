@@ -920,6 +920,7 @@ class RotationalMac:
             gap = [r for r in sorted(cfg.team) if r != self.id]
             gap = [r for r in gap if r > self.id] + [r for r in gap if r < self.id]
         if not gap:
+            self._turns_since_poll = 0     # nobody to invite: look again in poll_every turns
             return None
         k = self._poll_ptr.get(nxt, 0) % len(gap)
         self._poll_ptr[nxt] = k + 1
