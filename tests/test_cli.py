@@ -73,6 +73,11 @@ def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
     (["encode", "--src", "1", "--dst", "2", "fly(1)"], "unknown command"),
     (["decode", "zz"], "not hexadecimal"),
     (["decode"], "give the frame"),
+    (["plot", "/nonexistent/trace.jsonl", "-o", "/tmp/x.png"], "cannot read trace"),
+    (["sim", "--fault", "ber@5-2:0.1"], "empty"),
+    (["sim", "--fault", "stall:1.PAW@3"], "cannot stall"),
+    (["soak", "--hours", "-1"], "positive"),
+    (["child", "--id", "7", "--radio", "x"], "child ID must be 1-6"),
     (["bogus"], "invalid choice"),
 ])
 def test_user_mistakes_are_one_line_and_status_2(capsys, args, needle):
@@ -118,3 +123,12 @@ def test_console_script_runs_without_traceback():
     r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "7"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_plot_refuses_an_unreadable_trace_and_leaves_no_file(tmp_path, capsys):
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text('{"ev":"meta","tick_hz":16000000}\nnot json\n')
+    out = tmp_path / "x.png"
+    code, _, err = rprs(capsys, "plot", str(bad), "-o", str(out))
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert not out.exists() and not list(tmp_path.glob("*.png*"))
