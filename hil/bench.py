@@ -79,6 +79,10 @@ class Sniffer:
         with self._lock:
             return list(self.result.frames)
 
+    def _heard(self, heard: HeardFrame, frame) -> None:
+        """A good frame (called with the lock held); subclasses may keep more of it."""
+        self.result.frames.append(heard)
+
     def _loop(self) -> None:
         res = self.result
         while not self._stop.is_set():
@@ -96,8 +100,8 @@ class Sniffer:
                     if isinstance(ev, FrameReceived):
                         f = ev.frame
                         n = f.nbytes
-                        res.frames.append(HeardFrame(f.src, f.dst, f.num, f.type, n,
-                                                     ev.end - n * bt, ev.end))
+                        self._heard(HeardFrame(f.src, f.dst, f.num, f.type, n,
+                                               ev.end - n * bt, ev.end), f)
                     elif isinstance(ev, Garbage):
                         res.garbage += ev.count
                     elif isinstance(ev, FrameFailed):

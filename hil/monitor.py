@@ -48,7 +48,6 @@ from textual.containers import Grid
 from textual.widgets import Footer, Static
 
 from firmware_model.radio.content import format_content
-from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, s_to_ticks
@@ -542,30 +541,8 @@ class MonitorSniffer(Sniffer):
             r = self.result
             return new, r.failed, r.garbage, r.bytes
 
-    def _loop(self) -> None:
-        res = self.result
-        deframer = Deframer(byte_ticks=self.bt)
-        while not self._stop.is_set():
-            try:
-                data = self.port.read(max(1, self.port.in_waiting))
-            except (OSError, ValueError, TypeError):
-                return
-            if not data:
-                continue
-            now = self.tick()
-            bt = self.bt
-            with self._lock:
-                res.bytes += len(data)
-                for ev in deframer.feed(data, now - (len(data) - 1) * bt, bt):
-                    if isinstance(ev, FrameReceived):
-                        f = ev.frame
-                        n = f.nbytes
-                        self._new.append((HeardFrame(f.src, f.dst, f.num, f.type, n,
-                                                     ev.end - n * bt, ev.end), f.content))
-                    elif isinstance(ev, Garbage):
-                        res.garbage += ev.count
-                    elif isinstance(ev, FrameFailed):
-                        res.failed += 1
+    def _heard(self, heard: HeardFrame, frame) -> None:
+        self._new.append((heard, frame.content))
 
 
 class RadioMonitorApp(MonitorApp):

@@ -254,6 +254,22 @@ class MacConfig:
         return len(self.team) * self.tmax + robot * self.tslot
 
 
+def check_submission(robot: int, dst: int, commands: Iterable[Command],
+                     type: int) -> tuple[tuple[Command, ...], bytes]:
+    """The checks every MAC makes when a message is submitted (a destination other than the
+    sender, a Type digit, no MAC commands); returns the commands and their Content."""
+    commands = tuple(commands)
+    if not 0 <= dst <= BROADCAST or dst == robot:
+        raise SubmitError(f"destination must be a robot ID 0-6 other than {robot}, "
+                          f"or {BROADCAST} (broadcast); got {dst}")
+    if not 0 <= int(type) <= 9:
+        raise SubmitError(f"type must be a digit 0-9, got {type}")
+    mac_cmds = [c for c in commands if c.spec.layer == "mac"]
+    if mac_cmds:
+        raise SubmitError(f"{mac_cmds[0].name}() is a MAC command and cannot be submitted")
+    return commands, format_content(commands)
+
+
 @lru_cache(maxsize=2048)
 def _layers(content: bytes) -> tuple[tuple[Command, ...], tuple[Command, ...]]:
     """Parse Content once per distinct byte string: every receiver of a frame shares it."""
@@ -347,16 +363,7 @@ class RotationalMac:
     def submit(self, dst: int, commands: Iterable[Command], now: int,
                type: int = FrameType.INSTRUCTION) -> Message:
         """Queue a message; raises SubmitError if it can never be sent in one turn."""
-        commands = tuple(commands)
-        if not 0 <= dst <= BROADCAST or dst == self.id:
-            raise SubmitError(f"destination must be a robot ID 0-6 other than {self.id}, "
-                              f"or {BROADCAST} (broadcast); got {dst}")
-        if not 0 <= int(type) <= 9:
-            raise SubmitError(f"type must be a digit 0-9, got {type}")
-        mac_cmds = [c for c in commands if c.spec.layer == "mac"]
-        if mac_cmds:
-            raise SubmitError(f"{mac_cmds[0].name}() is a MAC command and cannot be submitted")
-        content = format_content(commands)
+        commands, content = check_submission(self.id, dst, commands, type)
         limit = self.max_content - (CRC_TEXT_LEN if self.cfg.checksum else 0)
         if len(content) > limit:
             raise SubmitError(

@@ -44,7 +44,7 @@ from .frame import BROADCAST, Frame, FrameType
 from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
 from .mac import (
     MEMBER, LISTEN, BadChecksum, BadContent, Deliver, Duplicate, MacConfig, Message, ModeChange,
-    Outcome, RotationalMac, SubmitError, Transmit, TxEnable, _layers,
+    Outcome, RotationalMac, SubmitError, Transmit, TxEnable, _layers, check_submission,
 )
 
 try:                                        # (the rotational MAC's spoofing observation)
@@ -208,16 +208,7 @@ class PeerMac:
     def submit(self, dst: int, commands: Iterable[Command], now: int,
                type: int = FrameType.INSTRUCTION) -> Message:
         """Queue a message; raises SubmitError if it can never be sent."""
-        commands = tuple(commands)
-        if not 0 <= dst <= BROADCAST or dst == self.id:
-            raise SubmitError(f"destination must be a robot ID 0-6 other than {self.id}, "
-                              f"or {BROADCAST} (broadcast); got {dst}")
-        if not 0 <= int(type) <= 9:
-            raise SubmitError(f"type must be a digit 0-9, got {type}")
-        mac_cmds = [c for c in commands if c.spec.layer == "mac"]
-        if mac_cmds:
-            raise SubmitError(f"{mac_cmds[0].name}() is a MAC command and cannot be submitted")
-        content = format_content(commands)
+        commands, content = check_submission(self.id, dst, commands, type)
         crc = CRC_TEXT_LEN if self.cfg.checksum else 0
         limit = self._content_limit() - crc
         if len(content) > limit:
