@@ -17,20 +17,13 @@ digit runs of every length, any byte), because coverage feedback alone cannot gu
 """
 from __future__ import annotations
 
-import contextlib
+import os
 import sys
 
-try:
-    import atheris
-except ImportError:  # pragma: no cover - depends on the environment
-    atheris = None
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _harness import atheris, instrumented  # noqa: E402
 
-_instrument = (
-    atheris.instrument_imports(include=["firmware_model"])
-    if atheris is not None and __name__ == "__main__"
-    else contextlib.nullcontext()
-)
-with _instrument:
+with instrumented(__name__ == "__main__"):
     from firmware_model.radio.content import COMMANDS, format_content, parse_content
     from firmware_model.radio.errors import ContentError
 

@@ -24,20 +24,13 @@ same checks under hypothesis without atheris.
 """
 from __future__ import annotations
 
-import contextlib
+import os
 import sys
 
-try:  # atheris is optional: the checks are importable without it (tests/test_fuzz.py)
-    import atheris
-except ImportError:  # pragma: no cover - depends on the environment
-    atheris = None
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _harness import atheris, instrumented  # noqa: E402  (atheris is optional)
 
-_instrument = (
-    atheris.instrument_imports(include=["firmware_model"])
-    if atheris is not None and __name__ == "__main__"
-    else contextlib.nullcontext()
-)
-with _instrument:
+with instrumented(__name__ == "__main__"):
     from firmware_model.radio.content import COMMANDS
     from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
     from firmware_model.radio.frame import END, HEADER, MAX_CONTENT, Frame, parse_frame

@@ -33,23 +33,13 @@ expiries, end of transmission -- up to a horizon after the last reception. Prope
 """
 from __future__ import annotations
 
-import contextlib
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # fuzz_deframer's wire helpers
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # _harness, fuzz_deframer
+from _harness import atheris, instrumented  # noqa: E402
 
-try:
-    import atheris
-except ImportError:  # pragma: no cover - depends on the environment
-    atheris = None
-
-_instrument = (
-    atheris.instrument_imports(include=["firmware_model"])
-    if atheris is not None and __name__ == "__main__"
-    else contextlib.nullcontext()
-)
-with _instrument:
+with instrumented(__name__ == "__main__"):
     from firmware_model.mcu.scheduler import Scheduler
     from firmware_model.radio.content import Command, parse_content, split_layers
     from firmware_model.radio.errors import ContentError, FrameError
