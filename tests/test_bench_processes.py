@@ -191,3 +191,17 @@ def test_child_stops_cleanly_on_sigterm(hub):
     assert p.wait(timeout=5) == 0
     err = p.stderr.read()
     assert "robot 1:" in err and "Traceback" not in err
+
+
+def test_a_busy_port_is_refused_with_one_line(hub):
+    from hil.serial_radio import PortError, open_port
+    first = open_port(hub.paths[0])
+    try:
+        with pytest.raises(PortError) as e:
+            open_port(hub.paths[0])
+        assert "busy" in str(e.value) and "\n" not in str(e.value)
+        r = subprocess.run([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--radio",
+                            hub.paths[0]], capture_output=True, text=True, timeout=30)
+        assert r.returncode == 2 and "busy" in r.stderr and "Traceback" not in r.stderr
+    finally:
+        first.close()
