@@ -285,6 +285,13 @@ class _Submodule:
     def _rest_state_after_estop(self) -> int:
         return STATE_HOLDING
 
+    def _cancel_stall(self) -> None:
+        """Forget stall detection (joints and the wheel, which keep ``_stall_ev``)."""
+        self._noprog_since = None
+        if self._stall_ev is not None:
+            self._stall_ev.cancel()
+            self._stall_ev = None
+
 
 class _AxisNode(_Submodule):
     """Exact constant-rate motion of an integer position (analytic; no physics tick).
@@ -334,12 +341,6 @@ class _AxisNode(_Submodule):
         if self._arrive_ev is not None:
             self._arrive_ev.cancel()
             self._arrive_ev = None
-
-    def _cancel_stall(self) -> None:
-        self._noprog_since = None
-        if self._stall_ev is not None:
-            self._stall_ev.cancel()
-            self._stall_ev = None
 
     def _start_motion(self, target: int, num: int, den: int) -> None:
         self._freeze()
@@ -778,12 +779,6 @@ class WheelNode(_Submodule):
         if self._step_ev is not None:
             self._step_ev.cancel()
             self._step_ev = None
-
-    def _cancel_stall(self) -> None:
-        self._noprog_since = None
-        if self._stall_ev is not None:
-            self._stall_ev.cancel()
-            self._stall_ev = None
 
     def _halt(self) -> None:
         self._stop_stepping()
