@@ -696,14 +696,8 @@ class CanBus:
                 return
             h.step = s + 1
             if s == 0:
-                for ns in h.tx:
-                    if ns.state is not BUS_OFF:
-                        ns.tec += 8
-                        self._update(ns, t)
-                for ns in h.rx:
-                    if ns.state is not BUS_OFF:
-                        ns.rec += 1
-                        self._update(ns, t)
+                self._count(h.tx, 8, 0, t)
+                self._count(h.rx, 0, 1, t)
                 frame = self._cur_frame if h.tx else None
                 for ns in h.tx:
                     if ns.on_error is not None and ns.attached:
@@ -718,14 +712,16 @@ class CanBus:
                                      h.tx[0].node if h.tx else None)
             else:
                 if s >= 2:
-                    for ns in h.tx:
-                        if ns.state is not BUS_OFF:
-                            ns.tec += 8
-                            self._update(ns, t)
-                for ns in h.rx:
-                    if ns.state is not BUS_OFF:
-                        ns.rec += 8
-                        self._update(ns, t)
+                    self._count(h.tx, 8, 0, t)
+                self._count(h.rx, 0, 8, t)
+
+    def _count(self, nodes: list, tec: int, rec: int, t: int) -> None:
+        """Add to the error counters of every node in ``nodes`` that is not bus-off."""
+        for ns in nodes:
+            if ns.state is not BUS_OFF:
+                ns.tec += tec
+                ns.rec += rec
+                self._update(ns, t)
 
     def _hold_schedule(self) -> None:
         h = self._hold

@@ -285,6 +285,15 @@ class _Submodule:
     def _rest_state_after_estop(self) -> int:
         return STATE_HOLDING
 
+    def _no_progress(self) -> None:
+        """Motion is commanded but not progressing: a stall is reported after
+        STALL_DETECT_TICKS of this (joints and the wheel; ``_stall_detected`` is theirs)."""
+        if self._noprog_since is None:
+            self._noprog_since = self.sched.now
+        if self._stall_ev is None:
+            self._stall_ev = self.sched.at(self._noprog_since + STALL_DETECT_TICKS,
+                                           self._stall_detected)
+
     def _cancel_stall(self) -> None:
         """Forget stall detection (joints and the wheel, which keep ``_stall_ev``)."""
         self._noprog_since = None
@@ -381,12 +390,6 @@ class _AxisNode(_Submodule):
         else:
             self._target = None
             self._arrived()
-
-    def _no_progress(self) -> None:
-        if self._noprog_since is None:
-            self._noprog_since = self.sched.now
-        if self._stall_ev is None:
-            self._stall_ev = self.sched.at(self._noprog_since + STALL_DETECT_TICKS, self._stall_detected)
 
     def _stall_detected(self) -> None:
         self._stall_ev = None
@@ -760,12 +763,6 @@ class WheelNode(_Submodule):
             self._step_ev = self.sched.at(self.sched.now + WHEEL_STEP_TICKS, self._step)
 
     # ------------------------------------------------------------ stall / halt
-    def _no_progress(self) -> None:
-        if self._noprog_since is None:
-            self._noprog_since = self.sched.now
-        if self._stall_ev is None:
-            self._stall_ev = self.sched.at(self._noprog_since + STALL_DETECT_TICKS, self._stall_detected)
-
     def _stall_detected(self) -> None:
         self._stall_ev = None
         self._noprog_since = None
