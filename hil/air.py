@@ -247,7 +247,9 @@ class Air:
                     continue
                 old = r.rx
                 if old is not None:          # a frame that ended exactly at t0: take it all
-                    old.flush(r, t0)
+                    old.flush(r, t0)         # (its end event has not run yet)
+                    if r.noise_from < t0:    # and no idle noise while it was heard
+                        r.noise_from = t0
                 if noise:
                     self._noise_upto(r, t0)
                     self._noise_gen[r.idx] += 1

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from firmware_model.mcu.gpio import OutputPin
@@ -501,16 +501,28 @@ def _scenario(plan, bbb, ber, noise, seed, kill):
 TX = st.tuples(st.integers(1, 400_000), st.integers(1, 30), st.integers(0, 255))
 
 
-@settings(max_examples=120, deadline=None)
+# Every run draws the same examples (derandomize, no example database): a failure shows up
+# on every run, not only on the runs whose random seed happens to hit it. The explicit examples
+# are the coincidences random plans almost never produce: a frame starting at the very tick
+# another one ends (both orders of their events), and two frames starting on the same tick.
+B2B = 1_000 + 3 * BT                               # radio 1 starts as radio 0's 3 bytes end
+
+
+@settings(max_examples=120, deadline=None, derandomize=True, database=None)
 @given(plan=st.lists(st.lists(TX, max_size=3), min_size=3, max_size=3),
        ber=st.sampled_from([0.0, 0.2]), noise=st.booleans(), seed=st.integers(0, 3),
        kill=st.one_of(st.none(), st.tuples(st.integers(0, 2), st.integers(0, 2_000_000))))
+@example(plan=[[(1_000, 3, 1)], [(B2B, 3, 9)], []], ber=0.0, noise=True, seed=0, kill=None)
+@example(plan=[[(B2B, 3, 9)], [(1_000, 3, 1)], []], ber=0.2, noise=True, seed=1, kill=None)
+@example(plan=[[(1_000, 3, 1)], [(1_000, 5, 9)], []], ber=0.0, noise=True, seed=2, kill=None)
+@example(plan=[[(1_000, 3, 1)], [(1_000, 5, 9)], [(1_000 + 5 * BT, 2, 7)]],
+         ber=0.0, noise=True, seed=3, kill=None)     # ... and a third as their garbage ends
 def test_byte_by_byte_gives_same_trace_as_batch(plan, ber, noise, seed, kill):
     assert _scenario(plan, False, ber, noise, seed, kill) == \
         _scenario(plan, True, ber, noise, seed, kill)
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
 @given(seq=st.lists(st.tuples(st.integers(0, 2), st.integers(1, 300_000), st.integers(1, 25)),
                     min_size=1, max_size=8),
        bbb=st.booleans())
@@ -578,3 +590,24 @@ def test_channel_clear_when_collided_sender_killed():
     net.send(2, MSG, t2)
     net.run(t2 + (len(MSG) + 40) * BT)
     assert net.between(3, t2, t2 + 10**8) == expect(MSG, t2)
+
+
+# With idle noise on, a frame starting at the very tick another one ended (its end-of-frame
+# event not yet run) made every receiver hear idle noise dated inside the frame it had just
+# heard: "bytes out of order", in batch and byte-by-byte mode alike. Idle noise resumes only
+# where the old frame ended.
+@pytest.mark.parametrize("bbb", MODES)
+@pytest.mark.parametrize("b_first", [False, True], ids=["a_queued_first", "b_queued_first"])
+def test_back_to_back_transmissions_with_idle_noise(bbb, b_first):
+    net = Net(3, byte_by_byte=bbb, noise=True, seed=0)
+    end_a = T0 + 3 * BT
+    sends = [(0, b"abc", T0), (1, b"XYZ", end_a)]
+    for r, data, t0 in (sends[::-1] if b_first else sends):
+        net.send(r, data, t0)
+    net.run(end_a + 10 * BT)
+    net.sync_all()
+    assert net.between(2, T0, end_a + 3 * BT) == expect(b"abc", T0) + expect(b"XYZ", end_a)
+    before = net.ticks(2)[:T0 // BT]                  # noise, back to back, until A began
+    assert before == [(k + 1) * BT for k in range(T0 // BT)]
+    after = net.between(2, end_a + 3 * BT, end_a + 10 * BT)   # noise again after B
+    assert [t for t, _ in after] == [end_a + 3 * BT + (k + 1) * BT for k in range(7)]
