@@ -36,7 +36,8 @@ class RadioStation:
         self.uart = uart
         self.txen = txen
         self.mac = RotationalMac(robot_id, cfg)
-        self.deframer = Deframer(max_content=self.mac.max_content, byte_ticks=uart.byte_ticks)
+        self.deframer = Deframer(max_content=self.mac.rx_max_content,
+                                 byte_ticks=uart.byte_ticks)
         self.timer = ReloadTimer(sched, self._on_timer)
         self.observer = observer
         self.report_io = True
@@ -129,7 +130,9 @@ class RadioStation:
                 if ev is not None:
                     self.frames_failed += 1
                     self._apply(self.mac.on_corrupt(ev.first, ev.src, ev.expected_end, now), ev)
-        self._apply(self.mac.on_timer(now, busy, d.last_tick))
+        hs = d.header_since
+        began = hs - self.uart.byte_ticks if hs is not None else self.uart.rx_started(now)
+        self._apply(self.mac.on_timer(now, busy, d.last_tick, began))
 
     def _on_tx_done(self, end: int) -> None:
         self._apply(self.mac.on_tx_done(end))

@@ -64,5 +64,15 @@ def max_frame_bytes(byte_ticks: int, tmax: int = TMAX_TICKS) -> int:
 
 
 def max_content_bytes(byte_ticks: int, tmax: int = TMAX_TICKS) -> int:
-    """Largest Content (bytes) one turn can carry: 562 for a child at the defaults."""
+    """Largest Content (bytes) one turn can carry at ``byte_ticks`` a byte: 562 for a child at
+    the defaults, 561 for the father."""
     return max_frame_bytes(byte_ticks, tmax) - FRAME_OVERHEAD
+
+
+def protocol_max_content(tmax: int = TMAX_TICKS) -> int:
+    """Largest Length any station may send, so the largest every receiver accepts (bytes).
+
+    Bounded by the fastest legal sender, a child at 16640 ticks a byte: 562 at the defaults
+    (docs/protocol.md, Length). A slower station (the father PC, 561) sends less but accepts
+    this much; a station whose clock runs fast never sends more than this."""
+    return max_content_bytes(min(CHILD_BYTE_TICKS, PC_BYTE_TICKS), tmax)

@@ -30,6 +30,7 @@ from typing import Callable
 
 from firmware_model.mcu.ptr2000 import NEVER, Ptr2000
 from firmware_model.mcu.scheduler import Scheduler
+from firmware_model.timing import PC_BYTE_TICKS
 
 HEADER = b"\x0f\x0a\x05"
 SKEW_LIMIT = 0.04
@@ -37,6 +38,9 @@ SKEW_LIMIT = 0.04
 mid-bit drifts half a bit over the 9.5 bits from the start edge to the stop bit."""
 NOISE_LOOKAHEAD = 1024
 """Bytes of a radio's noise stream scanned ahead for a header (then re-scanned)."""
+FOREIGN_BYTE_TICKS = PC_BYTE_TICKS
+"""Byte time of a transmitter that is no robot (bursts, ``foreign`` faults, forged frames):
+8N1 at exact 9600 baud, 16667 ticks."""
 
 
 class ByteStream:
@@ -203,13 +207,9 @@ class Air:
         rate differs from a sender's by more than SKEW_LIMIT cannot frame its bytes."""
         self._skew[radio.idx] = eps
 
-    def burst(self, seconds: float, byte_ticks: int = 16_667) -> None:
+    def burst(self, seconds: float, byte_ticks: int = FOREIGN_BYTE_TICKS) -> None:
         """A burst of interference now: random bytes on air for ``seconds`` from a transmitter
         that is no robot; it collides with whatever else is sent meanwhile."""
-        if self._phantom is None:
-            self._phantom = Ptr2000(-1)
-            self._phantom.idx = -1
-            self._phantom.alive = False     # never a receiver
         n = max(1, round(seconds * 16_000_000 / byte_ticks))
         self.bursts += 1
         self.inject(self._burst_rng().randbytes(n), byte_ticks)
@@ -219,13 +219,13 @@ class Air:
             self._brng = random.Random(f"{self.seed}:burst")
         return self._brng
 
-    def inject(self, data: bytes, byte_ticks: int = 16_667) -> None:
+    def inject(self, data: bytes, byte_ticks: int = FOREIGN_BYTE_TICKS) -> None:
         """Put ``data`` on air now from a transmitter that is no robot (forged frames,
-        interference)."""
+        interference, ``foreign`` faults); ``sent[-1]`` counts these."""
         if self._phantom is None:
             self._phantom = Ptr2000(-1)
             self._phantom.idx = -1
-            self._phantom.alive = False
+            self._phantom.alive = False     # never a receiver
         self.transmit(self._phantom, data, self.sched.now, byte_ticks)
 
     # -- the radios' side -----------------------------------------------------------------
@@ -263,6 +263,18 @@ class Air:
             rx.flush(radio, now)
         elif self.noise and radio.listening(now):
             self._noise_upto(radio, now)
+
+    def rx_started(self, radio: Ptr2000, now: int) -> int | None:
+        """Start tick of the byte ``radio`` is receiving at ``now`` (its start bit has begun,
+        its stop bit has not ended), else None: the falling edge the firmware can see on its
+        RX pin before the byte is complete (the miss rule asks whether a Header has *begun*).
+        Idle noise is not reported."""
+        rx = radio.rx
+        if rx is None:
+            return None
+        k = (now - rx.t0) // rx.bt          # bytes complete by now
+        start = rx.t0 + k * rx.bt
+        return start if 0 <= k < rx.n and start <= now else None
 
     def deafen(self, radio: Ptr2000, now: int) -> None:
         """``radio`` stops hearing at ``now`` (TXEN raised or radio dead)."""

@@ -20,7 +20,7 @@ from firmware_model.kinematics import HOME
 from firmware_model.mcu.can_controller import CanController
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.sequence import ACTION_NAMES
-from firmware_model.radio.content import Command, cmd
+from firmware_model.radio.content import Command, cmd, frame_kind
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
     BadContent, Deliver, Disable, Duplicate, Join, MacConfig, Message, Miss, ModeChange,
@@ -391,8 +391,9 @@ class World:
         ev = {"ev": "frame", "src": r}
         try:
             ev.update(dst=d[3] - 48, num=int(d[5:7]), type=d[7] - 48, len=int(d[8:12]))
+            ev["kind"] = frame_kind(ev["type"], d[12:12 + ev["len"]])
         except (IndexError, ValueError):
-            ev.update(dst=None, num=None, type=None, len=None)
+            ev.update(dst=None, num=None, type=None, len=None, kind=None)
         ev.update(start=tx.t0, end=tx.end, bytes=len(d) if not tx.aborted else
                   (tx.end - tx.t0) // tx.bt, collided=tx.collided, aborted=tx.aborted)
         self._emit(ev)

@@ -315,7 +315,7 @@ def test_father_failover_takes_id0s_turn_without_a_miss():
     # bytes (MacConfig: a standby waits (pc + 2) x 4 bytes past 2 Ttrans), then its Ttrans
     fs = frames(evs, after=fail_t)
     first0 = next(f for f in fs if f["src"] == 0)
-    before = max(f["end"] for f in fs if f["end"] < first0["start"])
+    before = max(f["end"] for f in frames(evs) if f["end"] < first0["start"])
     assert first0["start"] == before + 3 * TTRANS_TICKS + 4 * 4 * PC_BYTE_TICKS
     assert sum(1 for f in fs if f["src"] == 0) > 100
     # PC1 back: it hears ID 0 on the air and stands by

@@ -70,6 +70,13 @@ class Ptr2000:
         if self.channel is not None:
             self.channel.sync(self, now)
 
+    def rx_started(self, now: int) -> int | None:
+        """Start tick of a byte this module is putting out on its data pin right now, if any
+        (the air knows; a channel without that knowledge says None)."""
+        ch = self.channel
+        query = getattr(ch, "rx_started", None)
+        return query(self, now) if query is not None else None
+
     def deliver(self, data: bytes, t0: int, dt: int) -> None:
         """Bytes heard from the air (called by the channel)."""
         if self.uart is not None:

@@ -25,6 +25,8 @@ class SerialLine(Protocol):
 
     def sync(self, now: int) -> None: ...
 
+    def rx_started(self, now: int) -> int | None: ...
+
 
 class Uart:
     """One UART channel. Set ``line`` (TX side), ``on_rx`` and ``on_tx_done`` before use."""
@@ -84,3 +86,11 @@ class Uart:
         """Take every byte whose stop bit ended by ``now`` (before a timer ISR reads state)."""
         if self.line is not None:
             self.line.sync(now)
+
+    def rx_started(self, now: int) -> int | None:
+        """Tick at which the start bit of a byte still being received began, else None.
+
+        The firmware sees it as the falling edge on SIN0 (wired to an external-interrupt pin
+        as well), before the byte is complete; a line that cannot tell returns None."""
+        query = getattr(self.line, "rx_started", None)
+        return query(now) if query is not None else None

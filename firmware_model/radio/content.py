@@ -374,3 +374,29 @@ def split_layers(commands: Iterable[Command]) -> tuple[tuple[Command, ...], tupl
     for c in commands:
         (mac if COMMANDS[c.name].layer == "mac" else app).append(c)
     return tuple(mac), tuple(app)
+
+
+FRAME_KINDS = ("heartbeat", "control", "message", "boot", "join", "unreadable")
+
+
+def frame_kind(type_digit: int, content: bytes) -> str:
+    """What a frame is (docs/protocol.md, frame kinds), from its Type digit and Content:
+
+    * ``boot`` (Type '5') and ``join`` (Type '6'), the project's extensions;
+    * ``message``: Content holds at least one application command;
+    * ``heartbeat``: empty Content (the paper's idle frame, Type '3' to '7');
+    * ``control``: only MAC commands (``ack``, ``poll``, ``crc``): a heartbeat's place, with
+      something for the MAC to say;
+    * ``unreadable``: Content that does not parse.
+    """
+    if type_digit == 5:
+        return "boot"
+    if type_digit == 6:
+        return "join"
+    if not content:
+        return "heartbeat"
+    try:
+        _, app = split_layers(parse_content(content))
+    except ContentError:
+        return "unreadable"
+    return "message" if app else "control"

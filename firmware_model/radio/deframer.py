@@ -141,6 +141,13 @@ class Deframer:
         """Bytes held and not yet reported: a partial Header, or the frame in progress."""
         return self._pos
 
+    @property
+    def header_since(self) -> int | None:
+        """Tick at which the first byte of a Header being received ended (a partial Header of
+        one or two bytes, or a frame in progress), else None. Its start bit began one byte
+        time earlier: the MAC's miss rule asks whether a Header had *begun* by E + Tmax."""
+        return self._hdr_t if self._pos else None
+
     # ---------------------------------------------------------------- internals
 
     def _garbage(self, count: int, first: int, last: int) -> None:

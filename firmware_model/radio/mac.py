@@ -48,6 +48,7 @@ from ..timing import (
     TMAX_TICKS,
     TTRANS_TICKS,
     max_content_bytes,
+    protocol_max_content,
 )
 from .content import Command, cmd, format_content, parse_content, split_layers
 from .errors import ContentError
@@ -295,7 +296,12 @@ class RotationalMac:
             raise ValueError(f"robot ID must be 0-6, got {robot_id}")
         self.id = robot_id
         self.cfg = cfg = config or MacConfig()
-        self.max_content = max_content_bytes(cfg.byte_ticks, cfg.tmax)
+        self.max_content = min(max_content_bytes(cfg.byte_ticks, cfg.tmax),
+                               protocol_max_content(cfg.tmax))
+        """Largest Content this robot sends: what fits in Tmax at its own byte time, never
+        more than the protocol's Length bound (which every receiver accepts)."""
+        self.rx_max_content = protocol_max_content(cfg.tmax)
+        """Largest Length this robot accepts: the protocol's bound (docs/protocol.md)."""
         self.mode = LISTEN
         self.phase = WAIT
         self.ring: tuple[int, ...] = ()
@@ -309,7 +315,7 @@ class RotationalMac:
         self._queue: list[Message] = []
         self._inflight: Message | None = None
         self._next_num = 0
-        self._last_num = 0               # Number a control frame repeats (PROTOCOL.md §3)
+        self._last_num = 0               # Number a control frame repeats: the last one sent
         self._acks: list[tuple[int, int]] = []
         self._acks_deferred = False
         self._last_rx: dict[int, int] = {}
@@ -318,7 +324,13 @@ class RotationalMac:
         self._sent_poll: int | None = None
         self._quiet_limit = 0
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
-        self._booting = False             # next frame is the power-on (Type '5') heartbeat
+        self._booting = False             # powered on and not yet acknowledged by the ring
+        self._announcing: int | None = None  # BOOT or JOIN: sent, awaiting acknowledgements
+        self._ann_num = 0                 # the Number our BOOT/JOIN frames carry
+        self._ann_awaiting: set[int] = set()   # members yet to acknowledge it
+        self._ann_turns = 0               # BOOT/JOIN frames sent so far
+        self._heard_since_tx = True       # a valid frame was heard since our own last one
+        self._booting_peers: set[int] = set()   # robots whose BOOT frames we are hearing
         self._answering = False           # next frame answers an invitation (Type '6')
         self.standby = self.cfg.standby      # a replica of ID 0 that does not transmit
         self._watched = False
@@ -352,6 +364,9 @@ class RotationalMac:
         """Start in LISTEN; claim after ``claim_ticks`` of silence (PROTOCOL.md §4 start-up)."""
         self.mode = LISTEN
         self._booting = True
+        self._announcing = None
+        self._last_num = 0                 # the BOOT frame is Number '00' ...
+        self._next_num = 1                 # ... and messages start at '01'
         self.deadline = now + self._claim_ticks()
         return [TxEnable(False)]
 
@@ -375,7 +390,6 @@ class RotationalMac:
         if self.pending >= self.cfg.max_queue:
             raise SubmitError(f"queue full ({self.cfg.max_queue} messages pending)")
         msg = Message(self.id, dst, self._next_num, int(type), commands, content, now)
-        self._last_num = self._next_num
         self._next_num = (self._next_num + 1) % 100
         self._queue.append(msg)
         return msg
@@ -386,6 +400,7 @@ class RotationalMac:
         phase = self.phase
         if phase is SWITCH or phase is SEND:
             return _NOTHING            # deaf while switching or sending (only raw input gets here)
+        self._heard_since_tx = True
         if src == self.owner and phase is WAIT and not frame.content and frame.type == 3 \
                 and src != self.id:
             # Fast path, the expected owner's heartbeat: hand the turn on.
@@ -421,8 +436,6 @@ class RotationalMac:
                 out.extend(self.on_corrupt(first, None, end, now))
                 return out
             content = strip_crc(content)
-        if frame.type == FrameType.BOOT:
-            self._last_rx.pop(src, None)   # it powered on: its Numbers restart at '00'
         try:
             mac_cmds, app_cmds = _layers(content) if content else ((), ())
             bad = None
@@ -469,42 +482,58 @@ class RotationalMac:
                 # invited (it goes back to LISTEN when it hears us). Resynchronise only.
                 self._next_turn(src, end, now, out)
                 return out
-            if src in self.ever_member and not invited_now:
-                # We disabled it: only an invitation, or three cycles of evidence, bring it
-                # back; until then its frames set the timing but are not acted on.
-                n = self._heard_disabled.get(src, 0) + 1
-                self._heard_disabled[src] = n
-                if n < self.cfg.miss_limit:
-                    out.append(Refused(src, frame.num, f"robot {src} was disabled and not "
-                                       f"invited back"))
-                    self._next_turn(src, end, now, out)
-                    return out
+            if not invited_now:
+                # Not a member and not answering an invitation: refused, never acted on; its
+                # frame still sets the timing (the owner is whoever sends). Heard in
+                # ``miss_limit`` frames a cycle or less apart (two rings that meet, a robot we
+                # dropped that never noticed), it is admitted, and acted on from its next frame.
+                self._refuse_outsider(src, frame.num, end, now, out)
+                return out
             self._heard_disabled.pop(src, None)
             self._admit(src, out)
         elif self.phase in (WAIT, WINDOW) and self.owner is not None and src != self.owner \
                 and not invited_now and not self._takeover(src, first, out):
             out.append(Refused(src, frame.num, f"out of turn: it was robot {self.owner}'s turn"))
             self.misses[src] = 0
+            o = self.owner
+            if self.phase == WAIT and o in self.ring and o != self.id:
+                # A clean frame in o's slot means o did not send (its frame would have
+                # collided with this one): o missed its turn, as at E + Tmax. Otherwise a
+                # member that never heard o join could take o's slot for ever.
+                n = self.misses.get(o, 0) + 1
+                self.misses[o] = n
+                out.append(Miss(o))
+                if n >= self.cfg.miss_limit:
+                    self._drop(o, out)
             self._next_turn(src, end, now, out)     # the owner is whoever is sending
             return out
         self.misses[src] = 0
         self._silent = 0
+        if frame.type == FrameType.BOOT or frame.type == FrameType.JOIN:
+            self._acks.append((src, frame.num))     # every BOOT/JOIN frame is acknowledged
+            if frame.type == FrameType.BOOT and src not in self._booting_peers:
+                self._booting_peers.add(src)        # the first BOOT heard means a restart
+                self._rebooted(src, frame.num, out)
+        elif self._booting_peers:
+            self._booting_peers.discard(src)
         if bad is not None:
             out.append(BadContent(src, frame.num, bad))
         else:
             for c in mac_cmds:
                 if c.name == "ack" and c.args[0] == self.id:
                     self._on_ack(src, c.args[1], now, out)
-            if app_cmds and (frame.dst == self.id or frame.dst == BROADCAST) and \
-                    not self._check_turns:
+            if app_cmds and not self._check_turns:
                 # (A PC2 on probation after a takeover leaves new messages alone: PC1 may still
                 # be active and take them; the sender retries if nobody acknowledges.)
-                self._acks.append((src, frame.num))
-                if self._last_rx.get(src) == frame.num:
-                    out.append(Duplicate(src, frame.num))
-                else:
-                    self._last_rx[src] = frame.num
-                    if not self.standby:       # the active PC delivers; its standby only
+                # A sender keeps one message in flight, so a retransmission repeats the Number
+                # of the last message frame heard from it, whoever that frame was for.
+                fresh = self._last_rx.get(src) != frame.num
+                self._last_rx[src] = frame.num
+                if frame.dst == self.id or frame.dst == BROADCAST:
+                    self._acks.append((src, frame.num))
+                    if not fresh:
+                        out.append(Duplicate(src, frame.num))
+                    elif not self.standby:     # the active PC delivers; its standby only
                         out.append(Deliver(src, frame.dst, frame.num, frame.type, app_cmds))
 
         invited = [p.args[0] for p in polls if p.args[0] not in self.ring]
@@ -539,7 +568,7 @@ class RotationalMac:
             self.deadline = min(now + self.cfg.quiet_gap, max(self._quiet_limit, now))
             return out
         self._quiet_miss = False
-        self._next_turn(after, max(expected_end, now), now, out)
+        self._next_turn(after, max(expected_end, now), now, out, uncertain=True)
         return out
 
     def on_garbage(self, first: int, last: int, now: int) -> list:
@@ -554,9 +583,12 @@ class RotationalMac:
             self.deadline = max(now, min(last + self.cfg.quiet_gap, self._quiet_limit))
         return _NOTHING
 
-    def on_timer(self, now: int, rx_busy: bool = False, last_rx: int | None = None) -> list:
+    def on_timer(self, now: int, rx_busy: bool = False, last_rx: int | None = None,
+                 rx_began: int | None = None) -> list:
         """The deadline expired. ``rx_busy``: a frame is being received right now;
-        ``last_rx``: tick of the last byte heard (any byte)."""
+        ``last_rx``: tick of the last byte heard (any byte); ``rx_began``: tick at which the
+        start bit of a Header still being received began (one or two Header bytes, or a
+        byte whose stop bit has not come yet), else None."""
         out: list = []
         if self.deadline is None or now < self.deadline:
             return out
@@ -612,11 +644,16 @@ class RotationalMac:
                 return self.on_timer(now, rx_busy, last_rx)
             if quiet or now >= self._quiet_limit:
                 self._quiet_miss = False
-                self._next_turn(self.owner, now, now, out)     # the failed frame is over
+                self._next_turn(self.owner, now, now, out, uncertain=True)  # the frame is over
             else:
                 self.deadline = min(last_rx + gap, self._quiet_limit)
         elif rx_busy:
             self.deadline = now + 2 * self.cfg.byte_ticks  # a header is in; let it finish
+        elif rx_began is not None and rx_began <= self.turn_start + (
+                self.cfg.twin if phase == WINDOW else self.cfg.tmax):
+            # A Header that had begun by the deadline is not a miss (paper §IV.C: "has not
+            # begun by E + Tmax"): look again when its next byte is complete.
+            self.deadline = now + self.cfg.byte_ticks
         elif phase == WINDOW:
             self._after_window(self.poller, now, out)
         else:  # WAIT: the owner missed its turn
@@ -631,14 +668,26 @@ class RotationalMac:
                     self._silent >= max(self.cfg.miss_limit, len(self.ring) - 1):
                 self._to_listen(out, now, "heard nobody for a whole round")
                 return out
-            self._next_turn(o, now, now, out)
+            # The paper's takeover at E + Tmax, except when nobody was heard since our own
+            # frame: then we may be one of two members that sent together, each waiting for
+            # the other (rule R-stagger).
+            self._next_turn(o, now, now, out, uncertain=not self._heard_since_tx)
         return out
 
     def on_tx_done(self, now: int) -> list:
         """The last bit of our End left the radio: our turn closes at ``now``."""
         out: list = [TxEnable(False)]
         self.frames_sent += 1
+        self._heard_since_tx = False
         if self.mode != MEMBER:
+            return out
+        if self._announcing is not None and self._ann_turns >= 2 * self.cfg.miss_limit:
+            # Members that never acknowledged our BOOT/JOIN did not hear us join, and did not
+            # admit us on evidence either (3 frames): they give our slot to someone else.
+            # Back to LISTEN, to be invited again.
+            missing = ",".join(str(r) for r in sorted(self._ann_awaiting))
+            self._to_listen(out, now, f"robot(s) {missing} never acknowledged our "
+                            f"{'BOOT' if self._announcing == FrameType.BOOT else 'JOIN'}")
             return out
         if self._sent_poll is not None:
             self._window(self._sent_poll, self.id, now, now)
@@ -685,19 +734,24 @@ class RotationalMac:
 
     def _active_frame(self, frame: Frame, end: int, now: int, out: list) -> list:
         """A frame with ID 0 that we did not send: the active PC of the father's pair."""
-        if not self.standby:
-            if self.mode == LISTEN or self.lone or self.cfg.pc > 1:
-                if self.mode == MEMBER:
-                    self._to_listen(out, now, "another PC is active as ID 0")
-                self.standby = True            # the other PC is active: stand by for it
-            else:
-                return out                     # PC1 stays active; PC2 will yield
         content = strip_crc(frame.content) if self.cfg.checksum and crc_ok(frame) \
             else frame.content
         try:
             mac_cmds, app_cmds = _layers(content) if content else ((), ())
         except ContentError:
             mac_cmds, app_cmds = (), ()
+        if not self.standby:
+            lone_other = any(c.name == "poll" and c.args[1] == 1 for c in mac_cmds)
+            if self.mode == MEMBER and not self.lone and lone_other:
+                return out                     # the other PC claimed alone: it will listen
+            if self.mode == LISTEN or self.lone or self.cfg.pc > 1:
+                if self.lone:
+                    self._to_listen(out, now, "another PC is active as ID 0")
+                elif self.mode == MEMBER:      # keep the ring we know; follow the other PC
+                    out.append(ModeChange(MEMBER, "another PC is active as ID 0: standing by"))
+                self.standby = True            # the other PC is active: stand by for it
+            else:
+                return out                     # PC1 stays active; PC2 will yield
         if self.mode == LISTEN:
             horizon = end - self.cfg.claim_ticks(0)
             ring = {r for r, t in self._seen.items() if t >= horizon} | {self.id}
@@ -740,8 +794,16 @@ class RotationalMac:
 
     # -- turn machinery ----------------------------------------------------------------------
 
-    def _next_turn(self, after: int, start: int, now: int, out: list) -> None:
-        """The turn after ``after`` begins at ``start``: its owner may raise TXEN then."""
+    def _next_turn(self, after: int, start: int, now: int, out: list,
+                   uncertain: bool = False) -> None:
+        """The turn after ``after`` begins at ``start``: its owner may raise TXEN then.
+
+        ``uncertain``: the turn closed on something other than a good frame (bytes that formed
+        none, a frame that failed) or on a miss right after our own frame. Two members can
+        each believe the other's turn just closed (a foreign burst over a hand-over, a
+        collision): the owner then waits ``id`` x Tslot more, listening, so of two such
+        members the higher ID hears the lower's Header before it raises TXEN (docs/protocol.md,
+        rule R-stagger)."""
         if not self.ring:
             return
         if self.lone and after == self.id:
@@ -749,6 +811,8 @@ class RotationalMac:
             return
         nxt = self.succ(after)
         if nxt == self.id:
+            if uncertain:
+                start += self.id * self.cfg.tslot
             self._my_turn(start, now, out)
         else:
             self.phase = WAIT
@@ -814,19 +878,67 @@ class RotationalMac:
         self.misses[robot] = 0
         out.append(Join(robot, again))
 
+    def _refuse_outsider(self, src: int, num: int, end: int, now: int, out: list) -> None:
+        """A frame from a team robot that is not in our ring and answers no invitation."""
+        n, last = self._heard_disabled.get(src, (0, end))
+        if end - last > (len(self.ring) + 1) * self.cfg.tmax:
+            n = 0                              # not heard for a whole cycle: start again
+        n += 1
+        if n < self.cfg.miss_limit:
+            self._heard_disabled[src] = (n, end)
+            why = f"robot {src} was disabled and not invited back" if src in \
+                self.ever_member else f"robot {src} is not a member and was not invited"
+        else:
+            self._heard_disabled.pop(src, None)
+            self._admit(src, out)
+            self.misses[src] = 0
+            why = f"robot {src} admitted after {n} frames; this one is not acted on"
+        out.append(Refused(src, num, why))
+        self._next_turn(src, end, now, out)
+
+    def _rebooted(self, src: int, num: int, out: list) -> None:
+        """``src`` sent a BOOT frame: it powered on, so its Numbers restart ('00' is the BOOT
+        frame's own) and it forgot every Number it had heard (its BOOT frames are
+        acknowledged: it sends no message before every member has). A message of ours in
+        flight to it may have been delivered before the reboot and would be delivered again:
+        it fails."""
+        self._last_rx[src] = num
+        m = self._inflight
+        if m is not None and m.attempts:
+            self._unawait(m, src, f"destination {src} restarted before acknowledging (after "
+                          f"{m.attempts} attempt(s))", f"robot {src} restarted before "
+                          f"acknowledging", out)
+
+    def _unawait(self, m: Message, robot: int, unicast_reason: str, broadcast_reason: str,
+                 out: list) -> None:
+        """``robot`` will never acknowledge ``m``: a unicast to it fails; a broadcast ends
+        once nobody else is awaited (delivered if anyone acknowledged)."""
+        if robot not in m.awaiting:
+            return
+        m.awaiting.discard(robot)
+        if m.dst == robot:
+            self._finish(m, False, unicast_reason, out)
+        elif not m.awaiting:
+            self._finish(m, bool(m.acked), "" if m.acked else broadcast_reason, out)
+
     def _drop(self, robot: int, out: list) -> None:
         self.ring = tuple(r for r in self.ring if r != robot)
         self.misses.pop(robot, None)
+        if self._announcing is not None:
+            self._ann_awaiting.discard(robot)
+            if not self._ann_awaiting:
+                self._announced()
         out.append(Disable(robot))
         m = self._inflight
-        if m is not None and robot in m.awaiting:
-            m.awaiting.discard(robot)
-            if m.dst == robot:
-                self._finish(m, False, f"destination {robot} dropped from the ring after "
-                             f"{m.attempts} attempt(s)", out)
-            elif not m.awaiting:
-                self._finish(m, bool(m.acked), "" if m.acked else
-                             "no member left to acknowledge the broadcast", out)
+        if m is not None:
+            self._unawait(m, robot, f"destination {robot} dropped from the ring after "
+                          f"{m.attempts} attempt(s)",
+                          "no member left to acknowledge the broadcast", out)
+
+    def _announced(self) -> None:
+        """Every member acknowledged our BOOT/JOIN frame: we are in everyone's ring."""
+        self._announcing = None
+        self._booting = False
 
     def _to_listen(self, out: list, now: int, reason: str) -> None:
         self.mode = LISTEN
@@ -836,12 +948,18 @@ class RotationalMac:
         self.misses = {}
         self._silent = 0
         self._acks.clear()
+        self._announcing = None           # a BOOT not acknowledged is sent again
         self.deadline = now + self._claim_ticks()
         out.append(ModeChange(LISTEN, reason))
 
     # -- delivery ----------------------------------------------------------------------------
 
     def _on_ack(self, src: int, num: int, now: int, out: list) -> None:
+        if self._announcing is not None and num == self._ann_num:
+            self._ann_awaiting.discard(src)
+            if not self._ann_awaiting:
+                self._announced()
+            return
         m = self._inflight
         if m is None or m.num != num or src not in m.awaiting:
             return
@@ -936,14 +1054,33 @@ class RotationalMac:
 
     def _build_frame(self, now: int, out: list) -> tuple[Frame, bytes]:
         """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
-        if self._booting or self._answering:
-            kind = FrameType.BOOT if self._booting else FrameType.JOIN
-            self._booting = self._answering = False
+        if self._answering or (self._booting and self._announcing is None):
+            # The answer to an invitation, or a lone claimer's first frame: nothing else in it.
+            # A BOOT frame is Number '00'; a JOIN frame takes the next Number, so that its
+            # acknowledgement cannot be mistaken for a message's (docs/protocol.md, join).
+            self._answering = False
             self._sent_poll = None
-            frame = self._frame(BROADCAST, self._last_num, kind, b"")
+            if self._booting:
+                kind, num = FrameType.BOOT, 0
+            else:
+                kind, num = FrameType.JOIN, self._next_num
+                self._next_num = (num + 1) % 100
+            self._announcing, self._ann_num, self._ann_turns = kind, num, 1
+            self._ann_awaiting = set(self.ring) - {self.id}
+            if not self._ann_awaiting:
+                self._announced()
+            frame = self._frame(BROADCAST, num, kind, b"")
             return frame, frame.encode()
-        msg = self._pick_message(now, out)
-        poll_to = self._poll_target()
+        if self._announcing is not None:
+            # BOOT/JOIN frames until every member has acknowledged: a BOOT so that no message
+            # of ours comes before every receiver forgot our old Numbers; a JOIN so that we
+            # know every member heard us join (else we would share a slot with someone).
+            self._ann_turns += 1
+            self._expire(now, out)
+            msg, poll_to = None, None
+        else:
+            msg = self._pick_message(now, out)
+            poll_to = self._poll_target()
         crc_room = CRC_TEXT_LEN if self.cfg.checksum else 0
         extra: list[Command] = []
         if poll_to is not None:
@@ -973,15 +1110,19 @@ class RotationalMac:
         if msg is not None:
             msg.attempts += 1
             msg.state = "sent"
+            self._last_num = msg.num           # control frames repeat it from now on
             content = msg.content + (format_content(mac_part) if mac_part else b"")
             frame = self._frame(msg.dst, msg.num, msg.type, content)
             return frame, frame.encode()
         num = self._last_num
         content = format_content(mac_part) if mac_part else b""
-        key = (num, content)
+        kind = FrameType.BROADCAST_INFO
+        if self._announcing is not None:
+            kind, num = self._announcing, self._ann_num
+        key = (num, content, kind)
         hit = self._hb_cache.get(key)
         if hit is None:
-            frame = self._frame(BROADCAST, num, FrameType.BROADCAST_INFO, content)
+            frame = self._frame(BROADCAST, num, kind, content)
             hit = (frame, frame.encode())
             if len(self._hb_cache) < 256:
                 self._hb_cache[key] = hit

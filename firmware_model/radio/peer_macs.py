@@ -286,7 +286,8 @@ class PeerMac:
     def on_garbage(self, first: int, last: int, now: int) -> list:
         return []
 
-    def on_timer(self, now: int, rx_busy: bool = False, last_rx: int | None = None) -> list:
+    def on_timer(self, now: int, rx_busy: bool = False, last_rx: int | None = None,
+                 rx_began: int | None = None) -> list:
         out: list = []
         if self.mode != MEMBER:
             return out

@@ -1,0 +1,282 @@
+"""Regression tests for the promises that failed under attack from outside (issue: "every
+promise holds under attack"). Each test reproduces one finding in the simulator, to the tick,
+and failed before the fix it names. docs/guarantees.md lists them with their bounds."""
+from __future__ import annotations
+
+import random
+
+from firmware_model.radio.content import cmd
+from firmware_model.radio.frame import Frame, FrameType
+from firmware_model.radio.mac import Deliver, Duplicate, MacConfig, RotationalMac
+from firmware_model.timing import (
+    CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, protocol_max_content, s_to_ticks,
+)
+from hil.world import SimConfig, World
+
+B = PC_BYTE_TICKS          # a foreign transmitter's byte time (9600 baud)
+
+
+def _run_until_txen(w, evs, robot, after):
+    """Run ``w`` until ``robot`` raises TXEN at or after tick ``after``; return that tick."""
+    while True:
+        w.run(w.now + 1000)
+        on = [e["t"] for e in evs if e["ev"] == "txen" and e["robot"] == robot and e["on"]
+              and e["t"] >= after]
+        if on:
+            return on[0]
+
+
+def _frames(evs, after=0):
+    return [e for e in evs if e["ev"] == "frame" and e["start"] >= after]
+
+
+# -- finding 1: no lock-step after a foreign burst over a hand-over --------------------------
+
+def two_bursts_over_a_handover(robots=(1, 2), seed=1):
+    """A foreign transmitter garbles R1's frame and goes on past its End (R2 hears garbage in
+    R1's slot), and a second burst starts once R1 listens again (R1 hears garbage in R2's
+    slot): each member believes the other's turn just closed on a corrupted frame."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=robots, duration=7.0, seed=seed), on_event=evs.append)
+    w.run(s_to_ticks(4.0))
+    start = _run_until_txen(w, evs, 1, s_to_ticks(4.0)) + TTRANS_TICKS
+    end = start + 14 * CHILD_BYTE_TICKS                # R1's heartbeat
+    w.inject_bytes(random.Random(1).randbytes(15), end - 5 * B)
+    w.inject_bytes(random.Random(2).randbytes(6), end + 6 * B)
+    w.run()
+    return w, evs, end + 12 * B
+
+
+def test_two_members_never_transmit_together_after_a_foreign_burst():
+    w, evs, burst_end = two_bursts_over_a_handover()
+    after = [e for e in evs if e["ev"] == "collision" and e["t"] > burst_end]
+    assert after == [], after
+    assert not [e for e in evs if e["ev"] in ("miss", "disable") and e["t"] > burst_end]
+    good = [f for f in _frames(evs, burst_end) if not f["collided"]]
+    # good frames resume within Tmax plus one idle cycle of the two-member ring
+    assert good and good[0]["start"] - burst_end < TMAX_TICKS + 2 * (
+        14 * CHILD_BYTE_TICKS + TTRANS_TICKS)
+    assert w.ring_views() == {1: (1, 2), 2: (1, 2)}
+
+
+def test_the_lower_id_goes_first_after_a_turn_closes_on_garbage():
+    """Rule R-stagger: both believed the turn was theirs; R1 (lower ID) raises TXEN one Tslot
+    after the channel fell quiet, R2 would have waited two: it hears R1's Header first."""
+    w, evs, burst_end = two_bursts_over_a_handover()
+    first = [f for f in _frames(evs, burst_end)][0]
+    assert first["src"] == 1 and not first["collided"]
+
+
+# -- finding 2: a forged frame from a team robot that was never a member --------------------
+
+def test_a_forged_frame_from_a_never_member_is_refused_and_not_acted_on():
+    probe_evs: list[dict] = []
+    cfg = dict(robots=(1, 2, 3, 4), can=True, power_on={4: 60.0})   # R4 never powers on
+    probe = World(SimConfig(duration=5.0, **cfg), on_event=probe_evs.append)
+    probe.run()
+    e2 = [e for e in probe_evs if e["ev"] == "frame" and e["src"] == 2][-1]["end"]
+    evs: list[dict] = []
+    w = World(SimConfig(duration=9.0, **cfg), on_event=evs.append)
+    w.inject("fail", 2, e2 + 1)                       # R2's radio dies after its turn
+    w.run(e2 + s_to_ticks(0.1))                       # R3 and R1 take their turns
+    e1 = [e for e in evs if e["ev"] == "frame" and e["src"] == 1][-1]["end"]
+    joints_before = [e for e in evs if e["ev"] == "can" and e["bus"] == 3 and
+                     0x101 <= e["id"] <= 0x104]
+    forged = Frame(dst=3, src=4, num=42, type=2, content=b"joint(1,80)").encode()
+    w.inject_bytes(forged, e1 + s_to_ticks(0.1))      # in R2's silent slot
+    w.run()
+    assert not [e for e in evs if e["ev"] in ("join", "rejoin") and e["robot"] == 4]
+    assert not [e for e in evs if e["ev"] == "deliver" and e["src"] == 4]
+    refused = [e for e in evs if e["ev"] == "refused" and e["src"] == 4]
+    assert {e["to"] for e in refused} == {1, 3}
+    assert all("not a member" in e["reason"] for e in refused)
+    joints_after = [e for e in evs if e["ev"] == "can" and e["bus"] == 3 and
+                    0x101 <= e["id"] <= 0x104]
+    assert joints_after == joints_before               # R3's arm never moved
+    assert all(4 not in v for v in w.ring_views().values())
+
+
+# -- finding 3: the largest legal frame between every pair, father included -----------------
+
+def content_of(size):
+    """Commands whose Content is exactly ``size`` bytes (size >= 16)."""
+    out, left = [], size
+    while left >= 32:
+        out.append(cmd("movex", 123456789))        # 16 bytes
+        left -= 16
+    a = left // 2                                  # two commands of 8-16 bytes each
+    for n in (a, left - a):
+        out.append(cmd("movex", int("1" * (n - 7))))
+    assert sum(len(c.text()) for c in out) == size
+    return out
+
+
+def test_every_station_receives_the_largest_frame_any_station_may_send():
+    assert protocol_max_content() == 562
+    w = World(SimConfig(robots=(0, 1, 2), duration=8.0))
+    w.run(s_to_ticks(4.5))
+    msgs = [w.submit(1, 0, content_of(562)),       # a child's largest, to the father
+            w.submit(2, 1, content_of(562)),       # ... to another child
+            w.submit(0, 2, content_of(561))]       # the father's own limit: 561
+    w.run()
+    assert [m.state for m in msgs] == ["delivered"] * 3, [m.reason for m in msgs]
+
+
+def test_a_station_never_sends_more_than_the_protocol_bound():
+    fast = RotationalMac(1, MacConfig(byte_ticks=16_000))     # a clock running 4 % fast
+    assert fast.max_content == protocol_max_content()
+    assert RotationalMac(0, MacConfig(byte_ticks=PC_BYTE_TICKS)).max_content == 561
+
+
+# -- finding 4: a Header that has begun by E + Tmax is not a miss ----------------------------
+
+def header_near_the_deadline(offset_ticks):
+    """R2 dies after its turn; R3's slot then opens at R2's End E. A frame from R3 is put on
+    air so that its first start bit begins at E + Tmax - ``offset_ticks`` (R3 itself is
+    silent: this is R3's frame arriving late)."""
+    probe_evs: list[dict] = []
+    probe = World(SimConfig(robots=(1, 2, 3), duration=5.0), on_event=probe_evs.append)
+    probe.run()
+    e3 = [e for e in probe_evs if e["ev"] == "frame" and e["src"] == 3][-1]["end"]
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2, 3), duration=8.0), on_event=evs.append)
+    w.inject("fail", 3, e3 + 1)
+    w.run(e3 + s_to_ticks(0.05))
+    e2 = [e for e in evs if e["ev"] == "frame" and e["src"] == 2][-1]["end"]
+    late = Frame(dst=7, src=3, num=0, type=3, content=b"").encode()
+    t = e2 + TMAX_TICKS - offset_ticks
+    w.inject_bytes(late, t)
+    w.run(t + s_to_ticks(0.5))
+    return evs, e2, t
+
+
+def test_a_header_beginning_one_byte_before_e_plus_tmax_is_not_a_miss():
+    evs, e2, t = header_near_the_deadline(B)
+    assert not [e for e in evs if e["ev"] == "miss" and e["robot"] == 3 and e["t"] > e2]
+    assert not [e for e in evs if e["ev"] == "collision" and e["t"] >= t]
+    nxt = [f for f in _frames(evs, t) if f["src"] == 1]
+    assert nxt and nxt[0]["start"] == t + 14 * B + TTRANS_TICKS   # R1's turn after R3's frame
+
+
+def test_a_header_beginning_half_a_byte_before_e_plus_tmax_is_not_a_miss():
+    evs, e2, t = header_near_the_deadline(B // 2)
+    assert not [e for e in evs if e["ev"] == "miss" and e["robot"] == 3 and e["t"] > e2]
+    assert not [e for e in evs if e["ev"] == "collision" and e["t"] >= t]
+
+
+def test_a_header_beginning_after_e_plus_tmax_is_a_miss_and_the_takeover_is_on_time():
+    evs, e2, t = header_near_the_deadline(-1)
+    misses = [e for e in evs if e["ev"] == "miss" and e["robot"] == 3 and e["t"] > e2]
+    assert {e["t"] for e in misses} == {e2 + TMAX_TICKS}
+    nxt = [f for f in _frames(evs, e2 + 1) if f["src"] == 1]
+    assert nxt[0]["start"] == e2 + TMAX_TICKS + TTRANS_TICKS
+
+
+# -- finding 5: a rebooted robot whose BOOT frame is lost -----------------------------------
+
+def test_a_lost_boot_frame_does_not_make_the_first_message_a_duplicate():
+    """R3 sends R1 a message, then reboots (its Numbers restart). R1 loses R3's first BOOT
+    frame. R3's first message after the reboot carries the Number R1 remembers: it must still
+    be delivered, never acknowledged as a duplicate."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2, 3), duration=30.0), on_event=evs.append)
+    w.run(s_to_ticks(5.0))
+    before = w.submit(3, 1, [cmd("movex", 10)])
+    w.run(s_to_ticks(6.0))
+    assert before.state == "delivered"
+    r1 = w.stations[1].mac
+    lost = {"boot": 0}
+    real_on_frame = r1.on_frame
+
+    def lossy(frame, first, end, now):
+        if frame.src == 3 and frame.type == FrameType.BOOT and not lost["boot"]:
+            lost["boot"] += 1
+            return r1.on_corrupt(first, 3, end, now)    # R1 heard it garbled
+        return real_on_frame(frame, first, end, now)
+
+    r1.on_frame = lossy
+    st3 = w.stations[3]
+    st3.mac = RotationalMac(3, st3.mac.cfg)            # R3 restarts: a new firmware state
+    st3.deframer.reset()
+    st3.power_on()
+    w.run(s_to_ticks(16.0))                            # dropped, invited back, BOOT lost once
+    assert lost["boot"] == 1
+    after = w.submit(3, 1, [cmd("movex", 20)])
+    assert after.num == before.num                     # the Number R1 remembers
+    w.run()
+    assert after.state == "delivered"
+    got = [e for e in evs if e["ev"] == "deliver" and e["src"] == 3 and e["to"] == 1]
+    assert len(got) == 2
+    assert not [e for e in evs if e["ev"] == "duplicate" and e["src"] == 3 and
+                e["t"] > s_to_ticks(6.0)]
+
+
+def test_a_boot_frame_is_repeated_until_every_member_acknowledges_it():
+    mac = RotationalMac(2)
+    mac.power_on(0)
+    out = mac.on_frame(Frame(dst=7, src=1, num=5, type=3,
+                             content=b"poll(2,2)"), 0, 1000, 1000)     # invited by R1
+    assert mac.ring == (1, 2)
+    assert any(type(a).__name__ == "TxEnable" for a in out)
+    sent = mac.on_timer(mac.deadline)                  # Ttrans later: the answer goes out
+    frames = [a.frame for a in sent if type(a).__name__ == "Transmit"]
+    assert frames[0].type == FrameType.BOOT and frames[0].num == 0
+    mac.on_tx_done(mac.deadline or 2_000_000)
+    mac.submit(1, [cmd("movex", 1)], 2_000_000)
+    # R1's next frame does not acknowledge the BOOT: R2's next frame is BOOT again, no message
+    t = 3_000_000
+    mac.on_frame(Frame(dst=7, src=1, num=5, type=3, content=b""), t, t + 1000, t + 1000)
+    sent = mac.on_timer(mac.deadline)
+    frames = [a.frame for a in sent if type(a).__name__ == "Transmit"]
+    assert frames[0].type == FrameType.BOOT and not frames[0].content
+    mac.on_tx_done(mac.deadline or t + 2_000_000)
+    # R1 acknowledges it: the message goes out with Number '01'
+    t += 4_000_000
+    mac.on_frame(Frame(dst=7, src=1, num=5, type=3, content=b"ack(2,0)"), t, t + 1000,
+                 t + 1000)
+    sent = mac.on_timer(mac.deadline)
+    frames = [a.frame for a in sent if type(a).__name__ == "Transmit"]
+    assert frames[0].type == FrameType.INSTRUCTION and frames[0].num == 1
+
+
+# -- finding 7: what a heartbeat is ----------------------------------------------------------
+
+def test_heartbeats_are_empty_and_mac_commands_ride_on_control_frames():
+    """docs/protocol.md: a heartbeat is a Type '3' frame to '7' with empty Content; a frame
+    that carries only MAC commands (ack, poll, crc) is a control frame. The trace says which."""
+    for checksum in (False, True):
+        evs: list[dict] = []
+        w = World(SimConfig(robots=(1, 2, 3), duration=12.0, load=1.0, seed=4,
+                            mac=MacConfig(checksum=checksum)), on_event=evs.append)
+        w.run()
+        kinds = {}
+        for f in _frames(evs):
+            kinds.setdefault(f["kind"], []).append(f)
+            if f["kind"] == "heartbeat":
+                assert f["type"] == 3 and f["dst"] == 7 and f["len"] == 0
+            elif f["kind"] == "control":
+                assert f["type"] == 3 and f["dst"] == 7 and f["len"] > 0
+        if checksum:
+            assert "heartbeat" not in kinds          # every frame carries crc(): control
+        else:
+            assert kinds["heartbeat"] and kinds["control"]
+        assert kinds["message"]
+
+
+def test_the_duplicate_rule_uses_the_last_message_number_heard_from_the_source():
+    """A receiver compares a message's Number with the last message frame heard from its
+    source, whoever it was for: a new message never repeats it (stop-and-wait), so Numbers
+    wrapping past a receiver that got no message for a while cannot fake a duplicate."""
+    r1 = RotationalMac(1)
+    r1.mode, r1.ring, r1.phase = "member", (1, 2, 3), "wait"
+    r1.owner, r1.turn_start, r1.deadline = 3, 0, TMAX_TICKS
+
+    def hear(dst, num, t):
+        r1.owner, r1.phase = 3, "wait"
+        return r1.on_frame(Frame(dst=dst, src=3, num=num, type=2, content=b"movex(1)"),
+                           t, t + 100, t + 100)
+    assert any(type(a) is Deliver for a in hear(1, 7, 1000))
+    for n in range(8, 107):                         # 99 messages for R2, Numbers wrap to 06
+        hear(2, n % 100, 1000 + n)
+    out = hear(1, 7, 5000)                          # a new message for R1 with Number 07
+    assert any(type(a) is Deliver for a in out) and not any(type(a) is Duplicate for a in out)
