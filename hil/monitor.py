@@ -31,8 +31,16 @@ frames per robot with their Content, the inferred ring (robots heard in the last
 good or failed) and inferred missed turns (a gap of about Tmax or more between two frames is
 charged to the ring members the turn skipped). Kill/revive/steal/noise keys do nothing there.
 
-Both refresh at ``rate`` Hz (10 by default). ``advance(seconds)`` on the simulator app runs the
-world synchronously by that much simulated time and refreshes (the tests use it).
+Both refresh at ``rate`` Hz (10 by default): a textual interval timer calls :meth:`MonitorApp.tick`
+(step the source, then redraw). The timer belongs to the app's screen (:class:`MonitorView`), the
+node that holds every widget it draws into, so its lifetime is the view's: textual stops a node's
+timers when it starts removing the node, before it removes any child, hence no refresh can run
+while the widgets are being taken down (a timer on the app itself kept ticking until after they
+were gone). The widgets are looked up once, at mount, not on every refresh; once the view is gone
+a direct ``refresh_view()`` only keeps the model. Wall time is read through ``app.clock``
+(``time.monotonic``), so a test can pause ``app.refresh_timer``, replace the clock and drive
+``tick()`` itself. ``advance(seconds)`` on the simulator app runs the world synchronously by that
+much simulated time and refreshes (the tests use it).
 """
 from __future__ import annotations
 
@@ -45,6 +53,8 @@ from rich.text import Text
 from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Grid
+from textual.screen import Screen
+from textual.timer import Timer
 from textual.widgets import Footer, Static
 
 from firmware_model.radio.content import format_content
@@ -104,6 +114,18 @@ class Received:
 # The common TUI
 
 
+class MonitorView(Screen):
+    """The monitor's (default) screen: :meth:`MonitorApp.compose`'s widgets live on it and so does
+    the refresh timer. Textual removes a screen by first closing the screen itself (which stops
+    its timers) and only then its children, so a refresh never races with the widgets being
+    unmounted. When the screen is unmounted the app stops drawing."""
+
+    def on_unmount(self) -> None:
+        app = self.app
+        if isinstance(app, MonitorApp):
+            app._view_gone()
+
+
 class MonitorApp(App):
     """Header, one pane per robot, recent events, a hint line and the key footer."""
 
@@ -133,9 +155,17 @@ class MonitorApp(App):
         self.hint = ""
         self._hint_until = 0.0
         self._texts: dict[str, str] = {}
-        self._view_ready = False
+        self._widgets: dict[str, Static] = {}
+        """'#header', '#robot-N', '#events', '#hint' -> the widget, while the view is mounted."""
+        self.clock = time.monotonic
+        """The wall clock the app paces by and expires hints with (tests may replace it)."""
+        self.refresh_timer: Timer | None = None
+        """The textual timer calling :meth:`tick` at ``rate`` Hz (owned by the view)."""
 
     # -- layout ----------------------------------------------------------------------------
+
+    def get_default_screen(self) -> Screen:
+        return MonitorView(id="_default")
 
     def compose(self) -> ComposeResult:
         yield Static(id="header")
@@ -149,17 +179,32 @@ class MonitorApp(App):
         yield Footer()
 
     def on_mount(self) -> None:
+        view = self.default_screen
         n = len(self.robots)
         cols = n if n <= 4 else (n + 1) // 2
-        grid = self.query_one("#panes", Grid)
+        grid = view.query_one("#panes", Grid)
         grid.styles.grid_size_columns = max(1, cols)
         grid.styles.grid_size_rows = 1 if n <= 4 else 2
-        self.query_one("#events", Static).border_title = "events"
-        self._view_ready = True
+        self._widgets = {sel: view.query_one(sel, Static) for sel in
+                         ("#header", *(f"#robot-{r}" for r in self.robots), "#events", "#hint")}
+        self._widgets["#events"].border_title = "events"
+        self._texts.clear()            # nothing drawn into these widgets yet
         self.refresh_view()
-        self.set_interval(1 / self.rate, self._on_timer)
+        # On the view, not on the app: textual stops it before it removes any of the widgets.
+        self.refresh_timer = view.set_interval(1 / self.rate, self.tick, name="monitor refresh")
 
-    def _on_timer(self) -> None:
+    def _view_gone(self) -> None:
+        """The view is unmounted (its timer already stopped): draw nothing from now on."""
+        self._widgets = {}
+        self.refresh_timer = None
+
+    @property
+    def view_ready(self) -> bool:
+        """Whether the widgets are mounted (the refresh draws into them)."""
+        return bool(self._widgets)
+
+    def tick(self) -> None:
+        """One refresh period: what the timer calls (tests may call it themselves)."""
         self.step()
         self.refresh_view()
 
@@ -186,15 +231,15 @@ class MonitorApp(App):
     def flash(self, text: str, seconds: float = 3.0) -> None:
         """Show ``text`` in the hint line for a while."""
         self.hint = text
-        self._hint_until = time.monotonic() + seconds
+        self._hint_until = self.clock() + seconds
         self._set("#hint", Text(text))
 
     def refresh_view(self) -> None:
-        if not self._view_ready:
+        if not self._widgets:
             return
         self._set("#header", self.header_text())
         for r in self.robots:
-            pane = self.query_one(f"#robot-{r}", Static)
+            pane = self._widgets[f"#robot-{r}"]
             size = pane.content_size
             w = size.width if size.width > 0 else 40
             h = size.height if size.height > 0 else 12
@@ -202,20 +247,23 @@ class MonitorApp(App):
             self._set(f"#robot-{r}", text)
             for cls in ("dead", "listen", "silent"):
                 pane.set_class(cls == state, cls)
-        ev = self.query_one("#events", Static)
+        ev = self._widgets["#events"]
         h = ev.content_size.height or 3
         w = ev.content_size.width or 80
         self._set("#events", Text("\n".join(_cut(e, w) for e in list(self.events)[-h:])))
-        if self.hint and time.monotonic() > self._hint_until:
+        if self.hint and self.clock() > self._hint_until:
             self.hint = ""
         self._set("#hint", Text(self.hint or self.default_hint()))
 
     def _set(self, selector: str, text: Text) -> None:
+        widget = self._widgets.get(selector)
+        if widget is None:               # not mounted yet, or gone: nothing to draw into
+            return
         plain = text.plain
         if self._texts.get(selector) == plain:
             return
         self._texts[selector] = plain
-        self.query_one(selector, Static).update(text)
+        widget.update(text)
 
     def shown(self, selector: str) -> str:
         """The plain text last put in a widget ('#header', '#robot-N', '#events', '#hint')."""
@@ -259,13 +307,13 @@ class SimMonitorApp(MonitorApp):
                                                      for r in self.robots}
         self.last_sender: int | None = None
         self._seen: set[tuple] = set()
-        self._wall = time.monotonic()
+        self._wall = self.clock()
         self._rate_log: deque[tuple[float, int]] = deque(maxlen=int(rate * 2) + 1)
         for st in self.world.stations.values():
             st.observer = self._chain(st.observer)
 
     def on_mount(self) -> None:
-        self._wall = time.monotonic()        # wall time before the first refresh is not owed
+        self._wall = self.clock()            # wall time before the first refresh is not owed
         super().on_mount()
 
     # -- the world's side ------------------------------------------------------------------
@@ -331,7 +379,8 @@ class SimMonitorApp(MonitorApp):
         self.refresh_view()
 
     def step(self) -> None:
-        now = time.monotonic()
+        clock = self.clock
+        now = clock()
         dt, self._wall = now - self._wall, now
         w = self.world
         if self.paused or self.finished:
@@ -339,10 +388,10 @@ class SimMonitorApp(MonitorApp):
             return
         target = min(w.end_tick, w.now + int(min(dt, 1.0) * self.speed * TICK_HZ))
         deadline = now + BUDGET_S
-        while w.now < target and time.monotonic() < deadline:
+        while w.now < target and clock() < deadline:
             w.run(min(target, w.now + CHUNK_TICKS))
         # Time the simulator could not keep up with is dropped, not owed.
-        self._rate_log.append((time.monotonic(), w.now))
+        self._rate_log.append((clock(), w.now))
 
     def actual_speed(self) -> float | None:
         log = self._rate_log

@@ -1,7 +1,9 @@
 """``rprs monitor`` (hil/monitor.py), headless with textual's pilot.
 
 The simulator app starts paused and the tests advance its world with ``advance(seconds)``, so
-what they check does not depend on how fast the machine is; one test runs the timer for real.
+what they check does not depend on how fast the machine is. Where the refresh timer matters the
+test waits for a real tick (an event, not a sleep), then pauses ``app.refresh_timer``, gives the
+app a :class:`FakeClock` and calls ``tick()`` itself, so the wall time between ticks is exact.
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from firmware_model.timing import TICK_HZ, TMAX_TICKS  # noqa: E402
 from hil.bench import HeardFrame  # noqa: E402
 from hil.monitor import RadioMonitorApp, SimMonitorApp  # noqa: E402
 from hil.world import SimConfig  # noqa: E402
+from textual.widgets import Static  # noqa: E402
 
 SIZE = (140, 40)
 
@@ -29,6 +32,19 @@ def run(coro):
 
 def sim(robots=(1, 2, 3, 4), **kw) -> SimMonitorApp:
     return SimMonitorApp(SimConfig(robots=robots, duration=600.0, **kw), paused=True)
+
+
+class FakeClock:
+    """A wall clock (for ``app.clock``) that moves only when the test moves it."""
+
+    def __init__(self, t: float = 0.0) -> None:
+        self.t = t
+
+    def __call__(self) -> float:
+        return self.t
+
+    def advance(self, dt: float) -> None:
+        self.t += dt
 
 
 def test_a_pane_per_robot_and_the_ring_after_advancing():
@@ -125,19 +141,35 @@ def test_noise_toggle_and_steal():
 
 
 def test_timer_pause_speed_and_quit(tmp_path):
-    app = SimMonitorApp(SimConfig(robots=(1, 2, 3), duration=600.0), speed=8.0)
+    ticked = asyncio.Event()
+
+    class Ticks(SimMonitorApp):
+        def tick(self) -> None:
+            super().tick()
+            ticked.set()
+
+    app = Ticks(SimConfig(robots=(1, 2, 3), duration=600.0), speed=8.0)
+    clock = app.clock = FakeClock(100.0)
 
     async def go():
         async with app.run_test(size=SIZE) as pilot:
-            t0 = time.monotonic()
-            await pilot.pause(0.5)
-            wall = time.monotonic() - t0
+            await asyncio.wait_for(ticked.wait(), 10.0)   # the view's timer calls tick()
+            assert app.world.now == 0                     # no wall time passed: none owed
+            app.refresh_timer.pause()                     # from here the test ticks
+            t0 = clock()
+            for _ in range(4):
+                clock.advance(0.125)
+                app.tick()
+            wall = clock() - t0
             assert 0.3 * 8 * wall * TICK_HZ < app.world.now <= 8 * (wall + 1.0) * TICK_HZ
+            assert app.world.now == 4 * TICK_HZ           # ×8 of 0.5 s, nothing dropped
             await pilot.press("space")
             assert app.paused
-            await pilot.pause(0.15)
+            clock.advance(0.15)
+            app.tick()
             t2 = app.world.now
-            await pilot.pause(0.25)
+            clock.advance(0.25)
+            app.tick()
             assert app.world.now == t2 and "PAUSED" in app.shown("#header")
             await pilot.press("plus")
             assert app.speed == 16.0 and "×16" in app.shown("#header")
@@ -176,14 +208,15 @@ def test_radio_monitor_on_the_hub_shows_the_robot():
         try:
             async def go():
                 async with app.run_test(size=SIZE) as pilot:
-                    await pilot.pause(0.1)
+                    app.refresh_timer.pause()     # the test drains and redraws: tick()
                     for n in (7, 8):
                         os.write(fd, Frame(dst=7, src=2, num=n, type=3,
                                            content=b"movex(10)").encode())
                     end = time.monotonic() + 5.0
+                    app.tick()
                     while app.count[2] < 2 and time.monotonic() < end:
-                        await pilot.pause(0.05)
-                    await pilot.pause(0.15)
+                        await asyncio.sleep(0.005)   # real I/O: the sniffer thread reads
+                        app.tick()
                     assert app.count[2] == 2
                     pane = app.shown("#robot-2")
                     assert pane.startswith("in ring") and "frames 2" in pane
@@ -223,3 +256,64 @@ def test_radio_monitor_infers_missed_turns():
     t += TMAX_TICKS                                      # robot 1 misses its turn
     app.feed(HeardFrame(2, 7, 1, 3, 14, t, t + 14 * bt), b"")
     assert app.missed == {0: 0, 1: 1, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0}
+
+
+def test_no_refresh_while_the_view_is_taken_down():
+    """Regression (NoMatches '#robot-N' in about one run in five): the refresh timer belonged to
+    the app, which textual closes only after it has removed the screen's widgets, so a tick due
+    in that window looked the panes up after they were gone. A widget that holds the teardown
+    open until a refresh comes (or 25 refresh periods pass) makes the window wide: no refresh may
+    run once the widgets start going, and the app must close without an error."""
+    rate = 50.0
+    state = {"down": False, "late": 0}
+    refreshed = asyncio.Event()
+
+    class HoldOpen(Static):
+        async def on_unmount(self) -> None:
+            state["down"] = True
+            try:
+                await asyncio.wait_for(refreshed.wait(), 25 / rate)
+            except asyncio.TimeoutError:
+                pass
+
+    class Probe(SimMonitorApp):
+        def compose(self):
+            yield from super().compose()
+            yield HoldOpen()
+
+        def refresh_view(self) -> None:
+            if state["down"]:
+                state["late"] += 1
+                refreshed.set()
+            super().refresh_view()
+
+    app = Probe(SimConfig(robots=(1, 2, 3, 4), duration=600.0), paused=True, rate=rate)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            app.advance(1.0)
+            await pilot.pause()
+            assert app.shown("#robot-1").startswith(("member", "listen"))
+    run(go())                                  # raised NoMatches here before the fix
+    assert state["down"] and state["late"] == 0
+
+
+def test_after_exit_the_world_runs_and_nothing_is_drawn():
+    """Once the view is gone its timer is gone too, and a direct advance()/tick() only runs the
+    model (nothing is looked up or drawn, nothing raises)."""
+    app = sim(robots=(1, 2))
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            assert app.view_ready and app.refresh_timer is not None
+            app.advance(1.0)
+            await pilot.press("q")
+            await pilot.pause()
+    run(go())
+    assert app.return_code == 0
+    assert not app.view_ready and app.refresh_timer is None
+    head = app.shown("#header")
+    assert "t = 1.000 s" in head
+    app.advance(1.0)
+    app.tick()
+    assert app.world.now == 2 * TICK_HZ and app.shown("#header") == head
