@@ -131,6 +131,8 @@ class RadioStation:
                     self.frames_failed += 1
                     self._apply(self.mac.on_corrupt(ev.first, ev.src, ev.expected_end, now), ev)
         hs = d.header_since
+        if hs is not None and (d.last_tick is None or now - d.last_tick > self._stall):
+            hs = None          # a partial Header whose next byte never came is no Header
         began = hs - self.uart.byte_ticks if hs is not None else self.uart.rx_started(now)
         self._apply(self.mac.on_timer(now, busy, d.last_tick, began))
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import random
 
+import pytest
+
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import Frame, FrameType
 from firmware_model.radio.mac import Deliver, Duplicate, MacConfig, RotationalMac
@@ -280,3 +282,37 @@ def test_the_duplicate_rule_uses_the_last_message_number_heard_from_the_source()
         hear(2, n % 100, 1000 + n)
     out = hear(1, 7, 5000)                          # a new message for R1 with Number 07
     assert any(type(a) is Deliver for a in out) and not any(type(a) is Duplicate for a in out)
+
+
+# -- a robot that dies while it transmits: a partial Header is no Header --------------------
+
+def _death_mid_frame(k_bytes):
+    """R1's radio dies ``k_bytes`` byte times after its frame began (its Header bytes, if
+    any, are all the others ever hear of it). Returns the events and the kill tick."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2, 3, 4), duration=9.0), on_event=evs.append)
+    start = _run_until_txen(w, evs, 1, s_to_ticks(4.0)) + TTRANS_TICKS
+    kill = start + k_bytes * CHILD_BYTE_TICKS + CHILD_BYTE_TICKS // 2
+    w.inject("fail", 1, kill)
+    w.run()
+    return w, evs, kill
+
+
+@pytest.mark.parametrize("k_bytes", [0, 1, 2, 3, 5, 13])
+def test_a_robot_dying_mid_frame_is_dropped_and_the_ring_goes_on(k_bytes):
+    """Before: a dead robot's one or two Header bytes held the others' miss rule ("a Header
+    had begun") for ever; the ring stalled with every member in WAIT."""
+    w, evs, kill = _death_mid_frame(k_bytes)
+    drops = {e["by"]: e["t"] - kill for e in evs
+             if e["ev"] == "disable" and e["robot"] == 1 and e["t"] > kill}
+    assert set(drops) == {2, 3, 4}, drops               # every survivor dropped R1
+    # docs/guarantees.md: 3 x ((n-1) idle turns + Tmax) + one turn; a frame whose Header was
+    # complete is a failed frame, not a miss (paper §IV.C), so that turn counts once more.
+    idle_turn = 14 * CHILD_BYTE_TICKS + TTRANS_TICKS
+    cycle = 3 * idle_turn + TMAX_TICKS + TTRANS_TICKS
+    misses_to_wait = 3 if k_bytes < 3 else 4
+    assert max(drops.values()) <= misses_to_wait * cycle + idle_turn, drops
+    assert max(drops.values()) > (misses_to_wait - 1) * cycle, drops
+    later = {f["src"] for f in _frames(evs, kill + s_to_ticks(2.5)) if not f["collided"]}
+    assert later == {2, 3, 4}
+    assert {r: v for r, v in w.ring_views().items() if r != 1} == {r: (2, 3, 4) for r in (2, 3, 4)}
