@@ -2,8 +2,10 @@
 
 What a receiver hears (PROTOCOL.md §1):
 * a transmission reaches every radio that is listening when its first bit goes out, each byte
-  at the tick its stop bit ends at the sender's rate (a radio that starts listening in the
-  middle of a transmission hears nothing of it);
+  at the tick its stop bit ends at the sender's rate; a radio that starts listening in the
+  middle of a transmission (its TXEN fell, or it revived) hears the rest of it from the first
+  byte whose start bit comes after it listens (its UART cannot frame a byte it joined midway),
+  and the garbage of a collision still on air;
 * when two transmissions overlap, every listening radio hears garbage (random bytes at its own
   UART rate) from the start of the overlap until the channel is clear; bytes completed before
   the overlap are heard intact; the transmitters themselves are deaf and notice nothing;
@@ -285,6 +287,31 @@ class Air:
     def rx_restart(self, radio: Ptr2000, when: int) -> None:
         """``radio`` hears the air again from tick ``when`` (TXEN lowered)."""
         self._idle_from(radio, when)
+        self.sched.at(when, self._join, radio, when)
+
+    def _join(self, r: Ptr2000, when: int) -> None:
+        """``r`` starts listening at ``when``, perhaps in the middle of a transmission: it
+        hears the rest of it (a transmission that starts at ``when`` reaches it anyway)."""
+        if r.rx is not None or not r.listening(when):
+            return
+        if when < self.collision_until:
+            bt = r.uart.byte_ticks
+            n = (self.collision_until - when) // bt
+            if n > 0:
+                self._noise_upto(r, when)
+                self._noise_gen[r.idx] += 1
+                r.rx = Reception(None, when, bt, n, None, self._garbage[r.idx])
+                self._bytewise(r, r.rx, 0, n - 1)
+            return
+        for tx in self.active:
+            if tx.collided or tx.aborted or tx.radio is r or not tx.t0 < when < tx.end:
+                continue
+            k = -(-(when - tx.t0) // tx.bt)      # the first byte whose start bit is heard
+            if k < tx.n:
+                self._noise_upto(r, when)
+                self._noise_gen[r.idx] += 1
+                r.rx = self._reception(r, tx, k, bytewise=True)
+            return
 
     def kill(self, radio: Ptr2000, now: int) -> None:
         """Fault injection: the radio goes silent (mid-frame too) and deaf."""
@@ -296,13 +323,17 @@ class Air:
 
     def revive(self, radio: Ptr2000, now: int) -> None:
         radio.alive = True
-        self._idle_from(radio, now if radio.rx_from == NEVER else max(now, radio.rx_from))
+        when = now if radio.rx_from == NEVER else max(now, radio.rx_from)
+        self._idle_from(radio, when)
+        self.sched.at(when, self._join, radio, when)
 
     # -- receptions -----------------------------------------------------------------------
 
-    def _reception(self, r: Ptr2000, tx: Transmission) -> Reception:
-        data = tx.data
-        n = tx.n
+    def _reception(self, r: Ptr2000, tx: Transmission, k: int = 0,
+                   bytewise: bool = False) -> Reception:
+        """What ``r`` hears of ``tx`` from its byte ``k`` on."""
+        data = tx.data[k:] if k else tx.data
+        n = tx.n - k
         first_bad = n
         if self.ber > 0.0:
             rng = self._err_rng[r.idx]
@@ -330,8 +361,8 @@ class Air:
             # the receiver's UART samples at the wrong rate: framing errors, every byte
             data = self._garbage[r.idx].take(n)
             first_bad = 0
-        rx = Reception(data, tx.t0, tx.bt, n, tx, holes=holes)
-        self._bytewise(r, rx, 0 if self.byte_by_byte else first_bad, n - 1)
+        rx = Reception(data, tx.t0 + k * tx.bt, tx.bt, n, tx, holes=holes)
+        self._bytewise(r, rx, 0 if self.byte_by_byte or bytewise else first_bad, n - 1)
         return rx
 
     def _bytewise(self, r: Ptr2000, rx: Reception, lo: int, hi: int) -> None:

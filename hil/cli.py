@@ -530,11 +530,15 @@ def _mac_options(p: argparse.ArgumentParser) -> None:
                    "its ring sooner (claim after |team| x Tmax)")
     p.add_argument("--checksum", action="store_true",
                    help="the opt-in crc() integrity extension (every robot must agree)")
+    p.add_argument("--idle-noise", action="store_true",
+                   help="the radio outputs noise without a carrier (a bare PTR2000, or "
+                   "'rprs radio-hub --noise'): the channel never falls quiet, so do not wait "
+                   "for quiet after an uncertain turn (docs/mac.md, R-stagger)")
 
 
 def _mac_config(a: argparse.Namespace):
     from firmware_model.radio.mac import MacConfig
-    kw = {"checksum": a.checksum}
+    kw = {"checksum": a.checksum, "quiet_channel": not a.idle_noise}
     if a.team:
         kw["team"] = frozenset(a.team)
     return MacConfig(**kw)

@@ -196,6 +196,8 @@ class World:
         self.air.on_collision = self._on_collision
         base = config.mac or MacConfig()
         base = replace(base, team=frozenset(config.robots))
+        if config.noise:     # a radio that outputs noise without a carrier is never quiet
+            base = replace(base, quiet_channel=False)
         self.mac_config = base
         self.stations: dict[int, RadioStation] = {}
         self.children: dict[int, ChildFirmware] = {}

@@ -161,20 +161,37 @@ def test_stations_from_build_station_share_the_air():
     assert pc_radio.uart.byte_ticks == PC_BYTE_TICKS
 
 
-def test_radio_transmitting_or_switching_hears_nothing():
+def test_radio_transmitting_hears_nothing_and_a_late_listener_hears_the_rest():
     net = Net(4)
     # radio 1 raised TXEN long ago and keeps it high: deaf
     net.s.at(0, net.pins[1].set, True, 0)
-    # radio 2 drops TXEN so it hears again 1 tick after the frame starts: deaf to all of it
+    # radio 2 drops TXEN so it hears again 1 tick after the frame starts: it missed byte 0's
+    # start bit, so its UART frames the bytes from byte 1 on
     net.s.at(0, net.pins[2].set, True, 0)
     net.s.at(T0 - TT + 1, net.pins[2].set, False, T0 - TT + 1)
-    # radio 3 drops TXEN so it hears again exactly when the frame starts: hears it
+    # radio 3 drops TXEN so it hears again exactly when the frame starts: hears it all
     net.s.at(0, net.pins[3].set, True, 0)
     net.s.at(T0 - TT, net.pins[3].set, False, T0 - TT)
     net.send(0, MSG, T0)
     net.run(T0 + len(MSG) * BT + TT)
-    assert net.logs[1] == [] and net.logs[2] == []
+    assert net.logs[1] == []
+    assert net.logs[2] == expect(MSG[1:], T0 + BT)
     assert net.logs[3] == expect(MSG, T0)
+
+
+@pytest.mark.parametrize("bbb", MODES)
+def test_a_radio_listening_mid_collision_hears_its_garbage_until_the_channel_clears(bbb):
+    net = Net(4, byte_by_byte=bbb)
+    net.send(0, MSG, T0)
+    net.send(1, MSG, T0 + 3 * BT)                      # collides from T0 + 3 BT
+    late = T0 + 10 * BT + 5
+    net.s.at(0, net.pins[2].set, True, 0)
+    net.s.at(late - TT, net.pins[2].set, False, late - TT)
+    net.run(T0 + 3 * BT + len(MSG) * BT + TT)
+    clear = T0 + 3 * BT + len(MSG) * BT
+    assert net.logs[2], "the late listener heard nothing of the collision"
+    assert all(late < t <= clear for t, _ in net.logs[2])
+    assert len(net.logs[2]) == (clear - late) // BT
 
 
 @pytest.mark.parametrize("bbb", MODES)
@@ -183,10 +200,11 @@ def test_receiver_raising_txen_mid_frame_keeps_only_completed_bytes(bbb):
     net.send(0, MSG, T0)
     cut = T0 + 5 * BT + 7
     net.s.at(cut, net.pins[2].set, True, cut)
-    # drop it again soon: it must not pick the rest of the frame up mid-way
+    # drop it again soon: it hears again Ttrans later, from the next whole byte on
     net.s.at(cut + 1000, net.pins[2].set, False, cut + 1000)
     net.run(T0 + len(MSG) * BT + 3 * TT)
-    assert net.logs[2] == expect(MSG[:5], T0)
+    back = -(-(cut + 1000 + TT - T0) // BT)
+    assert net.logs[2] == expect(MSG[:5], T0) + expect(MSG[back:], T0 + back * BT)
     assert net.logs[1] == expect(MSG, T0)
 
 
@@ -528,8 +546,8 @@ def test_byte_by_byte_gives_same_trace_as_batch(plan, ber, noise, seed, kill):
        bbb=st.booleans())
 def test_clean_schedules_match_reference(seq, bbb):
     """Transmissions that never overlap (each sender raising TXEN Ttrans before its frame, maybe
-    while another frame is on air): every receiver hears exactly the frames it was listening
-    to at their first bit, cut at the tick it raises its own TXEN."""
+    while another frame is on air): every receiver hears each frame from the first byte whose
+    start bit comes once it listens, cut at the tick it raises its own TXEN."""
     txs = []
     t = 0
     free = [TT, TT, TT]                            # earliest t0 per sender (TXEN low by then)
@@ -552,11 +570,13 @@ def test_clean_schedules_match_reference(seq, bbb):
     for r in range(3):
         want = []
         for s_, t0, end, data in txs:
-            if s_ == r or any(a <= t0 < b for a, b in deaf[r]):
+            if s_ == r:
                 continue
+            listen = max([b for a, b in deaf[r] if a <= t0 < b] + [t0])
+            k0 = -(-(listen - t0) // BT)
             cut = min([x for x in rises[r] if x > t0] + [end])
             k = (cut - t0) // BT
-            want += expect(data[:k], t0)
+            want += expect(data[k0:k], t0 + k0 * BT)
         assert net.logs[r] == want
     assert net.air.collisions == 0
 

@@ -242,6 +242,12 @@ class MacConfig:
     """Hot standby for the father (PROTOCOL.md §4 failover, paper's PC1/PC2): follow the ring
     as a replica of ID 0 and take ID 0's turn only when the active PC's header does not come
     (docs/mac.md)."""
+    quiet_channel: bool = True
+    """The radio gives no bytes without a carrier (the pty hub; a radio with squelch). Then an
+    owner whose turn follows an uncertain closure waits for the channel to fall quiet before
+    its ``id`` x Tslot stagger runs (rule R-stagger: a jam is the one thing two members hear in
+    common). False for a radio that outputs idle noise (a bare PTR2000, ``--idle-noise``):
+    that channel never falls quiet."""
     checksum: bool = False
     """Opt-in integrity extension (firmware_model.radio.integrity): every frame sent ends
     with ``crc(NNNNN)`` and frames received without a good one are refused."""
@@ -324,6 +330,7 @@ class RotationalMac:
         self._sent_poll: int | None = None
         self._quiet_limit = 0
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
+        self._hold_ref: int | None = None   # HOLD after an uncertain closure: its reference
         self._booting = False             # powered on and not yet acknowledged by the ring
         self._announcing: int | None = None  # BOOT or JOIN: sent, awaiting acknowledgements
         self._ann_num = 0                 # the Number our BOOT/JOIN frames carry
@@ -633,8 +640,18 @@ class RotationalMac:
         elif phase == HOLD:
             if rx_busy:
                 self.deadline = now + 2 * self.cfg.byte_ticks  # someone is sending: hear it
-            else:
-                self._my_turn(now, now, out)
+                return out
+            ref = self._hold_ref
+            if ref is not None and last_rx is not None and last_rx > ref and \
+                    now < ref + 2 * self.cfg.tmax:
+                # Bytes kept coming after the turn closed (a jam): the stagger runs from the
+                # moment the channel fell quiet, the one instant every member hears alike.
+                talk = last_rx + self.cfg.quiet_gap + self.id * self.cfg.tslot
+                if talk > now:
+                    self.deadline = min(talk, ref + 2 * self.cfg.tmax)
+                    return out
+            self._hold_ref = None
+            self._my_turn(now, now, out)
         elif phase == QUIET and not rx_busy:
             gap = self.cfg.quiet_gap
             quiet = last_rx is None or now - last_rx >= gap
@@ -812,6 +829,12 @@ class RotationalMac:
         nxt = self.succ(after)
         if nxt == self.id:
             if uncertain:
+                if self.cfg.quiet_channel:
+                    self._hold_ref = start
+                    self.phase = HOLD
+                    self.owner = self.id
+                    self.deadline = max(now, start + self.id * self.cfg.tslot)
+                    return
                 start += self.id * self.cfg.tslot
             self._my_turn(start, now, out)
         else:
@@ -834,6 +857,7 @@ class RotationalMac:
             self._next_turn(poller, now, now, out)
 
     def _hold(self, start: int, now: int, out: list) -> None:
+        self._hold_ref = None
         if start <= now:
             self._my_turn(now, now, out)
         else:
