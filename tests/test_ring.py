@@ -127,20 +127,40 @@ def test_two_silent_robots_take_over_at_e_plus_2_tmax():
         (e2 + 2 * TMAX_TICKS, 4), (e2 + 2 * TMAX_TICKS, 4)]
 
 
-@pytest.mark.parametrize("seed", range(10))
+def predicted_claims(robots, power):
+    """The first claim of a silent channel, from the rule alone (docs/mac.md, start-up): robot
+    r powered on at p_r claims at p_r + |team| x Tmax + r x Tslot unless it has heard a frame
+    in progress by then. The earliest claimer raises TXEN at t1; the next claimer collides
+    with it iff its own claim comes before t1's Header is complete (Ttrans + 3 bytes later).
+    Returns (first claimer, t1, collides)."""
+    n = len(robots)
+    claims = sorted((s_to_ticks(p) + n * MAC.tmax + r * MAC.tslot, r) for r, p in power.items())
+    (t1, r1), (t2, _) = claims[0], claims[1]
+    byte = PC_BYTE_TICKS if r1 == 0 else CHILD_BYTE_TICKS
+    return r1, t1, t2 < t1 + MAC.ttrans + 3 * byte
+
+
+FORM_BOUND_S = 1.0
+"""A ring of up to 7 robots is whole within this long after the later of the first claim and
+the last power-on (measured worst 0.85 s over 200 random orders, docs/mac.md)."""
+
+
+@pytest.mark.parametrize("seed", list(range(24)) + [41, 44])   # 41 and 44 collide
 def test_startup_in_random_power_on_orders(seed):
     rng = random.Random(seed)
     robots = tuple(sorted(rng.sample(range(7), rng.randint(2, 7))))
     power = {r: round(rng.uniform(0.0, 3.0), 6) for r in robots}
-    last = max(power.values())
-    w, evs = run(robots=robots, duration=last + 10.0, power_on=power)
+    last = s_to_ticks(max(power.values()))
+    w, evs = run(robots=robots, duration=max(power.values()) + 6.0, power_on=power)
+    first, t1, collides = predicted_claims(robots, power)
+    tx = [e for e in evs if e["ev"] == "txen" and e["on"]]
+    assert (tx[0]["robot"], tx[0]["t"]) == (first, t1)          # to the tick
+    cols = [e for e in evs if e["ev"] == "collision"]
+    assert len(cols) == (1 if collides else 0), (robots, power, cols)
     views = w.ring_views()
     assert all(v == robots for v in views.values()), (robots, power, views)
-    # Bound (docs/mac.md): the lowest powered robot claims after |team| x Tmax + id x Tslot of
-    # silence, then each absent robot is invited within poll_every turns of its predecessor.
     joined = max(e.get("t", -1) for e in evs if e["ev"] in ("join", "rejoin", "mode"))
-    bound = s_to_ticks(last) + MAC.tmax * len(robots) + 6 * MAC.tslot + s_to_ticks(2.0)
-    assert joined <= bound
+    assert joined - max(t1, last) <= s_to_ticks(FORM_BOUND_S)
     assert not [e for e in evs if e["ev"] == "disable"]
 
 
