@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from typing import Iterable, Sequence
 
-from firmware_model.timing import TICK_HZ
+from can_bus.clock import DEFAULT_TICK_HZ
 
 __all__ = [
     "CRC15_POLY",
@@ -306,9 +306,10 @@ def min_length_bits(dlc: int, include_ifs: bool = True) -> int:
 
 @dataclass(frozen=True)
 class BitTiming:
-    """Nominal bit timing in MB90F549-controller style settings, in 16 MHz machine ticks.
+    """Nominal bit timing in MB90F549-controller style settings, in clock ticks.
 
-    ``prescaler``: machine-clock ticks per time quantum (1..64). A bit is
+    ``tick_hz``: ticks per second of the clock the bus runs on (default 16 MHz, the MB90F549's
+    machine clock). ``prescaler``: clock ticks per time quantum (1..64). A bit is
     ``1 (sync) + tseg1 + tseg2`` quanta; ``tseg1`` (1..16) is propagation + phase-1 segment,
     ``tseg2`` (1..8) the phase-2 segment, ``sjw`` (1..4, at most ``tseg1`` and ``tseg2``) the
     resynchronisation jump width. The sample point is at the end of tseg1.
@@ -321,6 +322,7 @@ class BitTiming:
     tseg1: int = 11
     tseg2: int = 4
     sjw: int = 1
+    tick_hz: int = DEFAULT_TICK_HZ
 
     def __post_init__(self) -> None:
         for name, lo, hi in (("prescaler", 1, 64), ("tseg1", 1, 16), ("tseg2", 1, 8), ("sjw", 1, 4)):
@@ -331,7 +333,10 @@ class BitTiming:
             raise ValueError(
                 f"BitTiming.sjw ({self.sjw}) must not exceed tseg1 ({self.tseg1}) or tseg2 ({self.tseg2})"
             )
-        if self.ticks_per_bit < TICK_HZ // 1_000_000:
+        if not isinstance(self.tick_hz, int) or self.tick_hz < 1_000_000:
+            raise ValueError(f"BitTiming.tick_hz must be an int of at least 1 MHz, got "
+                             f"{self.tick_hz!r}")
+        if self.ticks_per_bit < self.tick_hz // 1_000_000:
             raise ValueError(
                 f"bit time of {self.ticks_per_bit} ticks is faster than 1 Mbit/s, the CAN 2.0 limit"
             )
@@ -350,8 +355,8 @@ class BitTiming:
 
     @property
     def bitrate(self) -> float:
-        """Bits per second (exact when TICK_HZ divides evenly)."""
-        return TICK_HZ / self.ticks_per_bit
+        """Bits per second (exact when ``tick_hz`` divides evenly)."""
+        return self.tick_hz / self.ticks_per_bit
 
     @property
     def sample_point(self) -> float:
@@ -365,10 +370,11 @@ class BitTiming:
 
     @classmethod
     def from_bitrate(cls, bitrate: int, tq_per_bit: int = 16, sample_point: float = 0.75,
-                     sjw: int = 1) -> "BitTiming":
-        """Settings giving exactly ``bitrate`` with ``tq_per_bit`` quanta; ValueError if impossible."""
-        ticks = TICK_HZ / bitrate
+                     sjw: int = 1, tick_hz: int = DEFAULT_TICK_HZ) -> "BitTiming":
+        """Settings giving exactly ``bitrate`` with ``tq_per_bit`` quanta from a ``tick_hz``
+        clock; ValueError if impossible."""
+        ticks = tick_hz / bitrate
         if ticks != int(ticks) or int(ticks) % tq_per_bit:
-            raise ValueError(f"{bitrate} bit/s is not reachable with {tq_per_bit} quanta from {TICK_HZ} Hz")
+            raise ValueError(f"{bitrate} bit/s is not reachable with {tq_per_bit} quanta from {tick_hz} Hz")
         tseg1 = round(sample_point * tq_per_bit) - 1
-        return cls(int(ticks) // tq_per_bit, tseg1, tq_per_bit - 1 - tseg1, sjw)
+        return cls(int(ticks) // tq_per_bit, tseg1, tq_per_bit - 1 - tseg1, sjw, tick_hz)

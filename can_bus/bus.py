@@ -1,4 +1,4 @@
-"""A simulated CAN 2.0A bus on the integer-tick :class:`~firmware_model.mcu.scheduler.Scheduler`.
+"""A simulated CAN 2.0A bus on any integer-tick clock (:class:`~can_bus.clock.Clock`).
 
 Timing is bit-exact (every length is a whole number of bit times, stuff bits included) but the
 bus is event driven: a frame costs two scheduler events (end of EOF, end of intermission), never
@@ -106,7 +106,7 @@ from can_bus.bits import (
     _check,
     _wire,
 )
-from firmware_model.mcu.scheduler import Event, Scheduler
+from can_bus.clock import Cancellable as Event, Clock as Scheduler
 
 __all__ = [
     "CanFrame",

@@ -3,8 +3,8 @@
 Each node implements the bus's node interface directly (``pending()`` / ``on_tx_done()`` with
 its own priority queue, ``on_frame()`` for the frames addressed to it), encodes and decodes
 every frame through :mod:`can_bus.dbc`, and runs an exact, deterministic physical model on the
-integer-tick :class:`~firmware_model.mcu.scheduler.Scheduler` (16 MHz; no wall clock, no
-randomness).
+integer-tick clock (:class:`~can_bus.clock.Clock`) at 16 MHz, the tick rate every
+constant below is written for (no wall clock, no randomness).
 
 Common behaviour
 ----------------
@@ -85,8 +85,8 @@ from can_bus.dbc import (
     STATE_MOVING,
     STATE_STALLED,
 )
-from firmware_model.mcu.scheduler import Event, Scheduler
-from firmware_model.timing import TICK_HZ
+from can_bus.clock import DEFAULT_TICK_HZ as TICK_HZ
+from can_bus.clock import Cancellable as Event, Clock as Scheduler
 
 __all__ = [
     "MS",
@@ -139,6 +139,9 @@ class _Submodule:
 
     def __init__(self, sched: Scheduler, bus: CanBus, number: int,
                  status_offset: int | None = None) -> None:
+        if bus.timing.tick_hz != TICK_HZ:
+            raise ValueError(f"the submodule models run on a {TICK_HZ} Hz clock, the bus's "
+                             f"bit timing says {bus.timing.tick_hz} Hz")
         self.sched = sched
         self.bus = bus
         self.number = number

@@ -31,7 +31,7 @@ Rs pin (pin 8) modes
   bus's default bit, the last bit of the stuffed CRC field; *where* in the frame the misread
   happens is not modelled, nor the fact that a misread in the arbitration field would look like
   lost arbitration). Reception is not affected. The check is exact in ticks:
-  ``TICK_HZ * R <= 1.75e10 * ticks_per_bit``.
+  ``tick_hz * R <= 1.75e10 * ticks_per_bit``.
 * ``STANDBY``: Rs high. Transmitter off, receiver in low-power mode. The controller gets no
   frames, no errors and is offered no arbitration (its requests stay pending until the
   transceiver is back in a normal mode). A dominant bus level is passed to RxD so the MCU can
@@ -66,7 +66,6 @@ from enum import Enum
 from typing import Any, Callable
 
 from can_bus.bus import CanBus, CanErrorEvent, CanFrame, ErrorState, NodeStatus
-from firmware_model.timing import TICK_HZ
 
 __all__ = [
     "RsMode",
@@ -243,7 +242,8 @@ class Transceiver82C250:
 
     def _compute_slope_bad(self) -> bool:
         r = self.rs_ohms
-        return r >= HIGH_SPEED_MAX_OHMS and TICK_HZ * r > SLOPE_BITRATE_OHMS * self.bus.tpb
+        return r >= HIGH_SPEED_MAX_OHMS and \
+            self.bus.timing.tick_hz * r > SLOPE_BITRATE_OHMS * self.bus.tpb
 
     # ------------------------------------------------------------------ TXD fault, RXD
     def stick_txd(self, on: bool = True) -> None:

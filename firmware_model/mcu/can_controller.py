@@ -78,6 +78,8 @@ from typing import Any, Callable
 from can_bus.bits import BitTiming
 from can_bus.bus import CanErrorEvent, CanFrame, ErrorState
 
+from ..timing import TICK_HZ
+
 __all__ = [
     "CanController",
     "NBUF",
@@ -123,7 +125,8 @@ def btr_from_timing(t: BitTiming) -> int:
 def timing_from_btr(btr: int) -> BitTiming:
     """The :class:`BitTiming` a BTR value selects (ValueError if invalid)."""
     return BitTiming(prescaler=(btr & 0x3F) + 1, tseg1=((btr >> 8) & 0xF) + 1,
-                     tseg2=((btr >> 12) & 0x7) + 1, sjw=((btr >> 6) & 0x3) + 1)
+                     tseg2=((btr >> 12) & 0x7) + 1, sjw=((btr >> 6) & 0x3) + 1,
+                     tick_hz=TICK_HZ)
 
 
 def _ns_of(tec: int, rec: int, state: ErrorState) -> int:
