@@ -61,47 +61,13 @@ class RadioStation:
         now = self.sched.now
         mac = self.mac
         d = self.deframer
-        if not d._pos and not d._g_count:
-            frame = d._whole.get(data)
-            if frame is not None:
-                # A byte string known to be exactly one good frame (the deframer's own cache):
-                # the same result as feeding it, without building the event.
-                end = t0 + (len(data) - 1) * dt
-                d.last_tick = end
-                self.frames_heard += 1
-                actions = mac.on_frame(frame, t0, end, now)
-                if actions:
-                    self._act(actions)
-                dl = mac.deadline
-                timer = self.timer
-                if dl != timer.expiry:
-                    ev = timer._ev
-                    if dl is not None and ev is not None and ev.when <= dl and dl > now \
-                            and not ev.cancelled:
-                        delay = dl - now        # ReloadTimer.arm_at's lazy path, inlined
-                        delay += delay & 1
-                        timer.delay = delay
-                        timer.expiry = now + delay
-                    elif dl is None:
-                        timer.stop()
-                    else:
-                        timer.arm_at(dl)
-                return
-        evs = d.feed(data, t0, dt)
-        if len(evs) == 1 and type(evs[0]) is FrameReceived:   # the common case
-            ev = evs[0]
+        end = t0 + (len(data) - 1) * dt
+        frame = d.known_frame(data, end)
+        if frame is not None:
             self.frames_heard += 1
-            actions = mac.on_frame(ev.frame, ev.first, ev.end, now)
-            if actions:
-                self._act(actions)
-            dl = mac.deadline
-            timer = self.timer
-            if dl != timer.expiry:
-                if dl is None:
-                    timer.stop()
-                else:
-                    timer.arm_at(dl)
+            self._apply(mac.on_frame(frame, t0, end, now))
             return
+        evs = d.feed(data, t0, dt)
         for ev in evs:
             if type(ev) is FrameReceived:
                 self.frames_heard += 1

@@ -196,7 +196,8 @@ class Air:
             return
         for r in self.radios:
             if self.noise:
-                self.sync(r, now)
+                self.sync(r, now)                # noise heard up to now is delivered
+                self._noise_gen[r.idx] += 1      # pending noise scans become no-ops
             r.noise_from = max(r.noise_from, now)
         self.noise = on
         if on:

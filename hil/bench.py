@@ -122,7 +122,8 @@ def listen(port: str, seconds: float, progress: Callable[[float], None] | None =
     return res
 
 
-def _pct(values: list[float], p: float) -> float:
+def percentile(values: list[float], p: float) -> float:
+    """The ``p``-th percentile of ``values`` (nearest rank), NaN when empty."""
     v = sorted(values)
     if not v:
         return float("nan")
@@ -149,7 +150,7 @@ def cycle_report(res: Listening) -> dict[str, Any]:
         "frames_per_robot": {r: len(v) for r, v in sorted(per.items())},
         "turn_gap_ms_median": statistics.median(turns) if turns else None,
         "turn_gap_error_ms_median": statistics.median(err) if err else None,
-        "turn_gap_error_ms_p99": _pct(err, 99) if err else None,
+        "turn_gap_error_ms_p99": percentile(err, 99) if err else None,
         "spec_gap_ms": spec,
         "misses": len(misses),
         "cycle_ms_median": cycles,

@@ -637,7 +637,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
         runner.stop()
         t.join(timeout=5)
     med = lambda v: f"{statistics.median(v):.1f}" if v else "-"  # noqa: E731
-    p99 = lambda v: f"{bench._pct(v, 99):.1f}" if v else "-"  # noqa: E731
+    p99 = lambda v: f"{bench.percentile(v, 99):.1f}" if v else "-"  # noqa: E731
     rep = {"sent": r.sent, "replies": r.replies, "loss": 1 - r.replies / r.sent if r.sent else 1,
            "round_trip_ms_median": statistics.median(r.round_trip_ms) if r.round_trip_ms
            else None, "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,

@@ -473,16 +473,13 @@ class SimMonitorApp(MonitorApp):
         t.append(f"  view [{_ids(mac.ring)}]\n", "dim")
         t.append(f"sent {w.air.sent.get(r, 0)}  recv {stats.received}  ")
         t.append(f"missed {stats.missed}\n", "red" if stats.missed else "")
-        queue = list(mac._queue)
-        inflight = getattr(mac, "_inflight", None)
+        outbox = mac.outbox
+        inflight = getattr(mac, "inflight", None)
         lines_left = height - 2
         t.append(f"queue {mac.pending}", "bold")
         t.append(f"  ok {stats.delivered} failed {stats.failed}\n", "dim")
         lines_left -= 1
-        shown_q = []
-        if inflight is not None:
-            shown_q.append((inflight, "sent"))
-        shown_q += [(m, "") for m in queue]
+        shown_q = [(m, "sent" if m is inflight else "") for m in outbox]
         qmax = min(len(shown_q), max(1, lines_left // 3))
         for m, how in shown_q[:qmax]:
             c = m.content.decode("ascii", "replace")
@@ -551,17 +548,7 @@ class SimMonitorApp(MonitorApp):
         air, now = self.world.air, self.world.now
         if air.noise == on:
             return
-        if on:
-            air.noise = True
-            for radio in air.radios:
-                if radio.alive and radio.rx is None and radio.listening(now):
-                    air._idle_from(radio, now)
-        else:
-            for radio in air.radios:     # noise heard up to now is delivered, then silence
-                if radio.alive and radio.rx is None:
-                    air.sync(radio, now)
-                air._noise_gen[radio.idx] += 1   # pending noise scans become no-ops
-            air.noise = False
+        air.set_noise(on)
         self.events.append(f"{now / TICK_HZ:9.3f} s  idle noise {'ON' if on else 'off'}")
         self.refresh_view()
 

@@ -275,6 +275,19 @@ class Deframer:
         self._emit_garbage(out)
         return out
 
+    def known_frame(self, data: bytes, end: int) -> Frame | None:
+        """The fast door for a receiver that gets whole transmissions: if nothing is held (no
+        partial Header, no garbage pending) and ``data`` is a byte string already known to be
+        exactly one good frame, take it (``last_tick`` becomes ``end``, the tick of its last
+        byte) and return the frame; else return None and change nothing (then :meth:`feed`
+        the bytes). Same outcome as a :meth:`feed` that reports one :class:`FrameReceived`."""
+        if self._pos or self._g_count:
+            return None
+        frame = self._whole.get(data)
+        if frame is not None:
+            self.last_tick = end
+        return frame
+
     def feed(self, data: bytes, t0: int, dt: int) -> list[DeframerEvent]:
         """Bytes ``data``, byte i completed at tick ``t0 + i*dt``; garbage is flushed at the end.
 
@@ -285,15 +298,12 @@ class Deframer:
         if not isinstance(data, bytes):
             data = bytes(data)
         n = len(data)
+        # Fastest path: the chunk is exactly one frame already seen (the simulator hands every
+        # receiver the same bytes; heartbeats repeat). Same events as the long way.
+        frame = self.known_frame(data, t0 + (n - 1) * dt)
+        if frame is not None:
+            return [FrameReceived(frame, t0, self.last_tick)]
         clean = not self._pos and not self._g_count
-        if clean:
-            # Fastest path: the chunk is exactly one frame already seen (the simulator hands
-            # every receiver the same bytes; heartbeats repeat). Same events as the long way.
-            frame = self._whole.get(data)
-            if frame is not None:
-                end = t0 + (n - 1) * dt
-                self.last_tick = end
-                return [FrameReceived(frame, t0, end)]
         out: list[DeframerEvent] = []
         i = 0
         step = self._step
