@@ -9,13 +9,14 @@ burst length asked, and checks what follows the burst:
 * no collision between robots starts after the burst has ended;
 * a good frame starts within ``Tmax`` plus one idle cycle of the burst's end.
 
-Each case runs on a copy of one formed world (``copy.deepcopy``), so a case costs about two
-simulated seconds. ``python scripts/lockstep_search.py`` runs the full search (every length
+Each case runs on a copy of one formed world (pickled once, unpickled per case: three times
+faster than ``copy.deepcopy``, and the same run as the original world:
+``test_a_pickled_world_runs_as_the_original``), so a case costs about two simulated seconds. ``python scripts/lockstep_search.py`` runs the full search (every length
 from 1 to 600 bytes); the test suite runs a sample of lengths at every offset.
 """
 from __future__ import annotations
 
-import copy
+import pickle
 import random
 from dataclasses import dataclass
 
@@ -23,6 +24,7 @@ from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, T
     s_to_ticks
 from hil.world import SimConfig, World
 
+PICKLE = pickle.HIGHEST_PROTOCOL
 FOREIGN_BYTE_TICKS = PC_BYTE_TICKS
 """The interferer sends at exact 9600 baud (ticks a byte)."""
 
@@ -73,8 +75,9 @@ def formed_world(robots: tuple[int, ...], seed: int = 0) -> World:
     return w
 
 
-def run_case(base: World, case: Case) -> Verdict:
-    w = copy.deepcopy(base)
+def run_case(base: World | bytes, case: Case) -> Verdict:
+    """One burst on a copy of ``base`` (a formed world, or its pickle)."""
+    w = pickle.loads(base if isinstance(base, bytes) else pickle.dumps(base, PICKLE))
     evs = w.on_event.__self__                      # the copy's own event list
     evs.clear()
     t0 = w.now + case.offset * FOREIGN_BYTE_TICKS
@@ -93,6 +96,6 @@ def run_case(base: World, case: Case) -> Verdict:
 
 def search(robots: tuple[int, ...], lengths, seed: int = 0) -> list[Verdict]:
     """Every byte offset across one idle cycle, for each burst length in ``lengths``."""
-    base = formed_world(robots, seed)
+    base = pickle.dumps(formed_world(robots, seed), PICKLE)
     offsets = range(idle_cycle_ticks(robots) // FOREIGN_BYTE_TICKS + 1)
     return [run_case(base, Case(robots, off, n, seed)) for n in lengths for off in offsets]

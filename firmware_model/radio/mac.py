@@ -355,6 +355,17 @@ class RotationalMac:
         return self.mode == MEMBER and self.ring == (self.id,)
 
     @property
+    def outbox(self) -> tuple[Message, ...]:
+        """Messages not yet ended, the one awaiting acknowledgement first, then the queue."""
+        head = (self._inflight,) if self._inflight is not None else ()
+        return head + tuple(self._queue)
+
+    @property
+    def inflight(self) -> Message | None:
+        """The message sent and awaiting acknowledgement, if any (stop-and-wait)."""
+        return self._inflight
+
+    @property
     def pending(self) -> int:
         """Messages submitted and not yet ended (queued or awaiting acknowledgement)."""
         return len(self._queue) + (1 if self._inflight is not None else 0)
@@ -405,10 +416,10 @@ class RotationalMac:
         """A valid frame was heard; its first header byte ended at ``first``, its End at ``end``."""
         src = frame.src
         phase = self.phase
-        if phase is SWITCH or phase is SEND:
+        if phase == SWITCH or phase == SEND:
             return _NOTHING            # deaf while switching or sending (only raw input gets here)
         self._heard_since_tx = True
-        if src == self.owner and phase is WAIT and not frame.content and frame.type == 3 \
+        if src == self.owner and phase == WAIT and not frame.content and frame.type == 3 \
                 and src != self.id:
             # Fast path, the expected owner's heartbeat: hand the turn on.
             self.misses[src] = 0
@@ -555,7 +566,7 @@ class RotationalMac:
         """A frame failed after a valid header: the turn is used (not a miss) and closes at the
         end its Length promised, or ``first + Tmax`` when the Length was never read."""
         out: list = []
-        if self.phase is SWITCH or self.phase is SEND:
+        if self.phase == SWITCH or self.phase == SEND:
             return out
         if self.mode == LISTEN:
             self.deadline = now + self._claim_ticks()
@@ -582,7 +593,7 @@ class RotationalMac:
         """Bytes that form no frame were heard. In the owner's slot they are probably its frame
         with a corrupted Header: if the channel then falls quiet the turn closes (no miss);
         if it never does (idle noise), the owner misses at E + Tmax as usual."""
-        if self.mode is MEMBER and self.phase == WAIT and \
+        if self.mode == MEMBER and self.phase == WAIT and \
                 last > self.turn_start + self.cfg.ttrans:
             self.phase = QUIET
             self._quiet_miss = True
