@@ -5,6 +5,10 @@ observations come out as lists, and the single timer the MAC needs is exposed as
 tick, or None). The MAC owns no clock and does no I/O: the child firmware, the father station and
 the tests drive it. Every time is an integer tick of the 16 MHz machine clock.
 
+The same machine as a table (state x event -> next state, with the rule each row follows) is
+``firmware_model/radio/mac_table.py``; tests/test_mac_table.py checks the two agree, and a
+deadline is dispatched per state through ``DEADLINE_HANDLERS``.
+
 Rules, with the paper's part and this project's designed part (docs/mac.md gives the bounds):
 
 * Ring order is ascending ID over the live members; the owner of a turn sends exactly one frame.
@@ -606,101 +610,141 @@ class RotationalMac:
         """The deadline expired. ``rx_busy``: a frame is being received right now;
         ``last_rx``: tick of the last byte heard (any byte); ``rx_began``: tick at which the
         start bit of a Header still being received began (one or two Header bytes, or a
-        byte whose stop bit has not come yet), else None."""
+        byte whose stop bit has not come yet), else None.
+
+        What a deadline means depends on the state: one handler per state, looked up in
+        ``DEADLINE_HANDLERS`` (the rows of ``mac_table.TRANSITIONS`` with event "deadline")."""
         out: list = []
         if self.deadline is None or now < self.deadline:
             return out
         if self.mode == LISTEN:
-            if rx_busy:
-                self.deadline = now + 2 * self.cfg.byte_ticks  # someone is on air: not silent
-                return out
-            self.mode = MEMBER
-            self.ring = (self.id,)
-            self.misses = {self.id: 0}
-            self.ever_member.add(self.id)
-            self._silent = 0
-            self._turns_since_poll = self.cfg.poll_every
-            out.append(ModeChange(MEMBER, "claimed the silent channel"))
-            self._my_turn(now, now, out)
+            self._deadline_listen(now, rx_busy, out)
             return out
-        phase = self.phase
         if self.standby and (self._queue or self._inflight is not None):
             self._expire(now, out)
-        if phase == WATCH:
-            if rx_busy:                    # the active PC is sending: follow it
-                if not self.standby:
-                    self.standby = True
-                    self._check_turns = 0
-                    out.append(ModeChange(MEMBER, "the other PC is still active: standing by"))
-                self.phase = WAIT
-                self.deadline = self.turn_start + self.cfg.tmax
-            else:
-                if self.standby:
-                    self.standby = False
-                    self._check_turns = 3      # probation: a takeover may have been mistaken
-                    out.append(ModeChange(MEMBER,
-                                          "took over ID 0's turn: the active PC is silent"))
-                elif self._check_turns > 0:
-                    self._check_turns -= 1
-                self._watched = True
-                self._my_turn(now, now, out)
-                self._watched = False
-            return out
-        if phase == SWITCH:
-            self._send(now, out)
-        elif phase == HOLD:
-            if rx_busy:
-                self.deadline = now + 2 * self.cfg.byte_ticks  # someone is sending: hear it
-                return out
-            ref = self._hold_ref
-            if ref is not None and last_rx is not None and last_rx > ref and \
-                    now < ref + 2 * self.cfg.tmax:
-                # Bytes kept coming after the turn closed (a jam): the stagger runs from the
-                # moment the channel fell quiet, the one instant every member hears alike.
-                talk = last_rx + self.cfg.quiet_gap + self.id * self.cfg.tslot
-                if talk > now:
-                    self.deadline = min(talk, ref + 2 * self.cfg.tmax)
-                    return out
-            self._hold_ref = None
-            self._my_turn(now, now, out)
-        elif phase == QUIET and not rx_busy:
-            gap = self.cfg.quiet_gap
-            quiet = last_rx is None or now - last_rx >= gap
-            if self._quiet_miss and not quiet and now >= self._quiet_limit:
-                self.phase = WAIT                              # only noise: a real miss
-                self._quiet_miss = False
-                return self.on_timer(now, rx_busy, last_rx)
-            if quiet or now >= self._quiet_limit:
-                self._quiet_miss = False
-                self._next_turn(self.owner, now, now, out, uncertain=True)  # the frame is over
-            else:
-                self.deadline = min(last_rx + gap, self._quiet_limit)
-        elif rx_busy:
-            self.deadline = now + 2 * self.cfg.byte_ticks  # a header is in; let it finish
-        elif rx_began is not None and rx_began <= self.turn_start + (
-                self.cfg.twin if phase == WINDOW else self.cfg.tmax):
-            # A Header that had begun by the deadline is not a miss (paper §IV.C: "has not
-            # begun by E + Tmax"): look again when its next byte is complete.
-            self.deadline = now + self.cfg.byte_ticks
-        elif phase == WINDOW:
-            self._after_window(self.poller, now, out)
-        else:  # WAIT: the owner missed its turn
-            o = self.owner
-            n = self.misses.get(o, 0) + 1
-            self.misses[o] = n
-            out.append(Miss(o))
-            self._silent += 1
-            if n >= self.cfg.miss_limit:
-                self._drop(o, out)
-            if len(self.ring) >= 2 and \
-                    self._silent >= max(self.cfg.miss_limit, len(self.ring) - 1):
-                self._to_listen(out, now, "heard nobody for a whole round")
-                return out
-            # The paper's takeover at E + Tmax, except when nobody was heard since our own
-            # frame: then we may be one of two members that sent together, each waiting for
-            # the other (rule R-stagger).
-            self._next_turn(o, now, now, out, uncertain=not self._heard_since_tx)
+        DEADLINE_HANDLERS[self.phase](self, now, rx_busy, last_rx, rx_began, out)
         return out
+
+    def _deadline_listen(self, now: int, rx_busy: bool, out: list) -> None:
+        """LISTEN: silence for Tclaim(id): claim the channel, a ring of one (start-up)."""
+        if rx_busy:
+            self.deadline = now + 2 * self.cfg.byte_ticks  # someone is on air: not silent
+            return
+        self.mode = MEMBER
+        self.ring = (self.id,)
+        self.misses = {self.id: 0}
+        self.ever_member.add(self.id)
+        self._silent = 0
+        self._turns_since_poll = self.cfg.poll_every
+        out.append(ModeChange(MEMBER, "claimed the silent channel"))
+        self._my_turn(now, now, out)
+
+    def _deadline_watch(self, now: int, rx_busy: bool, last_rx: int | None,
+                        rx_began: int | None, out: list) -> None:
+        """WATCH (father failover): the active PC's Header came, follow it; else take the turn."""
+        if rx_busy:                    # the active PC is sending: follow it
+            if not self.standby:
+                self.standby = True
+                self._check_turns = 0
+                out.append(ModeChange(MEMBER, "the other PC is still active: standing by"))
+            self.phase = WAIT
+            self.deadline = self.turn_start + self.cfg.tmax
+            return
+        if self.standby:
+            self.standby = False
+            self._check_turns = 3      # probation: a takeover may have been mistaken
+            out.append(ModeChange(MEMBER, "took over ID 0's turn: the active PC is silent"))
+        elif self._check_turns > 0:
+            self._check_turns -= 1
+        self._watched = True
+        self._my_turn(now, now, out)
+        self._watched = False
+
+    def _deadline_switch(self, now: int, rx_busy: bool, last_rx: int | None,
+                         rx_began: int | None, out: list) -> None:
+        """SWITCH: Ttrans after TXEN rose, the radio transmits: send the frame (paper §IV)."""
+        self._send(now, out)
+
+    def _deadline_hold(self, now: int, rx_busy: bool, last_rx: int | None,
+                       rx_began: int | None, out: list) -> None:
+        """HOLD: our turn starts, unless a frame is coming in, or a jam that followed an
+        uncertain closure has not yet been quiet for id x Tslot (rule R-stagger)."""
+        if rx_busy:
+            self.deadline = now + 2 * self.cfg.byte_ticks  # someone is sending: hear it
+            return
+        ref = self._hold_ref
+        if ref is not None and last_rx is not None and last_rx > ref and \
+                now < ref + 2 * self.cfg.tmax:
+            # Bytes kept coming after the turn closed (a jam): the stagger runs from the
+            # moment the channel fell quiet, the one instant every member hears alike.
+            talk = last_rx + self.cfg.quiet_gap + self.id * self.cfg.tslot
+            if talk > now:
+                self.deadline = min(talk, ref + 2 * self.cfg.tmax)
+                return
+        self._hold_ref = None
+        self._my_turn(now, now, out)
+
+    def _deadline_quiet(self, now: int, rx_busy: bool, last_rx: int | None,
+                        rx_began: int | None, out: list) -> None:
+        """QUIET: a frame failed before its Length; the turn closes when the channel falls
+        quiet (rule R-stagger follows), or, if only noise was ever heard, at E + Tmax as a
+        miss (paper §IV.C)."""
+        if rx_busy:
+            self.deadline = now + 2 * self.cfg.byte_ticks  # a header is in; let it finish
+            return
+        gap = self.cfg.quiet_gap
+        quiet = last_rx is None or now - last_rx >= gap
+        if self._quiet_miss and not quiet and now >= self._quiet_limit:
+            self.phase = WAIT                              # only noise: a real miss
+            self._quiet_miss = False
+            self._deadline_wait(now, rx_busy, last_rx, None, out)
+            return
+        if quiet or now >= self._quiet_limit:
+            self._quiet_miss = False
+            self._next_turn(self.owner, now, now, out, uncertain=True)  # the frame is over
+        else:
+            self.deadline = min(last_rx + gap, self._quiet_limit)
+
+    def _header_coming(self, now: int, rx_busy: bool, rx_began: int | None,
+                       limit: int) -> bool:
+        """A Header is being received, or had begun by ``limit`` (paper §IV.C: a miss is a
+        Header that "has not begun by E + Tmax"): look again when its next byte is in."""
+        if rx_busy:
+            self.deadline = now + 2 * self.cfg.byte_ticks  # a header is in; let it finish
+            return True
+        if rx_began is not None and rx_began <= limit:
+            self.deadline = now + self.cfg.byte_ticks
+            return True
+        return False
+
+    def _deadline_window(self, now: int, rx_busy: bool, last_rx: int | None,
+                         rx_began: int | None, out: list) -> None:
+        """WINDOW: the invited robot did not answer by E + Twin: the poller's successor's turn
+        (or a lone member's next pause)."""
+        if not self._header_coming(now, rx_busy, rx_began, self.turn_start + self.cfg.twin):
+            self._after_window(self.poller, now, out)
+
+    def _deadline_wait(self, now: int, rx_busy: bool, last_rx: int | None,
+                       rx_began: int | None, out: list) -> None:
+        """WAIT: the owner's Header has not begun by E + Tmax: a miss, the next robot's turn
+        (paper §IV.C); the third miss in a row drops it (paper §IV.D)."""
+        if self._header_coming(now, rx_busy, rx_began, self.turn_start + self.cfg.tmax):
+            return
+        o = self.owner
+        n = self.misses.get(o, 0) + 1
+        self.misses[o] = n
+        out.append(Miss(o))
+        self._silent += 1
+        if n >= self.cfg.miss_limit:
+            self._drop(o, out)
+        if len(self.ring) >= 2 and \
+                self._silent >= max(self.cfg.miss_limit, len(self.ring) - 1):
+            self._to_listen(out, now, "heard nobody for a whole round")
+            return
+        # The paper's takeover at E + Tmax, except when nobody was heard since our own
+        # frame: then we may be one of two members that sent together, each waiting for
+        # the other (rule R-stagger).
+        self._next_turn(o, now, now, out, uncertain=not self._heard_since_tx)
 
     def on_tx_done(self, now: int) -> list:
         """The last bit of our End left the radio: our turn closes at ``now``."""
@@ -1167,3 +1211,14 @@ class RotationalMac:
         if self.cfg.checksum:
             return seal(dst, self.id, num, int(type), content)
         return Frame(dst=dst, src=self.id, num=num, type=type, content=content)
+
+
+DEADLINE_HANDLERS = {
+    WATCH: RotationalMac._deadline_watch,
+    SWITCH: RotationalMac._deadline_switch,
+    HOLD: RotationalMac._deadline_hold,
+    QUIET: RotationalMac._deadline_quiet,
+    WINDOW: RotationalMac._deadline_window,
+    WAIT: RotationalMac._deadline_wait,
+}
+"""What a deadline means in each MEMBER phase (LISTEN has its own: claim)."""

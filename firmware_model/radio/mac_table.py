@@ -1,0 +1,163 @@
+"""The rotational MAC as a transition table: state x event -> next state, with the rule.
+
+``RotationalMac`` (firmware_model/radio/mac.py) is the executable form; this table is the
+readable one, and the two are checked against each other: ``tests/test_mac_table.py`` records
+every transition the MAC makes in a set of simulated runs (faults, noise, failover, start-up)
+and requires each to be a row here, and every row to be taken at least once. The state
+diagram in docs/mac.md is generated from this table (``python -m
+firmware_model.radio.mac_table`` prints it; the same test checks the docs hold it).
+
+States: ``LISTEN`` (mode LISTEN) and the phases of a member (mode MEMBER): ``WAIT`` (for the
+owner's Header until E + Tmax), ``WINDOW`` (for an invited robot's answer until E + Twin),
+``QUIET`` (a frame failed before its Length: until the channel falls quiet), ``HOLD`` (our turn
+starts at the deadline), ``SWITCH`` (TXEN high for Ttrans), ``SEND`` (our frame on air),
+``WATCH`` (father failover: is the active PC's Header coming?).
+
+Events: ``power on``; ``deadline`` (the state's timer expired; what it means depends on the
+state, see ``RotationalMac.DEADLINE_HANDLERS``); ``frame`` (a good frame heard), ``failed
+frame`` (a frame that broke after a good Header), ``garbage`` (bytes that form no frame);
+``tx done`` (the last bit of our End left the radio); ``steal`` (fault injection: we wrongly
+take the turn). A frame that changes nothing (an echo while deaf in SWITCH/SEND, noise) keeps
+the state: such rows are listed too, so the table is complete for what the MAC does.
+
+Sources: "paper §IV.x" for the paper's rules (E = end of the last frame heard), "designed" for
+the project's own (docs/mac.md gives each one's reason).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Transition", "TRANSITIONS", "STATES", "EVENTS", "markdown", "mermaid"]
+
+STATES = ("LISTEN", "WAIT", "WINDOW", "QUIET", "HOLD", "SWITCH", "SEND", "WATCH")
+EVENTS = ("power on", "deadline", "frame", "failed frame", "garbage", "tx done", "steal")
+
+
+@dataclass(frozen=True)
+class Transition:
+    state: str
+    event: str
+    next: str
+    when: str
+    source: str
+
+
+_T = Transition
+TRANSITIONS: tuple[Transition, ...] = (
+    # -- start-up -------------------------------------------------------------------------
+    _T("LISTEN", "power on", "LISTEN", "listen; claim after Tclaim(id) of silence", "designed"),
+    _T("LISTEN", "frame", "LISTEN", "someone is on the air: the claim timer restarts",
+       "designed"),
+    _T("LISTEN", "garbage", "LISTEN", "bytes heard: the claim timer restarts", "designed"),
+    _T("LISTEN", "frame", "SWITCH", "invited (poll names us): answer with JOIN at E + Ttrans",
+       "designed"),
+    _T("LISTEN", "frame", "HOLD", "invited while a lone member: answer after its pause",
+       "designed"),
+    _T("LISTEN", "frame", "WAIT", "invited, and our answer's turn is not next", "designed"),
+    _T("LISTEN", "deadline", "SWITCH", "silence for Tclaim(id): claim, a ring of one",
+       "designed"),
+    # -- waiting for the owner ------------------------------------------------------------
+    _T("WAIT", "frame", "WAIT", "a member's frame: the turn passes to its successor at E",
+       "paper §IV.B"),
+    _T("WAIT", "frame", "SWITCH", "the frame's sender precedes us: our turn at E + Ttrans",
+       "paper §IV.B"),
+    _T("WAIT", "frame", "WINDOW", "the frame invites an absent robot: its window until "
+       "E + Twin", "designed"),
+    _T("WAIT", "frame", "WATCH", "ID 0's turn on a PC that checks for the other PC",
+       "designed"),
+    _T("WAIT", "garbage", "WAIT", "bytes before the owner could have begun (its Ttrans)",
+       "designed"),
+    _T("WAIT", "garbage", "QUIET", "bytes in the owner's slot: its frame with a bad Header",
+       "designed"),
+    _T("WAIT", "failed frame", "QUIET", "the frame broke before its Length: wait for quiet",
+       "designed"),
+    _T("WAIT", "failed frame", "WAIT", "the frame broke after its Length: the turn closes at "
+       "its promised end", "designed"),
+    _T("WAIT", "failed frame", "HOLD", "... and ours is next: id x Tslot after it (R-stagger)",
+       "designed"),
+    _T("WAIT", "deadline", "WAIT", "a Header had begun by E + Tmax: look again a byte later; "
+       "or a miss, and the next owner's turn", "paper §IV.C"),
+    _T("WAIT", "deadline", "SWITCH", "the owner missed: our turn at E + Tmax + Ttrans",
+       "paper §IV.C"),
+    _T("WAIT", "deadline", "HOLD", "the owner missed right after our own frame, nothing "
+       "heard since: id x Tslot more (R-stagger)", "designed"),
+    _T("WAIT", "deadline", "LISTEN", "nobody heard for a whole round", "designed"),
+    _T("WAIT", "steal", "SWITCH", "fault injection: we wrongly take the turn", "fault"),
+    # -- an invitation's window -----------------------------------------------------------
+    _T("WINDOW", "frame", "WAIT", "the invited robot answered: the turn passes on",
+       "designed"),
+    _T("WINDOW", "frame", "SWITCH", "the answer came and ours is the next turn", "designed"),
+    _T("WINDOW", "frame", "HOLD", "the answer came and a lone member pauses", "designed"),
+    _T("WINDOW", "frame", "WATCH", "the answer came and ID 0's turn follows on a checking PC",
+       "designed"),
+    _T("WINDOW", "garbage", "WINDOW", "bytes that form no Header: keep waiting", "designed"),
+    _T("WINDOW", "deadline", "WINDOW", "a Header had begun by E + Twin: look again", "designed"),
+    _T("WINDOW", "deadline", "WAIT", "no answer by E + Twin: the poller's successor's turn",
+       "designed"),
+    _T("WINDOW", "deadline", "SWITCH", "no answer, and ours is the next turn", "designed"),
+    _T("WINDOW", "deadline", "HOLD", "no answer to a lone member: its next pause", "designed"),
+    # -- after a frame that broke early ---------------------------------------------------
+    _T("QUIET", "garbage", "QUIET", "bytes keep coming", "designed"),
+    _T("QUIET", "frame", "WAIT", "a good frame: resynchronise on it", "paper §IV.B"),
+    _T("QUIET", "frame", "SWITCH", "a good frame, and ours is the next turn", "paper §IV.B"),
+    _T("QUIET", "deadline", "QUIET", "not quiet yet: look again at the last byte + the gap",
+       "designed"),
+    _T("QUIET", "deadline", "WAIT", "quiet: the turn closed, the next owner's (R-stagger); or "
+       "only noise until E + Tmax: a miss", "designed"),
+    _T("QUIET", "deadline", "HOLD", "quiet, and ours is next: id x Tslot after the quiet "
+       "(R-stagger)", "designed"),
+    _T("QUIET", "deadline", "SWITCH", "only noise until E + Tmax: a miss, and ours is next",
+       "paper §IV.C"),
+    # -- our turn -------------------------------------------------------------------------
+    _T("HOLD", "garbage", "HOLD", "bytes heard while we wait to begin", "designed"),
+    _T("HOLD", "frame", "WAIT", "someone else sent first: resynchronise on it", "paper §IV.B"),
+    _T("HOLD", "frame", "LISTEN", "heard another robot while alone", "designed"),
+    _T("HOLD", "deadline", "HOLD", "a frame is coming in, or a jam not yet quiet for "
+       "id x Tslot (R-stagger)", "designed"),
+    _T("HOLD", "deadline", "SWITCH", "our turn: raise TXEN", "paper §IV.B"),
+    _T("HOLD", "deadline", "WATCH", "ID 0's turn on a PC that checks for the other PC",
+       "designed"),
+    _T("SWITCH", "failed frame", "SWITCH", "deaf while switching: nothing changes",
+       "paper §III"),
+    _T("SWITCH", "deadline", "SEND", "Ttrans after TXEN: the frame goes out", "paper §IV.B"),
+    _T("SEND", "tx done", "WAIT", "our End is out: the successor's turn at E", "paper §IV.B"),
+    _T("SEND", "tx done", "WINDOW", "we invited a robot: its window until E + Twin",
+       "designed"),
+    _T("SEND", "tx done", "HOLD", "a lone member pauses Twin + id x Tslot", "designed"),
+    # -- father failover ------------------------------------------------------------------
+    _T("WATCH", "frame", "WAIT", "the active PC's frame: follow it", "designed"),
+    _T("WATCH", "deadline", "WAIT", "the active PC's Header is coming: stand by", "designed"),
+    _T("WATCH", "deadline", "SWITCH", "no Header from the active PC: take ID 0's turn",
+       "designed"),
+)
+
+
+def markdown() -> str:
+    """The table as Markdown (state, event, next state, when, source)."""
+    rows = ["| state | event | next | when | rule |", "|---|---|---|---|---|"]
+    rows += [f"| {t.state} | {t.event} | {t.next} | {t.when} | {t.source} |"
+             for t in TRANSITIONS]
+    return "\n".join(rows)
+
+
+def mermaid() -> str:
+    """A mermaid state diagram: one arrow per (state, next), labelled with its events."""
+    edges: dict[tuple[str, str], list[str]] = {}
+    for t in TRANSITIONS:
+        if t.state == t.next:
+            continue
+        evs = edges.setdefault((t.state, t.next), [])
+        if t.event not in evs:
+            evs.append(t.event)
+    lines = ["stateDiagram-v2", "    [*] --> LISTEN: power on"]
+    lines += [f"    {a} --> {b}: {', '.join(evs)}" for (a, b), evs in edges.items()]
+    return "\n".join(lines)
+
+
+def docs_section() -> str:
+    """What docs/mac.md holds between its mac-table markers."""
+    return f"```mermaid\n{mermaid()}\n```\n\n{markdown()}\n"
+
+
+if __name__ == "__main__":
+    print(docs_section(), end="")
