@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 
 from firmware_model.radio.mac import MacConfig
-from hil.world import SimConfig, World
+from hil.sim.world import SimConfig, World
 
 
 def main() -> None:

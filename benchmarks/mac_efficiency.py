@@ -16,8 +16,8 @@ import argparse
 import statistics
 
 from firmware_model.timing import CHILD_BYTE_TICKS, TICK_HZ, TMAX_TICKS, TTRANS_TICKS, s_to_ticks
-from hil.faults import Fault
-from hil.world import SimConfig, World
+from hil.sim.faults import Fault
+from hil.sim.world import SimConfig, World
 
 CAPACITY = 960.0                      # bytes/s at 9600 baud, 8N1
 TTRANS_BYTES = TTRANS_TICKS / CHILD_BYTE_TICKS

@@ -31,7 +31,7 @@ import time
 from firmware_model.radio.mac import MacConfig, Outcome, SubmitError
 from firmware_model.radio.peer_macs import PeerConfig, install
 from firmware_model.timing import CHILD_BYTE_TICKS, FRAME_OVERHEAD, TICK_HZ, TTRANS_TICKS
-from hil.world import SimConfig, World, _filled_commands
+from hil.sim.world import SimConfig, World, _filled_commands
 
 FRAME_BYTES = 40
 T_FRAME = FRAME_BYTES * CHILD_BYTE_TICKS

@@ -14,7 +14,7 @@ import gc
 import statistics
 import time
 
-from hil.world import SimConfig, World
+from hil.sim.world import SimConfig, World
 
 RINGS = {3: (1, 2, 3), 4: (1, 2, 3, 4), 7: (0, 1, 2, 3, 4, 5, 6)}
 LOADS = {"idle": {}, "saturated": {"load": "saturate"}, "BER 1e-3": {"ber": 1e-3}}

@@ -6,7 +6,7 @@ and the submodule nodes run unchanged on SocketCAN (``socketcan:vcan0``), python
 ``virtual`` bus, ``udp_multicast`` or a real adapter. The wire does the arbitration; local
 nodes sharing one ``PythonCanBus`` also hear each other's frames, as on a real bus.
 
-It needs a scheduler with ``post`` (``hil.realtime.RealTimeScheduler``): python-can's reader
+It needs a scheduler with ``post`` (``hil.sim.realtime.RealTimeScheduler``): python-can's reader
 thread hands every received frame to the scheduler's thread. ``log`` writes every frame sent or
 received with python-can's writers, chosen by the file's extension (candump ``.log``,
 ``.asc``, ``.blf``, ``.csv``, ``.trc``).

@@ -67,7 +67,7 @@ MAX_SUBMITS = 4
 
 
 # --------------------------------------------------------------------------------------------
-# A stand-in for the air (hil.air's delivery rules, one radio, no other transmitters)
+# A stand-in for the air (hil.sim.air's delivery rules, one radio, no other transmitters)
 
 
 class Reception:

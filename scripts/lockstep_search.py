@@ -1,5 +1,5 @@
 """Full lock-step search: every burst length 1-600 bytes at every byte offset of an idle cycle,
-for rings of 2-7 robots with and without the father (hil/lockstep.py; docs/guarantees.md).
+for rings of 2-7 robots with and without the father (hil/sim/lockstep.py; docs/guarantees.md).
 
     python scripts/lockstep_search.py [--lengths 1-600] [--rings 1,2 0,1,2 ...]
 """
@@ -9,7 +9,7 @@ import argparse
 import sys
 import time
 
-from hil.lockstep import search
+from hil.sim.lockstep import search
 
 
 def main(argv=None) -> int:

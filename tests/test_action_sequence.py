@@ -6,7 +6,7 @@ import pytest
 from firmware_model.sequence import ActionSequence
 from firmware_model.timing import TMAX_TICKS, TTRANS_TICKS, s_to_ticks
 from hil.cli import main
-from hil.world import ConfigError, SimConfig, World
+from hil.sim.world import ConfigError, SimConfig, World
 
 
 def expected(order, cycles):

@@ -1,4 +1,4 @@
-"""The virtual air (hil/air.py) with PTR2000 + UART models, tick-exact (PROTOCOL.md §1-2)."""
+"""The virtual air (hil/sim/air.py) with PTR2000 + UART models, tick-exact (PROTOCOL.md §1-2)."""
 from __future__ import annotations
 
 import pytest
@@ -11,7 +11,7 @@ from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.mcu.uart import Uart
 from firmware_model.station import build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TTRANS_TICKS
-from hil.air import Air
+from hil.sim.air import Air
 
 BT = CHILD_BYTE_TICKS          # 16640
 TT = TTRANS_TICKS              # 80000
@@ -582,7 +582,7 @@ def test_clean_schedules_match_reference(seq, bbb):
 
 
 # ---------------------------------------------------------------------------------------------
-# Regressions: bugs these tests found (fixed in hil/air.py)
+# Regressions: bugs these tests found (fixed in hil/sim/air.py)
 # ---------------------------------------------------------------------------------------------
 
 # A frame ending at the very tick another one starts was lost when the new send ran before the

@@ -20,7 +20,7 @@ from firmware_model.mcu.can_controller import CanController
 from firmware_model.radio.content import cmd
 from firmware_model.radio.mac import Deliver
 from firmware_model.station import build_station
-from hil.realtime import RealTimeScheduler
+from hil.sim.realtime import RealTimeScheduler
 
 
 def test_dispatcher_drives_the_submodules_over_python_can(can_channel, tmp_path):

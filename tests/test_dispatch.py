@@ -8,7 +8,7 @@ from can_bus.bus import CanFrame
 from firmware_model.kinematics import HOME, JOINT_LIMITS, forward, inverse
 from firmware_model.radio.content import cmd
 from firmware_model.timing import TICK_HZ, s_to_ticks
-from hil.world import SimConfig, World
+from hil.sim.world import SimConfig, World
 
 START = s_to_ticks(4.0)        # the ring has formed by then
 
@@ -194,7 +194,7 @@ def test_stuck_txd_blocks_the_bus_and_the_child_isolates_itself():
 
 
 def test_can_trace_events_and_meta_bitrate(tmp_path):
-    from hil.trace import TraceWriter, read_trace
+    from hil.sim.trace import TraceWriter, read_trace
     p = tmp_path / "t.jsonl"
     tw = TraceWriter(str(p))
     w = World(SimConfig(robots=(1, 2), duration=3.0, can=True), tw)

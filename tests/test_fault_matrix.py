@@ -14,9 +14,9 @@ import pytest
 
 from firmware_model.radio.mac import MacConfig
 from firmware_model.timing import TICK_HZ, s_to_ticks
-from hil.faults import Fault
-from hil.soak import REFORM_BOUND_S
-from hil.world import SimConfig, World
+from hil.sim.faults import Fault
+from hil.sim.soak import REFORM_BOUND_S
+from hil.sim.world import SimConfig, World
 
 FAULTS = {
     "death": (Fault("fail", 2, 6.0), Fault("recover", 2, 12.0)),

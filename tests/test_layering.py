@@ -1,9 +1,12 @@
 """The import rules of docs/architecture.md, checked on the source: ``can_bus`` is a CAN library
-that stands alone (it imports neither ``firmware_model`` nor ``hil``), and ``firmware_model``
-never imports ``hil``. Every import statement counts, including ones inside functions."""
+that stands alone (it imports neither ``firmware_model`` nor ``hil``), ``firmware_model`` never
+imports ``hil``, and the rooms of ``hil`` import only downwards: ``sim`` nothing of the others,
+``bench`` only ``sim``, ``view`` ``sim`` and ``bench``, ``cli`` anything. Every import
+statement counts, including ones inside functions; relative imports are resolved."""
 from __future__ import annotations
 
 import ast
+import sys
 from pathlib import Path
 
 import pytest
@@ -15,36 +18,51 @@ ROOT = Path(__file__).resolve().parent.parent
 FORBIDDEN = {
     "can_bus": ("firmware_model", "hil"),
     "firmware_model": ("hil",),
+    "hil/sim": ("hil.bench", "hil.view", "hil.cli"),
+    "hil/bench": ("hil.view", "hil.cli"),
+    "hil/view": ("hil.cli",),
 }
 
 
-def imported_packages(path: Path, package: str) -> set[tuple[int, str]]:
-    """(line, top-level package) of every import in ``path``; relative imports resolve to
-    ``package``."""
+def imported_modules(path: Path) -> set[tuple[int, str]]:
+    """(line, dotted module) of every import in ``path`` (a file under ROOT); relative imports
+    are resolved against the file's package."""
+    package = list(path.relative_to(ROOT).parent.parts)
     out = set()
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
-            out |= {(node.lineno, a.name.split(".")[0]) for a in node.names}
+            out |= {(node.lineno, a.name) for a in node.names}
         elif isinstance(node, ast.ImportFrom):
-            top = package if node.level else (node.module or "").split(".")[0]
-            out.add((node.lineno, top))
+            base = package[:len(package) - node.level + 1] if node.level else []
+            mod = ".".join(base + ([node.module] if node.module else []))
+            out.add((node.lineno, mod))
+            if not node.module:          # from . import x: x is a module of that package
+                out |= {(node.lineno, f"{mod}.{a.name}") for a in node.names}
     return out
 
 
-@pytest.mark.parametrize("package", sorted(FORBIDDEN))
-def test_no_import_against_the_layering(package):
-    files = sorted((ROOT / package).rglob("*.py"))
-    assert files, f"no sources under {package}/"
-    bad = [f"{f.relative_to(ROOT)}:{line} imports {top}"
-           for f in files for line, top in imported_packages(f, package)
-           if top in FORBIDDEN[package]]
+def _under(module: str, prefix: str) -> bool:
+    return module == prefix or module.startswith(prefix + ".")
+
+
+@pytest.mark.parametrize("room", sorted(FORBIDDEN))
+def test_no_import_against_the_layering(room):
+    files = sorted((ROOT / room).rglob("*.py"))
+    assert files, f"no sources under {room}/"
+    bad = [f"{f.relative_to(ROOT)}:{line} imports {mod}"
+           for f in files for line, mod in imported_modules(f)
+           for banned in FORBIDDEN[room] if _under(mod, banned)]
     assert not bad, "\n".join(bad)
 
 
-def test_the_checker_sees_a_forbidden_import(tmp_path):
-    bad = tmp_path / "m.py"
-    bad.write_text("def f():\n    from hil.world import World\n")
-    assert (2, "hil") in imported_packages(bad, "firmware_model")
+def test_the_checker_sees_forbidden_imports(tmp_path, monkeypatch):
+    pkg = tmp_path / "hil" / "sim"
+    pkg.mkdir(parents=True)
+    bad = pkg / "m.py"
+    bad.write_text("def f():\n    from hil.cli import main\nfrom ..view import plot\n")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    found = imported_modules(bad)
+    assert (2, "hil.cli") in found and (3, "hil.view") in found
 
 
 def test_the_firmware_clock_is_the_can_library_default():

@@ -1,11 +1,11 @@
-"""The lock-step search (hil/lockstep.py): a foreign burst at every byte offset across a whole
+"""The lock-step search (hil/sim/lockstep.py): a foreign burst at every byte offset across a whole
 idle cycle, for ring sizes 2 to 7 with and without the father. The suite samples burst
 lengths; ``python scripts/lockstep_search.py`` runs every length from 1 to 600 bytes."""
 from __future__ import annotations
 
 import pytest
 
-from hil.lockstep import FOREIGN_BYTE_TICKS, idle_cycle_ticks, search
+from hil.sim.lockstep import FOREIGN_BYTE_TICKS, idle_cycle_ticks, search
 
 RINGS = [tuple(range(1, n + 1)) for n in range(2, 7)] + \
         [tuple(range(0, n)) for n in range(2, 8)]
@@ -36,7 +36,7 @@ def test_a_pickled_world_runs_as_the_original():
     import random
 
     from firmware_model.timing import TMAX_TICKS
-    from hil.lockstep import formed_world
+    from hil.sim.lockstep import formed_world
 
     def collisions(w):
         evs = w.on_event.__self__

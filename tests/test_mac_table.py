@@ -13,8 +13,8 @@ import pytest
 
 from firmware_model.radio import mac as M
 from firmware_model.radio.mac_table import EVENTS, STATES, TRANSITIONS, docs_section
-from hil.faults import parse_fault
-from hil.world import SimConfig, World
+from hil.sim.faults import parse_fault
+from hil.sim.world import SimConfig, World
 
 RUNS = [
     dict(robots=(0, 1, 2, 3, 4, 5, 6), duration=30, seed=1, load=2.0),

@@ -1,4 +1,4 @@
-"""``rprs monitor`` (hil/monitor.py), headless with textual's pilot.
+"""``rprs monitor`` (hil/view/monitor.py), headless with textual's pilot.
 
 The simulator app starts paused and the tests advance its world with ``advance(seconds)``, so
 what they check does not depend on how fast the machine is. Where the refresh timer matters the
@@ -18,9 +18,9 @@ pytest.importorskip("textual")
 
 from firmware_model.radio.frame import Frame  # noqa: E402
 from firmware_model.timing import TICK_HZ, TMAX_TICKS  # noqa: E402
-from hil.bench import HeardFrame  # noqa: E402
-from hil.monitor import RadioMonitorApp, SimMonitorApp  # noqa: E402
-from hil.world import SimConfig  # noqa: E402
+from hil.bench.scripts import HeardFrame  # noqa: E402
+from hil.view.monitor import RadioMonitorApp, SimMonitorApp  # noqa: E402
+from hil.sim.world import SimConfig  # noqa: E402
 from textual.widgets import Static  # noqa: E402
 
 SIZE = (140, 40)
@@ -199,7 +199,7 @@ def test_the_world_stops_at_its_duration():
 
 def test_radio_monitor_on_the_hub_shows_the_robot():
     pytest.importorskip("serial")
-    from hil.radio_hub import RadioHub
+    from hil.bench.radio_hub import RadioHub
 
     with RadioHub(3) as hub:
         hub.start()

@@ -19,7 +19,7 @@ from firmware_model.radio.peer_macs import (
     AlohaMac, CsmaMac, PeerConfig, SlottedAlohaMac, default_slot, install, make_mac,
 )
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TTRANS_TICKS
-from hil.world import SimConfig, World
+from hil.sim.world import SimConfig, World
 
 PEERS = ("aloha", "slotted", "csma")
 BT = CHILD_BYTE_TICKS

@@ -13,7 +13,7 @@ from firmware_model.radio.mac import Deliver, Duplicate, MacConfig, RotationalMa
 from firmware_model.timing import (
     CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, protocol_max_content, s_to_ticks,
 )
-from hil.world import SimConfig, World
+from hil.sim.world import SimConfig, World
 
 B = PC_BYTE_TICKS          # a foreign transmitter's byte time (9600 baud)
 

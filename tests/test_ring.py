@@ -10,7 +10,7 @@ from firmware_model.radio.mac import MacConfig, SubmitError
 from firmware_model.timing import (
     CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, TTRANS_TICKS, s_to_ticks,
 )
-from hil.world import Fault, SimConfig, World
+from hil.sim.world import Fault, SimConfig, World
 
 MAC = MacConfig()
 
@@ -280,7 +280,7 @@ def test_submission_refuses_a_frame_longer_than_tmax():
 
 
 def test_same_seed_same_trace_bytes(tmp_path):
-    from hil.trace import TraceWriter
+    from hil.sim.trace import TraceWriter
     paths = []
     for i in range(2):
         p = tmp_path / f"t{i}.jsonl"

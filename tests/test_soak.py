@@ -3,8 +3,8 @@ and traffic, then the guarantees of docs/guarantees.md."""
 from __future__ import annotations
 
 from hil.cli import main
-from hil.faults import parse_fault
-from hil.soak import random_faults, run_soak
+from hil.sim.faults import parse_fault
+from hil.sim.soak import random_faults, run_soak
 
 import random
 

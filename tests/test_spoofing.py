@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from firmware_model.radio.frame import Frame
 from firmware_model.timing import TMAX_TICKS, s_to_ticks
-from hil.world import SimConfig, World
+from hil.sim.world import SimConfig, World
 
 
 def ring_with_silent_r1(extra_ms=100, **kw):

@@ -1,4 +1,4 @@
-"""VCD waveform (hil.vcd) and Fig. 7 plot (hil.plot) from simulated traces."""
+"""VCD waveform (hil.view.vcd) and Fig. 7 plot (hil.view.plot) from simulated traces."""
 from __future__ import annotations
 
 import io
@@ -13,10 +13,10 @@ pytest.importorskip("matplotlib")
 
 from vcd.reader import TokenKind, tokenize  # noqa: E402
 
-from hil.plot import PlotError, plot_trace  # noqa: E402
-from hil.trace import TraceError, TraceWriter, read_trace  # noqa: E402
-from hil.vcd import VcdError, VcdTraceWriter, timescale_for, write_vcd  # noqa: E402
-from hil.world import Fault, SimConfig, World  # noqa: E402
+from hil.view.plot import PlotError, plot_trace  # noqa: E402
+from hil.sim.trace import TraceError, TraceWriter, read_trace  # noqa: E402
+from hil.view.vcd import VcdError, VcdTraceWriter, timescale_for, write_vcd  # noqa: E402
+from hil.sim.world import Fault, SimConfig, World  # noqa: E402
 
 UNITS = 625          # 100 ps units per 62.5 ns tick
 

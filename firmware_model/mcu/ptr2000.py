@@ -3,7 +3,7 @@
 TXEN high: the module switches to transmit, which takes Ttrans (5 ms); bytes the UART sends
 before then never reach the air. TXEN low: it switches back and hears the air again Ttrans
 later. While transmitting or switching it is deaf. With nobody transmitting, a real module
-outputs random bytes; the channel model decides what the receiver hears (hil.air). A dead
+outputs random bytes; the channel model decides what the receiver hears (hil.sim.air). A dead
 module (``alive = False``, fault injection) neither sends nor hears.
 """
 from __future__ import annotations

@@ -661,7 +661,7 @@ def make_mac(kind: str, robot_id: int, config: MacConfig | None = None, seed: in
 
 
 def install(world, kind: str, peer: PeerConfig | None = None) -> dict[int, object]:
-    """Swap every station of a freshly built ``hil.world.World`` (not yet run) to ``kind``.
+    """Swap every station of a freshly built ``hil.sim.world.World`` (not yet run) to ``kind``.
 
     Each station keeps its own ``MacConfig`` (byte rate, team); the world powers the MACs on
     at their power-on ticks as usual. Returns the MACs by robot ID."""

@@ -3,8 +3,8 @@
 Each node gets a pty whose slave side (``/dev/pts/N``) any serial program opens like a serial
 port: a robot process (``rprs child --radio /dev/pts/N``), screen, minicom, pyserial. The hub
 holds the master sides and plays the one half-duplex 9600-baud channel of PROTOCOL.md §1-2 with
-the simulator's own :class:`hil.air.Air` (``byte_by_byte=True``) running on a
-:class:`hil.realtime.RealTimeScheduler`, so collisions, byte errors, idle noise and their seeded
+the simulator's own :class:`hil.sim.air.Air` (``byte_by_byte=True``) running on a
+:class:`hil.sim.realtime.RealTimeScheduler`, so collisions, byte errors, idle noise and their seeded
 random streams are exactly the simulator's:
 
 * bytes a node writes go on air at the hub's byte time (16667 ticks, 1.0417 ms, at 9600 8N1);
@@ -45,8 +45,8 @@ from typing import Any, Iterable, Sequence
 
 from firmware_model.timing import BITS_PER_BYTE_8N1, TICK_HZ, s_to_ticks
 
-from .air import Air
-from .realtime import RealTimeScheduler
+from ..sim.air import Air
+from ..sim.realtime import RealTimeScheduler
 
 MAX_NODES = 7
 """Robot IDs 0-6: at most seven radios share the channel."""
@@ -116,7 +116,7 @@ class _Uart:
 
 
 class _Node:
-    """The radio-side interface hil.air.Air drives (see firmware_model.mcu.ptr2000.Ptr2000):
+    """The radio-side interface hil.sim.air.Air drives (see firmware_model.mcu.ptr2000.Ptr2000):
     always listening while the link is up, no TXEN and no Ttrans."""
 
     __slots__ = ("hub", "robot", "idx", "alive", "rx_from", "rx", "noise_from", "uart",
@@ -181,7 +181,7 @@ class RadioHub:
                  drops: Sequence[tuple[int, float, float]] = (),
                  faults: Sequence[Any] = ()) -> None:
         drops = [tuple(d) for d in drops]
-        from .faults import AIR_KINDS
+        from ..sim.faults import AIR_KINDS
         for f in faults:
             if f.kind not in AIR_KINDS:
                 raise ValueError(f"the radio hub takes air faults ({', '.join(AIR_KINDS)}), "
@@ -300,7 +300,7 @@ class RadioHub:
         self._pumping = self.noise
         if self.noise:
             self.sched.at(self.byte_ticks, self._pump)
-        from .faults import schedule as schedule_fault
+        from ..sim.faults import schedule as schedule_fault
         for f in self.faults:       # the simulator's fault mechanism, on the hub's air
             schedule_fault(self.sched, f, self._fault_start, self._fault_end)
         reader = threading.Thread(target=self._reader, name="radio-hub-reader", daemon=True)
@@ -470,7 +470,7 @@ class RadioHub:
         self._fault(f, "end")
 
     def _fault(self, f: Any, phase: str) -> None:
-        from .faults import apply_air_fault
+        from ..sim.faults import apply_air_fault
         if f.kind == "fail":
             self._link_down(f.robot)
         elif f.kind == "recover":
@@ -594,7 +594,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="node ID's link is down from START to END s after start (repeatable)")
 
     def fault(text: str):
-        from .faults import AIR_KINDS, FaultError, parse_fault
+        from ..sim.faults import AIR_KINDS, FaultError, parse_fault
         try:
             f = parse_fault(text)
         except FaultError as e:

@@ -33,7 +33,7 @@ from firmware_model.radio.mac import (
 from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
 
-from .realtime import RealTimeScheduler
+from ..sim.realtime import RealTimeScheduler
 from .serial_radio import PortError, SerialChannel, open_port
 
 

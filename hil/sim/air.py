@@ -174,7 +174,7 @@ class Air:
         self._drop_rng.append(random.Random(f"{name}:drop"))
         self._idle_from(radio, self.sched.now)
 
-    # -- fault injection (hil.faults drives these) -----------------------------------------
+    # -- fault injection (hil.sim.faults drives these) -----------------------------------------
 
     def set_ber(self, ber: float) -> None:
         """Byte error rate from now on (each received byte, per receiver)."""

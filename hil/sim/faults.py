@@ -19,7 +19,7 @@ A fault is written ``KIND[:TARGET]@WHEN[:VALUE]`` (times in seconds from the sta
 =========================  ===============================================================
 
 Air faults (``ber``, ``noise``, ``burst``, ``drop``, ``fail``/``recover`` of a node) act on
-``hil.air.Air``, which both the simulator and the pty radio hub use, so the same spec means
+``hil.sim.air.Air``, which both the simulator and the pty radio hub use, so the same spec means
 the same thing on both. Randomness comes from the air's and the world's seeded streams.
 """
 from __future__ import annotations

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, \
     s_to_ticks
-from hil.world import SimConfig, World
+from hil.sim.world import SimConfig, World
 
 PICKLE = pickle.HIGHEST_PROTOCOL
 FOREIGN_BYTE_TICKS = PC_BYTE_TICKS

@@ -1,7 +1,7 @@
 """Soak: hours of simulated time with random faults and traffic, ending with the invariants.
 
 ``rprs soak --hours H --seed S`` runs a ring (the father with a standby PC, and children with
-their CAN side) under seeded random faults of every kind (hil.faults) spaced about a minute
+their CAN side) under seeded random faults of every kind (hil.sim.faults) spaced about a minute
 apart, with traffic, then lets the queues drain and checks the guarantees of docs/guarantees.md:
 
 * every submitted message ended delivered or failed with a reason (after the drain nothing is

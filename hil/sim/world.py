@@ -75,7 +75,7 @@ class SimConfig:
     sequence: tuple[tuple[int, ...], int] | None = None
     """(row order, cycles): the children run the paper's action sequence (needs ``can``)."""
     realtime: bool = False
-    """Run on the wall clock (hil.realtime) instead of as fast as the CPU goes."""
+    """Run on the wall clock (hil.sim.realtime) instead of as fast as the CPU goes."""
     father_standby: bool = False
     """A second father PC (PC2) as hot standby for ID 0 (needs 0 in ``robots``)."""
     mac_kind: str = "rotational"
@@ -366,7 +366,7 @@ class World:
 
     def inject(self, kind: str, robot: int | None, at_tick: int, until_tick: int | None = None,
                value: float | None = None, node: str | None = None) -> None:
-        """Schedule a fault at a tick (tests): any kind of hil.faults."""
+        """Schedule a fault at a tick (tests): any kind of hil.sim.faults."""
         if kind not in KINDS or kind == "skew":
             raise ConfigError(f"unknown fault {kind!r}; one of {', '.join(KINDS)}")
         f = Fault(kind, robot, at_tick / TICK_HZ,

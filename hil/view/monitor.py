@@ -14,7 +14,7 @@ view, live, in a textual TUI:
 
 Two sources:
 
-:class:`SimMonitorApp` owns a :class:`hil.world.World` and advances it from a textual timer by
+:class:`SimMonitorApp` owns a :class:`hil.sim.world.World` and advances it from a textual timer by
 ``speed`` x the wall time elapsed (speed 1 = real time; space pauses, ``+``/``-`` double or halve
 the speed). A slice of wall time the simulator cannot keep up with is dropped rather than owed,
 so the view stays responsive; the header then shows the speed actually achieved. Keys:
@@ -25,7 +25,7 @@ noise on the air (``Air.noise``, with the air's idle bookkeeping restarted so th
 radios hear noise from now on / stop hearing it now), ``q`` quits.
 
 :class:`RadioMonitorApp` opens a serial port (a USB radio, or one node of the pty radio hub) as
-a passive listener (:class:`hil.bench.Sniffer`, it never transmits) and shows what it hears:
+a passive listener (:class:`hil.bench.scripts.Sniffer`, it never transmits) and shows what it hears:
 frames per robot with their Content, the inferred ring (robots heard in the last
 ``window`` seconds), the owner of the turn (the last source heard), occupations (frames heard,
 good or failed) and inferred missed turns (a gap of about Tmax or more between two frames is
@@ -62,8 +62,8 @@ from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, s_to_ticks
 
-from .bench import HeardFrame, Sniffer
-from .world import SimConfig, World
+from ..bench.scripts import HeardFrame, Sniffer
+from ..sim.world import SimConfig, World
 
 RATE_HZ = 10.0
 """Display refresh (and simulator pacing) rate."""
@@ -563,7 +563,7 @@ class SimMonitorApp(MonitorApp):
 
 
 class MonitorSniffer(Sniffer):
-    """A :class:`hil.bench.Sniffer` that also keeps each frame's Content, in a buffer the
+    """A :class:`hil.bench.scripts.Sniffer` that also keeps each frame's Content, in a buffer the
     monitor drains (so memory stays bounded however long it listens)."""
 
     def __init__(self, port_spec: str, byte_ticks: int = PC_BYTE_TICKS) -> None:
@@ -746,7 +746,7 @@ def run_monitor_sim(config: SimConfig, speed: float = 1.0) -> int:
 
 def run_monitor_radio(port: str) -> int:
     """``rprs monitor --radio PORT``: the TUI on a listening serial port until q.
-    Raises :class:`hil.serial_radio.PortError` (one line) when the port cannot be opened."""
+    Raises :class:`hil.bench.serial_radio.PortError` (one line) when the port cannot be opened."""
     app = RadioMonitorApp(port)
     try:
         app.run()

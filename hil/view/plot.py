@@ -20,7 +20,7 @@ import os
 from collections import deque
 from typing import Any, Iterable
 
-from .trace import TraceError
+from ..sim.trace import TraceError
 from .vcd import TickReorder, checked_events, need, need_int
 
 __all__ = ["PlotError", "plot_trace", "FORMATS", "MAX_TURNS"]
@@ -36,7 +36,7 @@ _COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf", "#
 
 class PlotError(ValueError):
     """The plot cannot be made as asked: unsupported output format, bad window, nothing on air
-    in the window, unwritable path. Unusable trace input raises :class:`hil.trace.TraceError`
+    in the window, unwritable path. Unusable trace input raises :class:`hil.sim.trace.TraceError`
     (also a ``ValueError``)."""
 
 
@@ -378,7 +378,7 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
     ``collided``, ``misses`` (deduplicated), ``disables``, ``rejoins``, ``interference``,
     ``utilisation_bin_s``
     and ``utilisation`` (whole-trace mean). Raises :class:`PlotError` for an unsupported
-    format, a bad window or an empty one, and :class:`hil.trace.TraceError` for unusable
+    format, a bad window or an empty one, and :class:`hil.sim.trace.TraceError` for unusable
     events; the output file is written atomically (nothing is left on error).
     """
     ext = os.path.splitext(out)[1].lower().lstrip(".")

@@ -32,7 +32,7 @@ from typing import Any, Iterable, Iterator
 
 from vcd import VCDWriter
 
-from .trace import TraceError
+from ..sim.trace import TraceError
 
 __all__ = ["VcdError", "VcdTraceWriter", "write_vcd", "TIMESCALE", "checked_events",
            "TickReorder"]
@@ -48,7 +48,7 @@ _TIMESCALES = [(m, u, Fraction(m) * f) for u, f in
 
 class VcdError(ValueError):
     """The VCD file cannot be written (bad output path). Unusable input raises
-    :class:`hil.trace.TraceError` (also a ``ValueError``)."""
+    :class:`hil.sim.trace.TraceError` (also a ``ValueError``)."""
 
 
 def timescale_for(tick_hz: int) -> tuple[str, int]:
@@ -62,7 +62,7 @@ def timescale_for(tick_hz: int) -> tuple[str, int]:
     raise TraceError(f"tick_hz {tick_hz} has no exact VCD timescale (1 fs resolution)")
 
 
-# -- input checking shared with hil.plot ---------------------------------------------------
+# -- input checking shared with hil.view.plot ---------------------------------------------------
 
 def _int(ev: dict, key: str, n: int) -> int:
     try:
@@ -188,7 +188,7 @@ class VcdTraceWriter:
         self._q = TickReorder(self.lookback)
         ring = ",".join(str(r) for r in self.robots)
         w = VCDWriter(self._f, timescale=timescale, date="(simulated)",
-                      version="rprs hil.vcd",
+                      version="rprs hil.view.vcd",
                       comment=f"RPRS ring {ring} seed {meta.get('seed')} "
                               f"tick {10**9 / self.tick_hz:g} ns = {self.units} units")
         self._w = w
@@ -393,7 +393,7 @@ def write_vcd(events: Iterable[dict], path: str) -> dict:
     Returns a summary: ``path``, ``timescale``, ``units_per_tick``, ``robots``, ``frames``,
     ``collided_frames``, ``misses`` (deduplicated), ``can_frames``, ``interference``,
     ``end_tick``, ``signals``.
-    Raises :class:`hil.trace.TraceError` for unusable events (nothing is left at ``path``) and
+    Raises :class:`hil.sim.trace.TraceError` for unusable events (nothing is left at ``path``) and
     :class:`VcdError` when the file cannot be created. Both are ``ValueError``s.
     """
     w = VcdTraceWriter(path)
