@@ -1,0 +1,123 @@
+"""``rprs bench link|cycle|latency``: bench scripts against USB radios or the radio hub."""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+
+from .common import Parser, UserError, digit, positive, progress_bar, robot_list, txen_option
+
+def cmd_bench(a: argparse.Namespace) -> int:
+    from ..bench import scripts as bench
+    from ..bench.serial_radio import PortError
+    if a.which in ("link", "cycle"):
+        update, close = progress_bar(a.duration, f"listening on {a.radio}")
+        try:
+            res = bench.listen(a.radio, a.duration, update)
+        except PortError as exc:
+            raise UserError(str(exc)) from None
+        finally:
+            close()
+        if a.which == "link":
+            robots = sorted({f.src for f in res.frames})
+            ok = bool(res.frames)
+            report = {"bytes": res.bytes, "frames": len(res.frames), "garbage_bytes": res.garbage,
+                      "failed_frames": res.failed, "robots_heard": robots, "link_ok": ok}
+            if a.json:
+                print(json.dumps(report))
+            else:
+                print(f"link {'OK' if ok else 'SILENT'}: {res.bytes} bytes in {a.duration:g} s, "
+                      f"{len(res.frames)} good frames from robots {robots or 'none'}, "
+                      f"{res.garbage} garbage bytes, {res.failed} broken frames")
+            return 0 if ok else 1
+        rep = bench.cycle_report(res)
+        if a.json:
+            print(json.dumps(rep))
+            return 0
+        if not rep["frames"]:
+            print(f"no frames heard in {a.duration:g} s on {a.radio}")
+            return 1
+        print(f"ring {rep['robots']}: {rep['frames']} frames in {a.duration:g} s, "
+              f"{rep['misses']} missed turns, {rep['garbage_bytes']} garbage bytes")
+        if rep["turn_gap_ms_median"] is not None:
+            print(f"turn hand-over (End -> next Header): median {rep['turn_gap_ms_median']:.2f} "
+                  f"ms against Ttrans {rep['spec_gap_ms']:g} ms; error median "
+                  f"{rep['turn_gap_error_ms_median']:.2f} ms, p99 "
+                  f"{rep['turn_gap_error_ms_p99']:.2f} ms")
+        for r, c in rep["cycle_ms_median"].items():
+            print(f"  robot {r}: {rep['frames_per_robot'][r]} frames, cycle median {c:.1f} ms")
+        return 0
+    # latency: join the ring as a member and ask a robot for its status
+    from firmware_model.radio.mac import MacConfig
+    from ..bench.runner import Runner, RunError, build_child, build_father
+    import threading
+    runner = Runner()
+    cfg = MacConfig(team=frozenset(a.team)) if a.team else MacConfig()
+    try:
+        if a.id == 0:
+            station = build_father(runner, a.radio, txen=a.txen, config=cfg)
+        else:
+            station, _ = build_child(runner, a.id, a.radio, None, txen=a.txen, config=cfg)
+    except RunError as exc:
+        runner.run(0)
+        raise UserError(str(exc)) from None
+    t = threading.Thread(target=runner.run, daemon=True)
+    t.start()
+    try:
+        end = time.monotonic() + a.join_timeout
+        while a.dst not in station.mac.ring and time.monotonic() < end:
+            time.sleep(0.05)
+        if a.dst not in station.mac.ring:
+            print(f"robot {a.dst} is not in the ring after {a.join_timeout:g} s "
+                  f"(ring {list(station.mac.ring)})")
+            return 1
+        update, close = progress_bar(a.count, f"asking robot {a.dst}")
+        try:
+            r = bench.latency(runner, station, a.dst, a.count, a.timeout, update)
+        finally:
+            close()
+    finally:
+        runner.stop()
+        t.join(timeout=5)
+    med = lambda v: f"{statistics.median(v):.1f}" if v else "-"  # noqa: E731
+    p99 = lambda v: f"{bench.percentile(v, 99):.1f}" if v else "-"  # noqa: E731
+    rep = {"sent": r.sent, "replies": r.replies, "loss": 1 - r.replies / r.sent if r.sent else 1,
+           "round_trip_ms_median": statistics.median(r.round_trip_ms) if r.round_trip_ms
+           else None, "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,
+           "failed": r.failed}
+    if a.json:
+        print(json.dumps(rep))
+    else:
+        print(f"robot {a.dst}: {r.replies}/{r.sent} status replies; round trip median "
+              f"{med(r.round_trip_ms)} ms, p99 {p99(r.round_trip_ms)} ms; acknowledged in "
+              f"{med(r.ack_ms)} ms (median); loss {rep['loss']:.1%}")
+        for why in r.failed[:5]:
+            print(f"  failed: {why}")
+    return 0 if r.replies else 1
+
+
+def add(sub) -> None:
+    be = sub.add_parser("bench", help="bench scripts against USB radios or the radio hub")
+    bsub = be.add_subparsers(dest="which", metavar="SCRIPT", parser_class=Parser,
+                             required=True)
+    for name, text in (("link", "listen: is anybody talking, and how clean is it"),
+                       ("cycle", "listen and time the ring against the spec")):
+        b = bsub.add_parser(name, help=text)
+        b.add_argument("--radio", metavar="PORT", required=True)
+        b.add_argument("--duration", type=positive, default=10.0, metavar="SECONDS")
+        b.add_argument("--json", action="store_true")
+        b.set_defaults(func=cmd_bench)
+    b = bsub.add_parser("latency", help="join the ring and time status requests to a robot")
+    b.add_argument("--radio", metavar="PORT", required=True)
+    b.add_argument("--dst", type=digit(0, 6, "destination"), required=True)
+    b.add_argument("--id", type=digit(0, 6, "bench robot ID"), default=0,
+                   help="the ID the bench takes in the ring (default 0, the father)")
+    b.add_argument("--count", type=digit(1, 100000, "count"), default=20)
+    b.add_argument("--timeout", type=positive, default=10.0, metavar="SECONDS",
+                   help="per request")
+    b.add_argument("--join-timeout", type=positive, default=20.0, metavar="SECONDS")
+    b.add_argument("--team", type=robot_list, metavar="IDS")
+    b.add_argument("--json", action="store_true")
+    txen_option(b)
+    b.set_defaults(func=cmd_bench)

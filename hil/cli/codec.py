@@ -1,0 +1,103 @@
+"""``rprs encode`` and ``rprs decode``: frames to hex and back, from the command line or a stream."""
+from __future__ import annotations
+
+import argparse
+import binascii
+import json
+import sys
+
+from firmware_model.radio.content import parse_content
+from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
+from firmware_model.radio.errors import WireError
+from firmware_model.radio.frame import Frame
+
+from .common import UserError, digit
+
+def cmd_encode(a: argparse.Namespace) -> int:
+    content = a.content.encode("ascii", "strict") if a.content.isascii() else None
+    if content is None:
+        raise UserError("Content must be ASCII text such as 'movex(10)'")
+    try:
+        parse_content(content)
+        frame = Frame(dst=a.dst, src=a.src, num=a.num, type=a.type, content=content)
+        data = frame.encode()
+    except WireError as exc:
+        raise UserError(str(exc)) from None
+    print(data.hex(" ") if a.spaced else data.hex())
+    return 0
+
+
+def _frame_json(frame: Frame) -> dict:
+    d = {"dst": frame.dst, "src": frame.src, "num": frame.num, "type": frame.type,
+         "len": len(frame.content), "content": frame.content.decode("ascii")}
+    try:
+        d["commands"] = [[c.name, list(c.args)] for c in parse_content(frame.content)]
+    except WireError as exc:
+        d["content_error"] = str(exc)
+    return d
+
+
+def _decode_bytes(chunks, out) -> int:
+    d = Deframer()
+    offset = 0
+    frames = 0
+    for data in chunks:
+        for ev in d.feed(data, offset, 1):
+            if isinstance(ev, FrameReceived):
+                frames += 1
+                out({"offset": ev.first, "frame": _frame_json(ev.frame)})
+            elif isinstance(ev, Garbage):
+                out({"offset": ev.first, "garbage": ev.count})
+            elif isinstance(ev, FrameFailed):
+                out({"offset": ev.first, "error": str(ev.error)})
+        offset += len(data)
+    ev = d.abort(offset)
+    if ev is not None:
+        out({"offset": ev.first, "error": f"truncated: {ev.error}"})
+    for ev in d.flush():
+        if isinstance(ev, Garbage):
+            out({"offset": ev.first, "garbage": ev.count})
+    return frames
+
+
+def _unhex(text: str) -> bytes:
+    cleaned = "".join(text.split())
+    try:
+        return binascii.unhexlify(cleaned)
+    except (binascii.Error, ValueError):
+        raise UserError("input is not hexadecimal bytes (e.g. 0f0a05...)") from None
+
+
+def cmd_decode(a: argparse.Namespace) -> int:
+    def out(obj):
+        print(json.dumps(obj), flush=False)
+    if a.stream:
+        if a.hex:
+            chunks = (_unhex(line) for line in sys.stdin)
+        else:
+            src = sys.stdin.buffer
+            chunks = iter(lambda: src.read1(4096), b"")
+        frames = _decode_bytes(chunks, out)
+    else:
+        if not a.hexdata:
+            raise UserError("give the frame as hex, or --stream to read stdin")
+        frames = _decode_bytes([_unhex(" ".join(a.hexdata))], out)
+    sys.stdout.flush()
+    print(f"{frames} frame(s) decoded", file=sys.stderr)
+    return 0
+
+
+def add(sub) -> None:
+    e = sub.add_parser("encode", help="print a frame as hex")
+    e.add_argument("--src", type=digit(0, 6, "source"), required=True)
+    e.add_argument("--dst", type=digit(0, 9, "destination"), required=True)
+    e.add_argument("--num", type=digit(0, 99, "number"), default=0)
+    e.add_argument("--type", type=digit(0, 9, "type"), default=2)
+    e.add_argument("--spaced", action="store_true", help="space between bytes")
+    e.add_argument("content", help="Content text, e.g. 'movex(10)moveto(1.5,-2,0)'")
+    e.set_defaults(func=cmd_encode)
+    c = sub.add_parser("decode", help="find frames in hex or in a byte stream")
+    c.add_argument("hexdata", nargs="*", metavar="HEX")
+    c.add_argument("--stream", action="store_true", help="read bytes from stdin")
+    c.add_argument("--hex", action="store_true", help="with --stream: stdin is hex text")
+    c.set_defaults(func=cmd_decode)

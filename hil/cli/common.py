@@ -1,0 +1,158 @@
+"""What every ``rprs`` command shares: the one-line user error, option types that
+validate as they parse, and the MAC, TXEN and real-time options of the robot commands."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+class UserError(Exception):
+    """A mistake the user can fix: printed as one line, exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, status 2, no usage dump
+        raise UserError(f"{message} (see '{self.prog} --help')")
+
+
+def robot_list(text: str) -> tuple[int, ...]:
+    try:
+        ids = tuple(int(x) for x in text.split(",") if x.strip() != "")
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a comma-separated list of robot IDs such as 1,2,3,4") from None
+    bad = [i for i in ids if not 0 <= i <= 6]
+    if bad:
+        raise argparse.ArgumentTypeError(
+            f"robot ID {bad[0]} is out of range: IDs are 0 (father) and 1-6 (children)")
+    if not ids:
+        raise argparse.ArgumentTypeError("the robot list is empty")
+    if len(set(ids)) != len(ids):
+        raise argparse.ArgumentTypeError(f"robot IDs repeat in {text!r}")
+    return ids
+
+
+def id_at(text: str) -> tuple[int, float]:
+    rid, sep, when = text.partition("@")
+    try:
+        r, t = int(rid), float(when)
+    except ValueError:
+        r = t = None
+    if not sep or r is None:
+        raise argparse.ArgumentTypeError(f"{text!r} is not ID@SECONDS, e.g. 1@5.5")
+    if not 0 <= r <= 6:
+        raise argparse.ArgumentTypeError(f"robot ID {r} in {text!r} is not 0-6")
+    if not t >= 0 or t != t or t == float("inf"):
+        raise argparse.ArgumentTypeError(f"time in {text!r} must be a finite number >= 0")
+    return r, t
+
+
+def positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive finite number")
+    return v
+
+
+def probability(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= v < 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a probability in [0, 1)")
+    return v
+
+
+def load_spec(text: str) -> str | float:
+    if text in ("idle", "saturate"):
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        v = -1.0
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not idle, saturate or a positive rate in messages/s per robot")
+    return v
+
+
+def digit(lo: int, hi: int, what: str):
+    def conv(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what} {text!r} is not a whole number") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{what} must be {lo}-{hi}, got {v}")
+        return v
+    return conv
+
+
+def fault_spec(text: str):
+    from ..sim.faults import FaultError, parse_fault
+    try:
+        return parse_fault(text)
+    except FaultError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def mac_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--team", type=robot_list, metavar="IDS",
+                   help="the robot IDs that may ever join (default: 0-6); a small team forms "
+                   "its ring sooner (claim after |team| x Tmax)")
+    p.add_argument("--checksum", action="store_true",
+                   help="the opt-in crc() integrity extension (every robot must agree)")
+    p.add_argument("--idle-noise", action="store_true",
+                   help="the radio outputs noise without a carrier (a bare PTR2000, or "
+                   "'rprs radio-hub --noise'): the channel never falls quiet, so do not wait "
+                   "for quiet after an uncertain turn (docs/mac.md, R-stagger)")
+
+
+def mac_config(a: argparse.Namespace):
+    from firmware_model.radio.mac import MacConfig
+    kw = {"checksum": a.checksum, "quiet_channel": not a.idle_noise}
+    if a.team:
+        kw["team"] = frozenset(a.team)
+    return MacConfig(**kw)
+
+
+def txen_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--txen", choices=("none", "rts", "dtr"), default="none",
+                   help="serial line wired to the radio's TXEN (default: none, for the pty hub "
+                   "and self-switching modules)")
+
+
+def realtime_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--duration", type=positive, metavar="SECONDS",
+                   help="stop after this long (default: until Ctrl-C or SIGTERM)")
+    p.add_argument("--events", action="store_true",
+                   help="print MAC events as JSON lines on stdout")
+
+
+def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary) -> int:
+    print(describe, file=sys.stderr, flush=True)
+    runner.run(a.duration)
+    print(summary(), file=sys.stderr, flush=True)
+    return 0
+
+
+def progress_bar(total: float, label: str):
+    """A progress bar on a terminal, nothing otherwise; returns (update, close)."""
+    if not sys.stderr.isatty():
+        return (lambda x: None), (lambda: None)
+    from rich.progress import BarColumn, Progress, TextColumn
+    bar = Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed:.0f}/"
+                   "{task.total:.0f}"), transient=True, console=stderr_console())
+    task = bar.add_task(label, total=total)
+    bar.start()
+    return (lambda x: bar.update(task, completed=x)), bar.stop
+
+
+def stderr_console():
+    from rich.console import Console
+    return Console(stderr=True)
+

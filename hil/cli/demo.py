@@ -1,0 +1,122 @@
+"""``rprs demo``: the paper's action sequence (Fig. 11) and a ring with a failure and a recovery."""
+from __future__ import annotations
+
+import argparse
+
+from firmware_model.timing import TICK_HZ, ticks_to_s
+
+from ..sim.trace import TraceWriter
+from ..sim.world import ConfigError, SimConfig, World
+from .common import Parser, UserError, digit, positive, probability
+from .sim import add_sim_options, cmd_sim
+
+def cmd_demo_ring(a: argparse.Namespace) -> int:
+    if not a.fail and not a.recover and not a.json:
+        a.fail = [(1, 8.0)]
+        a.recover = [(1, 16.0)]
+        print("Demo: the father (ID 0) and children R1-R4 power on together, form the ring "
+              "and exchange seeded commands;\nR1's radio goes silent at 8 s (dropped after "
+              "three missed turns) and comes back at 16 s (invited back).\n")
+    return cmd_sim(a, demo=True)
+
+
+def cmd_demo_actions(a: argparse.Namespace) -> int:
+    """The paper's experiment (§V.B, Fig. 11): robots in a row take turns moving their arms."""
+    n, cycles = a.robots, a.cycles
+    order = tuple(range(1, n + 1))
+    steps = 2 * n * cycles
+    robots = ((0,) if a.father else ()) + order
+    limit = a.timeout
+    cfg = SimConfig(robots=robots, duration=limit, seed=a.seed, ber=a.ber, noise=a.noise,
+                    can=True, sequence=(order, cycles), realtime=a.realtime)
+    try:
+        cfg.validate()
+    except ConfigError as exc:
+        raise UserError(str(exc)) from None
+    print(f"Action sequence (paper Fig. 11): R1..R{n} in a row, {cycles} cycle(s); each robot "
+          f"turns its end link left, then all return, in order.")
+    print(f"{'real time' if a.realtime else 'simulated'}; ring: "
+          f"{', '.join('father 0' if r == 0 else f'R{r}' for r in robots)}; "
+          f"Tmax 600 ms, Ttrans 5 ms, 9600 baud\n")
+    trace = None
+    if a.trace:
+        try:
+            trace = TraceWriter(a.trace)
+        except OSError as exc:
+            raise UserError(f"cannot write trace {a.trace}: {exc.strerror}") from None
+    letters = "abcdefghijklmnopqrstuvwxyz"
+    done = [0]
+
+    def show(ev: dict) -> None:
+        if ev.get("ev") != "action":
+            return
+        t = ticks_to_s(ev["t"])
+        if ev["phase"] == "done":
+            tag = f"({letters[done[0] % 26]})"
+            done[0] += 1
+        else:
+            tag = "   "
+        print(f"  {t:8.3f} s  {tag} R{ev['robot']} {ev['phase']:5s} {ev['name']}", flush=True)
+
+    try:
+        world = World(cfg, trace, on_event=show)
+        step = TICK_HZ // 10
+        while world.now < world.end_tick and done[0] < steps:
+            world.run(world.now + step)
+    except BaseException:
+        if trace is not None:
+            trace.discard()
+        raise
+    if trace is not None:
+        trace.close()
+    acts = world.actions
+    frames = sum(world.air.sent.values())
+    if done[0] < steps:
+        print(f"\nstopped after {ticks_to_s(world.now):g} s with {done[0]} of {steps} actions "
+              f"done")
+        return 1
+    durations = [t2 - t1 for (t1, r1, a1, p1), (t2, r2, a2, p2) in zip(acts, acts[1:])
+                 if p1 == "start" and p2 == "done" and r1 == r2]
+    longest = max(durations) / TICK_HZ if durations else 0
+    t0, t1 = acts[0][0], acts[-1][0]
+    turns = world.frames_between(t0, t1)
+    print(f"\n{cycles} cycle(s) done in {ticks_to_s(t1 - t0):.2f} s; each action took up to "
+          f"{longest:.2f} s (Tmax 0.6 s), and the ring took {turns} turns meanwhile: the "
+          f"action cycle and the communication cycle ran asynchronously.")
+    print(f"channel occupations {frames}, collisions {world.collisions}, CAN frames "
+          f"{world.can_frames}")
+    return 0
+
+
+def add_action_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--robots", type=digit(1, 6, "number of robots"), default=3,
+                   help="robots in the row: R1..RN (default: %(default)s)")
+    p.add_argument("--cycles", type=digit(1, 99, "cycles"), default=2,
+                   help="action cycles (default: %(default)s)")
+    p.add_argument("--realtime", action="store_true", help="run on the wall clock")
+    p.add_argument("--father", action="store_true", help="the father (ID 0) joins the ring")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--ber", type=probability, default=0.0, metavar="P")
+    p.add_argument("--noise", action="store_true")
+    p.add_argument("--timeout", type=positive, default=300.0, metavar="SECONDS",
+                   help="give up after this much (simulated) time")
+    p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+
+
+def demo_default(a: argparse.Namespace) -> int:
+    p = Parser(prog="rprs demo action-sequence")
+    add_action_options(p)
+    return cmd_demo_actions(p.parse_args([]))
+
+
+def add(sub) -> None:
+    d = sub.add_parser("demo", help="demos: the paper's action sequence (default), the ring")
+    demos = d.add_subparsers(dest="demo", metavar="DEMO", parser_class=Parser)
+    d.set_defaults(func=demo_default)
+    act = demos.add_parser("action-sequence", help="the paper's experiment (Fig. 11)")
+    add_action_options(act)
+    act.set_defaults(func=cmd_demo_actions)
+    ring = demos.add_parser("ring", help="father + 4 children, traffic, a failure and a "
+                            "recovery")
+    add_sim_options(ring, demo=True)
+    ring.set_defaults(func=cmd_demo_ring)

@@ -1,0 +1,33 @@
+"""``rprs monitor``: the live terminal view of a simulated ring or a radio (hil.view.monitor)."""
+from __future__ import annotations
+
+import argparse
+
+from ..sim.world import ConfigError
+from .common import UserError, positive
+from .sim import add_sim_options, sim_config
+
+def cmd_monitor(a: argparse.Namespace) -> int:
+    from ..view.monitor import run_monitor_radio, run_monitor_sim
+    from ..bench.serial_radio import PortError
+    if a.radio:
+        try:
+            return run_monitor_radio(a.radio)
+        except PortError as exc:
+            raise UserError(str(exc)) from None
+    cfg = sim_config(a)
+    try:
+        cfg.validate()
+    except ConfigError as exc:
+        raise UserError(str(exc)) from None
+    return run_monitor_sim(cfg, a.speed)
+
+
+def add(sub) -> None:
+    mo = sub.add_parser("monitor", help="live terminal view of the ring (paper Fig. 9): the "
+                        "simulator, or --radio PORT")
+    add_sim_options(mo)
+    mo.add_argument("--speed", type=positive, default=1.0,
+                    help="simulated seconds per wall second (default 1)")
+    mo.add_argument("--radio", metavar="PORT", help="listen to a radio hub pty or a USB radio")
+    mo.set_defaults(func=cmd_monitor, duration=3600.0)

@@ -1,0 +1,176 @@
+"""``rprs sim``: a ring of robots simulated faster than real time, with its summary."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from firmware_model.timing import TICK_HZ, ticks_to_s
+
+from ..sim.trace import TraceWriter
+from ..sim.world import ConfigError, Fault, SimConfig, World
+from .common import UserError, digit, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
+
+def add_sim_options(p: argparse.ArgumentParser, demo: bool = False) -> None:
+    p.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4) if demo else
+                   (1, 2, 3, 4), help="robot IDs in the ring; 0 adds the father "
+                   "(default: %(default)s)")
+    p.add_argument("--duration", type=positive, default=30.0 if demo else 10.0,
+                   metavar="SECONDS", help="simulated seconds (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random stream")
+    p.add_argument("--fail", type=id_at, action="append", default=[], metavar="ID@SECONDS",
+                   help="the robot's radio goes silent at that time (repeatable)")
+    p.add_argument("--recover", type=id_at, action="append", default=[],
+                   metavar="ID@SECONDS", help="the robot's radio comes back (repeatable)")
+    p.add_argument("--power", type=id_at, action="append", default=[], metavar="ID@SECONDS",
+                   help="power the robot on at that time (default: all at 0)")
+    p.add_argument("--ber", type=probability, default=0.0, metavar="P",
+                   help="probability that a received byte is corrupted")
+    p.add_argument("--noise", action="store_true", help="radios hear random bytes when idle")
+    p.add_argument("--load", type=load_spec, default=1.0 if demo else "idle",
+                   metavar="idle|saturate|RATE", help="traffic: heartbeats only, always a "
+                   "full-size message queued, or messages/s per robot (default: %(default)s)")
+    p.add_argument("--fault", type=fault_spec, action="append", default=[], metavar="SPEC",
+                   help="inject a fault (repeatable): fail:1@5, steal:2@7, ber@10-20:0.01, "
+                   "noise@3-6, burst@12:0.05, drop@5-9:0.002, skew:3:0.02, busoff:1@8, "
+                   "stuck:2@3-6, silent:1.JOINT2@4-8, stall:1.JOINT1@5 (docs/guarantees.md)")
+    p.add_argument("--checksum", action="store_true",
+                   help="the opt-in crc() integrity extension on every robot")
+    p.add_argument("--father-standby", action="store_true",
+                   help="a second father PC as hot standby for ID 0")
+    if not demo:
+        p.add_argument("--can", action="store_true", help="simulate every child's CAN side "
+                       "too: controller, 82C250, dispatcher, joint/wheel/paw submodules")
+        p.add_argument("--mac", choices=("rotational", "aloha", "slotted", "csma"),
+                       default="rotational", help="the MAC every robot runs (peers for "
+                       "comparison; default: the paper's rotational MAC)")
+        p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
+                       help="peer MACs: frame size of the load (default 80)")
+        p.add_argument("--vcd", metavar="FILE", help="write a waveform (GTKWave) here")
+    p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def sim_config(a: argparse.Namespace) -> SimConfig:
+    from firmware_model.radio.mac import MacConfig
+    faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
+        tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
+    peer = None
+    if getattr(a, "frame_bytes", None):
+        from firmware_model.radio.peer_macs import PeerConfig
+        peer = PeerConfig(frame_bytes=a.frame_bytes)
+    return SimConfig(robots=a.robots, duration=a.duration, seed=a.seed,
+                     faults=tuple(sorted(faults, key=lambda f: (f.at, f.kind,
+                                                                 -1 if f.robot is None
+                                                                 else f.robot))),
+                     ber=a.ber, noise=a.noise, load=a.load, power_on=dict(a.power),
+                     can=getattr(a, "can", True), mac=MacConfig(checksum=a.checksum),
+                     father_standby=a.father_standby,
+                     mac_kind=getattr(a, "mac", "rotational"), peer=peer)
+
+
+def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
+               vcd_path: str | None = None) -> tuple[World, float]:
+    trace = vcd = None
+    if trace_path:
+        try:
+            trace = TraceWriter(trace_path)
+        except OSError as exc:
+            raise UserError(f"cannot write trace {trace_path}: {exc.strerror}") from None
+    if vcd_path:
+        from ..view.vcd import VcdError, VcdTraceWriter
+        try:
+            vcd = VcdTraceWriter(vcd_path)
+        except (OSError, VcdError) as exc:
+            if trace is not None:
+                trace.discard()
+            raise UserError(f"cannot write waveform {vcd_path}: {exc}") from None
+    try:
+        world = World(cfg, trace, on_event=vcd.write if vcd is not None else None)
+        t0 = time.perf_counter()
+        end = world.end_tick
+        if progress:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+            cols = (TextColumn("simulating"), BarColumn(),
+                    TextColumn("{task.completed:.0f}/{task.total:.0f} s"),
+                    TimeRemainingColumn())
+            with Progress(*cols, transient=True, console=stderr_console()) as bar:
+                task = bar.add_task("sim", total=ticks_to_s(end))
+                step = TICK_HZ
+                while world.now < end:
+                    world.run(world.now + step)
+                    bar.update(task, completed=ticks_to_s(world.now))
+        else:
+            world.run()
+        wall = time.perf_counter() - t0
+    except BaseException:
+        if trace is not None:
+            trace.discard()
+        if vcd is not None:
+            vcd.discard()
+        raise
+    if trace is not None:
+        trace.close()
+    if vcd is not None:
+        vcd.close()
+    return world, wall
+
+
+def print_summary(world: World, wall: float, as_json: bool) -> None:
+    s = world.summary()
+    sim_s = ticks_to_s(s["duration_ticks"])
+    s["wall_seconds"] = round(wall, 3)
+    s["speed"] = round(sim_s / wall, 1) if wall > 0 else None
+    if as_json:
+        print(json.dumps(s, indent=1))
+        return
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+    con = Console()
+    con.print(f"[bold]RPRS ring, {sim_s:g} s simulated, seed {world.cfg.seed}[/bold]")
+    t = Table(box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 1), collapse_padding=True)
+    for col in ("robot", "mode", "sent", "recv", "pending", "missed", "submitted", "delivered",
+                "failed"):
+        t.add_column(col, justify="right", no_wrap=True)
+    for r, v in s["robots"].items():
+        name = "father 0" if r == 0 else f"R{r}"
+        t.add_row(name, v["mode"], str(v["frames_sent"]), str(v["received"]),
+                  str(v["pending"]), str(v["missed"]), str(v["submitted"]),
+                  str(v["delivered"]), str(v["failed"]))
+    con.print(t)
+    con.print("sent: frames sent, recv: messages received, pending: messages not yet ended, "
+              "missed: turns missed")
+    changes = s["membership_changes"]
+    shown = ", ".join(f"{ticks_to_s(c['t']):.3f}s {c['ev']} {c['robot']}" for c in changes[:12])
+    more = f" (+{len(changes) - 12} more)" if len(changes) > 12 else ""
+    con.print(f"ring membership changes: {len(changes)}" + (f": {shown}{more}" if changes
+                                                             else ""))
+    con.print(f"channel occupations: {s['occupations']}   collisions: {s['collisions']}"
+              + (f"   CAN frames: {world.can_frames}" if world.cfg.can else ""))
+    con.print(f"messages: submitted {s['submitted']}, delivered {s['delivered']}, "
+              f"failed {s['failed']}, pending {s['pending']}, "
+              f"duplicate deliveries {s['duplicate_deliveries']}")
+    if s["speed"]:
+        con.print(f"[dim]{sim_s:g} simulated s in {wall:.2f} wall s: {s['speed']:.0f}x "
+                  f"real time[/dim]")
+
+
+def cmd_sim(a: argparse.Namespace, demo: bool = False) -> int:
+    cfg = sim_config(a)
+    try:
+        cfg.validate()
+    except ConfigError as exc:
+        raise UserError(str(exc)) from None
+    progress = not a.no_progress and sys.stderr.isatty() and cfg.duration >= 60
+    world, wall = run_world(cfg, a.trace, progress, getattr(a, "vcd", None))
+    print_summary(world, wall, a.json)
+    return 0
+
+
+def add(sub) -> None:
+    s = sub.add_parser("sim", help="simulate a ring of robots faster than real time")
+    add_sim_options(s)
+    s.set_defaults(func=cmd_sim)

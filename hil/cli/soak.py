@@ -1,0 +1,45 @@
+"""``rprs soak``: hours of simulated time with random faults and traffic, ending with the
+invariants (hil.sim.soak)."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from .common import positive, progress_bar, robot_list
+
+def cmd_soak(a: argparse.Namespace) -> int:
+    from ..sim.soak import report, run_soak
+    robots = a.robots
+    modes = {"on": [True], "off": [False], "both": [True, False]}[a.checksum_mode]
+    results = []
+    for ck in modes:
+        update, close = progress_bar(a.hours * 3600, f"soak, checksum {'on' if ck else 'off'}")
+        try:
+            results.append(run_soak(a.hours, a.seed, robots=robots, checksum=ck, can=not a.no_can,
+                                    load=a.rate, progress=update))
+        finally:
+            close()
+    if a.json:
+        print(json.dumps([{"checksum": r.checksum, "invariants": r.invariants,
+                           "summary": {k: v for k, v in r.summary.items()
+                                       if k not in ("membership_changes",)},
+                           "faults": r.faults, "reform_s_max": max(r.reform_s, default=None),
+                           "wall_s": round(r.wall_s, 1)} for r in results]))
+    else:
+        print(report(results))
+    return 0 if all(all(r.invariants.values()) for r in results if r.checksum) else 1
+
+
+def add(sub) -> None:
+    so = sub.add_parser("soak", help="hours of simulated time with random faults and "
+                        "traffic; ends with the invariants")
+    so.add_argument("--hours", type=positive, default=1.0)
+    so.add_argument("--seed", type=int, default=0)
+    so.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4))
+    so.add_argument("--rate", type=positive, default=0.5, metavar="MSG/S",
+                    help="messages per second per robot (default 0.5)")
+    so.add_argument("--checksum", dest="checksum_mode", choices=("on", "off", "both"),
+                    default="on", help="the integrity extension (both: compare)")
+    so.add_argument("--no-can", action="store_true", help="radio only (faster; no CAN faults)")
+    so.add_argument("--json", action="store_true")
+    so.set_defaults(func=cmd_soak)
