@@ -83,6 +83,9 @@ Fault injection
   an error flag). So an error-active transmitter goes bus-off at ``F + 254`` bits and a fresh
   receiver error-passive at ``F + 126`` bits. No frame can start while held. After the last
   release at ``R`` the bus is idle again at ``max(R, F + 6 bits) + 11`` bits.
+
+Over 500 lines on purpose: arbitration, error signalling and error confinement are one state
+machine over the same bus state.
 """
 from __future__ import annotations
 

@@ -70,6 +70,9 @@ Model decisions
   firmware clearing HALT, and the bus's recovery. Before that, NS reads 11 even if the bus
   has already recovered. While HALT = 1 the bus still counts the node as an acknowledging
   receiver (no hook for a silent node).
+
+Over 500 lines on purpose: it is one peripheral, register by register, as the MB90F549 manual's
+CAN chapter describes it.
 """
 from __future__ import annotations
 

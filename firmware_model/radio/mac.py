@@ -37,6 +37,9 @@ Rules, with the paper's part and this project's designed part (docs/mac.md gives
   destination's next frame; the sender retransmits with the same Number at each of its turns
   until acknowledged, at most ``max_attempts`` times, then reports it failed with a reason.
   Receivers deliver once per (Source, Number) and re-acknowledge duplicates.
+
+Over 500 lines on purpose: the MAC is one state machine over one state; its readable form, the
+transition table, is mac_table.py.
 """
 from __future__ import annotations
 

@@ -30,6 +30,9 @@ failed with a reason. Receivers drop a copy of (Source, Number) heard within ``d
 sender never reuses a Number within that window (docs/peer-macs.md gives the argument).
 
 Every random draw comes from ``random.Random(f"{seed}:{kind}:{robot}")``.
+
+Over 500 lines on purpose: three peer MACs (ALOHA, slotted ALOHA, CSMA) and the base they
+share, kept together so they are compared on equal terms.
 """
 from __future__ import annotations
 

@@ -27,6 +27,9 @@ scheduler, whose thread owns all air state. Writes to masters are non-blocking: 
 reader has no room for are dropped and counted. A node writing faster than the air carries
 stops being read once ``BACKLOG_LIMIT`` bytes wait, so its writer blocks as on a real serial
 port instead of the hub buffering without bound.
+
+Over 500 lines on purpose: the hub's pty I/O, its timing against the Air model and its command-
+line arguments are one program, run as one process.
 """
 from __future__ import annotations
 

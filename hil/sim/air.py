@@ -23,6 +23,10 @@ the firmware act at any byte, so they are delivered one by one at their own tick
 without a header is delivered in bursts (it can only be discarded). Every random draw comes
 from a per-radio stream consumed in byte order. ``byte_by_byte=True`` delivers every byte at
 its own tick; the tests check both give the same trace.
+
+Over 500 lines on purpose: receptions, collisions, idle noise and aborted senders share each
+radio's reception state and its delivery order; split apart, that state would have to be
+public.
 """
 from __future__ import annotations
 

@@ -3,6 +3,9 @@ goes by one integer-tick scheduler.
 
 Everything random (noise, byte errors, load) is drawn from streams seeded by ``seed``, so the
 same configuration gives the same trace to the tick.
+
+Over 500 lines on purpose: the world wires robots, air, CAN sides, load and faults, and keeps
+the accounting the invariants are checked on; the parts themselves live elsewhere.
 """
 from __future__ import annotations
 

@@ -41,6 +41,9 @@ a direct ``refresh_view()`` only keeps the model. Wall time is read through ``ap
 (``time.monotonic``), so a test can pause ``app.refresh_timer``, replace the clock and drive
 ``tick()`` itself. ``advance(seconds)`` on the simulator app runs the world synchronously by that
 much simulated time and refreshes (the tests use it).
+
+Over 500 lines on purpose: one textual application: its widgets, key bindings and the world it
+drives.
 """
 from __future__ import annotations
 

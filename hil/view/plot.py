@@ -12,6 +12,9 @@ Three panels:
    fixed bins, with the idle ring's theoretical value and the timeline's window shaded.
 
 The events are streamed once with bounded memory; only the drawn window is kept.
+
+Over 500 lines on purpose: it draws one figure (the paper's Fig. 7 timeline) from one trace;
+its helpers make sense only for that drawing.
 """
 from __future__ import annotations
 
