@@ -631,3 +631,27 @@ def test_back_to_back_transmissions_with_idle_noise(bbb, b_first):
     assert before == [(k + 1) * BT for k in range(T0 // BT)]
     after = net.between(2, end_a + 3 * BT, end_a + 10 * BT)   # noise again after B
     assert [t for t, _ in after] == [end_a + 3 * BT + (k + 1) * BT for k in range(7)]
+
+
+# ---------------------------------------------------------------------------------------------
+# A foreign transmitter (hil.faults ``foreign``): the fault grammar's bytes, at its exact tick
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("bbb", MODES)
+def test_foreign_fault_is_heard_exactly_from_its_tick(bbb):
+    from hil.air import FOREIGN_BYTE_TICKS
+    from hil.faults import apply_air_fault, parse_fault, schedule
+
+    net = Net(3, byte_by_byte=bbb)
+    f = parse_fault("foreign@0.0625:x0f0a05deadbeef00ff")          # 0.0625 s: tick T0
+    schedule(net.s, f, lambda f: apply_air_fault(net.air, net.radios.__getitem__, f, "start"))
+    txs = []
+    net.air.on_transmission = txs.append
+    net.run(T0 + 20 * FOREIGN_BYTE_TICKS)
+    data = bytes.fromhex("0f0a05deadbeef00ff")
+    assert [(tx.radio.robot, tx.data, tx.t0, tx.bt) for tx in txs] == \
+        [(-1, data, T0, FOREIGN_BYTE_TICKS)]
+    for r in range(3):                             # every radio listens: no robot sent it
+        assert net.logs[r] == expect(data, T0, FOREIGN_BYTE_TICKS)
+    assert net.air.sent == {-1: 1} and net.air.collisions == 0

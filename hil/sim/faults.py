@@ -10,6 +10,12 @@ A fault is written ``KIND[:TARGET]@WHEN[:VALUE]`` (times in seconds from the sta
 ``ber@T1-T2:P``            byte error rate P between T1 and T2
 ``noise@T1-T2``            idle noise (random bytes when nobody transmits) between T1 and T2
 ``burst@T:S``              interference: S seconds of random bytes on air from T
+``foreign@T:N``            a transmitter that is no robot sends N random bytes from T (tick
+                           ``s_to_ticks(T)``), 8N1 at 9600 (16667 ticks a byte); the bytes
+                           come from a stream seeded by the run's seed and this spec
+``foreign@T:xHEX``         the same with exactly these bytes, e.g. ``foreign@2.5:x0f0a05``
+                           (an even number of hex digits after ``x``; a count never starts
+                           with ``x``, so the two forms cannot be confused)
 ``drop@T1-T2:P``           each received byte is lost (UART overrun) with probability P
 ``skew:R:E``               robot R's clock (UART and timers) runs E (fraction, e.g. 0.02) fast
 ``busoff:R@T``             child R's CAN controller driven bus-off (bit errors on its frames)
@@ -18,20 +24,30 @@ A fault is written ``KIND[:TARGET]@WHEN[:VALUE]`` (times in seconds from the sta
 ``stall:R.NODE@T[-T2]``    joint or wheel NODE of child R stalls at T (cleared at T2)
 =========================  ===============================================================
 
-Air faults (``ber``, ``noise``, ``burst``, ``drop``, ``fail``/``recover`` of a node) act on
-``hil.sim.air.Air``, which both the simulator and the pty radio hub use, so the same spec means
-the same thing on both. Randomness comes from the air's and the world's seeded streams.
+Times are seconds, each mapped to one exact tick (``s_to_ticks``); ``Fault.spec()`` writes
+them with the 10 decimals a tick (62.5 ns) needs, so a spec round-trips to the same tick.
+
+Air faults (``ber``, ``noise``, ``burst``, ``foreign``, ``drop``, ``fail``/``recover`` of a
+node) act on ``hil.sim.air.Air``, which both the simulator and the pty radio hub use, so the same
+spec means the same thing on both. Randomness comes from the air's and the world's seeded
+streams. ``rprs inject --random N --seed S --at T`` writes into a port the very bytes that
+``foreign@T:N`` under seed S puts on air (``foreign_bytes``).
 """
 from __future__ import annotations
 
+import random
 import re
 from dataclasses import dataclass
 
-KINDS = ("fail", "recover", "steal", "ber", "noise", "burst", "drop", "skew", "busoff",
-         "stuck", "silent", "stall")
-AIR_KINDS = ("fail", "recover", "ber", "noise", "burst", "drop")
+from firmware_model.timing import s_to_ticks
+
+KINDS = ("fail", "recover", "steal", "ber", "noise", "burst", "foreign", "drop", "skew",
+         "busoff", "stuck", "silent", "stall")
+AIR_KINDS = ("fail", "recover", "ber", "noise", "burst", "foreign", "drop")
 CAN_KINDS = ("busoff", "stuck", "silent", "stall")
 NODES = ("JOINT1", "JOINT2", "JOINT3", "JOINT4", "WHEEL", "PAW")
+FOREIGN_MAX = 65_536
+"""Most bytes one ``foreign`` fault sends (68 s of air at 9600 baud)."""
 
 
 class FaultError(ValueError):
@@ -40,7 +56,8 @@ class FaultError(ValueError):
 
 @dataclass(frozen=True)
 class Fault:
-    """One fault: ``kind`` on ``robot`` (None for the air) from ``at`` to ``until`` seconds."""
+    """One fault: ``kind`` on ``robot`` (None for the air) from ``at`` to ``until`` seconds;
+    ``data``: the exact bytes of a ``foreign`` fault (else ``value`` is its byte count)."""
 
     kind: str
     robot: int | None = None
@@ -48,6 +65,7 @@ class Fault:
     until: float | None = None
     value: float | None = None
     node: str | None = None
+    data: bytes | None = None
 
     @property
     def end(self) -> float:
@@ -57,22 +75,21 @@ class Fault:
     def spec(self) -> str:
         """The spec text this fault parses back from."""
         def num(x: float) -> str:
-            return f"{x:.6f}".rstrip("0").rstrip(".")
-        return self._spec(num)
-
-    def _spec(self, num) -> str:
+            return f"{x:.10f}".rstrip("0").rstrip(".")
         target = "" if self.robot is None else f":{self.robot}" + (
             f".{self.node}" if self.node else "")
         if self.kind == "skew":
             return f"skew{target}:{num(self.value)}"
         when = f"@{num(self.at)}" + (f"-{num(self.until)}" if self.until is not None else "")
-        val = f":{num(self.value)}" if self.value is not None else ""
+        val = f":x{self.data.hex()}" if self.data is not None else \
+            f":{num(self.value)}" if self.value is not None else ""
         return f"{self.kind}{target}{when}{val}"
 
 
 _NUM = r"[0-9]+(?:\.[0-9]*)?"
 _SPEC = re.compile(rf"^(?P<kind>[a-z]+)(?::(?P<robot>[0-6])(?:\.(?P<node>[A-Z0-9]+))?)?"
-                   rf"(?:@(?P<at>{_NUM})(?:-(?P<until>{_NUM}))?)?(?::(?P<value>{_NUM}))?$")
+                   rf"(?:@(?P<at>{_NUM})(?:-(?P<until>{_NUM}))?)?"
+                   rf"(?::(?:x(?P<hex>\S*)|(?P<value>{_NUM})))?$")
 
 
 def parse_fault(text: str) -> Fault:
@@ -80,10 +97,13 @@ def parse_fault(text: str) -> Fault:
     m = _SPEC.match(text.strip())
     if not m:
         raise FaultError(f"{text!r} is not a fault spec like fail:1@5, ber@10-20:0.01, "
-                         f"burst@12:0.05, stuck:2@3-6 or silent:1.JOINT2@4-8")
+                         f"burst@12:0.05, foreign@3:x0f0a05, stuck:2@3-6 or "
+                         f"silent:1.JOINT2@4-8")
     kind = m["kind"]
     if kind not in KINDS:
         raise FaultError(f"unknown fault kind {kind!r}; one of {', '.join(KINDS)}")
+    if m["hex"] is not None and kind != "foreign":
+        raise FaultError(f"{kind} takes no bytes (only foreign@T:xHEX does)")
     robot = int(m["robot"]) if m["robot"] is not None else None
     node = m["node"]
     at = float(m["at"]) if m["at"] is not None else None
@@ -126,9 +146,43 @@ def parse_fault(text: str) -> Fault:
     elif kind == "burst":
         if value is None or not 0.0 < value <= 10.0:
             raise FaultError("burst needs a duration in seconds (0-10]: burst@T:SECONDS")
+    elif kind == "foreign":
+        return foreign_fault(at, value, m["hex"])
     elif value is not None:
         raise FaultError(f"{kind} takes no value")
     return Fault(kind, robot, at, until, value, node)
+
+
+def foreign_fault(at: float, count: float | None = None, hexdata: str | None = None) -> Fault:
+    """A ``foreign`` fault at ``at`` seconds: ``count`` random bytes, or exactly the bytes
+    written in ``hexdata``; FaultError (one line) if that is not 1 to FOREIGN_MAX bytes."""
+    if (count is None) == (hexdata is None):
+        raise FaultError("foreign needs a byte count or the bytes: foreign@T:N or "
+                         "foreign@T:xHEX, e.g. foreign@2:14 or foreign@2:x0f0a05")
+    if not (0 <= at < float("inf")):
+        raise FaultError(f"foreign needs a time in seconds >= 0, got {at!r}")
+    if hexdata is not None:
+        if not hexdata or len(hexdata) % 2 or any(c not in "0123456789abcdefABCDEF"
+                                                  for c in hexdata):
+            raise FaultError(f"foreign bytes must be pairs of hex digits, e.g. 0f0a05 "
+                             f"(foreign@T:x0f0a05), got {hexdata!r}")
+        data = bytes.fromhex(hexdata)
+        if len(data) > FOREIGN_MAX:
+            raise FaultError(f"foreign sends at most {FOREIGN_MAX} bytes, got {len(data)}")
+        return Fault("foreign", None, at, data=data)
+    if count != int(count) or not 1 <= count <= FOREIGN_MAX:
+        raise FaultError(f"foreign needs a whole number of bytes, 1-{FOREIGN_MAX}: "
+                         f"foreign@T:N, got {count:.15g}")
+    return Fault("foreign", None, at, None, float(count))
+
+
+def foreign_bytes(fault: Fault, seed: int) -> bytes:
+    """What a ``foreign`` fault transmits: its exact bytes, or its N bytes drawn from a stream
+    seeded by ``seed`` and the fault's spec (same seed and spec, same bytes: in the simulator,
+    on the radio hub and from ``rprs inject``)."""
+    if fault.data is not None:
+        return fault.data
+    return random.Random(f"{seed}:{fault.spec()}").randbytes(int(fault.value))
 
 
 def apply_air_fault(air, radio_of, fault: Fault, phase: str, base_ber: float = 0.0,
@@ -149,13 +203,14 @@ def apply_air_fault(air, radio_of, fault: Fault, phase: str, base_ber: float = 0
         air.set_noise(True if phase == "start" else base_noise)
     elif k == "burst":
         air.burst(fault.value)
+    elif k == "foreign":
+        air.inject(foreign_bytes(fault, air.seed))
     else:
         raise FaultError(f"{k} is not an air fault")
 
 
 def schedule(sched, fault: Fault, start, end=None) -> None:
     """Call ``start(fault)`` at its time and ``end(fault)`` when its window closes."""
-    at = round(fault.at * 16_000_000)
-    sched.at(max(at, sched.now), start, fault)
+    sched.at(max(s_to_ticks(fault.at), sched.now), start, fault)
     if fault.until is not None and end is not None:
-        sched.at(round(fault.until * 16_000_000), end, fault)
+        sched.at(s_to_ticks(fault.until), end, fault)
