@@ -634,14 +634,14 @@ def test_back_to_back_transmissions_with_idle_noise(bbb, b_first):
 
 
 # ---------------------------------------------------------------------------------------------
-# A foreign transmitter (hil.faults ``foreign``): the fault grammar's bytes, at its exact tick
+# A foreign transmitter (hil.sim.faults ``foreign``): the fault grammar's bytes, at its exact tick
 # ---------------------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("bbb", MODES)
 def test_foreign_fault_is_heard_exactly_from_its_tick(bbb):
-    from hil.air import FOREIGN_BYTE_TICKS
-    from hil.faults import apply_air_fault, parse_fault, schedule
+    from hil.sim.air import FOREIGN_BYTE_TICKS
+    from hil.sim.faults import apply_air_fault, parse_fault, schedule
 
     net = Net(3, byte_by_byte=bbb)
     f = parse_fault("foreign@0.0625:x0f0a05deadbeef00ff")          # 0.0625 s: tick T0

@@ -1,4 +1,4 @@
-"""A foreign transmitter: the ``foreign`` fault of hil/faults.py, its grammar and the simulator
+"""A foreign transmitter: the ``foreign`` fault of hil/sim/faults.py, its grammar and the simulator
 (the radio hub and ``rprs inject``: tests/test_radio_hub.py; the air: tests/test_air.py)."""
 from __future__ import annotations
 
@@ -6,11 +6,11 @@ import pytest
 
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.timing import s_to_ticks
-from hil.air import FOREIGN_BYTE_TICKS
-from hil.faults import (
+from hil.sim.air import FOREIGN_BYTE_TICKS
+from hil.sim.faults import (
     FOREIGN_MAX, Fault, FaultError, foreign_bytes, parse_fault, schedule,
 )
-from hil.world import SimConfig, World
+from hil.sim.world import SimConfig, World
 
 HEX = "0f0a0530313233343536373839ff00"
 

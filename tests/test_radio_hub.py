@@ -15,7 +15,7 @@ import time
 import pytest
 
 from firmware_model.radio.frame import Frame
-from hil.bench.radio_hub import RadioHub, check_args, parse_drop, run_hub_cli
+from hil.bench.scripts.radio_hub import RadioHub, check_args, parse_drop, run_hub_cli
 
 serial = pytest.importorskip("serial")
 
@@ -329,7 +329,7 @@ def test_parse_drop():
 
 
 def test_cli_prints_paths_and_summary_on_signal(tmp_path):
-    code = ("import sys; from hil.bench.radio_hub import run_hub_cli; "
+    code = ("import sys; from hil.bench.scripts.radio_hub import run_hub_cli; "
             f"sys.exit(run_hub_cli(2, link_dir={str(tmp_path / 'r')!r}))")
     p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
@@ -357,3 +357,116 @@ def test_cli_prints_paths_and_summary_on_signal(tmp_path):
     assert out.strip().splitlines()[-1].startswith("radio-hub: ")
     assert "4 bytes in" in out
     assert not (tmp_path / "r").exists()
+
+
+# -- a foreign transmitter: the hub's ``foreign`` fault and ``rprs inject`` ----------------------
+
+FOREIGN = bytes.fromhex("0f0a0530313233343536373839ff00")
+
+
+def test_foreign_fault_reaches_every_node_at_its_time(hubs):
+    from hil.sim.faults import foreign_bytes, parse_fault
+    rand = parse_fault("foreign@0.6:20")
+    hub = hubs(3, seed=7, faults=[parse_fault(f"foreign@0.3:x{FOREIGN.hex()}"), rand])
+    fds = [open_node(hubs, p) for p in hub.paths]
+    before = time.monotonic()
+    hub.start()
+    want = FOREIGN + foreign_bytes(rand, 7)
+    for fd in fds:                                # no node sent them: every node hears them
+        got, times = read_n(fd, len(want), 10.0)
+        assert got == want
+        assert times[0] - before >= 0.3 + BYTE_S  # the first stop bit ends after 0.3 s + 1 byte
+        assert read_for(fd, 0.05) == b""
+    st = hub.stats()
+    assert st["transmissions"] == 2 and st["bytes_in"] == 0 and st["collisions"] == 0
+    assert [n["bytes_out"] for n in st["per_node"]] == [len(want)] * 3
+
+
+def test_cli_refuses_a_bad_foreign_fault(capsys):
+    from hil.cli import main
+    assert main(["radio-hub", "--fault", "foreign@1:x0"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rprs: error: ") and err.count("\n") == 1 and "hex" in err
+
+
+def test_inject_writes_exact_bytes_after_at_seconds(capsys):
+    from hil.cli import main
+    from hil.sim.faults import foreign_bytes, parse_fault
+    master, slave = os.openpty()
+    try:
+        path = os.ttyname(slave)
+        os.set_blocking(master, False)
+        t0 = time.monotonic()
+        assert main(["inject", "--radio", path, "--hex", "0f 0a 05 ff", "--at", "0.4"]) == 0
+        got, times = read_n(master, 4, 5.0)
+        assert got == b"\x0f\x0a\x05\xff" and times[0] - t0 >= 0.4
+        assert "wrote 4 bytes" in capsys.readouterr().out
+        assert main(["inject", "--radio", path, "--random", "33", "--seed", "4"]) == 0
+        assert read_n(master, 34, 2.0)[0] == foreign_bytes(parse_fault("foreign@0:33"), 4)
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--radio", "/nonexistent/pty", "--hex", "00"], "does not exist"),
+    (["--radio", "/dev/null", "--hex", "00"], "cannot open serial port"),
+    (["--radio", "/dev/null", "--hex", "0g"], "hex digits"),
+    (["--radio", "/dev/null", "--hex", "abc"], "hex digits"),
+    (["--radio", "/dev/null", "--random", "0"], "whole number of bytes"),
+    (["--radio", "/dev/null", "--random", "x"], "invalid int"),
+    (["--radio", "/dev/null", "--hex", "00", "--at", "-1"], "seconds >= 0"),
+    (["--radio", "/dev/null", "--hex", "00", "--random", "3"], "not allowed with"),
+    (["--radio", "/dev/null"], "one of the arguments --hex --random is required"),
+])
+def test_inject_mistakes_are_one_line_and_status_2(capsys, args, needle):
+    from hil.cli import main
+    assert main(["inject", *args]) == 2
+    out, err = capsys.readouterr()
+    assert err.startswith("rprs: error: ") and err.count("\n") == 1
+    assert needle in err and "Traceback" not in err
+
+
+def test_inject_process_bad_port_is_one_line_status_2():
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "inject", "--radio", "/nonexistent",
+                        "--hex", "00"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1
+    assert r.stderr.startswith("rprs: error: serial port /nonexistent does not exist")
+
+
+def test_inject_and_foreign_fault_against_a_radio_hub_process():
+    """``rprs radio-hub --fault foreign@...`` and ``rprs inject`` into one of its nodes: both
+    reach the other node, and random bytes under one seed and spec are the same in both."""
+    from hil.sim.faults import foreign_bytes, parse_fault
+    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                            "--seed", "3", "--fault", "foreign@0.2:16"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    fd = -1
+
+    def inject(*args):
+        r = subprocess.run([sys.executable, "-m", "hil.cli", "inject", "--radio", paths[0],
+                            *args], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, r.stderr
+
+    try:
+        paths = [hub.stdout.readline().split()[2] for _ in range(2)]
+        fd = os.open(paths[1], os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        want = foreign_bytes(parse_fault("foreign@0.2:16"), 3)
+        assert read_n(fd, 16, 20.0)[0] == want                     # the hub's own fault
+        inject("--hex", FOREIGN.hex())
+        assert read_n(fd, len(FOREIGN), 20.0)[0] == FOREIGN        # as node 0's program
+        inject("--random", "16", "--seed", "3", "--at", "0.2")
+        assert read_n(fd, 16, 20.0)[0] == want                     # same spec, same seed
+        assert read_for(fd, 0.1) == b""
+        hub.send_signal(signal.SIGTERM)
+        out, err = hub.communicate(timeout=20)
+    finally:
+        if fd >= 0:
+            os.close(fd)
+        if hub.poll() is None:
+            hub.kill()
+            hub.wait()
+    assert hub.returncode == 0, err
+    summary = out.strip().splitlines()[-1]
+    assert f"{len(FOREIGN) + 16} bytes in" in summary and "0 collisions" in summary
+    assert f"{2 * 16 + len(FOREIGN) + 16} bytes out" in summary   # node 0 heard the fault too

@@ -607,7 +607,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         return f
     p.add_argument("--fault", type=fault, action="append", default=[], metavar="SPEC",
                    help="an air fault, as in rprs sim --fault: ber@T1-T2:P, noise@T1-T2, "
-                   "burst@T:S, drop@T1-T2:P, fail:N@T, recover:N@T (repeatable)")
+                   "burst@T:S, foreign@T:N, foreign@T:xHEX, drop@T1-T2:P, fail:N@T, "
+                   "recover:N@T (repeatable)")
 
 
 def main_radio_hub(args: argparse.Namespace) -> int:
