@@ -23,8 +23,8 @@ import can
 
 from firmware_model.radio.content import cmd
 from firmware_model.timing import TICK_HZ, s_to_ticks
-from hil.bench.scripts import scripts as bench
-from hil.bench.scripts.radio_hub import RadioHub
+from hil.bench import scripts as bench
+from hil.bench.radio_hub import RadioHub
 from hil.sim.world import SimConfig, World
 
 
@@ -76,7 +76,7 @@ def latency_sim(samples: int) -> list[int]:
 def latency_realtime(samples: int) -> list[float]:
     """ms from the End of the father's command frame (heard by a listener on the hub) to the
     JOINT1_CMD on the CAN bus (read by a bus in this process); one monotonic clock."""
-    from hil.bench.scripts.runner import Runner, build_father
+    from hil.bench.runner import Runner, build_father
     tmp = tempfile.mkdtemp(prefix="rprs-lat-")
     hub = RadioHub(nodes=3, seed=1).start()
     spec = f"rprs_unix:{tmp}/can"

@@ -13,8 +13,8 @@ import time
 
 import pytest
 
-from hil.bench.scripts import scripts as bench
-from hil.bench.scripts.radio_hub import RadioHub
+from hil.bench import scripts as bench
+from hil.bench.radio_hub import RadioHub
 
 TEAM = "1,2,3,4"
 
@@ -194,7 +194,7 @@ def test_child_stops_cleanly_on_sigterm(hub):
 
 
 def test_a_busy_port_is_refused_with_one_line(hub):
-    from hil.bench.scripts.serial_radio import PortError, open_port
+    from hil.bench.serial_radio import PortError, open_port
     first = open_port(hub.paths[0])
     try:
         with pytest.raises(PortError) as e:

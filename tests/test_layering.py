@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 FORBIDDEN = {
     "can_bus": ("firmware_model", "hil"),
     "firmware_model": ("hil",),
-    "hil/sim": ("hil.bench.scripts", "hil.view", "hil.cli"),
+    "hil/sim": ("hil.bench", "hil.view", "hil.cli"),
     "hil/bench": ("hil.view", "hil.cli"),
     "hil/view": ("hil.cli",),
 }

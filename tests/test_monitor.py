@@ -18,7 +18,7 @@ pytest.importorskip("textual")
 
 from firmware_model.radio.frame import Frame  # noqa: E402
 from firmware_model.timing import TICK_HZ, TMAX_TICKS  # noqa: E402
-from hil.bench.scripts.scripts import HeardFrame  # noqa: E402
+from hil.bench.scripts import HeardFrame  # noqa: E402
 from hil.view.monitor import RadioMonitorApp, SimMonitorApp  # noqa: E402
 from hil.sim.world import SimConfig  # noqa: E402
 from textual.widgets import Static  # noqa: E402
@@ -199,7 +199,7 @@ def test_the_world_stops_at_its_duration():
 
 def test_radio_monitor_on_the_hub_shows_the_robot():
     pytest.importorskip("serial")
-    from hil.bench.scripts.radio_hub import RadioHub
+    from hil.bench.radio_hub import RadioHub
 
     with RadioHub(3) as hub:
         hub.start()

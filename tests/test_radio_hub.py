@@ -15,7 +15,7 @@ import time
 import pytest
 
 from firmware_model.radio.frame import Frame
-from hil.bench.scripts.radio_hub import RadioHub, check_args, parse_drop, run_hub_cli
+from hil.bench.radio_hub import RadioHub, check_args, parse_drop, run_hub_cli
 
 serial = pytest.importorskip("serial")
 
@@ -329,7 +329,7 @@ def test_parse_drop():
 
 
 def test_cli_prints_paths_and_summary_on_signal(tmp_path):
-    code = ("import sys; from hil.bench.scripts.radio_hub import run_hub_cli; "
+    code = ("import sys; from hil.bench.radio_hub import run_hub_cli; "
             f"sys.exit(run_hub_cli(2, link_dir={str(tmp_path / 'r')!r}))")
     p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)

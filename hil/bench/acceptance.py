@@ -171,7 +171,7 @@ class _RealTimeDut(Dut):
 
     def __init__(self, robot: int) -> None:
         super().__init__(robot)
-        from hil.bench.scripts.runner import Runner
+        from hil.bench.runner import Runner
         self.runner = Runner()
         self._thread: threading.Thread | None = None
 
@@ -209,7 +209,7 @@ class _RealTimeDut(Dut):
                     emulate: bool = True) -> None:
         from can_bus.submodules import make_submodules
         from firmware_model.kinematics import HOME
-        from hil.bench.scripts.runner import _can_bus, build_father
+        from hil.bench.runner import _can_bus, build_father
         self.father = build_father(self.runner, radio, txen=txen, config=config)
         prev = self.father.observer
 
@@ -235,7 +235,7 @@ class ProcessDut(_RealTimeDut):
 
     def __init__(self, robot: int, can: str | None = None) -> None:
         super().__init__(robot)
-        from hil.bench.scripts.radio_hub import RadioHub
+        from hil.bench.radio_hub import RadioHub
         self._tmp = tempfile.mkdtemp(prefix="rprs-bench-")
         self.can_spec = can or f"rprs_unix:{self._tmp}/can"
         self.hub = RadioHub(nodes=2, seed=0)

@@ -1,7 +1,7 @@
 """The ``rprs`` command line, one module per command (as cantools and python-can lay out
 theirs): ``sim``, ``demo``, ``encode``/``decode`` (codec), ``child``/``submodules``/``father``
-(robots), ``radio-hub`` (hub), ``inject``, ``bench``, ``plot``, ``monitor``, ``soak``. Option types and
-shared options live in ``common``.
+(robots), ``radio-hub`` (hub), ``inject``, ``bench``, ``plot``, ``monitor``, ``soak``. Option
+types and shared options live in ``common``.
 
 A user mistake (bad option value, unreadable file, malformed input) prints one line starting
 ``rprs: error:`` and exits with status 2; it never shows a traceback.

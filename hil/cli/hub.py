@@ -1,4 +1,4 @@
-"""``rprs radio-hub``: ptys that play the shared radio channel (hil.bench.scripts.radio_hub)."""
+"""``rprs radio-hub``: ptys that play the shared radio channel (hil.bench.radio_hub)."""
 from __future__ import annotations
 
 import argparse

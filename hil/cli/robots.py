@@ -1,5 +1,5 @@
 """``rprs child``, ``rprs submodules`` and ``rprs father``: the firmware in real time on serial
-ports and CAN buses (hil.bench.scripts.runner)."""
+ports and CAN buses (hil.bench.runner)."""
 from __future__ import annotations
 
 import argparse

@@ -25,7 +25,7 @@ noise on the air (``Air.noise``, with the air's idle bookkeeping restarted so th
 radios hear noise from now on / stop hearing it now), ``q`` quits.
 
 :class:`RadioMonitorApp` opens a serial port (a USB radio, or one node of the pty radio hub) as
-a passive listener (:class:`hil.bench.scripts.scripts.Sniffer`, it never transmits) and shows what it hears:
+a passive listener (:class:`hil.bench.scripts.Sniffer`, it never transmits) and shows what it hears:
 frames per robot with their Content, the inferred ring (robots heard in the last
 ``window`` seconds), the owner of the turn (the last source heard), occupations (frames heard,
 good or failed) and inferred missed turns (a gap of about Tmax or more between two frames is
@@ -566,7 +566,7 @@ class SimMonitorApp(MonitorApp):
 
 
 class MonitorSniffer(Sniffer):
-    """A :class:`hil.bench.scripts.scripts.Sniffer` that also keeps each frame's Content, in a buffer the
+    """A :class:`hil.bench.scripts.Sniffer` that also keeps each frame's Content, in a buffer the
     monitor drains (so memory stays bounded however long it listens)."""
 
     def __init__(self, port_spec: str, byte_ticks: int = PC_BYTE_TICKS) -> None:
@@ -749,7 +749,7 @@ def run_monitor_sim(config: SimConfig, speed: float = 1.0) -> int:
 
 def run_monitor_radio(port: str) -> int:
     """``rprs monitor --radio PORT``: the TUI on a listening serial port until q.
-    Raises :class:`hil.bench.scripts.serial_radio.PortError` (one line) when the port cannot be opened."""
+    Raises :class:`hil.bench.serial_radio.PortError` (one line) when the port cannot be opened."""
     app = RadioMonitorApp(port)
     try:
         app.run()
