@@ -103,6 +103,10 @@ class CanDriver:
             self._load(buf)
 
     def _load(self, buf: int) -> None:
+        """Put the head of ``buf``'s queue in the buffer and request it, unless the buffer
+        still holds a request (TREQR): that is the head already, waiting for the bus."""
+        if self.can.TREQR >> buf & 1:
+            return
         f = self._queue[buf][0]
         self.can.transmit(buf, f.data, len(f.data))
 
@@ -165,9 +169,9 @@ class CanDriver:
         """Report the blocked bus and take this node off it (82C250 standby)."""
         self.isolated = True
         self.isolations += 1
+        # Standby takes the transmitter off the bus; requests stay in their buffers (a frame
+        # that may be on the wire cannot be cancelled anyway) and go when the bus is back.
         self.xcvr.standby(True)
-        for buf in TX_BUFFERS.values():
-            self.can.cancel(buf)
         self.on_fault(CODE_BLOCKED, now)
         self._retry_at = now + RETRY
 

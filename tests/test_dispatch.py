@@ -208,3 +208,39 @@ def test_can_trace_events_and_meta_bitrate(tmp_path):
     f = CanFrame(e["id"], bytes.fromhex(e["data"]))
     from can_bus.bits import frame_length_bits
     assert e["end"] - e["start"] == frame_length_bits(f.id, f.data, include_ifs=False) * 32
+
+
+def test_isolation_with_a_frame_on_the_blocked_bus_retries_without_reloading_it(monkeypatch):
+    """The 2-hour soak found it: a child isolated itself while its own frame was on the
+    blocked bus, so the controller could not cancel it (TCANR: "the frame may be on the bus");
+    at the retry the driver loaded that buffer again and the controller refused ("a transmit
+    request pending"). A request now stays in its buffer across the isolation, and the frames
+    queued behind it go out in order once the bus is back."""
+    from can_bus.bus import CanBus
+    from can_bus.transceiver import Transceiver82C250
+    from firmware_model.child import RETRY, CanDriver
+    from firmware_model.mcu.can_controller import CanController
+    from firmware_model.mcu.scheduler import Scheduler
+    sched = Scheduler()
+    bus = CanBus(sched)
+    sent = []
+    bus.trace = lambda f, s, e, w: sent.append((f.id, f.data))
+    ctl = CanController(sched, name="CAN0")
+    xcvr = Transceiver82C250(bus, ctl)
+    peer = CanController(sched, name="PEER")      # a node that acknowledges
+    Transceiver82C250(bus, peer)
+    peer.start()
+    drv = CanDriver(sched, ctl, xcvr, on_frame=lambda f, t: None, on_fault=lambda c, t: None)
+    xcvr.standby(True)                             # off the bus: requests stay pending
+    drv.send(CanFrame(0x101, b"\x01"))
+    drv.send(CanFrame(0x101, b"\x02"))            # waits behind the first in the driver
+    assert ctl.TREQR == 1 << 1
+    # the controller's answer while the frame may be on the wire: it cannot cancel it now
+    monkeypatch.setattr(CanController, "cancel", lambda self, buf: False)
+    drv.isolate(sched.now)
+    monkeypatch.undo()
+    sched.run_until(sched.now + RETRY)
+    drv.on_timer(sched.now)                        # the retry: back on the bus
+    sched.run_until(sched.now + 16_000)
+    assert not drv.isolated
+    assert sent == [(0x101, b"\x01"), (0x101, b"\x02")]
