@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Zero flakes: run the README's test command N times in a row (default 20) and stop at the
+# first failure. Prints one line per run and a summary; exit status 0 only if every run passed.
+#   bash scripts/repeat_suite.sh 20 2>&1 | tee flake-run.log
+set -u
+n="${1:-20}"
+cd "$(dirname "$0")/.."
+py="${PYTEST:-.venv/bin/pytest}"
+for i in $(seq 1 "$n"); do
+  start=$(date +%s)
+  out=$("$py" -q -p no:cacheprovider 2>&1)
+  rc=$?
+  summary=$(printf '%s\n' "$out" | tail -1)
+  echo "run $i/$n: status $rc, $(( $(date +%s) - start )) s: $summary"
+  if [ "$rc" -ne 0 ]; then
+    printf '%s\n' "$out" | grep -E "^(FAILED|ERROR)" >&2
+    echo "FLAKE OR FAILURE at run $i of $n"
+    exit 1
+  fi
+done
+echo "all $n runs passed"
