@@ -16,46 +16,9 @@ import pytest
 
 from hil.bench import scripts as bench
 from hil.bench.radio_hub import RadioHub
+from processes import heard, ring_is, spawn, stop, wait_for
 
 TEAM = "1,2,3,4"
-
-
-def spawn(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "hil.cli", *args],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-
-
-def stop(procs) -> None:
-    for p in procs:
-        if p.poll() is None:
-            p.terminate()
-    for p in procs:
-        try:
-            p.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            p.kill()
-
-
-def wait_for(pred, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.05)
-    return pred()
-
-
-def ring_is(sniffer, robots) -> bool:
-    """The last frames heard go round ``robots`` in order, twice: the ring is stable."""
-    fs = sniffer.snapshot()[-2 * len(robots):]
-    seq = [f.src for f in fs]
-    return len(seq) == 2 * len(robots) and sorted(set(seq)) == sorted(robots) and all(
-        b == robots[(robots.index(a) + 1) % len(robots)] for a, b in zip(seq, seq[1:]))
-
-
-def heard(sniffer, robot, since=0.0) -> int:
-    t0 = since * 16_000_000
-    return sum(1 for f in sniffer.snapshot() if f.src == robot and f.start >= t0)
 
 
 @pytest.fixture
