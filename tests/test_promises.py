@@ -9,7 +9,7 @@ import pytest
 
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import Frame, FrameType
-from firmware_model.radio.mac import Deliver, Duplicate, MacConfig, RotationalMac
+from firmware_model.radio.mac import Deliver, Duplicate, MacConfig, ModeChange, RotationalMac
 from firmware_model.timing import (
     CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, protocol_max_content, s_to_ticks,
 )
@@ -316,3 +316,34 @@ def test_a_robot_dying_mid_frame_is_dropped_and_the_ring_goes_on(k_bytes):
     later = {f["src"] for f in _frames(evs, kill + s_to_ticks(2.5)) if not f["collided"]}
     assert later == {2, 3, 4}
     assert {r: v for r, v in w.ring_views().items() if r != 1} == {r: (2, 3, 4) for r in (2, 3, 4)}
+
+
+# -- found by the 2-hour soak: both father PCs answering one invitation, for ever -----------
+
+def test_two_father_pcs_in_listen_never_answer_the_same_invitation():
+    """PC1 recovered while PC2 had taken over; the children dropped ID 0, both PCs went to
+    LISTEN on the same poll mask and both answered the next invitation of ID 0 together. Their
+    JOIN frames collided with each other at every invitation: 5948 collisions in one soak hour
+    and ID 0 never back. PC2 now lets the first invitation pass: PC1 answers it, PC2 hears
+    that and stands by; with PC1 dead, PC2 answers the next invitation."""
+    def listening(pc):
+        m = RotationalMac(0, MacConfig(team=frozenset(range(5)), pc=pc))
+        m.power_on(0)
+        return m
+    invite = Frame(dst=7, src=4, num=3, type=3, content=cmd("poll", 0, 0b11110).text().encode())
+    t = 10_000_000
+    pc1, pc2 = listening(1), listening(2)
+    a1 = pc1.on_frame(invite, t, t + 1000, t + 1000)
+    a2 = pc2.on_frame(invite, t, t + 1000, t + 1000)
+    assert pc1.mode == "member" and any(type(a) is ModeChange for a in a1)
+    assert pc2.mode == "listen" and not a2                      # PC2 let it pass
+    join = Frame(dst=7, src=0, num=1, type=FrameType.JOIN, content=b"")
+    pc2.on_frame(join, t + 200_000, t + 300_000, t + 300_000)   # PC1's answer
+    assert pc2.mode == "member" and pc2.standby                 # a replica, silent
+    # PC1 dead: the next invitation is answered by PC2
+    lone = listening(2)
+    lone.on_frame(invite, t, t + 1000, t + 1000)
+    assert lone.mode == "listen"
+    later = t + 4 * TMAX_TICKS
+    lone.on_frame(invite, later, later + 1000, later + 1000)
+    assert lone.mode == "member" and not lone.standby

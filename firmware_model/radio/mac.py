@@ -346,6 +346,7 @@ class RotationalMac:
         self._heard_since_tx = True       # a valid frame was heard since our own last one
         self._booting_peers: set[int] = set()   # robots whose BOOT frames we are hearing
         self._answering = False           # next frame answers an invitation (Type '6')
+        self._passed_invite = False       # PC2 in LISTEN let one invitation of ID 0 pass
         self.standby = self.cfg.standby      # a replica of ID 0 that does not transmit
         self._watched = False
         self._check_turns = 0               # PC2 after a takeover: turns still to watch
@@ -486,6 +487,13 @@ class RotationalMac:
                 self._expire(now, out)
             for p in polls:
                 if p.args[0] == self.id:
+                    if self.id == 0 and self.cfg.pc > 1 and not self._passed_invite:
+                        # The father's PC2 lets the first invitation of ID 0 pass: PC1 may
+                        # be listening too and answer it, and two PCs answering together
+                        # collide for ever (found by the soak). PC2 then hears PC1's answer
+                        # and stands by; if PC1 is dead, PC2 answers the next invitation.
+                        self._passed_invite = True
+                        break
                     ring = _unmask(p.args[1]) | {self.id, src}
                     self.mode = MEMBER
                     self.ring = tuple(sorted(ring))
@@ -1031,6 +1039,7 @@ class RotationalMac:
         self._silent = 0
         self._acks.clear()
         self._announcing = None           # a BOOT not acknowledged is sent again
+        self._passed_invite = False
         self.deadline = now + self._claim_ticks()
         out.append(ModeChange(LISTEN, reason))
 
