@@ -1,6 +1,7 @@
 """Time base shared by every model: integer MB90F549 machine-clock ticks.
 
-One tick is one cycle of the 16 MHz machine clock (62.5 ns). PROTOCOL.md §2 gives the defaults.
+One tick is one cycle of the 16 MHz machine clock (62.5 ns). docs/protocol.md §2 gives the
+defaults.
 """
 from __future__ import annotations
 
@@ -56,7 +57,8 @@ def ticks_to_s(ticks: int) -> float:
 
 
 def max_frame_bytes(byte_ticks: int, tmax: int = TMAX_TICKS) -> int:
-    """Largest frame (bytes, overhead included) whose air time fits in Tmax (PROTOCOL.md §3).
+    """Largest frame (bytes, overhead included) whose air time fits in Tmax (docs/protocol.md
+    §7.1).
 
     576 at the child's 16640 ticks a byte; 575 for the father's 16667.
     """
@@ -73,6 +75,6 @@ def protocol_max_content(tmax: int = TMAX_TICKS) -> int:
     """Largest Length any station may send, so the largest every receiver accepts (bytes).
 
     Bounded by the fastest legal sender, a child at 16640 ticks a byte: 562 at the defaults
-    (docs/protocol.md, Length). A slower station (the father PC, 561) sends less but accepts
-    this much; a station whose clock runs fast never sends more than this."""
+    (docs/protocol.md §3.1, clause 11). A slower station (the father PC, 561) sends less but
+    accepts this much; a station whose clock runs fast never sends more than this."""
     return max_content_bytes(min(CHILD_BYTE_TICKS, PC_BYTE_TICKS), tmax)

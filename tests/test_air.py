@@ -1,4 +1,5 @@
-"""The virtual air (hil/sim/air.py) with PTR2000 + UART models, tick-exact (PROTOCOL.md §1-2)."""
+"""The virtual air (hil/sim/air.py) with PTR2000 + UART models, tick-exact (docs/protocol.md
+§1-2)."""
 from __future__ import annotations
 
 import pytest

@@ -46,7 +46,8 @@ def test_four_child_processes_hold_the_turn_timing(hub):
     assert rep["robots"] == [1, 2, 3, 4]
     assert rep["misses"] == 0
     assert rep["turn_gap_error_ms_median"] < 3.0          # Ttrans = 5 ms hand-over
-    # an idle turn is 14 bytes + Ttrans: 4 robots x ~19.6 ms = 78 ms a cycle (PROTOCOL.md)
+    # an idle turn is 14 bytes + Ttrans: 4 robots x ~19.6 ms = 78 ms a cycle
+    # (docs/protocol.md §7.2)
     for r, c in rep["cycle_ms_median"].items():
         assert 75.0 < c < 90.0, (r, c)
     # every robot had its turns, in ring order (a real-time run on a busy machine may lose a

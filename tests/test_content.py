@@ -1,4 +1,4 @@
-"""Content command table, parser and formatter (PROTOCOL.md §3)."""
+"""Content command table, parser and formatter (docs/protocol.md §3.3)."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""Byte-at-a-time deframer and its bulk fast path (PROTOCOL.md §3)."""
+"""Byte-at-a-time deframer and its bulk fast path (docs/protocol.md §3.2)."""
 from __future__ import annotations
 
 from hypothesis import given, settings

@@ -1,4 +1,4 @@
-"""Frame wire format (PROTOCOL.md §3, paper Fig. 8)."""
+"""Frame wire format (docs/protocol.md §3.1, paper Fig. 8)."""
 from __future__ import annotations
 
 import pickle

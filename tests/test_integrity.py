@@ -1,4 +1,4 @@
-"""The opt-in checksum extension (PROTOCOL.md §3, docs/mac.md): test vectors and interop."""
+"""The opt-in checksum extension (docs/protocol.md §3.4, docs/mac.md): test vectors and interop."""
 from __future__ import annotations
 
 from firmware_model.radio.content import parse_content, split_layers

@@ -244,8 +244,9 @@ def test_a_boot_frame_is_repeated_until_every_member_acknowledges_it():
 # -- finding 7: what a heartbeat is ----------------------------------------------------------
 
 def test_heartbeats_are_empty_and_mac_commands_ride_on_control_frames():
-    """docs/protocol.md: a heartbeat is a Type '3' frame to '7' with empty Content; a frame
-    that carries only MAC commands (ack, poll, crc) is a control frame. The trace says which."""
+    """docs/protocol.md §3.5, clause 21: a heartbeat is a Type '3' frame to '7' with empty
+    Content; a frame that carries only MAC commands (ack, poll, crc) is a control frame. The
+    trace says which."""
     for checksum in (False, True):
         evs: list[dict] = []
         w = World(SimConfig(robots=(1, 2, 3), duration=12.0, load=1.0, seed=4,

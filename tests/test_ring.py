@@ -58,7 +58,7 @@ def test_idle_turns_are_frame_bytes_times_16640_plus_ttrans():
         assert (a["type"], a["dst"]) == (3, 7)
         assert b["start"] - a["start"] == 14 * CHILD_BYTE_TICKS + TTRANS_TICKS == 312_960
         assert b["src"] == {1: 2, 2: 3, 3: 4, 4: 1}[a["src"]]
-    # four robots: 78.24 ms a cycle (PROTOCOL.md §4)
+    # four robots: 78.24 ms a cycle (docs/protocol.md §7.2)
     ones = [f for f in fs if f["src"] == 1]
     assert ones[1]["start"] - ones[0]["start"] == 4 * 312_960 == s_to_ticks(0.07824)
 

@@ -1,4 +1,4 @@
-"""Content commands: the one table both the encoder and the dispatcher use (PROTOCOL.md §3).
+"""Content commands: the one table both the encoder and the dispatcher use (docs/protocol.md §3.3).
 
 Content is ``<command>(<params>)`` repeated with nothing in between, e.g.
 ``movex(10)moveto(1.5,-2,0)`` (paper §IV, Fig. 8). Parameters are decimal numbers: an 'int'
@@ -113,11 +113,11 @@ _SPECS = (
         "Failure reason code, carried in Type '4' (failure information) frames.",
         Param("code", "int", 0, 999, unit="reason code"),
     ),
-    # ---- MAC layer: consumed by the rotational MAC (PROTOCOL.md §4) ----
+    # ---- MAC layer: consumed by the rotational MAC (docs/protocol.md §4) ----
     _spec(
         "ack",
         "mac",
-        "Acknowledge the message (Source `src`, Number `num`) (PROTOCOL.md §4 delivery).",
+        "Acknowledge the message (Source `src`, Number `num`) (docs/protocol.md §4.7, clause 47).",
         Param("src", "int", 0, 6, unit="robot id"),
         Param("num", "int", 0, 99, unit="frame number"),
     ),
@@ -131,7 +131,7 @@ _SPECS = (
     _spec(
         "crc",
         "mac",
-        "Opt-in frame checksum extension (PROTOCOL.md §3), last command of the Content.",
+        "Opt-in frame checksum extension (docs/protocol.md §3.4), last command of the Content.",
         Param("value", "int", 0, 65535, unit="CRC-16"),
     ),
 )
@@ -294,7 +294,7 @@ def _scan_number(data: bytes, i: int, ctx: str) -> tuple[int, bool]:
 
 
 def parse_content(data: bytes | str) -> tuple[Command, ...]:
-    """Content bytes -> commands (PROTOCOL.md §3). Empty content -> ().
+    """Content bytes -> commands (docs/protocol.md §3.3, clause 16). Empty content -> ().
 
     Raises :class:`ContentError` whose offset is the Content byte where parsing stopped: bad
     character, unknown command name, wrong arity, bad number, parameter outside its hard bound.
@@ -380,7 +380,7 @@ FRAME_KINDS = ("heartbeat", "control", "message", "boot", "join", "unreadable")
 
 
 def frame_kind(type_digit: int, content: bytes) -> str:
-    """What a frame is (docs/protocol.md, frame kinds), from its Type digit and Content:
+    """What a frame is (docs/protocol.md §3.5, clause 21), from its Type digit and Content:
 
     * ``boot`` (Type '5') and ``join`` (Type '6'), the project's extensions;
     * ``message``: Content holds at least one application command;

@@ -1,4 +1,5 @@
-"""Byte-at-a-time radio receiver (PROTOCOL.md §3), with a bulk fast path that gives the same events.
+"""Byte-at-a-time radio receiver (docs/protocol.md §3.2, clause 15), with a bulk fast path that
+gives the same events.
 
 The deframer hunts for the Header ``0F 0A 05``, then checks every field as its byte arrives:
 Destination '0'-'9', Source '0'-'6', Number two digits, Type one digit, Length four digits whose
@@ -8,7 +9,8 @@ bad byte it reports :class:`FrameFailed` and treats that byte as a fresh hunting
 frame's leading 0x0F is never valid inside a frame (not a digit, not printable, not End), so a
 frame in progress can never swallow the start of a later good frame.
 
-Ticks are integers (PROTOCOL.md §2); a byte's tick is the tick at which its stop bit completed.
+Ticks are integers (docs/protocol.md §2); a byte's tick is the tick at which its stop bit
+completed.
 
 Garbage (bytes discarded while hunting, partial Headers included) is reported as one
 :class:`Garbage` event per run of consecutive discarded bytes, emitted when a Header is
@@ -83,7 +85,7 @@ DeframerEvent = Union[FrameReceived, Garbage, FrameFailed]
 
 
 class Deframer:
-    """Receiver state machine for one radio (PROTOCOL.md §3).
+    """Receiver state machine for one radio (docs/protocol.md §3.2, clause 15).
 
     ``max_content``: largest Length accepted (bytes, default 562 = child at Tmax);
     ``byte_ticks``: ticks a byte takes on air, only used for ``FrameFailed.expected_end``.

@@ -1,4 +1,4 @@
-"""Errors raised for bad bytes on the radio wire (PROTOCOL.md §3).
+"""Errors raised for bad bytes on the radio wire (docs/protocol.md §3.2).
 
 Every error says where it went wrong: ``offset`` is the byte offset in the frame (FrameError) or
 in the Content (ContentError), ``field`` names the field, ``byte`` is the offending byte value when
@@ -66,10 +66,10 @@ class WireError(ValueError):
 
 
 class FrameError(WireError):
-    """Bad frame: ``offset`` counts from the first Header byte (0) (PROTOCOL.md §3)."""
+    """Bad frame: ``offset`` counts from the first Header byte (0) (docs/protocol.md §3.1)."""
 
 
 class ContentError(WireError):
-    """Bad Content: ``offset`` counts from the first Content byte (0) (PROTOCOL.md §3)."""
+    """Bad Content: ``offset`` counts from the first Content byte (0) (docs/protocol.md §3.3)."""
 
     where = "content byte"

@@ -1,4 +1,4 @@
-"""The RPRS radio frame (paper Fig. 8, PROTOCOL.md §3), byte exact.
+"""The RPRS radio frame (paper Fig. 8, docs/protocol.md §3.1), byte exact.
 
     Header  Dst  Src  Number  Type  Length  Content   End
     0F0A05  '2'  '1'  '05'    '2'   '0009'  movex(10) 17 19
@@ -59,7 +59,7 @@ HEADER = b"\x0f\x0a\x05"
 END = b"\x17\x19"
 """Frame end (paper Fig. 8)."""
 BROADCAST = 7
-"""Destination '7': every member (PROTOCOL.md §3)."""
+"""Destination '7': every member (docs/protocol.md §3.1, clause 7)."""
 FATHER = 0
 """Robot ID of the father PC."""
 CHILD_IDS = range(1, 7)
@@ -68,7 +68,7 @@ ROBOT_IDS = range(0, 7)
 """Every robot ID that may appear as Source, 0-6."""
 
 MAX_CONTENT = max_content_bytes(CHILD_BYTE_TICKS)
-"""562 bytes: largest Content a child's frame can carry inside Tmax (PROTOCOL.md §3)."""
+"""562 bytes: largest Content a child's frame can carry inside Tmax (docs/protocol.md §7.1)."""
 MAX_LENGTH_FIELD = 9999
 """Largest value four ASCII digits of Length can hold."""
 CONTENT_OFFSET = 12
@@ -78,7 +78,8 @@ assert CONTENT_OFFSET + len(END) == FRAME_OVERHEAD
 
 
 class FrameType(IntEnum):
-    """Type digit (PROTOCOL.md §3). Digits 5-9 are allowed on the wire as project extensions."""
+    """Type digit (docs/protocol.md §3.1, clause 10). Digits 5-9 are allowed on the wire as project
+    extensions."""
 
     SEEK_HELP = 0
     INVITATION = 1
@@ -121,7 +122,8 @@ class AsciiDecimal(Adapter):
 
 
 class PrintableAscii(Adapter):
-    """Bytes that must all be printable ASCII 0x20-0x7E (Content, PROTOCOL.md §3)."""
+    """Bytes that must all be printable ASCII 0x20-0x7E (Content, docs/protocol.md §3.1,
+    clause 12)."""
 
     def _decode(self, obj: bytes, context, path) -> bytes:
         if not _is_printable(obj):
@@ -162,7 +164,7 @@ def _is_int(v: object) -> bool:
 
 @dataclass(frozen=True, slots=True)
 class Frame:
-    """One radio frame with integer fields (PROTOCOL.md §3, §5: IDs are ints in code).
+    """One radio frame with integer fields (docs/protocol.md §3.1; §5: IDs are ints in code).
 
     ``dst`` 0-9, ``src`` 0-6, ``num`` 0-99, ``type`` 0-9 (see :class:`FrameType`),
     ``content`` printable ASCII, at most 9999 bytes. Bad values raise :class:`FrameError` whose
@@ -264,7 +266,8 @@ def length_limits(max_content: int) -> tuple[int, int, int, int]:
     """Per Length digit k (0-3): the largest value of the first k+1 digits that can still be <= max_content.
 
     A Length digit is the first bad byte as soon as the digits so far make the value exceed
-    ``max_content`` whatever follows (PROTOCOL.md §3: the deframer checks the length bound).
+    ``max_content`` whatever follows (docs/protocol.md §3.1, clause 11: the deframer checks the
+    length bound).
     """
     return tuple(max_content // 10 ** (3 - k) for k in range(4))  # type: ignore[return-value]
 
@@ -359,7 +362,7 @@ def _first_error(data: bytes, max_content: int) -> FrameError | None:
 
 
 def parse_frame(data: bytes, max_content: int = MAX_CONTENT) -> Frame:
-    """Parse exactly one whole frame (PROTOCOL.md §3).
+    """Parse exactly one whole frame (docs/protocol.md §3.1).
 
     Raises :class:`FrameError` naming the offset and field of the first bad byte: Header,
     digits, Length above ``max_content`` (bytes), non-printable Content, End, a truncated frame

@@ -1,4 +1,5 @@
-"""Opt-in frame checksum that stays inside the paper's frame (PROTOCOL.md §3, designed here).
+"""Opt-in frame checksum that stays inside the paper's frame (docs/protocol.md §3.4, clause 20;
+designed here).
 
 With the extension on, the sender ends Content with ``crc(NNNNN)``: CRC-16/CCITT-FALSE
 (polynomial 0x1021, initial 0xFFFF, no reflection, no final XOR; ``binascii.crc_hqx``) over the

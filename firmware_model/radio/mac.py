@@ -1,4 +1,5 @@
-"""The rotational TDMA MAC (paper §IV.C, Figs. 6-7; PROTOCOL.md §4) as a sans-IO state machine.
+"""The rotational TDMA MAC (paper §IV.C, Figs. 6-7; docs/protocol.md §4) as a sans-IO state
+machine.
 
 Events go in (``on_frame``, ``on_corrupt``, ``on_timer``, ``on_tx_done``, ``submit``), actions and
 observations come out as lists, and the single timer the MAC needs is exposed as ``deadline`` (a
@@ -210,7 +211,7 @@ class Message:
 
 @dataclass(frozen=True, slots=True)
 class MacConfig:
-    """MAC timing (ticks) and policy. Defaults are the paper's experiment (PROTOCOL.md §2)."""
+    """MAC timing (ticks) and policy. Defaults are the paper's experiment (docs/protocol.md §2)."""
 
     ttrans: int = TTRANS_TICKS
     tmax: int = TMAX_TICKS
@@ -246,9 +247,9 @@ class MacConfig:
     """How long after Ttrans a standby waits for the active PC's header before it takes the
     turn (ticks): 4 bytes in simulation; a PC on a USB adapter needs tens of ms."""
     standby: bool = False
-    """Hot standby for the father (PROTOCOL.md §4 failover, paper's PC1/PC2): follow the ring
-    as a replica of ID 0 and take ID 0's turn only when the active PC's header does not come
-    (docs/mac.md)."""
+    """Hot standby for the father (docs/protocol.md §4.9, clause 50; paper's PC1/PC2): follow the
+    ring as a replica of ID 0 and take ID 0's turn only when the active PC's header does not
+    come (docs/mac.md)."""
     quiet_channel: bool = True
     """The radio gives no bytes without a carrier (the pty hub; a radio with squelch). Then an
     owner whose turn follows an uncertain closure waits for the channel to fall quiet before
@@ -314,7 +315,8 @@ class RotationalMac:
         """Largest Content this robot sends: what fits in Tmax at its own byte time, never
         more than the protocol's Length bound (which every receiver accepts)."""
         self.rx_max_content = protocol_max_content(cfg.tmax)
-        """Largest Length this robot accepts: the protocol's bound (docs/protocol.md)."""
+        """Largest Length this robot accepts: the protocol's bound (docs/protocol.md §3.1,
+        clause 11)."""
         self.mode = LISTEN
         self.phase = WAIT
         self.ring: tuple[int, ...] = ()
@@ -387,7 +389,8 @@ class RotationalMac:
     # -- events in ---------------------------------------------------------------------------
 
     def power_on(self, now: int) -> list:
-        """Start in LISTEN; claim after ``claim_ticks`` of silence (PROTOCOL.md §4 start-up)."""
+        """Start in LISTEN; claim after ``claim_ticks`` of silence (docs/protocol.md §4.3,
+        clause 28)."""
         self.mode = LISTEN
         self._booting = True
         self._announcing = None
@@ -885,8 +888,8 @@ class RotationalMac:
         none, a frame that failed) or on a miss right after our own frame. Two members can
         each believe the other's turn just closed (a foreign burst over a hand-over, a
         collision): the owner then waits ``id`` x Tslot more, listening, so of two such
-        members the higher ID hears the lower's Header before it raises TXEN (docs/protocol.md,
-        rule R-stagger)."""
+        members the higher ID hears the lower's Header before it raises TXEN (docs/protocol.md
+        §4.6, clause 44: R-stagger)."""
         if not self.ring:
             return
         if self.lone and after == self.id:
@@ -1148,7 +1151,8 @@ class RotationalMac:
         if self._answering or (self._booting and self._announcing is None):
             # The answer to an invitation, or a lone claimer's first frame: nothing else in it.
             # A BOOT frame is Number '00'; a JOIN frame takes the next Number, so that its
-            # acknowledgement cannot be mistaken for a message's (docs/protocol.md, join).
+            # acknowledgement cannot be mistaken for a message's (docs/protocol.md §4.4,
+            # clause 34).
             self._answering = False
             self._sent_poll = None
             if self._booting:

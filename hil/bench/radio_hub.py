@@ -2,8 +2,8 @@
 
 Each node gets a pty whose slave side (``/dev/pts/N``) any serial program opens like a serial
 port: a robot process (``rprs child --radio /dev/pts/N``), screen, minicom, pyserial. The hub
-holds the master sides and plays the one half-duplex 9600-baud channel of PROTOCOL.md §1-2 with
-the simulator's own :class:`hil.sim.air.Air` (``byte_by_byte=True``) running on a
+holds the master sides and plays the one half-duplex 9600-baud channel of docs/protocol.md
+§1-2 with the simulator's own :class:`hil.sim.air.Air` (``byte_by_byte=True``) running on a
 :class:`hil.sim.realtime.RealTimeScheduler`, so collisions, byte errors, idle noise and their seeded
 random streams are exactly the simulator's:
 

@@ -3,7 +3,7 @@
 ``link``     listen and count what arrives: bytes, good frames, garbage, who is talking;
 ``cycle``    listen and time the ring: the gap between one frame's End and the next Header
              (spec: Ttrans, 5 ms), each robot's cycle, misses (gaps of about Tmax), against
-             PROTOCOL.md;
+             docs/protocol.md §7.2;
 ``latency``  join the ring as a member (the father by default) and ask a robot for its
              status: round-trip time (request submitted -> reply delivered), acknowledgement
              time, and loss.

@@ -1,6 +1,6 @@
 """The virtual air: one shared 433 MHz channel for every PTR2000 in the simulated world.
 
-What a receiver hears (PROTOCOL.md §1):
+What a receiver hears (docs/protocol.md §1, clause 2):
 * a transmission reaches every radio that is listening when its first bit goes out, each byte
   at the tick its stop bit ends at the sender's rate; a radio that starts listening in the
   middle of a transmission (its TXEN fell, or it revived) hears the rest of it from the first
