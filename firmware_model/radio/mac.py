@@ -741,7 +741,7 @@ class RotationalMac:
     def _deadline_wait(self, now: int, rx_busy: bool, last_rx: int | None,
                        rx_began: int | None, out: list) -> None:
         """WAIT: the owner's Header has not begun by E + Tmax: a miss, the next robot's turn
-        (paper §IV.C); the third miss in a row drops it (paper §IV.D)."""
+        (paper §IV.C); the third miss in a row drops it (paper §IV.C)."""
         if self._header_coming(now, rx_busy, rx_began, self.turn_start + self.cfg.tmax):
             return
         o = self.owner

@@ -48,19 +48,21 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("LISTEN", "power on", "LISTEN", "listen; claim after Tclaim(id) of silence", "designed"),
     _T("LISTEN", "frame", "LISTEN", "someone is on the air: the claim timer restarts",
        "designed"),
-    _T("LISTEN", "garbage", "LISTEN", "bytes heard: the claim timer restarts", "designed"),
+    _T("LISTEN", "garbage", "LISTEN", "bytes that form no frame: nothing changes (only a frame "
+       "or a failed frame restarts the claim timer)", "designed"),
     _T("LISTEN", "frame", "SWITCH", "invited (poll names us): answer with JOIN at E + Ttrans",
        "designed"),
-    _T("LISTEN", "frame", "HOLD", "invited while a lone member: answer after its pause",
-       "designed"),
-    _T("LISTEN", "frame", "WAIT", "invited, and our answer's turn is not next", "designed"),
+    _T("LISTEN", "frame", "HOLD", "a father PC hears the active PC: stands by, following the "
+       "ring (its turn starts at the deadline)", "designed"),
+    _T("LISTEN", "frame", "WAIT", "a father PC hears the active PC: stands by, following the "
+       "ring", "designed"),
     _T("LISTEN", "deadline", "SWITCH", "silence for Tclaim(id): claim, a ring of one",
        "designed"),
     # -- waiting for the owner ------------------------------------------------------------
     _T("WAIT", "frame", "WAIT", "a member's frame: the turn passes to its successor at E",
-       "paper §IV.B"),
+       "paper §IV.C"),
     _T("WAIT", "frame", "SWITCH", "the frame's sender precedes us: our turn at E + Ttrans",
-       "paper §IV.B"),
+       "paper §IV.C"),
     _T("WAIT", "frame", "WINDOW", "the frame invites an absent robot: its window until "
        "E + Twin", "designed"),
     _T("WAIT", "frame", "WATCH", "ID 0's turn on a PC that checks for the other PC",
@@ -98,8 +100,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WINDOW", "deadline", "HOLD", "no answer to a lone member: its next pause", "designed"),
     # -- after a frame that broke early ---------------------------------------------------
     _T("QUIET", "garbage", "QUIET", "bytes keep coming", "designed"),
-    _T("QUIET", "frame", "WAIT", "a good frame: resynchronise on it", "paper §IV.B"),
-    _T("QUIET", "frame", "SWITCH", "a good frame, and ours is the next turn", "paper §IV.B"),
+    _T("QUIET", "frame", "WAIT", "a good frame: resynchronise on it", "paper §IV.C"),
+    _T("QUIET", "frame", "SWITCH", "a good frame, and ours is the next turn", "paper §IV.C"),
     _T("QUIET", "deadline", "QUIET", "not quiet yet: look again at the last byte + the gap",
        "designed"),
     _T("QUIET", "deadline", "WAIT", "quiet: the turn closed, the next owner's (R-stagger); or "
@@ -110,17 +112,17 @@ TRANSITIONS: tuple[Transition, ...] = (
        "paper §IV.C"),
     # -- our turn -------------------------------------------------------------------------
     _T("HOLD", "garbage", "HOLD", "bytes heard while we wait to begin", "designed"),
-    _T("HOLD", "frame", "WAIT", "someone else sent first: resynchronise on it", "paper §IV.B"),
+    _T("HOLD", "frame", "WAIT", "someone else sent first: resynchronise on it", "paper §IV.C"),
     _T("HOLD", "frame", "LISTEN", "heard another robot while alone", "designed"),
     _T("HOLD", "deadline", "HOLD", "a frame is coming in, or a jam not yet quiet for "
        "id x Tslot (R-stagger)", "designed"),
-    _T("HOLD", "deadline", "SWITCH", "our turn: raise TXEN", "paper §IV.B"),
+    _T("HOLD", "deadline", "SWITCH", "our turn: raise TXEN", "paper §IV.C"),
     _T("HOLD", "deadline", "WATCH", "ID 0's turn on a PC that checks for the other PC",
        "designed"),
     _T("SWITCH", "failed frame", "SWITCH", "deaf while switching: nothing changes",
-       "paper §III"),
-    _T("SWITCH", "deadline", "SEND", "Ttrans after TXEN: the frame goes out", "paper §IV.B"),
-    _T("SEND", "tx done", "WAIT", "our End is out: the successor's turn at E", "paper §IV.B"),
+       "paper §IV.C"),
+    _T("SWITCH", "deadline", "SEND", "Ttrans after TXEN: the frame goes out", "paper §IV.C"),
+    _T("SEND", "tx done", "WAIT", "our End is out: the successor's turn at E", "paper §IV.C"),
     _T("SEND", "tx done", "WINDOW", "we invited a robot: its window until E + Twin",
        "designed"),
     _T("SEND", "tx done", "HOLD", "a lone member pauses Twin + id x Tslot", "designed"),
