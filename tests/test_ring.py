@@ -277,6 +277,9 @@ def test_submission_refuses_a_frame_longer_than_tmax():
         child.submit(1, [cmd("stop")])                      # to itself
     with pytest.raises(SubmitError, match="MAC command"):
         child.submit(2, [cmd("ack", 1, 5)])
+    for reserved in (5, 6, 7, 9):                           # BOOT, JOIN, reserved
+        with pytest.raises(SubmitError, match="Type must be 0-4"):
+            child.submit(2, [cmd("stop")], type=reserved)
 
 
 def test_same_seed_same_trace_bytes(tmp_path):

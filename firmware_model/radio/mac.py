@@ -277,8 +277,9 @@ def check_submission(robot: int, dst: int, commands: Iterable[Command],
     if not 0 <= dst <= BROADCAST or dst == robot:
         raise SubmitError(f"destination must be a robot ID 0-6 other than {robot}, "
                           f"or {BROADCAST} (broadcast); got {dst}")
-    if not 0 <= int(type) <= 9:
-        raise SubmitError(f"type must be a digit 0-9, got {type}")
+    if not 0 <= int(type) <= 4:
+        raise SubmitError(f"a message's Type must be 0-4 (5 BOOT and 6 JOIN are the MAC's own, "
+                          f"7-9 are reserved: docs/protocol.md), got {type}")
     mac_cmds = [c for c in commands if c.spec.layer == "mac"]
     if mac_cmds:
         raise SubmitError(f"{mac_cmds[0].name}() is a MAC command and cannot be submitted")
