@@ -348,3 +348,36 @@ def test_two_father_pcs_in_listen_never_answer_the_same_invitation():
     later = t + 4 * TMAX_TICKS
     lone.on_frame(invite, later, later + 1000, later + 1000)
     assert lone.mode == "member" and not lone.standby
+
+
+def test_a_father_pc1_that_took_over_ends_its_probation_and_delivers():
+    """Found by the 2-hour soak: PC1 stood by (it had heard PC2 active), then took ID 0's turn
+    when PC2 went silent. A takeover starts a 3-turn probation during which new messages are
+    left alone; only PC2 ever counted those turns down, so PC1 stayed on probation for good
+    and every message to the father failed ("no acknowledgement from 0": 650 in half an
+    hour). PC1 now watches its probation turns too, and delivers after them."""
+    mac = RotationalMac(0, MacConfig(team=frozenset((0, 1)), pc=1, standby=True))
+    mac.power_on(0)
+    mac.mode, mac.ring, mac.misses = "member", (0, 1), {0: 0, 1: 0}
+    mac.phase, mac.owner, mac.turn_start, mac.deadline = "wait", 1, 0, TMAX_TICKS
+    t = 1_000_000
+    heartbeat = Frame(dst=7, src=1, num=0, type=3, content=b"")
+
+    def r1_sends(frame):
+        """R1's frame ends at t; run our turn to its end; return what we delivered."""
+        nonlocal t
+        out = list(mac.on_frame(frame, t - 200_000, t, t))
+        while mac.phase != "send":
+            now = mac.deadline
+            out += mac.on_timer(now)        # the active PC (PC2) is silent: nothing heard
+        t = now + 300_000
+        out += mac.on_tx_done(t)
+        t += 400_000
+        return out
+    r1_sends(heartbeat)                     # the standby takes ID 0's turn
+    assert not mac.standby and mac._check_turns == 3
+    for _ in range(3):
+        r1_sends(heartbeat)                 # its probation turns, each watched
+    assert mac._check_turns == 0
+    msg = Frame(dst=0, src=1, num=5, type=2, content=b"movex(1)")
+    assert any(type(a) is Deliver for a in r1_sends(msg))

@@ -939,10 +939,12 @@ class RotationalMac:
         if start > now:
             self._hold(start, now, out)
             return
-        if self.standby or (not self._watched and self.id == 0 and self.cfg.pc > 1 and (
-                self._check_turns > 0 or self.turns % PC2_CHECK_EVERY == 0)):
+        if self.standby or (not self._watched and self.id == 0 and (
+                self._check_turns > 0 or
+                self.cfg.pc > 1 and self.turns % PC2_CHECK_EVERY == 0)):
             # The active PC's header starts at start + Ttrans and is complete 3 bytes later.
-            # An active PC2 still watches its first turns after a takeover and then one turn
+            # A PC that took over watches its first turns (PC1 too: otherwise its probation,
+            # which leaves messages undelivered, never ended), and an active PC2 one turn
             # in PC2_CHECK_EVERY: if PC1 were active too, both would send in the same slot,
             # each deaf to the other, for ever.
             self.phase = WATCH
