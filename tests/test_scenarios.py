@@ -18,8 +18,8 @@ Scenarios that already have a test elsewhere are not repeated here:
   ``tests/test_promises.py::test_a_forged_frame_from_a_never_member_is_refused_and_not_acted_on``;
   a disabled robot:
   ``tests/test_spoofing.py::test_a_frame_from_a_disabled_robot_is_refused_until_invited``;
-  another member's ID out of turn:
-  ``tests/test_spoofing.py::test_a_frame_from_the_wrong_source_in_a_turn_is_refused_and_not_acted_on``
+  another member's ID out of turn: ``tests/test_spoofing.py::``
+  ``test_a_frame_from_the_wrong_source_in_a_turn_is_refused_and_not_acted_on``
   (here: a Source that is no robot ID, one outside the team, our own ID, the father's ID, and a
   never-member repeating its forgery up to the admission rule);
 * the largest frame from a child to the father, a child to a child and the father to a child:
