@@ -275,16 +275,18 @@ def _mode_at(evs, robot, t):
     return mode
 
 
-@pytest.mark.xfail(strict=True, reason="counterexample found by the hunt (--hypothesis-seed=22, "
-                   "delta-debugged to 11 faults, replayed here on a fresh world): the last fault ends at "
-                   "125833090 (7.86 s); the members' miss counts for R2 (listening since "
-                   "123990265) have diverged, so the father drops R2 at 137324730, R1 at "
-                   "149295298, R3 only at 170663986. Meanwhile the silence after R1's frame "
-                   "means 'R3 missed, my turn' to the father and 'R2 missed, my turn' to R3: "
-                   "both transmit at R1's End + Tmax + Ttrans, collision [0, 3] at 149375298 "
-                   "and 14 more to 292081673. The father never hears R3 again and drops it "
-                   "(170663986, R3 a member and sending); R1 and R2 drop the father at "
-                   "223461537, R3 at 228671777; members are dropped until 18.25 s")
+@pytest.mark.xfail(strict=True, reason=(
+    "counterexample found by the hunt (--hypothesis-seed=22, delta-debugged to 11 "
+    "faults, replayed here on a fresh world): the last fault ends at 125833090 "
+    "(7.86 s); the members' miss counts for R2 (listening since 123990265) have "
+    "diverged, so the father drops R2 at 137324730, R1 at 149295298, R3 only at "
+    "170663986. Meanwhile the silence after R1's frame means 'R3 missed, my turn' "
+    "to the father and 'R2 missed, my turn' to R3: both transmit at R1's End + Tmax"
+    " + Ttrans, collision [0, 3] at 149375298 and 14 more to 292081673. The father "
+    "never hears R3 again and drops it (170663986, R3 a member and sending); R1 and"
+    " R2 drop the father at 223461537, R3 at 228671777; members are dropped until "
+    "18.25 s"
+))
 def test_hunt_counterexample_members_that_disagree_on_a_silent_robot():
     """Found by the hunt above: once the last fault has ended, no member whose radio works is
     dropped by another member (docs/guarantees.md: after any fault ends the ring is whole
