@@ -83,6 +83,8 @@ class RadioStation:
                 if self.observer is not None:
                     self.observer(self, ev, now)
                 self._apply(mac.on_corrupt(ev.first, ev.src, exp, now), ev)
+        if d.in_frame:
+            self._apply(())            # arm the stall watch for the frame still coming in
 
     def _on_timer(self, now: int) -> None:
         self.uart.sync(now)
@@ -126,6 +128,15 @@ class RadioStation:
         if actions:
             self._act(actions)
         dl = self.mac.deadline
+        d = self.deframer
+        if d.in_frame and d.last_tick is not None:
+            # A frame is coming in: if its bytes stop, it is abandoned one stall gap after
+            # the last, so that its turn closes at the End its Length promised (rule
+            # R-stagger), not at the MAC's next deadline (which may be E + Tmax).
+            stall = d.last_tick + self._stall + 1
+            stall += stall & 1         # the timer counts machine clock / 2: stay on its grid
+            if dl is None or stall < dl:
+                dl = stall
         if dl is None:
             if self.timer.expiry is not None:
                 self.timer.stop()

@@ -249,18 +249,14 @@ def test_the_successor_vanishes_mid_message_nothing_is_delivered_and_it_is_dropp
     assert {r: w.ring_views()[r] for r in (1, 3, 4)} == {r: (1, 3, 4) for r in (1, 3, 4)}
 
 
-@pytest.mark.xfail(strict=True, reason="counterexample (ring 1-4, seed 0): R2's frame "
-                   "(Length 320) began at 65268480 and its radio died at 66932481; its Length "
-                   "promised End 70826240, so rule R-stagger puts R3's TXEN at 70826240 + "
-                   "3 Tslot = 71786240. R3 raised TXEN at 75748480 = E1 + Tmax + 3 Tslot: the "
-                   "stalled frame is only abandoned at the WAIT deadline E1 + Tmax (the station "
-                   "arms no timer for the promised End), 247.6 ms later than the rule")
 def test_the_successor_vanishes_mid_message_the_turn_closes_at_the_promised_end():
     """docs/mac.md, corrupted frames: a frame that fails after a valid Header closes the turn
     at the end its Length promised; the turn closed on a failed frame, so rule R-stagger makes
-    the next owner (R3) wait 3 x Tslot more: TXEN at promised End + 3 Tslot."""
+    the next owner (R3) wait 3 x Tslot more: TXEN at promised End + 3 Tslot, to the reload
+    timer's resolution (it counts machine clock / 2, so a delay armed at an odd tick ends one
+    tick late, as on the MCU; the dead sender's last bytes reach R3 at the odd tick it died)."""
     w, evs, e1, promised, m = _vanish_mid_message()
-    assert txen_on(evs, 3, e1)[0] == promised + 3 * TSLOT
+    assert txen_on(evs, 3, e1)[0] - (promised + 3 * TSLOT) in (0, 1)
 
 
 # -- the owner returns during a takeover -------------------------------------------------------
