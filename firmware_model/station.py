@@ -39,6 +39,8 @@ class RadioStation:
         self.deframer = Deframer(max_content=self.mac.rx_max_content,
                                  byte_ticks=uart.byte_ticks)
         self.timer = ReloadTimer(sched, self._on_timer)
+        self.stall_timer = ReloadTimer(sched, self._on_stall, name="TMR1")
+        """Watches a frame coming in: its bytes stopped for the stall gap (the sender died)."""
         self.observer = observer
         self.report_io = True
         """Pass TxEnable/Transmit actions to the observer too (a trace wants them; a fast
@@ -84,7 +86,14 @@ class RadioStation:
                     self.observer(self, ev, now)
                 self._apply(mac.on_corrupt(ev.first, ev.src, exp, now), ev)
         if d.in_frame:
-            self._apply(())            # arm the stall watch for the frame still coming in
+            # A frame is coming in: if its bytes stop it is abandoned one stall gap after the
+            # last, so that its turn closes at the End its Length promised (rule R-stagger),
+            # not at the MAC's next deadline (which may be E + Tmax). Its own timer channel,
+            # so that the MAC's timer runs the same whether bytes come one by one or in bursts.
+            stall = d.last_tick + self._stall + 1
+            self.stall_timer.arm_at(stall + (stall & 1))   # on the timer's machine clock / 2
+        elif self.stall_timer.expiry is not None:
+            self.stall_timer.stop()
 
     def _on_timer(self, now: int) -> None:
         self.uart.sync(now)
@@ -103,6 +112,15 @@ class RadioStation:
             hs = None          # a partial Header whose next byte never came is no Header
         began = hs - self.uart.byte_ticks if hs is not None else self.uart.rx_started(now)
         self._apply(self.mac.on_timer(now, busy, d.last_tick, began))
+
+    def _on_stall(self, now: int) -> None:
+        self.uart.sync(now)
+        d = self.deframer
+        if d.in_frame and d.last_tick is not None and now - d.last_tick > self._stall:
+            ev = d.abort(now)
+            if ev is not None:
+                self.frames_failed += 1
+                self._apply(self.mac.on_corrupt(ev.first, ev.src, ev.expected_end, now), ev)
 
     def _on_tx_done(self, end: int) -> None:
         self._apply(self.mac.on_tx_done(end))
@@ -128,15 +146,6 @@ class RadioStation:
         if actions:
             self._act(actions)
         dl = self.mac.deadline
-        d = self.deframer
-        if d.in_frame and d.last_tick is not None:
-            # A frame is coming in: if its bytes stop, it is abandoned one stall gap after
-            # the last, so that its turn closes at the End its Length promised (rule
-            # R-stagger), not at the MAC's next deadline (which may be E + Tmax).
-            stall = d.last_tick + self._stall + 1
-            stall += stall & 1         # the timer counts machine clock / 2: stay on its grid
-            if dl is None or stall < dl:
-                dl = stall
         if dl is None:
             if self.timer.expiry is not None:
                 self.timer.stop()
