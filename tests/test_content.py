@@ -25,7 +25,7 @@ SETTINGS = settings(max_examples=200, deadline=None)
 
 def test_table_exact():
     app = {"movex", "movey", "movez", "moveto", "joint", "wheel", "paw", "act", "stop", "status", "fail"}
-    mac = {"ack", "poll", "crc"}
+    mac = {"ack", "poll", "ring", "crc"}
     assert set(COMMANDS) == app | mac
     assert {n for n, s in COMMANDS.items() if s.layer == "app"} == app
     assert {n for n, s in COMMANDS.items() if s.layer == "mac"} == mac
@@ -38,6 +38,7 @@ def test_table_exact():
     assert sig["act"] == [("action", "int", 0, 99), ("phase", "int", 0, 1)]
     assert sig["ack"] == [("src", "int", 0, 6), ("num", "int", 0, 99)]
     assert sig["poll"] == [("id", "int", 0, 6), ("mask", "int", 0, 127)]
+    assert sig["ring"] == [("mask", "int", 0, 127)]
     assert sig["crc"] == [("value", "int", 0, 65535)]
     assert sig["fail"] == [("code", "int", 0, 999)]
     assert sig["stop"] == sig["status"] == []

@@ -22,8 +22,10 @@ every ``SAMPLE_S`` as the soak does). After every step, and again at the end:
   or a death of one of the two, came in the ``MUTUAL_WINDOW_S`` before.
 
 Runs are derandomized (the same examples every time) and use no example database. The hunt
-found three runs that break these invariants (deeper hunts than the suite's: see
-``HUNT_EXAMPLES``); each is replayed below tick-exact on a fresh world as a strict xfail.
+found three runs that broke these invariants (deeper hunts than the suite's: see
+``HUNT_EXAMPLES``): members whose views of the ring differed ended sending in the same slot for
+ever. Rule R-view (docs/protocol.md clause 51) fixed them; each is replayed below tick-exact on
+a fresh world.
 """
 from __future__ import annotations
 
@@ -284,18 +286,6 @@ def _mode_at(evs, robot, t):
     return mode
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "counterexample found by the hunt (--hypothesis-seed=22, delta-debugged to 11 "
-    "faults, replayed here on a fresh world): the last fault ends at 125833090 "
-    "(7.86 s); the members' miss counts for R2 (listening since 123990265) have "
-    "diverged, so the father drops R2 at 137324730, R1 at 149295298, R3 only at "
-    "170663986. Meanwhile the silence after R1's frame means 'R3 missed, my turn' "
-    "to the father and 'R2 missed, my turn' to R3: both transmit at R1's End + Tmax"
-    " + Ttrans, collision [0, 3] at 149375298 and 14 more to 292081673. The father "
-    "never hears R3 again and drops it (170663986, R3 a member and sending); R1 and"
-    " R2 drop the father at 223461537, R3 at 228671777; members are dropped until "
-    "18.25 s"
-))
 def test_hunt_counterexample_members_that_disagree_on_a_silent_robot():
     """Found by the hunt above: once the last fault has ended, no member whose radio works is
     dropped by another member (docs/guarantees.md: after any fault ends the ring is whole
@@ -320,16 +310,6 @@ def test_hunt_counterexample_members_that_disagree_on_a_silent_robot():
     assert dropped == []
 
 
-@pytest.mark.xfail(strict=True, reason="counterexample found by the hunt (idle ring, "
-                   "--hypothesis-seed=21, delta-debugged to these 14 acts, replayed on a fresh "
-                   "world; the ring formed at 44205507): during the byte-error windows the father "
-                   "drops R3 (95003051) while R1-R3 keep it; after the last fault (110048000, "
-                   "6.878 s) the father's ring is (0,1,2), everyone else's (1,2,3) once R2, R1 "
-                   "and R3 drop the father (116902571, 128107051, 132169131). The father sends "
-                   "in R3's slot after R2's frame, so the two collide every cycle from 118074411 "
-                   "on (2550 collisions in 300 s): neither ever hears the other, R3's polls of "
-                   "0 never reach it and R1's frames are refused by it as out of turn. The ring "
-                   "never re-forms (still split at 300 s)")
 def test_hunt_counterexample_a_father_that_dropped_a_live_member_never_hears_it_again():
     """Found by the hunt above: after any fault ends the ring is whole again within
     REFORM_BOUND_S (docs/guarantees.md), and stays so while no new fault comes."""
@@ -355,16 +335,6 @@ def test_hunt_counterexample_a_father_that_dropped_a_live_member_never_hears_it_
     _whole_within_the_bound_and_stays(w, evs, 110048000)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "counterexample found by the hunt (ring 1-3, idle, --hypothesis-seed=31, delta-debugged "
-    "to these 7 acts, replayed on a fresh world whose ring formed by 52000000): after two "
-    "steals whose frames collide (72415743, 84256586; the second with a forged frame), R1 "
-    "refuses R2's clean frames as 'out of turn: it was robot 3's turn' and counts each as "
-    "R3's miss (83647743, 86121546): R1 drops R3, a live member, at 86121546 while R2 and R3 "
-    "keep it. From then on R1 (ring 1,2) and R3 (ring 1,2,3) both transmit at R2's End + "
-    "Ttrans: collision [1, 3] at 86201546 and every 11358080 ticks after (416 by 300 s); "
-    "neither ever hears the other clean again, so no rule (JOIN acks, poll masks, 3-frame "
-    "evidence, a clean frame in a slot is a miss) can repair the views: split for ever"))
 def test_hunt_counterexample_three_robots_split_for_ever_after_two_steals():
     """Found by the hunt (the smallest of this class: every ring of 3 or more members in the
     hunt ends split this way, never a ring of two): after the last fault the ring is whole

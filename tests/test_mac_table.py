@@ -21,7 +21,7 @@ RUNS = [
     dict(robots=(0, 1, 2, 3), duration=30, seed=2, load=1.0, faults=tuple(map(parse_fault, [
         "steal:2@3", "burst@6:0.3", "fail:1@8", "recover:1@12", "fail:3@14.0005"]))),
     dict(robots=(1, 2, 3, 4), duration=20, seed=3, ber=0.002, noise=True, load=1.0),
-    dict(robots=(0, 1, 2), duration=20, seed=5, father_standby=True, load=1.0,
+    dict(robots=(0, 1, 2), duration=20, seed=2, father_standby=True, load=1.0,
          faults=(parse_fault("fail:0@6"), parse_fault("recover:0@10"))),
     dict(robots=(1, 2, 3, 4, 5), duration=20, seed=6, power_on={3: 1.5, 1: 0.7}, ber=0.001),
 ]

@@ -344,13 +344,6 @@ def test_a_second_robot_with_a_members_id_listens_and_never_transmits():
     assert all(v == (1, 2, 3) for v in w.ring_views().values())
 
 
-@pytest.mark.xfail(strict=True, reason="counterexample (robots 1,2,3 plus a second R2, all "
-                   "powered on at 0, seed 1): R1 claims at 29120000 and polls 2; both R2s "
-                   "answer at the same tick and collide (30455680), so R3 never admits 2 while "
-                   "both R2s believe they are members; from then on their JOIN frames collide "
-                   "with R3's frame after R1's frames and each poll re-invites them: 807 "
-                   "collisions in 30 s (706 with R3); all 24 R1<->R3 messages fail 'no "
-                   "acknowledgement from 3 (or 1) after 4 attempts'")
 def test_two_robots_with_the_same_id_do_not_take_the_others_down():
     """Two robots with the same ID powered on together can never both be members; but the
     robots with unique IDs must keep their ring: R1 and R3 never drop each other and every
@@ -584,12 +577,6 @@ def test_the_largest_frame_between_every_pair_father_included():
     assert s["delivered"] == 6 and s["failed"] == 0
 
 
-@pytest.mark.xfail(strict=True, reason="counterexample (robots 0,1,2, seed 0, the six largest "
-                   "messages submitted at 4.5 s): the father's 561-byte message to R1 is "
-                   "delivered at 81590068, but R1's next frame (81670068-91254708) is its own "
-                   "562-byte message with no room for ack(0,1), so the father retransmits the "
-                   "whole frame (100999348-110582873, a duplicate at R1) before the ack comes "
-                   "at 111162073: attempts 2; likewise (1,2) and (2,0)")
 def test_the_largest_frame_is_acknowledged_within_one_cycle():
     """docs/mac.md, delivery accounting: a message is acknowledged by its destination on the
     acknowledger's next frame, within one cycle; so with no loss each of the six largest

@@ -52,10 +52,10 @@ BROADCAST = 7                 # clause 7
 BOOT, JOIN = 5, 6             # clause 10
 APP = {"movex": "n", "movey": "n", "movez": "n", "moveto": "nnn", "joint": "in", "wheel": "n",
        "paw": "i", "act": "ii", "stop": "", "status": "", "fail": "i"}      # clause 16
-MAC = {"ack": "ii", "poll": "ii", "crc": "i"}
+MAC = {"ack": "ii", "poll": "ii", "ring": "i", "crc": "i"}
 BOUNDS = {("joint", 0): (1, 4), ("paw", 0): (0, 1), ("act", 0): (0, 99), ("act", 1): (0, 1),
           ("fail", 0): (0, 999), ("ack", 0): (0, 6), ("ack", 1): (0, 99), ("poll", 0): (0, 6),
-          ("poll", 1): (0, 127), ("crc", 0): (0, 65535)}
+          ("poll", 1): (0, 127), ("ring", 0): (0, 127), ("crc", 0): (0, 65535)}
 
 
 class Unreadable(ValueError):
@@ -174,7 +174,7 @@ class Receiver:
 
 
 class StrangerRobot:
-    """A station of docs/protocol.md, version 1.0, that joins rings: clauses 1-19, 21-27 and
+    """A station of docs/protocol.md, version 2.0, that joins rings: clauses 1-19, 21-27 and
     29-49, the jam case of clause 44 simplified (its stagger runs from the quiet closure); not
     20 (the ring runs without the checksum), 28 (it never claims: a joiner, §10) or 50 (it is no
     father)."""
@@ -212,6 +212,7 @@ class StrangerRobot:
         self.sent_poll = None
         self.heard_since_tx = True
         self.silent = 0                # consecutive misses with no good frame heard (clause 40)
+        self.tell_view = False         # our next frame carries ring(mask) (clause 51)
         self.left = False
         self.inbox: list[tuple[int, int, int, list]] = []     # (src, dst, num, app commands)
         self.outcomes: list[tuple[dict, bool, str]] = []
@@ -253,6 +254,7 @@ class StrangerRobot:
         """Clauses 24, 25."""
         self.misses[robot] = self.misses.get(robot, 0) + 1
         self.silent += 1
+        self.tell_view = True                              # clause 51.1
         self.log.append(f"miss {robot} ({self.misses[robot]})")
         if self.misses[robot] >= MISS_LIMIT:
             self.drop(robot)
@@ -260,6 +262,7 @@ class StrangerRobot:
     def drop(self, robot: int) -> None:
         self.ring.remove(robot)
         self.misses.pop(robot, None)
+        self.tell_view = True                              # clause 51.1
         self.log.append(f"dropped {robot}")
         self.awaiting.discard(robot)
         m = self.inflight
@@ -333,6 +336,7 @@ class StrangerRobot:
         elif self.phase in ("WAIT", "WINDOW") and f.src != self.owner and not answering:
             if not self.takeover(f):                                # clause 39
                 self.misses[f.src] = 0
+                self.tell_view = True                               # clause 51.1
                 if self.phase == "WAIT" and self.owner in self.ring:
                     self.miss(self.owner)
                 self.next_turn(f.src, f.end)
@@ -342,6 +346,23 @@ class StrangerRobot:
             if mask != 1 << f.src and not mask >> self.id & 1:
                 self.to_listen(f"left out of {f.src}'s ring")
                 return self.on_frame_again(f)
+        for name, args in cmds:                                     # clause 51.3
+            if name == "ring":
+                view = {i for i in range(7) if args[0] >> i & 1}
+                if self.id not in view:
+                    self.to_listen(f"left out of {f.src}'s ring")
+                    return self.on_frame_again(f)
+                for r in sorted(view - set(self.ring)):
+                    if r in self.team:
+                        self.ring = sorted(self.ring + [r])
+                        self.misses[r] = 0
+                        self.log.append(f"admitted {r} ({f.src}'s ring)")
+                for r in sorted(set(self.ring) - view - {self.id, f.src}):
+                    if self.misses.get(r, 0) > 0:
+                        self.drop(r)
+                if set(self.ring) != view:
+                    self.tell_view = True
+                break
         if f.type in (BOOT, JOIN):                                  # clause 36
             self.acks_owed.append((f.src, f.num))
             if f.type == BOOT and f.src not in self.booting_peers:  # clause 30
@@ -410,6 +431,7 @@ class StrangerRobot:
         if self.mode != "MEMBER" or self.left or self.phase not in ("WAIT", "WINDOW", "QUIET"):
             return
         after = src if src in self.ring else self.owner
+        self.tell_view = True                              # clause 51.1
         if known_end is not None:
             self.next_turn(after, known_end, uncertain=True)
         else:
@@ -492,6 +514,9 @@ class StrangerRobot:
             self.turns_since_poll = 0
             mask = sum(1 << r for r in self.ring)
             poll, self.sent_poll = f"poll({k},{mask})", k
+            self.tell_view = False
+        elif self.tell_view and self.ring != [self.id]:    # clause 51.2
+            poll, self.tell_view = f"ring({sum(1 << r for r in self.ring)})", False
         self.acks_owed = []
         if m is not None:
             m["attempts"] += 1

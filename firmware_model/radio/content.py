@@ -129,6 +129,13 @@ _SPECS = (
         Param("mask", "int", 0, 127, unit="bitmask"),
     ),
     _spec(
+        "ring",
+        "mac",
+        "The sender's view of the ring: `mask` = bitmask of its members (bit i = ID i) "
+        "(docs/protocol.md §4.4, clause 51, rule R-view).",
+        Param("mask", "int", 0, 127, unit="bitmask"),
+    ),
+    _spec(
         "crc",
         "mac",
         "Opt-in frame checksum extension (docs/protocol.md §3.4), last command of the Content.",
@@ -385,7 +392,7 @@ def frame_kind(type_digit: int, content: bytes) -> str:
     * ``boot`` (Type '5') and ``join`` (Type '6'), the project's extensions;
     * ``message``: Content holds at least one application command;
     * ``heartbeat``: empty Content (the paper's idle frame, Type '3' to '7');
-    * ``control``: only MAC commands (``ack``, ``poll``, ``crc``): a heartbeat's place, with
+    * ``control``: only MAC commands (``ack``, ``poll``, ``ring``, ``crc``): a heartbeat's place, with
       something for the MAC to say;
     * ``unreadable``: Content that does not parse.
     """

@@ -292,6 +292,12 @@ def _layers(content: bytes) -> tuple[tuple[Command, ...], tuple[Command, ...]]:
     return split_layers(parse_content(content))
 
 
+@lru_cache(maxsize=1024)
+def _ack_len(ack: tuple[int, int]) -> int:
+    """Content bytes of ``ack(src,num)``."""
+    return len(cmd("ack", ack[0], ack[1]).text())
+
+
 def _mask(ids: Iterable[int]) -> int:
     m = 0
     for i in ids:
@@ -347,6 +353,7 @@ class RotationalMac:
         self._ann_awaiting: set[int] = set()   # members yet to acknowledge it
         self._ann_turns = 0               # BOOT/JOIN frames sent so far
         self._heard_since_tx = True       # a valid frame was heard since our own last one
+        self._tell_view = False           # our next frame carries ring(mask) (rule R-view)
         self._booting_peers: set[int] = set()   # robots whose BOOT frames we are hearing
         self._answering = False           # next frame answers an invitation (Type '6')
         self._passed_invite = False       # PC2 in LISTEN let one invitation of ID 0 pass
@@ -477,13 +484,26 @@ class RotationalMac:
             frame.type in (FrameType.BOOT, FrameType.JOIN)
         if self.mode == MEMBER and self.lone and not answering:
             self._to_listen(out, now, "heard another robot while alone")
-        if self.mode == MEMBER and src in self.ring:
+        skipped = None
+        out_of_turn = False
+        if self.mode == MEMBER and src in self.ring and self.phase in (WAIT, WINDOW) and \
+                self.owner is not None and src != self.owner and not answering:
+            skipped = self._takeover(src, first)
+            out_of_turn = skipped is None
+        if self.mode == MEMBER and src in self.ring and not out_of_turn:
+            # A frame accepted from a member (clauses 37, 51; not one refused out of turn):
+            # its poll or ring mask says whether it still has us, and which ring it has.
             for p in polls:
                 if p.args[1] == 1 << src:
                     continue           # a lone claimer's mask says nothing about our ring
                 if not (p.args[1] >> self.id & 1):
                     self._to_listen(out, now, f"left out of robot {src}'s ring (its poll mask)")
                     break
+            else:
+                for c in mac_cmds:
+                    if c.name == "ring":
+                        self._reconcile(src, c.args[0], now, out)
+                        break
         if self.mode == LISTEN:
             self._seen[src] = end
             self.deadline = now + self._claim_ticks()
@@ -528,10 +548,10 @@ class RotationalMac:
                 return out
             self._heard_disabled.pop(src, None)
             self._admit(src, out)
-        elif self.phase in (WAIT, WINDOW) and self.owner is not None and src != self.owner \
-                and not invited_now and not self._takeover(src, first, out):
+        elif out_of_turn:
             out.append(Refused(src, frame.num, f"out of turn: it was robot {self.owner}'s turn"))
             self.misses[src] = 0
+            self._tell_view = True             # our views may differ (rule R-view)
             o = self.owner
             if self.phase == WAIT and o in self.ring and o != self.id:
                 # A clean frame in o's slot means o did not send (its frame would have
@@ -544,6 +564,8 @@ class RotationalMac:
                     self._drop(o, out)
             self._next_turn(src, end, now, out)     # the owner is whoever is sending
             return out
+        if skipped:
+            self._count_skipped(skipped, out)
         self.misses[src] = 0
         self._silent = 0
         if frame.type == FrameType.BOOT or frame.type == FrameType.JOIN:
@@ -592,6 +614,7 @@ class RotationalMac:
             return out
         if self.phase not in (WAIT, WINDOW, QUIET, WATCH):
             return out
+        self._tell_view = True
         after = src if src is not None and src != self.id and (
             src in self.ring or src == self.owner) else self.owner
         if expected_end is None:
@@ -614,6 +637,7 @@ class RotationalMac:
         if it never does (idle noise), the owner misses at E + Tmax as usual."""
         if self.mode == MEMBER and self.phase == WAIT and \
                 last > self.turn_start + self.cfg.ttrans:
+            self._tell_view = True
             self.phase = QUIET
             self._quiet_miss = True
             self._quiet_limit = self.turn_start + self.cfg.tmax
@@ -750,6 +774,7 @@ class RotationalMac:
         self.misses[o] = n
         out.append(Miss(o))
         self._silent += 1
+        self._tell_view = True
         if n >= self.cfg.miss_limit:
             self._drop(o, out)
         if len(self.ring) >= 2 and \
@@ -793,31 +818,37 @@ class RotationalMac:
             return 2 * self.cfg.ttrans + (self.cfg.pc + 2) * w
         return self.cfg.ttrans + w
 
-    def _takeover(self, src: int, first: int, out: list) -> bool:
+    def _takeover(self, src: int, first: int) -> list[int] | None:
         """Is a frame from ``src`` (not the robot we wait for) a rightful takeover seen with a
-        slower clock? True when ``src`` follows the expected owner(s) in ring order and its
+        slower clock? Yes when ``src`` follows the expected owner(s) in ring order and its
         header came at least one Tmax per skipped robot (one Twin for an unanswered
-        invitation) after the turn began, within TAKEOVER_TOLERANCE; the skipped robots are
-        then counted as missed, as our own timer would have (rule 3 of docs/mac.md)."""
+        invitation) after the turn began, within TAKEOVER_TOLERANCE: returns the skipped
+        robots, to be counted as missed as our own timer would have (rule 3 of docs/mac.md,
+        clause 39); None when it is no takeover (the frame is out of turn)."""
         cfg = self.cfg
         elapsed = first - cfg.byte_ticks - self.turn_start
         slack = 1.0 - TAKEOVER_TOLERANCE
         if self.phase == WINDOW:
-            return src == self.succ(self.poller) and elapsed >= cfg.twin * slack
+            ok = src == self.succ(self.poller) and elapsed >= cfg.twin * slack
+            return [] if ok else None
         skipped = []
         o = self.owner
         while o != src and len(skipped) <= len(self.ring):
             skipped.append(o)
             o = self.succ(o)
         if o != src or elapsed < len(skipped) * cfg.tmax * slack or self.id in skipped:
-            return False
+            return None
+        return skipped
+
+    def _count_skipped(self, skipped: list[int], out: list) -> None:
+        """A takeover seen late: the robots it skipped missed their turns (clause 39)."""
+        cfg = self.cfg
         for r in skipped:
             n = self.misses.get(r, 0) + 1
             self.misses[r] = n
             out.append(Miss(r))
             if n >= cfg.miss_limit:
                 self._drop(r, out)
-        return True
 
     def _active_frame(self, frame: Frame, end: int, now: int, out: list) -> list:
         """A frame with ID 0 that we did not send: the active PC of the father's pair."""
@@ -992,6 +1023,27 @@ class RotationalMac:
         out.append(Refused(src, num, why))
         self._next_turn(src, end, now, out)
 
+    def _reconcile(self, src: int, mask: int, now: int, out: list) -> None:
+        """Rule R-view (docs/protocol.md §4.4, clause 51): member ``src``'s frame says its ring
+        is ``mask``. Left out of it, we go back to LISTEN (as for a poll mask, clause 37). A
+        robot it has and we do not, it vouches for: admitted. A robot we have and it does not
+        that missed its last turn in our view too: dropped, as ``src`` did. Otherwise, or if the
+        views still differ, our next frame tells ours, so that ``src`` learns of the robot.
+        Two members whose views differ transmit in each other's slots and may never hear each
+        other again (found by the stateful hunt): one clean frame with a mask repairs that."""
+        view = _unmask(mask)
+        if self.id not in view:
+            self._to_listen(out, now, f"left out of robot {src}'s ring (its ring mask)")
+            return
+        for r in sorted(view - set(self.ring)):
+            if r in self.cfg.team:
+                self._admit(r, out)
+        for r in sorted(set(self.ring) - view - {self.id, src}):
+            if self.misses.get(r, 0) > 0:
+                self._drop(r, out)
+        if set(self.ring) != view:
+            self._tell_view = True
+
     def _rebooted(self, src: int, num: int, out: list) -> None:
         """``src`` sent a BOOT frame: it powered on, so its Numbers restart ('00' is the BOOT
         frame's own) and it forgot every Number it had heard (its BOOT frames are
@@ -1019,6 +1071,7 @@ class RotationalMac:
 
     def _drop(self, robot: int, out: list) -> None:
         self.ring = tuple(r for r in self.ring if r != robot)
+        self._tell_view = True
         self.misses.pop(robot, None)
         if self._announcing is not None:
             self._ann_awaiting.discard(robot)
@@ -1183,21 +1236,28 @@ class RotationalMac:
         extra: list[Command] = []
         if poll_to is not None:
             extra.append(cmd("poll", poll_to, _mask(self.ring)))
+        elif self._tell_view and self._announcing is None and not self.lone:
+            extra.append(cmd("ring", _mask(self.ring)))
         acks = self._acks
         room = self.max_content - crc_room - (len(msg.content) if msg is not None else 0)
-        if msg is not None and (acks and self._acks_deferred or room < 0):
-            msg = None                          # acks waited a turn already: they go first
+        if msg is not None and (acks and self._acks_deferred or room < 0 or
+                                room < sum(_ack_len(a) for a in acks)):
+            # Acknowledgements never wait behind a message: a sender that heard no ack by its
+            # next turn retransmits its whole frame (up to Tmax of air). Our message goes
+            # next turn instead (docs/protocol.md §4.7).
+            msg = None
             room = self.max_content - crc_room
         carried: list[Command] = []
         used = sum(len(c.text()) for c in extra)
         if used > room:
             extra, used, poll_to = [], 0, None
+        elif extra:
+            self._tell_view = False            # a poll's mask tells our view too
         kept = []
         for a in acks:
-            c = cmd("ack", a[0], a[1])
-            n = len(c.text())
+            n = _ack_len(a)
             if used + n <= room:
-                carried.append(c)
+                carried.append(cmd("ack", a[0], a[1]))
                 used += n
             else:
                 kept.append(a)

@@ -84,6 +84,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WAIT", "deadline", "HOLD", "the owner missed right after our own frame, nothing "
        "heard since: id x Tslot more (R-stagger)", "designed"),
     _T("WAIT", "deadline", "LISTEN", "nobody heard for a whole round", "designed"),
+    _T("WAIT", "frame", "LISTEN", "left out: a member's poll or ring mask lacks us (R-view)",
+       "designed"),
     _T("WAIT", "steal", "SWITCH", "fault injection: we wrongly take the turn", "fault"),
     # -- an invitation's window -----------------------------------------------------------
     _T("WINDOW", "frame", "WAIT", "the invited robot answered: the turn passes on",
@@ -100,6 +102,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WINDOW", "deadline", "HOLD", "no answer to a lone member: its next pause", "designed"),
     # -- after a frame that broke early ---------------------------------------------------
     _T("QUIET", "garbage", "QUIET", "bytes keep coming", "designed"),
+    _T("QUIET", "failed frame", "QUIET", "another frame broke before its Length: wait for quiet",
+       "designed"),
     _T("QUIET", "frame", "WAIT", "a good frame: resynchronise on it", "paper §IV.C"),
     _T("QUIET", "frame", "SWITCH", "a good frame, and ours is the next turn", "paper §IV.C"),
     _T("QUIET", "deadline", "QUIET", "not quiet yet: look again at the last byte + the gap",
@@ -112,6 +116,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "paper §IV.C"),
     # -- our turn -------------------------------------------------------------------------
     _T("HOLD", "garbage", "HOLD", "bytes heard while we wait to begin", "designed"),
+    _T("HOLD", "failed frame", "HOLD", "a frame abandoned while we wait to begin: no change",
+       "designed"),
     _T("HOLD", "frame", "WAIT", "someone else sent first: resynchronise on it", "paper §IV.C"),
     _T("HOLD", "frame", "LISTEN", "heard another robot while alone", "designed"),
     _T("HOLD", "deadline", "HOLD", "a frame is coming in, or a jam not yet quiet for "
