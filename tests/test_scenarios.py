@@ -100,21 +100,8 @@ LOST = [
     pytest.param((1, 2), 2, True, id="ring 1-2, R2's message frame lost"),
     pytest.param((1, 2), 2, False, id="ring 1-2, R2's heartbeat lost"),
     pytest.param((1, 2), 1, True, id="ring 1-2, R1's message frame lost"),
-    pytest.param((1, 2), 1, False, id="ring 1-2, R1's heartbeat lost", marks=pytest.mark.xfail(
-        strict=True, reason="counterexample (ring (1,2), seed 0): R1's heartbeat whose TXEN "
-        "rose at tick 80058240 is heard by nobody. R2 misses R1 at 89658240 (its own End + "
-        "Tmax) and holds 2 Tslot: TXEN at 90298240. R1 misses R2 one turn later, at 89971200 "
-        "(its own End + Tmax), and holds 1 Tslot: TXEN at 90291200. The staggers differ by one "
-        "Tslot (320000) and the deadlines by one heartbeat turn (312960): they transmit 7040 "
-        "ticks apart, neither hears the other, collision at 90378240; next good frame at "
-        "100604160 (1.28 s without one). Any lost frame of 7-22 bytes from the lower of two "
-        "adjacent IDs does this (turn length within Ttrans + 3 B of one Tslot)")),
-    pytest.param((0, 1), 0, False, id="ring 0-1, the father's heartbeat lost",
-                 marks=pytest.mark.xfail(
-        strict=True, reason="counterexample (ring (0,1), seed 0), as for ring (1,2): the "
-        "father's heartbeat is lost; R1 misses it at 89681285 and holds 1 Tslot, the father "
-        "misses R1 one father turn (313338) later with stagger 0: they transmit 6662 ticks "
-        "apart, collision at 90081285")),
+    pytest.param((1, 2), 1, False, id="ring 1-2, R1's heartbeat lost"),
+    pytest.param((0, 1), 0, False, id="ring 0-1, the father's heartbeat lost"),
 ]
 
 
@@ -125,8 +112,12 @@ def test_token_lost_the_owners_frame_heard_by_nobody(robots, owner, message):
     (E: the End that opened the owner's turn), exactly once; in a ring of three or more the
     next member's Header starts at E + Tmax + Ttrans; in a ring of two the survivor's miss
     comes right after its own frame with nothing heard since, so rule R-stagger adds id x
-    Tslot. Nobody is dropped, no collision follows, and a lost message is retransmitted at the
-    owner's next turn and delivered exactly once."""
+    Tslot, and rule R-pair makes it wait, too, until the owner's Header would have been heard
+    had the owner not heard the survivor's frame (the owner's previous End + Tmax + owner x
+    Tslot + Ttrans + 4 bytes). Either way one hears the other: nobody is dropped, no collision
+    follows, and a lost message is retransmitted at the owner's next turn and delivered
+    exactly once. (Without R-pair a lost heartbeat from the lower of two adjacent IDs made
+    both transmit 7040 ticks apart: a heartbeat turn is within Ttrans + 3 bytes of one Tslot.)"""
     cfg = dict(robots=robots, duration=12.0)
     _, pevs = world(until=s_to_ticks(5.2), **cfg)
     t = txen_on(pevs, owner, s_to_ticks(5.0))[0]
@@ -153,7 +144,9 @@ def test_token_lost_the_owners_frame_heard_by_nobody(robots, owner, message):
         assert nxt["start"] == e_prev + TMAX_TICKS + TTRANS_TICKS
     else:
         assert nxt["src"] == dst
-        assert nxt["start"] == e_prev + TMAX_TICKS + dst * TSLOT + TTRANS_TICKS
+        owner_prev = max(f["end"] for f in frames(evs, src=owner) if f["end"] < e_prev)
+        floor = owner_prev + TMAX_TICKS + owner * TSLOT + TTRANS_TICKS + 4 * bt(dst)
+        assert nxt["start"] == max(e_prev + TMAX_TICKS + dst * TSLOT, floor) + TTRANS_TICKS
     assert events(evs, "disable") == []
     if message:
         m = held["m"]
@@ -377,24 +370,12 @@ FORGED = [
                                   2: "out of turn: it was robot 1's turn",
                                   3: "our own robot ID from the air",
                                   4: "out of turn: it was robot 1's turn"},
-                 id="our own ID, a child's '3'", marks=pytest.mark.xfail(
-                     strict=True, reason="counterexample (robots 0-4 with CAN, R1's radio dead "
-                     "from 1 tick after its frame ending 78908245, forged frame 81760463-"
-                     "82177138): "
-                     "R3 refuses the frame with its own ID without resynchronising on it, so "
-                     "at 82490098 it refuses R4's legitimate heartbeat as \"out of turn: it was "
-                     "robot 1's turn\"")),
+                 id="our own ID, a child's '3'"),
     pytest.param("0", "refused", {0: "our own robot ID from the air",
                                   2: "out of turn: it was robot 1's turn",
                                   3: "out of turn: it was robot 1's turn",
                                   4: "out of turn: it was robot 1's turn"},
-                 id="our own ID, the father's '0'", marks=pytest.mark.xfail(
-                     strict=True, reason="counterexample (same run as the '3' case): the "
-                     "father (one PC, no standby) ignores a frame with Source '0' silently (no "
-                     "'refused', not counted) and does not resynchronise on it; R2-R4 do and "
-                     "count R1's miss. R2-R4 drop R1 at 102629356, the father at 104194534, "
-                     "after it refused R2's legitimate frame as out of turn; no frame at all "
-                     "from 82177138 to 91857138")),
+                 id="our own ID, the father's '0'"),
 ]
 
 

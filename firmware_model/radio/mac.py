@@ -354,6 +354,7 @@ class RotationalMac:
         self._ann_turns = 0               # BOOT/JOIN frames sent so far
         self._heard_since_tx = True       # a valid frame was heard since our own last one
         self._tell_view = False           # our next frame carries ring(mask) (rule R-view)
+        self._last_heard: tuple[int, int] | None = None   # (Source, End) of the last accepted
         self._booting_peers: set[int] = set()   # robots whose BOOT frames we are hearing
         self._answering = False           # next frame answers an invitation (Type '6')
         self._passed_invite = False       # PC2 in LISTEN let one invitation of ID 0 pass
@@ -441,6 +442,7 @@ class RotationalMac:
         if src == self.owner and phase == WAIT and not frame.content and frame.type == 3 \
                 and src != self.id:
             # Fast path, the expected owner's heartbeat: hand the turn on.
+            self._last_heard = (src, end)
             self.misses[src] = 0
             self._silent = 0
             ring = self.ring
@@ -457,9 +459,10 @@ class RotationalMac:
             return _NOTHING
         out: list = []
         if src == self.id:
-            # Our own ID from the air (we are deaf while sending): another PC is ID 0.
+            # Our own ID from the air (we are deaf while sending): another PC is ID 0, or a
+            # robot with our ID, or a forger. Refused; it still sets the timing.
             if self.id != 0:
-                out.append(Refused(src, frame.num, "our own robot ID from the air"))
+                self._own_id_heard(frame.num, end, now, out)
                 return out
             return self._active_frame(frame, end, now, out)
         if src not in self.cfg.team:
@@ -549,23 +552,13 @@ class RotationalMac:
             self._heard_disabled.pop(src, None)
             self._admit(src, out)
         elif out_of_turn:
-            out.append(Refused(src, frame.num, f"out of turn: it was robot {self.owner}'s turn"))
             self.misses[src] = 0
-            self._tell_view = True             # our views may differ (rule R-view)
-            o = self.owner
-            if self.phase == WAIT and o in self.ring and o != self.id:
-                # A clean frame in o's slot means o did not send (its frame would have
-                # collided with this one): o missed its turn, as at E + Tmax. Otherwise a
-                # member that never heard o join could take o's slot for ever.
-                n = self.misses.get(o, 0) + 1
-                self.misses[o] = n
-                out.append(Miss(o))
-                if n >= self.cfg.miss_limit:
-                    self._drop(o, out)
-            self._next_turn(src, end, now, out)     # the owner is whoever is sending
+            self._refuse_in_slot(src, frame.num, f"out of turn: it was robot {self.owner}'s "
+                                 f"turn", end, now, out)
             return out
         if skipped:
             self._count_skipped(skipped, out)
+        self._last_heard = (src, end)
         self.misses[src] = 0
         self._silent = 0
         if frame.type == FrameType.BOOT or frame.type == FrameType.JOIN:
@@ -784,7 +777,10 @@ class RotationalMac:
         # The paper's takeover at E + Tmax, except when nobody was heard since our own
         # frame: then we may be one of two members that sent together, each waiting for
         # the other (rule R-stagger).
-        self._next_turn(o, now, now, out, uncertain=not self._heard_since_tx)
+        floor = None
+        if not self._heard_since_tx and len(self.ring) == 2:
+            floor = self._pair_floor(o)
+        self._next_turn(o, now, now, out, uncertain=not self._heard_since_tx, not_before=floor)
 
     def on_tx_done(self, now: int) -> list:
         """The last bit of our End left the radio: our turn closes at ``now``."""
@@ -869,7 +865,10 @@ class RotationalMac:
                     out.append(ModeChange(MEMBER, "another PC is active as ID 0: standing by"))
                 self.standby = True            # the other PC is active: stand by for it
             else:
-                return out                     # PC1 stays active; PC2 will yield
+                # PC1 stays active (a PC2 that is active too will yield); the frame, PC2's or
+                # a forger's, is refused and closes the slot it was sent in.
+                self._own_id_heard(frame.num, end, now, out)
+                return out
         if self.mode == LISTEN:
             horizon = end - self.cfg.claim_ticks(0)
             ring = {r for r, t in self._seen.items() if t >= horizon} | {self.id}
@@ -912,8 +911,21 @@ class RotationalMac:
 
     # -- turn machinery ----------------------------------------------------------------------
 
+    def _pair_floor(self, other: int) -> int | None:
+        """Rule R-pair (clause 44): in a ring of two, after our own frame and silence, the
+        other member may not have heard our frame either; then it takes the turn at its last
+        End + Tmax + other x Tslot (R-stagger). We raise TXEN no earlier than that plus the
+        time to hear its Header (Ttrans + 4 bytes), so one of us always hears the other:
+        otherwise a turn one Tslot long (a heartbeat) cancels the stagger and both transmit
+        within a byte time (found by the token-lost scenarios)."""
+        heard = self._last_heard
+        if heard is None or heard[0] != other:
+            return None
+        cfg = self.cfg
+        return heard[1] + cfg.tmax + other * cfg.tslot + cfg.ttrans + 4 * cfg.byte_ticks
+
     def _next_turn(self, after: int, start: int, now: int, out: list,
-                   uncertain: bool = False) -> None:
+                   uncertain: bool = False, not_before: int | None = None) -> None:
         """The turn after ``after`` begins at ``start``: its owner may raise TXEN then.
 
         ``uncertain``: the turn closed on something other than a good frame (bytes that formed
@@ -921,7 +933,8 @@ class RotationalMac:
         each believe the other's turn just closed (a foreign burst over a hand-over, a
         collision): the owner then waits ``id`` x Tslot more, listening, so of two such
         members the higher ID hears the lower's Header before it raises TXEN (docs/protocol.md
-        §4.6, clause 44: R-stagger)."""
+        §4.6, clause 44: R-stagger). ``not_before``: our turn does not start before this tick
+        (rule R-pair, ``_pair_floor``)."""
         if not self.ring:
             return
         if self.lone and after == self.id:
@@ -934,9 +947,12 @@ class RotationalMac:
                     self._hold_ref = start
                     self.phase = HOLD
                     self.owner = self.id
-                    self.deadline = max(now, start + self.id * self.cfg.tslot)
+                    self.deadline = max(now, start + self.id * self.cfg.tslot,
+                                        not_before or 0)
                     return
                 start += self.id * self.cfg.tslot
+                if not_before is not None and not_before > start:
+                    start = not_before
             self._my_turn(start, now, out)
         else:
             self.phase = WAIT
@@ -1004,6 +1020,37 @@ class RotationalMac:
         self.ever_member.add(robot)
         self.misses[robot] = 0
         out.append(Join(robot, again))
+
+    def _refuse_in_slot(self, src: int, num: int, reason: str, end: int, now: int,
+                        out: list) -> None:
+        """A clean frame refused in someone else's slot (out of turn, or with our own ID):
+        nothing in it is acted on, but it sets the timing (clause 39)."""
+        out.append(Refused(src, num, reason))
+        self._tell_view = True                 # our views may differ (rule R-view)
+        o = self.owner
+        if self.phase == WAIT and o in self.ring and o != self.id:
+            # A clean frame in o's slot means o did not send (its frame would have collided
+            # with this one): o missed its turn, as at E + Tmax. Otherwise a member that never
+            # heard o join could take o's slot for ever.
+            n = self.misses.get(o, 0) + 1
+            self.misses[o] = n
+            out.append(Miss(o))
+            if n >= self.cfg.miss_limit:
+                self._drop(o, out)
+        self._next_turn(src, end, now, out)    # the owner is whoever is sending
+
+    def _own_id_heard(self, num: int, end: int, now: int, out: list) -> None:
+        """A frame with our own Source that we did not send (clause 38.2): refused. In LISTEN
+        the channel is busy (the claim wait restarts); as a member it closes the slot it was
+        sent in, as any frame refused there does, so we stay in step with those who heard it."""
+        if self.mode == LISTEN:
+            out.append(Refused(self.id, num, "our own robot ID from the air"))
+            self.deadline = now + self._claim_ticks()
+            return
+        if self.phase in (WAIT, WINDOW, QUIET, HOLD):
+            self._refuse_in_slot(self.id, num, "our own robot ID from the air", end, now, out)
+        else:
+            out.append(Refused(self.id, num, "our own robot ID from the air"))
 
     def _refuse_outsider(self, src: int, num: int, end: int, now: int, out: list) -> None:
         """A frame from a team robot that is not in our ring and answers no invitation."""
