@@ -65,6 +65,11 @@ from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
 
 LISTEN = "listen"
 MEMBER = "member"
+PROFILES = ("rprs", "paper")
+"""``rprs``: docs/protocol.md in full. ``paper``: only the paper's rules on the wire (a static ring
+from the team, empty heartbeats, no BOOT, JOIN, poll, ring, ack or crc; docs/protocol.md §9)."""
+UNACKNOWLEDGED = "unacknowledged"
+"""A message's final state in the paper profile: sent once, never acknowledged."""
 _NOTHING: tuple = ()
 PC2_CHECK_EVERY = 8
 """An active PC2 listens for PC1 on one of its turns in this many (docs/mac.md, failover)."""
@@ -205,7 +210,7 @@ class Message:
     waited: int = 0
     awaiting: set[int] = field(default_factory=set)
     acked: set[int] = field(default_factory=set)
-    state: str = "queued"   # queued | sent | delivered | failed
+    state: str = "queued"   # queued | sent | delivered | failed | unacknowledged (paper profile)
     reason: str = ""
 
 
@@ -259,6 +264,17 @@ class MacConfig:
     checksum: bool = False
     """Opt-in integrity extension (firmware_model.radio.integrity): every frame sent ends
     with ``crc(NNNNN)`` and frames received without a good one are refused."""
+    profile: str = "rprs"
+    """``rprs`` (the whole of docs/protocol.md) or ``paper``: only the paper's rules, to share a
+    ring with robots that implement only the paper (docs/protocol.md §9, the paper profile)."""
+
+    def __post_init__(self) -> None:
+        if self.profile not in PROFILES:
+            raise ValueError(f"profile must be one of {', '.join(PROFILES)}, "
+                             f"got {self.profile!r}")
+        if self.profile == "paper" and (self.checksum or self.standby):
+            raise ValueError("the paper profile has no checksum extension and no standby PC "
+                             "(both are this project's extensions)")
 
     def claim_ticks(self, robot: int) -> int:
         """Silence after which a listening robot claims the channel (start-up).
@@ -366,6 +382,10 @@ class RotationalMac:
         self.frames_sent = 0
         self.turns = 0
         self._hb_cache: dict[tuple, tuple[Frame, bytes]] = {}
+        self._paper = cfg.profile == "paper"
+        self._tx_end = 0                  # End of our own last frame
+        self._noise_since_tx = False      # garbage or a failed frame heard since our frame
+        self._rejected = 0                # paper profile: our frames not heard, in a row
 
     # -- queries ---------------------------------------------------------------------------
 
@@ -399,7 +419,10 @@ class RotationalMac:
 
     def power_on(self, now: int) -> list:
         """Start in LISTEN; claim after ``claim_ticks`` of silence (docs/protocol.md §4.3,
-        clause 28)."""
+        clause 28). In the paper profile: a member of the static ring of the whole team at
+        once, the lowest ID's turn beginning now (docs/protocol.md §9)."""
+        if self._paper:
+            return self._paper_power_on(now)
         self.mode = LISTEN
         self._booting = True
         self._announcing = None
@@ -407,6 +430,29 @@ class RotationalMac:
         self._next_num = 1                 # ... and messages start at '01'
         self.deadline = now + self._claim_ticks()
         return [TxEnable(False)]
+
+    def _paper_power_on(self, now: int) -> list:
+        out: list = [TxEnable(False)]
+        self._last_num = 0
+        self._next_num = 0                 # the paper: a robot's first message is '00'
+
+        self.mode = MEMBER
+        self.ring = tuple(sorted(set(self.cfg.team) | {self.id}))
+        self.misses = {r: 0 for r in self.ring}
+        self.ever_member = set(self.ring)
+        self._booting = False
+        self._announcing = None
+        self._silent = 0
+        self._rejected = 0
+        first = self.ring[0]
+        if first == self.id:
+            self._my_turn(now, now, out)
+        else:                              # paper §IV.C: first's turn; takeover at + Tmax
+            self.phase = WAIT
+            self.owner = first
+            self.turn_start = now
+            self.deadline = now + self.cfg.tmax
+        return out
 
     def _claim_ticks(self) -> int:
         # A standby claims after every other robot would have (the active PC claims first).
@@ -438,6 +484,8 @@ class RotationalMac:
         phase = self.phase
         if phase == SWITCH or phase == SEND:
             return _NOTHING            # deaf while switching or sending (only raw input gets here)
+        if self._paper:
+            return self._paper_frame(frame, first, end, now)
         self._heard_since_tx = True
         if src == self.owner and phase == WAIT and not frame.content and frame.type == 3 \
                 and src != self.id:
@@ -595,6 +643,57 @@ class RotationalMac:
             self._next_turn(src, end, now, out)
         return out
 
+    def _paper_frame(self, frame: Frame, first: int, end: int, now: int) -> list:
+        """A good frame, in the paper profile (paper §IV.C-D): the owner is whoever sends (a
+        team robot outside the ring is back in it), and a message for us is delivered. No MAC
+        command is obeyed, nothing is acknowledged, and, as no paper robot retransmits, no
+        message is taken for a duplicate."""
+        out: list = []
+        src = frame.src
+        after_own = not self._heard_since_tx
+        self._heard_since_tx = True
+        if src == self.id:
+            self._own_id_heard(frame.num, end, now, out)
+            return out
+        if src not in self.cfg.team:
+            out.append(Refused(src, frame.num, f"robot {src} is not in the team"))
+            out.extend(self.on_corrupt(first, None, end, now))
+            return out
+        if self.mode == LISTEN:            # out of the ring while it talks: no rejoin
+            self.deadline = now + self._claim_ticks()
+            return out
+        if after_own and not self._noise_since_tx and src != self.succ(self.id) and \
+                first - self._tx_end < (1.0 - TAKEOVER_TOLERANCE) * self.cfg.tmax:
+            # The first thing heard after our frame is someone sending in our successor's
+            # slot without waiting Tmax for it: our frame was not heard (it collided with a
+            # robot that has our slot; garbage first would mean a collision of others). Twice
+            # in a row means the ring dropped us, and the paper has no way back in: stay out.
+            self._rejected += 1
+            if self._rejected >= 2:
+                self._to_listen(out, now, "our slot is taken: the ring dropped us (the "
+                                "paper profile has no rejoin)")
+                return out
+        elif after_own:
+            self._rejected = 0
+        if src not in self.ring:
+            self._admit(src, out)
+        elif self.phase == WAIT and src != self.owner:
+            skipped = self._takeover(src, first)
+            if skipped:
+                self._count_skipped(skipped, out)
+        self._last_heard = (src, end)
+        self.misses[src] = 0
+        self._silent = 0
+        if frame.dst == self.id or frame.dst == BROADCAST:
+            try:
+                app_cmds = _layers(frame.content)[1] if frame.content else ()
+                if app_cmds:
+                    out.append(Deliver(src, frame.dst, frame.num, frame.type, app_cmds))
+            except ContentError as exc:
+                out.append(BadContent(src, frame.num, exc))
+        self._next_turn(src, end, now, out)
+        return out
+
     def on_corrupt(self, first: int, src: int | None, expected_end: int | None,
                    now: int) -> list:
         """A frame failed after a valid header: the turn is used (not a miss) and closes at the
@@ -602,6 +701,7 @@ class RotationalMac:
         out: list = []
         if self.phase == SWITCH or self.phase == SEND:
             return out
+        self._noise_since_tx = True
         if self.mode == LISTEN:
             self.deadline = now + self._claim_ticks()
             return out
@@ -628,6 +728,7 @@ class RotationalMac:
         """Bytes that form no frame were heard. In the owner's slot they are probably its frame
         with a corrupted Header: if the channel then falls quiet the turn closes (no miss);
         if it never does (idle noise), the owner misses at E + Tmax as usual."""
+        self._noise_since_tx = True
         if self.mode == MEMBER and self.phase == WAIT and \
                 last > self.turn_start + self.cfg.ttrans:
             self._tell_view = True
@@ -661,6 +762,10 @@ class RotationalMac:
         """LISTEN: silence for Tclaim(id): claim the channel, a ring of one (start-up)."""
         if rx_busy:
             self.deadline = now + 2 * self.cfg.byte_ticks  # someone is on air: not silent
+            return
+        if self._paper:                # a silent channel: the static ring starts again
+            out.extend(self._paper_power_on(now)[1:])
+            out.append(ModeChange(MEMBER, "the channel was silent: static ring again"))
             return
         self.mode = MEMBER
         self.ring = (self.id,)
@@ -787,6 +892,8 @@ class RotationalMac:
         out: list = [TxEnable(False)]
         self.frames_sent += 1
         self._heard_since_tx = False
+        self._noise_since_tx = False
+        self._tx_end = now
         if self.mode != MEMBER:
             return out
         if self._announcing is not None and self._ann_turns >= 2 * self.cfg.miss_limit:
@@ -1251,6 +1358,8 @@ class RotationalMac:
 
     def _build_frame(self, now: int, out: list) -> tuple[Frame, bytes]:
         """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
+        if self._paper:
+            return self._paper_build(now, out)
         if self._answering or (self._booting and self._announcing is None):
             # The answer to an invitation, or a lone claimer's first frame: nothing else in it.
             # A BOOT frame is Number '00'; a JOIN frame takes the next Number, so that its
@@ -1332,6 +1441,22 @@ class RotationalMac:
             if len(self._hb_cache) < 256:
                 self._hb_cache[key] = hit
         return hit
+
+    def _paper_build(self, now: int, out: list) -> tuple[Frame, bytes]:
+        """The paper profile's frame: the next message, sent once (it ends ``sent``: nothing
+        acknowledges it), or an empty heartbeat (Type '3', Destination '7')."""
+        m = self._pick_message(now, out)
+        if m is not None:
+            self._inflight = None
+            m.attempts = 1
+            m.state = UNACKNOWLEDGED
+            m.reason = "sent once; the paper profile has no acknowledgement"
+            self._last_num = m.num
+            out.append(Outcome(m, False, m.reason))
+            frame = self._frame(m.dst, m.num, m.type, m.content)
+            return frame, frame.encode()
+        frame = self._frame(BROADCAST, self._last_num, FrameType.BROADCAST_INFO, b"")
+        return frame, frame.encode()
 
     def _frame(self, dst: int, num: int, type: int, content: bytes) -> Frame:
         if self.cfg.checksum:

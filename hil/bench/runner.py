@@ -28,7 +28,8 @@ from firmware_model.mcu.can_controller import CanController
 from firmware_model.radio.content import parse_content
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.mac import (
-    Deliver, Disable, Join, MacConfig, Message, Miss, ModeChange, Outcome, SubmitError, Transmit,
+    UNACKNOWLEDGED, Deliver, Disable, Join, MacConfig, Message, Miss, ModeChange, Outcome,
+    SubmitError, Transmit,
 )
 from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
@@ -91,8 +92,9 @@ def _events_printer(out: TextIO | None, robot: int) -> Callable[[RadioStation, o
                   "content": "".join(c.text() for c in a.commands)})
         elif t is Outcome:
             m = a.message
-            emit({"t": now, "ev": "delivered" if a.delivered else "fail", "src": m.src,
-                  "dst": m.dst, "num": m.num, "reason": a.reason})
+            ev = "delivered" if a.delivered else "sent" if m.state == UNACKNOWLEDGED else "fail"
+            emit({"t": now, "ev": ev, "src": m.src, "dst": m.dst, "num": m.num,
+                  "reason": a.reason})
         elif t is Message:
             emit({"t": now, "ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
                   "type": a.type, "len": len(a.content)})

@@ -100,6 +100,23 @@ def fault_spec(text: str):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def profile_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--profile", choices=("rprs", "paper"), default="rprs",
+                   help="rprs: the whole protocol (docs/protocol.md); paper: only the paper's "
+                   "rules, to share a ring with robots that implement only the paper (a static "
+                   "ring of the team, no BOOT/JOIN/poll/ring/ack/crc, messages sent once and "
+                   "never acknowledged; docs/protocol.md §9)")
+
+
+def checked_mac_config(**kw):
+    """A MacConfig, or a UserError naming the options that do not go together."""
+    from firmware_model.radio.mac import MacConfig
+    try:
+        return MacConfig(**kw)
+    except ValueError as exc:
+        raise UserError(f"--profile {kw.get('profile', 'rprs')}: {exc}") from None
+
+
 def mac_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--team", type=robot_list, metavar="IDS",
                    help="the robot IDs that may ever join (default: 0-6); a small team forms "
@@ -110,14 +127,16 @@ def mac_options(p: argparse.ArgumentParser) -> None:
                    help="the radio outputs noise without a carrier (a bare PTR2000, or "
                    "'rprs radio-hub --noise'): the channel never falls quiet, so do not wait "
                    "for quiet after an uncertain turn (docs/mac.md, R-stagger)")
+    profile_option(p)
 
 
 def mac_config(a: argparse.Namespace):
-    from firmware_model.radio.mac import MacConfig
-    kw = {"checksum": a.checksum, "quiet_channel": not a.idle_noise}
+    kw = {"checksum": a.checksum, "quiet_channel": not a.idle_noise, "profile": a.profile}
     if a.team:
         kw["team"] = frozenset(a.team)
-    return MacConfig(**kw)
+    if getattr(a, "standby", False):
+        kw["standby"] = True
+    return checked_mac_config(**kw)
 
 
 def txen_option(p: argparse.ArgumentParser) -> None:

@@ -10,7 +10,7 @@ from firmware_model.timing import TICK_HZ, ticks_to_s
 
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
-from .common import UserError, digit, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
+from .common import UserError, checked_mac_config, digit, profile_option, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False) -> None:
     p.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4) if demo else
@@ -40,6 +40,7 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False) -> None:
                    help="the opt-in crc() integrity extension on every robot")
     p.add_argument("--father-standby", action="store_true",
                    help="a second father PC as hot standby for ID 0")
+    profile_option(p)
     if not demo:
         p.add_argument("--can", action="store_true", help="simulate every child's CAN side "
                        "too: controller, 82C250, dispatcher, joint/wheel/paw submodules")
@@ -55,7 +56,9 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False) -> None:
 
 
 def sim_config(a: argparse.Namespace) -> SimConfig:
-    from firmware_model.radio.mac import MacConfig
+    if a.profile == "paper" and a.father_standby:
+        raise UserError("--profile paper has no standby PC (--father-standby is this "
+                        "project's extension)")
     faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
         tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
     peer = None
@@ -67,7 +70,8 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                                                                  -1 if f.robot is None
                                                                  else f.robot))),
                      ber=a.ber, noise=a.noise, load=a.load, power_on=dict(a.power),
-                     can=getattr(a, "can", True), mac=MacConfig(checksum=a.checksum),
+                     can=getattr(a, "can", True),
+                     mac=checked_mac_config(checksum=a.checksum, profile=a.profile),
                      father_standby=a.father_standby,
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer)
 
@@ -151,8 +155,10 @@ def print_summary(world: World, wall: float, as_json: bool) -> None:
                                                              else ""))
     con.print(f"channel occupations: {s['occupations']}   collisions: {s['collisions']}"
               + (f"   CAN frames: {world.can_frames}" if world.cfg.can else ""))
+    unacked = (f"sent unacknowledged (paper profile) {s['unacknowledged']}, "
+               if s["unacknowledged"] else "")
     con.print(f"messages: submitted {s['submitted']}, delivered {s['delivered']}, "
-              f"failed {s['failed']}, pending {s['pending']}, "
+              f"failed {s['failed']}, {unacked}pending {s['pending']}, "
               f"duplicate deliveries {s['duplicate_deliveries']}")
     if s["speed"]:
         con.print(f"[dim]{sim_s:g} simulated s in {wall:.2f} wall s: {s['speed']:.0f}x "

@@ -27,7 +27,7 @@ from firmware_model.radio.content import Command, cmd, frame_kind
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
     BadContent, Deliver, Disable, Duplicate, Join, MacConfig, Message, Miss, ModeChange,
-    Outcome, Refused, SubmitError, Transmit, TxEnable,
+    UNACKNOWLEDGED, Outcome, Refused, SubmitError, Transmit, TxEnable,
 )
 from firmware_model.radio.deframer import FrameFailed
 from firmware_model.station import RadioStation, build_station
@@ -143,6 +143,7 @@ class RobotStats:
     submitted: int = 0
     delivered: int = 0
     failed: int = 0
+    unacknowledged: int = 0     # paper profile: sent once, nothing acknowledges it
     refused: int = 0
     missed: int = 0
 
@@ -481,6 +482,10 @@ class World:
                 s.delivered += 1
                 self._emit({"ev": "delivered", "src": m.src, "dst": m.dst, "num": m.num,
                             "attempts": m.attempts})
+            elif m.state == UNACKNOWLEDGED:
+                s.unacknowledged += 1
+                self._emit({"ev": "sent", "src": m.src, "dst": m.dst, "num": m.num,
+                            "reason": a.reason})
             else:
                 s.failed += 1
                 self._emit({"ev": "fail", "src": m.src, "dst": m.dst, "num": m.num,
@@ -607,7 +612,8 @@ class World:
             robots[r] = {"frames_sent": self.air.sent.get(r, 0), "received": s.received,
                          "pending": pending, "missed": s.missed,
                          "submitted": s.submitted, "delivered": s.delivered,
-                         "failed": s.failed, "refused": s.refused,
+                         "failed": s.failed, "unacknowledged": s.unacknowledged,
+                         "refused": s.refused,
                          "duplicates_dropped": s.duplicates, "refused_frames":
                          s.refused_frames, "bad_frames": s.bad_frames, "mode": st.mac.mode,
                          "ring": list(st.mac.ring)}
@@ -618,7 +624,8 @@ class World:
                 "membership_changes": [{"t": t, "ev": k, "robot": r}
                                        for t, k, r in self.membership],
                 "submitted": total("submitted"), "delivered": total("delivered"),
-                "failed": total("failed"), "pending": total("pending"),
+                "failed": total("failed"), "unacknowledged": total("unacknowledged"),
+                "pending": total("pending"),
                 "can_frames": self.can_frames,
                 "duplicate_deliveries": dup_deliveries,
                 "corrupt_deliveries": self.corrupt_deliveries,

@@ -1,0 +1,309 @@
+"""The paper profile (docs/protocol.md §9, issue 11 item 2): our robots beside a robot that
+implements only the paper.
+
+``PaperRobot`` below is written from the paper's rules alone (Zhang et al., ROBIO 2006, §IV.C-D):
+plain pyserial, nothing imported from this project. Its ring is the whole team, fixed; the
+turns go in ascending ID, each owner sends one frame (a message or an empty heartbeat, Type '3'
+to '7') Ttrans after the previous End; an owner whose frame has not begun by E + Tmax has
+missed, and the next robot takes the turn; three misses in a row and the robot is disabled;
+the owner is whoever actually sends. No acknowledgement, no start-up or rejoin rule.
+
+With ``--profile rprs`` our children never leave LISTEN while such a robot talks (it never
+invites them). With ``--profile paper`` they share its ring: the turns rotate, its messages are
+delivered and ours reach it, no frame carries anything the paper does not define, and when it
+falls silent both children disable it after three misses and go on.
+"""
+from __future__ import annotations
+
+import ast
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+serial = pytest.importorskip("serial")
+
+# ==============================================================================================
+# A robot that knows only the paper
+# ==============================================================================================
+
+TTRANS = 0.005               # paper §IV.C: switch time
+TMAX = 0.600                 # paper §IV.C: the longest a robot may use the channel
+DISABLE_AFTER = 3            # paper §IV.C: "three times continuously"
+BYTE = 10 / 9600
+HEADER, END = b"\x0f\x0a\x05", b"\x17\x19"
+PAPER_TYPES = set(range(5))  # paper §IV.D: '0' seek help ... '4' failure information
+
+
+def paper_frame(dst: int, src: int, num: int, typ: int, content: str) -> bytes:
+    """Paper §IV.D, Fig. 8: Header, Destination, Source, Number, Type, Length, Content, End."""
+    c = content.encode("ascii")
+    return HEADER + b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c)) + c + END
+
+
+class PaperRobot:
+    """The paper's rotation on a serial port, polled with ``step()``."""
+
+    def __init__(self, port: str, robot: int, team: set[int]) -> None:
+        self.id = robot
+        self.ring = sorted(team)
+        self.misses = {r: 0 for r in self.ring}
+        self.port = serial.Serial(port, 9600, timeout=0)
+        self.port.reset_input_buffer()
+        self.buf = bytearray()
+        self.last_byte = 0.0
+        self.heard: list[tuple[int, int, int, int, str, float]] = []  # dst src num type content E
+        self.inbox: list[tuple[int, str]] = []
+        self.outbox: list[tuple[int, str]] = []
+        self.sent: list[bytes] = []
+        self.sent_at_heard: list[int] = []
+        self.disabled: list[int] = []
+        self.num = 0
+        now = time.monotonic()
+        self.deaf_until = 0.0
+        self._owner(self.ring[0], now)                 # the lowest ID's turn begins now
+
+    def succ(self, r: int) -> int:
+        later = [x for x in self.ring if x > r]
+        return later[0] if later else self.ring[0]
+
+    def _owner(self, owner: int, start: float) -> None:
+        """``owner``'s turn begins at ``start``: it sends at start + Ttrans (paper §IV.C)."""
+        self.owner, self.turn_start = owner, start
+        self.send_at = start + TTRANS if owner == self.id else None
+
+    def _turn(self, after: int, start: float) -> None:
+        self._owner(self.succ(after), start)
+
+    def step(self) -> None:
+        now = time.monotonic()
+        data = self.port.read(1024)
+        if data and now >= self.deaf_until:
+            self.last_byte = now
+            for b in data:
+                self._feed(b, now)
+        if self.send_at is not None and now >= self.send_at:
+            self._send(now)
+        elif self.send_at is None and now >= self.turn_start + TMAX and not (
+                self.buf and self.last_byte > self.turn_start):
+            o = self.owner                              # no Header by E + Tmax: a miss
+            nxt = self.succ(o)
+            self.misses[o] = self.misses.get(o, 0) + 1
+            if self.misses[o] >= DISABLE_AFTER and len(self.ring) > 1:
+                self.ring.remove(o)                     # disabled (paper §IV.C)
+                self.disabled.append(o)
+            self._owner(nxt, self.turn_start + TMAX)
+
+    def _feed(self, b: int, now: float) -> None:
+        buf = self.buf
+        buf.append(b)
+        if len(buf) <= 3:
+            if bytes(buf) != HEADER[:len(buf)]:
+                buf.clear()
+                if b == HEADER[0]:
+                    buf.append(b)
+            return
+        if len(buf) < 12:
+            if not chr(b).isdigit():
+                buf.clear()
+            return
+        length = int(buf[8:12])
+        if len(buf) == 12 + length + 2:
+            raw = bytes(buf)
+            buf.clear()
+            if raw[-2:] == END:
+                self._frame(raw, now)
+
+    def _frame(self, raw: bytes, end: float) -> None:
+        dst, src, num, typ = raw[3] - 48, raw[4] - 48, int(raw[5:7]), raw[7] - 48
+        content = raw[12:-2].decode("ascii", "replace")
+        self.heard.append((dst, src, num, typ, content, end))
+        self.sent_at_heard.append(len(self.sent))      # our frames sent before this one
+        if src == self.id or src > 6:
+            return
+        if src not in self.ring:                       # the owner is whoever sends
+            self.ring = sorted(self.ring + [src])
+        self.misses[src] = 0
+        if content and dst in (self.id, 7):
+            self.inbox.append((src, content))
+        self._turn(src, end)
+
+    def _send(self, now: float) -> None:
+        if self.outbox:
+            dst, content = self.outbox.pop(0)
+            self.num = (self.num + 1) % 100
+            data = paper_frame(dst, self.id, self.num, 2, content)
+        else:
+            data = paper_frame(7, self.id, self.num, 3, "")
+        self.port.write(data)
+        self.sent.append(data)
+        end = now + len(data) * BYTE
+        self.deaf_until = end                          # half duplex: deaf while sending
+        self._turn(self.id, end)
+
+    def run_for(self, seconds: float, until=None) -> bool:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.step()
+            if until is not None and until():
+                return True
+            time.sleep(0.0005)
+        return until() if until is not None else True
+
+    def close(self) -> None:
+        self.port.close()
+
+
+# ==============================================================================================
+# The harness: rprs radio-hub and two rprs child processes
+# ==============================================================================================
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _ptys_available() -> str | None:
+    try:
+        master, slave = os.openpty()
+    except (OSError, AttributeError) as exc:
+        return f"pseudo-terminals are unavailable here: {exc}"
+    os.close(master)
+    os.close(slave)
+    return None
+
+
+class Child:
+    """An ``rprs child --events`` process and the JSON lines it prints."""
+
+    def __init__(self, *args: str) -> None:
+        self.proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "child", *args,
+                                      "--events"], cwd=ROOT, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True)
+        self.lines: list[dict] = []
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            try:
+                self.lines.append(json.loads(line))
+            except ValueError:
+                pass
+
+    def find(self, **kw) -> list[dict]:
+        return [e for e in list(self.lines) if all(e.get(k) == v for k, v in kw.items())]
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+        try:
+            self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+
+@pytest.fixture
+def hub(tmp_path):
+    why = _ptys_available()
+    if why:
+        pytest.skip(why)
+    air = tmp_path / "air"
+    proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "3",
+                             "--link-dir", str(air), "--seed", "1"], cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 15
+    while time.monotonic() < end and not all((air / f"node{i}").exists() for i in range(3)):
+        time.sleep(0.05)
+    assert all((air / f"node{i}").exists() for i in range(3)), \
+        proc.stderr.read() if proc.poll() is not None else "the hub made no ptys"
+    yield air
+    proc.terminate()
+    proc.wait(timeout=5)
+
+
+def test_the_paper_robot_imports_nothing_from_the_project():
+    tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
+    names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    assert not [m for m in names if m.split(".")[0] in ("firmware_model", "can_bus", "hil")]
+
+
+def test_a_paper_robot_silences_robots_of_the_full_protocol(hub):
+    """The reason for the profile: a paper robot never invites anyone, and our robots in the
+    rprs profile wait in LISTEN for as long as the channel is busy (clause 28)."""
+    kids = [Child("--id", str(r), "--radio", str(hub / f"node{r - 1}"), "--team", "1,2,3")
+            for r in (1, 2)]
+    robot = PaperRobot(str(hub / "node2"), 3, {1, 2, 3})
+    try:
+        robot.run_for(4.0)
+        assert len(robot.sent) > 4                     # it took every turn, the others missed
+        assert not [k.find(ev="tx") for k in kids if k.find(ev="tx")]
+        assert {s for _, s, *_ in robot.heard} <= {3}
+    finally:
+        robot.close()
+        for k in kids:
+            k.stop()
+
+
+def test_the_paper_profile_shares_a_ring_with_a_paper_robot(hub):
+    """Children 1 and 2 with ``--profile paper`` and the paper robot 3: one ring of three, in
+    ascending order; the paper robot's message is delivered to child 1 and child 1's reply
+    reaches it; nothing on the air is outside the paper's frame (Types '0'-'4', no MAC
+    command, empty heartbeats); when it falls silent both children disable it after three
+    misses at E + Tmax and go on as a ring of two."""
+    kids = {r: Child("--id", str(r), "--radio", str(hub / f"node{r - 1}"), "--team", "1,2,3",
+                     "--profile", "paper",
+                     *(("--can", f"virtual:paper{os.getpid()}") if r == 1 else ()))
+            for r in (1, 2)}
+    robot = None
+    try:
+        # The paper has no start-up rule: the three must start within the first cycles (before
+        # the children's three misses of robot 3), so the robot starts once both children send.
+        assert _wait(lambda: all(k.find(ev="tx") for k in kids.values()), 20), \
+            [k.proc.stderr.read() for k in kids.values() if k.proc.poll() is not None]
+        robot = PaperRobot(str(hub / "node2"), 3, {1, 2, 3})
+
+        def rotating() -> bool:          # (its own frames it does not hear: half duplex)
+            seq = [s for _, s, *_ in robot.heard[-6:]]
+            return seq == [1, 2] * 3 and len(robot.sent) >= 3 and \
+                len(robot.sent) - robot.sent_at_heard[-6] == 3
+        assert robot.run_for(15.0, rotating), (robot.heard[-8:], robot.ring)
+        robot.outbox.append((1, "status()"))
+        assert robot.run_for(10.0, lambda: robot.inbox), robot.heard[-8:]
+        (src, reply), = robot.inbox[:1]
+        assert src == 1 and reply.startswith("joint(1,") and "wheel(" in reply
+        assert [e for e in kids[1].find(ev="deliver", src=3) if e["content"] == "status()"]
+        assert kids[1].find(ev="sent", src=1, dst=3)        # sent once, never acknowledged
+        for dst, src, num, typ, content, _ in robot.heard:
+            assert typ in PAPER_TYPES, (src, typ)
+            assert not any(c in content for c in ("ack(", "poll(", "ring(", "crc(")), content
+            if typ == 3 and dst == 7 and src in (1, 2):
+                assert content == ""                        # a heartbeat is empty
+        assert not kids[1].find(ev="mode") and not kids[2].find(ev="mode")
+        assert not kids[1].find(ev="disable") and not kids[2].find(ev="disable")
+        # the paper robot falls silent: disabled by both after three misses, ring of two goes on
+        robot.close()
+        assert all(_wait(lambda k=k: k.find(ev="disable", robot=3), 6.0) for k in kids.values())
+        misses = {r: [e for e in k.find(ev="miss", robot=3)] for r, k in kids.items()}
+        assert all(len(m) >= 3 for m in misses.values()), misses
+        n = {r: len(k.find(ev="tx")) for r, k in kids.items()}
+        assert _wait(lambda: all(len(k.find(ev="tx")) >= n[r] + 5 for r, k in kids.items()), 5)
+    finally:
+        if robot is not None:
+            robot.close()
+        for k in kids.values():
+            k.stop()
+
+
+def _wait(pred, timeout: float) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.05)
+    return pred()
+

@@ -1,0 +1,73 @@
+"""The paper profile (docs/protocol.md §9.1) in the simulator: tick-exact and seeded. Beside a
+robot written from the paper alone, on the pty hub: tests/test_paper_profile.py."""
+from __future__ import annotations
+
+from firmware_model.radio.mac import MacConfig
+from hil.sim.faults import Fault
+from hil.sim.world import SimConfig, World
+
+
+def _paper_world(**kw):
+    evs: list[dict] = []
+    cfg = dict(robots=(0, 1, 2, 3), duration=12.0, seed=3, load=2.0,
+               mac=MacConfig(profile="paper"))
+    cfg.update(kw)
+    return World(SimConfig(**cfg), on_event=evs.append), evs
+
+
+def test_in_simulation_only_the_papers_frame_is_on_the_air():
+    """Every robot a member of the whole team's ring from power-on; frames are heartbeats
+    (Type '3', '7', empty) or messages with nothing after their commands (no ack, poll, ring,
+    crc; no BOOT or JOIN); each message goes on the air once, is delivered once to its
+    destination and ends ``unacknowledged``."""
+    w, evs = _paper_world()
+    w.run(1)
+    assert set(w.ring_views().values()) == {(0, 1, 2, 3)}
+    w.run()
+    frames = [e for e in evs if e["ev"] == "frame"]
+    assert frames and {e["kind"] for e in frames} == {"heartbeat", "message"}
+    assert {e["type"] for e in frames} <= {0, 1, 2, 3, 4}
+    size = {(e["src"], e["num"]): e["len"] for e in evs if e["ev"] == "submit"}
+    sent = [e for e in frames if e["kind"] == "message"]
+    assert all(e["len"] == size[e["src"], e["num"]] for e in sent)
+    assert len({(e["src"], e["num"]) for e in sent}) == len(sent)        # each once
+    s = w.summary()
+    assert s["delivered"] == s["failed"] == 0 and s["unacknowledged"] == len(sent) > 10
+    deliveries = [e for e in evs if e["ev"] == "deliver"]
+    assert len(deliveries) == len([e for e in sent if e["dst"] != 7]) + \
+        3 * len([e for e in sent if e["dst"] == 7])
+    assert s["collisions"] == 0 and s["duplicate_deliveries"] == 0
+
+
+def test_in_simulation_a_silent_robot_is_disabled_and_stays_out_when_it_returns():
+    """Paper §IV.C: R2's radio dead from 3 s; every member disables it at the same tick after
+    three misses. R2, hearing nobody for a whole round, went to LISTEN (clause 40); back at 6 s
+    it stays there, silent, while the ring talks (the paper has no rejoin): no collision."""
+    w, evs = _paper_world(faults=(Fault("fail", 2, 3.0), Fault("recover", 2, 6.0)))
+    w.run()
+    drops = [e for e in evs if e["ev"] == "disable" and e["robot"] == 2]
+    assert {e["by"] for e in drops} == {0, 1, 3} and len({e["t"] for e in drops}) == 1
+    assert [e for e in evs if e["ev"] == "collision"] == []
+    assert w.ring_views()[2] == () and all(w.ring_views()[r] == (0, 1, 3) for r in (0, 1, 3))
+    assert [e["reason"] for e in evs if e["ev"] == "mode" and e["robot"] == 2] == \
+        ["heard nobody for a whole round"]
+
+
+def test_in_simulation_a_robot_powered_on_after_its_drop_tries_its_slot_twice():
+    """R1 powered on at 4 s, after the others dropped it: it takes its slot as a static member,
+    collides with R2 (who holds it now), and after the second such frame (the first frame it
+    hears after its own comes from a robot other than its successor, early) it stays out."""
+    w, evs = _paper_world(power_on={1: 4.0}, duration=10.0)
+    w.run()
+    assert len([e for e in evs if e["ev"] == "collision"]) == 2
+    assert w.ring_views() == {0: (0, 2, 3), 1: (), 2: (0, 2, 3), 3: (0, 2, 3)}
+    assert [e["reason"] for e in evs if e["ev"] == "mode" and e["robot"] == 1] == \
+        ["our slot is taken: the ring dropped us (the paper profile has no rejoin)"]
+
+
+def test_in_simulation_the_same_seed_gives_the_same_trace():
+    a = _paper_world()[0]
+    b = _paper_world()[0]
+    a.run()
+    b.run()
+    assert a.summary() == b.summary()
