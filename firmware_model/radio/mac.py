@@ -1026,7 +1026,7 @@ class RotationalMac:
         otherwise a turn one Tslot long (a heartbeat) cancels the stagger and both transmit
         within a byte time (found by the token-lost scenarios)."""
         heard = self._last_heard
-        if heard is None or heard[0] != other:
+        if heard is None or heard[0] != other or self._paper:
             return None
         cfg = self.cfg
         return heard[1] + cfg.tmax + other * cfg.tslot + cfg.ttrans + 4 * cfg.byte_ticks
@@ -1049,7 +1049,7 @@ class RotationalMac:
             return
         nxt = self.succ(after)
         if nxt == self.id:
-            if uncertain:
+            if uncertain and not self._paper:      # the paper: the turn at E + Tmax, no more
                 if self.cfg.quiet_channel:
                     self._hold_ref = start
                     self.phase = HOLD

@@ -1,6 +1,7 @@
 """The ``rprs`` command line, one module per command (as cantools and python-can lay out
 theirs): ``sim``, ``demo``, ``encode``/``decode`` (codec), ``child``/``submodules``/``father``
-(robots), ``radio-hub`` (hub), ``inject``, ``bench``, ``plot``, ``monitor``, ``soak``. Option
+(robots), ``radio-hub`` (hub), ``inject``, ``bench``, ``conformance``, ``plot``, ``monitor``,
+``soak``. Option
 types and shared options live in ``common``.
 
 A user mistake (bad option value, unreadable file, malformed input) prints one line starting
@@ -12,12 +13,12 @@ import argparse
 import sys
 from typing import Sequence
 
-from . import bench, codec, demo, hub, inject, monitor, plot, robots, sim, soak
+from . import bench, codec, conformance, demo, hub, inject, monitor, plot, robots, sim, soak
 from .common import Parser, UserError
 
 __all__ = ["build_parser", "main", "UserError"]
 
-COMMANDS = (sim, demo, robots, plot, monitor, soak, hub, inject, bench, codec)
+COMMANDS = (sim, demo, robots, plot, monitor, soak, hub, inject, bench, conformance, codec)
 """Each adds its subcommands in this order (the order of ``rprs --help``)."""
 
 

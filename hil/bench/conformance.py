@@ -1,0 +1,442 @@
+"""The conformance kit: a PC in a ring of two with one robot under test, checking it against
+docs/protocol.md clause by clause (``rprs conformance``; issue 11, item 3).
+
+The tester is scripted, not a MAC: it plays one station (ID ``tester``) and, when a check needs
+it, a forger. It invites the robot (profile ``rprs``) or starts the static ring (profile
+``paper``), then runs the checks in order on the wall clock:
+
+===========  ================================================================================
+clause        what is checked, and the figure reported
+===========  ================================================================================
+15, 6-13      every frame from the robot is a good frame (bytes heard, frames, failures)
+34, 29, 36    it answers an invitation with BOOT ('5', Number '00') or JOIN ('6') at
+              E + Ttrans, and stops announcing once acknowledged (rprs)
+23            its Header begins Ttrans after our End (median and worst gap over the turns)
+21            a frame with nothing to say is an empty heartbeat (or, rprs, a control frame)
+47, 48        our message is acknowledged in its next frame; a retransmission (same Number)
+              is acknowledged again but not acted on again (its status() answered once)
+              (rprs); in the paper profile nothing is acknowledged
+38            a frame with a forged Source (a team robot outside the ring) is not acted on
+              (rprs; the paper profile admits any team robot that sends)
+24, 44        when we fall silent it takes the turn: Tmax after its own End, plus R-stagger and
+              R-pair in a ring of two (rprs), or at its End + Tmax + Ttrans (paper)
+25            after our third missed turn it drops us (its masks lack us; paper: its turns
+              come at its lone cadence)
+===========  ================================================================================
+
+Times are the arrival of bytes at this PC: a Header's start is estimated as its End minus its
+bytes at 9600 bit/s, so every measured gap includes the port's latency; ``tolerance`` (default
+15 ms) bounds it. The robot must run with the real-time margins (``rprs child`` does; a flashed
+board on a PC bench must too, docs/bench.md) and a team that holds both IDs.
+"""
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+from xml.etree import ElementTree as ET
+
+from firmware_model.radio.content import parse_content
+from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
+from firmware_model.radio.errors import ContentError
+from firmware_model.radio.frame import BROADCAST, Frame
+from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
+
+from .runner import REALTIME_MARGINS
+from .serial_radio import open_port
+
+MS = TICK_HZ // 1000
+TTRANS = 5 * MS
+TMAX = 600 * MS
+TWIN = REALTIME_MARGINS["twin"]
+TSLOT = REALTIME_MARGINS["tslot"]
+BYTE = PC_BYTE_TICKS
+
+
+@dataclass
+class Check:
+    """One verdict: the clause, what was checked, passed or not, and the measured figure."""
+
+    clause: str
+    name: str
+    passed: bool
+    figure: str
+    seconds: float = 0.0
+
+
+@dataclass
+class Heard:
+    frame: Frame
+    start: int          # estimated tick the Header's first bit began
+    end: int            # tick the End's last byte arrived
+
+
+@dataclass
+class Report:
+    robot: int
+    profile: str
+    checks: list[Check] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.checks) and all(c.passed for c in self.checks)
+
+    def junit(self) -> bytes:
+        """JUnit XML: one testcase per clause checked, a failure element where it failed."""
+        suite = ET.Element("testsuite", name=f"rprs conformance robot {self.robot} "
+                           f"({self.profile})", tests=str(len(self.checks)),
+                           failures=str(sum(not c.passed for c in self.checks)))
+        for c in self.checks:
+            case = ET.SubElement(suite, "testcase", classname=f"clause {c.clause}",
+                                 name=c.name, time=f"{c.seconds:.3f}")
+            ET.SubElement(case, "system-out").text = c.figure
+            if not c.passed:
+                ET.SubElement(case, "failure", message=c.figure)
+        return ET.tostring(ET.ElementTree(suite).getroot(), encoding="utf-8",
+                           xml_declaration=True)
+
+
+class ConformanceError(Exception):
+    """The run could not go on (no answer at all, a port that broke): one line."""
+
+
+class Tester:
+    """The scripted station on ``port`` and the checks, run by :meth:`run`."""
+
+    __test__ = False                  # not a pytest class
+
+    def __init__(self, port: str, robot: int, profile: str = "rprs", tester: int | None = None,
+                 tolerance_ms: float = 15.0, turns: int = 20,
+                 progress: Callable[[str], None] | None = None) -> None:
+        if not 0 <= robot <= 6:
+            raise ValueError(f"robot ID must be 0-6, got {robot}")
+        self.robot = robot
+        self.me = tester if tester is not None else (0 if robot != 0 else 1)
+        if self.me == robot or not 0 <= self.me <= 6:
+            raise ValueError(f"the tester's ID must be 0-6 and not the robot's, got {self.me}")
+        self.forger = min(set(range(7)) - {robot, self.me})
+        self.profile = profile
+        self.tol = int(tolerance_ms * MS)
+        self.turns = turns
+        self.progress = progress or (lambda s: None)
+        self.port = open_port(port)
+        self.deframer = Deframer(byte_ticks=BYTE)
+        self.t0 = time.monotonic_ns()
+        self.heard: list[Heard] = []
+        self.bad = 0                      # failed frames and garbage bytes heard
+        self.garbage = 0
+        self.rx_bytes = 0
+        self.num = 0
+        self.last_end = 0                 # our own last End (estimated)
+        self.acks: list[tuple[int, int]] = []
+        self.report = Report(robot, profile)
+
+    # -- time, air -----------------------------------------------------------------------
+
+    def now(self) -> int:
+        return (time.monotonic_ns() - self.t0) * TICK_HZ // 1_000_000_000
+
+    def _poll_rx(self) -> None:
+        data = self.port.read(max(1, self.port.in_waiting))
+        if not data:
+            return
+        t = self.now()
+        self.rx_bytes += len(data)
+        for ev in self.deframer.feed(data, t - (len(data) - 1) * BYTE, BYTE):
+            if isinstance(ev, FrameReceived):
+                f = ev.frame
+                self.heard.append(Heard(f, ev.end - f.nbytes * BYTE, ev.end))
+            elif isinstance(ev, Garbage):
+                self.garbage += ev.count
+            elif isinstance(ev, FrameFailed):
+                self.bad += 1
+
+    def wait_frame(self, after: int, timeout_ticks: int, src: int | None = None) -> Heard | None:
+        """The first frame (from ``src``) whose End arrived after tick ``after``."""
+        deadline = self.now() + timeout_ticks
+        seen = 0
+        while True:
+            for h in self.heard[seen:]:
+                if h.end > after and (src is None or h.frame.src == src):
+                    return h
+            seen = len(self.heard)
+            if self.now() >= deadline:
+                return None
+            self._poll_rx()
+            time.sleep(0.0003)
+
+    def send(self, frame: Frame, at: int) -> int:
+        """Send ``frame`` with its first bit at tick ``at`` (Ttrans after TXEN); its End."""
+        while self.now() < at:
+            self._poll_rx()
+            time.sleep(0.0002)
+        data = frame.encode()
+        self.port.write(data)
+        self.last_end = self.now() + len(data) * BYTE
+        return self.last_end
+
+    def frame(self, content: bytes = b"", dst: int = BROADCAST, type_: int = 3,
+              num: int | None = None, src: int | None = None) -> Frame:
+        return Frame(dst=dst, src=self.me if src is None else src,
+                     num=self.num if num is None else num, type=type_, content=content)
+
+    def _acks_content(self) -> bytes:
+        if self.profile != "rprs":
+            return b""
+        out = b"".join(b"ack(%d,%d)" % a for a in self.acks)
+        self.acks.clear()
+        return out
+
+    def check(self, clause: str, name: str, passed: bool, figure: str, t0: float) -> None:
+        self.report.checks.append(Check(clause, name, bool(passed), figure,
+                                        time.monotonic() - t0))
+        self.progress(f"clause {clause}: {'pass' if passed else 'FAIL'} {name}: {figure}")
+
+    # -- the run -------------------------------------------------------------------------
+
+    def run(self) -> Report:
+        try:
+            last = self._start()
+            last = self._rotation(last)
+            last = self._message(last)
+            last = self._forged(last)
+            self._silence(last)
+        finally:
+            self.port.close()
+        frames = [h for h in self.heard if h.frame.src == self.robot]
+        t0 = time.monotonic()
+        self.check("15", "every frame from the robot is a good frame", self.bad == 0 and
+                   frames, f"{len(frames)} good frames, {self.bad} failed frames, "
+                   f"{self.garbage} garbage bytes", t0)
+        return self.report
+
+    def _answer_turn(self, h: Heard, content: bytes = b"", **kw) -> int:
+        """Our turn after the robot's frame ``h``: a frame Ttrans after its End."""
+        return self.send(self.frame(content + self._acks_content(), **kw), h.end + TTRANS)
+
+    def _note_acks(self, h: Heard) -> None:
+        """Acknowledge what the robot sent that needs it (rprs: BOOT, JOIN, messages to us)."""
+        f = h.frame
+        if self.profile != "rprs":
+            return
+        if f.type in (5, 6):
+            self.acks.append((f.src, f.num))
+        elif f.dst in (self.me, BROADCAST) and f.content and _app(f.content):
+            self.acks.append((f.src, f.num))
+
+    def _start(self) -> Heard:
+        t0 = time.monotonic()
+        if self.profile == "paper":
+            # A static ring {me, robot}: we take our turns; the robot must join the rotation.
+            end = self.send(self.frame(), self.now())
+            h = None
+            for _ in range(40):
+                h = self.wait_frame(end, TMAX + TTRANS + 2 * self.tol, self.robot)
+                if h is not None:
+                    break
+                end = self.send(self.frame(), self.now())
+            if h is None:
+                raise ConformanceError(f"robot {self.robot} sent no frame in 40 of our turns")
+            self.check("23", "joins the static ring (paper profile)", True,
+                       f"its first frame {(h.start - end) / MS:.1f} ms after our End", t0)
+            return h
+        mask = 1 << self.me
+        end = 0
+        for _ in range(400):               # a lone member inviting the robot (clause 31, 34)
+            end = self.send(self.frame(b"poll(%d,%d)" % (self.robot, mask)),
+                            max(self.now(), end + TWIN + self.me * TSLOT))
+            h = self.wait_frame(end, TWIN + self.tol, self.robot)
+            if h is not None:
+                break
+        else:
+            raise ConformanceError(f"robot {self.robot} never answered an invitation (is it on "
+                                   f"the channel, listening, with both IDs in its team?)")
+        f = h.frame
+        gap = (h.start - end - TTRANS) / MS
+        self.check("34", "answers an invitation Ttrans after its End", f.type in (5, 6) and
+                   abs(gap) * MS <= self.tol, f"Type '{f.type}', Header {gap:+.1f} ms from "
+                   f"E + Ttrans", t0)
+        self.check("29", "a BOOT frame is Number '00'", f.type != 5 or f.num == 0,
+                   f"Type '{f.type}', Number '{f.num:02d}'", t0)
+        self._note_acks(h)
+        t0 = time.monotonic()
+        announcing = []
+
+        def watch(h: Heard, i: int) -> None:
+            if h.frame.type in (5, 6):
+                announcing.append(i)
+        h = self._turns(h, 4, None, watch)
+        self.check("36", "stops its BOOT/JOIN once acknowledged", not announcing,
+                   f"{len(announcing)} more BOOT/JOIN frames after our ack", t0)
+        return h
+
+    def _rotation(self, h: Heard) -> Heard:
+        t0 = time.monotonic()
+        gaps, kinds = [], set()
+
+        def watch(h: Heard, i: int) -> None:
+            gaps.append(h.start - self.last_end - TTRANS)
+            kinds.add(_kind(h.frame))
+        h = self._turns(h, self.turns, None, watch)
+        med, worst = statistics.median(gaps) / MS, max(gaps, key=abs) / MS
+        self.check("23", "hands over: its Header Ttrans after our End",
+                   abs(med) * MS <= self.tol and abs(worst) * MS <= 2 * self.tol,
+                   f"{len(gaps)} turns, Header {med:+.1f} ms (median), {worst:+.1f} ms (worst) "
+                   f"from E + Ttrans; tolerance {self.tol / MS:g} ms", t0)
+        allowed = {"heartbeat", "control"} if self.profile == "rprs" else {"heartbeat"}
+        self.check("21", "nothing to say: an empty heartbeat" + (" or a control frame"
+                   if self.profile == "rprs" else ""), kinds <= allowed,
+                   f"frame kinds: {', '.join(sorted(kinds))}", t0)
+        return h
+
+    def _turns(self, h: Heard, n: int, first: tuple[bytes, dict] | None = None,
+               on_frame: Callable[[Heard, int], None] | None = None) -> Heard:
+        """``n`` hand-overs from the robot's frame ``h``: our frame (the first one carrying
+        ``first``: Content and fields), then its next; ``on_frame(h, i)`` sees each of its
+        frames. Returns its last frame, not yet answered."""
+        for i in range(n):
+            self._note_acks(h)
+            content, kw = first if (first and i == 0) else (b"", {})
+            end = self._answer_turn(h, content, **kw)
+            h = self.wait_frame(end, TMAX + 4 * TSLOT, self.robot)
+            if h is None:
+                raise ConformanceError(f"robot {self.robot} stopped sending (its turn "
+                                       f"after our frame ending at {end / MS:.0f} ms)")
+            if on_frame is not None:
+                on_frame(h, i)
+        return h
+
+    def _message(self, h: Heard) -> Heard:
+        """Our status() to the robot, then the same message again (a retransmission)."""
+        t0 = time.monotonic()
+        self.num = (self.num + 1) % 100
+        num = self.num
+        ack = f"ack({self.me},{num})".encode()
+        seen: dict[str, list] = {"acked": [], "replies": []}
+
+        def watch(h: Heard, i: int) -> None:
+            if ack in h.frame.content:
+                seen["acked"].append(i)
+            if h.frame.dst == self.me and b"joint(" in h.frame.content:
+                seen["replies"].append(h.frame.num)
+        ask = (b"status()", {"dst": self.robot, "type_": 2})
+        h = self._turns(h, 6, ask, watch)
+        acked, replies = seen["acked"], list(seen["replies"])
+        if self.profile == "paper":
+            self.check("47", "paper profile: nothing is acknowledged", not acked,
+                       f"acks: {len(acked)}; status() answered {len(replies)} time(s) (the "
+                       f"paper has no status(): not required)", t0)
+            return h
+        self.check("47", "acknowledges our message in its next frame", acked[:1] == [0],
+                   "ack in its next frame" if acked[:1] == [0] else
+                   f"first ack in its frame {acked[0] + 1}" if acked else "no ack", t0)
+        t0 = time.monotonic()
+        seen["acked"].clear()
+        h = self._turns(h, 4, (b"status()", {"dst": self.robot, "type_": 2, "num": num}),
+                        watch)
+        more = len(seen["replies"]) - len(replies)
+        self.check("48", "a retransmission is acknowledged again and not acted on again",
+                   bool(seen["acked"]) and more == 0 and len(replies) == 1,
+                   f"re-acknowledged: {'yes' if seen['acked'] else 'no'}; status replies: "
+                   f"{len(replies)}, then {more} more", t0)
+        return h
+
+    def _forged(self, h: Heard) -> Heard:
+        """In our turn, first a frame from a forger (a team robot outside the ring) carrying
+        status() for the robot, then our own frame: the robot must refuse the forged one."""
+        t0 = time.monotonic()
+        if self.profile == "paper":
+            self.check("38", "a forged Source is refused", True, "not applicable: the paper "
+                       "profile admits any team robot that sends (docs/protocol.md §9.1)", t0)
+            return h
+        self._note_acks(h)
+        forged = self.frame(b"status()", dst=self.robot, type_=2, num=42, src=self.forger)
+        end = self.send(forged, h.end + TTRANS)
+        end = self.send(self.frame(self._acks_content()), end + TTRANS)
+        h = self.wait_frame(end, TMAX + 4 * TSLOT, self.robot)
+        if h is None:
+            raise ConformanceError(f"robot {self.robot} stopped sending after a forged frame")
+        bad = f"ack({self.forger},42)".encode()
+        acted = []
+
+        def watch(h: Heard, i: int) -> None:
+            if bad in h.frame.content or (h.frame.dst == self.forger and h.frame.content):
+                acted.append(i)
+        watch(h, -1)
+        h = self._turns(h, 4, None, watch)
+        self.check("38", f"a forged Source ({self.forger}, outside the ring) is not acted on",
+                   not acted, f"{len(acted)} of its frames acted on it", t0)
+        return h
+
+    def _silence(self, h: Heard) -> None:
+        """We stop sending: the robot's takeovers, then our drop (clauses 24, 25, 44)."""
+        t0 = time.monotonic()
+        our_end = self.last_end
+        rut_end = h.end
+        if self.profile == "rprs":
+            expect = max(rut_end + TMAX + self.robot * TSLOT,
+                         our_end + TMAX + self.me * TSLOT + TTRANS + 4 * BYTE) + TTRANS
+            rule = "max(its End + Tmax + id x Tslot, our End + Tmax + our id x Tslot + Ttrans + " \
+                   "4 B) + Ttrans (R-stagger, R-pair)"
+        else:
+            expect = rut_end + TMAX + TTRANS
+            rule = "its End + Tmax + Ttrans"
+        h1 = self.wait_frame(rut_end, 2 * TMAX + 8 * TSLOT, self.robot)
+        if h1 is None:
+            self.check("24", "takes the turn when we fall silent", False, "no frame in "
+                       f"{(2 * TMAX + 8 * TSLOT) / MS:.0f} ms", t0)
+            return
+        off = (h1.start - expect) / MS
+        self.check("24", "takes the turn when we fall silent", abs(off) * MS <= self.tol,
+                   f"Header {off:+.1f} ms from {rule}", t0)
+        t0 = time.monotonic()
+        frames = [h1]
+        for _ in range(5):
+            h2 = self.wait_frame(frames[-1].end, 2 * TMAX + 8 * TSLOT, self.robot)
+            if h2 is None:
+                break
+            frames.append(h2)
+        if self.profile == "rprs":
+            masks = [_mask_of(h.frame) for h in frames]
+            lacks = [i for i, m in enumerate(masks) if m is not None and not m >> self.me & 1]
+            ok = bool(lacks) and lacks[0] == 2
+            fig = (f"first frame whose mask lacks us: its frame {lacks[0] + 1} after we fell "
+                   f"silent (3 expected: one turn per miss, the third miss drops us)"
+                   if lacks else "no frame of its ring or poll without us")
+        else:
+            gaps = [(b.start - a.end) / MS for a, b in zip(frames, frames[1:])]
+            lone = [i for i, g in enumerate(gaps) if g < TMAX / MS / 2]
+            ok = bool(lone) and lone[0] == 2
+            fig = f"gaps between its frames (ms): {', '.join(f'{g:.0f}' for g in gaps)}"
+        self.check("25", "drops us after our third missed turn", ok, fig, t0)
+
+
+def _app(content: bytes) -> bool:
+    try:
+        return any(c.spec.layer == "app" for c in parse_content(content))
+    except ContentError:
+        return False
+
+
+def _kind(f: Frame) -> str:
+    if not f.content:
+        return "heartbeat"
+    try:
+        cmds = parse_content(f.content)
+    except ContentError:
+        return "unreadable"
+    return "control" if all(c.spec.layer == "mac" for c in cmds) else "message"
+
+
+def _mask_of(f: Frame) -> int | None:
+    try:
+        cmds = parse_content(f.content) if f.content else []
+    except ContentError:
+        return None
+    for c in cmds:
+        if c.name == "ring":
+            return c.args[0]
+        if c.name == "poll":
+            return c.args[1]
+    return None

@@ -1,0 +1,71 @@
+"""``rprs conformance``: check one robot against docs/protocol.md, clause by clause
+(hil.bench.conformance)."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from .common import UserError, digit
+
+
+def cmd_conformance(a: argparse.Namespace) -> int:
+    from ..bench.conformance import ConformanceError, Tester
+    from ..bench.serial_radio import PortError
+    if a.tester is not None and a.tester == a.id:
+        raise UserError(f"--tester must differ from --id (both {a.id})")
+    if a.junit:
+        d = os.path.dirname(os.path.abspath(a.junit))
+        if not os.path.isdir(d):
+            raise UserError(f"cannot write {a.junit}: no directory {d}")
+    quiet = a.quiet
+    try:
+        t = Tester(a.radio, a.id, a.profile, a.tester, a.tolerance_ms, a.turns,
+                   progress=None if quiet else lambda s: print(s, file=sys.stderr, flush=True))
+    except (PortError, ValueError) as exc:
+        raise UserError(str(exc)) from None
+    try:
+        rep = t.run()
+        error = None
+    except ConformanceError as exc:
+        rep, error = t.report, str(exc)
+    except OSError as exc:
+        rep, error = t.report, f"the port failed: {exc}"
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+    table = Table(box=box.SIMPLE_HEAD, title=f"robot {a.id} against docs/protocol.md "
+                  f"(profile {a.profile})")
+    for col in ("clause", "check", "verdict", "measured"):
+        table.add_column(col)
+    for c in rep.checks:
+        table.add_row(c.clause, c.name, "[green]pass[/green]" if c.passed else
+                      "[red]FAIL[/red]", c.figure)
+    Console().print(table)
+    if error:
+        print(f"rprs conformance: stopped: {error}")
+    if a.junit:
+        with open(a.junit, "wb") as fh:
+            fh.write(rep.junit())
+    return 0 if rep.passed and not error else 1
+
+
+def add(sub) -> None:
+    p = sub.add_parser("conformance", help="check a robot against docs/protocol.md, clause by "
+                       "clause, from a PC in a ring of two with it")
+    p.add_argument("--radio", required=True, metavar="PORT",
+                   help="the serial port of this PC's radio (or a radio-hub pty)")
+    p.add_argument("--id", type=digit(0, 6, "robot ID"), required=True,
+                   help="the ID of the robot under test")
+    p.add_argument("--profile", choices=("rprs", "paper"), default="rprs",
+                   help="the profile the robot runs (docs/protocol.md; §9.1 for paper)")
+    p.add_argument("--tester", type=digit(0, 6, "tester ID"), default=None,
+                   help="this PC's robot ID in the ring (default 0, or 1 when testing 0); "
+                   "the robot's team must hold it")
+    p.add_argument("--tolerance-ms", type=float, default=15.0, metavar="MS",
+                   help="timing tolerance for a PC and its port (default 15)")
+    p.add_argument("--turns", type=digit(3, 1000, "turns"), default=20,
+                   help="hand-overs timed (default 20)")
+    p.add_argument("--junit", metavar="FILE", help="write the verdicts as JUnit XML here")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    p.set_defaults(func=cmd_conformance)
