@@ -113,6 +113,9 @@ class PaperRobot:
                 buf.clear()
             return
         length = int(buf[8:12])
+        if length > 562:                               # more than fits in Tmax: no frame
+            buf.clear()
+            return
         if len(buf) == 12 + length + 2:
             raw = bytes(buf)
             buf.clear()
@@ -272,8 +275,11 @@ def test_the_paper_profile_shares_a_ring_with_a_paper_robot(hub):
             return seq == [1, 2] * 3 and len(robot.sent) >= 3 and \
                 len(robot.sent) - robot.sent_at_heard[-6] == 3
         assert robot.run_for(15.0, rotating), (robot.heard[-8:], robot.ring)
-        robot.outbox.append((1, "status()"))
-        assert robot.run_for(10.0, lambda: robot.inbox), robot.heard[-8:]
+        for _ in range(3):           # nothing is acknowledged or retransmitted in the paper:
+            robot.outbox.append((1, "status()"))     # a frame lost to a late PC is lost, so
+            if robot.run_for(4.0, lambda: robot.inbox):  # the application asks again
+                break
+        assert robot.inbox, robot.heard[-8:]
         (src, reply), = robot.inbox[:1]
         assert src == 1 and reply.startswith("joint(1,") and "wheel(" in reply
         assert [e for e in kids[1].find(ev="deliver", src=3) if e["content"] == "status()"]

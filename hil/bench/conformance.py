@@ -18,6 +18,8 @@ clause        what is checked, and the figure reported
               (rprs); in the paper profile nothing is acknowledged
 38            a frame with a forged Source (a team robot outside the ring) is not acted on
               (rprs; the paper profile admits any team robot that sends)
+41, 15, 11    frames that break (a bad digit in the Number; Length 9999) are not acted on,
+              and close our turn: the robot takes the next
 24, 44        when we fall silent it takes the turn: Tmax after its own End, plus R-stagger and
               R-pair in a ring of two (rprs), or at its End + Tmax + Ttrans (paper)
 25            after our third missed turn it drops us (its masks lack us; paper: its turns
@@ -201,6 +203,7 @@ class Tester:
             last = self._rotation(last)
             last = self._message(last)
             last = self._forged(last)
+            last = self._broken(last)
             self._silence(last)
         finally:
             self.port.close()
@@ -367,6 +370,48 @@ class Tester:
         h = self._turns(h, 4, None, watch)
         self.check("38", f"a forged Source ({self.forger}, outside the ring) is not acted on",
                    not acted, f"{len(acted)} of its frames acted on it", t0)
+        return h
+
+    def _broken(self, h: Heard) -> Heard:
+        """In our turn, instead of our frame, a frame that breaks: status() for the robot with
+        a bad digit in its Number, then (next turn) with a Length beyond the protocol's bound.
+        Neither may be acted on (clauses 15, 11, 43), and each still closes our turn (41): the
+        robot takes the next one."""
+        t0 = time.monotonic()
+        good = self.frame(b"status()", dst=self.robot, type_=2, num=77).encode()
+        bad_digit = good[:5] + b"x" + good[6:]                        # Number '7x'
+        oversize = good[:8] + b"9999" + good[12:]                      # Length 9999
+        acted, figures = 0, []
+        for name, data in (("a bad Number digit", bad_digit), ("Length 9999", oversize)):
+            self._note_acks(h)
+            at = h.end + TTRANS
+            while self.now() < at:
+                self._poll_rx()
+                time.sleep(0.0002)
+            self.port.write(data)
+            end = self.now() + len(data) * BYTE
+            self.last_end = end
+            nxt = self.wait_frame(end, 2 * TMAX + 8 * TSLOT, self.robot)
+            if nxt is None:
+                self.check("41", "a frame that breaks is not acted on and closes the turn",
+                           False, f"after {name}: no frame from the robot", t0)
+                raise ConformanceError(f"robot {self.robot} stopped sending after a frame "
+                                       f"with {name}")
+            figures.append(f"{name}: its next frame {(nxt.start - end) / MS:.0f} ms after")
+            h = nxt
+            watch_acts = []
+
+            def watch(x: Heard, i: int) -> None:
+                c = x.frame.content
+                if f"ack({self.me},77)".encode() in c or (x.frame.dst == self.me and
+                                                          b"joint(" in c):
+                    watch_acts.append(i)
+            watch(h, -1)
+            h = self._turns(h, 3, None, watch)
+            acted += len(watch_acts)
+        self.check("41", "frames that break (bad digit, oversize Length) are not acted on and "
+                   "close the turn", acted == 0, "; ".join(figures) + f"; frames acting on "
+                   f"them: {acted}", t0)
         return h
 
     def _silence(self, h: Heard) -> None:
