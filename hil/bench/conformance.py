@@ -28,7 +28,7 @@ clause        what is checked, and the figure reported
 
 Times are the arrival of bytes at this PC: a Header's start is estimated as its End minus its
 bytes at 9600 bit/s, so every measured gap includes the port's latency; ``tolerance`` (default
-15 ms) bounds it. The robot must run with the real-time margins (``rprs child`` does; a flashed
+15 ms) bounds the median hand-over, and twice that 9 hand-overs in 10. The robot must run with the real-time margins (``rprs child`` does; a flashed
 board on a PC bench must too, docs/bench.md) and a team that holds both IDs.
 """
 from __future__ import annotations
@@ -46,6 +46,7 @@ from firmware_model.radio.frame import BROADCAST, Frame
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
 
 from .runner import REALTIME_MARGINS
+from .scripts import percentile
 from .serial_radio import open_port
 
 MS = TICK_HZ // 1000
@@ -283,10 +284,14 @@ class Tester:
             kinds.add(_kind(h.frame))
         h = self._turns(h, self.turns, None, watch)
         med, worst = statistics.median(gaps) / MS, max(gaps, key=abs) / MS
+        p90 = percentile([abs(g) for g in gaps], 90) / MS
+        # The median and 9 turns in 10 are judged: one late turn in a run can be this PC or
+        # the hub descheduled (a stalled frame the robot rightly abandons), not the robot.
         self.check("23", "hands over: its Header Ttrans after our End",
-                   abs(med) * MS <= self.tol and abs(worst) * MS <= 2 * self.tol,
-                   f"{len(gaps)} turns, Header {med:+.1f} ms (median), {worst:+.1f} ms (worst) "
-                   f"from E + Ttrans; tolerance {self.tol / MS:g} ms", t0)
+                   abs(med) * MS <= self.tol and p90 * MS <= 2 * self.tol,
+                   f"{len(gaps)} turns, Header {med:+.1f} ms (median), {p90:.1f} ms (90th "
+                   f"percentile, absolute), {worst:+.1f} ms (worst) from E + Ttrans; tolerance "
+                   f"{self.tol / MS:g} ms (median), {2 * self.tol / MS:g} ms (90th)", t0)
         allowed = {"heartbeat", "control"} if self.profile == "rprs" else {"heartbeat"}
         self.check("21", "nothing to say: an empty heartbeat" + (" or a control frame"
                    if self.profile == "rprs" else ""), kinds <= allowed,
