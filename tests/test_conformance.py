@@ -87,7 +87,7 @@ def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
     assert run.returncode == 0, run.stdout + run.stderr
     cases = _cases(junit)
     clauses = {c.split()[1] for c, _ in cases}
-    expected = {"15", "21", "23", "24", "25", "47", "38", "41"} | (
+    expected = {"15", "21", "23", "24", "25", "26", "47", "38", "41"} | (
         {"29", "34", "36", "48"} if profile == "rprs" else set())
     assert clauses == expected and all(cases.values()), cases
     assert "pass" in run.stdout and "FAIL" not in run.stdout
@@ -118,13 +118,14 @@ def _run_against(robot: PaperRobot, port: str, profile: str) -> dict[tuple[str, 
 
 def test_a_robot_that_hands_over_late_fails_the_timing_clauses(air, monkeypatch):
     """A paper robot whose switch time is 30 ms instead of Ttrans = 5 ms: the hand-over
-    (clause 23) and the takeover (24) fail; its frames, heartbeats and drop rule pass."""
+    (clause 23), the hand-over after a late frame (26) and the takeover (24) fail; its frames,
+    heartbeats, broken-frame handling and acknowledgements (none) pass."""
     monkeypatch.setattr(test_paper_profile, "TTRANS", 0.030)
     verdicts = _run_against(PaperRobot(str(air / "node0"), 1, {0, 1}), str(air / "node1"),
                             "paper")
     failed = {c for (c, _), ok in verdicts.items() if not ok}
     passed = {c for (c, _), ok in verdicts.items() if ok}
-    assert {"23", "24"} <= failed and failed <= {"23", "24", "-"}, verdicts
+    assert {"23", "24", "26"} <= failed and failed <= {"23", "24", "26", "-"}, verdicts
     assert {"15", "21", "41", "47"} <= passed, verdicts
 
 

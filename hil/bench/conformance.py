@@ -12,6 +12,7 @@ clause        what is checked, and the figure reported
 34, 29, 36    it answers an invitation with BOOT ('5', Number '00') or JOIN ('6') at
               E + Ttrans, and stops announcing once acknowledged (rprs)
 23            its Header begins Ttrans after our End (median and worst gap over the turns)
+26            with our frames 300 ms late, still Ttrans after our End: it resynchronises
 21            a frame with nothing to say is an empty heartbeat (or, rprs, a control frame)
 47, 48        our message is acknowledged in its next frame; a retransmission (same Number)
               is acknowledged again but not acted on again (its status() answered once)
@@ -202,6 +203,7 @@ class Tester:
         try:
             last = self._start()
             last = self._rotation(last)
+            last = self._late(last)
             last = self._message(last)
             last = self._forged(last)
             last = self._broken(last)
@@ -296,6 +298,24 @@ class Tester:
         self.check("21", "nothing to say: an empty heartbeat" + (" or a control frame"
                    if self.profile == "rprs" else ""), kinds <= allowed,
                    f"frame kinds: {', '.join(sorted(kinds))}", t0)
+        return h
+
+    def _late(self, h: Heard) -> Heard:
+        """Our frames 300 ms late (within Tmax): the robot must time its turn from the End of
+        the frame it heard, not from its own clock (clause 26: resynchronise on every frame)."""
+        t0 = time.monotonic()
+        gaps = []
+        for _ in range(3):
+            self._note_acks(h)
+            end = self.send(self.frame(self._acks_content()), h.end + TTRANS + 300 * MS)
+            h = self.wait_frame(end, TMAX + 4 * TSLOT, self.robot)
+            if h is None:
+                raise ConformanceError(f"robot {self.robot} stopped sending after a late frame")
+            gaps.append(h.start - end - TTRANS)
+        med = statistics.median(gaps) / MS
+        self.check("26", "times its turn from the End it heard (our frames 300 ms late)",
+                   abs(med) * MS <= self.tol, f"Header {med:+.1f} ms (median of "
+                   f"{len(gaps)}) from our late End + Ttrans", t0)
         return h
 
     def _turns(self, h: Heard, n: int, first: tuple[bytes, dict] | None = None,
