@@ -39,8 +39,11 @@ class RadioStation:
         self.deframer = Deframer(max_content=self.mac.rx_max_content,
                                  byte_ticks=uart.byte_ticks)
         self.timer = ReloadTimer(sched, self._on_timer)
-        self.stall_timer = ReloadTimer(sched, self._on_stall, name="TMR1")
-        """Watches a frame coming in: its bytes stopped for the stall gap (the sender died)."""
+        self.stall_timer = ReloadTimer(sched, self._on_stall, name="RXWATCH")
+        """Watches a frame coming in: its bytes stopped for the stall gap (the sender died).
+        A second timer channel besides the MAC's TMR0 (the child's dispatcher has TMR1): which
+        MB90F549 timer serves it on a board (the free-running timer's compare, say) is for the
+        peripheral map of issue 13; the model times it exactly like a reload timer."""
         self.observer = observer
         self.report_io = True
         """Pass TxEnable/Transmit actions to the observer too (a trace wants them; a fast

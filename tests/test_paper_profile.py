@@ -289,7 +289,8 @@ def test_the_paper_profile_shares_a_ring_with_a_paper_robot(hub):
             assert not any(c in content for c in ("ack(", "poll(", "ring(", "crc(")), content
             if typ == 3 and dst == 7 and src in (1, 2):
                 assert content == ""                        # a heartbeat is empty
-        assert not kids[1].find(ev="mode") and not kids[2].find(ev="mode")
+        assert not kids[1].find(ev="mode", mode="listen") and \
+            not kids[2].find(ev="mode", mode="listen")
         assert not kids[1].find(ev="disable") and not kids[2].find(ev="disable")
         # the paper robot falls silent: disabled by both after three misses, ring of two goes on
         robot.close()

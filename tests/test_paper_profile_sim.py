@@ -50,7 +50,8 @@ def test_in_simulation_a_silent_robot_is_disabled_and_stays_out_when_it_returns(
     assert [e for e in evs if e["ev"] == "collision"] == []
     assert w.ring_views()[2] == () and all(w.ring_views()[r] == (0, 1, 3) for r in (0, 1, 3))
     assert [e["reason"] for e in evs if e["ev"] == "mode" and e["robot"] == 2] == \
-        ["heard nobody for a whole round"]
+        ["a member of the static ring of the team (paper profile)",
+         "heard nobody for a whole round"]
 
 
 def test_in_simulation_a_robot_powered_on_after_its_drop_tries_its_slot_twice():
@@ -62,7 +63,8 @@ def test_in_simulation_a_robot_powered_on_after_its_drop_tries_its_slot_twice():
     assert len([e for e in evs if e["ev"] == "collision"]) == 2
     assert w.ring_views() == {0: (0, 2, 3), 1: (), 2: (0, 2, 3), 3: (0, 2, 3)}
     assert [e["reason"] for e in evs if e["ev"] == "mode" and e["robot"] == 1] == \
-        ["our slot is taken: the ring dropped us (the paper profile has no rejoin)"]
+        ["a member of the static ring of the team (paper profile)",
+         "our slot is taken: the ring dropped us (the paper profile has no rejoin)"]
 
 
 def test_in_simulation_the_same_seed_gives_the_same_trace():
@@ -71,3 +73,12 @@ def test_in_simulation_the_same_seed_gives_the_same_trace():
     a.run()
     b.run()
     assert a.summary() == b.summary()
+
+
+def test_the_papers_action_sequence_runs_in_the_paper_profile(capsys):
+    """The paper's experiment (Fig. 11) with every robot in the paper profile: the static ring
+    starts it (the first robot kicks off once the row is in its ring) and both cycles finish."""
+    from hil.cli import main
+    assert main(["demo", "action-sequence", "--profile", "paper"]) == 0
+    out = capsys.readouterr().out
+    assert "2 cycle(s) done" in out and "collisions 0" in out

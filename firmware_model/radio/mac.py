@@ -444,6 +444,7 @@ class RotationalMac:
         self._announcing = None
         self._silent = 0
         self._rejected = 0
+        out.append(ModeChange(MEMBER, "a member of the static ring of the team (paper profile)"))
         first = self.ring[0]
         if first == self.id:
             self._my_turn(now, now, out)
@@ -765,7 +766,6 @@ class RotationalMac:
             return
         if self._paper:                # a silent channel: the static ring starts again
             out.extend(self._paper_power_on(now)[1:])
-            out.append(ModeChange(MEMBER, "the channel was silent: static ring again"))
             return
         self.mode = MEMBER
         self.ring = (self.id,)

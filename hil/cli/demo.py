@@ -7,7 +7,7 @@ from firmware_model.timing import TICK_HZ, ticks_to_s
 
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, SimConfig, World
-from .common import Parser, UserError, digit, positive, probability
+from .common import Parser, UserError, checked_mac_config, digit, positive, probability, profile_option
 from .sim import add_sim_options, cmd_sim
 
 def cmd_demo_ring(a: argparse.Namespace) -> int:
@@ -28,7 +28,8 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
     robots = ((0,) if a.father else ()) + order
     limit = a.timeout
     cfg = SimConfig(robots=robots, duration=limit, seed=a.seed, ber=a.ber, noise=a.noise,
-                    can=True, sequence=(order, cycles), realtime=a.realtime)
+                    can=True, sequence=(order, cycles), realtime=a.realtime,
+                    mac=checked_mac_config(profile=a.profile))
     try:
         cfg.validate()
     except ConfigError as exc:
@@ -101,6 +102,7 @@ def add_action_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=positive, default=300.0, metavar="SECONDS",
                    help="give up after this much (simulated) time")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+    profile_option(p)
 
 
 def demo_default(a: argparse.Namespace) -> int:
