@@ -88,7 +88,7 @@ def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
     cases = _cases(junit)
     clauses = {c.split()[1] for c, _ in cases}
     expected = {"15", "21", "23", "24", "25", "26", "47", "38", "41"} | (
-        {"29", "34", "36", "48"} if profile == "rprs" else set())
+        {"29", "34", "36", "45", "48"} if profile == "rprs" else set())
     assert clauses == expected and all(cases.values()), cases
     assert "pass" in run.stdout and "FAIL" not in run.stdout
 

@@ -17,6 +17,7 @@ clause        what is checked, and the figure reported
 47, 48        our message is acknowledged in its next frame; a retransmission (same Number)
               is acknowledged again but not acted on again (its status() answered once)
               (rprs); in the paper profile nothing is acknowledged
+45            its reply to our next status() takes the Number after its first reply's (rprs)
 38            a frame with a forged Source (a team robot outside the ring) is not acted on
               (rprs; the paper profile admits any team robot that sends)
 41, 15, 11    frames that break (a bad digit in the Number; Length 9999) are not acted on,
@@ -368,6 +369,17 @@ class Tester:
                    bool(seen["acked"]) and more == 0 and len(replies) == 1,
                    f"re-acknowledged: {'yes' if seen['acked'] else 'no'}; status replies: "
                    f"{len(replies)}, then {more} more", t0)
+        # A new message (the next Number): its reply is a new message of the robot's, with
+        # the Number after its first reply's (clause 45), which we acknowledge.
+        t0 = time.monotonic()
+        self.num = (self.num + 1) % 100
+        before = list(seen["replies"])
+        h = self._turns(h, 6, (b"status()", {"dst": self.robot, "type_": 2}), watch)
+        new = seen["replies"][len(before):]
+        ok = len(before) == 1 and len(new) == 1 and new[0] == (before[0] + 1) % 100
+        self.check("45", "its next message takes the next Number",
+                   ok, f"its replies' Numbers: {', '.join(f'{n:02d}' for n in before + new)}",
+                   t0)
         return h
 
     def _forged(self, h: Heard) -> Heard:
