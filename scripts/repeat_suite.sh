@@ -14,6 +14,9 @@ for i in $(seq 1 "$n"); do
   echo "run $i/$n: status $rc, $(( $(date +%s) - start )) s: $summary"
   if [ "$rc" -ne 0 ]; then
     printf '%s\n' "$out" | grep -E "^(FAILED|ERROR)" >&2
+    log="${TMPDIR:-/tmp}/repeat_suite_run$i.log"
+    printf '%s\n' "$out" > "$log"
+    echo "the whole output of run $i is in $log" >&2
     echo "FLAKE OR FAILURE at run $i of $n"
     exit 1
   fi

@@ -7,11 +7,52 @@ import uuid
 import pytest
 
 
+REALTIME_MODULES = frozenset({
+    "test_bench_processes", "test_bridge", "test_conformance", "test_differential",
+    "test_monitor", "test_paper_profile", "test_radio_hub", "test_stranger_robot",
+    "test_unixbus", "test_socketcan_smoke", "test_child_acceptance",
+})
+"""Modules whose tests run on the wall clock: processes on the pty hub, CAN buses between
+processes, the timers of a live UI."""
+REALTIME_TESTS = frozenset({"tests/test_action_sequence.py::test_in_real_time"})
+
+
+def is_realtime(nodeid: str) -> bool:
+    path, _, name = nodeid.partition("::")
+    module = path.rpartition("/")[2].removesuffix(".py")
+    return module in REALTIME_MODULES or f"{path}::{name.partition('[')[0]}" in REALTIME_TESTS
+
+
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
         "vcan: needs a SocketCAN vcan0 interface (run them for real with scripts/vcan-vm.sh)",
     )
+    config.addinivalue_line(
+        "markers", "realtime: runs on the wall clock (tests/conftest.py: is_realtime)")
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if is_realtime(item.nodeid):
+            item.add_marker(pytest.mark.realtime)
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """Under pytest-xdist (``-n``, as the project's addopts ask), the wall-clock tests are one
+    unit of work: they run one after another on one worker, never two at once, while the
+    simulator's tests (tick time, no wall clock) share the other workers one test at a time.
+    (xdist's own ``loadgroup`` reads groups from node IDs, which pytest 9.2 no longer lets it
+    rewrite: pytest-xdist issue 1386.)"""
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class WallClockTestsApart(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return "realtime" if is_realtime(nodeid) else nodeid
+
+    return WallClockTestsApart(config, log)
 
 
 @pytest.fixture(params=["virtual", pytest.param("socketcan", marks=pytest.mark.vcan)])

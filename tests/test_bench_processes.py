@@ -77,8 +77,14 @@ def test_a_killed_child_is_dropped_and_rejoins_when_restarted(hub):
         stop(kids.values())
     gaps = [(b.start - a.end) / 16e3 for a, b in zip(frames, frames[1:])
             if a.start >= (t_kill - 0.2) * 16e6 and b.start <= (t_back - 0.1) * 16e6]
-    # exactly three missed turns of Tmax (600 ms) each, then robot 3 is dropped
-    assert sum(1 for g in gaps if 590 < g < 700) == 3, gaps
+    # exactly three missed turns of Tmax (600 ms) each, then robot 3 is dropped. The gaps are
+    # stamped when the bytes reach this process's sniffer thread: on a loaded machine a stamp
+    # can be up to ~100 ms late, which lengthens one gap and shortens the next (one run beside
+    # a CPU-bound xdist worker measured only two within 590-700 ms). No other gap here comes
+    # near 500 ms: a hand-over is Ttrans, a stagger at most a few Tslot.
+    long_gaps = [round(g, 1) for g in gaps if g > 300]
+    assert len(long_gaps) == 3 and all(500 < g < 720 for g in long_gaps), \
+        [round(g, 1) for g in gaps if g > 30]
 
 
 def test_father_failover_between_processes(hub):
