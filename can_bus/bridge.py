@@ -77,7 +77,9 @@ def open_bus(spec: str, bitrate: int | None = None, **kwargs: Any) -> can.BusABC
         if why is not None:
             hint = (f"create it with: ip link add dev {channel} type vcan && ip link set up "
                     f"{channel}" if "interface" in why else
-                    "load the can and can-raw modules, or use virtual:NAME (docs/vcan.md)")
+                    "load the can and can-raw modules; without SocketCAN, processes share "
+                    "a bus with rprs_unix:DIR (virtual:NAME stays inside one process; "
+                    "docs/vcan.md)")
             raise CanOpenError(f"cannot open CAN bus {spec}: {why}; {hint}")
     try:
         if interface == "virtual":

@@ -5,6 +5,7 @@ import io
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -132,3 +133,92 @@ def test_plot_refuses_an_unreadable_trace_and_leaves_no_file(tmp_path, capsys):
     code, _, err = rprs(capsys, "plot", str(bad), "-o", str(out))
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
     assert not out.exists() and not list(tmp_path.glob("*.png*"))
+
+
+def test_plot_on_an_image_or_a_gzip_is_one_line(tmp_path, capsys):
+    """A PNG given as the trace is refused in one line; a gzipped trace is read."""
+    import gzip
+    tr = tmp_path / "t.jsonl"
+    assert rprs(capsys, "sim", "--duration", "3", "--trace", str(tr))[0] == 0
+    png = tmp_path / "fig.png"
+    assert rprs(capsys, "plot", str(tr), "-o", str(png))[0] == 0
+    code, _, err = rprs(capsys, "plot", str(png), "-o", str(tmp_path / "again.png"))
+    assert code == 2 and err.count("\n") == 1 and "not a JSON line" in err, err
+    (tmp_path / "t.jsonl.gz").write_bytes(gzip.compress(tr.read_bytes()))
+    code, _, err = rprs(capsys, "plot", str(tmp_path / "t.jsonl.gz"), "-o",
+                        str(tmp_path / "gz.png"))
+    assert code == 0 and (tmp_path / "gz.png").stat().st_size > 10_000, err
+
+
+def test_version_names_the_package_and_the_protocol(capsys):
+    """``rprs --version`` gives the installed version and the protocol version, which is the
+    one docs/protocol.md declares."""
+    import pathlib
+    import re
+    from importlib.metadata import version
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    out = capsys.readouterr().out
+    assert e.value.code == 0
+    assert out.strip() == f"rprs {version('rprs')}, radio protocol 2.0"
+    doc = (pathlib.Path(__file__).parent.parent / "docs" / "protocol.md").read_text()
+    assert re.search(r"\*\*Protocol version (\d+\.\d+)\.\*\*", doc).group(1) == "2.0"
+
+
+def _every_parser(parser, path=("rprs",)):
+    import argparse
+    yield path, parser
+    for act in parser._actions:
+        if isinstance(act, argparse._SubParsersAction):
+            for name, sub in act.choices.items():
+                yield from _every_parser(sub, path + (name,))
+
+
+def test_every_option_of_every_command_has_help_text():
+    from hil.cli import build_parser
+    missing = []
+    for path, parser in _every_parser(build_parser()):
+        for act in parser._actions:
+            if act.option_strings and not act.help:
+                missing.append(f"{' '.join(path)} {'/'.join(act.option_strings)}")
+    assert not missing, missing
+
+
+def test_demo_takes_the_action_sequence_options_without_naming_it(capsys):
+    """``rprs demo --cycles 1`` is ``rprs demo action-sequence --cycles 1`` (it once said
+    "invalid choice: '1'")."""
+    code, out, err = rprs(capsys, "demo", "--cycles", "1", "--robots", "2")
+    assert code == 0, err
+    code2, out2, _ = rprs(capsys, "demo", "action-sequence", "--cycles", "1", "--robots", "2")
+    assert code2 == 0 and out == out2 and "cycle" in out
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--target", "board"], "--target board needs --radio PORT and --can"),
+    (["--target", "board", "--radio", "/dev/ttyUSB0"], "--target board needs --radio PORT"),
+    (["--target", "bored"], "--target 'bored': choose from model, process, board"),
+])
+def test_acceptance_board_without_its_ports_is_a_usage_error(args, needle):
+    """A board target with its ports forgotten once reported "6 skipped", exit 0."""
+    r = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "0",
+                        "tests/acceptance", *args], capture_output=True, text=True, timeout=120,
+                       cwd=Path(__file__).resolve().parent.parent)
+    assert r.returncode == 4, r.stdout + r.stderr
+    assert needle in r.stderr and "passed" not in r.stdout and "skipped" not in r.stdout
+
+
+def test_txen_on_a_pty_is_refused_in_one_line():
+    """A pty (a radio hub node) has no RTS or DTR line: ``--txen rts`` on it was accepted
+    and every TXEN edge silently failed. Now it is a one-line error, status 2."""
+    import os
+    master, slave = os.openpty()
+    try:
+        r = subprocess.run([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--radio",
+                            os.ttyname(slave), "--txen", "rts"],
+                           capture_output=True, text=True, timeout=60)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "--txen rts" in r.stderr and "no RTS line" in r.stderr

@@ -233,6 +233,30 @@ def test_links_created_and_removed(hubs, tmp_path):
     assert keep.is_dir() and list(keep.iterdir()) == []
 
 
+def test_a_bad_link_dir_is_refused_in_one_line_and_nothing_is_left(tmp_path):
+    """A --link-dir under a missing directory, under a file, or holding a regular file named
+    nodeN is refused with a ValueError (the CLI's one line, status 2); the hub makes no
+    parents and leaves no pty or link behind."""
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "node1").write_text("keep me")
+    cases = {tmp_path / "missing" / "air": "parent directory .* does not exist",
+             tmp_path / "file" / "air": "Not a directory",
+             tmp_path / "full": "node1 exists and is not a symlink"}
+    before = len(os.listdir("/proc/self/fd"))
+    for d, why in cases.items():
+        with pytest.raises(ValueError, match=why):
+            RadioHub(2, link_dir=str(d))
+    assert not (tmp_path / "missing").exists()
+    assert sorted(p.name for p in (tmp_path / "full").iterdir()) == ["node1"]
+    assert (tmp_path / "full" / "node1").read_text() == "keep me"
+    assert len(os.listdir("/proc/self/fd")) == before        # every pty closed
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                        "--link-dir", str(tmp_path / "missing" / "air")],
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+
+
 def test_slave_is_raw_no_echo_no_translation(hubs):
     hub = hubs(2).start()
     special = b"\x0a\x0d\x03\x11\x13\x04\x1a\x7f\x00\xff\x0d\x0a"

@@ -300,6 +300,38 @@ def test_plot_bad_input(idle_run, tmp_path):
     assert not out.exists() and not list(tmp_path.glob("*.partial"))
 
 
+def test_plot_reads_a_gzipped_trace(idle_run, tmp_path):
+    """A trace compressed with gzip (told apart by its magic bytes, whatever its name)
+    plots the same figure as the plain file."""
+    import gzip
+    text = "".join(json.dumps(e) + "\n" for e in idle_run)
+    (tmp_path / "t.jsonl").write_text(text)
+    (tmp_path / "t.jsonl.gz").write_bytes(gzip.compress(text.encode()))
+    plain = plot_trace(read_trace(str(tmp_path / "t.jsonl")), str(tmp_path / "a.svg"))
+    packed = plot_trace(read_trace(str(tmp_path / "t.jsonl.gz")), str(tmp_path / "b.svg"))
+    plain.pop("path"), packed.pop("path")
+    assert plain == packed and plain["turns"] > 20
+    assert (tmp_path / "a.svg").read_bytes() == (tmp_path / "b.svg").read_bytes()
+
+
+def test_plot_refuses_files_that_are_not_traces(idle_run, tmp_path):
+    """An image, a text with non-ASCII bytes and a truncated gzip are refused with a
+    TraceError naming the file (the CLI prints it as one line), never a UnicodeDecodeError."""
+    import gzip
+    out = tmp_path / "x.png"
+    plot_trace(idle_run, str(out))
+    text = "".join(json.dumps(e) + "\n" for e in idle_run).encode()
+    (tmp_path / "notes.md").write_bytes("# RPRS \u2014 notes\n".encode("utf-8"))
+    (tmp_path / "cut.gz").write_bytes(gzip.compress(text)[:400])
+    (tmp_path / "meta-less.jsonl").write_bytes(text.split(b"\n", 1)[1])
+    cases = {"x.png": "not a JSON line", "notes.md": "not a JSON line",
+             "cut.gz": "unreadable after line", "meta-less.jsonl": "must be the meta event"}
+    for name, why in cases.items():
+        with pytest.raises(TraceError, match=why):
+            plot_trace(read_trace(str(tmp_path / name)), str(tmp_path / "y.svg"))
+    assert not (tmp_path / "y.svg").exists()
+
+
 def test_plot_bad_window(idle_run, tmp_path):
     out = tmp_path / "x.svg"
     with pytest.raises(PlotError, match="before --end"):

@@ -56,6 +56,7 @@ def pytest_addoption(parser: Any) -> None:
 def pytest_configure(config: Any) -> None:
     config.addinivalue_line("markers", "acceptance: speaks to the DUT only through radio and "
                             "CAN (runs once per --target)")
+    _targets(config)                  # a wrong --target, or a board without ports: usage error
 
 
 def _targets(config: Any) -> list[str]:
@@ -63,6 +64,11 @@ def _targets(config: Any) -> list[str]:
     bad = [t for t in names if t not in TARGETS]
     if bad:
         raise pytest.UsageError(f"--target {bad[0]!r}: choose from {', '.join(TARGETS)}")
+    if "board" in names and not (config.getoption("rprs_radio") and
+                                 config.getoption("rprs_can")):
+        raise pytest.UsageError("--target board needs --radio PORT and --can "
+                                "INTERFACE:CHANNEL: the bench radio's serial port and the "
+                                "flashed child's CAN bus (docs/acceptance.md)")
     return names
 
 
@@ -287,9 +293,6 @@ def dut(dut_target: str, request: Any):
         d = ProcessDut(robot, cfg.getoption("rprs_can"))
     else:
         radio, can = cfg.getoption("rprs_radio"), cfg.getoption("rprs_can")
-        if not radio or not can:
-            pytest.skip("--target board needs --radio PORT and --can INTERFACE:CHANNEL of a "
-                        "flashed MB90F549 child on the bench")
         d = BoardDut(robot, radio, can, cfg.getoption("rprs_txen"),
                      not cfg.getoption("rprs_real_submodules"))
     try:

@@ -247,17 +247,27 @@ class RadioHub:
     # -- setup and teardown ---------------------------------------------------------------
 
     def _make_links(self, link_dir: str) -> None:
-        if not os.path.isdir(link_dir):
-            os.makedirs(link_dir)
-            self._made_dir = True
-        for i, path in enumerate(self.paths):
-            link = os.path.join(link_dir, f"node{i}")
-            if os.path.islink(link):
-                os.unlink(link)          # a stale link from a hub that did not exit cleanly
-            elif os.path.lexists(link):
-                raise FileExistsError(f"{link} exists and is not a symlink; not replacing it")
-            os.symlink(path, link)
-            self.links.append(link)
+        """``link_dir/nodeN`` symlinks to the ptys. The directory is made if missing (and
+        removed at close), but not its parents: a mistyped path is refused, not built.
+        Raises ValueError with a one-line reason."""
+        try:
+            if not os.path.isdir(link_dir):
+                os.mkdir(link_dir)
+                self._made_dir = True
+            for i, path in enumerate(self.paths):
+                link = os.path.join(link_dir, f"node{i}")
+                if os.path.islink(link):
+                    os.unlink(link)      # a stale link from a hub that did not exit cleanly
+                elif os.path.lexists(link):
+                    raise ValueError(f"{link} exists and is not a symlink; not replacing it")
+                os.symlink(path, link)
+                self.links.append(link)
+        except FileNotFoundError:
+            parent = os.path.dirname(os.path.abspath(link_dir))
+            raise ValueError(f"--link-dir {link_dir}: its parent directory {parent} does "
+                             f"not exist (the hub makes only the last directory)") from None
+        except OSError as exc:
+            raise ValueError(f"--link-dir {link_dir}: {exc.strerror}") from None
 
     def _release(self) -> None:
         for link in self.links:

@@ -61,6 +61,14 @@ class SerialChannel:
         self.sched = sched
         self.port = port
         self.txen = txen
+        if txen != "none":             # a port without modem lines (a pty) is refused now
+            try:
+                setattr(port, txen, False)
+            except (serial.SerialException, OSError, ValueError) as exc:
+                why = getattr(exc, "strerror", None) or str(exc)
+                raise PortError(f"--txen {txen}: {port.name} has no {txen.upper()} line to "
+                                f"drive ({why}); a pty, such as a radio hub node, has no "
+                                f"modem lines: use --txen none") from None
         self.radio: Ptr2000 | None = None
         self.bytes_out = 0
         self.bytes_in = 0

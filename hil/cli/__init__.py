@@ -22,9 +22,21 @@ COMMANDS = (sim, demo, robots, plot, monitor, soak, hub, inject, bench, conforma
 """Each adds its subcommands in this order (the order of ``rprs --help``)."""
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    from firmware_model.radio import PROTOCOL_VERSION
+    try:
+        mine = version("rprs")
+    except PackageNotFoundError:          # run from a checkout that was never installed
+        mine = "(not installed)"
+    return f"rprs {mine}, radio protocol {PROTOCOL_VERSION}"
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="rprs", description="RPRS child firmware model, rotational TDMA radio "
                "MAC simulator and HIL bench")
+    p.add_argument("--version", action="version", version=_version())
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for command in COMMANDS:
         command.add(sub)

@@ -104,20 +104,29 @@ def add(sub) -> None:
     for name, text in (("link", "listen: is anybody talking, and how clean is it"),
                        ("cycle", "listen and time the ring against the spec")):
         b = bsub.add_parser(name, help=text)
-        b.add_argument("--radio", metavar="PORT", required=True)
-        b.add_argument("--duration", type=positive, default=10.0, metavar="SECONDS")
-        b.add_argument("--json", action="store_true")
+        b.add_argument("--radio", metavar="PORT", required=True,
+                       help="serial port or pyserial URL of a radio that hears the ring")
+        b.add_argument("--duration", type=positive, default=10.0, metavar="SECONDS",
+                       help="how long to listen (default %(default)s)")
+        b.add_argument("--json", action="store_true",
+                       help="print the report as one JSON object")
         b.set_defaults(func=cmd_bench)
     b = bsub.add_parser("latency", help="join the ring and time status requests to a robot")
-    b.add_argument("--radio", metavar="PORT", required=True)
-    b.add_argument("--dst", type=digit(0, 6, "destination"), required=True)
+    b.add_argument("--radio", metavar="PORT", required=True,
+                   help="serial port or pyserial URL of the bench's radio")
+    b.add_argument("--dst", type=digit(0, 6, "destination"), required=True,
+                   help="the robot to ask status() of (0-6)")
     b.add_argument("--id", type=digit(0, 6, "bench robot ID"), default=0,
                    help="the ID the bench takes in the ring (default 0, the father)")
-    b.add_argument("--count", type=digit(1, 100000, "count"), default=20)
+    b.add_argument("--count", type=digit(1, 100000, "count"), default=20,
+                   help="status requests to time (default %(default)s)")
     b.add_argument("--timeout", type=positive, default=10.0, metavar="SECONDS",
                    help="per request")
-    b.add_argument("--join-timeout", type=positive, default=20.0, metavar="SECONDS")
-    b.add_argument("--team", type=robot_list, metavar="IDS")
-    b.add_argument("--json", action="store_true")
+    b.add_argument("--join-timeout", type=positive, default=20.0, metavar="SECONDS",
+                   help="give up if the bench is not in the ring by then (default %(default)s)")
+    b.add_argument("--team", type=robot_list, metavar="IDS",
+                   help="robot IDs of the team (default: all, 0-6)")
+    b.add_argument("--json", action="store_true",
+                   help="print the report as one JSON object")
     txen_option(b)
     b.set_defaults(func=cmd_bench)

@@ -89,10 +89,14 @@ def cmd_decode(a: argparse.Namespace) -> int:
 
 def add(sub) -> None:
     e = sub.add_parser("encode", help="print a frame as hex")
-    e.add_argument("--src", type=digit(0, 6, "source"), required=True)
-    e.add_argument("--dst", type=digit(0, 9, "destination"), required=True)
-    e.add_argument("--num", type=digit(0, 99, "number"), default=0)
-    e.add_argument("--type", type=digit(0, 9, "type"), default=2)
+    e.add_argument("--src", type=digit(0, 6, "source"), required=True,
+                   help="Source robot ID (0-6)")
+    e.add_argument("--dst", type=digit(0, 9, "destination"), required=True,
+                   help="Destination digit (0-6 a robot, 7 all)")
+    e.add_argument("--num", type=digit(0, 99, "number"), default=0,
+                   help="Number, 0-99 (default %(default)s)")
+    e.add_argument("--type", type=digit(0, 9, "type"), default=2,
+                   help="Type digit (default %(default)s, a message; docs/protocol.md §3)")
     e.add_argument("--spaced", action="store_true", help="space between bytes")
     e.add_argument("content", help="Content text, e.g. 'movex(10)moveto(1.5,-2,0)'")
     e.set_defaults(func=cmd_encode)

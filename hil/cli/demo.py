@@ -96,9 +96,12 @@ def add_action_options(p: argparse.ArgumentParser) -> None:
                    help="action cycles (default: %(default)s)")
     p.add_argument("--realtime", action="store_true", help="run on the wall clock")
     p.add_argument("--father", action="store_true", help="the father (ID 0) joins the ring")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--ber", type=probability, default=0.0, metavar="P")
-    p.add_argument("--noise", action="store_true")
+    p.add_argument("--seed", type=int, default=0,
+                   help="the same seed gives the same run (default %(default)s)")
+    p.add_argument("--ber", type=probability, default=0.0, metavar="P",
+                   help="bit error rate on the air (default 0)")
+    p.add_argument("--noise", action="store_true",
+                   help="radios hear random bytes when idle")
     p.add_argument("--timeout", type=positive, default=300.0, metavar="SECONDS",
                    help="give up after this much (simulated) time")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
@@ -106,13 +109,15 @@ def add_action_options(p: argparse.ArgumentParser) -> None:
 
 
 def demo_default(a: argparse.Namespace) -> int:
-    p = Parser(prog="rprs demo action-sequence")
-    add_action_options(p)
-    return cmd_demo_actions(p.parse_args([]))
+    """``rprs demo [OPTIONS]`` with no DEMO: the action sequence, with the options given."""
+    return cmd_demo_actions(a)
 
 
 def add(sub) -> None:
-    d = sub.add_parser("demo", help="demos: the paper's action sequence (default), the ring")
+    d = sub.add_parser("demo", help="demos: the paper's action sequence (default), the ring",
+                       description="With no DEMO, the action sequence runs with the options "
+                       "below (rprs demo --cycles 3 = rprs demo action-sequence --cycles 3).")
+    add_action_options(d)
     demos = d.add_subparsers(dest="demo", metavar="DEMO", parser_class=Parser)
     d.set_defaults(func=demo_default)
     act = demos.add_parser("action-sequence", help="the paper's experiment (Fig. 11)")

@@ -58,7 +58,8 @@ def cmd_father(a: argparse.Namespace) -> int:
 def add(sub) -> None:
     ch = sub.add_parser("child", help="run a child robot in real time on a serial port "
                         "and/or a CAN bus")
-    ch.add_argument("--id", type=digit(1, 6, "child ID"), required=True)
+    ch.add_argument("--id", type=digit(1, 6, "child ID"), required=True,
+                    help="this child's robot ID (1-6)")
     ch.add_argument("--radio", metavar="PORT", help="serial port or pyserial URL")
     ch.add_argument("--can", metavar="INTERFACE:CHANNEL",
                     help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can")
@@ -69,12 +70,14 @@ def add(sub) -> None:
     ch.set_defaults(func=cmd_child)
     sm = sub.add_parser("submodules", help="run a child's joint/wheel/paw submodules on a CAN "
                         "bus in real time")
-    sm.add_argument("--can", metavar="INTERFACE:CHANNEL", required=True)
-    sm.add_argument("--can-log", metavar="FILE")
+    sm.add_argument("--can", metavar="INTERFACE:CHANNEL", required=True,
+                    help="the child's python-can bus, e.g. socketcan:vcan0")
+    sm.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
     realtime_options(sm)
     sm.set_defaults(func=cmd_submodules)
     fa = sub.add_parser("father", help="the father station (ID 0) on a serial port")
-    fa.add_argument("--radio", metavar="PORT", required=True)
+    fa.add_argument("--radio", metavar="PORT", required=True,
+                    help="serial port or pyserial URL of the father's radio")
     fa.add_argument("--standby", action="store_true",
                     help="start as the hot standby PC (takes ID 0's turn if the active dies)")
     fa.add_argument("--pc", type=digit(1, 2, "PC number"),

@@ -33,13 +33,16 @@ def cmd_soak(a: argparse.Namespace) -> int:
 def add(sub) -> None:
     so = sub.add_parser("soak", help="hours of simulated time with random faults and "
                         "traffic; ends with the invariants")
-    so.add_argument("--hours", type=positive, default=1.0)
-    so.add_argument("--seed", type=int, default=0)
-    so.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4))
+    so.add_argument("--hours", type=positive, default=1.0,
+                    help="simulated hours (default %(default)s)")
+    so.add_argument("--seed", type=int, default=0,
+                    help="the same seed gives the same faults, traffic and trace")
+    so.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4),
+                    help="robot IDs in the ring (default 0,1,2,3,4)")
     so.add_argument("--rate", type=positive, default=0.5, metavar="MSG/S",
                     help="messages per second per robot (default 0.5)")
     so.add_argument("--checksum", dest="checksum_mode", choices=("on", "off", "both"),
                     default="on", help="the integrity extension (both: compare)")
     so.add_argument("--no-can", action="store_true", help="radio only (faster; no CAN faults)")
-    so.add_argument("--json", action="store_true")
+    so.add_argument("--json", action="store_true", help="print the summary as JSON")
     so.set_defaults(func=cmd_soak)

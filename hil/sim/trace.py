@@ -6,8 +6,10 @@ byte-identical file.
 """
 from __future__ import annotations
 
+import gzip
 import json
 import os
+import zlib
 from typing import IO, Any, Iterator
 
 TRACE_VERSION = 1
@@ -46,19 +48,29 @@ class TraceError(ValueError):
 
 
 def read_trace(path: str) -> Iterator[dict[str, Any]]:
-    """Yield the events of a trace file, checking the meta line comes first."""
+    """Yield the events of a trace file (plain or gzip-compressed, told apart by the gzip
+    magic bytes), checking the meta line comes first. A file that is not a trace (an image,
+    a README, a truncated gzip) raises ``TraceError`` naming the line."""
     try:
-        f = open(path, encoding="ascii")
+        raw = open(path, "rb")
     except OSError as exc:
         raise TraceError(f"cannot read trace {path}: {exc.strerror}") from None
-    with f:
-        for n, line in enumerate(f, 1):
-            try:
-                ev = json.loads(line)
-            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-                raise TraceError(f"{path}:{n}: not a JSON line ({exc})") from None
-            if not isinstance(ev, dict) or "ev" not in ev:
-                raise TraceError(f"{path}:{n}: not a trace event (no 'ev')")
-            if n == 1 and ev["ev"] != "meta":
-                raise TraceError(f"{path}:1: the first line must be the meta event")
-            yield ev
+    with raw:
+        compressed = raw.peek(2)[:2] == b"\x1f\x8b" if hasattr(raw, "peek") else False
+        f: IO[bytes] = gzip.GzipFile(fileobj=raw) if compressed else raw
+        n = 0
+        try:
+            for n, line in enumerate(f, 1):
+                try:
+                    ev = json.loads(line.decode("ascii"))
+                except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+                    raise TraceError(f"{path}:{n}: not a JSON line ({exc})") from None
+                if not isinstance(ev, dict) or "ev" not in ev:
+                    raise TraceError(f"{path}:{n}: not a trace event (no 'ev')")
+                if n == 1 and ev["ev"] != "meta":
+                    raise TraceError(f"{path}:1: the first line must be the meta event")
+                yield ev
+        except (OSError, EOFError, zlib.error) as exc:   # a damaged or truncated gzip
+            raise TraceError(f"{path}: unreadable after line {n}: {exc}") from None
+        if n == 0:
+            raise TraceError(f"{path}: empty trace (no meta line)")
