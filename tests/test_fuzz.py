@@ -147,7 +147,9 @@ except ImportError:
 ATHERIS_RUNS = {"fuzz_deframer.py": 20000, "fuzz_content.py": 20000, "fuzz_station.py": 2000}
 
 
-@pytest.mark.skipif(not HAVE_ATHERIS, reason="atheris not installed")
+@pytest.mark.skipif(not HAVE_ATHERIS, reason="atheris not installed (wheels for CPython "
+                    "3.11-3.13 on x86-64 Linux; elsewhere pip install -e .[fuzz] builds it "
+                    "with clang)")
 @pytest.mark.parametrize("target", sorted(ATHERIS_RUNS))
 def test_atheris_target_runs_clean(target, tmp_path):
     env = dict(os.environ)
