@@ -12,9 +12,10 @@ Two flavours:
   0.01 deg, joint ``speed`` in 0.1 deg/s): what the submodule models use for exact arithmetic.
 
 Every problem is a :class:`DbcError` naming the frame: unknown name or identifier, wrong data
-length, remote frame, missing or unknown signal, and (strict encoding) a signal value outside
-its allowed range, e.g. ``JOINT1_CMD: signal 'angle' = 400 deg is out of range
--327.68..327.67 deg``.
+length, remote frame, missing or unknown signal, and a value outside its range: for
+:func:`encode` the DBC's [min|max], which carry the physical truth (each joint's limits, the
+rated speeds, the wheel's range), e.g. ``JOINT3_CMD: signal 'angle' = -200 deg is out of
+range -135..135 deg``; for :func:`encode_raw` the signal's bit width.
 """
 from __future__ import annotations
 
@@ -138,10 +139,7 @@ class _Msg:
             tol = abs(s.scale) * 1e-6
             self.ranges[s.name] = (lo, hi)
             self.tolerant[s.name] = (lo - tol, hi + tol)
-            self.raw_ranges[s.name] = (
-                max(rlo, round((lo - s.offset) / s.scale)),
-                min(rhi, round((hi - s.offset) / s.scale)),
-            )
+            self.raw_ranges[s.name] = (rlo, rhi)    # what the wire can carry
             self.units[s.name] = s.unit or ""
 
 
@@ -187,7 +185,8 @@ def dlc(name: str) -> int:
 
 
 def signal_range(name: str, signal: str, raw: bool = False) -> tuple[float, float]:
-    """Allowed (min, max) of a signal, physical or raw."""
+    """Allowed (min, max) of a signal: physical, the DBC's [min|max] (a joint's limits, a
+    rated speed); or raw, the integers its bits can carry on the wire."""
     e = _by_name(name)
     if signal not in e.signals:
         raise DbcError(f"{name}: no signal {signal!r} (signals: {', '.join(sorted(e.signals))})")
@@ -262,7 +261,9 @@ def _encode_uncached(name: str, signals: dict[str, Any], raw: bool) -> CanFrame:
     e = _by_name(name)
     signals = _check_signals(e, signals, raw)
     try:
-        data = e.msg.encode(signals, scaling=not raw, strict=True)
+        # raw values were checked against their bit width only (a frame any CAN tool can
+        # send); physical ones against the DBC's [min|max], as cantools' strict mode does
+        data = e.msg.encode(signals, scaling=not raw, strict=not raw)
     except (cantools.database.EncodeError, KeyError, ValueError, OverflowError) as exc:
         raise DbcError(f"{name}: cannot encode {signals!r}: {exc}") from exc
     return CanFrame(e.id, data)
@@ -278,7 +279,9 @@ def encode(name: str, **signals: Any) -> CanFrame:
 
 
 def encode_raw(name: str, **signals: int) -> CanFrame:
-    """Like :func:`encode` with raw integers (no scaling); ranges are the raw ranges."""
+    """Like :func:`encode` with raw integers (no scaling), checked only against what each
+    signal's bits can carry: any frame a CAN tool could put on the bus, an out-of-limit
+    command included (the submodules refuse those)."""
     return _encode(name, signals, True)
 
 

@@ -118,13 +118,22 @@ PAW_STROKE_MS = 800
 PAW_FULL = 10_000
 """Paw position units in a full stroke (0.01 % each)."""
 
-JOINT_DEFAULTS: dict[int, dict[str, Any]] = {
-    1: dict(limits=(-170.0, 170.0), max_speed_dps=60.0, default_speed_dps=30.0),  # base yaw
-    2: dict(limits=(-10.0, 120.0), max_speed_dps=60.0, default_speed_dps=30.0),  # shoulder
-    3: dict(limits=(-135.0, 135.0), max_speed_dps=90.0, default_speed_dps=45.0),  # elbow
-    4: dict(limits=(-120.0, 120.0), max_speed_dps=90.0, default_speed_dps=45.0),  # wrist
-}
-WHEEL_MAX_SPEED_MM_S = 300
+JOINT_DEFAULT_SPEED_DPS = {1: 30.0, 2: 30.0, 3: 45.0, 4: 45.0}
+"""deg/s a joint moves at for ``speed`` 0: half its rated speed (stated in rprs.dbc too)."""
+
+
+def _joint_defaults(n: int) -> dict[str, Any]:
+    """Joint n's limits and rated speed, from rprs.dbc's [min|max] of JOINTn_CMD."""
+    lo, hi = dbc.signal_range(dbc.joint_cmd_name(n), "angle")
+    return dict(limits=(float(lo), float(hi)),
+                max_speed_dps=float(dbc.signal_range(dbc.joint_cmd_name(n), "speed")[1]),
+                default_speed_dps=JOINT_DEFAULT_SPEED_DPS[n])
+
+
+JOINT_DEFAULTS: dict[int, dict[str, Any]] = {n: _joint_defaults(n) for n in range(1, 5)}
+"""1 base yaw, 2 shoulder, 3 elbow, 4 wrist (end link)."""
+WHEEL_MAX_SPEED_MM_S = int(dbc.signal_range("WHEEL_CMD", "speed")[1])
+"""The wheel's rated speed, either way (rprs.dbc)."""
 WHEEL_ACCEL_MM_S2 = 500
 
 

@@ -38,8 +38,8 @@ from .radio.frame import BROADCAST, FrameType
 from .timing import TICK_HZ
 
 WHEEL, PAW = 5, 6
-DEFAULT_SPEED = {1: 60.0, 2: 60.0, 3: 90.0, 4: 90.0}
-"""deg/s the dispatcher plans joint motion with (the nodes' rated speeds)."""
+RATED_SPEED = {i: float(dbc.signal_range(f"JOINT{i}_CMD", "speed")[1]) for i in range(1, 5)}
+"""deg/s the dispatcher plans joint motion with: each joint's rated speed (rprs.dbc)."""
 
 MARGIN = TICK_HZ // 2
 """Extra time (0.5 s) a submodule gets beyond the planned motion time to report done."""
@@ -298,10 +298,10 @@ class Dispatcher:
         if not moves:
             return None
         dist = {i: abs(a - self._position(i)) for i, a in moves.items()}
-        duration = max(max(d / DEFAULT_SPEED[i] for i, d in dist.items()), 0.001)   # seconds
+        duration = max(max(d / RATED_SPEED[i] for i, d in dist.items()), 0.001)   # seconds
         waiting = {}
         for i, d in dist.items():
-            speed = min(DEFAULT_SPEED[i], max(DEFAULT_SPEED[i] / 4, round(d / duration, 1)))
+            speed = min(RATED_SPEED[i], max(RATED_SPEED[i] / 4, round(d / duration, 1)))
             seq = self._next_seq(i)
             self._can.append(dbc.encode(f"JOINT{i}_CMD", angle=round(moves[i], 2),
                                         speed=speed, seq=seq, mode=0))

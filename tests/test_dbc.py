@@ -117,7 +117,12 @@ def test_little_endian_layout():
 
 
 def _raw_signals(name: str):
-    e = {s.name: dbc.signal_range(name, s.name, raw=True) for s in dbc.message(name).signals}
+    """Raw integers whose physical values lie in the DBC's [min|max]."""
+    e = {}
+    for s in dbc.message(name).signals:
+        lo, hi = dbc.signal_range(name, s.name)
+        e[s.name] = (math.ceil(round((lo - s.offset) / s.scale, 6)),
+                     math.floor(round((hi - s.offset) / s.scale, 6)))
     return st.fixed_dictionaries({k: st.integers(lo, hi) for k, (lo, hi) in e.items()})
 
 
@@ -139,8 +144,12 @@ def test_round_trip_raw_and_physical(data, name):
 
 
 @pytest.mark.parametrize("name,signal,value,rng", [
-    ("JOINT1_CMD", "angle", 327.68, "-327.68..327.67"),
-    ("JOINT3_CMD", "speed", -0.1, "0..6553.5"),
+    ("JOINT1_CMD", "angle", 170.01, "-170..170 deg"),
+    ("JOINT2_CMD", "angle", -10.5, "-10..120 deg"),
+    ("JOINT3_CMD", "angle", -200, "-135..135 deg"),
+    ("JOINT3_CMD", "speed", -0.1, "0..90 deg/s"),
+    ("JOINT1_CMD", "speed", 60.1, "0..60 deg/s"),
+    ("WHEEL_CMD", "speed", 301, "-300..300 mm/s"),
     ("JOINT4_CMD", "mode", 3, "0..2"),
     ("EVENT2", "kind", 0, "1..3"),
     ("PAW_CMD", "force", 101, "0..100"),
@@ -156,6 +165,18 @@ def test_out_of_range_raises_dbc_error_with_signal_and_range(name, signal, value
         dbc.encode(name, **signals)
     msg = str(exc.value)
     assert name in msg and repr(signal) in msg and rng in msg
+    # the same out-of-limit value still goes on the wire raw (a CAN tool can send it; the
+    # submodules refuse it), unless its bits cannot carry it
+    s = m.get_signal_by_name(signal)
+    raw = round((value - s.offset) / s.scale)
+    rlo, rhi = dbc.signal_range(name, signal, raw=True)
+    raw_signals = {k: round((v - m.get_signal_by_name(k).offset) / m.get_signal_by_name(k).scale)
+                   for k, v in signals.items()}
+    if rlo <= raw <= rhi:
+        assert dbc.decode_raw(dbc.encode_raw(name, **raw_signals))[1][signal] == raw
+    else:
+        with pytest.raises(dbc.DbcError, match="raw signal"):
+            dbc.encode_raw(name, **raw_signals)
 
 
 def test_encode_errors():
@@ -190,8 +211,9 @@ def test_decode_errors_name_the_frame():
 
 def test_cantools_cli_decodes_a_candump_log(tmp_path):
     frames = [
-        dbc.encode("JOINT2_CMD", angle=-12.5, speed=30, seq=17, mode="move"),
+        dbc.encode("JOINT2_CMD", angle=12.5, speed=30, seq=17, mode="move"),
         dbc.encode("EVENT2", kind="done", seq=17, code=0),
+        dbc.encode("EVENT3", kind="fault", seq=4, code=1),
         dbc.encode("WHEEL_STATUS", speed=-150, odometer=1234, state=1, seq=3),
     ]
     lines = [f"  can0  {f.id:03X}   [{f.dlc}]  " + " ".join(f"{b:02X}" for b in f.data) for f in frames]
@@ -200,6 +222,47 @@ def test_cantools_cli_decodes_a_candump_log(tmp_path):
         [sys.executable, "-m", "cantools", "decode", str(DBC)],
         input=log, capture_output=True, text=True, timeout=120, check=True,
     ).stdout
-    assert "JOINT2_CMD(" in out and "angle: -12.5 deg" in out and "mode: move" in out
-    assert "EVENT2(" in out and "kind: done" in out
+    assert "JOINT2_CMD(" in out and "angle: 12.5 deg" in out and "mode: move" in out
+    assert "EVENT2(" in out and "kind: done" in out and "code: none" in out
+    assert "EVENT3(" in out and "kind: fault" in out and "code: stalled(fault)" in out
     assert "WHEEL_STATUS(" in out and "odometer: 1234 mm" in out and "state: moving" in out
+
+
+def test_the_dbc_carries_the_physical_truth():
+    """Each joint's limits, its rated and default speeds, and the wheel's range are in
+    rprs.dbc, and they are what the firmware's kinematics and the submodules use: cantools
+    alone refuses a command the submodule would refuse (it once encoded -200 deg for joint 3)."""
+    import cantools
+
+    from can_bus.submodules import JOINT_DEFAULT_SPEED_DPS, JOINT_DEFAULTS, WHEEL_MAX_SPEED_MM_S
+    from firmware_model.kinematics import JOINT_LIMITS, WHEEL_MAX_SPEED
+    db = cantools.database.load_file(str(DBC), strict=True)
+    for n, (lo, hi) in JOINT_LIMITS.items():
+        cmd = db.get_message_by_name(f"JOINT{n}_CMD")
+        angle, speed = cmd.get_signal_by_name("angle"), cmd.get_signal_by_name("speed")
+        assert (angle.minimum, angle.maximum) == (lo, hi)
+        assert JOINT_DEFAULTS[n]["limits"] == (lo, hi)
+        assert speed.maximum == JOINT_DEFAULTS[n]["max_speed_dps"]
+        assert f"0 = the joint's default speed, {JOINT_DEFAULT_SPEED_DPS[n]:g} deg/s" in \
+            speed.comment
+        status = db.get_message_by_name(f"JOINT{n}_STATUS").get_signal_by_name("angle")
+        assert (status.minimum, status.maximum) == (lo, hi)
+        with pytest.raises(cantools.database.EncodeError):
+            cmd.encode({"angle": lo - 0.01, "speed": 0, "seq": 0, "mode": 0})
+    wheel = db.get_message_by_name("WHEEL_CMD").get_signal_by_name("speed")
+    assert (wheel.minimum, wheel.maximum) == (-WHEEL_MAX_SPEED, WHEEL_MAX_SPEED)
+    assert WHEEL_MAX_SPEED_MM_S == WHEEL_MAX_SPEED
+
+
+def test_event_codes_have_a_value_table():
+    """The code of an EVENT is named, for the kind it comes with (fault or refused)."""
+    import cantools
+    db = cantools.database.load_file(str(DBC), strict=True)
+    for n in range(1, 7):
+        m = db.get_message_by_name(dbc.event_name(n))
+        names = {int(k): str(v) for k, v in m.get_signal_by_name("code").choices.items()}
+        assert names[0] == "none"
+        assert names[dbc.FAULT_STALLED].startswith("stalled(fault)")
+        assert names[dbc.REFUSED_RANGE].endswith("out_of_range(refused)")
+        assert names[dbc.FAULT_OVERCURRENT] == "overcurrent(fault)/faulted(refused)"
+        assert dbc.REFUSED_FAULTED == dbc.FAULT_OVERCURRENT and dbc.REFUSED_BUSY == dbc.FAULT_LIMIT

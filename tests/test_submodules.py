@@ -166,7 +166,7 @@ def test_default_speed_and_speed_limit(env):
     end = env.send("JOINT3_CMD", angle=45, speed=0, seq=1, mode="move")  # default 45 deg/s
     env.run(end + TICK_HZ + 5 * MS)
     assert env.events(3) == [(end + TICK_HZ, DONE, 1, 0)]
-    end = env.send("JOINT3_CMD", angle=0, speed=90.1, seq=2, mode="move")  # max 90 deg/s
+    end = env.send("JOINT3_CMD", raw=True, angle=0, speed=901, seq=2, mode=0)  # 90.1 > 90 deg/s
     env.run(end + 5 * MS)
     assert env.events(3, since=end) == [(end + IFS, REFUSED, 2, dbc.REFUSED_RANGE)]
     assert env.nodes["JOINT3"].angle_cdeg == 4500 and env.nodes["JOINT3"].seq == 1
@@ -174,7 +174,7 @@ def test_default_speed_and_speed_limit(env):
 
 def test_out_of_limit_target_refused(env):
     env.run(T0)
-    end = env.send("JOINT2_CMD", angle=120.01, speed=10, seq=9, mode="move")
+    end = env.send("JOINT2_CMD", raw=True, angle=12001, speed=100, seq=9, mode=0)  # 120.01 deg
     env.run(end + 200 * MS)
     assert env.events(2) == [(end + IFS, REFUSED, 9, dbc.REFUSED_RANGE)]
     j = env.nodes["JOINT2"]
@@ -316,7 +316,7 @@ def test_wheel_continuous_speed_ramp_exact(env):
 def test_wheel_refusals_and_stall(env):
     env.run(T0)
     w = env.nodes["WHEEL"]
-    e1 = env.send("WHEEL_CMD", speed=301, distance=0, seq=1)
+    e1 = env.send("WHEEL_CMD", raw=True, speed=301, distance=0, seq=1)
     e2 = env.send("WHEEL_CMD", speed=100, distance=-5, seq=2)
     e3 = env.send("WHEEL_CMD", speed=0, distance=5, seq=3)
     env.run(e3 + 5 * MS)
