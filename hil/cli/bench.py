@@ -45,6 +45,9 @@ def cmd_bench(a: argparse.Namespace) -> int:
                   f"ms against Ttrans {rep['spec_gap_ms']:g} ms; error median "
                   f"{rep['turn_gap_error_ms_median']:.2f} ms, p99 "
                   f"{rep['turn_gap_error_ms_p99']:.2f} ms")
+        if rep["invitation_windows"]:
+            print(f"invitation windows (after a poll, not hand-overs): "
+                  f"{rep['invitation_windows']}, median {rep['invitation_gap_ms_median']:.1f} ms")
         for r, c in rep["cycle_ms_median"].items():
             print(f"  robot {r}: {rep['frames_per_robot'][r]} frames, cycle median {c:.1f} ms")
         return 0
