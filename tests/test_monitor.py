@@ -317,3 +317,42 @@ def test_after_exit_the_world_runs_and_nothing_is_drawn():
     app.advance(1.0)
     app.tick()
     assert app.world.now == 2 * TICK_HZ and app.shown("#header") == head
+
+
+def test_the_monitor_writes_the_trace_and_waveform_it_shows(tmp_path):
+    """``rprs monitor --trace/--vcd`` once listed the options and ignored them. The trace of
+    a monitored world is the simulator's trace of the same seed, up to where the view was."""
+    import json
+
+    from hil.cli import main
+    from hil.sim.trace import TraceWriter, read_trace
+    from hil.view.vcd import VcdTraceWriter
+    cfg = dict(robots=(1, 2, 3), seed=5, load=2.0)
+    trace, vcd = TraceWriter(str(tmp_path / "m.jsonl")), VcdTraceWriter(str(tmp_path / "m.vcd"))
+    app = SimMonitorApp(SimConfig(duration=600.0, **cfg), paused=True, trace=trace,
+                        on_event=vcd.write)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            app.advance(3.0)
+            await pilot.pause()
+    run(go())
+    trace.close()
+    vcd.close()
+    assert main(["sim", "--robots", "1,2,3", "--seed", "5", "--load", "2", "--duration", "3",
+                 "--trace", str(tmp_path / "s.jsonl"), "--no-progress"]) == 0
+    mon = [e for e in read_trace(str(tmp_path / "m.jsonl")) if e["ev"] != "meta"]
+    ref = [e for e in read_trace(str(tmp_path / "s.jsonl")) if e["ev"] != "meta"]
+    end = 3 * TICK_HZ
+    assert len(ref) > 100
+    assert [e for e in mon if e["t"] < end] == [e for e in ref if e["t"] < end]
+    assert (tmp_path / "m.vcd").read_text().startswith("$")
+    assert json.loads((tmp_path / "m.jsonl").read_text().splitlines()[0])["ev"] == "meta"
+
+
+def test_monitor_outputs_with_a_radio_are_refused_in_one_line(capsys):
+    from hil.cli import main
+    assert main(["monitor", "--radio", "/dev/null", "--trace", "x.jsonl"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--trace: only for the simulated ring" in err
+    assert main(["monitor", "--no-progress"]) == 2          # no progress bar to turn off

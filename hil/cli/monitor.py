@@ -5,12 +5,17 @@ import argparse
 
 from ..sim.world import ConfigError
 from .common import UserError, positive
-from .sim import add_sim_options, sim_config
+from .sim import add_sim_options, close_writers, open_writers, print_summary, sim_config
 
 def cmd_monitor(a: argparse.Namespace) -> int:
     from ..view.monitor import run_monitor_radio, run_monitor_sim
     from ..bench.serial_radio import PortError
     if a.radio:
+        given = [o for o, v in (("--trace", a.trace), ("--vcd", a.vcd), ("--json", a.json))
+                 if v]
+        if given:
+            raise UserError(f"{', '.join(given)}: only for the simulated ring, not with --radio "
+                            f"(record a radio with rprs bench or the hub)")
         try:
             return run_monitor_radio(a.radio)
         except PortError as exc:
@@ -20,13 +25,23 @@ def cmd_monitor(a: argparse.Namespace) -> int:
         cfg.validate()
     except ConfigError as exc:
         raise UserError(str(exc)) from None
-    return run_monitor_sim(cfg, a.speed)
+    trace, vcd = open_writers(a.trace, a.vcd)
+    ok = False
+    try:
+        code, world = run_monitor_sim(cfg, a.speed, trace=trace,
+                                      on_event=vcd.write if vcd is not None else None)
+        ok = True
+    finally:
+        close_writers(trace, vcd, ok)
+    if a.json:
+        print_summary(world, 0.0, as_json=True)
+    return code
 
 
 def add(sub) -> None:
     mo = sub.add_parser("monitor", help="live terminal view of the ring (paper Fig. 9): the "
                         "simulator, or --radio PORT")
-    add_sim_options(mo)
+    add_sim_options(mo, progress=False)   # --trace/--vcd: the world up to where you quit
     mo.add_argument("--speed", type=positive, default=1.0,
                     help="simulated seconds per wall second (default 1)")
     mo.add_argument("--radio", metavar="PORT", help="listen to a radio hub pty or a USB radio")

@@ -12,7 +12,10 @@ from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
 from .common import UserError, checked_mac_config, digit, profile_option, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
 
-def add_sim_options(p: argparse.ArgumentParser, demo: bool = False) -> None:
+def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
+                    progress: bool = True) -> None:
+    """The world's options, and its outputs (``--trace``, ``--vcd`` outside demos,
+    ``--json``, and ``--no-progress`` where there is a progress bar)."""
     p.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4) if demo else
                    (1, 2, 3, 4), help="robot IDs in the ring; 0 adds the father "
                    "(default: %(default)s)")
@@ -52,7 +55,8 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False) -> None:
         p.add_argument("--vcd", metavar="FILE", help="write a waveform (GTKWave) here")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    if progress:
+        p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def sim_config(a: argparse.Namespace) -> SimConfig:
@@ -76,8 +80,9 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer)
 
 
-def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
-               vcd_path: str | None = None) -> tuple[World, float]:
+def open_writers(trace_path: str | None, vcd_path: str | None):
+    """(TraceWriter or None, VcdTraceWriter or None); a path that cannot be written is a
+    UserError, and nothing is left behind."""
     trace = vcd = None
     if trace_path:
         try:
@@ -92,6 +97,19 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
             if trace is not None:
                 trace.discard()
             raise UserError(f"cannot write waveform {vcd_path}: {exc}") from None
+    return trace, vcd
+
+
+def close_writers(trace, vcd, ok: bool) -> None:
+    """Close the writers (their files appear whole) or, if the run failed, discard them."""
+    for w in (trace, vcd):
+        if w is not None:
+            w.close() if ok else w.discard()
+
+
+def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
+              vcd_path: str | None = None) -> tuple[World, float]:
+    trace, vcd = open_writers(trace_path, vcd_path)
     try:
         world = World(cfg, trace, on_event=vcd.write if vcd is not None else None)
         t0 = time.perf_counter()
@@ -111,15 +129,9 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
             world.run()
         wall = time.perf_counter() - t0
     except BaseException:
-        if trace is not None:
-            trace.discard()
-        if vcd is not None:
-            vcd.discard()
+        close_writers(trace, vcd, ok=False)
         raise
-    if trace is not None:
-        trace.close()
-    if vcd is not None:
-        vcd.close()
+    close_writers(trace, vcd, ok=True)
     return world, wall
 
 

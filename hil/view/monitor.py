@@ -50,7 +50,7 @@ from __future__ import annotations
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, replace
-from typing import Iterable
+from typing import Any, Callable, Iterable
 
 from rich.text import Text
 from textual.app import App, ComposeResult
@@ -297,10 +297,14 @@ class SimMonitorApp(MonitorApp):
     ] + [Binding(str(d), f"digit({d})", str(d), show=False) for d in range(10)]
 
     def __init__(self, config: SimConfig, speed: float = 1.0, paused: bool = False,
-                 rate: float = RATE_HZ, keep: int = KEEP) -> None:
+                 rate: float = RATE_HZ, keep: int = KEEP, trace: Any = None,
+                 on_event: Callable[[dict], None] | None = None) -> None:
+        """``trace`` (a TraceWriter) and ``on_event`` also get the world's events, as in
+        ``rprs sim`` (the caller closes them)."""
         if config.realtime:
             config = replace(config, realtime=False)   # the monitor paces the world itself
-        self.world = World(config, on_event=self._on_event)
+        self._also = on_event
+        self.world = World(config, trace, on_event=self._on_event)
         super().__init__(config.robots, rate)
         self.sub_title = "simulator"
         self.speed = min(SPEED_MAX, max(SPEED_MIN, float(speed)))
@@ -333,6 +337,8 @@ class SimMonitorApp(MonitorApp):
         return observe
 
     def _on_event(self, ev: dict) -> None:
+        if self._also is not None:
+            self._also(ev)
         k = ev["ev"]
         if k == "frame":
             self.last_sender = ev["src"]
@@ -739,12 +745,14 @@ class RadioMonitorApp(MonitorApp):
 # Entry points for the CLI
 
 
-def run_monitor_sim(config: SimConfig, speed: float = 1.0) -> int:
+def run_monitor_sim(config: SimConfig, speed: float = 1.0, trace: Any = None,
+                    on_event: Callable[[dict], None] | None = None) -> tuple[int, World]:
     """``rprs monitor [sim options] [--speed X]``: run the TUI on a simulated world until q.
-    The world stops at ``config.duration`` (the header then says FINISHED)."""
-    app = SimMonitorApp(config, speed=speed)
+    The world stops at ``config.duration`` (the header then says FINISHED). Returns the exit
+    status and the world as it was when the view closed."""
+    app = SimMonitorApp(config, speed=speed, trace=trace, on_event=on_event)
     app.run()
-    return app.return_code or 0
+    return app.return_code or 0, app.world
 
 
 def run_monitor_radio(port: str) -> int:
