@@ -222,3 +222,27 @@ def test_txen_on_a_pty_is_refused_in_one_line():
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert "--txen rts" in r.stderr and "no RTS line" in r.stderr
+
+
+def test_demo_ring_tells_the_story_of_its_run(capsys):
+    """The rejoin the demo exists to show was hidden behind "(+3 more)", and R1 was called a
+    "member" while its radio was off. The story has every happening, in order, in words."""
+    code, out, _ = rprs(capsys, "demo", "ring", "--no-progress")
+    assert code == 0
+    story = out.split("What happened:\n", 1)[1].split("\n\n", 1)[0].splitlines()
+    text = [line.split(" s  ", 1)[1] for line in story]
+    times = [float(line.split(" s  ", 1)[0]) for line in story]
+    assert times == sorted(times)
+    order = ["father 0 hears nobody and starts the ring", "R1 is in the ring",
+             "R1: its radio goes silent", "R1 misses its turn", "R1 misses its turn",
+             "R1 misses its turn", "R1 is dropped after three missed turns",
+             "R1, alone with its radio cut off, hears nobody and claims the channel for itself",
+             "R1: its radio comes back", "R1 is in the ring again"]
+    at = 0
+    for want in order:
+        at = text.index(want, at) + 1
+    cut = text.index("R1: its radio goes silent")
+    back = text.index("R1: its radio comes back")
+    # while its radio is cut off, R1's own view (everyone else missing) is not the story
+    assert not [t for t in text[cut:back] if "misses its turn" in t and not t.startswith("R1")]
+    assert "(+" not in out and "member 1" not in out

@@ -10,6 +10,64 @@ from ..sim.world import ConfigError, SimConfig, World
 from .common import Parser, UserError, checked_mac_config, digit, positive, probability, profile_option
 from .sim import add_sim_options, cmd_sim
 
+STORY_EVENTS = frozenset({"mode", "join", "rejoin", "disable", "miss", "fault", "collision"})
+
+
+def _name(r: int) -> str:
+    return "father 0" if r == 0 else f"R{r}"
+
+
+def ring_story(events: list[dict]) -> list[str]:
+    """The run told in lines, one a happening: faults, misses, drops, claims, invitations,
+    joins, collisions (each observer's view of the same happening is one line)."""
+    lines: list[str] = []
+    cut: set[int] = set()                   # robots whose radio a fault has cut off
+    seen: dict[tuple, list[int]] = {}
+    for ev in events:
+        k = ev["ev"]
+        if k not in STORY_EVENTS:
+            continue
+        t = ev["t"] / TICK_HZ
+        r = ev.get("robot")
+        if k == "miss" and ev["by"] in cut:
+            continue                        # a robot that hears nothing counts everyone out
+        if k in ("join", "rejoin", "disable", "miss"):
+            key = (ev["t"], k, r)
+            if key in seen:
+                seen[key].append(ev["by"])
+                continue
+            seen[key] = [ev["by"]]
+        if k == "fault" and ev.get("phase") == "start" and ev["kind"] in ("fail", "recover"):
+            (cut.add if ev["kind"] == "fail" else cut.discard)(r)
+            text = "its radio goes silent" if ev["kind"] == "fail" else "its radio comes back"
+            lines.append(f"{t:8.3f} s  {_name(r)}: {text}")
+        elif k == "miss":
+            lines.append(f"{t:8.3f} s  {_name(r)} misses its turn")
+        elif k == "disable":
+            lines.append(f"{t:8.3f} s  {_name(r)} is dropped after three missed turns")
+        elif k in ("join", "rejoin"):
+            again = " again" if k == "rejoin" else ""
+            lines.append(f"{t:8.3f} s  {_name(r)} is in the ring{again}")
+        elif k == "collision":
+            who = " and ".join(_name(x) for x in ev["robots"] if x >= 0) or "a foreign radio"
+            lines.append(f"{t:8.3f} s  collision: {who} sent at once")
+        elif k == "mode" and ev["mode"] == "member":
+            reason = ev["reason"]
+            if r in cut and reason == "claimed the silent channel":
+                lines.append(f"{t:8.3f} s  {_name(r)}, alone with its radio cut off, hears "
+                             f"nobody and claims the channel for itself")
+            elif reason == "claimed the silent channel":
+                lines.append(f"{t:8.3f} s  {_name(r)} hears nobody and starts the ring")
+            elif reason.startswith("invited by robot "):
+                lines.append(f"{t:8.3f} s  {_name(r)} answers "
+                             f"{_name(int(reason.rsplit(' ', 1)[1]))}'s invitation")
+            else:
+                lines.append(f"{t:8.3f} s  {_name(r)}: {reason}")
+        elif k == "mode":
+            lines.append(f"{t:8.3f} s  {_name(r)} goes to {ev['mode'].upper()}: {ev['reason']}")
+    return lines
+
+
 def cmd_demo_ring(a: argparse.Namespace) -> int:
     if not a.fail and not a.recover and not a.json:
         a.fail = [(1, 8.0)]
@@ -17,7 +75,15 @@ def cmd_demo_ring(a: argparse.Namespace) -> int:
         print("Demo: the father (ID 0) and children R1-R4 power on together, form the ring "
               "and exchange seeded commands;\nR1's radio goes silent at 8 s (dropped after "
               "three missed turns) and comes back at 16 s (invited back).\n")
-    return cmd_sim(a, demo=True)
+
+    def story(events: list[dict]) -> None:
+        if a.json:
+            return
+        print("What happened:")
+        for line in ring_story(events):
+            print(line)
+        print()
+    return cmd_sim(a, demo=True, before_summary=story)
 
 
 def cmd_demo_actions(a: argparse.Namespace) -> int:

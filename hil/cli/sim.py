@@ -108,10 +108,14 @@ def close_writers(trace, vcd, ok: bool) -> None:
 
 
 def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
-              vcd_path: str | None = None) -> tuple[World, float]:
+              vcd_path: str | None = None, on_event=None) -> tuple[World, float]:
+    """Run the world to its end, with its trace and waveform files; ``on_event`` gets every
+    event too."""
     trace, vcd = open_writers(trace_path, vcd_path)
+    sinks = [f for f in (vcd.write if vcd is not None else None, on_event) if f is not None]
     try:
-        world = World(cfg, trace, on_event=vcd.write if vcd is not None else None)
+        world = World(cfg, trace, on_event=sinks[0] if len(sinks) == 1 else
+                      (lambda ev: [f(ev) for f in sinks]) if sinks else None)
         t0 = time.perf_counter()
         end = world.end_tick
         if progress:
@@ -135,7 +139,9 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
     return world, wall
 
 
-def print_summary(world: World, wall: float, as_json: bool) -> None:
+def print_summary(world: World, wall: float, as_json: bool, membership: bool = True) -> None:
+    """The summary table; ``membership=False`` leaves out the list of membership changes
+    (the demos tell them as a story instead)."""
     s = world.summary()
     sim_s = ticks_to_s(s["duration_ticks"])
     s["wall_seconds"] = round(wall, 3)
@@ -162,9 +168,10 @@ def print_summary(world: World, wall: float, as_json: bool) -> None:
               "missed: turns missed")
     changes = s["membership_changes"]
     shown = ", ".join(f"{ticks_to_s(c['t']):.3f}s {c['ev']} {c['robot']}" for c in changes[:12])
-    more = f" (+{len(changes) - 12} more)" if len(changes) > 12 else ""
-    con.print(f"ring membership changes: {len(changes)}" + (f": {shown}{more}" if changes
-                                                             else ""))
+    more = f" (+{len(changes) - 12} more: --json or --trace has them all)" \
+        if len(changes) > 12 else ""
+    con.print(f"ring membership changes: {len(changes)}" + (f": {shown}{more}" if changes and
+                                                             membership else ""))
     con.print(f"channel occupations: {s['occupations']}   collisions: {s['collisions']}"
               + (f"   CAN frames: {world.can_frames}" if world.cfg.can else ""))
     unacked = (f"sent unacknowledged (paper profile) {s['unacknowledged']}, "
@@ -177,15 +184,20 @@ def print_summary(world: World, wall: float, as_json: bool) -> None:
                   f"real time[/dim]")
 
 
-def cmd_sim(a: argparse.Namespace, demo: bool = False) -> int:
+def cmd_sim(a: argparse.Namespace, demo: bool = False, before_summary=None) -> int:
+    """``rprs sim``; ``before_summary(events)`` (the demos) prints from the run's events."""
     cfg = sim_config(a)
     try:
         cfg.validate()
     except ConfigError as exc:
         raise UserError(str(exc)) from None
     progress = not a.no_progress and sys.stderr.isatty() and cfg.duration >= 60
-    world, wall = run_world(cfg, a.trace, progress, getattr(a, "vcd", None))
-    print_summary(world, wall, a.json)
+    events: list[dict] = []
+    world, wall = run_world(cfg, a.trace, progress, getattr(a, "vcd", None),
+                            on_event=events.append if before_summary else None)
+    if before_summary is not None:
+        before_summary(events)
+    print_summary(world, wall, a.json, membership=before_summary is None)
     return 0
 
 
