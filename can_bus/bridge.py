@@ -14,6 +14,7 @@ received with python-can's writers, chosen by the file's extension (candump ``.l
 from __future__ import annotations
 
 import errno
+import time
 from typing import Any
 
 import can
@@ -100,9 +101,14 @@ class PythonCanBus:
     """Local CAN nodes on a python-can bus (real time)."""
 
     def __init__(self, sched: Any, bus: can.BusABC, timing: BitTiming | None = None,
-                 log: str | None = None) -> None:
+                 log: str | None = None, channel: str | None = None) -> None:
+        """``log``: a python-can log file (.log .asc .blf ...) of every frame sent and
+        received, stamped with the wall clock (seconds since the epoch, like SocketCAN's
+        receive stamps and candump's), own frames marked as sent (``T``/``Tx``), each with
+        ``channel`` (the bus's channel, e.g. ``vcan0`` or the ``rprs_unix`` directory)."""
         self.sched = sched
         self.bus = bus
+        self.channel = channel
         self.timing = timing or BitTiming()
         self.nodes: list[Any] = []
         self._queues: dict[int, list[CanFrame]] = {}
@@ -171,7 +177,9 @@ class PythonCanBus:
             return
         self._busy.add(id(node))
         now = self.sched.now
-        msg = frame.to_message(timestamp=now / 16_000_000)
+        msg = frame.to_message(timestamp=time.time())
+        msg.is_rx = False
+        msg.channel = self.channel
         try:
             self.bus.send(msg, timeout=0.1)
         except can.CanError:
@@ -216,6 +224,11 @@ class PythonCanBus:
             * self.timing.ticks_per_bit
         self.received += 1
         if self._writer is not None:
+            if msg.channel is None:
+                msg.channel = self.channel
+            # Whatever reaches this bus object came from another one: received. (SocketCAN
+            # flags every frame sent from this host, another process's too, as not received.)
+            msg.is_rx = True
             self._writer.on_message_received(msg)
         if self.trace is not None:
             self.trace(frame, start, end, None)

@@ -56,6 +56,13 @@ if ! command -v ip >/dev/null; then
   fi
 fi
 IP=$(command -v ip)
+# can-utils: candump, an independent reader of vcan0 that tests compare our CAN logs with. If it
+# cannot be installed, those tests skip and say so; nothing else needs it.
+if ! command -v candump >/dev/null && [ "$(id -u)" = 0 ]; then
+  say "installing can-utils on the host (candump, for the tests that compare logs with it)"
+  { apt-get install -y -qq can-utils || { apt-get update -qq && apt-get install -y -qq can-utils; }; } \
+    >/dev/null 2>&1 || say "could not install can-utils: the candump comparison will skip"
+fi
 
 mkdir -p "$CACHE"
 # everything in the cache stays out of git, whatever the project's .gitignore says

@@ -19,7 +19,7 @@ import threading
 from dataclasses import replace
 from typing import Any, Callable, TextIO
 
-from can_bus.bridge import CanOpenError, PythonCanBus, open_bus
+from can_bus.bridge import CanOpenError, PythonCanBus, open_bus, parse_spec
 from can_bus.submodules import make_submodules
 from can_bus.transceiver import Transceiver82C250
 from firmware_model.child import ChildFirmware
@@ -160,7 +160,7 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
 
 def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
     try:
-        bus = PythonCanBus(runner.sched, open_bus(spec), log=log)
+        bus = PythonCanBus(runner.sched, open_bus(spec), log=log, channel=parse_spec(spec)[1])
     except CanOpenError as exc:
         raise RunError(str(exc)) from None
     except (OSError, ValueError) as exc:
