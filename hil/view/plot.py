@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections import deque
 from typing import Any, Iterable
 
@@ -370,6 +371,26 @@ def _dimension(ax, x0, x1, y, text, colour="black"):
     ax.text((x0 + x1) / 2, y + 0.12, text, ha="center", va="bottom", fontsize=8, color=colour)
 
 
+_CLIP_ID = re.compile(rb'id="(p[0-9a-f]{10})"')
+
+
+def _number_clip_paths(path: str) -> None:
+    """Matplotlib names an SVG clip path by hashing, among other things, an object's memory
+    address, so the same figure drawn twice in one process could differ there and only there.
+    Renaming them clip1, clip2, ... in order of appearance makes the same trace give the same
+    SVG bytes."""
+    with open(path, "rb") as f:
+        data = f.read()
+    names: dict[bytes, bytes] = {}
+    for m in _CLIP_ID.finditer(data):
+        names.setdefault(m.group(1), b"clip%d" % (len(names) + 1))
+    for old, new in names.items():
+        data = data.replace(b'id="' + old + b'"', b'id="' + new + b'"')
+        data = data.replace(b"url(#" + old + b")", b"url(#" + new + b")")
+    with open(path, "wb") as f:
+        f.write(data)
+
+
 def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
                end_s: float | None = None, max_turns: int = MAX_TURNS) -> dict:
     """Draw the paper's Fig. 7 from a trace's events (meta first) into ``out`` (.png or .svg).
@@ -518,6 +539,8 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
     try:
         with rc_context({"svg.hashsalt": "rprs"}):   # same trace, same SVG
             fig.savefig(tmp, format=ext, metadata={"Date": None} if ext == "svg" else None)
+        if ext == "svg":
+            _number_clip_paths(tmp)
         os.replace(tmp, out)
     except OSError as exc:
         try:
