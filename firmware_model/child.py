@@ -34,10 +34,12 @@ from typing import Any, Callable
 
 from can_bus.bus import CanFrame
 
-from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, Dispatcher
+from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, Dispatcher
 from .mcu.can_controller import AMS_AMR0, AMS_AMR1, CSR_NIE, CSR_NT, CanController
 from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
+from .radio.content import cmd
+from .radio.frame import BROADCAST, FrameType
 from .radio.mac import Deliver, Join, ModeChange
 from .sequence import ActionSequence
 from .station import RadioStation
@@ -264,3 +266,37 @@ class ChildFirmware:
             self.timer.arm_at(min(ticks))
         else:
             self.timer.stop()
+
+
+REQUEST_TYPES = frozenset({int(FrameType.SEEK_HELP), int(FrameType.INVITATION),
+                           int(FrameType.INSTRUCTION)})
+"""Types '0'-'2': messages that ask something of their destination (docs/protocol.md §3)."""
+
+
+class RadioOnlyChild:
+    """A child with a radio and no CAN side (``rprs child`` without ``--can``). It takes part
+    in the ring, and answers every order addressed to it (``joint``, ``status``, ...) with a
+    failure, Type '4' ``fail(42)`` and the order (docs/dispatcher.md): it acknowledged orders
+    and silently did nothing before."""
+
+    ORDERS = frozenset(n[5:] for n in dir(Dispatcher) if n.startswith("_cmd_")) - {"fail"}
+    """What the dispatcher would act on; a ``fail`` report is news, not an order (answering
+    it could bounce failures between two robots for ever)."""
+
+    def __init__(self, station: RadioStation) -> None:
+        self.station = station
+        self.refused = 0
+        station.app = self._on_message
+
+    def _on_message(self, d: Deliver, now: int) -> None:
+        if d.dst == BROADCAST or d.type not in REQUEST_TYPES:
+            return                  # news (a reply, a failure, a notice) is not an order
+        order = next((c for c in d.commands if c.name in self.ORDERS), None)
+        if order is None:
+            return
+        self.refused += 1
+        try:
+            self.station.submit(d.src, (cmd("fail", CODE_NO_CAN), order),
+                                int(FrameType.FAILURE))
+        except ValueError:
+            pass  # refused (queue full, destination not in the ring): nothing else to do

@@ -62,6 +62,8 @@ CODE_REFUSED = 20
 CODE_SILENT = 30
 CODE_BUS_OFF = 40
 CODE_BLOCKED = 41
+CODE_NO_CAN = 42
+"""The child has no CAN side at all (a radio-only ``rprs child``): it cannot act on orders."""
 
 
 @dataclass(eq=False)
@@ -239,10 +241,28 @@ class Dispatcher:
         self._can.append(dbc.encode("WHEEL_CMD", speed=0, distance=0,
                                     seq=self._next_seq(WHEEL)))
 
+    def fresh(self, n: int, now: int) -> bool:
+        """Submodule ``n`` sent a status frame less than SILENCE (300 ms) ago."""
+        seen = self.nodes[n].last_seen
+        return seen is not None and now - seen < SILENCE
+
     def _cmd_status(self, src: int, c: Command, now: int) -> None:
-        reply = [cmd("joint", i, round(self.nodes[i].value, 2)) for i in range(1, 5)]
-        reply.append(cmd("wheel", int(round(self.nodes[WHEEL].value))))
-        reply.append(cmd("paw", 1 if self.nodes[PAW].value >= 50 else 0))
+        """Only fresh values are reported: a submodule with no status for 300 ms (or none
+        ever) answers ``fail(30+n)`` in its place; with none fresh, or the child off the bus,
+        the answer is a failure (Type '4'): ``fail(30)`` (no submodule answers), ``fail(41)``."""
+        if self.isolated:
+            self._fail(src, CODE_BLOCKED, c)
+            return
+        fresh = {n: self.fresh(n, now) for n in self.nodes}
+        if not any(fresh.values()):
+            self._fail(src, CODE_SILENT, c)
+            return
+        reply = [cmd("joint", i, round(self.nodes[i].value, 2)) if fresh[i] else
+                 cmd("fail", CODE_SILENT + i) for i in range(1, 5)]
+        reply.append(cmd("wheel", int(round(self.nodes[WHEEL].value))) if fresh[WHEEL] else
+                     cmd("fail", CODE_SILENT + WHEEL))
+        reply.append(cmd("paw", 1 if self.nodes[PAW].value >= 50 else 0) if fresh[PAW] else
+                     cmd("fail", CODE_SILENT + PAW))
         self._radio.append((src, tuple(reply), int(FrameType.BROADCAST_INFO)))
 
     # -- actions (paper §V.B, Fig. 11) ------------------------------------------------------

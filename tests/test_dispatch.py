@@ -244,3 +244,63 @@ def test_isolation_with_a_frame_on_the_blocked_bus_retries_without_reloading_it(
     sched.run_until(sched.now + 16_000)
     assert not drv.isolated
     assert sent == [(0x101, b"\x01"), (0x101, b"\x02")]
+
+
+def _status_frame(n: int, value: float):
+    if n <= 4:
+        return dbc.encode(f"JOINT{n}_STATUS", angle=value, speed=0, state=0, seq=0)
+    if n == 5:
+        return dbc.encode("WHEEL_STATUS", speed=value, odometer=0, state=0, seq=0)
+    return dbc.encode("PAW_STATUS", opening=value, grip=0, state=0, seq=0)
+
+
+def test_status_reports_only_fresh_values_and_says_which_are_not():
+    """status() once answered stale angles after the submodules died, and all zeros when none
+    had ever spoken. Now a value is given only if its submodule spoke within 300 ms; the
+    others are fail(30+n) in their place; with none fresh the answer is fail(30)status()."""
+    from firmware_model.dispatcher import SILENCE, Dispatcher
+    from firmware_model.radio.frame import FrameType
+    d = Dispatcher(1)
+    d.on_message(0, 1, (cmd("status"),), 0)
+    assert d.take_radio() == [(0, (cmd("fail", 30), cmd("status")), int(FrameType.FAILURE))]
+    values = {1: 10.0, 2: 45.0, 3: -90.0, 4: 45.0, 5: 120, 6: 100}
+    for n, v in values.items():
+        d.on_can(_status_frame(n, v), 1000)
+    d.on_can(_status_frame(2, 50.0), SILENCE)          # joint 2 keeps talking, the rest stop
+    now = SILENCE + 1000                                 # 300 ms after the others' last frame
+    d.on_message(0, 1, (cmd("status"),), now - 1)
+    (dst, reply, kind), = d.take_radio()
+    assert (dst, kind) == (0, int(FrameType.BROADCAST_INFO))
+    assert reply == (cmd("joint", 1, 10.0), cmd("joint", 2, 50.0), cmd("joint", 3, -90.0),
+                     cmd("joint", 4, 45.0), cmd("wheel", 120), cmd("paw", 1))
+    d.on_message(0, 1, (cmd("status"),), now)
+    (_, reply, kind), = d.take_radio()
+    assert kind == int(FrameType.BROADCAST_INFO)
+    assert reply == (cmd("fail", 31), cmd("joint", 2, 50.0), cmd("fail", 33), cmd("fail", 34),
+                     cmd("fail", 35), cmd("fail", 36))
+    d.on_message(0, 1, (cmd("status"),), 2 * SILENCE)
+    assert d.take_radio() == [(0, (cmd("fail", 30), cmd("status")), int(FrameType.FAILURE))]
+
+
+def test_a_radio_only_child_answers_orders_with_a_failure():
+    """rprs child without --can acknowledged orders and silently did nothing. Now each order
+    addressed to it comes back as fail(42) with the order; news (replies, failures,
+    broadcasts) is not answered."""
+    from firmware_model.child import RadioOnlyChild
+    from firmware_model.radio.frame import FrameType
+    from firmware_model.radio.mac import Deliver
+    from firmware_model.station import build_station
+    from hil.sim.realtime import RealTimeScheduler
+    station, _ = build_station(2, RealTimeScheduler())
+    sent = []
+    station.submit = lambda dst, commands, type_: sent.append((dst, commands, type_))
+    child = RadioOnlyChild(station)
+    deliver = station.app
+    deliver(Deliver(0, 2, 5, 2, (cmd("joint", 1, 12),)), 0)
+    deliver(Deliver(0, 2, 6, 2, (cmd("status"),)), 0)
+    deliver(Deliver(0, 7, 7, 2, (cmd("act", 1, 0),)), 0)             # broadcast
+    deliver(Deliver(3, 2, 8, 3, (cmd("joint", 1, 5.0),)), 0)          # a reply: news
+    deliver(Deliver(3, 2, 9, 4, (cmd("fail", 42), cmd("status"))), 0)  # a failure: news
+    assert sent == [(0, (cmd("fail", 42), cmd("joint", 1, 12)), int(FrameType.FAILURE)),
+                    (0, (cmd("fail", 42), cmd("status")), int(FrameType.FAILURE))]
+    assert child.refused == 2

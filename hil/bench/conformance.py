@@ -347,8 +347,9 @@ class Tester:
         def watch(h: Heard, i: int) -> None:
             if ack in h.frame.content:
                 seen["acked"].append(i)
-            if h.frame.dst == self.me and b"joint(" in h.frame.content:
-                seen["replies"].append(h.frame.num)
+            if h.frame.dst == self.me and (b"joint(" in h.frame.content or
+                                           b"fail(" in h.frame.content):
+                seen["replies"].append(h.frame.num)    # the status, or why there is none
         ask = (b"status()", {"dst": self.robot, "type_": 2})
         h = self._turns(h, 6, ask, watch)
         acked, replies = seen["acked"], list(seen["replies"])

@@ -22,7 +22,7 @@ from typing import Any, Callable, TextIO
 from can_bus.bridge import CanOpenError, PythonCanBus, open_bus, parse_spec
 from can_bus.submodules import make_submodules
 from can_bus.transceiver import Transceiver82C250
-from firmware_model.child import ChildFirmware
+from firmware_model.child import ChildFirmware, RadioOnlyChild
 from firmware_model.kinematics import HOME
 from firmware_model.mcu.can_controller import CanController
 from firmware_model.radio.content import parse_content
@@ -171,7 +171,7 @@ def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
 
 def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
                 txen: str = "none", config: MacConfig | None = None, can_log: str | None = None,
-                events: TextIO | None = None) -> tuple[RadioStation, ChildFirmware | None]:
+                events: TextIO | None = None) -> tuple[RadioStation, ChildFirmware | RadioOnlyChild]:
     """A child on real ports (either may be None: radio only, or CAN only)."""
     if not 1 <= robot <= 6:
         raise RunError(f"a child's ID is 1-6, got {robot}")
@@ -181,11 +181,13 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
         station, _ = _radio_station(runner, robot, radio, txen, CHILD_BYTE_TICKS, cfg, observer)
     else:
         station, _ = build_station(robot, runner.sched, config=cfg, observer=observer)
-    child = None
+    child: ChildFirmware | RadioOnlyChild
     if can:
         bus = _can_bus(runner, can, can_log)
         ctrl = CanController(runner.sched)
         child = ChildFirmware(station, ctrl, Transceiver82C250(bus, ctrl))
+    else:
+        child = RadioOnlyChild(station)      # answers orders fail(42): no CAN side
     if radio:
         runner.sched.post(station.power_on)
     return station, child

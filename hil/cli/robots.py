@@ -20,7 +20,8 @@ def cmd_child(a: argparse.Namespace) -> int:
         runner.run(0)
         raise UserError(str(exc)) from None
     parts = [f"child {a.id}"] + ([f"radio {a.radio} (TXEN: {a.txen})"] if a.radio else []) + \
-        ([f"CAN {a.can}"] if a.can else [])
+        ([f"CAN {a.can}"] if a.can else ["no CAN side (no --can): orders are answered "
+                                          "fail(42)"])
     return run_until_stopped(runner, a, "running " + ", ".join(parts) + "; Ctrl-C stops",
                 lambda: summary_line(station))
 
