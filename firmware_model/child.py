@@ -34,7 +34,7 @@ from typing import Any, Callable
 
 from can_bus.bus import CanFrame
 
-from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, Dispatcher
+from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, REQUEST_TYPES, Dispatcher
 from .mcu.can_controller import AMS_AMR0, AMS_AMR1, CSR_NIE, CSR_NT, CanController
 from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
@@ -187,6 +187,8 @@ class ChildFirmware:
         self.sched = station.sched
         self.id = station.id
         self.dispatcher = Dispatcher(self.id)
+        # done() notices are this project's (protocol 2.1); the paper profile sends none
+        self.dispatcher.report_done = station.mac.cfg.profile != "paper"
         self.can = CanDriver(self.sched, controller, transceiver, self._on_can, self._on_fault,
                              self._pump)
         self.timer = ReloadTimer(self.sched, self._on_timer, name="TMR1")
@@ -230,7 +232,7 @@ class ChildFirmware:
             self._on_notice(self.id, action, now)
 
     def _on_message(self, d: Deliver, now: int) -> None:
-        self.dispatcher.on_message(d.src, d.dst, d.commands, now)
+        self.dispatcher.on_message(d.src, d.dst, d.commands, now, d.type)
         self._kickoff()
         self._pump()
 
@@ -266,11 +268,6 @@ class ChildFirmware:
             self.timer.arm_at(min(ticks))
         else:
             self.timer.stop()
-
-
-REQUEST_TYPES = frozenset({int(FrameType.SEEK_HELP), int(FrameType.INVITATION),
-                           int(FrameType.INSTRUCTION)})
-"""Types '0'-'2': messages that ask something of their destination (docs/protocol.md §3)."""
 
 
 class RadioOnlyChild:

@@ -48,6 +48,9 @@ SILENCE = 3 * TICK_HZ // 10
 """A node whose status frames (every 100 ms) stop for 300 ms is not responding."""
 
 PAW_STROKE = TICK_HZ  # 1 s: planning bound for a paw stroke (the node takes 0.8 s)
+WHEEL_SETTLE = 6 * TICK_HZ // 5
+"""1.2 s: the longest the wheel takes to reach a commanded speed (-300 to 300 mm/s at
+500 mm/s^2)."""
 
 ACTIONS: dict[int, tuple[float, float, float, float]] = {
     0: HOME,
@@ -62,6 +65,11 @@ CODE_REFUSED = 20
 CODE_SILENT = 30
 CODE_BUS_OFF = 40
 CODE_BLOCKED = 41
+REQUEST_TYPES = frozenset({int(FrameType.SEEK_HELP), int(FrameType.INVITATION),
+                           int(FrameType.INSTRUCTION)})
+"""Types '0'-'2': messages that ask something of their destination (docs/protocol.md §3);
+'3' and '4' are information."""
+
 CODE_NO_CAN = 42
 """The child has no CAN side at all (a radio-only ``rprs child``): it cannot act on orders."""
 
@@ -103,6 +111,7 @@ class Dispatcher:
         self.deadline: int | None = None
         self.isolated = False
         self.log: list[tuple[int, str]] = []
+        self.report_done = True    # a finished order is reported done() to its sender
         self.on_notice = None      # callable(src, action, now): a robot's act(n,1) notice heard
         self.on_action = None      # callable(action, phase, now): our own action starts/ends
 
@@ -118,18 +127,25 @@ class Dispatcher:
 
     # -- inputs --------------------------------------------------------------------------
 
-    def on_message(self, src: int, dst: int, commands: tuple[Command, ...], now: int) -> None:
-        """A message the radio delivered (once). Broadcast notices from others are noted."""
+    def on_message(self, src: int, dst: int, commands: tuple[Command, ...], now: int,
+                   type_: int = int(FrameType.INSTRUCTION)) -> None:
+        """A message the radio delivered (once). Only a request (Types '0'-'2') is an order;
+        information (a reply, a ``done()`` or ``fail()`` notice with the order it is about,
+        a broadcast ``act``) is noted, never acted on: a notice quoting ``movex(8)`` must not
+        move this arm (two robots would bounce the order and its notice for ever)."""
+        request = type_ in REQUEST_TYPES
         for c in commands:
+            if not request or (dst == BROADCAST and c.name in ("act", "fail")):
+                if c.name in ("act", "fail", "done"):
+                    self.log.append((now, f"robot {src}: {c.text()}"))
+                    if c.name == "act" and c.args[1] == 1 and self.on_notice is not None:
+                        self.on_notice(src, int(c.args[0]), now)
+                if not request and c.name in ("done", "fail"):
+                    break                        # what follows is the order it is about
+                continue
             handler = getattr(self, f"_cmd_{c.name}", None)
-            if handler is None:
-                continue
-            if dst == BROADCAST and c.name in ("act", "fail"):
-                self.log.append((now, f"robot {src}: {c.text()}"))
-                if c.name == "act" and c.args[1] == 1 and self.on_notice is not None:
-                    self.on_notice(src, int(c.args[0]), now)
-                continue
-            handler(src, c, now)
+            if handler is not None:
+                handler(src, c, now)
         self._update_deadline()
 
     def on_can(self, frame: CanFrame, now: int) -> None:
@@ -218,6 +234,8 @@ class Dispatcher:
             return
         seq = self._next_seq(WHEEL)
         self._can.append(dbc.encode("WHEEL_CMD", speed=int(round(speed)), distance=0, seq=seq))
+        # done when the wheel reaches the speed: at most 2 x 300 mm/s at 500 mm/s^2, 1.2 s
+        self.jobs.append(Job(src, c, {WHEEL: seq}, now + WHEEL_SETTLE + MARGIN, started=now))
 
     def _cmd_paw(self, src: int, c: Command, now: int) -> None:
         seq = self._next_seq(PAW)
@@ -351,9 +369,14 @@ class Dispatcher:
         return seq
 
     def _job_done(self, job: Job, now: int) -> None:
+        """Every submodule reported done: an action announces act(n,1) to everyone; any other
+        order is reported ``done()`` and the order, Type '3', to its sender."""
         self.jobs.remove(job)
         if job.notice is not None:
             self._action_done(job.notice, now)
+        elif self.report_done and job.requester not in (self.id, BROADCAST):
+            self._radio.append((job.requester, (cmd("done"), job.command),
+                                int(FrameType.BROADCAST_INFO)))
 
     def _job_failed(self, job: Job, code: int | None, now: int) -> None:
         if job in self.jobs:

@@ -62,6 +62,12 @@ def can_channel(request) -> str:
     scripts/vcan-vm.sh, a missing vcan0 fails instead)."""
     if request.param == "virtual":
         return f"virtual:rprs-{uuid.uuid4().hex[:8]}"
+    return f"socketcan:{_vcan_or_skip()}"
+
+
+def _vcan_or_skip() -> str:
+    """The SocketCAN vcan interface to test on (``RPRS_VCAN_CHANNEL``, default vcan0); skips
+    with the reason where the machine has none, fails under RPRS_VCAN=1 (the VM)."""
     from can_bus.bridge import socketcan_missing
     channel = os.environ.get("RPRS_VCAN_CHANNEL", "vcan0")
     why = socketcan_missing(channel)
@@ -69,4 +75,10 @@ def can_channel(request) -> str:
         if os.environ.get("RPRS_VCAN") == "1":
             pytest.fail(f"RPRS_VCAN=1 but {why}")
         pytest.skip(f"{why}; run scripts/vcan-vm.sh for real SocketCAN")
-    return f"socketcan:{channel}"
+    return channel
+
+
+@pytest.fixture
+def vcan_channel() -> str:
+    """A SocketCAN vcan interface name, e.g. ``vcan0`` (see ``_vcan_or_skip``)."""
+    return _vcan_or_skip()

@@ -180,3 +180,62 @@ def test_a_busy_port_is_refused_with_one_line(hub):
         assert r.returncode == 2 and "busy" in r.stderr and "Traceback" not in r.stderr
     finally:
         first.close()
+
+
+def _lines_of(proc, into: list) -> None:
+    import threading
+
+    def read() -> None:
+        for line in proc.stdout:
+            into.append(line.rstrip("\n"))
+    threading.Thread(target=read, daemon=True).start()
+
+
+@pytest.mark.parametrize("mode", ["human", "json"])
+def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
+    """rprs father printed a JSON tx line for every frame; replies and failures were buried.
+    Now each order is one line per change of state, with the reason and the time it took:
+    a joint move ends done (the child's done() notice), status() replied (decoded), an
+    unreachable target failed with its code in words. --exit-when-done ends the process when
+    the input has ended and every order has; --json gives JSON lines only."""
+    can = f"rprs_unix:{tmp_path / 'can'}"
+    kids = [spawn("child", "--id", "1", "--radio", hub.paths[1], "--team", "0,1", "--can", can),
+            spawn("submodules", "--can", can)]
+    father = subprocess.Popen(
+        [sys.executable, "-m", "hil.cli", "father", "--radio", hub.paths[0], "--team", "0,1",
+         "--exit-when-done", *(["--json"] if mode == "json" else [])],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: list[str] = []
+    _lines_of(father, lines)
+    try:
+        def joined() -> bool:
+            if mode == "human":
+                return any("ring: R1 joined" in x or
+                           ("father: member" in x and "ring [father 0 R1]" in x) for x in lines)
+            return any('"ev":"mode"' in x and '"member"' in x for x in lines) or \
+                any('"ev":"join"' in x and '"robot":1' in x for x in lines)
+        assert wait_for(joined, 40.0), lines[-5:]
+        time.sleep(0.5)                                   # R1 hears its submodules' status
+        father.stdin.write("1 joint(1,20)\n1 status()\n1 moveto(900,0,0)\n")
+        father.stdin.close()
+        assert father.wait(timeout=40) == 0, father.stderr.read()
+    finally:
+        stop([father, *kids])
+    if mode == "json":
+        evs = [json.loads(x) for x in lines]               # every line is JSON
+        ends = {e["order"]: e for e in evs if e["ev"] == "order" and
+                e["state"] in ("done", "replied", "failed")}
+        assert ends["joint(1,20)"]["state"] == "done"
+        assert ends["status()"]["state"] == "replied" and "joint 2 45 deg" in \
+            ends["status()"]["reply"]                   # (asked while joint 1 moves)
+        assert ends["moveto(900,0,0)"]["reason"].startswith("fail(1)")
+        return
+    assert not [x for x in lines if x.lstrip().startswith("{")]     # no JSON, no tx lines
+    text = "\n".join(lines)
+    for want in ("#1 -> R1 joint(1,20): queued", "#1 -> R1 joint(1,20): sent (Number",
+                 "#1 -> R1 joint(1,20): acknowledged in", "#1 -> R1 joint(1,20): done in",
+                 "#2 -> R1 status(): replied in", ", joint 2 45 deg, joint 3 -90 deg",
+                 "#3 -> R1 moveto(900,0,0): failed after",
+                 "fail(1): target out of the arm's reach"):
+        assert want in text, (want, lines)
+    assert len(lines) < 30, lines

@@ -24,7 +24,8 @@ SETTINGS = settings(max_examples=200, deadline=None)
 
 
 def test_table_exact():
-    app = {"movex", "movey", "movez", "moveto", "joint", "wheel", "paw", "act", "stop", "status", "fail"}
+    app = {"movex", "movey", "movez", "moveto", "joint", "wheel", "paw", "act", "stop", "status",
+           "fail", "done"}
     mac = {"ack", "poll", "ring", "crc"}
     assert set(COMMANDS) == app | mac
     assert {n for n, s in COMMANDS.items() if s.layer == "app"} == app
@@ -41,7 +42,7 @@ def test_table_exact():
     assert sig["ring"] == [("mask", "int", 0, 127)]
     assert sig["crc"] == [("value", "int", 0, 65535)]
     assert sig["fail"] == [("code", "int", 0, 999)]
-    assert sig["stop"] == sig["status"] == []
+    assert sig["stop"] == sig["status"] == sig["done"] == []
     assert [p.unit for p in COMMANDS["movex"].params] == ["mm"]
     assert COMMANDS["joint"].params[1].unit == "deg" and COMMANDS["wheel"].params[0].unit == "mm/s"
 

@@ -63,7 +63,8 @@ def test_relative_moves_become_joint_commands_from_the_kinematics(command, dx, d
         assert w.submodules[1][f"JOINT{i}"].angle_deg == pytest.approx(a, abs=0.01)
     done = [s for _, n, s in can_frames(evs, since=START) if n.startswith("EVENT")]
     assert done and all(s["kind"] == 1 for s in done)
-    assert not replies(evs)                    # success needs no reply
+    # success is reported once: a done() notice (Type '3') to the sender, no failure
+    assert [(e["src"], e["type"]) for e in replies(evs)] == [(1, 3)]
 
 
 def test_moveto_and_joint_and_wheel_and_paw_reach_their_submodules():
@@ -304,3 +305,52 @@ def test_a_radio_only_child_answers_orders_with_a_failure():
     assert sent == [(0, (cmd("fail", 42), cmd("joint", 1, 12)), int(FrameType.FAILURE)),
                     (0, (cmd("fail", 42), cmd("status")), int(FrameType.FAILURE))]
     assert child.refused == 2
+
+
+def test_a_finished_order_is_reported_done_to_its_sender():
+    """Moves report completion (protocol 3.0): done() and the order, Type '3', to the
+    sender, once every submodule it moved reported done; a failed order gets fail(code)
+    instead, a replaced one neither, and the paper profile sends none."""
+    from firmware_model.dispatcher import Dispatcher
+    from firmware_model.radio.frame import FrameType
+
+    def finish(d, node, now):
+        seq = d._seq[node]
+        d.on_can(dbc.encode(f"EVENT{node}", kind="done", seq=seq, code=0), now)
+    d = Dispatcher(1)
+    d.on_message(0, 1, (cmd("joint", 1, 20),), 0)
+    d.on_message(3, 1, (cmd("paw", 1),), 0)
+    d.on_message(0, 1, (cmd("wheel", 100),), 0)
+    assert d.take_radio() == []
+    finish(d, 1, 10)
+    finish(d, 6, 20)
+    finish(d, 5, 30)
+    info = int(FrameType.BROADCAST_INFO)
+    assert d.take_radio() == [(0, (cmd("done"), cmd("joint", 1, 20)), info),
+                              (3, (cmd("done"), cmd("paw", 1)), info),
+                              (0, (cmd("done"), cmd("wheel", 100)), info)]
+    d.on_message(0, 1, (cmd("joint", 2, 60),), 40)
+    d.on_message(0, 1, (cmd("joint", 2, 70),), 50)      # replaces the first
+    finish(d, 2, 60)
+    assert d.take_radio() == [(0, (cmd("done"), cmd("joint", 2, 70)), info)]
+    d.report_done = False                                # the paper profile
+    d.on_message(0, 1, (cmd("joint", 3, -60),), 70)
+    finish(d, 3, 80)
+    assert d.take_radio() == [] and not d.jobs
+
+
+def test_notices_and_replies_are_never_acted_on():
+    """A done() or fail() notice quotes the order it is about, and a status reply is made of
+    joint()/wheel()/paw(): none of them is an order. Two children that ordered each other
+    once bounced 'done()movex(8)' back and forth for ever (each notice moved the arm again)."""
+    from firmware_model.dispatcher import Dispatcher
+    from firmware_model.radio.frame import FrameType
+    d = Dispatcher(1)
+    d.on_message(3, 1, (cmd("done"), cmd("movex", 8)), 0, int(FrameType.BROADCAST_INFO))
+    d.on_message(3, 1, (cmd("fail", 1), cmd("moveto", 900, 0, 0)), 0, int(FrameType.FAILURE))
+    d.on_message(3, 1, (cmd("joint", 1, 12), cmd("wheel", 5), cmd("paw", 1)), 0,
+                 int(FrameType.BROADCAST_INFO))
+    assert d.take_can() == [] and d.take_radio() == [] and not d.jobs
+    assert [text for _, text in d.log] == ["robot 3: done()", "robot 3: fail(1)"]
+    d.on_message(3, 1, (cmd("movex", 8),), 0, int(FrameType.INSTRUCTION))   # an order
+    assert d.take_can() and d.jobs

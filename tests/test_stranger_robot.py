@@ -51,7 +51,7 @@ END = b"\x17\x19"
 BROADCAST = 7                 # clause 7
 BOOT, JOIN = 5, 6             # clause 10
 APP = {"movex": "n", "movey": "n", "movez": "n", "moveto": "nnn", "joint": "in", "wheel": "n",
-       "paw": "i", "act": "ii", "stop": "", "status": "", "fail": "i"}      # clause 16
+       "paw": "i", "act": "ii", "stop": "", "status": "", "fail": "i", "done": ""}  # clause 16
 MAC = {"ack": "ii", "poll": "ii", "ring": "i", "crc": "i"}
 BOUNDS = {("joint", 0): (1, 4), ("paw", 0): (0, 1), ("act", 0): (0, 99), ("act", 1): (0, 1),
           ("fail", 0): (0, 999), ("ack", 0): (0, 6), ("ack", 1): (0, 99), ("poll", 0): (0, 6),

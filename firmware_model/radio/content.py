@@ -113,6 +113,8 @@ _SPECS = (
         "Failure reason code, carried in Type '4' (failure information) frames.",
         Param("code", "int", 0, 999, unit="reason code"),
     ),
+    _spec("done", "app", "Completion notice: the order after it has finished (Type '3', to "
+          "the order's sender; protocol 2.1)."),
     # ---- MAC layer: consumed by the rotational MAC (docs/protocol.md §4) ----
     _spec(
         "ack",

@@ -227,9 +227,44 @@ def parse_order(line: str) -> tuple[int, list]:
     return dst, commands
 
 
+HISTORY_FILE = "~/.rprs_father_history"
+"""Where an interactive ``rprs father`` keeps its order history (readline)."""
+
+
+def _typed_lines(prompt: str = "order> "):
+    """Lines typed at a terminal, with readline's editing and a history kept between runs."""
+    import os
+    try:
+        import readline
+    except ImportError:                 # not on every platform: plain input() then
+        readline = None
+    path = os.path.expanduser(HISTORY_FILE)
+    if readline is not None:
+        try:
+            readline.read_history_file(path)
+        except OSError:
+            pass
+    try:
+        while True:
+            try:
+                yield input(prompt) + "\n"
+            except EOFError:
+                return
+    finally:
+        if readline is not None:
+            try:
+                readline.set_history_length(1000)
+                readline.write_history_file(path)
+            except OSError:
+                pass
+
+
 def feed_orders(runner: Runner, station: RadioStation, stream: TextIO,
-                err: TextIO = sys.stderr) -> threading.Thread:
-    """Read ``DST COMMANDS`` lines from ``stream`` and submit them from the station."""
+                err: TextIO = sys.stderr, on_eof: Callable[[], None] | None = None
+                ) -> threading.Thread:
+    """Read ``DST COMMANDS`` lines from ``stream`` (at a terminal: with line editing and
+    history) and submit them from the station; ``on_eof`` runs in the runner's thread when
+    the input ends."""
     def submit(dst: int, commands: list) -> None:
         try:
             station.submit(dst, commands)
@@ -238,7 +273,8 @@ def feed_orders(runner: Runner, station: RadioStation, stream: TextIO,
             err.flush()
 
     def loop() -> None:
-        for line in stream:
+        lines = _typed_lines() if stream.isatty() else stream
+        for line in lines:
             if not line.strip() or line.lstrip().startswith("#"):
                 continue
             try:
@@ -248,6 +284,8 @@ def feed_orders(runner: Runner, station: RadioStation, stream: TextIO,
                 err.flush()
                 continue
             runner.sched.post(submit, dst, commands)
+        if on_eof is not None:
+            runner.sched.post(on_eof)
 
     t = threading.Thread(target=loop, name="orders", daemon=True)
     t.start()

@@ -40,19 +40,51 @@ def cmd_submodules(a: argparse.Namespace) -> int:
 
 
 def cmd_father(a: argparse.Namespace) -> int:
+    from ..bench.orders import OrderBook, chain
     from ..bench.runner import Runner, RunError, build_father, feed_orders, summary_line
+    from ..view.father import FatherConsole
+    if a.json and a.quiet:
+        raise UserError("--json and --quiet: choose one")
     runner = Runner()
+    console = FatherConsole(sys.stdout, "json" if a.json else "quiet" if a.quiet else "human")
     try:
         station = build_father(runner, a.radio, txen=a.txen, standby=a.standby,
-                               config=mac_config(a), events=sys.stdout, pc=a.pc)
+                               config=mac_config(a), events=sys.stdout if a.json else None,
+                               pc=a.pc)
     except RunError as exc:
         runner.run(0)
         raise UserError(str(exc)) from None
+    input_ended = a.no_input
+
+    def maybe_exit(*_: object) -> None:
+        if a.exit_when_done and input_ended and not book.open_orders():
+            runner.stop()
+
+    def changed(order, now: int) -> None:
+        console.order(order, now)
+        if order.finished:
+            maybe_exit()
+
+    def eof() -> None:
+        nonlocal input_ended
+        input_ended = True
+        maybe_exit()
+
+    book = OrderBook(on_change=changed, on_news=console.news)
+    ring_view = station.observer
+
+    def observe(st, act, now: int) -> None:
+        if ring_view is not None:
+            ring_view(st, act, now)
+        console.ring(st, act, now)
+    station.observer = chain(observe, book)
     if not a.no_input:
-        feed_orders(runner, station, sys.stdin)
+        feed_orders(runner, station, sys.stdin, on_eof=eof)
+    elif a.exit_when_done:
+        runner.sched.post(maybe_exit)
     role = "standby PC" if a.standby else "PC"
     return run_until_stopped(runner, a, f"father (ID 0, {role}) on {a.radio}; type orders like "
-                f"'2 movex(10)' or '7 act(1,0)' (DST COMMANDS), Ctrl-C stops",
+                f"'2 movex(10)' or '1 act(1,0)' (DST COMMANDS), Ctrl-C stops",
                 lambda: summary_line(station))
 
 
@@ -85,6 +117,12 @@ def add(sub) -> None:
                     help="which of the father's two PCs this is (default: 2 with --standby, "
                     "else 1); PC1 decides first")
     fa.add_argument("--no-input", action="store_true", help="do not read orders from stdin")
+    fa.add_argument("--json", action="store_true", help="machine output: the station's events "
+                    "and each order's changes as JSON lines on stdout (no other output)")
+    fa.add_argument("--quiet", action="store_true", help="only each order's end (done, "
+                    "replied, failed) and errors")
+    fa.add_argument("--exit-when-done", action="store_true", help="exit once the input has "
+                    "ended and every order has ended (for scripts)")
     txen_option(fa)
     mac_options(fa)
     realtime_options(fa)

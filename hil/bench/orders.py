@@ -1,0 +1,192 @@
+"""The father's orders as a person follows them: each order's state from submission to its end,
+with the reason and the time it took, and the robots' replies decoded (``rprs father``).
+
+An order goes ``queued`` (submitted to the MAC) -> ``sent`` (its first frame on air) ->
+``acknowledged`` (the robot's ``ack``) -> ``done`` (the robot's ``done()`` notice, protocol 3.0),
+``replied`` (the answer to ``status()``), or ``failed`` (no acknowledgement after the MAC's
+attempts, or the robot's ``fail(code)`` with that order). An order of ``act(n,0)`` ends when the
+robot broadcasts ``act(n,1)``; a broadcast (destination 7), and every order in the paper
+profile (nothing is acknowledged there), ends ``sent``. Times are seconds since the order was
+queued (the station's clock).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from firmware_model.radio.content import Command
+from firmware_model.radio.frame import BROADCAST
+from firmware_model.radio.mac import UNACKNOWLEDGED, Deliver, Message, Outcome, Transmit
+from firmware_model.timing import TICK_HZ
+
+FAIL_REASONS = {
+    1: "target out of the arm's reach", 2: "outside a joint's limits",
+    3: "parameter out of range", 30: "no submodule answers (CAN side dead or absent)",
+    40: "the CAN controller went bus-off", 41: "the CAN bus is blocked: the child is off it",
+    42: "the child has no CAN side",
+}
+"""The child's failure codes (docs/dispatcher.md); 10+n, 20+n, 30+n name submodule n."""
+
+NODE_NAMES = {1: "joint 1", 2: "joint 2", 3: "joint 3", 4: "joint 4", 5: "wheel", 6: "paw"}
+TERMINAL = frozenset({"done", "replied", "failed", "sent-only"})
+
+
+def fail_reason(code: int) -> str:
+    """A failure code in words."""
+    if code in FAIL_REASONS:
+        return FAIL_REASONS[code]
+    base, n = divmod(code, 10)
+    node = NODE_NAMES.get(n)
+    if node is not None and base in (1, 2, 3):
+        return f"{node} " + ("reported a fault", "refused the command",
+                             "did not respond")[base - 1]
+    return "unknown code"
+
+
+def describe_reply(commands: tuple[Command, ...]) -> str:
+    """A status reply in words: ``joint 1 12.5 deg, joint 2 not responding, ..."""
+    parts = []
+    for c in commands:
+        if c.name == "joint":
+            parts.append(f"joint {c.args[0]} {float(c.args[1]):g} deg")
+        elif c.name == "wheel":
+            parts.append(f"wheel {float(c.args[0]):g} mm/s")
+        elif c.name == "paw":
+            parts.append("paw open" if c.args[0] else "paw closed")
+        elif c.name == "fail":
+            parts.append(f"fail({c.args[0]}): {fail_reason(int(c.args[0]))}")
+        else:
+            parts.append(c.text())
+    return ", ".join(parts)
+
+
+@dataclass
+class Order:
+    """One order of the father: ``#id -> dst commands`` and where it stands."""
+
+    id: int
+    dst: int
+    text: str
+    message: Message
+    queued: int                       # tick
+    state: str = "queued"
+    reason: str = ""
+    reply: str = ""
+    ended: int | None = None
+    history: list[tuple[int, str]] = field(default_factory=list)
+
+    def seconds(self, now: int) -> float:
+        return (now - self.queued) / TICK_HZ
+
+    @property
+    def finished(self) -> bool:
+        return self.state in TERMINAL
+
+
+class OrderBook:
+    """Follows the father station's orders from its observer's actions (call ``observe``
+    from the station's observer, ``submitted`` with each message the station queued).
+    ``on_change(order, now)`` is called at every change of state."""
+
+    def __init__(self, on_change: Callable[[Order, int], None] | None = None,
+                 on_news: Callable[[Deliver, int], None] | None = None) -> None:
+        self.orders: list[Order] = []
+        self.on_change = on_change
+        self.on_news = on_news
+        self._by_msg: dict[int, Order] = {}
+
+    def open_orders(self) -> list[Order]:
+        return [o for o in self.orders if not o.finished]
+
+    def submitted(self, msg: Message, now: int) -> Order:
+        o = Order(len(self.orders) + 1, msg.dst, "".join(c.text() for c in msg.commands), msg,
+                  now)
+        self.orders.append(o)
+        self._by_msg[id(msg)] = o
+        self._set(o, "queued", now)
+        return o
+
+    def observe(self, a: object, now: int) -> None:
+        t = type(a)
+        if t is Transmit:
+            f = a.frame
+            for o in self.open_orders():
+                if o.state == "queued" and o.message.num == f.num and o.message.dst == f.dst:
+                    self._set(o, "sent", now)
+        elif t is Outcome:
+            o = self._by_msg.get(id(a.message))
+            if o is None or o.finished:
+                return
+            if a.delivered:
+                self._acknowledged(o, now)
+            elif a.message.state == UNACKNOWLEDGED or o.dst == BROADCAST:
+                self._set(o, "sent-only", now, "nothing acknowledges it (paper profile or "
+                          "broadcast)")
+            else:
+                self._set(o, "failed", now, a.reason)
+        elif t is Deliver:
+            self._news(a, now)
+
+    def _acknowledged(self, o: Order, now: int) -> None:
+        self._set(o, "acknowledged", now)
+        if o.dst == BROADCAST:
+            self._set(o, "sent-only", now, "a broadcast: no robot reports on it")
+
+    def _news(self, d: Deliver, now: int) -> None:
+        """A message for the father: a done()/fail() about an order, a status reply, an
+        act(n,1) notice, or other news."""
+        cmds = d.commands
+        names = [c.name for c in cmds]
+        matched = False
+        if names and names[0] in ("done", "fail") and len(cmds) >= 2:
+            about = "".join(c.text() for c in cmds[1:])
+            o = self._oldest(d.src, lambda o: o.text == about)
+            if o is not None:
+                matched = True
+                if names[0] == "done":
+                    self._set(o, "done", now)
+                else:
+                    code = int(cmds[0].args[0])
+                    self._set(o, "failed", now, f"fail({code}): {fail_reason(code)}")
+        elif any(n in ("joint", "wheel", "paw") for n in names) and d.dst != BROADCAST:
+            o = self._oldest(d.src, lambda o: o.text == "status()")
+            if o is not None:
+                matched = True
+                o.reply = describe_reply(cmds)
+                self._set(o, "replied", now)
+        elif names[:1] == ["act"] and len(cmds[0].args) == 2 and cmds[0].args[1] == 1:
+            o = self._oldest(d.src, lambda o: o.text == f"act({cmds[0].args[0]},0)")
+            if o is not None:
+                matched = True
+                self._set(o, "done", now)
+        if not matched and self.on_news is not None:
+            self.on_news(d, now)
+
+    def _oldest(self, robot: int, pred: Callable[[Order], bool]) -> Order | None:
+        for o in self.orders:
+            if not o.finished and o.dst in (robot, BROADCAST) and pred(o):
+                return o
+        return None
+
+    def _set(self, o: Order, state: str, now: int, reason: str = "") -> None:
+        if o.state == state and state != "queued":
+            return
+        o.state, o.reason = state, reason or o.reason
+        o.history.append((now, state))
+        if state in TERMINAL:
+            o.ended = now
+        if self.on_change is not None:
+            self.on_change(o, now)
+
+
+def chain(observer: Callable[[Any, object, int], None] | None,
+          book: OrderBook) -> Callable[[Any, object, int], None]:
+    """A station observer that feeds ``book`` and then ``observer``."""
+    def observe(st: Any, a: object, now: int) -> None:
+        if type(a) is Message and a.src == st.id:
+            book.submitted(a, now)
+        else:
+            book.observe(a, now)
+        if observer is not None:
+            observer(st, a, now)
+    return observe

@@ -1,0 +1,77 @@
+"""``rprs father`` for a person: one line for each thing worth knowing (an order's change of
+state, a reply, a robot joining or dropped), never a line per frame. ``--json`` gives the
+machine's stream instead, ``--quiet`` only the orders' ends (docs/bench.md)."""
+from __future__ import annotations
+
+import json
+from typing import TextIO
+
+from firmware_model.radio.frame import BROADCAST
+from firmware_model.radio.mac import Deliver, Disable, Join, ModeChange
+from firmware_model.timing import TICK_HZ
+
+from ..bench.orders import Order, describe_reply
+
+
+def _who(r: int) -> str:
+    return "all" if r == BROADCAST else "father 0" if r == 0 else f"R{r}"
+
+
+class FatherConsole:
+    """Prints the father's story to ``out`` in ``mode`` ``human``, ``quiet`` or ``json``."""
+
+    def __init__(self, out: TextIO, mode: str = "human") -> None:
+        if mode not in ("human", "quiet", "json"):
+            raise ValueError(f"mode {mode!r}")
+        self.out = out
+        self.mode = mode
+
+    def _line(self, now: int, text: str) -> None:
+        self.out.write(f"{now / TICK_HZ:8.2f} s  {text}\n")
+        self.out.flush()
+
+    def order(self, o: Order, now: int) -> None:
+        """An order changed state (OrderBook's on_change)."""
+        if self.mode == "json":
+            ev = {"t": now, "ev": "order", "id": o.id, "dst": o.dst, "order": o.text,
+                  "state": o.state, "seconds": round(o.seconds(now), 3)}
+            if o.reason:
+                ev["reason"] = o.reason
+            if o.reply:
+                ev["reply"] = o.reply
+            self.out.write(json.dumps(ev, separators=(",", ":")) + "\n")
+            self.out.flush()
+            return
+        if self.mode == "quiet" and not o.finished:
+            return
+        head = f"#{o.id} -> {_who(o.dst)} {o.text}: {o.state}"
+        took = f"{o.seconds(now):.2f} s"
+        if o.state == "queued":
+            tail = ""
+        elif o.state == "sent":
+            tail = f" (Number {o.message.num:02d})"
+        elif o.state == "replied":
+            tail = f" in {took}: {o.reply}"
+        elif o.state in ("failed", "sent-only"):
+            tail = f" after {took}: {o.reason}"
+        else:
+            tail = f" in {took}"
+        self._line(now, head + tail)
+
+    def news(self, d: Deliver, now: int) -> None:
+        """A message for the father that is about no order of this session."""
+        if self.mode == "human":
+            self._line(now, f"{_who(d.src)} says: {describe_reply(d.commands)}")
+
+    def ring(self, st: object, a: object, now: int) -> None:
+        """The father's view of the ring changed (its station ``st``'s observer)."""
+        if self.mode != "human":
+            return
+        t = type(a)
+        if t is Join:
+            self._line(now, f"ring: {_who(a.robot)} {'rejoined' if a.again else 'joined'}")
+        elif t is Disable:
+            self._line(now, f"ring: {_who(a.robot)} dropped after three missed turns")
+        elif t is ModeChange:
+            ring = " ".join(_who(r) for r in st.mac.ring)
+            self._line(now, f"father: {a.mode} ({a.reason}); ring [{ring}]")
