@@ -453,42 +453,51 @@ class Tester:
         return h
 
     def _silence(self, h: Heard) -> None:
-        """We stop sending: the robot's takeovers, then our drop (clauses 24, 25, 44)."""
+        """We stop sending: the robot's takeovers, then our drop (clauses 24, 25, 44).
+
+        Each of our three missed turns is a takeover by the robot, timed from the End before
+        it. Clause 24 is judged on the median of the three offsets: a stamp that came late
+        because this PC stalled (one run measured +34.5 ms, then -34 ms on the next, as the
+        late stamp shortened the following gap) does not decide it."""
         t0 = time.monotonic()
         our_end = self.last_end
-        rut_end = h.end
         if self.profile == "rprs":
-            expect = max(rut_end + TMAX + self.robot * TSLOT,
-                         our_end + TMAX + self.me * TSLOT + TTRANS + 4 * BYTE) + TTRANS
+            def expect(prev_end: int) -> int:
+                return max(prev_end + TMAX + self.robot * TSLOT,
+                           our_end + TMAX + self.me * TSLOT + TTRANS + 4 * BYTE) + TTRANS
             rule = "max(its End + Tmax + id x Tslot, our End + Tmax + our id x Tslot + Ttrans + " \
                    "4 B) + Ttrans (R-stagger, R-pair)"
         else:
-            expect = rut_end + TMAX + TTRANS
+            def expect(prev_end: int) -> int:
+                return prev_end + TMAX + TTRANS
             rule = "its End + Tmax + Ttrans"
-        h1 = self.wait_frame(rut_end, 2 * TMAX + 8 * TSLOT, self.robot)
-        if h1 is None:
+        frames = [h]
+        for _ in range(6):
+            nxt = self.wait_frame(frames[-1].end, 2 * TMAX + 8 * TSLOT, self.robot)
+            if nxt is None:
+                break
+            frames.append(nxt)
+        takeovers = frames[1:4]
+        if not takeovers:
             self.check("24", "takes the turn when we fall silent", False, "no frame in "
                        f"{(2 * TMAX + 8 * TSLOT) / MS:.0f} ms", t0)
             return
-        off = (h1.start - expect) / MS
-        self.check("24", "takes the turn when we fall silent", abs(off) * MS <= self.tol,
-                   f"Header {off:+.1f} ms from {rule}", t0)
+        offs = [(b.start - expect(a.end)) / MS for a, b in zip(frames, takeovers)]
+        mid = statistics.median(offs)
+        self.check("24", "takes the turn when we fall silent", abs(mid) * MS <= self.tol,
+                   f"Header {mid:+.1f} ms (median of {len(offs)} takeovers: "
+                   f"{', '.join(f'{o:+.1f}' for o in offs)}) from {rule}", t0)
         t0 = time.monotonic()
-        frames = [h1]
-        for _ in range(5):
-            h2 = self.wait_frame(frames[-1].end, 2 * TMAX + 8 * TSLOT, self.robot)
-            if h2 is None:
-                break
-            frames.append(h2)
+        after = frames[1:]
         if self.profile == "rprs":
-            masks = [_mask_of(h.frame) for h in frames]
+            masks = [_mask_of(f.frame) for f in after]
             lacks = [i for i, m in enumerate(masks) if m is not None and not m >> self.me & 1]
             ok = bool(lacks) and lacks[0] == 2
             fig = (f"first frame whose mask lacks us: its frame {lacks[0] + 1} after we fell "
                    f"silent (3 expected: one turn per miss, the third miss drops us)"
                    if lacks else "no frame of its ring or poll without us")
         else:
-            gaps = [(b.start - a.end) / MS for a, b in zip(frames, frames[1:])]
+            gaps = [(b.start - a.end) / MS for a, b in zip(after, after[1:])]
             lone = [i for i, g in enumerate(gaps) if g < TMAX / MS / 2]
             ok = bool(lone) and lone[0] == 2
             fig = f"gaps between its frames (ms): {', '.join(f'{g:.0f}' for g in gaps)}"
