@@ -26,6 +26,32 @@ def cmd_child(a: argparse.Namespace) -> int:
                 lambda: summary_line(station))
 
 
+def _submit_order(station, dst: int, commands: list, console) -> None:
+    """Queue a typed order (the runner's thread); a refusal becomes a line of the story."""
+    from firmware_model.radio.mac import SubmitError
+    try:
+        station.submit(dst, commands)
+    except SubmitError as exc:
+        console.out.write(f"refused: {exc}\n")
+
+
+def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> int:
+    """The father's live console (hil/view/father_app.py): the firmware in a thread, the
+    view in this one; quitting the view stops the firmware."""
+    import threading
+    worker = threading.Thread(target=runner.run, args=(a.duration,), name="firmware",
+                              daemon=True)
+    worker.start()
+    try:
+        app.run()
+    finally:
+        runner.stop()
+        worker.join(timeout=5)
+    from ..bench.runner import summary_line
+    print(summary_line(station), file=sys.stderr, flush=True)
+    return 0
+
+
 def cmd_submodules(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_submodules
     runner = Runner()
@@ -46,7 +72,16 @@ def cmd_father(a: argparse.Namespace) -> int:
     if a.json and a.quiet:
         raise UserError("--json and --quiet: choose one")
     runner = Runner()
-    console = FatherConsole(sys.stdout, "json" if a.json else "quiet" if a.quiet else "human")
+    app = None
+    if not (a.plain or a.json or a.quiet or a.no_input or a.exit_when_done) and \
+            sys.stdin.isatty() and sys.stdout.isatty():
+        from ..bench.runner import HISTORY_FILE
+        from ..view.father_app import FatherApp, LinesTo
+        app = FatherApp(lambda line: order(line), lambda: head(), HISTORY_FILE)
+        console = FatherConsole(LinesTo(app.post_line), "human")
+    else:
+        console = FatherConsole(sys.stdout, "json" if a.json else "quiet" if a.quiet
+                                else "human")
     try:
         station = build_father(runner, a.radio, txen=a.txen, standby=a.standby,
                                config=mac_config(a), events=sys.stdout if a.json else None,
@@ -71,6 +106,24 @@ def cmd_father(a: argparse.Namespace) -> int:
         maybe_exit()
 
     book = OrderBook(on_change=changed, on_news=console.news)
+
+    def order(line: str) -> str | None:          # a typed order (the app's thread)
+        from ..bench.runner import parse_order
+        try:
+            dst, commands = parse_order(line)
+        except ValueError as exc:
+            return str(exc)
+        runner.sched.post(_submit_order, station, dst, commands, console)
+        return None
+
+    def head() -> str:                            # the app's header
+        m = station.mac
+        ring = " ".join("father 0" if r == 0 else f"R{r}" for r in m.ring)
+        owner = "-" if m.owner is None else "father 0" if m.owner == 0 else f"R{m.owner}"
+        return (f"father (ID 0) on {a.radio}: {m.mode}; ring [{ring}]; turn: {owner}; "
+                f"orders open: {len(book.open_orders())} of {len(book.orders)}\n"
+                f"type DST COMMANDS (1 joint(2,60), 1 status()); up/down: history; "
+                f"ctrl+q quits")
     ring_view = station.observer
 
     def observe(st, act, now: int) -> None:
@@ -78,11 +131,13 @@ def cmd_father(a: argparse.Namespace) -> int:
             ring_view(st, act, now)
         console.ring(st, act, now)
     station.observer = chain(observe, book)
+    role = "standby PC" if a.standby else "PC"
+    if app is not None:
+        return _father_app(a, app, runner, station, book, console)
     if not a.no_input:
         feed_orders(runner, station, sys.stdin, on_eof=eof)
     elif a.exit_when_done:
         runner.sched.post(maybe_exit)
-    role = "standby PC" if a.standby else "PC"
     return run_until_stopped(runner, a, f"father (ID 0, {role}) on {a.radio}; type orders like "
                 f"'2 movex(10)' or '1 act(1,0)' (DST COMMANDS), Ctrl-C stops",
                 lambda: summary_line(station))
@@ -123,6 +178,8 @@ def add(sub) -> None:
                     "replied, failed) and errors")
     fa.add_argument("--exit-when-done", action="store_true", help="exit once the input has "
                     "ended and every order has ended (for scripts)")
+    fa.add_argument("--plain", action="store_true", help="at a terminal, lines instead of the "
+                    "live view (the view is used only when stdin and stdout are a terminal)")
     txen_option(fa)
     mac_options(fa)
     realtime_options(fa)

@@ -1,0 +1,163 @@
+"""``rprs father`` at a terminal: a live view of the ring and of the orders (textual).
+
+* a header, refreshed 5 times a second: the father's mode, the ring as it sees it, who owns
+  the turn (the robot on air, else the last sender), and its orders still open;
+* the story below it: one line for each change of an order's state and of the ring (the same
+  lines as the plain console, hil/view/father.py), replies decoded;
+* an order line at the bottom (``DST COMMANDS``), with the usual editing keys and a history:
+  up and down walk through the orders typed before, in this run and earlier ones (kept in the
+  same file as the plain console's readline history).
+
+The firmware runs in the runner's thread; the app only reads what it shows and hands typed
+orders to ``submit`` (which the caller makes thread-safe). Ctrl-C or ``ctrl+q`` quits.
+"""
+from __future__ import annotations
+
+import os
+from collections import deque
+from typing import Callable
+
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.widgets import Input, RichLog, Static
+
+HISTORY_LIMIT = 1000
+
+
+class OrderInput(Input):
+    """An order line with a history: up/down recall earlier orders."""
+
+    BINDINGS = [Binding("up", "older", "older order", show=False),
+                Binding("down", "newer", "newer order", show=False)]
+
+    def __init__(self, history: list[str], **kw) -> None:
+        super().__init__(placeholder="DST COMMANDS, e.g. 1 joint(2,60) or 1 status()", **kw)
+        self.history = history
+        self._at = len(history)
+
+    def remember(self, line: str) -> None:
+        if line and (not self.history or self.history[-1] != line):
+            self.history.append(line)
+        self._at = len(self.history)
+
+    def action_older(self) -> None:
+        if self._at > 0:
+            self._at -= 1
+            self.value = self.history[self._at]
+            self.cursor_position = len(self.value)
+
+    def action_newer(self) -> None:
+        if self._at < len(self.history):
+            self._at += 1
+            self.value = self.history[self._at] if self._at < len(self.history) else ""
+            self.cursor_position = len(self.value)
+
+
+class FatherApp(App):
+    """The father's console. ``submit(line)`` queues a typed order and returns None or the
+    reason it was refused; ``status()`` gives the header's text."""
+
+    CSS = """
+    #head { height: 3; background: $boost; padding: 0 1; }
+    #log { height: 1fr; }
+    OrderInput { dock: bottom; }
+    """
+    BINDINGS = [Binding("ctrl+q", "quit", "quit")]
+
+    def __init__(self, submit: Callable[[str], str | None], status: Callable[[], str],
+                 history_file: str | None = None, rate: float = 5.0) -> None:
+        super().__init__()
+        self._submit = submit
+        self._status = status
+        self._rate = rate
+        self.history_file = history_file
+        self.history: list[str] = _read_history(history_file)
+        self.lines: list[str] = []           # what the story shows (tests read it)
+        self._posted: deque[str] = deque()   # from other threads, shown at the next refresh
+        self._head = ""
+
+    def compose(self) -> ComposeResult:
+        yield Static(self._status(), id="head")
+        yield RichLog(id="log", wrap=True, markup=False)
+        yield OrderInput(self.history, id="order")
+
+    def on_mount(self) -> None:
+        self.title = "rprs father"
+        self.query_one(OrderInput).focus()
+        self.set_interval(1 / self._rate, self.refresh_head)
+
+    def refresh_head(self) -> None:
+        """The header again, and the story lines other threads posted since."""
+        while self._posted:
+            self.add_line(self._posted.popleft())
+        text = self._status()
+        if text != self._head:                 # redraw only what changed
+            self._head = text
+            self.query_one("#head", Static).update(text)
+
+    def add_line(self, text: str) -> None:
+        """A line of the story (call from the app's thread; from others: ``post_line``)."""
+        self.lines.append(text)
+        try:
+            self.query_one("#log", RichLog).write(text)
+        except Exception:                     # noqa: BLE001 - the view is being taken down
+            pass
+
+    def post_line(self, text: str) -> None:
+        """``add_line`` from another thread (the runner's). It never waits for the view: the
+        line is queued and shown at the next refresh, so a busy view cannot hold up the
+        firmware's real-time thread."""
+        self._posted.append(text)
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        line = event.value.strip()
+        box = self.query_one(OrderInput)
+        box.value = ""
+        if not line:
+            return
+        box.remember(line)
+        why = self._submit(line)
+        if why:
+            self.add_line(f"not sent: {line}: {why}")
+
+    def on_unmount(self) -> None:
+        _write_history(self.history_file, self.history)
+
+
+def _read_history(path: str | None) -> list[str]:
+    if not path:
+        return []
+    try:
+        with open(os.path.expanduser(path), encoding="utf-8", errors="replace") as f:
+            return [line.rstrip("\n") for line in f if line.strip()][-HISTORY_LIMIT:]
+    except OSError:
+        return []
+
+
+def _write_history(path: str | None, history: list[str]) -> None:
+    if not path:
+        return
+    try:
+        with open(os.path.expanduser(path), "w", encoding="utf-8") as f:
+            f.writelines(line + "\n" for line in history[-HISTORY_LIMIT:])
+    except OSError:
+        pass
+
+
+class LinesTo:
+    """A text stream whose whole lines go to ``post`` (FatherConsole writes here when the app
+    shows the story)."""
+
+    def __init__(self, post: Callable[[str], None]) -> None:
+        self._post = post
+        self._part = ""
+
+    def write(self, s: str) -> int:
+        self._part += s
+        *lines, self._part = self._part.split("\n")
+        for line in lines:
+            self._post(line)
+        return len(s)
+
+    def flush(self) -> None:
+        pass

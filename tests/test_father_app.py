@@ -1,0 +1,56 @@
+"""The father's live console (hil/view/father_app.py), headless with textual's pilot."""
+from __future__ import annotations
+
+import asyncio
+import threading
+
+import pytest
+
+pytest.importorskip("textual")
+
+from hil.view.father_app import FatherApp, LinesTo  # noqa: E402
+
+SIZE = (120, 30)
+
+
+def test_typed_orders_history_refusals_and_the_story(tmp_path):
+    hist = tmp_path / "history"
+    hist.write_text("1 status()\n")
+    sent: list[str] = []
+    state = {"ring": "[father 0 R1]"}
+
+    def submit(line: str):
+        if not line[0].isdigit():
+            return "start with the destination ID (0-7)"
+        sent.append(line)
+        return None
+
+    app = FatherApp(submit, lambda: f"ring {state['ring']}", str(hist), rate=10.0)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.press(*"1 joint(2,60)", "enter")
+            await pilot.press(*"status()", "enter")           # no destination: refused
+            assert sent == ["1 joint(2,60)"]
+            assert app.lines[-1].startswith("not sent: status(): start with the destination")
+            await pilot.press("up", "up")                       # the history, newest first
+            assert app.query_one("#order").value == "1 joint(2,60)"
+            await pilot.press("up")
+            assert app.query_one("#order").value == "1 status()"   # from an earlier run
+            await pilot.press("enter")
+            assert sent == ["1 joint(2,60)", "1 status()"]
+            # lines from the firmware's thread arrive in the story
+            out = LinesTo(app.post_line)
+            t = threading.Thread(target=out.write, args=("    2.00 s  #1 -> R1 joint(2,60): "
+                                                          "done in 0.40 s\n",))
+            t.start()
+            t.join()                                            # posting never waits
+            await pilot.pause(0.2)
+            assert app.lines[-1].endswith("done in 0.40 s")
+            state["ring"] = "[father 0 R1 R2]"
+            await pilot.pause(0.1)
+            assert "[father 0 R1 R2]" in str(app.query_one("#head").render())
+            await pilot.press("ctrl+q")
+    asyncio.run(go())
+    assert hist.read_text().splitlines() == ["1 status()", "1 joint(2,60)", "status()",
+                                             "1 status()"]
