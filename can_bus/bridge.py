@@ -141,6 +141,9 @@ class PythonCanBus:
     def inject_bit_error(self, node: Any = None, count: int = 1, bit: int | None = None) -> None:
         raise NotImplementedError("bit errors can only be injected on the simulated bus")
 
+    def start_recovery(self, node: Any) -> None:
+        """Bus-off is the adapter's business (``status`` always reads error-active)."""
+
     # -- the CanBus node interface --------------------------------------------------------
 
     def attach(self, node: Any) -> None:

@@ -60,13 +60,14 @@ Error model (ISO 11898-1 fault confinement, the common rules)
   recovers ``128 * 11 = 1408`` bit times after its error flag ended, i.e. ``127 * 11 = 1397``
   bit times after the bus became idle; on a busy bus each frame contributes one occurrence
   (plus whatever idle follows it), so recovery takes 128 frames' worth or longer. On recovery
-  TEC = REC = 0 and the node's pending frames are offered again. (Exceptions: when every flag
+  TEC = REC = 0 and the node's pending frames are offered again. A node whose controller
+  recovers on request (``recovers_on_request``, the MB90F549's, which starts counting when its
+  HALT bit is cleared) counts only from ``start_recovery``. (Exceptions: when every flag
   is passive the recessive run is longer: 17 bits after the error bit, or, for a lone
   passive transmitter's ACK error, the trailing recessive bits of the CRC field + 19. A node
-  sent bus-off during a stuck-dominant episode counts from the release.) Recovery is
-  automatic (no software request is modelled). Not modelled: the TEC exception for a stuff
-  error on a recessive stuff bit during arbitration, overload frames, and flag superposition
-  longer than 6 bits (all nodes detect each error at the same bit).
+  sent bus-off during a stuck-dominant episode counts from the release.) Not modelled: the TEC
+  exception for a stuff error on a recessive stuff bit during arbitration, overload frames,
+  and flag superposition longer than 6 bits (all nodes detect each error at the same bit).
 
 Fault injection
 ---------------
@@ -209,7 +210,7 @@ class _Node:
     __slots__ = (
         "node", "tec", "rec", "state", "suspend_until", "occ", "recover_ev", "queue", "seq",
         "pending_fn", "on_frame", "on_tx_done", "on_lost", "on_error", "on_state", "attached",
-        "entry",
+        "entry", "counting", "count_from",
     )
 
     def __init__(self, node: Any) -> None:
@@ -219,6 +220,8 @@ class _Node:
         self.state = ACTIVE
         self.suspend_until = 0
         self.occ = 0
+        self.counting = True                 # bus-off: counting the 128 x 11 recessive bits
+        self.count_from: int | None = None   # ... from this tick, if it began in idle time
         self.recover_ev: Event | None = None
         self.queue: list[tuple[int, bool, int, CanFrame]] = []
         self.seq = 0
@@ -285,6 +288,22 @@ class CanBus:
         ns = _Node(node)
         self._nodes.append(ns)
         self._by_id[id(node)] = ns
+
+    def start_recovery(self, node: Any) -> None:
+        """A bus-off ``node`` whose controller recovers on request (``recovers_on_request``)
+        asks to: from now it counts 128 occurrences of 11 consecutive recessive bits, as
+        every other node counts from its error flag. Nothing happens for a node that is not
+        bus-off or already counting."""
+        ns = self._ns(node)
+        if ns.state is not BUS_OFF or ns.counting:
+            return
+        ns.counting = True
+        ns.occ = 0
+        now = self.sched.now
+        if self._phase == _IDLE and not self._holders:
+            ns.count_from = now
+            ns.recover_ev = self.sched.at(now + _RECOVERY * _ELEVEN * self.tpb,
+                                          self._recover_event, ns)
 
     def detach(self, node: Any) -> None:
         """Remove a node; it gets no further callbacks and its bus-kept queue is dropped."""
@@ -397,6 +416,10 @@ class CanBus:
             new = BUS_OFF
             ns.occ = 0
             ns.suspend_until = 0
+            # a controller that recovers on request (the MB90F549's: when HALT is cleared)
+            # does not count until start_recovery(); others count at once (CAN 2.0)
+            ns.counting = not getattr(ns.node, "recovers_on_request", False)
+            ns.count_from = None
         elif ns.tec >= 128 or ns.rec >= 128:
             new = PASSIVE
         else:
@@ -425,10 +448,16 @@ class CanBus:
         run = self._trailing + (now - self._idle_since) // self.tpb
         for ns in self._nodes:
             if ns.state is BUS_OFF:
+                if not ns.counting:
+                    continue
                 if ns.recover_ev is not None:
                     ns.recover_ev.cancel()
                     ns.recover_ev = None
-                ns.occ += run // _ELEVEN
+                mine = run
+                if ns.count_from is not None:     # counting began in this idle time
+                    mine = (now - ns.count_from) // self.tpb
+                    ns.count_from = None
+                ns.occ += mine // _ELEVEN
                 if ns.occ >= _RECOVERY:
                     self._recover(ns, now)
             elif ns.suspend_until > now:
@@ -617,7 +646,8 @@ class CanBus:
         self._cur_frame = None
         tpb = self.tpb
         for ns in self._nodes:
-            if ns.state is BUS_OFF:
+            if ns.state is BUS_OFF and ns.counting:
+                ns.count_from = None
                 need = _RECOVERY - ns.occ
                 t = now + max(0, _ELEVEN * need - trailing) * tpb
                 if t == now:

@@ -175,6 +175,18 @@ class Transceiver82C250:
             pass
 
     # ------------------------------------------------------------------ controller side
+    @property
+    def recovers_on_request(self) -> bool:
+        """The bus asks at bus-off: does the controller behind this transceiver start its
+        recovery count only when asked (``start_recovery``)?"""
+        return bool(getattr(self.controller, "recovers_on_request", False))
+
+    def start_recovery(self) -> None:
+        """The controller asks to leave bus-off: the bus starts its 128 x 11 count now."""
+        start = getattr(self.bus, "start_recovery", None)
+        if start is not None:
+            start(self)
+
     def request(self) -> None:
         """The controller has a (new) transmit request: wake the bus's arbitration."""
         if not self._standby:

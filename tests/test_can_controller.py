@@ -390,21 +390,29 @@ def test_bus_off_halts_then_firmware_restart_and_bus_recovery():
     assert (a.tec, a.rec, a.node_status, a.bus_off) == (0, 0, NS_ACTIVE, False)
 
 
-def test_bus_off_late_restart_resumes_at_halt_clear():
+def test_bus_off_late_restart_counts_from_halt_clear():
+    """The MB90F549 manual starts the 128 x 11 recessive-bit count when HALT is cleared. The
+    model once counted from the error, so with the child's 100 ms restart it resumed at once,
+    >= 2.8 ms early. Now the node stays bus-off on the bus until 128 occurrences of 11
+    recessive bits have passed after the firmware cleared HALT: on an idle bus exactly
+    128 x 11 = 1408 bit times (2.816 ms at 500 kbit/s), and only then does the frame go."""
     r, a, b, f = _bus_off_rig()
     r.run(1)
     while len(r.errs) < 32:
         r.sched.step()
-    recovery = r.errs[-1][4] + 127 * 11 * TPB
-    assert a.halted and a.bus_off
-    r.run(recovery + 5000)
-    # The bus has recovered the node, but the controller stays halted and bus-off.
-    assert r.bus.error_state(r.xcvrs[0]) is ErrorState.ACTIVE
+    counted_from_error = r.errs[-1][4] + 127 * 11 * TPB
+    r.run(counted_from_error + 5000)
+    assert r.bus.error_state(r.xcvrs[0]) is ErrorState.BUS_OFF     # nothing counted yet
     assert a.halted and a.node_status == NS_BUS_OFF and (a.CSR >> 8) & 3 == 3 and r.log == []
-    t = recovery + 7000
+    t = counted_from_error + 7000
     r.run(t)
-    a.start()
-    assert a.node_status == NS_ACTIVE and not a.bus_off
-    r.run(t + 1000 * TPB)
-    assert [(x[0], x[1]) for x in r.log] == [(f, t)]
-    assert r.of("CAN0", "ns")[-1] == (NS_ACTIVE, t)
+    a.start()                                                     # HALT = 0 at tick t
+    assert a.bus_off and a.node_status == NS_BUS_OFF
+    back = t + 128 * 11 * TPB
+    assert 128 * 11 * TPB / 16_000_000 == 0.002816                 # seconds at 500 kbit/s
+    r.run(back - 1)
+    assert a.bus_off and r.log == []
+    r.run(back + 1000 * TPB)
+    assert r.of("CAN0", "ns")[-1] == (NS_ACTIVE, back)
+    assert [(x[0], x[1]) for x in r.log] == [(f, back)]
+

@@ -62,13 +62,11 @@ Model decisions
 * Error counters and state mirror the bus's (``CanBus.status`` of the transceiver). NT is set
   on transitions seen at frame / error / state-change callbacks (a warning level crossed
   during a stuck-dominant episode shows in NS at once but sets NT at the next callback).
-* Bus-off: the controller sets HALT = 1 and NS = 11. The bus (``CanBus``) counts the 128 x 11
-  recessive bits from the error flag that sent the node bus-off, whatever HALT is (the
-  Fujitsu controller starts counting when HALT is cleared; the bus model has no hook to
-  delay the count, so the model can recover earlier, by the time HALT stayed set). The
-  controller comes back (NS = 00, NT = 1, transmit requests resume) at the later of: the
-  firmware clearing HALT, and the bus's recovery. Before that, NS reads 11 even if the bus
-  has already recovered. While HALT = 1 the bus still counts the node as an acknowledging
+* Bus-off: the controller sets HALT = 1 and NS = 11. As the manual has it, the 128 x 11
+  recessive-bit count starts when the firmware clears HALT (``recovers_on_request``: the bus
+  model counts for this node only from ``start_recovery``); the controller comes back (NS =
+  00, NT = 1, transmit requests resume) when the count is complete, at the earliest
+  1408 bit times after HALT was cleared (2.816 ms at 500 kbit/s). While HALT = 1 the bus still counts the node as an acknowledging
   receiver (no hook for a silent node).
 
 Over 500 lines on purpose: it is one peripheral, register by register, as the MB90F549 manual's
@@ -154,6 +152,9 @@ def _check_id(can_id: int) -> int:
 
 class CanController:
     """One MB90F549 CAN interface. Reset state: HALT = 1, TOE = 0, every buffer invalid."""
+
+    recovers_on_request = True
+    """Bus-off recovery starts when the firmware clears HALT (the bus asks, see can_bus.bus)."""
 
     __slots__ = (
         "sched", "name", "transceiver", "on_rx_irq", "on_tx_irq", "on_status_irq",
@@ -371,9 +372,12 @@ class CanController:
         self._csr = new
         if old & CSR_HALT and not new & CSR_HALT and self._busoff:
             tec, rec, state = self._status()
-            if state is not _BUS_OFF:  # the bus already recovered
-                self._busoff = False
+            if state is not _BUS_OFF:  # the bus already recovered (a controller on a bus
+                self._busoff = False   # model that counts from the error)
                 self._set_ns(_ns_of(tec, rec, state))
+            elif self.transceiver is not None and \
+                    hasattr(self.transceiver, "start_recovery"):
+                self.transceiver.start_recovery()   # the 128 x 11 count starts now
         self._update_run()
 
     @property
