@@ -329,7 +329,8 @@ def test_error_counters_and_node_status_visible_to_firmware():
     while len(r.errs) < 3:
         r.sched.step()
     assert (a.tec, a.rec, b.tec, b.rec) == (24, 0, 0, 3)
-    assert a.RTEC == 24 and b.RTEC == 3 << 8 and a.node_status == NS_ACTIVE
+    # RTEC: REC in bits 7-0, TEC in bits 15-8 (F2MC-16LX manual §16.3.4, Figure 16.3-7)
+    assert a.RTEC == 24 << 8 and b.RTEC == 3 and a.node_status == NS_ACTIVE
     while len(r.errs) < 12:
         r.sched.step()
     flag12 = r.errs[-1][3]

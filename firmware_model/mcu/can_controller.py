@@ -18,9 +18,11 @@ Registers (16 message buffers, x = 0..15; bit x of a 16-bit register is buffer x
 * ``LEIR`` last event indicator: ``NTE`` (bit 7, node status transition), ``TCE`` (bit 6,
   transmit complete), ``RCE`` (bit 5, receive complete), ``MBP3-0`` (bits 3-0, the buffer of
   the last TX/RX event). Each event clears the other event bits.
-* ``RTEC``: ``TEC`` in bits 7-0 and ``REC`` in bits 15-8 (byte order as modelled: check it
-  against the manual before firmware code relies on it). Mirrors the bus's counters of this
-  node, saturated at 255; ``tec``/``rec`` give the unsaturated values.
+* ``RTEC``: ``REC`` in bits 7-0 and ``TEC`` in bits 15-8 (Fujitsu F2MC-16LX MB90895-series
+  hardware manual, CAN controller chapter, §16.3.4 "Receive/Transmit Error Counter (RTEC)",
+  Figure 16.3-7, p. 493: the same CAN macro as the MB90F549's; the model once had the two
+  bytes the other way round). Mirrors the bus's counters of this node, saturated at 255;
+  ``tec``/``rec`` give the unsaturated values.
 * ``BTR`` bit timing: ``TS2`` (bits 14-12) = tseg2-1, ``TS1`` (bits 11-8) = tseg1-1, ``RSJ``
   (bits 7-6) = sjw-1, ``PSC`` (bits 5-0) = prescaler-1 (machine-clock ticks per quantum); see
   :func:`btr_from_timing`. Writable only while HALT = 1. Clearing HALT checks that its bit
@@ -62,8 +64,11 @@ Model decisions
 * Error counters and state mirror the bus's (``CanBus.status`` of the transceiver). NT is set
   on transitions seen at frame / error / state-change callbacks (a warning level crossed
   during a stuck-dominant episode shows in NS at once but sets NT at the next callback).
-* Bus-off: the controller sets HALT = 1 and NS = 11. As the manual has it, the 128 x 11
-  recessive-bit count starts when the firmware clears HALT (``recovers_on_request``: the bus
+* Bus-off: the controller sets HALT = 1 and NS = 11. As the manual has it (F2MC-16LX
+  hardware manual, CAN controller, §21.4.3, Figure 21.4-3 "Node Status Transition Diagram",
+  p. 456: "after 0 has been written to the HALT bit, continuous 11-bit recessive levels are
+  input 128 times"), the 128 x 11 recessive-bit count starts when the firmware clears HALT
+  (``recovers_on_request``: the bus
   model counts for this node only from ``start_recovery``); the controller comes back (NS =
   00, NT = 1, transmit requests resume) when the count is complete, at the earliest
   1408 bit times after HALT was cleared (2.816 ms at 500 kbit/s). While HALT = 1 the bus still counts the node as an acknowledging
@@ -391,7 +396,7 @@ class CanController:
     @property
     def RTEC(self) -> int:
         tec, rec, _ = self._status()
-        return min(tec, 255) | (min(rec, 255) << 8)
+        return min(rec, 255) | (min(tec, 255) << 8)
 
     @property
     def BTR(self) -> int:
