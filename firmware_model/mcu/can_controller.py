@@ -65,11 +65,11 @@ Model decisions
   on transitions seen at frame / error / state-change callbacks (a warning level crossed
   during a stuck-dominant episode shows in NS at once but sets NT at the next callback).
 * Bus-off: the controller sets HALT = 1 and NS = 11. As the manual has it (F2MC-16LX
-  hardware manual, CAN controller, §21.4.3, Figure 21.4-3 "Node Status Transition Diagram",
-  p. 456: "after 0 has been written to the HALT bit, continuous 11-bit recessive levels are
-  input 128 times"), the 128 x 11 recessive-bit count starts when the firmware clears HALT
-  (``recovers_on_request``: the bus
-  model counts for this node only from ``start_recovery``); the controller comes back (NS =
+  hardware manual, CAN controller, §21.4.3, Figure 21.4-3, the node status transition
+  diagram, p. 456: bus-off ends after 0 is written to HALT and then 128 runs of 11 recessive
+  bits are received), the count starts when the firmware clears HALT
+  (``recovers_on_request``: the bus model counts for this node only from
+  ``start_recovery``); the controller comes back (NS =
   00, NT = 1, transmit requests resume) when the count is complete, at the earliest
   1408 bit times after HALT was cleared (2.816 ms at 500 kbit/s). While HALT = 1 the bus still counts the node as an acknowledging
   receiver (no hook for a silent node).
