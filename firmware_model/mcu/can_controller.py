@@ -69,10 +69,10 @@ Model decisions
   diagram, p. 456: bus-off ends after 0 is written to HALT and then 128 runs of 11 recessive
   bits are received), the count starts when the firmware clears HALT
   (``recovers_on_request``: the bus model counts for this node only from
-  ``start_recovery``); the controller comes back (NS =
-  00, NT = 1, transmit requests resume) when the count is complete, at the earliest
-  1408 bit times after HALT was cleared (2.816 ms at 500 kbit/s). While HALT = 1 the bus still counts the node as an acknowledging
-  receiver (no hook for a silent node).
+  ``start_recovery``); the controller comes back (NS = 00, NT = 1, transmit requests
+  resume) when the count is complete, at the earliest 1408 bit times after HALT was cleared
+  (2.816 ms at 500 kbit/s). While HALT = 1 the bus still counts the node as an
+  acknowledging receiver (no hook for a silent node).
 
 Over 500 lines on purpose: it is one peripheral, register by register, as the MB90F549 manual's
 CAN chapter describes it.
