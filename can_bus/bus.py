@@ -13,6 +13,9 @@ A node is any object; the bus looks up these optional methods once, at :meth:`Ca
   bus keeps a per-node priority queue filled by ``bus.request(node, frame)``.
 * ``on_frame(frame, start_tick, end_tick)``: a frame was received (every node that is not
   bus-off receives every frame it did not send; filtering is the node's business).
+* ``acknowledges`` (optional, read at each frame): False while the node cannot drive the ACK
+  slot (a halted controller, a transceiver in standby); with no receiver that can, the frame
+  ends in an ACK error.
 * ``on_tx_done(frame, end_tick)``: the node's frame was sent and acknowledged. A node with its
   own queue removes the frame here.
 * ``on_arbitration_lost(frame)``: called at the SOF tick of the frame that beat ``frame``.
@@ -539,8 +542,9 @@ class CanBus:
                     if err is None or k < err[0]:
                         err = (k, "bit")
                     break
-        if not rx and (err is None or err[0] > nstuffed + 1):
-            err = (nstuffed + 1, "ack")
+        if (err is None or err[0] > nstuffed + 1) and \
+                not any(getattr(ns.node, "acknowledges", True) for ns in rx):
+            err = (nstuffed + 1, "ack")          # no receiver able to drive the ACK slot
 
         if err is None:
             self._busy_until = now + (len(wire) + IFS_BITS) * tpb

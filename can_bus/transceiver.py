@@ -176,6 +176,13 @@ class Transceiver82C250:
 
     # ------------------------------------------------------------------ controller side
     @property
+    def acknowledges(self) -> bool:
+        """Can this node drive the ACK slot dominant? Not in standby (its transmitter is off,
+        82C250 data sheet, standby mode), nor while its controller does not take part in bus
+        traffic (``acknowledges`` False on the controller, e.g. the MB90F549 halted)."""
+        return not self._standby and bool(getattr(self.controller, "acknowledges", True))
+
+    @property
     def recovers_on_request(self) -> bool:
         """The bus asks at bus-off: does the controller behind this transceiver start its
         recovery count only when asked (``start_recovery``)?"""

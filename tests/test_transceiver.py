@@ -127,7 +127,8 @@ def test_slope_control_within_the_limit_transmits():
 
 # ---------------------------------------------------------------- standby
 def test_standby_no_transmission_no_reception_and_wake_at_sof():
-    sched, bus, (a, b), (xa, xb), log, errs = rig(2)
+    # (a third node, c, acknowledges b's frames: a, in standby, cannot)
+    sched, bus, (a, b, c), (xa, xb, xc), log, errs = rig(3)
     wakes = []
     xa.on_wake = lambda t: wakes.append((t, sched.now))
     xa.standby()
@@ -153,6 +154,20 @@ def test_standby_no_transmission_no_reception_and_wake_at_sof():
     b.transmit(0, b"\xB3")
     sched.run_until(60_000)
     assert wakes[1] == (50_000, 50_000)
+
+
+def test_a_transceiver_in_standby_cannot_acknowledge():
+    """Its transmitter is off (82C250 data sheet, standby): alone with a transmitter it leaves
+    the ACK slot recessive, so the frame ends in an ACK error (the model once acknowledged
+    through a transceiver in standby)."""
+    sched, bus, (a, b), (xa, xb), log, errs = rig(2)
+    xa.standby()
+    b.transmit(0, b"\xB0")
+    sched.run_until(20_000)
+    assert log == [] and errs and all(e[0] == "ack" for e in errs)
+    xa.standby(False)
+    sched.run_until(200_000)
+    assert [f.data for f, *_ in log] == [b"\xB0"]          # retransmitted, now acknowledged
 
 
 def test_standby_wakes_on_a_stuck_bus():

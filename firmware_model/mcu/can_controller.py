@@ -71,8 +71,8 @@ Model decisions
   (``recovers_on_request``: the bus model counts for this node only from
   ``start_recovery``); the controller comes back (NS = 00, NT = 1, transmit requests
   resume) when the count is complete, at the earliest 1408 bit times after HALT was cleared
-  (2.816 ms at 500 kbit/s). While HALT = 1 the bus still counts the node as an
-  acknowledging receiver (no hook for a silent node).
+  (2.816 ms at 500 kbit/s). While HALT = 1 it does not acknowledge others' frames
+  (``acknowledges``).
 
 Over 500 lines on purpose: it is one peripheral, register by register, as the MB90F549 manual's
 CAN chapter describes it.
@@ -160,6 +160,12 @@ class CanController:
 
     recovers_on_request = True
     """Bus-off recovery starts when the firmware clears HALT (the bus asks, see can_bus.bus)."""
+
+    @property
+    def acknowledges(self) -> bool:
+        """A halted controller (HALT = 1) takes no part in bus traffic: it cannot drive the
+        ACK slot of another node's frame (the bus asks at each frame, see can_bus.bus)."""
+        return not self._csr & CSR_HALT
 
     __slots__ = (
         "sched", "name", "transceiver", "on_rx_irq", "on_tx_irq", "on_status_irq",
