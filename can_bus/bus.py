@@ -393,6 +393,13 @@ class CanBus:
     def held(self) -> bool:
         return bool(self._holders)
 
+    @property
+    def frame_on_air(self) -> tuple[CanFrame, int] | None:
+        """(the frame on the bus, the tick of its SOF) while one is, else None."""
+        if self._phase == _FRAME and self._cur_frame is not None:
+            return self._cur_frame, self._cur_start
+        return None
+
     # ------------------------------------------------------------------ internals
     def _ns(self, node: Any) -> _Node:
         try:

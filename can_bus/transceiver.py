@@ -35,18 +35,19 @@ Rs pin (pin 8) modes
 * ``STANDBY``: Rs high. Transmitter off, receiver in low-power mode. The controller gets no
   frames, no errors and is offered no arbitration (its requests stay pending until the
   transceiver is back in a normal mode). A dominant bus level is passed to RxD so the MCU can
-  wake up: ``on_wake(tick)`` fires once, on the first dominant bus activity after entering
-  standby: at the SOF tick of any frame, or for a bus stuck dominant with no frame in flight at
-  the tick the error flag starts (6 bit times after the bus went dominant: the bus model gives
-  no earlier hook). The SOF is seen through ``pending()``, which the bus does not call for a
+  wake up: ``on_wake(tick)`` fires once, when the bus has been dominant for at least
+  ``WAKE_DOMINANT_S`` (3 us, AN96116 §3.3) after entering standby: within a frame, 3 us into its
+  first run of dominant bits that long (SOF and the ID's leading 0 bits; a single dominant
+  bit at 500 kbit/s, 2 us, does not wake it); at an error flag, 3 us into the flag; for a bus
+  stuck dominant with no frame in flight, at the tick the error flag starts (6 bit times after
+  the bus went dominant: the bus model gives no earlier hook). The SOF is seen through ``pending()``, which the bus does not call for a
   node it counts bus-off: such a node wakes only on a stuck bus. Mode changes take effect at
   the next arbitration; a frame of this node already on the bus completes. A mode change that
   lifts the slope limit after an error was armed for a frame that then lost arbitration still
   costs the next transmitted frame one bit error (an injected error cannot be withdrawn).
 
   Simplification: in standby the node stays attached to the bus, so the bus still counts it
-  as a receiver (its REC follows the traffic, and it counts as an acknowledging receiver; a
-  real 82C250 in standby does not drive the ACK slot). The controller's error state
+  as a receiver (its REC follows the traffic). It does not acknowledge (``acknowledges``). The controller's error state
   (``on_state_change``) is still forwarded, as the controller mirrors the bus's counters.
 
 TXD / RXD
@@ -65,6 +66,7 @@ from __future__ import annotations
 from enum import Enum
 from typing import Any, Callable
 
+from can_bus.bits import wire_bits
 from can_bus.bus import CanBus, CanErrorEvent, CanFrame, ErrorState, NodeStatus
 
 __all__ = [
@@ -81,6 +83,10 @@ __all__ = [
 
 HIGH_SPEED_MAX_OHMS = 1_800
 """Rs resistance below which the 82C250 is in high-speed mode (AN96116: V_Rs < 0.3 Vcc)."""
+WAKE_DOMINANT_S = 3e-6
+"""A dominant bus level must last at least this long before the 82C250 in standby signals a
+wake-up on RxD (Philips AN96116, PCA82C250/251 application note, §3.3 Stand-by Mode)."""
+
 SLOPE_MIN_OHMS = 16_500
 SLOPE_MAX_OHMS = 140_000
 """Slope-control resistor range given by AN96116 (10 uA < -I_Rs < 200 uA)."""
@@ -303,8 +309,32 @@ class Transceiver82C250:
     # ------------------------------------------------------------------ wake-up
     def _sof_check(self) -> None:
         # Runs at the tick of an arbitration, after it: a frame started iff the bus is busy.
+        # RxD wakes the MCU once the bus has been dominant for WAKE_DOMINANT_S: at the first
+        # run of dominant bits in the frame that long (SOF and the leading 0 bits of the ID).
         self._sof_ev = None
-        if self._wake_armed and not self.bus.idle:
+        on_air = self.bus.frame_on_air
+        if not self._wake_armed or on_air is None:
+            return
+        frame, sof = on_air
+        tpb = self.bus.tpb
+        need = self.wake_ticks
+        run = 0
+        for i, bit in enumerate(wire_bits(frame.id, frame.data, frame.rtr, frame.dlc)):
+            run = run + 1 if bit == 0 else 0
+            if run * tpb >= need:
+                first = i - run + 1
+                self._sof_ev = self.sched.at(sof + first * tpb + need, self._wake_at_tick)
+                return
+
+    @property
+    def wake_ticks(self) -> int:
+        """WAKE_DOMINANT_S in ticks of the bus's clock (rounded up)."""
+        hz = self.bus.timing.tick_hz
+        return -(-round(WAKE_DOMINANT_S * hz * 1000) // 1000)
+
+    def _wake_at_tick(self) -> None:
+        self._sof_ev = None
+        if self._wake_armed and self._standby:
             self._wake(self.sched.now)
 
     def _wake(self, tick: int) -> None:
@@ -349,8 +379,14 @@ class Transceiver82C250:
                 self._c_error(ev)  # our own frame failed: the controller must know
             return
         if self._standby:
-            if self._wake_armed:
-                self._wake(ev.tick)
+            if self._wake_armed and self._sof_ev is None:
+                # an error flag (6 dominant bits) of a frame that had not woken us yet; a
+                # stuck bus has been dominant for 6 bit times already when its flag starts
+                at = ev.tick if self.bus.held else ev.tick + self.wake_ticks
+                if at <= self.sched.now:
+                    self._wake(at)
+                else:
+                    self._sof_ev = self.sched.at(at, self._wake_at_tick)
             return
         if self._c_error is not None:
             self._c_error(ev)

@@ -140,7 +140,9 @@ def test_standby_no_transmission_no_reception_and_wake_at_sof():
     b.transmit(0, b"\xB1")
     sched.run_until(30_000)
     assert [(f.data, s) for f, s, *_ in log] == [(b"\xB0", 10_000), (b"\xB1", 20_000)]
-    assert wakes == [(10_000, 10_000)] and xa.wakeups == 1  # once, at the first SOF
+    # once, 3 us (48 ticks) into the first frame's first dominant run that long: b's ID 0x101
+    # sends SOF 0 then 0 0 1..., a run of 3 dominant bits (6 us) from the SOF
+    assert wakes == [(10_048, 10_048)] and xa.wakeups == 1
     assert a.RCR == 0 and a.frames_received == 0  # nothing reaches the controller
     # Back to normal: a's pending frame goes at once; a receives again.
     xa.standby(False)
@@ -153,7 +155,26 @@ def test_standby_no_transmission_no_reception_and_wake_at_sof():
     xa.standby()
     b.transmit(0, b"\xB3")
     sched.run_until(60_000)
-    assert wakes[1] == (50_000, 50_000)
+    assert wakes[1] == (50_048, 50_048)
+
+
+def test_standby_wakes_only_after_3_us_of_dominant_bus():
+    """AN96116 §3.3: a dominant level of at least 3 us wakes the MCU through RxD; the model
+    once woke on the SOF bit. At 500 kbit/s one dominant bit (2 us) is not enough: for ID
+    0x500 the wire reads SOF 0, then 1 0 1 0 0 0..., so the first run of two or more dominant
+    bits starts at bit 4, and the wake-up comes 48 ticks (3 us) into it."""
+    from can_bus.bits import wire_bits
+    sched, bus, (a, b, c), (xa, xb, xc), log, errs = rig(3)
+    wakes = []
+    xa.on_wake = lambda t: wakes.append(t)
+    xa.standby()
+    b.configure_tx(0, 0x500)
+    assert wire_bits(0x500, b"\x01")[:6] == [0, 1, 0, 1, 0, 0]    # (checked independently)
+    sched.run_until(10_000)
+    b.transmit(0, b"\x01")                                      # SOF at 10 000
+    sched.run_until(20_000)
+    assert [s for _, s, *_ in log] == [10_000]
+    assert wakes == [10_000 + 4 * 32 + 48]
 
 
 def test_a_transceiver_in_standby_cannot_acknowledge():
