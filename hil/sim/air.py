@@ -311,7 +311,7 @@ class Air:
         for tx in self.active:
             if tx.collided or tx.aborted or tx.radio is r or not tx.t0 < when < tx.end:
                 continue
-            k = -(-(when - tx.t0) // tx.bt)      # the first byte whose start bit is heard
+            k = _first_byte_heard(tx.t0, tx.bt, when, r.uart.byte_ticks)
             if k < tx.n:
                 self._noise_upto(r, when)
                 self._noise_gen[r.idx] += 1
@@ -534,3 +534,26 @@ class Air:
                         r.noise_from = now
         if self.on_transmission is not None:
             self.on_transmission(tx)
+
+
+def _first_byte_heard(t0: int, bt: int, when: int, rx_bt: int) -> int:
+    """Index of the first byte a UART that starts listening at ``when`` decodes, of bytes
+    sent back to back from ``t0``, ``bt`` ticks each (8N1, 10 bits).
+
+    The UART takes the line's first low level as a start-bit edge and samples each bit in
+    the middle of its own bit time (``rx_bt / 10``) from there. A byte already under way is
+    decoded if every sample still falls inside its bit cell: for bit m (start 0 .. stop 9),
+    ``t0 + m*B < when + (m + 1/2)*Brx < t0 + (m+1)*B``. Joining a little late in a start
+    bit (less than half a bit at equal rates) still gets the byte; later, the model takes the
+    next whole byte (the resynchronisation a UART finds after a framing error)."""
+    k = (when - t0) // bt                 # the byte under way at ``when``
+    s = t0 + k * bt
+    if s == when:
+        return k
+    d = when - s
+    for m in range(10):
+        # everything times 20 to stay in integers: bit cell [m*bt*2, (m+1)*bt*2) of 20*...
+        sample = 20 * d + (2 * m + 1) * rx_bt
+        if not (2 * m * bt <= sample < 2 * (m + 1) * bt):
+            return k + 1
+    return k
