@@ -58,11 +58,14 @@ def turn_timing(seconds: float) -> dict:
             "p99_ms": sorted(err)[int(0.99 * (len(err) - 1))]}
 
 
-def latency_sim(samples: int) -> list[int]:
+def latency_sim(samples: int, costs=None) -> list[int]:
+    """Ticks from the End of a joint order to its JOINT1_CMD's SOF; ``costs`` runs the child
+    on the CPU model with that cycle-cost table (None: the ideal, zero-time CPU)."""
     out = []
     for k in range(samples):
         evs: list[dict] = []
-        w = World(SimConfig(robots=(0, 1), duration=12.0, can=True), on_event=evs.append)
+        w = World(SimConfig(robots=(0, 1), duration=12.0, can=True, cpu=costs),
+                  on_event=evs.append)
         w.run(s_to_ticks(4.0 + 0.013 * k))
         w.submit(0, 1, [cmd("joint", 1, 10 + k)])
         w.run()
@@ -134,6 +137,11 @@ def main() -> None:
     print(f"dispatcher latency in simulation (frame End -> JOINT1_CMD start): median "
           f"{statistics.median(sim)} ticks ({statistics.median(sim) / 16:.1f} us), "
           f"max {max(sim)} ticks")
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    est = latency_sim(min(a.samples, 10), DEFAULT_COSTS)
+    print(f"dispatcher latency in simulation on the CPU model (--cpu estimated): median "
+          f"{statistics.median(est)} ticks ({statistics.median(est) / 16:.1f} us), "
+          f"max {max(est)} ticks ({max(est) / 16:.1f} us)")
     rt = latency_realtime(a.samples)
     if rt:
         print(f"dispatcher latency in real time (child process, pty hub, rprs_unix CAN; "

@@ -34,8 +34,11 @@ from typing import Any, Callable
 
 from can_bus.bus import CanFrame
 
+from .cycle_costs import DEFAULT_COSTS, CycleCosts, message_cycles
 from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, REQUEST_TYPES, Dispatcher
 from .mcu.can_controller import AMS_AMR0, AMS_AMR1, CSR_NIE, CSR_NT, CanController
+from .interrupts import CAN_RX, CAN_STATUS, CAN_TX, DISPATCH_TASK, TMR1
+from .mcu.cpu import Cpu
 from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
 from .radio.content import cmd
@@ -61,8 +64,14 @@ class CanDriver:
     def __init__(self, sched: Scheduler, controller: CanController, transceiver: Any,
                  on_frame: Callable[[CanFrame, int], None],
                  on_fault: Callable[[int, int], None],
-                 on_status: Callable[[], None] = lambda: None) -> None:
+                 on_status: Callable[[], None] = lambda: None, cpu: Cpu | None = None,
+                 costs: CycleCosts | None = None) -> None:
         self.sched = sched
+        self.cpu = cpu if cpu is not None else Cpu(sched)
+        costs = costs or DEFAULT_COSTS
+        self._cycles = {"rx": costs.can_rx.cycles, "tx": costs.can_tx.cycles,
+                        "status": costs.can_status.cycles}
+        self._read: list[CanFrame] = []
         self.on_status = on_status
         self.can = controller
         self.xcvr = transceiver
@@ -86,9 +95,11 @@ class CanDriver:
         mask_tx = sum(1 << b for b in TX_BUFFERS.values())
         mask_rx = sum(1 << b for b in RX_EVENT + RX_STATUS)
         c.enable_irq(tx=mask_tx, rx=mask_rx)
-        c.on_rx_irq = self._rx_irq
-        c.on_tx_irq = self._tx_irq
-        c.on_status_irq = self._status_irq
+        cpu, cyc = self.cpu, self._cycles
+        c.on_rx_irq = lambda buf: cpu.irq(CAN_RX, cyc["rx"], self._rx_body,
+                                          enter=lambda: self._rx_read(buf))
+        c.on_tx_irq = lambda buf: cpu.irq(CAN_TX, cyc["tx"], self._tx_irq, buf)
+        c.on_status_irq = lambda ns: cpu.irq(CAN_STATUS, cyc["status"], self._status_irq, ns)
         c.CSR = c.CSR | CSR_NIE
         c.start()
 
@@ -122,10 +133,16 @@ class CanDriver:
 
     # -- receiving --------------------------------------------------------------------------
 
-    def _rx_irq(self, buf: int) -> None:
+    def _rx_read(self, buf: int) -> None:
+        """The handler's first reads: the buffer's identifier, DLC and data; RCR cleared."""
         frame = self.can.take(buf)
-        if frame is None:
+        if frame is not None:
+            self._read.append(frame)
+
+    def _rx_body(self) -> None:
+        if not self._read:
             return
+        frame = self._read.pop(0)
         self.last_rx = self.sched.now
         self.on_frame(frame, self.sched.now)
 
@@ -182,16 +199,28 @@ class ChildFirmware:
     """A child robot: the radio station and, through the dispatcher, its CAN side."""
 
     def __init__(self, station: RadioStation, controller: CanController,
-                 transceiver: Any) -> None:
+                 transceiver: Any, costs: CycleCosts | None = None) -> None:
+        """``costs`` runs the firmware on the CPU model with that cycle-cost table (radio
+        handlers included); None is the ideal CPU (every handler in zero time)."""
         self.station = station
         self.sched = station.sched
         self.id = station.id
+        self.costs = costs
+        self.cpu = Cpu(self.sched, costs, name=f"MB90F549-R{self.id}")
+        if costs is not None:
+            station.run_on(self.cpu, costs)
         self.dispatcher = Dispatcher(self.id)
         # done() notices are this project's (protocol 2.1); the paper profile sends none
         self.dispatcher.report_done = station.mac.cfg.profile != "paper"
         self.can = CanDriver(self.sched, controller, transceiver, self._on_can, self._on_fault,
-                             self._pump)
-        self.timer = ReloadTimer(self.sched, self._on_timer, name="TMR1")
+                             self._pump, cpu=self.cpu, costs=costs)
+        self.latency_from: tuple[int, int, bytes] | None = None
+        """(End tick of a radio order's frame, CAN id and data of the first frame the order
+        produced) until that frame reaches the bus: the world measures the dispatcher's
+        latency from it."""
+        timer_cycles = (costs or DEFAULT_COSTS).dispatcher_timer.cycles
+        self.timer = ReloadTimer(self.sched, lambda now: self.cpu.irq(
+            TMR1, timer_cycles, self._on_timer_isr), name="TMR1")
         station.app = self._on_message
         self.sequence: ActionSequence | None = None
         self.on_action: Callable[[int, int, str, int], None] | None = None
@@ -232,9 +261,16 @@ class ChildFirmware:
             self._on_notice(self.id, action, now)
 
     def _on_message(self, d: Deliver, now: int) -> None:
+        """The radio handler hands the message to the main loop, which parses and plans it."""
+        end = self.station.deframer.last_tick
+        body = message_cycles(d.commands, self.costs or DEFAULT_COSTS)
+        self.cpu.task(DISPATCH_TASK, body, self._dispatch, d, end)
+
+    def _dispatch(self, d: Deliver, end: int | None) -> None:
+        now = self.sched.now
         self.dispatcher.on_message(d.src, d.dst, d.commands, now, d.type)
         self._kickoff()
-        self._pump()
+        self._pump(end)
 
     def _on_can(self, frame: CanFrame, now: int) -> None:
         self.dispatcher.on_can(frame, now)
@@ -243,6 +279,9 @@ class ChildFirmware:
     def _on_fault(self, code: int, now: int) -> None:
         self.dispatcher.on_bus_fault(code, now)
         self._pump()
+
+    def _on_timer_isr(self) -> None:
+        self._on_timer(self.sched.now)
 
     def _on_timer(self, now: int) -> None:
         self.dispatcher.on_timer(now)
@@ -254,9 +293,12 @@ class ChildFirmware:
         self.dispatcher.start_action(n, self.sched.now)
         self._pump()
 
-    def _pump(self) -> None:
+    def _pump(self, cause: int | None = None) -> None:
         d = self.dispatcher
-        for f in d.take_can():
+        frames = d.take_can()
+        if frames and cause is not None and self.latency_from is None:
+            self.latency_from = (cause, frames[0].id, bytes(frames[0].data))
+        for f in frames:
             self.can.send(f)
         for dst, commands, type_ in d.take_radio():
             try:

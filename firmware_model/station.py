@@ -54,8 +54,30 @@ class RadioStation:
         self.frames_heard = 0
         self.frames_failed = 0
         self._stall = max(cfg.stall_gap, 2 * uart.byte_ticks)
+        self.cpu = None
+        self._frame_cycles = 0
         uart.on_rx = self._on_rx
         uart.on_tx_done = self._on_tx_done
+
+    def run_on(self, cpu, costs) -> None:
+        """Run the handlers on a CPU model (mcu/cpu.py) with bodies from ``costs``
+        (cycle_costs.py): UART0 reception a byte at a time, its transmission-complete
+        interrupt, and the two timer channels, at the levels of interrupts.py."""
+        from .interrupts import RXWATCH, TMR0, UART0_RX, UART0_TX
+        self.cpu = cpu
+        self._frame_cycles = costs.mac_frame.cycles
+        self.uart.attach_cpu(cpu, UART0_RX, costs.uart_rx_byte.cycles, UART0_TX,
+                             costs.uart_tx_done.cycles)
+        timer_cycles = costs.mac_timer.cycles
+        self.timer.on_expiry = lambda now: cpu.irq(TMR0, timer_cycles, self._on_timer_isr)
+        self.stall_timer.on_expiry = lambda now: cpu.irq(RXWATCH, timer_cycles,
+                                                         self._on_stall_isr)
+
+    def _on_timer_isr(self) -> None:
+        self._on_timer(self.sched.now)
+
+    def _on_stall_isr(self) -> None:
+        self._on_stall(self.sched.now)
 
     # -- interrupt handlers ----------------------------------------------------------------
 
@@ -70,12 +92,16 @@ class RadioStation:
         frame = d.known_frame(data, end)
         if frame is not None:
             self.frames_heard += 1
+            if self._frame_cycles:
+                self.cpu.extend(self._frame_cycles)
             self._apply(mac.on_frame(frame, t0, end, now))
             return
         evs = d.feed(data, t0, dt)
         for ev in evs:
             if type(ev) is FrameReceived:
                 self.frames_heard += 1
+                if self._frame_cycles:
+                    self.cpu.extend(self._frame_cycles)
                 self._apply(mac.on_frame(ev.frame, ev.first, ev.end, now), ev)
             elif type(ev) is Garbage:
                 self.garbage_bytes += ev.count

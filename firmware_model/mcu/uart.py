@@ -6,6 +6,12 @@ while the previous byte shifts out, so a frame leaves back to back with no idle 
 bytes; the model therefore hands the transmitter a whole burst and raises the
 transmission-complete interrupt when the last stop bit ends. Received bytes arrive from the
 radio with the tick at which each stop bit ended.
+
+With a CPU model attached (``attach_cpu``), reception is what the part does: each byte's stop
+bit sets RDRF and requests the receive interrupt; the handler reads the byte (clearing RDRF)
+when its entry sequence ends. A byte whose stop bit ends while RDRF is still set is an
+overrun: SSR.ORE is set and the byte is lost (MB90F549 UART, "reception": the data register
+is not overwritten). Without a CPU model the bytes go to ``on_rx`` as they come, in bursts.
 """
 from __future__ import annotations
 
@@ -32,7 +38,8 @@ class Uart:
     """One UART channel. Set ``line`` (TX side), ``on_rx`` and ``on_tx_done`` before use."""
 
     __slots__ = ("sched", "bit_ticks", "byte_ticks", "line", "on_rx", "on_tx_done",
-                 "busy_until", "bytes_sent", "bytes_received", "name")
+                 "busy_until", "bytes_sent", "bytes_received", "name", "cpu", "rx_vector",
+                 "rx_cycles", "tx_vector", "tx_cycles", "rdr", "overruns", "_read")
 
     def __init__(self, sched: Scheduler, baud: int = 9600, byte_ticks: int | None = None,
                  name: str = "UART0") -> None:
@@ -53,6 +60,19 @@ class Uart:
         self.busy_until = 0
         self.bytes_sent = 0
         self.bytes_received = 0
+        self.cpu = None
+        self.rx_vector = self.tx_vector = None
+        self.rx_cycles = self.tx_cycles = 0
+        self.rdr: list[tuple[int, int]] = []   # (byte, stop-bit tick); RDRF while non-empty
+        self.overruns = 0
+        self._read: list[tuple[int, int]] = []
+
+    def attach_cpu(self, cpu, rx_vector, rx_cycles: int, tx_vector, tx_cycles: int) -> None:
+        """Run the receive and transmission-complete handlers on ``cpu`` (mcu/cpu.py), with
+        bodies of ``rx_cycles`` a byte and ``tx_cycles``."""
+        self.cpu = cpu
+        self.rx_vector, self.rx_cycles = rx_vector, rx_cycles
+        self.tx_vector, self.tx_cycles = tx_vector, tx_cycles
 
     @property
     def baud(self) -> float:
@@ -73,14 +93,45 @@ class Uart:
         return end
 
     def _tx_complete(self, end: int) -> None:
-        if self.on_tx_done is not None:
+        if self.on_tx_done is None:
+            return
+        if self.cpu is None:
             self.on_tx_done(end)
+        else:
+            # the handler's first act is the MAC's end-of-frame rule (TXEN low): the radio
+            # must be back on receive Ttrans after the End, when the next sender may begin
+            done = self.on_tx_done
+            self.cpu.irq(self.tx_vector, self.tx_cycles, _nothing, enter=lambda: done(end))
 
     def receive(self, data: bytes, t0: int, dt: int) -> None:
         """Bytes from the line: byte i's stop bit ended at tick ``t0 + i * dt``."""
         self.bytes_received += len(data)
-        if self.on_rx is not None:
+        if self.on_rx is None:
+            return
+        if self.cpu is None:
             self.on_rx(data, t0, dt)
+            return
+        now = self.sched.now
+        for i, b in enumerate(data):
+            t = t0 + i * dt
+            if self.rdr and t >= now:
+                # RDRF still set when this stop bit ends: ORE, the byte is lost. (A byte the
+                # line hands over late, idle noise delivered in a burst, cannot be judged.)
+                self.overruns += 1
+                continue
+            self.rdr.append((b, t))     # more than one only for bytes handed over late
+            self.cpu.irq(self.rx_vector, self.rx_cycles, self._rx_isr, dt,
+                         enter=self._take_rdr)
+
+    def _take_rdr(self) -> None:
+        """The receive handler reads SIDR: RDRF clears, the next byte may come."""
+        if self.rdr:
+            self._read.append(self.rdr.pop(0))
+
+    def _rx_isr(self, dt: int) -> None:
+        if self._read and self.on_rx is not None:
+            b, t = self._read.pop(0)
+            self.on_rx(bytes((b,)), t, dt)
 
     def sync(self, now: int) -> None:
         """Take every byte whose stop bit ended by ``now`` (before a timer ISR reads state)."""
@@ -94,3 +145,7 @@ class Uart:
         as well), before the byte is complete; a line that cannot tell returns None."""
         query = getattr(self.line, "rx_started", None)
         return query(now) if query is not None else None
+
+
+def _nothing() -> None:
+    """The rest of a handler whose effects all happen on entry."""

@@ -6,7 +6,7 @@ import json
 import sys
 import time
 
-from firmware_model.timing import TICK_HZ, ticks_to_s
+from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
@@ -53,6 +53,15 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
         p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
                        help="peer MACs: frame size of the load (default 80)")
         p.add_argument("--vcd", metavar="FILE", help="write a waveform (GTKWave) here")
+        p.add_argument("--cpu", choices=("ideal", "estimated"), default=None,
+                       help="the children's CPU: ideal (every handler in zero time, the "
+                       "paper's timing; the default) or estimated (the MB90F549 model with "
+                       "the cycle-cost table, docs/cpu.md)")
+        p.add_argument("--cpu-costs", metavar="FILE", help="a TOML file of cycle costs "
+                       "([costs] name = cycles) over the default table; implies --cpu "
+                       "estimated")
+        p.add_argument("--cpu-report", action="store_true", help="print each child's CPU "
+                       "budget: per handler, per second, worst case; implies --cpu estimated")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     if progress:
@@ -69,7 +78,7 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
     if getattr(a, "frame_bytes", None):
         from firmware_model.radio.peer_macs import PeerConfig
         peer = PeerConfig(frame_bytes=a.frame_bytes)
-    return SimConfig(robots=a.robots, duration=a.duration, seed=a.seed,
+    return SimConfig(robots=a.robots, duration=a.duration, seed=a.seed, cpu=cpu_costs(a),
                      faults=tuple(sorted(faults, key=lambda f: (f.at, f.kind,
                                                                  -1 if f.robot is None
                                                                  else f.robot))),
@@ -78,6 +87,25 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                      mac=checked_mac_config(checksum=a.checksum, profile=a.profile),
                      father_standby=a.father_standby,
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer)
+
+
+def cpu_costs(a: argparse.Namespace):
+    """The cycle-cost table the options ask for, or None for the ideal CPU."""
+    choice = getattr(a, "cpu", None)
+    path = getattr(a, "cpu_costs", None)
+    report = getattr(a, "cpu_report", False)
+    if choice == "ideal" and (path or report):
+        raise UserError("--cpu ideal charges no cycles: --cpu-costs and --cpu-report need "
+                        "--cpu estimated")
+    if choice != "estimated" and not path and not report:
+        return None
+    from firmware_model.cycle_costs import DEFAULT_COSTS, load_costs
+    if not path:
+        return DEFAULT_COSTS
+    try:
+        return load_costs(path)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
 
 
 def open_writers(trace_path: str | None, vcd_path: str | None):
@@ -176,6 +204,16 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
               + (f"   CAN frames: {world.can_frames}" if world.cfg.can else ""))
     unacked = (f"sent unacknowledged (paper profile) {s['unacknowledged']}, "
                if s["unacknowledged"] else "")
+    if "cpu_load" in s:
+        loads = ", ".join(f"R{r} {v * 100:.2f} %" for r, v in s["cpu_load"].items())
+        lost = sum(s["cpu_overruns"].values())
+        con.print(f"CPU load (MB90F549 model): {loads}; UART overruns: {lost}")
+    if "dispatch_latency_ticks" in s:
+        d = {k: (round(ticks_to_ms(v) * 1000, 1) if k != "count" else v)
+             for k, v in s["dispatch_latency_ticks"].items()}
+        con.print(f"dispatcher latency, radio End to the first CAN frame's SOF, over "
+                  f"{d['count']} orders: min {d['min']:g} us, median {d['median']:g} us, "
+                  f"max {d['max']:g} us")
     con.print(f"messages: submitted {s['submitted']}, delivered {s['delivered']}, "
               f"failed {s['failed']}, {unacked}pending {s['pending']}, "
               f"duplicate deliveries {s['duplicate_deliveries']}")
@@ -198,6 +236,14 @@ def cmd_sim(a: argparse.Namespace, demo: bool = False, before_summary=None) -> i
     if before_summary is not None:
         before_summary(events)
     print_summary(world, wall, a.json, membership=before_summary is None)
+    if getattr(a, "cpu_report", False):
+        from ..view.cpu_report import cpu_budget, print_cpu_report
+        if a.json:
+            print(json.dumps({"cpu_report": {r: cpu_budget(
+                c, cfg.cpu.sample_wait_max.cycles, world.byte_ticks[r], world.sched.now)
+                for r, c in sorted(world.cpus.items())}}, indent=1))
+        else:
+            print_cpu_report(world, cfg.cpu)
     return 0
 
 

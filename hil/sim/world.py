@@ -21,6 +21,7 @@ from can_bus.transceiver import Transceiver82C250
 from firmware_model.child import ChildFirmware
 from firmware_model.kinematics import HOME
 from firmware_model.mcu.can_controller import CanController
+from firmware_model.mcu.cpu import Cpu
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.sequence import ACTION_NAMES
 from firmware_model.radio.content import Command, cmd, frame_kind
@@ -86,6 +87,10 @@ class SimConfig:
     (aloha, slotted, csma; firmware_model/radio/peer_macs.py)."""
     peer: object | None = None
     """PeerConfig for the peer MACs."""
+    cpu: object | None = None
+    """A cycle-cost table (firmware_model.cycle_costs.CycleCosts): every child's firmware runs
+    on the MB90F549 CPU model, its handlers taking the time the table gives. None: the ideal
+    CPU, every handler in zero time (the paper's timing)."""
 
     def validate(self) -> None:
         if not self.robots:
@@ -194,8 +199,10 @@ class World:
         self.sched = RealTimeScheduler() if config.realtime else Scheduler()
         self.trace = trace
         self.on_event = on_event
+        # On the CPU model every received byte is its own interrupt: the air hands each byte
+        # over on its stop-bit tick (the same trace as bursts, tests/test_air.py)
         self.air = Air(self.sched, seed=config.seed, ber=config.ber, noise=config.noise,
-                       byte_by_byte=config.byte_by_byte)
+                       byte_by_byte=config.byte_by_byte or config.cpu is not None)
         self.air.on_transmission = self._on_transmission
         self.air.on_collision = self._on_collision
         base = config.mac or MacConfig()
@@ -205,6 +212,8 @@ class World:
         self.mac_config = base
         self.stations: dict[int, RadioStation] = {}
         self.children: dict[int, ChildFirmware] = {}
+        self.cpus: dict[int, Cpu] = {}
+        self.dispatch_latency: list[tuple[int, int, int]] = []   # (robot, End tick, SOF tick)
         self.can_buses: dict[int, CanBus] = {}
         self.submodules: dict[int, dict] = {}
         self.can_frames = 0
@@ -249,6 +258,9 @@ class World:
             self.radios[r] = radio
             if config.can and r != 0:
                 self._build_can_side(r, st)
+            elif config.cpu is not None and r != 0:
+                self.cpus[r] = Cpu(self.sched, config.cpu, name=f"MB90F549-R{r}")
+                st.run_on(self.cpus[r], config.cpu)
             self.sched.at(s_to_ticks(config.power_on.get(r, 0.0)), self._power_on, r)
         self.standby_station: RadioStation | None = None
         if config.father_standby:
@@ -261,6 +273,9 @@ class World:
             self.radios[STANDBY] = radio
             self.stations_extra = {STANDBY: st}
             self.sched.at(s_to_ticks(config.power_on.get(0, 0.0)), self._power_on_standby)
+        self._cpu_busy: dict[int, int] = {}
+        if self.cpus:
+            self.sched.at(TICK_HZ, self._cpu_second, 0)
         self.fault_count: dict[str, int] = {}
         for f in config.faults:
             if f.kind != "skew":
@@ -281,14 +296,25 @@ class World:
         bus = CanBus(self.sched, CAN_TIMING)
         ctrl = CanController(self.sched, CAN_TIMING)
         xcvr = Transceiver82C250(bus, ctrl, name=f"82C250-R{r}")
-        child = ChildFirmware(st, ctrl, xcvr)
+        child = ChildFirmware(st, ctrl, xcvr, costs=self.cfg.cpu)
         self.children[r] = child
+        if self.cfg.cpu is not None:
+            self.cpus[r] = child.cpu
         child.on_action = self._on_action
         if self.cfg.sequence is not None and r in self.cfg.sequence[0]:
             child.run_sequence(*self.cfg.sequence)
         self.can_buses[r] = bus
         self.submodules[r] = make_submodules(self.sched, bus, initial_angles=HOME)
         bus.trace = lambda frame, start, end, winner, r=r: self._on_can(r, frame, start, end)
+
+    def _cpu_second(self, _: int) -> None:
+        """Each simulated second: every child's CPU load over that second (the share of its
+        machine cycles spent in handlers and main-loop work), in the trace."""
+        for r, cpu in sorted(self.cpus.items()):
+            busy = cpu.busy - self._cpu_busy.get(r, 0)
+            self._cpu_busy[r] = cpu.busy
+            self._emit({"ev": "cpu", "robot": r, "load": round(busy / TICK_HZ, 6)})
+        self.sched.after(TICK_HZ, self._cpu_second, 0)
 
     def _on_action(self, robot: int, action: int, phase: str, now: int) -> None:
         self.actions.append((now, robot, action, phase))
@@ -297,6 +323,14 @@ class World:
 
     def _on_can(self, r: int, frame, start: int, end: int) -> None:
         self.can_frames += 1
+        child = self.children.get(r)
+        lat = child.latency_from if child is not None else None
+        if lat is not None and (frame.id, bytes(frame.data)) == lat[1:]:
+            # an order's first CAN frame on the bus: the dispatcher's latency
+            cause, child.latency_from = lat[0], None
+            self.dispatch_latency.append((r, cause, start))
+            self._emit({"ev": "dispatch", "robot": r, "end": cause, "sof": start,
+                        "latency": start - cause})
         if self.trace is None and self.on_event is None:
             return
         self._emit({"ev": "can", "bus": r, "id": frame.id, "data": frame.data.hex(),
@@ -627,9 +661,21 @@ class World:
                 "failed": total("failed"), "unacknowledged": total("unacknowledged"),
                 "pending": total("pending"),
                 "can_frames": self.can_frames,
+                **({"cpu_load": {r: round(c.load(), 6) for r, c in sorted(self.cpus.items())},
+                    "cpu_overruns": {r: self.stations[r].uart.overruns
+                                     for r in sorted(self.cpus)}} if self.cpus else {}),
+                **({"dispatch_latency_ticks": _spread([s - e for _, e, s in
+                                                        self.dispatch_latency])}
+                   if self.dispatch_latency else {}),
                 "duplicate_deliveries": dup_deliveries,
                 "corrupt_deliveries": self.corrupt_deliveries,
                 "wrong_robot_deliveries": self.wrong_deliveries}
+
+
+def _spread(values: list[int]) -> dict:
+    """count, min, median and max of ``values`` (ticks)."""
+    v = sorted(values)
+    return {"count": len(v), "min": v[0], "median": v[len(v) // 2], "max": v[-1]}
 
 
 def _skewed(cfg: MacConfig, eps: float) -> MacConfig:

@@ -1,0 +1,202 @@
+"""The cycle-cost table of the child firmware on the MB90F549: every figure the CPU model
+(firmware_model/mcu/cpu.py) charges, where it comes from, and the range it is good for.
+
+One machine cycle is one 62.5 ns tick at 16 MHz. These are **estimates**: the firmware is a
+model, not compiled F2MC-16LX code, so a handler's body is costed as a count of the work it
+does times a cost per unit of that work. Three kinds of source, named in each row:
+
+* ``manual``: F2MC-16LX hardware manuals, "Interrupts" (MB90420/5 §6.4.5; MB90560 §6.7,
+  Table 6.7-3) and the instruction tables (MB90560 Appendix B, Table B.8-6).
+* ``soft-float``: the MB90F549 has no FPU, so C ``float`` arithmetic runs in a library. The
+  cost per operation is the avr-libc 2.0.0 manual's "Benchmarks" table (Math functions,
+  column Avr4: an 8-bit AVR with a hardware multiplier, MCU clocks per call). No
+  F2MC-16LX library figures were to be had; an 8-bit core with a one-cycle 8x8 multiply
+  and a 16-bit core with a 16x16 multiply in 11 cycles (MULUW) are within a factor of two
+  of each other on this work, so the figures are good for 0.5x-2x.
+* ``estimate``: an instruction count of the handler's work, at 4 cycles an instruction (the
+  F2MC-16LX register and RAM moves take 1-6 cycles; the manual's Table B.8 rows), good for
+  0.5x-2x.
+
+Change any row with ``--cpu-costs FILE`` (TOML, ``name = cycles`` under ``[costs]``);
+``rprs sim --cpu-report`` prints the table in use with the load it caused.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class Cost:
+    """One row: ``cycles`` (machine cycles), where the figure comes from, its valid range."""
+
+    cycles: int
+    source: str
+    good_for: str
+
+
+@dataclass(frozen=True)
+class CycleCosts:
+    """Every cost the firmware model charges (machine cycles)."""
+
+    # -- the core (manual) --------------------------------------------------------------
+    entry: Cost = Cost(24, "manual: interrupt start 24 + 6 x Z, Z = 0 (stack in internal RAM "
+                       "at an even address; Z = +2 odd, +1..+4 external)", "exact for Z = 0")
+    reti: Cost = Cost(11, "manual: RETI 11 + 6 x Z, Z = 0", "exact for Z = 0")
+    sample_wait_max: Cost = Cost(45, "manual: a request is sampled in an instruction's last "
+                                 "cycle; the longest is POPW RW0-RW7, 45 cycles",
+                                 "worst case; not simulated, added in the report")
+    mul16: Cost = Cost(11, "manual: Table B.8-6, MULUW A, word x word, non-zero", "exact")
+    div32: Cost = Cost(22, "manual: Table B.8-6, DIVUW A,ear, long / word, normal", "exact")
+
+    # -- soft-float (avr-libc Benchmarks, Avr4) -----------------------------------------
+    f_add: Cost = Cost(108, "soft-float: __addsf3 (1.234, 5.678)", "0.5x-2x")
+    f_mul: Cost = Cost(138, "soft-float: __mulsf3 (1.234, 5.678)", "0.5x-2x")
+    f_div: Cost = Cost(465, "soft-float: __divsf3 (1.234, 5.678)", "0.5x-2x")
+    f_sin: Cost = Cost(1653, "soft-float: sin (1.2345)", "0.5x-2x")
+    f_cos: Cost = Cost(1671, "soft-float: cos (1.2345)", "0.5x-2x")
+    f_atan2: Cost = Cost(2857, "soft-float: atan2 (1.234, 5.678)", "0.5x-2x")
+    f_acos: Cost = Cost(2455, "soft-float: acos (0.54321)", "0.5x-2x")
+    f_hypot: Cost = Cost(866, "soft-float: hypot (1.234, 5.678)", "0.5x-2x")
+    f_round: Cost = Cost(150, "soft-float: round (1.2345)", "0.5x-2x")
+
+    # -- handler bodies (estimate: instructions x 4 cycles) ---------------------------------
+    uart_rx_byte: Cost = Cost(160, "estimate: read SSR0/SIDR0, check ORE/FRE, one step of the "
+                              "deframer (field state, checksum, bounds): ~40 instructions",
+                              "0.5x-2x")
+    mac_frame: Cost = Cost(1200, "estimate: the MAC's rules on a whole frame (ring update, "
+                           "turn order, ack and duplicate tables): ~300 instructions",
+                           "0.5x-2x")
+    mac_timer: Cost = Cost(600, "estimate: the MAC's timer rules (miss count, takeover, "
+                           "reload timer programme): ~150 instructions", "0.5x-2x")
+    uart_tx_done: Cost = Cost(200, "estimate: transmission complete: the MAC's end-of-frame "
+                              "rules, TXEN low: ~50 instructions", "0.5x-2x")
+    content_byte: Cost = Cost(40, "estimate: Content parser per byte (name and number "
+                              "scanning): ~10 instructions", "0.5x-2x")
+    command: Cost = Cost(400, "estimate: one command's dispatch, range checks and job "
+                         "bookkeeping: ~100 instructions", "0.5x-2x")
+    can_frame_out: Cost = Cost(220, "estimate: pack one CAN command and write IDR/DLC/DTR, "
+                               "request TREQR: ~55 instructions (its scaling, 2 MULUW and a "
+                               "DIVUW, is charged from those rows)", "0.5x-2x")
+    can_rx: Cost = Cost(320, "estimate: read a receive buffer (IDR, DLC, 8 data bytes), clear "
+                        "RCR, decode the status or event signals: ~80 instructions", "0.5x-2x")
+    can_tx: Cost = Cost(120, "estimate: clear TCR, pop the buffer's software queue, reload: "
+                        "~30 instructions", "0.5x-2x")
+    can_status: Cost = Cost(160, "estimate: read CSR/RTEC, note bus-off, arm the restart: ~40 "
+                            "instructions", "0.5x-2x")
+    dispatcher_timer: Cost = Cost(200, "estimate: TMR1 ISR, job deadlines and CAN "
+                                  "supervision: ~50 instructions", "0.5x-2x")
+
+    def names(self) -> list[str]:
+        return [f.name for f in fields(self)]
+
+    def rows(self) -> list[tuple[str, Cost]]:
+        return [(f.name, getattr(self, f.name)) for f in fields(self)]
+
+
+DEFAULT_COSTS = CycleCosts()
+
+FORWARD_OPS = {"f_sin": 4, "f_cos": 4, "f_mul": 13, "f_add": 8}
+"""Soft-float operations of kinematics.forward: 4 degree-to-radian scalings, 8 products and
+the pitch back to degrees (13 multiplications); sin and cos of q1 and of the three link
+angles; 8 sums (3 angle sums, 2 for r, 3 for z)."""
+
+INVERSE_OPS = {"f_hypot": 1, "f_atan2": 5, "f_sin": 3, "f_cos": 3, "f_acos": 2, "f_mul": 18,
+               "f_add": 18, "f_div": 1, "f_round": 8}
+"""Soft-float operations of kinematics.inverse in its worst case (elbow up refused, elbow
+down taken): hypot, atan2 and a degree conversion for the base yaw; the pitch to radians,
+its cos and sin for the wrist point (2 products, 3 sums); the cosine rule with its
+constants folded (2 products, 3 sums, 1 division); per elbow choice an acos, two atan2, a
+sin and a cos, 6 products (3 degree conversions among them), 6 sums and 4 roundings.
+Comparisons (limits, the acos domain) are not counted."""
+
+
+def ops_cycles(ops: dict[str, int], costs: CycleCosts = DEFAULT_COSTS) -> int:
+    """Machine cycles of a count of soft-float operations."""
+    return sum(n * getattr(costs, name).cycles for name, n in ops.items())
+
+
+def load_costs(path: str | Path, base: CycleCosts = DEFAULT_COSTS) -> CycleCosts:
+    """``base`` with the rows a TOML file's ``[costs]`` table sets (``name = cycles``).
+    Raises ValueError with the file, the row and what is wrong."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:          # Python 3.10
+        import tomli as tomllib          # type: ignore[no-redef]
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ValueError(f"cannot read the cost table {p}: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{p} is not TOML: {exc}") from None
+    table = data.get("costs")
+    if not isinstance(table, dict) or not table:
+        raise ValueError(f"{p}: put the rows under a [costs] table, e.g. "
+                         f"[costs]\\nuart_rx_byte = 200")
+    known = set(base.names())
+    changes = {}
+    for name, value in table.items():
+        if name not in known:
+            raise ValueError(f"{p}: no cost named {name!r}; the rows are "
+                             f"{', '.join(sorted(known))}")
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ValueError(f"{p}: {name} must be a whole number of cycles >= 0, "
+                             f"got {value!r}")
+        old = getattr(base, name)
+        changes[name] = Cost(value, f"{p.name} (was {old.cycles}: {old.source})", "as given")
+    return replace(base, **changes)
+
+
+def body_cycles(costs: CycleCosts, *terms: tuple[str, int | float]) -> int:
+    """Sum of ``count x row`` terms, rounded up to whole cycles."""
+    return math.ceil(sum(getattr(costs, name).cycles * n for name, n in terms))
+
+
+DRIVE_OPS_PER_JOINT = {"f_add": 3, "f_div": 2, "f_round": 2, "f_mul": 1}
+"""Soft-float operations of the coordinated-motion plan per moving joint
+(dispatcher._drive_joints): the distance and its time at rated speed, the joint's speed,
+its rounding, and the deadline's scaling."""
+
+_MOVES = ("movex", "movey", "movez", "moveto")
+
+
+def frame_out_cycles(costs: CycleCosts = DEFAULT_COSTS) -> int:
+    """One CAN command frame written: packing plus the integer scaling of its signals (the
+    angle and speed to their raw units: two multiplications and a division)."""
+    return costs.can_frame_out.cycles + 2 * costs.mul16.cycles + costs.div32.cycles
+
+
+def message_cycles(commands, costs: CycleCosts = DEFAULT_COSTS) -> int:
+    """Main-loop cycles to parse and act on one delivered message: the Content parser per
+    byte, each command's dispatch, the arm kinematics of a move (forward then inverse, in
+    soft-float), the motion plan per joint and the CAN frames written."""
+    out = frame_out_cycles(costs)
+    total = 0
+    for c in commands:
+        total += len(c.text()) * costs.content_byte.cycles + costs.command.cycles
+        name = c.name
+        if name in _MOVES:
+            total += ops_cycles(FORWARD_OPS, costs) + ops_cycles(INVERSE_OPS, costs)
+            total += 4 * (ops_cycles(DRIVE_OPS_PER_JOINT, costs) + out)
+        elif name == "act":
+            total += 4 * (ops_cycles(DRIVE_OPS_PER_JOINT, costs) + out)
+        elif name == "joint":
+            total += ops_cycles(DRIVE_OPS_PER_JOINT, costs) + out
+        elif name in ("wheel", "paw"):
+            total += out
+        elif name == "stop":
+            total += 5 * out
+        elif name == "status":
+            total += 60 * costs.content_byte.cycles       # formatting a ~60-byte reply
+    return total
+
+
+def markdown_table(costs: CycleCosts = DEFAULT_COSTS) -> str:
+    """The table as docs/cpu.md shows it (a test keeps the two the same)."""
+    lines = ["| row | cycles | us | source | good for |", "|---|---:|---:|---|---|"]
+    for name, c in costs.rows():
+        lines.append(f"| `{name}` | {c.cycles} | {c.cycles / 16:.2f} | {c.source} | "
+                     f"{c.good_for} |")
+    return "\n".join(lines)

@@ -1,0 +1,82 @@
+"""``rprs sim --cpu-report``: each child's CPU budget from the MB90F549 CPU model.
+
+Per handler: how often it ran (calls a second), what one call costs (machine cycles: entry,
+body and RETI), its share of the CPU, its latency (request to acceptance) and response (request
+to its effects) in microseconds: median, 99th percentile and the worst seen. "worst case" adds
+the one thing the model does not simulate, the instruction under way when the request comes
+(at most ``sample_wait_max`` cycles), to the worst response seen; for UART0 reception it is
+set against the deadline, one byte time (a later read loses the next byte: ORE).
+"""
+from __future__ import annotations
+
+from firmware_model.mcu.cpu import MAIN_LEVEL, Cpu
+from firmware_model.timing import TICK_HZ
+
+US = 1_000_000 / TICK_HZ
+
+
+def _pct(values, q: float) -> int:
+    v = sorted(values)
+    return v[min(len(v) - 1, int(q * len(v)))] if v else 0
+
+
+def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int) -> dict:
+    """The report of one CPU as plain data (JSON-ready): ``span`` ticks of simulated time."""
+    rows = []
+    for s in sorted(cpu.stats.values(), key=lambda s: (s.level, s.name)):
+        lat, resp = s.latency, s.response
+        worst = s.worst_response + (sample_wait if s.level < MAIN_LEVEL else 0)
+        rows.append({
+            "handler": s.name, "level": s.level, "calls": s.calls,
+            "per_second": round(s.calls * TICK_HZ / span, 1) if span else 0.0,
+            "cycles_per_call": round(s.busy / s.calls) if s.calls else 0,
+            "load": round(s.busy / span, 6) if span else 0.0,
+            "latency_us": [round(_pct(lat, 0.5) * US, 1), round(_pct(lat, 0.99) * US, 1),
+                           round(s.worst_latency * US, 1)],
+            "response_us": [round(_pct(resp, 0.5) * US, 1), round(_pct(resp, 0.99) * US, 1),
+                            round(s.worst_response * US, 1)],
+            "worst_case_us": round(worst * US, 1),
+            **({"deadline_us": round(byte_ticks * US, 1)} if s.name.startswith("UART0 RX")
+               else {}),
+        })
+    return {"load": round(cpu.busy / span, 6) if span else 0.0, "handlers": rows}
+
+
+def print_cpu_report(world, costs) -> dict:
+    """Print every child's budget (rich tables); returns the same as data."""
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+    con = Console()
+    con = Console(width=max(con.width, 100))    # the table's width; wraps on narrower
+    span = world.sched.now
+    out = {}
+    for r, cpu in sorted(world.cpus.items()):
+        rep = cpu_budget(cpu, costs.sample_wait_max.cycles, world.byte_ticks[r], span)
+        out[r] = rep
+        overruns = world.stations[r].uart.overruns
+        con.print(f"[bold]R{r} CPU budget[/bold] (MB90F549 at 16 MHz, cycle costs: "
+                  f"firmware_model/cycle_costs.py): load {rep['load'] * 100:.2f} %, "
+                  f"UART overruns {overruns}")
+        deadline = None
+        t = Table(box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 1),
+                  collapse_padding=True)
+        for col in ("handler", "lvl", "calls/s", "cycles", "load %", "latency us",
+                    "response us", "worst us"):
+            t.add_column(col, justify="left" if col == "handler" else "right", no_wrap=True)
+        for h in rep["handlers"]:
+            worst = f"{h['worst_case_us']:g}"
+            if "deadline_us" in h:
+                deadline = (h["handler"], h["worst_case_us"], h["deadline_us"])
+            t.add_row(h["handler"], "-" if h["level"] == MAIN_LEVEL else str(h["level"]),
+                      f"{h['per_second']:g}", str(h["cycles_per_call"]),
+                      f"{h['load'] * 100:.2f}", "/".join(f"{v:g}" for v in h["latency_us"]),
+                      "/".join(f"{v:g}" for v in h["response_us"]), worst)
+        con.print(t)
+        if deadline is not None:
+            con.print(f"{deadline[0]} worst case {deadline[1]:g} us against its deadline, "
+                      f"one byte: {deadline[2]:g} us")
+    con.print("cycles: entry + body + RETI of one call; latency: request to acceptance; "
+              "response: request to the handler's effects (p50/p99/max); worst adds the longest "
+              f"instruction ({costs.sample_wait_max.cycles} cycles), which is not simulated")
+    return out
