@@ -44,7 +44,7 @@ def test_four_child_processes_hold_the_turn_timing(hub):
         stop(kids)
     rep = bench.cycle_report(bench.Listening(frames=frames, seconds=res.seconds))
     assert rep["robots"] == [1, 2, 3, 4]
-    assert rep["misses"] == 0
+    assert rep["misses"] == 0, rep         # the report names each long gap and its robots
     assert rep["turn_gap_error_ms_median"] < 3.0          # Ttrans = 5 ms hand-over
     # an idle turn is 14 bytes + Ttrans: 4 robots x ~19.6 ms = 78 ms a cycle
     # (docs/protocol.md §7.2)

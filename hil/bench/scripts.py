@@ -153,9 +153,13 @@ def cycle_report(res: Listening) -> dict[str, Any]:
     fs = res.frames
     spec = TTRANS_TICKS * 1000 / TICK_HZ
     tmax = TMAX_TICKS * 1000 / TICK_HZ
-    gaps, windows = [], []
+    gaps, windows, long_gaps = [], [], []
     for a, b in zip(fs, fs[1:]):
-        (windows if a.invites else gaps).append((b.start - a.end) * 1000 / TICK_HZ)
+        g = (b.start - a.end) * 1000 / TICK_HZ
+        (windows if a.invites else gaps).append(g)
+        if g >= tmax * 0.9:
+            long_gaps.append({"after": a.src, "next": b.src, "at_s": round(a.end / TICK_HZ, 3),
+                              "ms": round(g, 1)})
     turns = [g for g in gaps if g < tmax / 2]
     misses = [g for g in gaps + windows if g >= tmax * 0.9]
     windows = [g for g in windows if g < tmax * 0.9]
@@ -174,7 +178,7 @@ def cycle_report(res: Listening) -> dict[str, Any]:
         "spec_gap_ms": spec,
         "invitation_windows": len(windows),
         "invitation_gap_ms_median": statistics.median(windows) if windows else None,
-        "misses": len(misses),
+        "misses": len(misses), "miss_gaps": long_gaps,
         "cycle_ms_median": cycles,
         "garbage_bytes": res.garbage, "joined_mid_frame_bytes": res.joined_mid_frame,
         "failed_frames": res.failed, "seconds": res.seconds,
