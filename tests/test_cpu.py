@@ -325,3 +325,16 @@ def test_docs_show_the_table_in_use():
     from firmware_model.cycle_costs import markdown_table
     doc = (Path(__file__).parent.parent / "docs" / "cpu.md").read_text()
     assert markdown_table() in doc
+
+
+def test_report_quantiles_from_counted_values_match_a_sorted_list():
+    import random
+    from collections import Counter
+
+    from hil.view.cpu_report import _pct
+    rng = random.Random(4)
+    values = [rng.choice((0, 0, 0, 16, 184, 1200, 61963)) for _ in range(1001)]
+    for q in (0.0, 0.5, 0.99, 1.0):
+        ref = sorted(values)[min(len(values) - 1, int(q * len(values)))]
+        assert _pct(Counter(values), q) == ref
+    assert _pct(Counter(), 0.5) == 0

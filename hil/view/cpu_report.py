@@ -15,9 +15,18 @@ from firmware_model.timing import TICK_HZ
 US = 1_000_000 / TICK_HZ
 
 
-def _pct(values, q: float) -> int:
-    v = sorted(values)
-    return v[min(len(v) - 1, int(q * len(v)))] if v else 0
+def _pct(counts, q: float) -> int:
+    """The ``q`` quantile (nearest rank) of values counted in a Counter (ticks)."""
+    total = sum(counts.values())
+    if not total:
+        return 0
+    rank = min(total - 1, int(q * total))
+    seen = 0
+    for value in sorted(counts):
+        seen += counts[value]
+        if seen > rank:
+            return value
+    return value
 
 
 def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int) -> dict:
