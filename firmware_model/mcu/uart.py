@@ -149,3 +149,42 @@ class Uart:
 
 def _nothing() -> None:
     """The rest of a handler whose effects all happen on entry."""
+
+
+def sample_byte(value: int, tx_bt: int, rx_bt: int,
+                following: int | None = None) -> tuple[int, bool, bool]:
+    """What an 8N1 UART whose byte time is ``rx_bt`` ticks makes of ``value`` sent at
+    ``tx_bt`` ticks a byte (``following``: the byte sent right after it, if any).
+
+    The receiver starts at the start bit's falling edge and samples each of its ten bits in
+    the middle of its own bit time: sample m at (m + 1/2) x rx_bt/10. Each sample reads the
+    sender's bit cell it falls in (start 0, data LSB first, stop 1; then the next byte's start
+    bit and bits, or the idle line). Returns (the byte read, framing error: the stop-bit sample
+    read 0, ready: the receiver was waiting again by the next byte's start edge, at its
+    stop-bit sample). At equal rates every sample is mid-cell; the byte survives a rate
+    difference up to about 5 % (half a bit over 9.5 bits) whatever its value, and beyond that
+    depending on its bits."""
+    bits = [0] + [(value >> i) & 1 for i in range(8)] + [1]
+    nxt = None if following is None else [0] + [(following >> i) & 1 for i in range(8)] + [1]
+
+    def level(m: int) -> int:
+        cell = (2 * m + 1) * rx_bt // (2 * tx_bt)      # the sender's bit the sample falls in
+        if cell <= 9:
+            return bits[cell]
+        if nxt is None or cell >= 20:
+            return 1                                   # the idle line
+        return nxt[cell - 10]
+
+    got = 0
+    for m in range(1, 9):
+        got |= level(m) << (m - 1)
+    framing = level(0) != 0 or level(9) == 0
+    ready = following is None or 19 * rx_bt <= 20 * tx_bt
+    return got, framing, ready
+
+
+def rates_agree(tx_bt: int, rx_bt: int) -> bool:
+    """True when every byte sent at ``tx_bt`` ticks is read unchanged at ``rx_bt``: each
+    sample falls in its own bit cell and the receiver is ready for the next start edge."""
+    return all((2 * m + 1) * rx_bt // (2 * tx_bt) == m for m in range(10)) and \
+        19 * rx_bt <= 20 * tx_bt

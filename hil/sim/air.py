@@ -35,13 +35,11 @@ import random
 from typing import Callable
 
 from firmware_model.mcu.ptr2000 import NEVER, Ptr2000
+from firmware_model.mcu.uart import rates_agree, sample_byte
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.timing import PC_BYTE_TICKS
 
 HEADER = b"\x0f\x0a\x05"
-SKEW_LIMIT = 0.04
-"""Largest rate difference (fraction) at which an 8N1 UART still frames bytes: sampling at
-mid-bit drifts half a bit over the 9.5 bits from the start edge to the stop bit."""
 NOISE_LOOKAHEAD = 1024
 """Bytes of a radio's noise stream scanned ahead for a header (then re-scanned)."""
 FOREIGN_BYTE_TICKS = PC_BYTE_TICKS
@@ -158,6 +156,7 @@ class Air:
         self.drop = 0.0
         self._drop_rng: list[random.Random] = []
         self._skew: dict[int, float] = {}
+        self._rates_ok: dict[tuple[int, int], bool] = {}
         self._phantom: Ptr2000 | None = None
         self.bursts = 0
         self.occupations = 0
@@ -210,9 +209,18 @@ class Air:
                     self._idle_from(r, now)
 
     def set_skew(self, radio: Ptr2000, eps: float) -> None:
-        """``radio``'s UART runs ``eps`` (fraction) off the others' rate: a receiver whose
-        rate differs from a sender's by more than SKEW_LIMIT cannot frame its bytes."""
+        """``radio``'s UART runs ``eps`` (fraction) off the others' rate (a record: what a
+        receiver reads follows from the two byte times, firmware_model.mcu.uart.sample_byte)."""
         self._skew[radio.idx] = eps
+
+    def _clean(self, tx_bt: int, r: Ptr2000) -> bool:
+        """Every byte sent at ``tx_bt`` reaches ``r``'s UART unchanged (cached per pair)."""
+        rx_bt = r.uart.byte_ticks if r.uart is not None else tx_bt
+        key = (tx_bt, rx_bt)
+        ok = self._rates_ok.get(key)
+        if ok is None:
+            ok = self._rates_ok[key] = rates_agree(tx_bt, rx_bt)
+        return ok
 
     def burst(self, seconds: float, byte_ticks: int = FOREIGN_BYTE_TICKS) -> None:
         """A burst of interference now: random bytes on air for ``seconds`` from a transmitter
@@ -247,7 +255,7 @@ class Air:
             self._collide(tx, overlapping, t0)
         else:
             self.active.append(tx)
-            plain = self.ber == 0.0 and not self.byte_by_byte
+            plain = self.ber == 0.0 and self.drop == 0.0 and not self.byte_by_byte
             noise = self.noise
             for r in self.radios:
                 if r is radio or not r.alive or t0 < r.rx_from:
@@ -260,7 +268,8 @@ class Air:
                 if noise:
                     self._noise_upto(r, t0)
                     self._noise_gen[r.idx] += 1
-                r.rx = Reception(data, t0, bt, tx.n, tx) if plain else self._reception(r, tx)
+                r.rx = Reception(data, t0, bt, tx.n, tx) if plain and self._clean(bt, r) \
+                    else self._reception(r, tx)
         self.sched.at(tx.end, self._end, tx)
 
     def sync(self, radio: Ptr2000, now: int) -> None:
@@ -361,11 +370,24 @@ class Air:
             if lost:
                 holes = frozenset(lost)
                 first_bad = min(first_bad, lost[0])
-        skew = self._skew
-        if skew and abs(skew.get(tx.radio.idx, 0.0) - skew.get(r.idx, 0.0)) > SKEW_LIMIT:
-            # the receiver's UART samples at the wrong rate: framing errors, every byte
-            data = self._garbage[r.idx].take(n)
-            first_bad = 0
+        if not self._clean(tx.bt, r):
+            # the two UARTs' rates differ enough for the receiver's mid-bit samples to fall in
+            # the wrong bit cells: what it reads depends on the bits (sample_byte); a byte
+            # whose start edge it was not ready for is misframed
+            rx_bt = r.uart.byte_ticks
+            out = bytearray()
+            missed = False
+            for i, b in enumerate(data):
+                if missed:
+                    out += self._garbage[r.idx].take(1)
+                    missed = False
+                    continue
+                v, _, ready = sample_byte(b, tx.bt, rx_bt, data[i + 1] if i + 1 < n else None)
+                out.append(v)
+                missed = not ready
+            bad = next((i for i in range(n) if out[i] != data[i]), n)
+            first_bad = min(first_bad, bad)
+            data = bytes(out)
         rx = Reception(data, tx.t0 + k * tx.bt, tx.bt, n, tx, holes=holes)
         self._bytewise(r, rx, 0 if self.byte_by_byte or bytewise else first_bad, n - 1)
         return rx
