@@ -7,7 +7,9 @@ An order goes ``queued`` (submitted to the MAC) -> ``sent`` (its first frame on 
 attempts, or the robot's ``fail(code)`` with that order). An order of ``act(n,0)`` ends when the
 robot broadcasts ``act(n,1)``; a broadcast (destination 7), and every order in the paper
 profile (nothing is acknowledged there), ends ``sent``. Times are seconds since the order was
-queued (the station's clock).
+queued (the station's clock). The robot's answer proves the order arrived: an answer that
+comes before the acknowledgement (a lost ack on a lossy channel, retransmitted later) marks
+the order ``acknowledged`` on the same tick, before its end.
 """
 from __future__ import annotations
 
@@ -132,6 +134,11 @@ class OrderBook:
         if o.dst == BROADCAST:
             self._set(o, "sent-only", now, "a broadcast: no robot reports on it")
 
+    def _arrived(self, o: Order, now: int) -> None:
+        """The robot answered about ``o``: it has it, acknowledged or not yet."""
+        if o.state in ("queued", "sent"):
+            self._set(o, "acknowledged", now)
+
     def _news(self, d: Deliver, now: int) -> None:
         """A message for the father: a done()/fail() about an order, a status reply, an
         act(n,1) notice, or other news."""
@@ -143,6 +150,7 @@ class OrderBook:
             o = self._oldest(d.src, lambda o: o.text == about)
             if o is not None:
                 matched = True
+                self._arrived(o, now)
                 if names[0] == "done":
                     self._set(o, "done", now)
                 else:
@@ -152,12 +160,15 @@ class OrderBook:
             o = self._oldest(d.src, lambda o: o.text == "status()")
             if o is not None:
                 matched = True
+                self._arrived(o, now)
                 o.reply = describe_reply(cmds)
                 self._set(o, "replied", now)
         elif names[:1] == ["act"] and len(cmds[0].args) == 2 and cmds[0].args[1] == 1:
             o = self._oldest(d.src, lambda o: o.text == f"act({cmds[0].args[0]},0)")
             if o is not None:
                 matched = True
+                if o.dst != BROADCAST:
+                    self._arrived(o, now)
                 self._set(o, "done", now)
         if not matched and self.on_news is not None:
             self.on_news(d, now)
