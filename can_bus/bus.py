@@ -50,6 +50,15 @@ Error model (ISO 11898-1 fault confinement, the common rules)
 * An error is detected by all nodes at the same bit, so all error flags coincide: an error
   frame is 6 flag + 8 delimiter bits, then 3 intermission bits (17 bit times after the flag
   starts). The flag starts the bit after the error (an ACK error: at the ACK delimiter).
+* Except a local error (``inject_local_error``, ``disturb``: a disturbance on one node's
+  stub), which one receiver alone sees at wire bit b. If it is error-active its flag takes
+  bits b+1..b+6; the transmitter detects a bit error at its first recessive bit after b, the
+  other receivers a stuff error at the sixth dominant bit in a row (or a form error at a
+  dominant CRC delimiter), and each sends its own flag from the next bit: the flags overlap
+  into 6-12 dominant bits, then 8 delimiter and 3 intermission bits. TEC += 8, REC += 1, and
+  REC += 8 more for a receiver that reads a dominant bit right after its own flag (the first
+  detector, whenever the others' flags outlast its own). If it is error-passive its flag is
+  recessive: the frame goes on for everyone else, and that node loses it (REC += 1).
   REC += 8 for a dominant bit after the own error flag and the 14th/every 8th dominant bit
   rule only occur with a stuck-dominant bus (see below), where they are applied.
 * An error-passive node that has just transmitted (successfully or not) waits 8 more bit
@@ -70,7 +79,8 @@ Error model (ISO 11898-1 fault confinement, the common rules)
   passive transmitter's ACK error, the trailing recessive bits of the CRC field + 19. A node
   sent bus-off during a stuck-dominant episode counts from the release.) Not modelled: the TEC
   exception for a stuff error on a recessive stuff bit during arbitration, overload frames,
-  and flag superposition longer than 6 bits (all nodes detect each error at the same bit).
+  local errors inside the arbitration field (kept after it) or in the CRC delimiter, ACK
+  and EOF, and the passive flag's own wait for six equal bits.
 
 Fault injection
 ---------------
@@ -253,6 +263,22 @@ class _Hold:
 _IDLE, _FRAME, _TAIL, _HELD = range(4)
 
 
+@lru_cache(maxsize=4096)
+def _arbitration_end(wire: tuple[int, ...]) -> int:
+    """Wire index of the RTR bit (the arbitration field's last bit): SOF, 11 identifier bits
+    and RTR are 13 bits before stuffing; a bit after five equal ones is a stuff bit."""
+    run, last, real = 0, None, 0
+    for i, bit in enumerate(wire):
+        stuffed = run == 5
+        run = run + 1 if bit == last and not stuffed else 1
+        last = bit
+        if not stuffed:
+            real += 1
+            if real == 13:
+                return i
+    return len(wire) - 1
+
+
 def _prio(cand: tuple[CanFrame, Any]) -> tuple[int, bool]:
     return cand[0].id, cand[0].rtr
 
@@ -281,6 +307,9 @@ class CanBus:
         self._cur_tx: list[_Node] = []
         self._cur_rx: list[_Node] = []
         self._inject: dict[int | None, list[int | None]] = {}
+        self._local: dict[int, list[int | None]] = {}      # node id -> bits, one per frame
+        self._noisy: dict[int, int | None] = {}            # node id -> bit, every frame
+        self._cur_deaf: set[int] = set()     # passive nodes that flagged a local error
         self._holders: set[int] = set()
         self._hold: _Hold | None = None
 
@@ -318,6 +347,8 @@ class CanBus:
         del self._by_id[id(node)]
         self._holders.discard(id(node))
         self._inject.pop(id(ns), None)
+        self._local.pop(id(ns), None)
+        self._noisy.pop(id(ns), None)
         if not self._holders and self._hold is not None and self._hold.released is None:
             self._hold_release()
 
@@ -340,6 +371,23 @@ class CanBus:
         key = None if node is None else id(self._ns(node))
         if count:
             self._inject.setdefault(key, []).extend([bit] * count)
+
+    def inject_local_error(self, node: Any, count: int = 1, bit: int | None = None) -> None:
+        """The next ``count`` frames ``node`` receives get an error only ``node`` sees (a
+        disturbance on its stub), at wire bit ``bit`` (default: the last CRC bit; kept
+        between the end of the arbitration field and the CRC delimiter)."""
+        if count < 0 or (bit is not None and bit < 0):
+            raise ValueError("count and bit must be >= 0")
+        if count:
+            self._local.setdefault(id(self._ns(node)), []).extend([bit] * count)
+
+    def disturb(self, node: Any, on: bool = True, bit: int | None = None) -> None:
+        """While on, every frame ``node`` receives gets a local error (a noisy stub)."""
+        key = id(self._ns(node))
+        if on:
+            self._noisy[key] = bit
+        else:
+            self._noisy.pop(key, None)
 
     def hold_dominant(self, node: Any, on: bool = True) -> None:
         ns = self._ns(node)
@@ -553,6 +601,18 @@ class CanBus:
                 not any(getattr(ns.node, "acknowledges", True) for ns in rx):
             err = (nstuffed + 1, "ack")          # no receiver able to drive the ACK slot
 
+        self._cur_deaf = set()
+        if self._local or self._noisy:
+            local = self._local_errors(rx, wire, nstuffed, err)
+            if local is not None:
+                b = local[0]
+                self._busy_until = now + (local[3] + 12) * tpb
+                self._seg_ev = self.sched.at(now + (b + 1) * tpb, self._local_error, local)
+                for f, ns in cands:
+                    if ns.on_lost is not None and ns not in tx:
+                        ns.on_lost(f)
+                return
+
         if err is None:
             self._busy_until = now + (len(wire) + IFS_BITS) * tpb
             self._seg_ev = self.sched.at(now + len(wire) * tpb, self._frame_done)
@@ -585,8 +645,13 @@ class CanBus:
                 except ValueError:
                     pass
                 ns.entry = None
+        deaf = self._cur_deaf
         for ns in self._cur_rx:
             if ns.state is BUS_OFF:
+                continue
+            if deaf and id(ns) in deaf:       # its passive error flag: no frame, REC + 1
+                ns.rec += 1
+                self._update(ns, now)
                 continue
             r = ns.rec
             if r > 127:
@@ -602,7 +667,8 @@ class CanBus:
             if ns.on_tx_done is not None and ns.attached:
                 ns.on_tx_done(frame, now)
         for ns in self._cur_rx:
-            if ns.on_frame is not None and ns.attached and ns.state is not BUS_OFF:
+            if ns.on_frame is not None and ns.attached and ns.state is not BUS_OFF and \
+                    not (deaf and id(ns) in deaf):
                 ns.on_frame(frame, start, now)
 
     def _frame_error(self, kind: str) -> None:
@@ -645,6 +711,88 @@ class CanBus:
         for ns in self._cur_rx:
             if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
                 ns.on_error(CanErrorEvent(kind, now, frame, False, ns.tec, ns.rec, ns.state))
+
+    def _local_errors(self, rx: list[_Node], wire, nstuffed: int,
+                      err: tuple[int, str] | None):
+        """The earliest error one receiver alone sees in this frame, as (its bit b, that
+        node, where each node detects it {node: (bit, kind)}, E: the last bit of the
+        superposed error flags), or None. An error-passive node's flag is recessive: it
+        loses the frame and nobody else notices (``_cur_deaf``)."""
+        lo = _arbitration_end(wire) + 1
+        best = None
+        for ns in rx:
+            key = id(ns)
+            if ns.state is BUS_OFF or (key not in self._local and key not in self._noisy):
+                continue
+            queued = self._local.get(key)
+            bit = queued[0] if queued else self._noisy.get(key)
+            b = min(max(nstuffed - 1 if bit is None else bit, lo), nstuffed - 1)
+            if queued:
+                queued.pop(0)
+                if not queued:
+                    del self._local[key]
+            if err is not None and err[0] <= b:
+                continue                       # an error everyone sees comes first
+            if ns.state is PASSIVE:
+                self._cur_deaf.add(key)
+                continue
+            if best is None or b < best[0]:
+                best = (b, ns)
+        if best is None:
+            return None
+        b, first = best
+        z = 0                                  # dominant bits in a row up to bit b
+        while z <= b and wire[b - z] == 0:
+            z += 1
+        # the others: a transmitter sees its first recessive bit read dominant (a bit error);
+        # a receiver, the sixth dominant bit in a row (stuff error) or a dominant CRC
+        # delimiter (form error), whichever comes first
+        d_tx = next(i for i in range(b + 1, b + 7) if i >= nstuffed or wire[i] == 1)
+        d_rx, k_rx = (b + 6 - z, "stuff") if b + 6 - z < nstuffed else (nstuffed, "form")
+        seen = {ns: (d_tx, "bit") for ns in self._cur_tx}
+        seen.update({ns: (d_rx, k_rx) for ns in rx if ns is not first})
+        seen[first] = (b, "local")
+        # only an error-active node's flag is dominant; the first detector's always is
+        end = max(d + ERROR_FLAG_BITS for ns, (d, _) in seen.items() if ns.state is ACTIVE)
+        return b, first, seen, end
+
+    def _local_error(self, local) -> None:
+        """A local error's error frame: the flags of the first node and of everyone who then
+        detects it overlap into 6-12 dominant bits (ISO 11898-1 error signalling). TEC + 8 for
+        the transmitter; REC + 1 for every receiver, and + 8 more for a receiver that reads a
+        dominant bit right after its own flag (the first detector, whenever the others'
+        flags outlast its own)."""
+        b, first, seen, end = local
+        now = self.sched.now
+        tpb = self.tpb
+        frame = self._cur_frame
+        start = self._cur_start
+        idle_at = start + (end + 1 + ERROR_DELIMITER_BITS + IFS_BITS) * tpb
+        self._phase = _TAIL
+        self._busy_until = idle_at
+        self.error_frames += 1
+        for ns in self._cur_tx:
+            ns.tec += 8
+            self._update(ns, now)
+            if ns.state is PASSIVE:
+                ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
+            ns.entry = None
+        for ns in self._cur_rx:
+            if ns.state is BUS_OFF:
+                continue
+            d, _ = seen[ns]
+            after = 8 if ns.state is ACTIVE and d + ERROR_FLAG_BITS < end else 0
+            ns.rec += 1 + after
+            self._update(ns, now)
+        self._seg_ev = self.sched.at(idle_at, self._segment_end, _ELEVEN)
+        if self.error_trace is not None:
+            self.error_trace("local", frame, start, now, idle_at, self._cur_tx[0].node)
+        for group, is_tx in ((self._cur_tx, True), (self._cur_rx, False)):
+            for ns in group:
+                if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
+                    d, kind = seen[ns]
+                    ns.on_error(CanErrorEvent(kind, start + d * tpb, frame, is_tx, ns.tec,
+                                              ns.rec, ns.state))
 
     def _segment_end(self, trailing: int) -> None:
         now = self.sched.now

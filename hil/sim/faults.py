@@ -22,6 +22,9 @@ A fault is written ``KIND[:TARGET]@WHEN[:VALUE]`` (times in seconds from the sta
 ``stuck:R@T1-T2``          child R's 82C250 TXD stuck dominant from T1 to T2
 ``silent:R.NODE@T1-T2``    submodule NODE (JOINT1-4, WHEEL, PAW) of child R stops answering
 ``stall:R.NODE@T[-T2]``    joint or wheel NODE of child R stalls at T (cleared at T2)
+``noisy:R.NODE@T1-T2``     a disturbance on NODE's stub of child R's CAN bus (NODE: JOINT1-4,
+                           WHEEL, PAW or MCU, the child's own controller): every frame NODE
+                           receives gets an error NODE alone sees, T1 to T2
 =========================  ===============================================================
 
 Times are seconds, each mapped to one exact tick (``s_to_ticks``); ``Fault.spec()`` writes
@@ -42,9 +45,9 @@ from dataclasses import dataclass
 from firmware_model.timing import s_to_ticks
 
 KINDS = ("fail", "recover", "steal", "ber", "noise", "burst", "foreign", "drop", "skew",
-         "busoff", "stuck", "silent", "stall")
+         "busoff", "stuck", "silent", "stall", "noisy")
 AIR_KINDS = ("fail", "recover", "ber", "noise", "burst", "foreign", "drop")
-CAN_KINDS = ("busoff", "stuck", "silent", "stall")
+CAN_KINDS = ("busoff", "stuck", "silent", "stall", "noisy")
 NODES = ("JOINT1", "JOINT2", "JOINT3", "JOINT4", "WHEEL", "PAW")
 FOREIGN_MAX = 65_536
 """Most bytes one ``foreign`` fault sends (68 s of air at 9600 baud)."""
@@ -110,12 +113,16 @@ def parse_fault(text: str) -> Fault:
     until = float(m["until"]) if m["until"] is not None else None
     value = float(m["value"]) if m["value"] is not None else None
     needs_robot = kind in ("fail", "recover", "steal", "skew", "busoff", "stuck", "silent",
-                           "stall")
+                           "stall", "noisy")
     if needs_robot and robot is None:
         raise FaultError(f"{kind} needs a robot: {kind}:ID@...")
     if not needs_robot and robot is not None:
         raise FaultError(f"{kind} acts on the air, not on one robot: {kind}@...")
-    if kind in ("silent", "stall"):
+    if kind == "noisy":
+        if node not in NODES + ("MCU",):
+            raise FaultError(f"noisy needs a node on the CAN bus: noisy:ROBOT.NODE@T1-T2, "
+                             f"NODE one of {', '.join(NODES + ('MCU',))}")
+    elif kind in ("silent", "stall"):
         if node not in NODES:
             raise FaultError(f"{kind} needs a submodule: {kind}:ROBOT.NODE@..., NODE one of "
                              f"{', '.join(NODES)}")
@@ -133,7 +140,7 @@ def parse_fault(text: str) -> Fault:
         return Fault(kind, robot, 0.0, None, value)
     if at is None:
         raise FaultError(f"{kind} needs a time: {kind}...@SECONDS")
-    ranged = kind in ("ber", "noise", "drop", "stuck", "silent")
+    ranged = kind in ("ber", "noise", "drop", "stuck", "silent", "noisy")
     if ranged and until is None:
         raise FaultError(f"{kind} needs a window: @START-END")
     if not ranged and until is not None and kind != "stall":

@@ -401,6 +401,10 @@ class World:
         elif k == "stall":
             node = self.submodules[f.robot][f.node]
             node.stall() if phase == "start" else node.clear_fault()
+        elif k == "noisy":
+            target = self.children[f.robot].can.xcvr if f.node == "MCU" else \
+                self.submodules[f.robot][f.node]
+            self.can_buses[f.robot].disturb(target, phase == "start")
 
     def inject(self, kind: str, robot: int | None, at_tick: int, until_tick: int | None = None,
                value: float | None = None, node: str | None = None) -> None:
