@@ -137,9 +137,16 @@ def test_two_nodes_at_once_collide_into_garbage(hubs):
     a = bytes(0x41 + i % 26 for i in range(400))  # 417 ms on air each
     b = bytes(0x61 + i % 26 for i in range(400))
     # Both are written before the hub starts, so it reads them in one pass: "at once" does
-    # not depend on how soon a busy machine runs this process's second write.
+    # not depend on how soon a busy machine runs this process's second write. But a pty hands
+    # written bytes to its master side asynchronously (the kernel's flip-buffer work), and
+    # once in a 20x loop the hub heard the first node's 400 bytes with their last 100 clean:
+    # the second node's bytes had not reached its master when the hub first looked. So the
+    # hub starts only once both masters have the bytes.
     os.write(fds[0], a)
     os.write(fds[1], b)
+    deadline = time.monotonic() + 10.0
+    while len(select.select(hub.masters[:2], [], [], 0.05)[0]) < 2:
+        assert time.monotonic() < deadline, "the written bytes never reached the hub's ptys"
     hub.start()
     got = read_for(fds[2], 1.5)
     assert len(got) >= 300                        # garbage at the byte rate while overlapped
