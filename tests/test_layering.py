@@ -21,6 +21,7 @@ FORBIDDEN = {
     "hil/sim": ("hil.bench", "hil.view", "hil.cli"),
     "hil/bench": ("hil.view", "hil.cli"),
     "hil/view": ("hil.cli",),
+    "hil/wireshark": ("hil.sim", "hil.bench", "hil.view", "hil.cli"),
 }
 
 

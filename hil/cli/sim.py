@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 
@@ -63,6 +64,10 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
         p.add_argument("--cpu-report", action="store_true", help="print each child's CPU "
                        "budget: per handler, per second, worst case; implies --cpu estimated")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+    if not demo:
+        p.add_argument("--pcap", metavar="FILE", help="write a pcapng capture here: every "
+                       "radio transmission and CAN frame, for Wireshark with the rprs plugin "
+                       "(docs/wireshark.md)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     if progress:
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -136,14 +141,25 @@ def close_writers(trace, vcd, ok: bool) -> None:
 
 
 def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
-              vcd_path: str | None = None, on_event=None) -> tuple[World, float]:
-    """Run the world to its end, with its trace and waveform files; ``on_event`` gets every
-    event too."""
+              vcd_path: str | None = None, on_event=None,
+              pcap_path: str | None = None) -> tuple[World, float]:
+    """Run the world to its end, with its trace, waveform and capture files; ``on_event``
+    gets every event too."""
     trace, vcd = open_writers(trace_path, vcd_path)
+    pcap_file = None
+    if pcap_path:
+        try:
+            pcap_file = open(pcap_path, "wb")
+        except OSError as exc:
+            close_writers(trace, vcd, ok=False)
+            raise UserError(f"cannot write capture {pcap_path}: {exc.strerror}") from None
     sinks = [f for f in (vcd.write if vcd is not None else None, on_event) if f is not None]
     try:
         world = World(cfg, trace, on_event=sinks[0] if len(sinks) == 1 else
                       (lambda ev: [f(ev) for f in sinks]) if sinks else None)
+        if pcap_file is not None:
+            from ..view.pcap import PcapWriter
+            world.capture(PcapWriter(pcap_file, *world.capture_interfaces()))
         t0 = time.perf_counter()
         end = world.end_tick
         if progress:
@@ -162,8 +178,13 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         wall = time.perf_counter() - t0
     except BaseException:
         close_writers(trace, vcd, ok=False)
+        if pcap_file is not None:
+            pcap_file.close()
+            os.unlink(pcap_path)
         raise
     close_writers(trace, vcd, ok=True)
+    if pcap_file is not None:
+        pcap_file.close()
     return world, wall
 
 
@@ -232,7 +253,8 @@ def cmd_sim(a: argparse.Namespace, demo: bool = False, before_summary=None) -> i
     progress = not a.no_progress and sys.stderr.isatty() and cfg.duration >= 60
     events: list[dict] = []
     world, wall = run_world(cfg, a.trace, progress, getattr(a, "vcd", None),
-                            on_event=events.append if before_summary else None)
+                            on_event=events.append if before_summary else None,
+                            pcap_path=getattr(a, "pcap", None))
     if before_summary is not None:
         before_summary(events)
     print_summary(world, wall, a.json, membership=before_summary is None)

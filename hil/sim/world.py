@@ -199,6 +199,7 @@ class World:
         self.sched = RealTimeScheduler() if config.realtime else Scheduler()
         self.trace = trace
         self.on_event = on_event
+        self.pcap = None
         # On the CPU model every received byte is its own interrupt: the air hands each byte
         # over on its stop-bit tick (the same trace as bursts, tests/test_air.py)
         self.air = Air(self.sched, seed=config.seed, ber=config.ber, noise=config.noise,
@@ -307,6 +308,24 @@ class World:
         self.submodules[r] = make_submodules(self.sched, bus, initial_angles=HOME)
         bus.trace = lambda frame, start, end, winner, r=r: self._on_can(r, frame, start, end)
 
+    def capture(self, sink) -> None:
+        """Send every transmission and CAN frame to ``sink`` (hil.view.pcap.PcapWriter's
+        methods ``radio``, ``can``, ``can_error``), keyed as ``capture_interfaces`` names."""
+        self.pcap = sink
+        self._radio_key = {id(radio): key for key, radio in self.radios.items()}
+        for r, bus in self.can_buses.items():
+            bus.error_trace = (lambda kind, frame, start, now, idle, tx, r=r:
+                               sink.can_error(r, now, kind, f"error frame ({kind}) in "
+                                              f"{frame.id:#05x}" if frame else kind))
+
+    def capture_interfaces(self) -> tuple[dict[object, str], dict[int, str]]:
+        """(radio key -> interface name, CAN bus -> interface name) for a capture."""
+        radios = {key: ("PC2 (standby father)" if key == STANDBY else
+                        "father 0" if key == 0 else f"R{key}") + " radio"
+                  for key in self.radios}
+        radios["foreign"] = "foreign transmitters"
+        return radios, {r: f"R{r} CAN" for r in self.can_buses}
+
     def _cpu_second(self, _: int) -> None:
         """Each simulated second: every child's CPU load over that second (the share of its
         machine cycles spent in handlers and main-loop work), in the trace."""
@@ -323,6 +342,8 @@ class World:
 
     def _on_can(self, r: int, frame, start: int, end: int) -> None:
         self.can_frames += 1
+        if self.pcap is not None:
+            self.pcap.can(r, end, frame.id, frame.data)
         child = self.children.get(r)
         lat = child.latency_from if child is not None else None
         if lat is not None and (frame.id, bytes(frame.data)) == lat[1:]:
@@ -425,6 +446,14 @@ class World:
     def _on_transmission(self, tx: Transmission) -> None:
         r = tx.radio.robot
         self._tx_starts.append(tx.t0)
+        if self.pcap is not None:
+            sent = tx.data if not tx.aborted else tx.data[:(tx.end - tx.t0) // tx.bt]
+            marks = [w for w, on in (("collided", tx.collided), ("aborted: the sender's radio "
+                                     "died", tx.aborted)) if on]
+            if r < 0:
+                marks.insert(0, "a transmitter that is no robot")
+            self.pcap.radio(self._radio_key.get(id(tx.radio), "foreign"), tx.end, sent,
+                            "; ".join(marks) or None)
         if self.trace is None and self.on_event is None:
             return
         if r < 0:                      # injected bytes or interference, not a robot

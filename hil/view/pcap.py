@@ -1,0 +1,93 @@
+"""pcapng captures of the radio and the CAN buses, for Wireshark and tshark (issue 15).
+
+One file per run, written with python-pcapng. One interface per radio (``LINKTYPE_USER0``,
+147: the bytes on air as one packet per transmission, dissected by the plugin
+``hil/wireshark/rprs.lua``), one for transmitters that are no robot (interference, forged
+frames), and one per child's CAN bus (``LINKTYPE_CAN_SOCKETCAN``, 227, which Wireshark decodes
+natively). Timestamps are the tick a packet ends (the last stop bit, the end of EOF; an error
+frame: its flag's first bit) at ``if_tsresol`` 10^-10 s, so a 62.5 ns tick is 625 units
+exactly. Nothing is dropped: collided, aborted and interference transmissions are kept, with a
+packet comment saying which; CAN error frames are SocketCAN error frames (``CAN_ERR_FLAG``).
+"""
+from __future__ import annotations
+
+import struct
+from typing import BinaryIO
+
+import pcapng
+from pcapng import blocks
+
+from firmware_model.timing import TICK_HZ
+
+LINKTYPE_USER0 = 147
+LINKTYPE_CAN_SOCKETCAN = 227
+TSRESOL = 10
+"""if_tsresol: timestamps in units of 10^-10 s."""
+UNITS_PER_TICK = 10**TSRESOL // TICK_HZ          # 625
+
+CAN_ERR_FLAG = 0x20000000
+CAN_ERR_PROT = 0x00000008
+CAN_ERR_ACK = 0x00000020
+PROT_TYPES = {"bit": 0x01, "form": 0x02, "stuff": 0x04}
+"""data[2] of a protocol-violation error frame (linux/can/error.h, CAN_ERR_PROT_*)."""
+
+
+def socketcan_frame(can_id: int, data: bytes) -> bytes:
+    """16 bytes of LINKTYPE_CAN_SOCKETCAN: the identifier and flags in network byte order, the
+    length, three padding bytes, eight data bytes."""
+    return struct.pack(">IB3x8s", can_id, len(data), bytes(data))
+
+
+def error_frame(kind: str) -> bytes:
+    """A SocketCAN error frame for a bus error of ``kind`` (bit, stuff, form, ack, local)."""
+    if kind == "ack":
+        return socketcan_frame(CAN_ERR_FLAG | CAN_ERR_ACK, bytes(8))
+    data = bytearray(8)
+    data[2] = PROT_TYPES.get(kind, 0)
+    return socketcan_frame(CAN_ERR_FLAG | CAN_ERR_PROT, bytes(data))
+
+
+class PcapWriter:
+    """Write a run's traffic to ``stream`` (a binary file object). ``radios``: interface name
+    per radio key, ``buses``: interface name per CAN bus key; both fixed before the first
+    packet (pcapng declares interfaces up front)."""
+
+    def __init__(self, stream: BinaryIO, radios: dict[object, str], buses: dict[int, str]) -> None:
+        self.stream = stream
+        self.shb = blocks.SectionHeader(options={"shb_userappl": "rprs"})
+        self._ifaces: dict[tuple[str, object], int] = {}
+        for key, name in radios.items():
+            self._add(("radio", key), LINKTYPE_USER0, name,
+                      "RPRS radio channel, 9600 baud (rprs.lua)")
+        for key, name in buses.items():
+            self._add(("can", key), LINKTYPE_CAN_SOCKETCAN, name, "CAN 2.0A, 500 kbit/s")
+        self.writer = pcapng.FileWriter(stream, self.shb)
+        self.packets = 0
+
+    def _add(self, key: tuple[str, object], link: int, name: str, descr: str) -> None:
+        idb = self.shb.new_member(blocks.InterfaceDescription, link_type=link, snaplen=65535,
+                                  options={"if_name": name, "if_description": descr,
+                                           "if_tsresol": bytes((TSRESOL,))})
+        self._ifaces[key] = idb.interface_id
+
+    def _packet(self, key: tuple[str, object], tick: int, data: bytes,
+                comment: str | None) -> None:
+        ts = tick * UNITS_PER_TICK
+        opts = {"opt_comment": comment} if comment else {}
+        epb = self.shb.new_member(blocks.EnhancedPacket, interface_id=self._ifaces[key],
+                                  timestamp_high=ts >> 32, timestamp_low=ts & 0xFFFFFFFF,
+                                  packet_data=bytes(data), options=opts)
+        self.writer.write_block(epb)
+        self.packets += 1
+
+    def radio(self, key: object, tick: int, data: bytes, comment: str | None = None) -> None:
+        """A transmission on air, ending at ``tick``: the bytes its sender sent."""
+        self._packet(("radio", key), tick, data, comment)
+
+    def can(self, bus: int, tick: int, can_id: int, data: bytes) -> None:
+        """A CAN frame on ``bus`` that ended (EOF) at ``tick``."""
+        self._packet(("can", bus), tick, socketcan_frame(can_id, data), None)
+
+    def can_error(self, bus: int, tick: int, kind: str, comment: str) -> None:
+        """An error frame on ``bus`` whose flag started at ``tick``."""
+        self._packet(("can", bus), tick, error_frame(kind), comment)

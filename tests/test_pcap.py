@@ -1,0 +1,135 @@
+"""pcapng captures (hil/view/pcap.py, `rprs sim --pcap`) and the Wireshark dissector
+(hil/wireshark/rprs.lua), read back by tshark where Debian's package is installed (CI installs
+it) and by python-pcapng everywhere. Every packet is compared with the run's own trace."""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import pcapng
+import pytest
+
+from firmware_model.radio.frame import parse_frame
+from hil.view.pcap import CAN_ERR_FLAG, UNITS_PER_TICK
+from hil.wireshark import plugin_path
+
+TSHARK = shutil.which("tshark")
+needs_tshark = pytest.mark.skipif(TSHARK is None, reason="tshark not installed (Debian "
+                                  "package tshark; .ci/run installs it)")
+ARGS = ("--robots", "0,1,2", "--duration", "6", "--seed", "4", "--can", "--load", "1",
+        "--fault", "steal:1@3", "--fault", "foreign@4:x0f0a05323130303230303033616263ffff",
+        "--no-progress")
+
+
+def rprs(*args):
+    return subprocess.run([sys.executable, "-m", "hil.cli", *args], capture_output=True,
+                          text=True, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("pcap")
+    p = rprs("sim", *ARGS, "--pcap", str(d / "run.pcapng"), "--trace", str(d / "run.jsonl"))
+    assert p.returncode == 0, p.stderr
+    trace = [json.loads(x) for x in (d / "run.jsonl").read_text().splitlines()]
+    return d / "run.pcapng", trace
+
+
+def _packets(path):
+    ifaces, out = {}, []
+    for b in pcapng.FileScanner(open(path, "rb")):
+        name = type(b).__name__
+        if name == "InterfaceDescription":
+            ifaces[len(ifaces)] = (b.link_type, b.options["if_name"])
+        elif name == "EnhancedPacket":
+            ticks = ((b.timestamp_high << 32) + b.timestamp_low) // UNITS_PER_TICK
+            out.append((ifaces[b.interface_id], ticks, bytes(b.packet_data),
+                        b.options.get("opt_comment")))
+    return ifaces, out
+
+
+def test_every_transmission_and_can_frame_is_in_the_capture(run):
+    path, trace = run
+    ifaces, pkts = _packets(path)
+    frames = [e for e in trace if e["ev"] == "frame"]
+    radio = [(p[1], p[2]) for p in pkts if p[0][0] == 147 and p[0][1] != "foreign transmitters"]
+    assert [t for t, _ in radio] == [e["end"] for e in frames]
+    for (_, data), e in zip(radio, frames):
+        if not e["collided"] and not e["aborted"]:
+            f = parse_frame(data)
+            assert (f.src, f.dst, f.type, f.num) == (e["src"], e["dst"], e["type"], e["num"])
+    cans = [e for e in trace if e["ev"] == "can"]
+    can_pkts = [p for p in pkts if p[0][0] == 227 and not
+                int.from_bytes(p[2][:4], "big") & CAN_ERR_FLAG]
+    assert [(p[1], int.from_bytes(p[2][:4], "big"), p[2][8:8 + p[2][4]].hex())
+            for p in can_pkts] == [(e["end"], e["id"], e["data"]) for e in cans]
+
+
+def test_collisions_and_foreign_bytes_are_kept_and_marked(run):
+    path, trace = run
+    _, pkts = _packets(path)
+    assert sum(1 for e in trace if e["ev"] == "frame" and e["collided"]) == \
+        sum(1 for p in pkts if p[3] and "collided" in p[3] and p[0][0] == 147
+            and p[0][1] != "foreign transmitters")
+    foreign = [p for p in pkts if p[0][1] == "foreign transmitters"]
+    assert len(foreign) == 1 and foreign[0][2].endswith(b"\xff\xff")
+    assert "no robot" in foreign[0][3]
+
+
+def test_timestamps_are_ticks_and_in_order(run):
+    path, _ = run
+    _, pkts = _packets(path)
+    ticks = [p[1] for p in pkts]
+    assert ticks == sorted(ticks)
+
+
+@needs_tshark
+def test_tshark_with_the_plugin_reads_every_field_the_trace_has(run):
+    path, trace = run
+    out = subprocess.run(
+        [TSHARK, "-X", f"lua_script:{plugin_path()}", "-r", str(path), "-T", "fields",
+         "-E", "separator=|", "-e", "frame.interface_name", "-e", "rprs.src", "-e", "rprs.dst",
+         "-e", "rprs.num", "-e", "rprs.type", "-e", "can.id"],
+        capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    rows = [r.split("|") for r in out.stdout.splitlines()]
+    frames = [e for e in trace if e["ev"] == "frame" and not e["collided"]]
+    radio = [r for r in rows if r[0].endswith("radio") and r[1]]
+    got = [(int(r[1]), int(r[2]), int(r[3]), int(r[4])) for r in radio]
+    want = [(e["src"], e["dst"], e["num"], e["type"]) for e in frames]
+    assert [g for g in got if g in want] == want or got[:len(want)] == want
+    cans = [int(r[5], 0) for r in rows if r[5]]
+    assert [c for c in cans if not c & CAN_ERR_FLAG][:50] == \
+        [e["id"] for e in trace if e["ev"] == "can"][:50]
+
+
+@needs_tshark
+def test_tshark_filters_and_flags_a_bad_frame(run):
+    path, _ = run
+    plugin = f"lua_script:{plugin_path()}"
+    bad = subprocess.run([TSHARK, "-X", plugin, "-r", str(path), "-Y", "rprs.end.bad",
+                          "-T", "fields", "-e", "rprs.src"],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 0, bad.stderr
+    assert bad.stdout.split() == ["1"]        # the forged frame "from R1" with End FF FF
+    movex = subprocess.run([TSHARK, "-X", plugin, "-r", str(path), "-Y", 'rprs.type == 5',
+                            "-T", "fields", "-e", "rprs.src"],
+                           capture_output=True, text=True, timeout=120)
+    assert movex.returncode == 0 and movex.stdout.split()     # every robot's BOOT frame
+
+
+def test_a_capture_that_cannot_be_written_is_a_clear_error(tmp_path):
+    p = rprs("sim", "--duration", "1", "--pcap", str(tmp_path / "no" / "such" / "x.pcapng"),
+             "--no-progress")
+    assert p.returncode == 2 and "cannot write capture" in p.stderr
+    assert "Traceback" not in p.stderr
+
+
+def test_the_dissector_installs_where_asked(tmp_path):
+    p = rprs("wireshark", "--install", "--dir", str(tmp_path / "plugins"))
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "plugins" / "rprs.lua").read_text() == plugin_path().read_text()
+    p = rprs("wireshark", "--path")
+    assert p.returncode == 0 and p.stdout.strip() == str(plugin_path())
