@@ -95,14 +95,20 @@ def test_tshark_with_the_plugin_reads_every_field_the_trace_has(run):
         capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     rows = [r.split("|") for r in out.stdout.splitlines()]
-    frames = [e for e in trace if e["ev"] == "frame" and not e["collided"]]
-    radio = [r for r in rows if r[0].endswith("radio") and r[1]]
-    got = [(int(r[1]), int(r[2]), int(r[3]), int(r[4])) for r in radio]
-    want = [(e["src"], e["dst"], e["num"], e["type"]) for e in frames]
-    assert [g for g in got if g in want] == want or got[:len(want)] == want
+    radio = [r for r in rows if r[0].endswith(" radio")]      # not "foreign transmitters"
+    frames = [e for e in trace if e["ev"] == "frame"]
+    assert len(radio) == len(frames)
+    checked = 0
+    for r, e in zip(radio, frames):
+        if e["aborted"]:
+            continue                                   # cut: its fields may be missing
+        assert (int(r[1]), int(r[2]), int(r[3]), int(r[4])) == \
+            (e["src"], e["dst"], e["num"], e["type"]), (r, e)
+        checked += 1
+    assert checked > 100
     cans = [int(r[5], 0) for r in rows if r[5]]
-    assert [c for c in cans if not c & CAN_ERR_FLAG][:50] == \
-        [e["id"] for e in trace if e["ev"] == "can"][:50]
+    assert [c for c in cans if not c & CAN_ERR_FLAG] == \
+        [e["id"] for e in trace if e["ev"] == "can"]
 
 
 @needs_tshark
