@@ -310,9 +310,14 @@ class BitTiming:
 
     ``tick_hz``: ticks per second of the clock the bus runs on (default 16 MHz, the MB90F549's
     machine clock). ``prescaler``: clock ticks per time quantum (1..64). A bit is
-    ``1 (sync) + tseg1 + tseg2`` quanta; ``tseg1`` (1..16) is propagation + phase-1 segment,
-    ``tseg2`` (1..8) the phase-2 segment, ``sjw`` (1..4, at most ``tseg1`` and ``tseg2``) the
+    ``1 (sync) + tseg1 + tseg2`` quanta; ``tseg1`` (2..16) is propagation + phase-1 segment,
+    ``tseg2`` (2..8) the phase-2 segment, ``sjw`` (1..4, at most ``tseg1`` and ``tseg2``) the
     resynchronisation jump width. The sample point is at the end of tseg1.
+
+    The lower bounds are the F2MC-16LX hardware manual's conditions for correct operation
+    (chapter 21 "CAN controller", bit timing register BTR, p. 464): TSEG1 >= 2 TQ, TSEG2 >= 2 TQ,
+    both >= RSJW; with PSC = 0 (one clock tick a quantum) TSEG1 >= 5 TQ. The register fields
+    can hold a one-quantum segment; the part does not work with one, so it is refused.
 
     The default is 500 kbit/s: 2 ticks a quantum, 1 + 11 + 4 = 16 quanta, 32 ticks a bit,
     sample point 75 %. Bit rates above 1 Mbit/s (CAN 2.0 / 82C250 limit) are rejected.
@@ -329,6 +334,13 @@ class BitTiming:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
                 raise ValueError(f"BitTiming.{name} must be an int in {lo}..{hi}, got {v!r}")
+        min_tseg1 = 5 if self.prescaler == 1 else 2  # F2MC-16LX manual ch. 21, BTR, p. 464
+        if self.tseg1 < min_tseg1 or self.tseg2 < 2:
+            raise ValueError(
+                f"BitTiming tseg1={self.tseg1}, tseg2={self.tseg2} with prescaler {self.prescaler}: "
+                f"the CAN controller needs tseg1 >= {min_tseg1} and tseg2 >= 2 quanta "
+                f"(F2MC-16LX hardware manual, BTR conditions)"
+            )
         if self.sjw > self.tseg2 or self.sjw > self.tseg1:
             raise ValueError(
                 f"BitTiming.sjw ({self.sjw}) must not exceed tseg1 ({self.tseg1}) or tseg2 ({self.tseg2})"

@@ -252,8 +252,23 @@ def test_bit_timing_other_rates():
         dict(sjw=5),
         dict(tseg2=2, sjw=3),
         dict(prescaler=1, tseg1=4, tseg2=2),  # 7 ticks a bit: faster than 1 Mbit/s
+        # One-quantum segments: the register fields hold them, the manual forbids them
+        # (F2MC-16LX hardware manual ch. 21, BTR: TSEG1 >= 2 TQ, TSEG2 >= 2 TQ).
+        dict(tseg1=1, tseg2=8),
+        dict(tseg1=14, tseg2=1),
+        dict(prescaler=4, tseg1=1, tseg2=2),
     ],
 )
 def test_bit_timing_validation(kwargs):
     with pytest.raises(ValueError):
         BitTiming(**kwargs)
+
+
+def test_bit_timing_psc0_needs_five_quanta_in_tseg1():
+    """With PSC = 0 (a quantum is one clock tick) the manual asks TSEG1 >= 5 TQ. On an 8 MHz
+    clock, 1 + 4 + 3 = 8 ticks is a legal 1 Mbit/s bit time but TSEG1 = 4 is refused; the
+    same bit time as 1 + 5 + 2 is accepted. With PSC = 1 a TSEG1 of 2 is fine."""
+    with pytest.raises(ValueError, match="tseg1 >= 5"):
+        BitTiming(prescaler=1, tseg1=4, tseg2=3, tick_hz=8_000_000)
+    assert BitTiming(prescaler=1, tseg1=5, tseg2=2, tick_hz=8_000_000).bitrate == 1_000_000
+    assert BitTiming(prescaler=2, tseg1=2, tseg2=5, tick_hz=16_000_000).bitrate == 1_000_000

@@ -93,10 +93,23 @@ def test_reset_state_and_btr():
         c.BTR = 0x3A01
 
 
+def test_btr_with_a_one_quantum_segment_is_refused_and_changes_nothing():
+    """BTR = 0x0A01 is TS2 = 0 (a one-quantum phase-2 segment), 0x3001 is TS1 = 0: the fields
+    hold them, the manual's conditions (TSEG1, TSEG2 >= 2 TQ) forbid them."""
+    c = CanController(Scheduler())
+    for bad in (0x0A01, 0x3001):
+        with pytest.raises(ValueError, match="tseg"):
+            c.BTR = bad
+        assert c.BTR == 0x3A01 and c.timing == BitTiming()
+    c.BTR = 0x1A01  # TS2 = 1: two quanta, allowed
+    assert (c.timing.tseg1, c.timing.tseg2) == (11, 2)
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.integers(1, 64), st.integers(1, 16), st.integers(1, 8), st.integers(1, 4))
 def test_btr_round_trip(psc, ts1, ts2, sjw):
     assume(sjw <= ts1 and sjw <= ts2 and psc * (1 + ts1 + ts2) >= 16)
+    assume(ts1 >= (5 if psc == 1 else 2) and ts2 >= 2)  # the manual's BTR conditions
     t = BitTiming(psc, ts1, ts2, sjw)
     assert timing_from_btr(btr_from_timing(t)) == t
 
