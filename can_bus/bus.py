@@ -16,6 +16,13 @@ A node is any object; the bus looks up these optional methods once, at :meth:`Ca
 * ``acknowledges`` (optional, read at each frame): False while the node cannot drive the ACK
   slot (a halted controller, a transceiver in standby); with no receiver that can, the frame
   ends in an ACK error.
+* Its loop delay (TXD to RXD through its transceiver), set with :meth:`CanBus.set_loop_delay`
+  (default: a high-speed 82C250). A transmitter that gets no acknowledging receiver's ACK back
+  within the bit timing's round-trip budget (:mod:`can_bus.physical`: ``(tseg1 - sjw)``
+  quanta for both loop delays and twice the bus's ``length_m`` of cable) sees an ACK error.
+  If it is error-active its flag destroys the frame for everyone; if every transmitter is
+  error-passive its flag is recessive, so the receivers take the frame (and take it again
+  at each retry) while the transmitter keeps its TEC (ISO 11898-1 exception 1).
 * ``on_tx_done(frame, end_tick)``: the node's frame was sent and acknowledged. A node with its
   own queue removes the frame here.
 * ``on_arbitration_lost(frame)``: called at the SOF tick of the frame that beat ``frame``.
@@ -124,6 +131,7 @@ from can_bus.bits import (
     _wire,
 )
 from can_bus.clock import Cancellable as Event, Clock as Scheduler
+from can_bus.physical import DEFAULT_LENGTH_M, LINE_DELAY_S_PER_M, loop_delay_s, prop_time_s
 
 __all__ = [
     "CanFrame",
@@ -223,7 +231,7 @@ class _Node:
     __slots__ = (
         "node", "tec", "rec", "state", "suspend_until", "occ", "recover_ev", "queue", "seq",
         "pending_fn", "on_frame", "on_tx_done", "on_lost", "on_error", "on_state", "attached",
-        "entry", "counting", "count_from",
+        "entry", "counting", "count_from", "loop",
     )
 
     def __init__(self, node: Any) -> None:
@@ -246,6 +254,10 @@ class _Node:
         self.on_error = getattr(node, "on_error", None)
         self.on_state = getattr(node, "on_state_change", None)
         self.attached = True
+        self.loop = _HS_LOOP_S               # TXD-to-RXD loop delay (s)
+
+
+_HS_LOOP_S = loop_delay_s(0)
 
 
 class _Hold:
@@ -286,10 +298,18 @@ def _prio(cand: tuple[CanFrame, Any]) -> tuple[int, bool]:
 class CanBus:
     """Bit-exact, event-per-frame CAN 2.0A bus. See the module docstring for the model."""
 
-    def __init__(self, scheduler: Scheduler, timing: BitTiming | None = None) -> None:
+    def __init__(self, scheduler: Scheduler, timing: BitTiming | None = None,
+                 length_m: float = DEFAULT_LENGTH_M) -> None:
+        """``length_m``: the bus's length between its two farthest nodes (m)."""
         self.sched = scheduler
         self.timing = timing if timing is not None else BitTiming()
         self.tpb = self.timing.ticks_per_bit
+        if not (isinstance(length_m, (int, float)) and 0 <= length_m < 1e6):
+            raise ValueError(f"CanBus length_m must be a number of metres >= 0, got {length_m!r}")
+        self.length_m = float(length_m)
+        self._ack_budget = prop_time_s(self.timing) - 2 * self.length_m * LINE_DELAY_S_PER_M
+        self._ack_limited = False            # some pair of nodes exceeds the budget
+        self._cur_late = False               # this frame's ACK error is a late ACK
         self.trace: Callable[[CanFrame, int, int, Any], None] | None = None
         self.error_trace: Callable[[str, CanFrame | None, int, int, int, Any], None] | None = None
         self.frames_ok = 0
@@ -320,6 +340,29 @@ class CanBus:
         ns = _Node(node)
         self._nodes.append(ns)
         self._by_id[id(node)] = ns
+        self._check_ack_budget()
+
+    def set_loop_delay(self, node: Any, seconds: float) -> None:
+        """``node``'s TXD-to-RXD loop delay (s), e.g. an 82C250's in slope-control mode."""
+        if not (isinstance(seconds, (int, float)) and 0 <= seconds < 1):
+            raise ValueError(f"loop delay must be a number of seconds >= 0, got {seconds!r}")
+        self._ns(node).loop = float(seconds)
+        self._check_ack_budget()
+
+    @property
+    def ack_budget_s(self) -> float:
+        """The round-trip time left for two nodes' loop delays (s): ``(tseg1 - sjw)`` quanta
+        less twice the bus length of cable (:mod:`can_bus.physical`)."""
+        return self._ack_budget
+
+    def ack_in_time(self, a: Any, b: Any) -> bool:
+        """Does ``b``'s ACK reach ``a`` (or ``a``'s reach ``b``) within the bit timing's
+        round-trip budget?"""
+        return self._ns(a).loop + self._ns(b).loop <= self._ack_budget
+
+    def _check_ack_budget(self) -> None:
+        loops = sorted((ns.loop for ns in self._nodes), reverse=True)
+        self._ack_limited = len(loops) >= 2 and loops[0] + loops[1] > self._ack_budget
 
     def start_recovery(self, node: Any) -> None:
         """A bus-off ``node`` whose controller recovers on request (``recovers_on_request``)
@@ -345,6 +388,7 @@ class CanBus:
             ns.recover_ev.cancel()
         self._nodes.remove(ns)
         del self._by_id[id(node)]
+        self._check_ack_budget()
         self._holders.discard(id(node))
         self._inject.pop(id(ns), None)
         self._local.pop(id(ns), None)
@@ -597,9 +641,19 @@ class CanBus:
                     if err is None or k < err[0]:
                         err = (k, "bit")
                     break
-        if (err is None or err[0] > nstuffed + 1) and \
-                not any(getattr(ns.node, "acknowledges", True) for ns in rx):
-            err = (nstuffed + 1, "ack")          # no receiver able to drive the ACK slot
+        self._cur_late = False
+        if err is None or err[0] > nstuffed + 1:
+            if not self._ack_limited:
+                if not any(getattr(ns.node, "acknowledges", True) for ns in rx):
+                    err = (nstuffed + 1, "ack")  # no receiver able to drive the ACK slot
+            else:
+                acking = [ns for ns in rx if getattr(ns.node, "acknowledges", True)]
+                budget = self._ack_budget - max(ns.loop for ns in tx)
+                if not acking:
+                    err = (nstuffed + 1, "ack")
+                elif not any(ns.loop <= budget for ns in acking):
+                    err = (nstuffed + 1, "ack")  # every ACK comes back after the sample point
+                    self._cur_late = True
 
         self._cur_deaf = set()
         if self._local or self._noisy:
@@ -646,7 +700,18 @@ class CanBus:
                     pass
                 ns.entry = None
         deaf = self._cur_deaf
-        for ns in self._cur_rx:
+        self._rx_count(self._cur_rx, deaf, now)
+        self._seg_ev = self.sched.at(idle_at, self._segment_end, _ELEVEN)
+        if self.trace is not None:
+            self.trace(frame, self._cur_start, now, self._cur_tx[0].node)
+        for ns in self._cur_tx:
+            if ns.on_tx_done is not None and ns.attached:
+                ns.on_tx_done(frame, now)
+        self._rx_deliver(frame, self._cur_start, now, self._cur_rx, deaf)
+
+    def _rx_count(self, rx: list[_Node], deaf: set[int], now: int) -> None:
+        """Receivers' REC after a frame they took (ISO 11898-1 rule 8)."""
+        for ns in rx:
             if ns.state is BUS_OFF:
                 continue
             if deaf and id(ns) in deaf:       # its passive error flag: no frame, REC + 1
@@ -659,17 +724,26 @@ class CanBus:
                 self._update(ns, now)
             elif r > 0:
                 ns.rec = r - 1
-        self._seg_ev = self.sched.at(idle_at, self._segment_end, _ELEVEN)
-        start = self._cur_start
-        if self.trace is not None:
-            self.trace(frame, start, now, self._cur_tx[0].node)
-        for ns in self._cur_tx:
-            if ns.on_tx_done is not None and ns.attached:
-                ns.on_tx_done(frame, now)
-        for ns in self._cur_rx:
+
+    @staticmethod
+    def _rx_deliver(frame: CanFrame, start: int, now: int, rx: list[_Node],
+                    deaf: set[int]) -> None:
+        for ns in rx:
             if ns.on_frame is not None and ns.attached and ns.state is not BUS_OFF and \
                     not (deaf and id(ns) in deaf):
                 ns.on_frame(frame, start, now)
+
+    def _late_ack_received(self, frame: CanFrame, start: int, tx: _Node,
+                           rx: list[_Node]) -> None:
+        """Every transmitter was error-passive when its ACK came back late: its error flag is
+        recessive, so the receivers, which acknowledged in time for themselves, see a whole
+        frame and take it at its end (``start`` + the frame's wire bits)."""
+        now = self.sched.now
+        rx = [ns for ns in rx if ns.attached]
+        self._rx_count(rx, set(), now)
+        if self.trace is not None:
+            self.trace(frame, start, now, tx.node)
+        self._rx_deliver(frame, start, now, rx, set())
 
     def _frame_error(self, kind: str) -> None:
         now = self.sched.now
@@ -679,6 +753,15 @@ class CanBus:
         self._phase = _TAIL
         self._busy_until = idle_at
         self.error_frames += 1
+        rx = self._cur_rx
+        late_passive = kind == "ack" and self._cur_late and \
+            all(ns.state is PASSIVE for ns in self._cur_tx)
+        if late_passive:
+            # The receivers saw no error: they take the frame at its end, not REC + 1.
+            self.sched.at(self._cur_start + len(_frame_info(frame)[0]) * tpb,
+                          self._late_ack_received, frame, self._cur_start, self._cur_tx[0],
+                          list(rx))
+            rx = []
         all_passive = True
         for ns in self._cur_tx:
             if not (kind == "ack" and ns.state is PASSIVE):
@@ -689,7 +772,7 @@ class CanBus:
             if ns.state is PASSIVE:
                 ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
             ns.entry = None
-        for ns in self._cur_rx:
+        for ns in rx:
             if ns.state is BUS_OFF:
                 continue
             ns.rec += 1
@@ -708,7 +791,7 @@ class CanBus:
         for ns in self._cur_tx:
             if ns.on_error is not None and ns.attached:
                 ns.on_error(CanErrorEvent(kind, now, frame, True, ns.tec, ns.rec, ns.state))
-        for ns in self._cur_rx:
+        for ns in rx:
             if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
                 ns.on_error(CanErrorEvent(kind, now, frame, False, ns.tec, ns.rec, ns.state))
 

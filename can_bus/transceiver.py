@@ -19,19 +19,20 @@ Rs pin (pin 8) modes
 * ``SLOPE_CONTROL``: Rs to ground through ``rs_ohms`` (16.5 .. 140 kOhm, the range Philips
   application note AN96116 gives). The slew rate is proportional to the current out of Rs
   (AN96116 eq. 4: single-ended ``SR = 0.5 Vcc / (7.6e-3 us/kOhm * R)``, 7 V/us at 47 kOhm,
-  2.35 V/us at 140 kOhm), so an edge takes a time proportional to ``R``. **Assumption**: the
-  usable bit rate is inversely proportional to ``R`` and anchored at the datasheet's
-  125 kbit/s for the slowest slope (140 kOhm)::
-
-      max_bitrate(R) = min(1 Mbit/s, 125 kbit/s * 140 kOhm / R) = min(1e6, 1.75e10 / R)
-
-  (372 kbit/s at 47 kOhm, 1 Mbit/s at 17.5 kOhm and below). If the bus bit rate is above the
-  limit, this node's own edges are too slow to be read back correctly at the sample point:
-  every frame it transmits gets a bit error (injected with ``CanBus.inject_bit_error`` at the
-  bus's default bit, the last bit of the stuffed CRC field; *where* in the frame the misread
-  happens is not modelled, nor the fact that a misread in the arbitration field would look like
-  lost arbitration). Reception is not affected. The check is exact in ticks:
-  ``tick_hz * R <= 1.75e10 * ticks_per_bit``.
+  2.35 V/us at 140 kOhm), so the bus takes longer to cross the receivers' thresholds and the
+  loop delay TXD -> bus -> RXD grows: 150 ns in high-speed mode, 469 ns at 140 kOhm
+  (:func:`can_bus.physical.loop_delay_s`, which gives every figure's source). The transceiver
+  tells the bus its loop delay (``CanBus.set_loop_delay``); the bus checks each frame's
+  acknowledgement against the bit timing's round-trip budget, ``(tseg1 - sjw)`` quanta for both
+  loop delays and twice the bus length of cable (Bosch CAN 2.0, bit timing requirements). A
+  transmitter whose receivers' ACKs all come back after its sample point sees an ACK error
+  (see :mod:`can_bus.bus` for what the others then see). :attr:`Transceiver82C250.slope_limited`
+  says whether this node and a high-speed peer break that budget on this bus;
+  :attr:`Transceiver82C250.max_bitrate` gives the highest bit rate with the bus's bit-timing
+  shape and length at which they do not. Worked figures (default 500 kbit/s timing, 1250 ns
+  budget): 140 kOhm with a high-speed peer works up to a 63 m bus; at 1 Mbit/s with 16 quanta
+  (625 ns) it fails even on 1 m, and 130 kOhm works. The slope's real purpose, lower
+  emissions, and the edge shape within a bit are not modelled.
 * ``STANDBY``: Rs high. Transmitter off, receiver in low-power mode. The controller gets no
   frames, no errors and is offered no arbitration (its requests stay pending until the
   transceiver is back in a normal mode). A dominant bus level is passed to RxD so the MCU can
@@ -43,8 +44,6 @@ Rs pin (pin 8) modes
   the bus went dominant: the bus model gives no earlier hook). The SOF is seen through ``pending()``, which the bus does not call for a
   node it counts bus-off: such a node wakes only on a stuck bus. Mode changes take effect at
   the next arbitration; a frame of this node already on the bus completes. A mode change that
-  lifts the slope limit after an error was armed for a frame that then lost arbitration still
-  costs the next transmitted frame one bit error (an injected error cannot be withdrawn).
 
   Simplification: in standby the node stays attached to the bus, so the bus still counts it
   as a receiver (its REC follows the traffic). It does not acknowledge (``acknowledges``). The controller's error state
@@ -66,8 +65,10 @@ from __future__ import annotations
 from enum import Enum
 from typing import Any, Callable
 
+from can_bus import physical
 from can_bus.bits import wire_bits
 from can_bus.bus import CanBus, CanErrorEvent, CanFrame, ErrorState, NodeStatus
+from can_bus.physical import HIGH_SPEED_MAX_OHMS, MAX_BITRATE, loop_delay_s, slew_rate
 
 __all__ = [
     "RsMode",
@@ -75,14 +76,11 @@ __all__ = [
     "HIGH_SPEED_MAX_OHMS",
     "SLOPE_MIN_OHMS",
     "SLOPE_MAX_OHMS",
-    "SLOPE_BITRATE_OHMS",
     "MAX_BITRATE",
     "max_bitrate",
     "slew_rate",
 ]
 
-HIGH_SPEED_MAX_OHMS = 1_800
-"""Rs resistance below which the 82C250 is in high-speed mode (AN96116: V_Rs < 0.3 Vcc)."""
 WAKE_DOMINANT_S = 3e-6
 """A dominant bus level must last at least this long before the 82C250 in standby signals a
 wake-up on RxD (Philips AN96116, PCA82C250/251 application note, §3.3 Stand-by Mode)."""
@@ -90,10 +88,6 @@ wake-up on RxD (Philips AN96116, PCA82C250/251 application note, §3.3 Stand-by 
 SLOPE_MIN_OHMS = 16_500
 SLOPE_MAX_OHMS = 140_000
 """Slope-control resistor range given by AN96116 (10 uA < -I_Rs < 200 uA)."""
-MAX_BITRATE = 1_000_000
-"""82C250 / CAN 2.0 maximum bit rate (bit/s)."""
-SLOPE_BITRATE_OHMS = 125_000 * SLOPE_MAX_OHMS
-"""Model constant (bit/s x Ohm): 125 kbit/s at the slowest slope, 140 kOhm."""
 
 
 class RsMode(str, Enum):
@@ -105,16 +99,16 @@ class RsMode(str, Enum):
 HIGH_SPEED, SLOPE_CONTROL, STANDBY = RsMode.HIGH_SPEED, RsMode.SLOPE_CONTROL, RsMode.STANDBY
 
 
-def slew_rate(rs_ohms: int) -> float:
-    """Typical single-ended CANH/CANL slew rate (V/us) for a slope resistor (AN96116 eq. 4)."""
-    return 2.5 / (7.6e-3 * rs_ohms / 1000)
-
-
-def max_bitrate(rs_ohms: int) -> int:
-    """Usable bit rate (bit/s, rounded down) with ``rs_ohms`` on Rs (model; see module doc)."""
-    if rs_ohms < HIGH_SPEED_MAX_OHMS:
-        return MAX_BITRATE
-    return min(MAX_BITRATE, SLOPE_BITRATE_OHMS // rs_ohms)
+def max_bitrate(rs_ohms: int, length_m: float = physical.DEFAULT_LENGTH_M,
+                timing: Any = None, rs_other: int = 0) -> int:
+    """The highest bit rate (bit/s) at which an 82C250 with ``rs_ohms`` on Rs and one with
+    ``rs_other`` meet the round-trip budget over ``length_m`` of bus, with the quanta split of
+    ``timing`` (default: the default :class:`~can_bus.bits.BitTiming`, 16 quanta, tseg1 11,
+    sjw 1). See :func:`can_bus.physical.max_bitrate`."""
+    from can_bus.bits import BitTiming
+    t = timing if timing is not None else BitTiming()
+    return physical.max_bitrate(rs_ohms, length_m, 1 + t.tseg1 + t.tseg2, t.tseg1, t.sjw,
+                                rs_other)
 
 
 def _check_ohms(rs_ohms: int) -> int:
@@ -134,7 +128,7 @@ class Transceiver82C250:
 
     __slots__ = (
         "bus", "sched", "name", "rs_ohms", "controller", "on_wake", "wakeups",
-        "_standby", "_stuck", "_held", "_want_hold", "_hold_ev", "_slope_bad", "_inj_armed", "_wake_armed", "_sof_ev",
+        "_standby", "_stuck", "_held", "_want_hold", "_hold_ev", "_wake_armed", "_sof_ev",
         "_c_pending", "_c_frame", "_c_tx_done", "_c_lost", "_c_error", "_c_state",
     )
 
@@ -151,14 +145,13 @@ class Transceiver82C250:
         self._held = False
         self._want_hold = False
         self._hold_ev = None
-        self._inj_armed = False
         self._wake_armed = self._standby
         self._sof_ev = None
         self.controller = None
         self._c_pending = self._c_frame = self._c_tx_done = None
         self._c_lost = self._c_error = self._c_state = None
-        self._slope_bad = self._compute_slope_bad()
         bus.attach(self)
+        bus.set_loop_delay(self, loop_delay_s(self.rs_ohms))
         if controller is not None:
             self.connect(controller)
 
@@ -252,23 +245,25 @@ class Transceiver82C250:
             self.rs_ohms = 0
         elif mode is SLOPE_CONTROL and self.rs_ohms < SLOPE_MIN_OHMS:
             raise ValueError(f"slope control needs {SLOPE_MIN_OHMS}..{SLOPE_MAX_OHMS} Ohm on Rs")
-        self._slope_bad = self._compute_slope_bad()
+        self.bus.set_loop_delay(self, loop_delay_s(self.rs_ohms))
         self.standby(mode is STANDBY)
 
     @property
+    def loop_delay_s(self) -> float:
+        """TXD-to-RXD loop delay with the fitted resistor (s)."""
+        return loop_delay_s(self.rs_ohms)
+
+    @property
     def max_bitrate(self) -> int:
-        """Usable bit rate in the current resistor's normal mode (bit/s)."""
-        return max_bitrate(self.rs_ohms)
+        """The highest bit rate (bit/s) at which this node and a high-speed peer meet the
+        round-trip budget on this bus (its length, its bit timing's quanta split)."""
+        return max_bitrate(self.rs_ohms, self.bus.length_m, self.bus.timing)
 
     @property
     def slope_limited(self) -> bool:
-        """True when the bus bit rate is above what the slope resistor allows."""
-        return self._slope_bad
-
-    def _compute_slope_bad(self) -> bool:
-        r = self.rs_ohms
-        return r >= HIGH_SPEED_MAX_OHMS and \
-            self.bus.timing.tick_hz * r > SLOPE_BITRATE_OHMS * self.bus.tpb
+        """True when this node and a high-speed peer break the bus's round-trip budget: their
+        ACKs to each other come back after the sample point."""
+        return self.loop_delay_s + loop_delay_s(0) > self.bus.ack_budget_s
 
     # ------------------------------------------------------------------ TXD fault, RXD
     def stick_txd(self, on: bool = True) -> None:
@@ -352,11 +347,7 @@ class Transceiver82C250:
         fn = self._c_pending
         if fn is None:
             return None
-        f = fn()
-        if f is not None and self._slope_bad and not self._inj_armed:
-            self._inj_armed = True
-            self.bus.inject_bit_error(self, 1)
-        return f
+        return fn()
 
     def on_frame(self, frame: CanFrame, start: int, end: int) -> None:
         if not self._standby and self._c_frame is not None:
@@ -373,8 +364,6 @@ class Transceiver82C250:
 
     def on_error(self, ev: CanErrorEvent) -> None:
         if ev.transmitter:
-            if ev.kind == "bit" and not self.bus.held:
-                self._inj_armed = False  # our armed slope error was consumed
             if self._c_error is not None:
                 self._c_error(ev)  # our own frame failed: the controller must know
             return

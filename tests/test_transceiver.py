@@ -1,7 +1,7 @@
-"""Philips 82C250 transceiver model: Rs modes, slope limit, standby wake-up, stuck TXD."""
+"""Philips 82C250 transceiver model: Rs modes, slope -> loop delay -> late ACK, standby
+wake-up, stuck TXD."""
 from __future__ import annotations
 
-from fractions import Fraction
 
 import pytest
 from hypothesis import given, settings
@@ -9,8 +9,9 @@ from hypothesis import strategies as st
 
 from can_bus.bits import BitTiming, frame_length_bits, wire_bits
 from can_bus.bus import CanBus, CanFrame, ErrorState
+from can_bus.physical import loop_delay_s, max_bus_length_m, prop_time_s
 from can_bus.transceiver import (
-    SLOPE_BITRATE_OHMS,
+    MAX_BITRATE,
     RsMode,
     Transceiver82C250,
     max_bitrate,
@@ -18,7 +19,6 @@ from can_bus.transceiver import (
 )
 from firmware_model.mcu.can_controller import AMS_ALL, NS_PASSIVE, CanController
 from firmware_model.mcu.scheduler import Scheduler
-from firmware_model.timing import TICK_HZ
 
 TPB = 32  # 500 kbit/s
 
@@ -67,58 +67,123 @@ def test_modes_and_resistor_ranges():
     with pytest.raises(ValueError):
         x.set_mode(RsMode.SLOPE_CONTROL)  # needs a slope resistor
     x.set_mode("slope-control", rs_ohms=68_000)
-    assert x.mode is RsMode.SLOPE_CONTROL and x.max_bitrate == 257_352
+    assert x.mode is RsMode.SLOPE_CONTROL and x.max_bitrate == MAX_BITRATE  # 1 m bus
     x.set_mode(RsMode.STANDBY)
     assert x.mode is RsMode.STANDBY and x.rs_ohms == 68_000
 
 
-def test_slope_formula():
-    assert max_bitrate(140_000) == 125_000  # the datasheet's slowest slope
-    assert max_bitrate(47_000) == 372_340
-    assert max_bitrate(17_500) == max_bitrate(16_500) == max_bitrate(0) == 1_000_000
-    assert slew_rate(47_000) == pytest.approx(7.0, abs=0.01)  # AN96116: 7 V/us at 47 kOhm
+def test_slope_figures_by_hand():
+    # AN96116 eq. 4: SR = 2.5 V / (7.6e-3 us/kOhm * R); 7 V/us at 47 kOhm
+    assert slew_rate(47_000) == pytest.approx(7.0, abs=0.01)
     assert slew_rate(24_000) == pytest.approx(13.7, abs=0.1)
+    # high speed: the slower data-sheet edge, t_offRXD 150 ns
+    assert loop_delay_s(0) == loop_delay_s(1_000) == pytest.approx(150e-9)
+    # 140 kOhm: 2.3496 V/us a wire, 4.6992 V/us differential; the recessive edge falls from
+    # 2.0 V to 0.5 V in 1.5 / 4.6992 us = 319.2 ns, after the 150 ns high-speed delay
+    assert loop_delay_s(140_000) == pytest.approx(469.2e-9, abs=0.1e-9)
+    assert loop_delay_s(130_000) == pytest.approx(446.4e-9, abs=0.1e-9)
+    # the default 500 kbit/s timing: (11 - 1) quanta of 125 ns; 1 Mbit/s, 16 quanta: 62.5 ns
+    assert prop_time_s(BitTiming()) == pytest.approx(1250e-9)
+    assert prop_time_s(BitTiming(prescaler=1)) == pytest.approx(625e-9)
+    # 140 kOhm with a high-speed peer: 1250 - 469.2 - 150 = 630.8 ns of cable, 10 ns/m
+    assert max_bus_length_m(BitTiming(), 140_000) == pytest.approx(63.08, abs=0.01)
+    # on 1 m the round trip is 629.2 ns; 16 quanta with 10 for it: 1006.7 ns a bit
+    assert max_bitrate(140_000) == 993_324
+    # on 60 m: 469.2 + 150 + 600 = 1219.2 ns -> 1950.7 ns a bit
+    assert max_bitrate(140_000, 60.0) == 512_631
+    assert max_bitrate(0) == max_bitrate(16_500) == MAX_BITRATE
+    assert max_bitrate(0, 1.0, BitTiming(prescaler=4, tseg1=2, tseg2=2, sjw=2)) == 0  # no room left
 
 
 RATES = [1_000_000, 500_000, 250_000, 125_000, 100_000, 50_000]
 
 
-@settings(max_examples=50, deadline=None)
-@given(st.integers(16_500, 140_000), st.sampled_from(RATES))
-def test_slope_limit_is_exact(rs, rate):
-    bus = CanBus(Scheduler(), BitTiming.from_bitrate(rate))
+@settings(max_examples=60, deadline=None)
+@given(st.integers(16_500, 140_000), st.sampled_from(RATES), st.integers(0, 200))
+def test_slope_limit_agrees_with_max_bitrate(rs, rate, length):
+    bus = CanBus(Scheduler(), BitTiming.from_bitrate(rate), length_m=length)
     x = Transceiver82C250(bus, rs_ohms=rs)
-    assert x.slope_limited == (Fraction(TICK_HZ, bus.tpb) > Fraction(SLOPE_BITRATE_OHMS, rs))
+    assert x.slope_limited == (rate > x.max_bitrate)
+    assert x.slope_limited == (x.loop_delay_s + 150e-9 + length * 10e-9 >
+                               prop_time_s(bus.timing))
     x.set_mode(RsMode.HIGH_SPEED)
-    assert not x.slope_limited
+    assert x.slope_limited == (300e-9 + length * 10e-9 > prop_time_s(bus.timing))
 
 
-def test_slope_control_over_the_limit_gives_bit_errors():
-    sched, bus, (a, b), (xa, xb), log, errs = rig(2, rs={0: 47_000})
-    assert xa.slope_limited and xa.max_bitrate < 500_000
+def test_bus_length_decides_a_slow_slope():
+    for length, limited in ((60.0, False), (65.0, True)):
+        sched = Scheduler()
+        bus = CanBus(sched, length_m=length)
+        a, b = Transceiver82C250(bus, rs_ohms=140_000), Transceiver82C250(bus)
+        assert a.slope_limited is limited and bus.ack_in_time(a, b) is not limited
+
+
+def test_bad_length_and_loop_delay_are_refused():
+    sched = Scheduler()
+    for bad in (-1, "10", None, float("nan")):
+        with pytest.raises(ValueError, match="length_m"):
+            CanBus(sched, length_m=bad)
+    bus = CanBus(sched)
+    x = Transceiver82C250(bus)
+    with pytest.raises(ValueError, match="loop delay"):
+        bus.set_loop_delay(x, -1e-9)
+
+
+def test_late_ack_active_then_passive_transmitter():
+    # 1 Mbit/s, 16 quanta: a 625 ns budget; A's 140 kOhm slope and B's high-speed loop need
+    # 629.2 ns on 1 m, so A never sees B's ACK in time (nor B A's).
+    tpb = 16
+    sched, bus, (a, b), (xa, xb), log, errs = rig(2, BitTiming(prescaler=1),
+                                                  rs={0: 140_000})
+    assert xa.slope_limited and not xb.slope_limited and not bus.ack_in_time(xa, xb)
     f = CanFrame(0x100, b"\x01\x02")
     n = nstuffed(f)
     a.transmit(0, f.data)
     sched.run_until(1)
-    while len(errs) < 3:
+    while len(errs) < 16:
         sched.step()
-    starts = [0, (n + 17) * TPB, 2 * (n + 17) * TPB]
-    assert [(e[0], e[2], e[3]) for e in errs] == [("bit", s, s + n * TPB) for s in starts]
-    assert (a.tec, b.rec, log) == (24, 3, [])
-    # Switching to high speed mid-attempt: that attempt (already on the bus) still fails,
-    # the next one goes through.
-    s4 = 3 * (n + 17) * TPB
-    sched.run_until(s4 + 10 * TPB)
+    # error-active: its flag destroys the frame for B too (REC + 1), 8 TEC an attempt,
+    # the ACK error at the ACK slot (bit n + 1), the next SOF 17 bits after it
+    starts = [k * (n + 19) * tpb for k in range(16)]
+    assert [(e[0], e[2], e[3]) for e in errs] == [("ack", s, s + (n + 2) * tpb) for s in starts]
+    assert log == [] and b.RCR == 0
+    assert (bus.tec(xa), bus.rec(xb)) == (128, 16)
+    assert bus.error_state(xa) is ErrorState.PASSIVE
+    # error-passive: its flag is recessive, B takes the frame at its end; A keeps TEC 128 and
+    # retries after its suspend-transmission bits, so B takes it again
+    # (passive since its 16th error, it already waited 8 suspend bits before attempt 17)
+    s16 = (16 * (n + 19) + 8) * tpb
+    while len(log) < 3:
+        sched.step()
+    ends = [s16 + k * (n + 27) * tpb for k in range(3)]
+    assert [(fr, st_, en) for fr, st_, en, _ in log] == [(f, s, s + (n + 10) * tpb) for s in ends]
+    assert b.RCR == 1 << 15
+    assert (bus.tec(xa), bus.rec(xb)) == (128, 13)
+    assert [e[0] for e in errs[16:]] == ["ack"] * 3
+    # high speed again: 300 ns + 10 ns fits; the next attempt is acknowledged
     xa.set_mode(RsMode.HIGH_SPEED)
+    assert not xa.slope_limited
+    sched.run_until(sched.now + 2000 * tpb)
+    assert len(log) == 4 and len(errs) == 19 and bus.tec(xa) == 127
+    assert a.TREQR == 0
+
+
+def test_one_acknowledgement_in_time_is_enough():
+    # A fast transmitter, a slow receiver (its ACK late) and a fast one (in time): no error.
+    sched, bus, (a, b, c), (xa, xb, xc), log, errs = rig(3, BitTiming(prescaler=1),
+                                                         rs={1: 140_000})
+    a.transmit(0, b"\x01")
     sched.run_until(100_000)
-    assert len(errs) == 4 and errs[3][2] == s4
-    assert [(fr, s) for fr, s, *_ in log] == [(f, s4 + (n + 17) * TPB)]
-    assert a.tec == 31  # 4 errors, 1 success
+    assert errs == [] and len(log) == 1 and b.RCR == c.RCR == 1 << 15
+    # without the fast receiver, the fast transmitter sees B's ACK late
+    xc.standby()
+    a.transmit(0, b"\x02")
+    sched.run_until(sched.now + 2_000)
+    assert errs and errs[0][0] == "ack" and len(log) == 1
 
 
 def test_slope_control_within_the_limit_transmits():
-    sched, bus, (a, b), (xa, xb), log, errs = rig(2, BitTiming.from_bitrate(125_000),
-                                                  rs={0: 140_000})
+    sched, bus, (a, b), (xa, xb), log, errs = rig(2, BitTiming(prescaler=1), rs={0: 130_000})
     assert not xa.slope_limited and xa.mode is RsMode.SLOPE_CONTROL
     a.transmit(0, b"\x01")
     sched.run_until(100_000)
