@@ -70,8 +70,11 @@ class CycleCosts:
                            "0.5x-2x")
     mac_timer: Cost = Cost(600, "estimate: the MAC's timer rules (miss count, takeover, "
                            "reload timer programme): ~150 instructions", "0.5x-2x")
-    uart_tx_done: Cost = Cost(200, "estimate: transmission complete: the MAC's end-of-frame "
-                              "rules, TXEN low: ~50 instructions", "0.5x-2x")
+    uart_tx_byte: Cost = Cost(48, "estimate: TDRE: write the next byte of the frame buffer "
+                              "to SODR0, advance the index; after the last, clear TIE and "
+                              "arm the End's timer: ~12 instructions", "0.5x-2x")
+    uart_tx_done: Cost = Cost(200, "estimate: the End's timer: TXEN low, the MAC's "
+                              "end-of-frame rules: ~50 instructions", "0.5x-2x")
     content_byte: Cost = Cost(40, "estimate: Content parser per byte (name and number "
                               "scanning): ~10 instructions", "0.5x-2x")
     command: Cost = Cost(400, "estimate: one command's dispatch, range checks and job "

@@ -14,15 +14,21 @@ from __future__ import annotations
 from .mcu.cpu import Vector
 
 UART0_RX = Vector("UART0 RX", level=1, number=1)
+TX_END = Vector("TX END", level=2, number=0)
+"""The timer channel the transmit handler arms for the End's stop bit (the UART has no
+transmission-complete interrupt): TXEN must drop within half a bit of the End, so it goes
+first among level 2."""
 TMR0 = Vector("TMR0 MAC", level=2, number=2)
 RXWATCH = Vector("RXWATCH", level=2, number=3)
 UART0_TX = Vector("UART0 TX", level=3, number=4)
+"""TDRE: SODR is empty, the next byte must be written within a byte time or the frame gets a
+gap."""
 CAN_RX = Vector("CAN RX", level=4, number=5)
 CAN_TX = Vector("CAN TX", level=4, number=6)
 CAN_STATUS = Vector("CAN status", level=4, number=7)
 TMR1 = Vector("TMR1", level=5, number=8)
 
-ALL = (UART0_RX, TMR0, RXWATCH, UART0_TX, CAN_RX, CAN_TX, CAN_STATUS, TMR1)
+ALL = (UART0_RX, TX_END, TMR0, RXWATCH, UART0_TX, CAN_RX, CAN_TX, CAN_STATUS, TMR1)
 
 DISPATCH_TASK = "main loop"
 """The main loop's work: parsing a delivered message and planning its motion."""

@@ -61,13 +61,13 @@ class RadioStation:
 
     def run_on(self, cpu, costs) -> None:
         """Run the handlers on a CPU model (mcu/cpu.py) with bodies from ``costs``
-        (cycle_costs.py): UART0 reception a byte at a time, its transmission-complete
-        interrupt, and the two timer channels, at the levels of interrupts.py."""
-        from .interrupts import RXWATCH, TMR0, UART0_RX, UART0_TX
+        (cycle_costs.py): UART0 reception and transmission a byte at a time, the End's
+        timer, and the two timer channels, at the levels of interrupts.py."""
+        from .interrupts import RXWATCH, TMR0, TX_END, UART0_RX, UART0_TX
         self.cpu = cpu
         self._frame_cycles = costs.mac_frame.cycles
         self.uart.attach_cpu(cpu, UART0_RX, costs.uart_rx_byte.cycles, UART0_TX,
-                             costs.uart_tx_done.cycles)
+                             costs.uart_tx_byte.cycles, TX_END, costs.uart_tx_done.cycles)
         timer_cycles = costs.mac_timer.cycles
         self.timer.on_expiry = lambda now: cpu.irq(TMR0, timer_cycles, self._on_timer_isr)
         self.stall_timer.on_expiry = lambda now: cpu.irq(RXWATCH, timer_cycles,

@@ -416,6 +416,36 @@ def test_noise_replaced_by_garbage_during_collision():
     assert net.between(2, T0, T0 + 3 * BT) == expect(bytes(3), T0)
 
 
+@pytest.mark.parametrize("bbb", MODES)
+@pytest.mark.parametrize("drop_in_gap", [False, True])
+def test_a_sender_paused_mid_frame_keeps_the_channel_quiet(bbb, drop_in_gap):
+    # A late transmit handler: the UART runs dry after 4 bytes (pause), the frame goes on
+    # 3 1/2 bytes later. Its carrier stays on meanwhile: the others hear an idle line, no
+    # noise; noise is heard again only once TXEN drops.
+    net = Net(3, seed=5, noise=True, byte_by_byte=bbb)
+    data = bytes(range(1, 11))
+    s, r0 = net.s, net.radios[0]
+    stop = T0 + 4 * BT
+    t1 = stop + 3 * BT + BT // 2
+    s.at(T0 - TT, net.pins[0].set, True, T0 - TT)
+    s.at(T0, r0.transmit, data, T0, BT)
+    s.at(stop, r0.pause, stop)
+    if drop_in_gap:
+        end = t1
+    else:
+        s.at(t1, r0.transmit, data[4:], t1, BT)
+        end = t1 + 6 * BT
+    s.at(end, net.pins[0].set, False, end)
+    net.run(end + 50 * BT)
+    net.sync_all()
+    for i in (1, 2):
+        sent = expect(data[:4], T0) + ([] if drop_in_gap else expect(data[4:], t1))
+        assert net.between(i, T0, end) == sent
+        after = net.between(i, end, end + 50 * BT)
+        assert [t for t, _ in after] == [end + (k + 1) * BT for k in range(50)]
+    assert net.air.collisions == 0 and net.air.occupations == (1 if drop_in_gap else 2)
+
+
 # ---------------------------------------------------------------------------------------------
 # Fault injection: kill / dead radios
 # ---------------------------------------------------------------------------------------------

@@ -265,6 +265,7 @@ def test_a_ring_on_the_cpu_model_keeps_every_member_and_delivers():
     assert s["delivered"] >= s["submitted"] - 3 and s["failed"] == 0
     assert s["collisions"] == 0
     assert all(v == 0 for v in s["cpu_overruns"].values())
+    assert all(v == 0 for v in s["cpu_tx_gaps"].values())
     assert all(0 < v < 0.05 for v in s["cpu_load"].values())
 
 
@@ -275,6 +276,20 @@ def test_a_receive_handler_slower_than_a_byte_overruns_and_loses_bytes():
     s = w.summary()
     assert s["cpu_overruns"][1] > 0
     assert s["robots"][1]["mode"] == "listen" or s["robots"][1]["received"] == 0
+
+
+def test_a_transmit_handler_slower_than_a_byte_stretches_every_frame_it_sends():
+    # 20 000 cycles a TDRE handler: each byte waits for the last one's handler, so every
+    # frame a child sends has a gap after each byte; the father, a PC, sends back to back
+    slow = replace(DEFAULT_COSTS, uart_tx_byte=Cost(20_000, "test", "test"))
+    w = _world(slow, robots=(0, 1), duration=6)
+    w.run()
+    s = w.summary()
+    u = w.stations[1].uart
+    assert s["cpu_tx_gaps"][1] > 0 and u.gaps == s["cpu_tx_gaps"][1]
+    # each gap: the handler's 24 + 20 000 cycles less the byte time, and more when it had to
+    # wait for the previous handler's RETI (11) or a higher level
+    assert u.gap_ticks >= u.gaps * (24 + 20_000 - u.byte_ticks)
 
 
 def test_the_cpu_model_is_deterministic():
@@ -338,3 +353,84 @@ def test_report_quantiles_from_counted_values_match_a_sorted_list():
         ref = sorted(values)[min(len(values) - 1, int(q * len(values)))]
         assert _pct(Counter(values), q) == ref
     assert _pct(Counter(), 0.5) == 0
+
+
+# ---------------------------------------------------------------- UART transmission: TDRE
+class _Line:
+    """What a UART's TX pin drives, logged: bursts started and pauses."""
+
+    def __init__(self):
+        self.log = []
+
+    def transmit(self, data, t0, bt):
+        self.log.append(("burst", t0, bytes(data)))
+
+    def pause(self, now):
+        self.log.append(("pause", now))
+
+    def sync(self, now):
+        pass
+
+    def rx_started(self, now):
+        return None
+
+
+def _tx_rig(tx_byte):
+    from firmware_model.interrupts import TX_END, UART0_RX, UART0_TX
+    from firmware_model.mcu.uart import Uart
+    sched = Scheduler()
+    cpu = Cpu(sched, DEFAULT_COSTS)
+    u = Uart(sched)
+    u.line = _Line()
+    done = []
+    u.on_tx_done = lambda end: done.append((end, sched.now))
+    u.attach_cpu(cpu, UART0_RX, 160, UART0_TX, tx_byte, TX_END, 200)
+    return sched, cpu, u, done
+
+
+def test_each_byte_is_a_transmit_interrupt_and_a_quick_handler_sends_back_to_back():
+    sched, cpu, u, done = _tx_rig(48)
+    assert u.byte_ticks == 16640
+    u.send(b"\x01\x02\x03\x04\x05")
+    sched.run_until(200_000)
+    # byte k moves to the shift register at 16640 k: a TDRE request each; each handler writes
+    # the next byte 24 + 48 cycles later, long before the byte shifting out ends
+    assert u.line.log == [("burst", 0, b"\x01\x02\x03\x04\x05")]
+    assert cpu.stats["UART0 TX"].calls == 5
+    assert (u.gaps, u.gap_ticks) == (0, 0)
+    # the last TDRE (at 4 x 16640 = 66560) arms the End's timer one byte time on: 83200;
+    # its handler lowers TXEN when its entry ends, 24 cycles later
+    assert done == [(83200, 83224)]
+    assert cpu.stats["TX END"].calls == 1
+
+
+def test_a_transmit_handler_slower_than_a_byte_leaves_gaps_worked_by_hand():
+    body = 16640 + 1000
+    sched, cpu, u, done = _tx_rig(body)
+    u.send(b"\xAA\xBB\xCC")
+    sched.run_until(200_000)
+    # byte 0: 0..16640. Its TDRE handler: entry to 24, writes byte 1 at 24 + 17640 = 17664,
+    # RETI to 17675. The shift register ran dry at 16640: a gap of 1024 ticks.
+    # byte 1: 17664..34304; its TDRE waits for that RETI: accepted 17675, entry to 17699,
+    # writes byte 2 at 17699 + 17640 = 35339 (gap from 34304: 1035), RETI to 35350.
+    # byte 2: 35339..51979; its handler: accepted 35350, entry to 35374, no byte left: the
+    # End's timer at 35374 - 24 + 16640 = 51990 (11 late: the RETI it waited for), armed at
+    # the body's end, 35374 + 17640 = 53014, already past: the TX END request at 53014,
+    # accepted after that handler's RETI at 53025, TXEN low at 53049.
+    assert u.line.log == [("burst", 0, b"\xAA\xBB\xCC"), ("pause", 16640),
+                          ("burst", 17664, b"\xBB\xCC"), ("pause", 34304),
+                          ("burst", 35339, b"\xCC")]
+    assert (u.gaps, u.gap_ticks) == (2, 1024 + 1035)
+    assert done == [(51990, 53049)]
+
+
+def test_the_ideal_cpu_path_still_sends_one_burst_and_ends_on_the_tick():
+    from firmware_model.mcu.uart import Uart
+    sched = Scheduler()
+    u = Uart(sched)
+    u.line = _Line()
+    done = []
+    u.on_tx_done = lambda end: done.append((end, sched.now))
+    u.send(b"\x01\x02")
+    sched.run_until(100_000)
+    assert u.line.log == [("burst", 0, b"\x01\x02")] and done == [(33280, 33280)]

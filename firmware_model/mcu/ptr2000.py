@@ -51,6 +51,9 @@ class Ptr2000:
             self.tx_ready = NEVER
             self.rx_from = now + self.ttrans
             if self.channel is not None:
+                off = getattr(self.channel, "carrier_off", None)
+                if off is not None:
+                    off(self, now)
                 self.channel.rx_restart(self, self.rx_from)
 
     def listening(self, t: int) -> bool:
@@ -65,6 +68,13 @@ class Ptr2000:
             return
         if self.alive and self.channel is not None:
             self.channel.transmit(self, data, t0, byte_ticks)
+
+    def pause(self, now: int) -> None:
+        """The UART ran dry mid-frame at ``now``: the burst on air stops (a gap follows)."""
+        if self.channel is not None and self.txen:
+            pause = getattr(self.channel, "pause", None)
+            if pause is not None:
+                pause(self, now)
 
     def sync(self, now: int) -> None:
         if self.channel is not None:

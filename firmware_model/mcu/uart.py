@@ -1,17 +1,31 @@
 """MB90F549 UART (UART0, asynchronous 8N1) with its dedicated baud-rate generator.
 
 At a 16 MHz machine clock the generator gives 9615.38 bit/s for "9600": 1664 ticks a bit,
-16640 ticks a byte (start + 8 data + stop). The firmware's transmit ISR reloads the data register
-while the previous byte shifts out, so a frame leaves back to back with no idle bits between
-bytes; the model therefore hands the transmitter a whole burst and raises the
-transmission-complete interrupt when the last stop bit ends. Received bytes arrive from the
-radio with the tick at which each stop bit ended.
+16640 ticks a byte (start + 8 data + stop). Without a CPU model (the ideal, zero-time
+firmware) the transmit handler reloads the data register while the previous byte shifts out,
+so a frame leaves back to back: the model hands the line a whole burst and tells the firmware
+(``on_tx_done``) on the tick the last stop bit ends. Received bytes arrive from the radio with
+the tick at which each stop bit ended.
 
 With a CPU model attached (``attach_cpu``), reception is what the part does: each byte's stop
 bit sets RDRF and requests the receive interrupt; the handler reads the byte (clearing RDRF)
 when its entry sequence ends. A byte whose stop bit ends while RDRF is still set is an
 overrun: SSR.ORE is set and the byte is lost (MB90F549 UART, "reception": the data register
 is not overwritten). Without a CPU model the bytes go to ``on_rx`` as they come, in bursts.
+
+Transmission with a CPU model is what the part does too. The UART has an output data
+register (SODR) in front of its shift register, and one transmit flag, TDRE (SSR0 bit 3;
+SSR0 has TIE, RIE, TDRE, RDRF, FRE, ORE, PE and no transmission-complete flag): TDRE sets,
+and with TIE requests the transmit interrupt, when SODR's byte moves into the shift register,
+at the start of its start bit. The firmware writes the first byte (it moves at once), and each
+transmit interrupt's handler writes the next one when its body is done. A byte written before
+the one shifting out ends follows it back to back; one written later starts when it is
+written, leaving a gap of idle line (mark) in the frame (``gaps``, ``gap_ticks``). At the
+last byte's TDRE the handler clears TIE and, the UART having no transmission-complete
+interrupt, arms a timer channel for the End's stop bit: one byte time from the TDRE request,
+which it takes to be its own entry less the entry cycles. That timer's handler (``end
+vector``) lowers TXEN and runs the MAC's end-of-frame rules (``on_tx_done`` with that tick),
+so a transmit handler that was preempted before its entry drops TXEN late by as much.
 """
 from __future__ import annotations
 
@@ -39,7 +53,9 @@ class Uart:
 
     __slots__ = ("sched", "bit_ticks", "byte_ticks", "line", "on_rx", "on_tx_done",
                  "busy_until", "bytes_sent", "bytes_received", "name", "cpu", "rx_vector",
-                 "rx_cycles", "tx_vector", "tx_cycles", "rdr", "overruns", "_read")
+                 "rx_cycles", "tx_vector", "tx_cycles", "end_vector", "end_cycles", "rdr",
+                 "overruns", "_read", "gaps", "gap_ticks", "_tx", "_tx_len", "_tx_next",
+                 "_sodr", "_shift", "_tdre_entry", "_gap_from")
 
     def __init__(self, sched: Scheduler, baud: int = 9600, byte_ticks: int | None = None,
                  name: str = "UART0") -> None:
@@ -66,13 +82,27 @@ class Uart:
         self.rdr: list[tuple[int, int]] = []   # (byte, stop-bit tick); RDRF while non-empty
         self.overruns = 0
         self._read: list[tuple[int, int]] = []
+        self.end_vector = None
+        self.end_cycles = 0
+        self.gaps = 0                # times the shift register ran dry inside a frame
+        self.gap_ticks = 0           # idle line those gaps left inside frames (ticks)
+        self._tx: bytes | None = None    # the frame being sent (CPU model)
+        self._tx_len = 0
+        self._gap_from = 0
+        self._tx_next = 0            # index of the next byte the handler writes to SODR
+        self._sodr: int | None = None    # index of the byte waiting in SODR
+        self._shift: tuple[int, int] | None = None   # (index, stop-bit end) shifting out
+        self._tdre_entry = 0
 
-    def attach_cpu(self, cpu, rx_vector, rx_cycles: int, tx_vector, tx_cycles: int) -> None:
-        """Run the receive and transmission-complete handlers on ``cpu`` (mcu/cpu.py), with
-        bodies of ``rx_cycles`` a byte and ``tx_cycles``."""
+    def attach_cpu(self, cpu, rx_vector, rx_cycles: int, tx_vector, tx_cycles: int,
+                   end_vector, end_cycles: int) -> None:
+        """Run the handlers on ``cpu`` (mcu/cpu.py): reception (``rx_cycles`` a byte), the
+        transmit interrupt (TDRE, ``tx_cycles`` a byte) and the timer that marks the End's
+        stop bit (``end_cycles``: TXEN low and the MAC's end-of-frame rules)."""
         self.cpu = cpu
         self.rx_vector, self.rx_cycles = rx_vector, rx_cycles
         self.tx_vector, self.tx_cycles = tx_vector, tx_cycles
+        self.end_vector, self.end_cycles = end_vector, end_cycles
 
     @property
     def baud(self) -> float:
@@ -80,10 +110,19 @@ class Uart:
         return TICK_HZ / self.bit_ticks
 
     def send(self, data: bytes) -> int:
-        """Shift ``data`` out from now; returns the tick the last stop bit ends."""
+        """Shift ``data`` out from now; returns the tick the last stop bit ends (with a CPU
+        model: the earliest, if no byte is written late)."""
         now = self.sched.now
-        if now < self.busy_until:
+        if now < self.busy_until or self._tx is not None:
             raise RuntimeError(f"{self.name}: transmitter busy until tick {self.busy_until}")
+        if self.cpu is not None and data:
+            self._tx = data
+            self._tx_len = len(data)
+            self._tx_next = 1
+            self._sodr = None
+            self.bytes_sent += len(data)
+            self._shift_in(0, now, True)
+            return now + len(data) * self.byte_ticks
         end = now + len(data) * self.byte_ticks
         self.busy_until = end
         self.bytes_sent += len(data)
@@ -93,15 +132,67 @@ class Uart:
         return end
 
     def _tx_complete(self, end: int) -> None:
-        if self.on_tx_done is None:
-            return
-        if self.cpu is None:
+        if self.on_tx_done is not None:
             self.on_tx_done(end)
-        else:
-            # the handler's first act is the MAC's end-of-frame rule (TXEN low): the radio
-            # must be back on receive Ttrans after the End, when the next sender may begin
-            done = self.on_tx_done
-            self.cpu.irq(self.tx_vector, self.tx_cycles, _nothing, enter=lambda: done(end))
+
+    # -- transmission with a CPU model: SODR, the shift register and TDRE ----------------
+
+    def _shift_in(self, k: int, now: int, new_burst: bool) -> None:
+        """Byte ``k`` moves into the shift register at ``now``: TDRE, the transmit request.
+        ``new_burst``: the line was idle before it (the frame's first byte, or after a gap)."""
+        bt = self.byte_ticks
+        self._shift = (k, now + bt)
+        self.sched.at(now + bt, self._shift_done)
+        if k == self._tx_len - 1:
+            self.busy_until = now + bt
+        if new_burst and self.line is not None:
+            # the rest of the frame, back to back as far as the handler keeps up; cut short
+            # (``pause``) where the shift register runs dry
+            self.line.transmit(self._tx[k:], now, bt)
+        self.cpu.irq(self.tx_vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter)
+
+    def _tdre_enter(self) -> None:
+        self._tdre_entry = self.sched.now
+
+    def _tdre_isr(self) -> None:
+        """The transmit handler's write: the next byte to SODR, or, after the last, TIE off
+        and the End's timer armed."""
+        if self._tx is None:
+            return
+        now = self.sched.now
+        j = self._tx_next
+        if j < self._tx_len:
+            self._tx_next = j + 1
+            if self._shift is None:           # the shift register ran dry: the gap ends
+                self.gap_ticks += now - self._gap_from
+                self._shift_in(j, now, True)
+            else:
+                self._sodr = j
+            return
+        self._tx = None
+        end = self._tdre_entry - self.cpu.entry + self.byte_ticks
+        self.sched.at(max(end, now), self._end_timer, end)
+
+    def _shift_done(self) -> None:
+        """The byte in the shift register has sent its stop bit."""
+        now = self.sched.now
+        k = self._shift[0]
+        self._shift = None
+        j = self._sodr
+        if j is not None:                     # SODR was written in time: back to back
+            self._sodr = None
+            self._shift_in(j, now, False)
+        elif k + 1 < self._tx_len:            # written late: the line idles, a gap
+            self.gaps += 1
+            self._gap_from = now
+            pause = getattr(self.line, "pause", None)
+            if pause is not None:
+                pause(now)
+
+    def _end_timer(self, end: int) -> None:
+        done = self.on_tx_done
+        if done is not None:
+            self.cpu.irq(self.end_vector, self.end_cycles, _nothing, enter=lambda: done(end))
 
     def receive(self, data: bytes, t0: int, dt: int) -> None:
         """Bytes from the line: byte i's stop bit ended at tick ``t0 + i * dt``."""

@@ -228,7 +228,9 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
     if "cpu_load" in s:
         loads = ", ".join(f"R{r} {v * 100:.2f} %" for r, v in s["cpu_load"].items())
         lost = sum(s["cpu_overruns"].values())
-        con.print(f"CPU load (MB90F549 model): {loads}; UART overruns: {lost}")
+        gaps = sum(s["cpu_tx_gaps"].values())
+        con.print(f"CPU load (MB90F549 model): {loads}; UART overruns: {lost}; "
+                  f"gaps in frames sent: {gaps}")
     if "dispatch_latency_ticks" in s:
         d = {k: (round(ticks_to_ms(v) * 1000, 1) if k != "count" else v)
              for k, v in s["dispatch_latency_ticks"].items()}

@@ -162,6 +162,7 @@ class Air:
         self.occupations = 0
         self.sent: dict[int, int] = {}      # transmissions started, per robot
         self.collisions = 0
+        self.carrier: set[Ptr2000] = set()   # senders paused mid-frame (a gap between bytes)
         self.on_transmission: Callable[[Transmission], None] | None = None
         self.on_collision: Callable[[int, list[int]], None] | None = None
 
@@ -246,6 +247,11 @@ class Air:
     # -- the radios' side -----------------------------------------------------------------
 
     def transmit(self, radio: Ptr2000, data: bytes, t0: int, bt: int) -> None:
+        if radio in self.carrier:            # the frame goes on after a gap
+            self.carrier.discard(radio)
+            for r in self.radios:
+                if r.noise_from < t0:
+                    r.noise_from = t0
         tx = Transmission(radio, data, t0, bt)
         self.occupations += 1
         self.sent[radio.robot] = self.sent.get(radio.robot, 0) + 1
@@ -327,8 +333,28 @@ class Air:
                 r.rx = self._reception(r, tx, k, bytewise=True)
             return
 
+    def pause(self, radio: Ptr2000, now: int) -> None:
+        """``radio``'s UART ran out of bytes at ``now``, a byte boundary, in the middle of a
+        frame (its transmit handler was late): the burst on air stops there. The radio still
+        transmits its carrier, an idle line (mark), so the others hear neither bytes nor
+        noise until the frame goes on (``transmit``) or TXEN drops (``carrier_off``)."""
+        for tx in self.active:
+            if tx.radio is radio and not tx.aborted and tx.t0 < now < tx.end:
+                self.carrier.add(radio)
+                self._abort(tx, now, carrier=True)
+                return
+
+    def carrier_off(self, radio: Ptr2000, now: int) -> None:
+        """``radio`` stops transmitting (TXEN low, or dead): a paused frame's carrier ends."""
+        if radio in self.carrier:
+            self.carrier.discard(radio)
+            for r in self.radios:
+                if r is not radio and r.rx is None and r.listening(now):
+                    self._idle_from(r, now)
+
     def kill(self, radio: Ptr2000, now: int) -> None:
         """Fault injection: the radio goes silent (mid-frame too) and deaf."""
+        self.carrier_off(radio, now)
         self.deafen(radio, now)
         radio.alive = False
         for tx in list(self.active):
@@ -451,6 +477,10 @@ class Air:
     def _noise_upto(self, r: Ptr2000, t: int) -> None:
         if not self.noise:
             return
+        if self.carrier:                     # a paused sender's carrier: no noise heard
+            if r.noise_from < t:
+                r.noise_from = t
+            return
         start = r.noise_from
         if r.rx_from > start:
             start = r.rx_from
@@ -509,8 +539,9 @@ class Air:
                 r.rx = None
                 self._idle_from(r, cend)
 
-    def _abort(self, tx: Transmission, now: int) -> None:
-        """The sender died at ``now``: only bytes complete by then were on air."""
+    def _abort(self, tx: Transmission, now: int, carrier: bool = False) -> None:
+        """The sender died at ``now`` (or, ``carrier``, paused with its carrier on): only
+        bytes complete by then were on air."""
         tx.aborted = True
         for r in self.radios:
             rx = r.rx
@@ -518,9 +549,15 @@ class Air:
                 rx.flush(r, now)
                 rx.n = rx.pos
                 r.rx = None
-                self._idle_from(r, now)
+                if not carrier:
+                    self._idle_from(r, now)
+                elif r.noise_from < now:
+                    r.noise_from = now
         self.active.remove(tx)
         tx.end = now
+        if carrier:
+            tx.n = (now - tx.t0) // tx.bt
+            tx.data = tx.data[:tx.n]
         if tx.collided:
             # The collision lasts only as long as the transmissions still on air.
             rest = [a.end for a in self.active if a.collided]

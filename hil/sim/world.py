@@ -696,7 +696,9 @@ class World:
                 "can_frames": self.can_frames,
                 **({"cpu_load": {r: round(c.load(), 6) for r, c in sorted(self.cpus.items())},
                     "cpu_overruns": {r: self.stations[r].uart.overruns
-                                     for r in sorted(self.cpus)}} if self.cpus else {}),
+                                     for r in sorted(self.cpus)},
+                    "cpu_tx_gaps": {r: self.stations[r].uart.gaps
+                                    for r in sorted(self.cpus)}} if self.cpus else {}),
                 **({"dispatch_latency_ticks": _spread([s - e for _, e, s in
                                                         self.dispatch_latency])}
                    if self.dispatch_latency else {}),

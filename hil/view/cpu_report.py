@@ -63,10 +63,11 @@ def print_cpu_report(world, costs) -> dict:
     for r, cpu in sorted(world.cpus.items()):
         rep = cpu_budget(cpu, costs.sample_wait_max.cycles, world.byte_ticks[r], span)
         out[r] = rep
-        overruns = world.stations[r].uart.overruns
+        uart = world.stations[r].uart
         con.print(f"[bold]R{r} CPU budget[/bold] (MB90F549 at 16 MHz, cycle costs: "
                   f"firmware_model/cycle_costs.py): load {rep['load'] * 100:.2f} %, "
-                  f"UART overruns {overruns}")
+                  f"UART overruns {uart.overruns}, gaps in frames sent {uart.gaps} "
+                  f"({uart.gap_ticks / 16:g} us)")
         deadline = None
         t = Table(box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 1),
                   collapse_padding=True)
