@@ -2,7 +2,7 @@
 
     python benchmarks/run.py [--quick]
 
-Each script can also run alone: sim_speed.py, mac_efficiency.py, peer_macs.py,
+Each script can also run alone: sim_speed.py, speed_targets.py, mac_efficiency.py, peer_macs.py,
 realtime_fidelity.py, checksum_effect.py.
 """
 from __future__ import annotations
@@ -16,6 +16,7 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCRIPTS = [
     ("Simulator speed", "sim_speed.py", []),
+    ("The whole child against the speed targets", "speed_targets.py", []),
     ("MAC efficiency, failure detection and rejoin", "mac_efficiency.py", []),
     ("Peer MACs on the same channel", "peer_macs.py", []),
     ("What the checksum buys", "checksum_effect.py", []),
@@ -34,6 +35,8 @@ def main() -> int:
         args = list(extra)
         if a.quick and script in ("sim_speed.py", "mac_efficiency.py", "peer_macs.py"):
             args.append("--quick")
+        if a.quick and script == "speed_targets.py":
+            args += ["--runs", "1", "--seconds", "30"]
         if a.quick and script == "realtime_fidelity.py":
             args += ["--seconds", "5", "--samples", "8"]
         print(f"\n## {title}\n", flush=True)

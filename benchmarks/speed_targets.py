@@ -1,0 +1,128 @@
+"""The whole child's speed against issue 14's targets, every figure side by side in one run.
+
+    python benchmarks/speed_targets.py [--runs 3] [--seconds 120] [--memory]
+
+* the 7-robot ring with every child's CAN side (``--can``) against the same ring without it,
+  idle, saturated and with BER 1e-3 (target: CAN on at least half the speed of CAN off);
+* the radio-only idle 7-robot ring against a plain SimPy byte-level model of it
+  (benchmarks/simpy_ring.py; target: at least 25x), as speed (simulated s per wall s) and as
+  wall time per frame (our ring takes a few seconds to form, the SimPy one starts formed);
+* ``--memory``: peak RSS of a 1-hour and a 24-hour simulated run without a trace, each in its
+  own process (target: within 10 %).
+
+Runs alternate between the compared models so that a noisy machine slows both alike; each
+figure is the median of ``--runs``. Prints Markdown tables (docs/performance.md).
+"""
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+RING = (0, 1, 2, 3, 4, 5, 6)
+LOADS = {"idle": {}, "saturated": {"load": "saturate"}, "BER 1e-3": {"ber": 1e-3}}
+
+
+def ours(seconds: float, can: bool = False, **kw) -> tuple[float, int]:
+    """(wall s, frames) of one run of the 7-robot ring."""
+    from hil.sim.world import SimConfig, World
+    w = World(SimConfig(robots=RING, duration=seconds, can=can, **kw))
+    gc.collect()
+    t0 = time.perf_counter()
+    w.run()
+    return time.perf_counter() - t0, w.air.occupations
+
+
+def simpy_peer(seconds: float) -> tuple[float, int]:
+    import simpy_ring
+    gc.collect()
+    r = simpy_ring.run(RING, seconds)
+    return r["wall"], r["frames"]
+
+
+def side_by_side(runs: int, seconds: float) -> None:
+    print("| 7-robot ring | CAN off (x real time) | CAN on (x real time) | on / off | target |")
+    print("|---|---|---|---|---|")
+    for name, kw in LOADS.items():
+        off, on = [], []
+        for _ in range(runs):
+            off.append(seconds / ours(seconds, False, **kw)[0])
+            on.append(seconds / ours(seconds, True, **kw)[0])
+        a, b = statistics.median(off), statistics.median(on)
+        print(f"| {name} | {a:,.0f} | {b:,.0f} | {b / a:.2f} | >= 0.50 "
+              f"{'met' if b / a >= 0.5 else 'NOT met'} |", flush=True)
+    try:
+        import simpy  # noqa: F401
+    except ImportError:
+        print("\n(SimPy peer skipped: simpy is not installed; pip install -e '.[bench]')")
+        return
+    sp, op, sf, of = [], [], [], []
+    for _ in range(runs):
+        wall, frames = ours(seconds)
+        op.append(seconds / wall)
+        of.append(wall / frames * 1e6)
+        wall, frames = simpy_peer(seconds)
+        sp.append(seconds / wall)
+        sf.append(wall / frames * 1e6)
+    a, b = statistics.median(op), statistics.median(sp)
+    fa, fb = statistics.median(of), statistics.median(sf)
+    print("\n| idle 7-robot ring, radio only | x real time | wall us per frame |")
+    print("|---|---|---|")
+    print(f"| rprs sim | {a:,.0f} | {fa:.1f} |")
+    print(f"| SimPy byte-level peer | {b:,.0f} | {fb:.1f} |")
+    print(f"| ratio (target >= 25) | {a / b:.1f} {'met' if a / b >= 25 else 'NOT met'} | "
+          f"{fb / fa:.1f} |", flush=True)
+
+
+_RSS = """
+import json, resource, sys
+from hil.sim.world import SimConfig, World
+w = World(SimConfig(robots={ring!r}, duration={secs}, can={can}))
+w.run()
+print(json.dumps({{"rss_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+                  "frames": w.air.occupations}}))
+"""
+
+
+def memory(can: bool) -> None:
+    print("\n| run, no trace | simulated | peak RSS (MiB) | frames |")
+    print("|---|---|---|---|")
+    out = {}
+    env = dict(os.environ, PYTHONPATH=os.path.dirname(HERE) + os.pathsep +
+               os.environ.get("PYTHONPATH", ""))
+    for label, secs in (("1 hour", 3600), ("24 hours", 86400)):
+        code = _RSS.format(ring=RING, secs=secs, can=can)
+        r = json.loads(subprocess.run([sys.executable, "-c", code], check=True, env=env,
+                                      capture_output=True, text=True).stdout)
+        out[label] = r["rss_kib"]
+        print(f"| 7-robot ring{' with --can' if can else ''} | {label} | "
+              f"{r['rss_kib'] / 1024:.1f} | {r['frames']} |", flush=True)
+    grow = out["24 hours"] / out["1 hour"] - 1
+    print(f"\n24 h against 1 h: {grow * 100:+.1f} % (target within 10 %: "
+          f"{'met' if abs(grow) <= 0.10 else 'NOT met'})")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--runs", type=int, default=3)
+    p.add_argument("--seconds", type=float, default=120.0, help="simulated seconds a run")
+    p.add_argument("--memory", action="store_true", help="also the 1 h / 24 h RSS check")
+    p.add_argument("--memory-can", action="store_true",
+                   help="the RSS check with --can (about 10 minutes of wall time)")
+    a = p.parse_args()
+    side_by_side(a.runs, a.seconds)
+    if a.memory:
+        memory(False)
+    if a.memory_can:
+        memory(True)
+
+
+if __name__ == "__main__":
+    main()
