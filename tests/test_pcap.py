@@ -139,3 +139,85 @@ def test_the_dissector_installs_where_asked(tmp_path):
     assert (tmp_path / "plugins" / "rprs.lua").read_text() == plugin_path().read_text()
     p = rprs("wireshark", "--path")
     assert p.returncode == 0 and p.stdout.strip() == str(plugin_path())
+
+
+# ---------------------------------------------------------------- CAN payloads and crc()
+def test_the_plugin_carries_the_dbc_table_rprs_dbc_gives():
+    # regenerate with: python -m hil.wireshark.dbc_table
+    from hil.wireshark.dbc_table import lua_table, section
+    assert section(plugin_path().read_text()) == lua_table()
+
+
+def _tshark_json(path, *extra):
+    out = subprocess.run([TSHARK, "-X", f"lua_script:{plugin_path()}", "-r", str(path),
+                          "-T", "json", *extra], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout)
+
+
+def _fields(tree, prefix, out=None):
+    """Every field under ``tree`` whose name starts with ``prefix``: {name: [values]}."""
+    out = {} if out is None else out
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            _fields(v, prefix, out)
+        elif k.startswith(prefix):
+            out.setdefault(k, []).append(v)
+    return out
+
+
+@needs_tshark
+def test_every_can_payload_decodes_as_cantools_decodes_it(run):
+    # the Lua table against cantools reading can_bus/rprs.dbc: every signal of every frame
+    from can_bus.bus import CanFrame
+    from can_bus.dbc import decode
+    path, trace = run
+    pkts = [p["_source"]["layers"] for p in _tshark_json(path, "-Y", "rprs_can")]
+    cans = [e for e in trace if e["ev"] == "can"]
+    assert len(pkts) == len(cans) > 100
+    kinds = set()
+    for layers, e in zip(pkts, cans):
+        name, values = decode(CanFrame(e["id"], bytes.fromhex(e["data"])))
+        got = _fields(layers.get("rprs_can", {}), "rprs_can.")
+        assert got.pop("rprs_can.msg") == [name]
+        got.pop("rprs_can.sender")
+        assert {k.split(".")[-1]: float(v[0]) for k, v in got.items()} == \
+            pytest.approx({k: float(v) for k, v in values.items()}), (e, got)
+        kinds.add(name.rstrip("0123456789").split("_")[-1])
+    assert {"STATUS", "CMD", "EVENT"} <= kinds       # commands and their events are there
+
+
+
+@pytest.fixture(scope="module")
+def checksummed(tmp_path_factory):
+    d = tmp_path_factory.mktemp("crc")
+    content = b"joint(1,80)crc(12345)"
+    forged = b"\x0f\x0a\x05" + b"10522%04d" % len(content) + content + b"\x17\x19"
+    p = rprs("sim", "--robots", "0,1,2", "--duration", "6", "--seed", "4", "--load", "1",
+             "--checksum", "--fault", f"foreign@4:x{forged.hex()}", "--no-progress",
+             "--pcap", str(d / "crc.pcapng"))
+    assert p.returncode == 0, p.stderr
+    return d / "crc.pcapng", forged
+
+
+@needs_tshark
+def test_crc_is_verified_and_a_wrong_one_flagged(checksummed):
+    from firmware_model.radio.integrity import crc16
+    path, forged = checksummed
+    out = subprocess.run(
+        [TSHARK, "-X", f"lua_script:{plugin_path()}", "-r", str(path), "-T", "fields",
+         "-E", "separator=|", "-e", "frame.interface_name", "-e", "rprs.crc",
+         "-e", "rprs.crc.computed", "-e", "rprs.crc.ok", "-e", "_ws.expert.message"],
+        capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    rows = [r.split("|") for r in out.stdout.splitlines()]
+    robots = [r for r in rows if r[0].endswith(" radio") and r[1]]
+    assert len(robots) > 50 and all(r[3] in ("1", "True") for r in robots), robots[:3]
+    assert all(r[1] == r[2] for r in robots)
+    foreign = [r for r in rows if r[0] == "foreign transmitters"]
+    assert len(foreign) == 1
+    # the CRC the dissector computes is the project's, over Destination .. "joint(1,80)"
+    want = crc16(forged[3:12 + len(b"joint(1,80)")])
+    assert (foreign[0][1], foreign[0][2], foreign[0][3]) == ("12345", str(want), "0") or \
+        (foreign[0][1], foreign[0][2], foreign[0][3]) == ("12345", str(want), "False")
+    assert "crc() does not match" in foreign[0][4]

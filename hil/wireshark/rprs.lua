@@ -4,10 +4,13 @@
 -- USER0 (147); this dissector decodes it: Header 0F 0A 05, Destination, Source, Number,
 -- Type, Length (ASCII digits), Content (commands name(args)), End 17 19. A frame that breaks
 -- the format gets expert info (bad Header, a digit that is not one, a Length that does not
--- fit the bytes, a bad End) and stays in the capture. CAN frames on the same capture use
--- Wireshark's own SocketCAN dissector.
+-- fit the bytes, a bad End, a crc() that does not match) and stays in the capture. CAN
+-- frames on the same capture use Wireshark's own SocketCAN dissector for the frame, and the
+-- rprs_can protocol below for the payload: every message and signal of can_bus/rprs.dbc, from
+-- the generated table at the end of this file.
 --
--- Display filters: rprs.src == 2, rprs.type == 4, rprs.cmd == "movex", rprs.dst == 7.
+-- Display filters: rprs.src == 2, rprs.type == 4, rprs.cmd == "movex", rprs.dst == 7,
+-- rprs.crc.ok == 0, rprs_can.msg == "JOINT3_CMD", rprs_can.joint3_cmd.angle > 50.
 
 local rprs = Proto("rprs", "RPRS radio frame")
 
@@ -27,6 +30,10 @@ f.content = ProtoField.string("rprs.content", "Content")
 f.cmd = ProtoField.string("rprs.cmd", "Command")
 f.args = ProtoField.string("rprs.args", "Arguments")
 f.endmark = ProtoField.bytes("rprs.end", "End")
+f.crc = ProtoField.uint16("rprs.crc", "Checksum carried by crc()", base.DEC)
+f.crc_calc = ProtoField.uint16("rprs.crc.computed", "CRC-16/CCITT-FALSE of Destination..Content",
+                               base.DEC)
+f.crc_ok = ProtoField.bool("rprs.crc.ok", "Checksum correct")
 
 local e_header = ProtoExpert.new("rprs.header.bad", "No Header 0F 0A 05: garbage or a cut frame",
                                  expert.group.MALFORMED, expert.severity.ERROR)
@@ -36,7 +43,25 @@ local e_length = ProtoExpert.new("rprs.len.bad", "Length does not fit the frame'
                                  expert.group.MALFORMED, expert.severity.ERROR)
 local e_end = ProtoExpert.new("rprs.end.bad", "End is not 17 19",
                               expert.group.MALFORMED, expert.severity.ERROR)
-rprs.experts = { e_header, e_digit, e_length, e_end }
+local e_crc = ProtoExpert.new("rprs.crc.bad", "crc() does not match the frame's bytes",
+                              expert.group.CHECKSUM, expert.severity.ERROR)
+rprs.experts = { e_header, e_digit, e_length, e_end, e_crc }
+
+-- CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final XOR), protocol clause 20
+local function crc16(bytes)
+    local crc = 0xFFFF
+    for i = 0, bytes:len() - 1 do
+        crc = bit32.bxor(crc, bit32.lshift(bytes:get_index(i), 8))
+        for _ = 1, 8 do
+            if bit32.band(crc, 0x8000) ~= 0 then
+                crc = bit32.band(bit32.bxor(bit32.lshift(crc, 1), 0x1021), 0xFFFF)
+            else
+                crc = bit32.band(bit32.lshift(crc, 1), 0xFFFF)
+            end
+        end
+    end
+    return crc
+end
 
 local function number(tvb, offset, width, tree, field)
     local range = tvb(offset, width)
@@ -86,6 +111,22 @@ function rprs.dissector(tvb, pinfo, tree)
             info = info .. " " .. name .. "(" .. args .. ")"
             pos = e + 1
         end
+        -- the checksum extension: crc(NNNNN) ends Content and covers Destination up to the
+        -- last Content byte before it
+        local digits = content:match("crc%((%d%d%d%d%d)%)$")
+        if digits and len ~= nil and clen == len then
+            local carried = tonumber(digits)
+            local computed = crc16(tvb:bytes(3, 9 + clen - 10))
+            local crange = tvb(12 + clen - 10, 10)
+            t:add(f.crc, crange, carried)
+            t:add(f.crc_calc, crange, computed):set_generated()
+            local ok = t:add(f.crc_ok, crange, carried == computed)
+            ok:set_generated()
+            if carried ~= computed then
+                ok:add_proto_expert_info(e_crc)
+                info = info .. " [bad crc]"
+            end
+        end
     end
     if len ~= nil and 12 + len + 2 <= n then
         local erange = tvb(12 + len, 2)
@@ -103,3 +144,167 @@ end
 
 local encaps = wtap_encaps or wtap
 DissectorTable.get("wtap_encap"):add(encaps.USER0, rprs)
+
+-- CAN payloads ---------------------------------------------------------------------------
+-- Each identifier of can_bus/rprs.dbc is registered in Wireshark's can.id table; the payload
+-- is decoded signal by signal: physical value = raw * scale + offset, with the unit and the
+-- value name. Fields: rprs_can.msg, rprs_can.sender, rprs_can.<message>.<signal> (lower case).
+
+-- BEGIN DBC TABLE (generated from can_bus/rprs.dbc by python -m hil.wireshark.dbc_table)
+local dbc_messages = {
+  [0x010] = { name = "ESTOP", sender = "MCU", dlc = 1, signals = {
+      { name = "reason", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+  [0x0c1] = { name = "EVENT1", sender = "JOINT1", dlc = 3, signals = {
+      { name = "kind", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [1] = "done", [2] = "fault", [3] = "refused" } },
+      { name = "seq", byte = 1, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "code", byte = 2, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "none", [1] = "stalled(fault)/out_of_range(refused)", [2] = "limit(fault)/busy(refused)", [3] = "overcurrent(fault)/faulted(refused)" } },
+  } },
+  [0x0c2] = { name = "EVENT2", sender = "JOINT2", dlc = 3, signals = {
+      { name = "kind", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [1] = "done", [2] = "fault", [3] = "refused" } },
+      { name = "seq", byte = 1, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "code", byte = 2, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "none", [1] = "stalled(fault)/out_of_range(refused)", [2] = "limit(fault)/busy(refused)", [3] = "overcurrent(fault)/faulted(refused)" } },
+  } },
+  [0x0c3] = { name = "EVENT3", sender = "JOINT3", dlc = 3, signals = {
+      { name = "kind", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [1] = "done", [2] = "fault", [3] = "refused" } },
+      { name = "seq", byte = 1, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "code", byte = 2, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "none", [1] = "stalled(fault)/out_of_range(refused)", [2] = "limit(fault)/busy(refused)", [3] = "overcurrent(fault)/faulted(refused)" } },
+  } },
+  [0x0c4] = { name = "EVENT4", sender = "JOINT4", dlc = 3, signals = {
+      { name = "kind", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [1] = "done", [2] = "fault", [3] = "refused" } },
+      { name = "seq", byte = 1, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "code", byte = 2, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "none", [1] = "stalled(fault)/out_of_range(refused)", [2] = "limit(fault)/busy(refused)", [3] = "overcurrent(fault)/faulted(refused)" } },
+  } },
+  [0x0c5] = { name = "EVENT5", sender = "WHEEL", dlc = 3, signals = {
+      { name = "kind", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [1] = "done", [2] = "fault", [3] = "refused" } },
+      { name = "seq", byte = 1, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "code", byte = 2, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "none", [1] = "stalled(fault)/out_of_range(refused)", [2] = "limit(fault)/busy(refused)", [3] = "overcurrent(fault)/faulted(refused)" } },
+  } },
+  [0x0c6] = { name = "EVENT6", sender = "PAW", dlc = 3, signals = {
+      { name = "kind", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [1] = "done", [2] = "fault", [3] = "refused" } },
+      { name = "seq", byte = 1, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "code", byte = 2, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "none", [1] = "stalled(fault)/out_of_range(refused)", [2] = "limit(fault)/busy(refused)", [3] = "overcurrent(fault)/faulted(refused)" } },
+  } },
+  [0x101] = { name = "JOINT1_CMD", sender = "MCU", dlc = 6, signals = {
+      { name = "angle", byte = 0, size = 2, signed = true, scale = 0.01, offset = 0, unit = "deg" },
+      { name = "speed", byte = 2, size = 2, signed = false, scale = 0.1, offset = 0, unit = "deg/s" },
+      { name = "seq", byte = 4, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "mode", byte = 5, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "move", [1] = "hold", [2] = "relax" } },
+  } },
+  [0x102] = { name = "JOINT2_CMD", sender = "MCU", dlc = 6, signals = {
+      { name = "angle", byte = 0, size = 2, signed = true, scale = 0.01, offset = 0, unit = "deg" },
+      { name = "speed", byte = 2, size = 2, signed = false, scale = 0.1, offset = 0, unit = "deg/s" },
+      { name = "seq", byte = 4, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "mode", byte = 5, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "move", [1] = "hold", [2] = "relax" } },
+  } },
+  [0x103] = { name = "JOINT3_CMD", sender = "MCU", dlc = 6, signals = {
+      { name = "angle", byte = 0, size = 2, signed = true, scale = 0.01, offset = 0, unit = "deg" },
+      { name = "speed", byte = 2, size = 2, signed = false, scale = 0.1, offset = 0, unit = "deg/s" },
+      { name = "seq", byte = 4, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "mode", byte = 5, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "move", [1] = "hold", [2] = "relax" } },
+  } },
+  [0x104] = { name = "JOINT4_CMD", sender = "MCU", dlc = 6, signals = {
+      { name = "angle", byte = 0, size = 2, signed = true, scale = 0.01, offset = 0, unit = "deg" },
+      { name = "speed", byte = 2, size = 2, signed = false, scale = 0.1, offset = 0, unit = "deg/s" },
+      { name = "seq", byte = 4, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+      { name = "mode", byte = 5, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "move", [1] = "hold", [2] = "relax" } },
+  } },
+  [0x105] = { name = "WHEEL_CMD", sender = "MCU", dlc = 7, signals = {
+      { name = "speed", byte = 0, size = 2, signed = true, scale = 1, offset = 0, unit = "mm/s" },
+      { name = "distance", byte = 2, size = 4, signed = true, scale = 1, offset = 0, unit = "mm" },
+      { name = "seq", byte = 6, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+  [0x106] = { name = "PAW_CMD", sender = "MCU", dlc = 3, signals = {
+      { name = "action", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "close", [1] = "open" } },
+      { name = "force", byte = 1, size = 1, signed = false, scale = 1, offset = 0, unit = "%" },
+      { name = "seq", byte = 2, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+  [0x181] = { name = "JOINT1_STATUS", sender = "JOINT1", dlc = 6, signals = {
+      { name = "angle", byte = 0, size = 2, signed = true, scale = 0.01, offset = 0, unit = "deg" },
+      { name = "speed", byte = 2, size = 2, signed = true, scale = 0.1, offset = 0, unit = "deg/s" },
+      { name = "state", byte = 4, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "idle", [1] = "moving", [2] = "holding", [3] = "stalled", [4] = "fault" } },
+      { name = "seq", byte = 5, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+  [0x182] = { name = "JOINT2_STATUS", sender = "JOINT2", dlc = 6, signals = {
+      { name = "angle", byte = 0, size = 2, signed = true, scale = 0.01, offset = 0, unit = "deg" },
+      { name = "speed", byte = 2, size = 2, signed = true, scale = 0.1, offset = 0, unit = "deg/s" },
+      { name = "state", byte = 4, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "idle", [1] = "moving", [2] = "holding", [3] = "stalled", [4] = "fault" } },
+      { name = "seq", byte = 5, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+  [0x183] = { name = "JOINT3_STATUS", sender = "JOINT3", dlc = 6, signals = {
+      { name = "angle", byte = 0, size = 2, signed = true, scale = 0.01, offset = 0, unit = "deg" },
+      { name = "speed", byte = 2, size = 2, signed = true, scale = 0.1, offset = 0, unit = "deg/s" },
+      { name = "state", byte = 4, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "idle", [1] = "moving", [2] = "holding", [3] = "stalled", [4] = "fault" } },
+      { name = "seq", byte = 5, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+  [0x184] = { name = "JOINT4_STATUS", sender = "JOINT4", dlc = 6, signals = {
+      { name = "angle", byte = 0, size = 2, signed = true, scale = 0.01, offset = 0, unit = "deg" },
+      { name = "speed", byte = 2, size = 2, signed = true, scale = 0.1, offset = 0, unit = "deg/s" },
+      { name = "state", byte = 4, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "idle", [1] = "moving", [2] = "holding", [3] = "stalled", [4] = "fault" } },
+      { name = "seq", byte = 5, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+  [0x185] = { name = "WHEEL_STATUS", sender = "WHEEL", dlc = 8, signals = {
+      { name = "speed", byte = 0, size = 2, signed = true, scale = 1, offset = 0, unit = "mm/s" },
+      { name = "odometer", byte = 2, size = 4, signed = true, scale = 1, offset = 0, unit = "mm" },
+      { name = "state", byte = 6, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "idle", [1] = "moving", [2] = "holding", [3] = "stalled", [4] = "fault" } },
+      { name = "seq", byte = 7, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+  [0x186] = { name = "PAW_STATUS", sender = "PAW", dlc = 4, signals = {
+      { name = "opening", byte = 0, size = 1, signed = false, scale = 1, offset = 0, unit = "%" },
+      { name = "grip", byte = 1, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "empty", [1] = "holding" } },
+      { name = "state", byte = 2, size = 1, signed = false, scale = 1, offset = 0, unit = "", choices = { [0] = "idle", [1] = "moving", [2] = "holding", [3] = "stalled", [4] = "fault" } },
+      { name = "seq", byte = 3, size = 1, signed = false, scale = 1, offset = 0, unit = "" },
+  } },
+}
+-- END DBC TABLE
+local rcan = Proto("rprs_can", "RPRS CAN payload (rprs.dbc)")
+local cf = rcan.fields
+cf.msg = ProtoField.string("rprs_can.msg", "Message")
+cf.sender = ProtoField.string("rprs_can.sender", "Sender")
+local sig_fields = {}
+for id, m in pairs(dbc_messages) do
+    sig_fields[id] = {}
+    for i, s in ipairs(m.signals) do
+        local key = m.name:lower() .. "." .. s.name
+        local label = s.name .. (s.unit ~= "" and (" (" .. s.unit .. ")") or "")
+        local fld = ProtoField.double("rprs_can." .. key, label)
+        sig_fields[id][i] = fld
+        cf[key] = fld
+    end
+end
+local e_dlc = ProtoExpert.new("rprs_can.dlc.bad", "Payload length is not the DBC's DLC",
+                              expert.group.MALFORMED, expert.severity.ERROR)
+rcan.experts = { e_dlc }
+
+function rcan.dissector(tvb, pinfo, tree)
+    local id = pinfo.match_uint
+    local m = dbc_messages[id]
+    if m == nil then return 0 end
+    local n = tvb:len()
+    local t = tree:add(rcan, tvb(), "RPRS CAN " .. m.name)
+    t:add(cf.msg, tvb(0, 0), m.name):set_generated()
+    t:add(cf.sender, tvb(0, 0), m.sender):set_generated()
+    if n ~= m.dlc then t:add_proto_expert_info(e_dlc) end
+    local parts = {}
+    for i, s in ipairs(m.signals) do
+        if s.byte + s.size <= n then
+            local r = tvb(s.byte, s.size)
+            local raw = s.signed and r:le_int() or r:le_uint()
+            local v = raw * s.scale + s.offset
+            local text = string.format("%g", v)
+            local name = s.choices and s.choices[raw]
+            local shown = text .. (s.unit ~= "" and (" " .. s.unit) or "") ..
+                          (name and (" (" .. name .. ")") or "")
+            t:add(sig_fields[id][i], r, v):set_text(s.name .. ": " .. shown)
+            parts[#parts + 1] = s.name .. "=" .. (name or text)
+        end
+    end
+    pinfo.cols.protocol = "RPRS CAN"
+    pinfo.cols.info = m.name .. " " .. table.concat(parts, " ")
+    return n
+end
+
+local can_ids = DissectorTable.get("can.id")
+for id, _ in pairs(dbc_messages) do
+    can_ids:add(id, rcan)
+end
