@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import select
+import shutil
 import signal
 import subprocess
 import sys
@@ -504,3 +505,122 @@ def test_inject_and_foreign_fault_against_a_radio_hub_process():
     summary = out.strip().splitlines()[-1]
     assert f"{len(FOREIGN) + 16} bytes in" in summary and "0 collisions" in summary
     assert f"{2 * 16 + len(FOREIGN) + 16} bytes out" in summary   # node 0 heard the fault too
+
+
+# -- captures: rprs radio-hub --pcap ---------------------------------------------------------
+
+def _capture_packets(data: bytes):
+    import io
+
+    import pcapng
+    ifaces, out = {}, []
+    for b in pcapng.FileScanner(io.BytesIO(data)):
+        name = type(b).__name__
+        if name == "InterfaceDescription":
+            ifaces[len(ifaces)] = b.options["if_name"]
+        elif name == "EnhancedPacket":
+            ns = (b.timestamp_high << 32) + b.timestamp_low
+            out.append((ifaces[b.interface_id], ns, bytes(b.packet_data),
+                        b.options.get("opt_comment")))
+    return out
+
+
+def test_a_capture_has_one_packet_per_burst_at_wall_clock_time(hubs):
+    import io
+
+    from hil.sim.faults import parse_fault
+    from hil.view.pcap import PcapWriter
+
+    class Sink(io.BytesIO):
+        def close(self):
+            pass
+
+    sink = Sink()
+    hub = hubs(3, faults=[parse_fault(f"foreign@0.5:x{FOREIGN.hex()}")])
+    hub.capture(PcapWriter(sink, *hub.capture_interfaces(), tsresol=9))
+    fds = [open_node(hubs, p) for p in hub.paths]
+    before = time.time_ns()
+    hub.start()
+    a, b = b"A" * 60, b"B" * 60
+    os.write(fds[1], a)                        # written in two pieces, the second while the
+    time.sleep(0.02)                           # first is on air (62 ms): one packet
+    os.write(fds[1], b)
+    assert read_n(fds[2], 120, 5.0)[0] == a + b
+    assert read_n(fds[0], 120 + len(FOREIGN), 5.0)[0].endswith(FOREIGN)
+    hub.close()
+    after = time.time_ns()
+    pkts = _capture_packets(sink.getvalue())
+    mine = [p for p in pkts if p[0] == "node 1 radio"]
+    assert [(p[2], p[3]) for p in mine] == [(a + b, None)]
+    foreign = [p for p in pkts if p[0] == "foreign transmitters"]
+    assert [p[2] for p in foreign] == [FOREIGN] and "no robot" in foreign[0][3]
+    # timestamps: the wall clock (ns) when the burst's last stop bit ended
+    assert before + 120 * BYTE_S * 1e9 <= mine[0][1] <= after
+    assert before + (0.5 + len(FOREIGN) * BYTE_S) * 1e9 <= foreign[0][1] <= after
+
+
+def test_a_collision_is_in_the_capture_and_marked(hubs):
+    import io
+
+    from hil.view.pcap import PcapWriter
+    sink = io.BytesIO()
+    hub = hubs(3)
+    hub.capture(PcapWriter(sink, *hub.capture_interfaces(), tsresol=9))
+    hub.start()
+    fds = [open_node(hubs, p) for p in hub.paths]
+    os.write(fds[0], FRAME)
+    os.write(fds[1], FRAME)
+    read_for(fds[2], 0.3)
+    assert hub.stats()["collisions"] >= 1
+    pkts = _capture_packets(sink.getvalue())
+    sent = [p for p in pkts if p[0] in ("node 0 radio", "node 1 radio")]
+    assert len(sent) == 2 and all(p[2] == FRAME and "collided" in p[3] for p in sent)
+
+
+TSHARK = shutil.which("tshark")
+
+
+@pytest.mark.skipif(TSHARK is None, reason="tshark not installed (Debian package tshark; "
+                    ".ci/run installs it)")
+def test_live_capture_through_a_pipe_into_tshark():
+    """rprs radio-hub --pcap - | tshark -i -: tshark decodes each frame as it comes."""
+    from hil.wireshark import plugin_path
+    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                            "--pcap", "-"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    shark = subprocess.Popen([TSHARK, "-l", "-X", f"lua_script:{plugin_path()}", "-i", "-",
+                              "-T", "fields", "-e", "frame.interface_name", "-e", "rprs.src",
+                              "-e", "rprs.num", "-e", "rprs.content"],
+                             stdin=hub.stdout, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True)
+    hub.stdout.close()
+    try:
+        paths = [hub.stderr.readline().decode().split()[2] for _ in range(2)]
+        fd = os.open(paths[0], os.O_RDWR | os.O_NOCTTY)
+        try:
+            os.write(fd, FRAME)
+            # live: tshark prints the frame while the hub still runs
+            r, _, _ = select.select([shark.stdout], [], [], 20.0)
+            assert r, "tshark printed nothing while the hub ran"
+            line = shark.stdout.readline()
+        finally:
+            os.close(fd)
+        assert line.split("\t") == ["node 0 radio", "0", "12",
+                                    "movex(10)moveto(1.5,-2,0)\n"]
+        hub.send_signal(signal.SIGINT)
+        assert hub.wait(timeout=10) == 0
+        rest, err = shark.communicate(timeout=20)
+        assert shark.returncode == 0, err
+    finally:
+        for p in (hub, shark):
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    assert "radio-hub: " in hub.stderr.read().decode()
+
+
+def test_a_capture_that_cannot_be_written_is_one_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                        "--pcap", str(tmp_path / "no" / "x.pcapng")],
+                       capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and "cannot write capture" in r.stderr
+    assert "Traceback" not in r.stderr

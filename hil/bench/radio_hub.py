@@ -227,6 +227,9 @@ class RadioHub:
         self._closed = False
         self._wake_r = self._wake_w = -1
         self._t_start = 0.0
+        self.pcap: Any = None
+        self.capture_error: str | None = None
+        self._cap: list[tuple[int, bytearray, set[str]] | None] = [None] * nodes
         try:
             for _ in range(nodes):
                 master, slave = os.openpty()
@@ -303,6 +306,10 @@ class RadioHub:
         self.air = _HubAir(self.sched, seed=self.seed, ber=self.ber, noise=self.noise,
                            byte_by_byte=True)
         self.air.on_collision = self._on_collision
+        if self.pcap is not None:
+            # the air's tick 0 is now: the capture's timestamps are the wall clock
+            self.pcap.epoch_units = time.time_ns() * 10 ** self.pcap.tsresol // 10 ** 9
+            self.air.on_transmission = self._on_transmission
         for i in range(self.nodes):
             r = _Node(self, i, self.byte_ticks)
             self._radios.append(r)
@@ -361,6 +368,11 @@ class RadioHub:
             return
         self.stop()
         self._closed = True
+        for i, cur in enumerate(self._cap):     # bursts whose continuation never came
+            if cur is not None and self.sched is not None:
+                self._cap[i] = None
+                self._write_packet(i, cur[0] + len(cur[1]) * self.byte_ticks, bytes(cur[1]),
+                                   cur[2] | {"the hub stopped"})
         self._release()
 
     def __enter__(self) -> "RadioHub":
@@ -463,6 +475,51 @@ class RadioHub:
         self.bytes_out[i] += n
         self.dropped[i] += len(data) - n
 
+    # -- the capture (scheduler thread only) ----------------------------------------------
+
+    def capture(self, writer: Any) -> None:
+        """Write every transmission to ``writer`` (hil.view.pcap.PcapWriter with
+        ``capture_interfaces()``), wall-clock timestamps. Call before ``start``."""
+        if self._started:
+            raise RuntimeError("start the capture before the hub")
+        self.pcap = writer
+
+    def capture_interfaces(self) -> tuple[dict[object, str], dict[int, str]]:
+        """(radio key -> interface name, no CAN buses) for a capture of this hub."""
+        radios: dict[object, str] = {i: f"node {i} radio" for i in range(self.nodes)}
+        radios["foreign"] = "foreign transmitters"
+        return radios, {}
+
+    def _on_transmission(self, tx: Any) -> None:
+        """A burst ended on air. A node's bursts that follow each other back to back (a frame
+        written in pieces) are one packet, written when its last burst ends."""
+        sent = tx.data if not tx.aborted else tx.data[:(tx.end - tx.t0) // tx.bt]
+        marks = {w for w, on in (("collided", tx.collided),
+                                 ("aborted: the node's link went down", tx.aborted)) if on}
+        i = tx.radio.robot
+        if not 0 <= i < self.nodes:
+            self._write_packet("foreign", tx.end, sent,
+                               {"a transmitter that is no robot"} | marks)
+            return
+        cur = self._cap[i]
+        if cur is None:
+            cur = self._cap[i] = (tx.t0, bytearray(), set())
+        cur[1].extend(sent)
+        cur[2].update(marks)
+        if not tx.aborted and (self._tx_event[i] is not None or self._tx_end[i] > tx.end):
+            return                       # the node's next burst follows back to back
+        self._cap[i] = None
+        self._write_packet(i, tx.end, bytes(cur[1]), cur[2])
+
+    def _write_packet(self, key: object, tick: int, data: bytes, marks: set[str]) -> None:
+        if self.pcap is None:
+            return
+        try:
+            self.pcap.radio(key, tick, data, "; ".join(sorted(marks)) or None)
+        except (OSError, ValueError) as e:          # the reader of a pipe went away
+            self.capture_error = f"capture stopped: {e}"
+            self.pcap = None
+
     def _on_collision(self, t0: int, robots: list[int]) -> None:
         if t0 >= self._clear_at:
             self.collisions += 1         # a new collision, not the extension of one
@@ -557,34 +614,57 @@ def summary_line(st: dict[str, Any]) -> str:
 def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
                 seed: int = 0, link_dir: str | None = None,
                 drops: Sequence[tuple[int, float, float]] = (),
-                faults: Sequence[Any] = ()) -> int:
+                faults: Sequence[Any] = (), pcap: str | None = None) -> int:
     """The ``rprs radio-hub`` command: print the node paths, run until SIGINT/SIGTERM, print a
-    summary. Bad arguments raise ValueError with a one-line message."""
+    summary. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
+    packet (``| wireshark -k -i -``; the paths and the summary then go to stderr). Bad
+    arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])
     done = threading.Event()
 
     def on_signal(signum: int, frame: Any) -> None:
         done.set()
 
-    hub = RadioHub(nodes, baud=baud, ber=ber, noise=noise, seed=seed, link_dir=link_dir,
-                   drops=drops, faults=faults)
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    out = sys.stderr if pcap == "-" else sys.stdout
+    stream = None
+    if pcap is not None:
+        if pcap == "-":
+            stream = sys.stdout.buffer
+        else:
+            try:
+                stream = open(pcap, "wb")
+            except OSError as e:
+                raise ValueError(f"cannot write capture {pcap}: {e.strerror}") from None
+    hub = None
     try:
-        for i, path in enumerate(hub.paths):
-            line = f"node {i}: {path}"
-            if hub.links:
-                line += f" ({hub.links[i]})"
-            print(line)
-        sys.stdout.flush()
-        hub.start()
-        while not done.wait(0.5):
-            pass
+        hub = RadioHub(nodes, baud=baud, ber=ber, noise=noise, seed=seed, link_dir=link_dir,
+                       drops=drops, faults=faults)
+        if stream is not None:
+            from ..view.pcap import PcapWriter
+            hub.capture(PcapWriter(stream, *hub.capture_interfaces(), tsresol=9,
+                                   live=pcap == "-"))
+        old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            for i, path in enumerate(hub.paths):
+                line = f"node {i}: {path}"
+                if hub.links:
+                    line += f" ({hub.links[i]})"
+                print(line, file=out)
+            out.flush()
+            hub.start()
+            while not done.wait(0.5):
+                pass
+        finally:
+            hub.close()
+            for s, h in old.items():
+                signal.signal(s, h)
     finally:
-        hub.close()
-        for s, h in old.items():
-            signal.signal(s, h)
-    print(summary_line(hub.stats()))
-    sys.stdout.flush()
+        if stream is not None and pcap != "-":
+            stream.close()
+    if hub.capture_error:
+        print(f"radio-hub: {hub.capture_error}", file=sys.stderr)
+    print(summary_line(hub.stats()), file=out)
+    out.flush()
     return 0
 
 
@@ -603,6 +683,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of every random stream (0)")
     p.add_argument("--link-dir", default=None, metavar="DIR",
                    help="also create DIR/node0 ... symlinks to the ptys")
+    p.add_argument("--pcap", metavar="FILE", default=None,
+                   help="write a pcapng capture of the air here, wall-clock timestamps; '-' "
+                   "streams it to stdout for a live view: | wireshark -k -i - (the node "
+                   "paths then go to stderr)")
     p.add_argument("--drop", type=drop, action="append", default=[], metavar="ID@START-END",
                    help="node ID's link is down from START to END s after start (repeatable)")
 
@@ -627,4 +711,4 @@ def main_radio_hub(args: argparse.Namespace) -> int:
     if isinstance(baud, float) and baud.is_integer():
         baud = int(baud)
     return run_hub_cli(args.nodes, baud, args.ber, args.noise, args.seed, args.link_dir,
-                       args.drop, getattr(args, "fault", []))
+                       args.drop, getattr(args, "fault", []), getattr(args, "pcap", None))

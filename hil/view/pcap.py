@@ -50,10 +50,20 @@ def error_frame(kind: str) -> bytes:
 class PcapWriter:
     """Write a run's traffic to ``stream`` (a binary file object). ``radios``: interface name
     per radio key, ``buses``: interface name per CAN bus key; both fixed before the first
-    packet (pcapng declares interfaces up front)."""
+    packet (pcapng declares interfaces up front).
 
-    def __init__(self, stream: BinaryIO, radios: dict[object, str], buses: dict[int, str]) -> None:
+    Timestamps are ``epoch_units + tick`` in units of 10^-``tsresol`` s: a simulation starts
+    at 0 with ``tsresol`` 10 (a tick exactly); a bench capture sets ``epoch_units`` to the
+    wall clock of its tick 0 and uses ``tsresol`` 9 (ns: the Unix epoch at 10^-10 s would
+    overflow pcapng's 64 bits in 2028). ``live``: flush after every packet (a pipe to
+    ``wireshark -k -i -``)."""
+
+    def __init__(self, stream: BinaryIO, radios: dict[object, str], buses: dict[int, str],
+                 tsresol: int = TSRESOL, epoch_units: int = 0, live: bool = False) -> None:
         self.stream = stream
+        self.tsresol = tsresol
+        self.epoch_units = epoch_units
+        self.live = live
         self.shb = blocks.SectionHeader(options={"shb_userappl": "rprs"})
         self._ifaces: dict[tuple[str, object], int] = {}
         for key, name in radios.items():
@@ -63,22 +73,27 @@ class PcapWriter:
             self._add(("can", key), LINKTYPE_CAN_SOCKETCAN, name, "CAN 2.0A, 500 kbit/s")
         self.writer = pcapng.FileWriter(stream, self.shb)
         self.packets = 0
+        if live:
+            stream.flush()
 
     def _add(self, key: tuple[str, object], link: int, name: str, descr: str) -> None:
         idb = self.shb.new_member(blocks.InterfaceDescription, link_type=link, snaplen=65535,
                                   options={"if_name": name, "if_description": descr,
-                                           "if_tsresol": bytes((TSRESOL,))})
+                                           "if_tsresol": bytes((self.tsresol,))})
         self._ifaces[key] = idb.interface_id
 
     def _packet(self, key: tuple[str, object], tick: int, data: bytes,
                 comment: str | None) -> None:
-        ts = tick * UNITS_PER_TICK
+        scale = 10 ** self.tsresol
+        ts = self.epoch_units + (tick * scale * 2 + TICK_HZ) // (2 * TICK_HZ)
         opts = {"opt_comment": comment} if comment else {}
         epb = self.shb.new_member(blocks.EnhancedPacket, interface_id=self._ifaces[key],
                                   timestamp_high=ts >> 32, timestamp_low=ts & 0xFFFFFFFF,
                                   packet_data=bytes(data), options=opts)
         self.writer.write_block(epb)
         self.packets += 1
+        if self.live:
+            self.stream.flush()
 
     def radio(self, key: object, tick: int, data: bytes, comment: str | None = None) -> None:
         """A transmission on air, ending at ``tick``: the bytes its sender sent."""
