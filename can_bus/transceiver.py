@@ -151,7 +151,7 @@ class Transceiver82C250:
         self._c_pending = self._c_frame = self._c_tx_done = None
         self._c_lost = self._c_error = self._c_state = None
         bus.attach(self)
-        bus.set_loop_delay(self, loop_delay_s(self.rs_ohms))
+        self._tell_loop_delay()
         if controller is not None:
             self.connect(controller)
 
@@ -245,8 +245,15 @@ class Transceiver82C250:
             self.rs_ohms = 0
         elif mode is SLOPE_CONTROL and self.rs_ohms < SLOPE_MIN_OHMS:
             raise ValueError(f"slope control needs {SLOPE_MIN_OHMS}..{SLOPE_MAX_OHMS} Ohm on Rs")
-        self.bus.set_loop_delay(self, loop_delay_s(self.rs_ohms))
+        self._tell_loop_delay()
         self.standby(mode is STANDBY)
+
+    def _tell_loop_delay(self) -> None:
+        # a simulated CanBus times the ACK with it; a real bus (can_bus.bridge) has its own
+        # physics and no such setting
+        tell = getattr(self.bus, "set_loop_delay", None)
+        if tell is not None:
+            tell(self, loop_delay_s(self.rs_ohms))
 
     @property
     def loop_delay_s(self) -> float:
@@ -257,13 +264,18 @@ class Transceiver82C250:
     def max_bitrate(self) -> int:
         """The highest bit rate (bit/s) at which this node and a high-speed peer meet the
         round-trip budget on this bus (its length, its bit timing's quanta split)."""
-        return max_bitrate(self.rs_ohms, self.bus.length_m, self.bus.timing)
+        return max_bitrate(self.rs_ohms, getattr(self.bus, "length_m", physical.DEFAULT_LENGTH_M),
+                           self.bus.timing)
 
     @property
     def slope_limited(self) -> bool:
         """True when this node and a high-speed peer break the bus's round-trip budget: their
         ACKs to each other come back after the sample point."""
-        return self.loop_delay_s + loop_delay_s(0) > self.bus.ack_budget_s
+        budget = getattr(self.bus, "ack_budget_s", None)
+        if budget is None:           # a real bus: the default length
+            budget = physical.prop_time_s(self.bus.timing) - \
+                2 * physical.DEFAULT_LENGTH_M * physical.LINE_DELAY_S_PER_M
+        return self.loop_delay_s + loop_delay_s(0) > budget
 
     # ------------------------------------------------------------------ TXD fault, RXD
     def stick_txd(self, on: bool = True) -> None:

@@ -332,3 +332,21 @@ def test_firmware_isolates_itself_from_its_status_interrupt():
     assert [(f, s) for f, s, *_ in log] == [(fb, P + (11 + 8) * TPB)]
     assert c.read(15) == fb
     assert b.tec == 8 + 8 * (1 + (126 - 14) // 8) - 1
+
+
+def test_a_transceiver_on_a_python_can_bus_has_no_simulated_physics_to_tell():
+    # the bench's bridge (can_bus.bridge.PythonCanBus) has no loop-delay model: the 82C250 on
+    # it must still build (rprs child --can), and answer with a 1 m bus
+    import can
+
+    from can_bus.bridge import PythonCanBus
+    from firmware_model.mcu.scheduler import Scheduler as Sched
+    raw = can.Bus(interface="virtual", channel="xcvr-test", receive_own_messages=False)
+    bus = PythonCanBus(Sched(), raw)
+    try:
+        x = Transceiver82C250(bus, rs_ohms=140_000)
+        assert x.max_bitrate == 993_324 and not x.slope_limited
+        x.set_mode(RsMode.HIGH_SPEED)
+        assert x.mode is RsMode.HIGH_SPEED
+    finally:
+        bus.close()
