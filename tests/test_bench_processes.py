@@ -239,3 +239,62 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
                  "fail(1): target out of the arm's reach"):
         assert want in text, (want, lines)
     assert len(lines) < 30, lines
+
+
+def _pcap(path):
+    import pcapng
+    ifaces, out = {}, []
+    with open(path, "rb") as fh:
+        for b in pcapng.FileScanner(fh):
+            name = type(b).__name__
+            if name == "InterfaceDescription":
+                ifaces[len(ifaces)] = b.options["if_name"]
+            elif name == "EnhancedPacket":
+                out.append((ifaces[b.interface_id],
+                            (b.timestamp_high << 32) + b.timestamp_low, bytes(b.packet_data)))
+    return ifaces, out
+
+
+def test_each_bench_process_captures_its_own_port_and_bus(hub, tmp_path):
+    """rprs father/child/submodules --pcap: the father's and the child's radio (sent, heard)
+    and the child's and the submodules' CAN bus, wall-clock ns, one order's whole path."""
+    from firmware_model.radio.frame import parse_frame
+    can = f"rprs_unix:{tmp_path / 'can'}"
+    caps = {k: tmp_path / f"{k}.pcapng" for k in ("father", "child", "sub")}
+    t_start = time.time_ns()
+    kids = [spawn("child", "--id", "1", "--radio", hub.paths[1], "--team", "0,1", "--can", can,
+                  "--pcap", str(caps["child"])),
+            spawn("submodules", "--can", can, "--pcap", str(caps["sub"]))]
+    father = subprocess.Popen(
+        [sys.executable, "-m", "hil.cli", "father", "--radio", hub.paths[0], "--team", "0,1",
+         "--exit-when-done", "--json", "--pcap", str(caps["father"])],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: list[str] = []
+    _lines_of(father, lines)
+    try:
+        assert wait_for(lambda: any('"ev":"join"' in x and '"robot":1' in x for x in lines),
+                        40.0), lines[-5:]
+        time.sleep(0.5)
+        father.stdin.write("1 joint(1,20)\n")
+        father.stdin.close()
+        assert father.wait(timeout=40) == 0, father.stderr.read()
+    finally:
+        stop([father, *kids])
+    t_end = time.time_ns()
+    ifaces, fpk = _pcap(caps["father"])
+    assert set(ifaces.values()) == {"R0 radio, sent", "R0 radio, heard"}
+    sent = [parse_frame(d) for i, _, d in fpk if i == "R0 radio, sent"]
+    assert sent and all(f.src == 0 for f in sent)
+    assert any(f.dst == 1 and b"joint(1,20)" in f.content for f in sent), [(f.dst, f.content) for f in sent][-8:]
+    heard = b"".join(d for i, _, d in fpk if i == "R0 radio, heard")
+    assert b"\x0f\x0a\x05" + b"0" + b"1" in heard or b"\x0f\x0a\x0571" in heard  # R1's frames
+    _, cpk = _pcap(caps["child"])
+    assert any(i == "R1 radio, sent" and parse_frame(d).src == 1 for i, _, d in cpk)
+    can_ids = [int.from_bytes(d[:4], "big") for i, _, d in cpk if i.startswith("CAN ")]
+    assert 0x101 in can_ids and 0x181 in can_ids and 0xC1 in can_ids  # command, status, done
+    _, spk = _pcap(caps["sub"])
+    sub_ids = [int.from_bytes(d[:4], "big") for _, _, d in spk]
+    assert 0x101 in sub_ids and 0x181 in sub_ids
+    for pk in (fpk, cpk, spk):
+        ts = [t for _, t, _ in pk]
+        assert t_start <= min(ts) and max(ts) <= t_end         # the wall clock, in ns

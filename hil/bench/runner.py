@@ -109,8 +109,12 @@ class Runner:
         self._closers: list[Callable[[], None]] = []
         self._stopping = threading.Event()
 
-    def on_close(self, fn: Callable[[], None]) -> None:
-        self._closers.append(fn)
+    def on_close(self, fn: Callable[[], None], last: bool = False) -> None:
+        """Run ``fn`` when the runner stops (in reverse order; ``last``: after all others)."""
+        if last:
+            self._closers.insert(0, fn)
+        else:
+            self._closers.append(fn)
 
     def stop(self, *_: Any) -> None:
         self._stopping.set()
@@ -169,16 +173,37 @@ def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
     return bus
 
 
+def _capture(runner: Runner, pcap: str | None, robot: int | None,
+             channel: SerialChannel | None, bus: PythonCanBus | None, can: str | None) -> None:
+    """``--pcap``: tap the serial port and the CAN bus (hil/bench/capture.py)."""
+    if not pcap:
+        return
+    from .capture import open_capture
+    try:
+        cap = open_capture(runner.sched, pcap, robot, channel is not None,
+                           parse_spec(can)[1] if bus is not None and can else None)
+    except OSError as exc:
+        raise RunError(f"cannot write capture {pcap}: {exc.strerror or exc}") from None
+    if channel is not None:
+        channel.tap = cap
+    if bus is not None:
+        bus.trace = cap.can_frame
+    runner.on_close(cap.close, last=True)     # after the port and the bus are closed
+
+
 def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
                 txen: str = "none", config: MacConfig | None = None, can_log: str | None = None,
-                events: TextIO | None = None) -> tuple[RadioStation, ChildFirmware | RadioOnlyChild]:
+                events: TextIO | None = None,
+                pcap: str | None = None) -> tuple[RadioStation, ChildFirmware | RadioOnlyChild]:
     """A child on real ports (either may be None: radio only, or CAN only)."""
     if not 1 <= robot <= 6:
         raise RunError(f"a child's ID is 1-6, got {robot}")
     cfg = realtime_config(config)
     observer = _events_printer(events, robot)
+    channel = bus = None
     if radio:
-        station, _ = _radio_station(runner, robot, radio, txen, CHILD_BYTE_TICKS, cfg, observer)
+        station, channel = _radio_station(runner, robot, radio, txen, CHILD_BYTE_TICKS, cfg,
+                                          observer)
     else:
         station, _ = build_station(robot, runner.sched, config=cfg, observer=observer)
     child: ChildFirmware | RadioOnlyChild
@@ -188,22 +213,26 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
         child = ChildFirmware(station, ctrl, Transceiver82C250(bus, ctrl))
     else:
         child = RadioOnlyChild(station)      # answers orders fail(42): no CAN side
+    _capture(runner, pcap, robot, channel, bus, can)
     if radio:
         runner.sched.post(station.power_on)
     return station, child
 
 
-def build_submodules(runner: Runner, can: str, can_log: str | None = None) -> dict:
+def build_submodules(runner: Runner, can: str, can_log: str | None = None,
+                     pcap: str | None = None) -> dict:
     bus = _can_bus(runner, can, can_log)
+    _capture(runner, pcap, None, None, bus, can)
     return make_submodules(runner.sched, bus, initial_angles=HOME)
 
 
 def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool = False,
                  config: MacConfig | None = None, events: TextIO | None = None,
-                 pc: int | None = None) -> RadioStation:
+                 pc: int | None = None, pcap: str | None = None) -> RadioStation:
     cfg = replace(realtime_config(config), standby=standby, pc=pc or (2 if standby else 1))
-    station, _ = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
-                                _events_printer(events, 0))
+    station, channel = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
+                                      _events_printer(events, 0))
+    _capture(runner, pcap, 0, channel, None, None)
     runner.sched.post(station.power_on)
     return station
 

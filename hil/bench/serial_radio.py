@@ -74,6 +74,7 @@ class SerialChannel:
         self.bytes_in = 0
         self.bytes_deaf = 0          # heard while the radio model was switching or sending
         self.errors: list[str] = []
+        self.tap: Any = None         # a capture (hil.bench.capture): sent() and heard()
         self._stop = threading.Event()
         self._reader = threading.Thread(target=self._read_loop, name="radio-rx", daemon=True)
 
@@ -105,6 +106,9 @@ class SerialChannel:
             self.bytes_out += len(data)
         except (serial.SerialException, OSError) as exc:
             self.errors.append(f"write failed: {exc}")
+            return
+        if self.tap is not None:
+            self.tap.sent(data, t0, bt)
 
     def sync(self, radio: Ptr2000, now: int) -> None:
         """Bytes arrive by themselves (the reader thread posts them)."""
@@ -153,6 +157,8 @@ class SerialChannel:
         if radio is None:
             return
         now = self.sched.now
+        if self.tap is not None:
+            self.tap.heard(data, now, radio.uart.byte_ticks)
         if not radio.listening(now):
             self.bytes_deaf += len(data)
             return

@@ -15,7 +15,7 @@ def cmd_child(a: argparse.Namespace) -> int:
     try:
         station, child = build_child(runner, a.id, a.radio, a.can, txen=a.txen,
                                      config=mac_config(a), can_log=a.can_log,
-                                     events=sys.stdout if a.events else None)
+                                     events=sys.stdout if a.events else None, pcap=a.pcap)
     except RunError as exc:
         runner.run(0)
         raise UserError(str(exc)) from None
@@ -56,7 +56,7 @@ def cmd_submodules(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_submodules
     runner = Runner()
     try:
-        nodes = build_submodules(runner, a.can, a.can_log)
+        nodes = build_submodules(runner, a.can, a.can_log, pcap=a.pcap)
     except RunError as exc:
         runner.run(0)
         raise UserError(str(exc)) from None
@@ -85,7 +85,7 @@ def cmd_father(a: argparse.Namespace) -> int:
     try:
         station = build_father(runner, a.radio, txen=a.txen, standby=a.standby,
                                config=mac_config(a), events=sys.stdout if a.json else None,
-                               pc=a.pc)
+                               pc=a.pc, pcap=a.pcap)
     except RunError as exc:
         runner.run(0)
         raise UserError(str(exc)) from None
@@ -143,6 +143,10 @@ def cmd_father(a: argparse.Namespace) -> int:
                 lambda: summary_line(station))
 
 
+PCAP_HELP = ("write a pcapng capture here: what this process's serial port sent and heard and "
+             "its CAN bus, wall-clock timestamps (docs/wireshark.md); a FIFO gives a live view")
+
+
 def add(sub) -> None:
     ch = sub.add_parser("child", help="run a child robot in real time on a serial port "
                         "and/or a CAN bus")
@@ -152,6 +156,7 @@ def add(sub) -> None:
     ch.add_argument("--can", metavar="INTERFACE:CHANNEL",
                     help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can")
     ch.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
+    ch.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
     txen_option(ch)
     mac_options(ch)
     realtime_options(ch)
@@ -161,6 +166,7 @@ def add(sub) -> None:
     sm.add_argument("--can", metavar="INTERFACE:CHANNEL", required=True,
                     help="the child's python-can bus, e.g. socketcan:vcan0")
     sm.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
+    sm.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
     realtime_options(sm)
     sm.set_defaults(func=cmd_submodules)
     fa = sub.add_parser("father", help="the father station (ID 0) on a serial port")
@@ -180,6 +186,7 @@ def add(sub) -> None:
                     "ended and every order has ended (for scripts)")
     fa.add_argument("--plain", action="store_true", help="at a terminal, lines instead of the "
                     "live view (the view is used only when stdin and stdout are a terminal)")
+    fa.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
     txen_option(fa)
     mac_options(fa)
     realtime_options(fa)
