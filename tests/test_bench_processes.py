@@ -298,3 +298,11 @@ def test_each_bench_process_captures_its_own_port_and_bus(hub, tmp_path):
     for pk in (fpk, cpk, spk):
         ts = [t for _, t, _ in pk]
         assert t_start <= min(ts) and max(ts) <= t_end         # the wall clock, in ns
+
+
+@pytest.mark.parametrize("pcap,words", [("-", "console"), ("/no/such/dir/x.pcapng",
+                                                          "cannot write capture")])
+def test_a_bad_capture_path_is_one_line(pcap, words):
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--radio",
+                        "loop://", "--pcap", pcap], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, r.stderr

@@ -178,6 +178,9 @@ def _capture(runner: Runner, pcap: str | None, robot: int | None,
     """``--pcap``: tap the serial port and the CAN bus (hil/bench/capture.py)."""
     if not pcap:
         return
+    if pcap == "-":
+        raise RunError("--pcap -: a bench process's stdout is its console; give a file, or a "
+                       "FIFO for a live view (mkfifo f; wireshark -k -i f)")
     from .capture import open_capture
     try:
         cap = open_capture(runner.sched, pcap, robot, channel is not None,
