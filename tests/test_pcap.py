@@ -1,4 +1,4 @@
-"""pcapng captures (hil/view/pcap.py, `rprs sim --pcap`) and the Wireshark dissector
+"""pcapng captures (hil/sim/pcap.py, `rprs sim --pcap`) and the Wireshark dissector
 (hil/wireshark/rprs.lua), read back by tshark where Debian's package is installed (CI installs
 it) and by python-pcapng everywhere. Every packet is compared with the run's own trace."""
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pcapng
 import pytest
 
 from firmware_model.radio.frame import parse_frame
-from hil.view.pcap import CAN_ERR_FLAG, UNITS_PER_TICK
+from hil.sim.pcap import CAN_ERR_FLAG, UNITS_PER_TICK
 from hil.wireshark import plugin_path
 
 TSHARK = shutil.which("tshark")

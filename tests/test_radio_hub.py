@@ -529,7 +529,7 @@ def test_a_capture_has_one_packet_per_burst_at_wall_clock_time(hubs):
     import io
 
     from hil.sim.faults import parse_fault
-    from hil.view.pcap import PcapWriter
+    from hil.sim.pcap import PcapWriter
 
     class Sink(io.BytesIO):
         def close(self):
@@ -562,7 +562,7 @@ def test_a_capture_has_one_packet_per_burst_at_wall_clock_time(hubs):
 def test_a_collision_is_in_the_capture_and_marked(hubs):
     import io
 
-    from hil.view.pcap import PcapWriter
+    from hil.sim.pcap import PcapWriter
     sink = io.BytesIO()
     hub = hubs(3)
     hub.capture(PcapWriter(sink, *hub.capture_interfaces(), tsresol=9))

@@ -2,7 +2,7 @@
 submodules``): what crosses this process's own serial port and CAN bus, as pcapng for
 Wireshark (docs/wireshark.md).
 
-Interfaces (hil.view.pcap): ``R<id> radio, sent`` (each frame this process wrote to its
+Interfaces (hil.sim.pcap): ``R<id> radio, sent`` (each frame this process wrote to its
 radio's serial port, one packet, stamped when its last stop bit ends), ``R<id> radio, heard``
 (the bytes its serial port received, one packet per burst: a burst ends after two byte times
 without a byte; noise and cut frames stay in, the dissector flags them), and one CAN interface
@@ -16,7 +16,7 @@ from typing import Any, BinaryIO
 
 from firmware_model.timing import TICK_HZ
 
-from ..view.pcap import PcapWriter
+from ..sim.pcap import PcapWriter
 
 GAP_BYTES = 2
 """A heard burst ends after this many byte times without a byte."""

@@ -478,7 +478,7 @@ class RadioHub:
     # -- the capture (scheduler thread only) ----------------------------------------------
 
     def capture(self, writer: Any) -> None:
-        """Write every transmission to ``writer`` (hil.view.pcap.PcapWriter with
+        """Write every transmission to ``writer`` (hil.sim.pcap.PcapWriter with
         ``capture_interfaces()``), wall-clock timestamps. Call before ``start``."""
         if self._started:
             raise RuntimeError("start the capture before the hub")
@@ -640,7 +640,7 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
         hub = RadioHub(nodes, baud=baud, ber=ber, noise=noise, seed=seed, link_dir=link_dir,
                        drops=drops, faults=faults)
         if stream is not None:
-            from ..view.pcap import PcapWriter
+            from ..sim.pcap import PcapWriter
             hub.capture(PcapWriter(stream, *hub.capture_interfaces(), tsresol=9,
                                    live=pcap == "-"))
         old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}

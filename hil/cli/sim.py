@@ -158,7 +158,7 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         world = World(cfg, trace, on_event=sinks[0] if len(sinks) == 1 else
                       (lambda ev: [f(ev) for f in sinks]) if sinks else None)
         if pcap_file is not None:
-            from ..view.pcap import PcapWriter
+            from ..sim.pcap import PcapWriter
             world.capture(PcapWriter(pcap_file, *world.capture_interfaces()))
         t0 = time.perf_counter()
         end = world.end_tick

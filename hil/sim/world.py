@@ -309,7 +309,7 @@ class World:
         bus.trace = lambda frame, start, end, winner, r=r: self._on_can(r, frame, start, end)
 
     def capture(self, sink) -> None:
-        """Send every transmission and CAN frame to ``sink`` (hil.view.pcap.PcapWriter's
+        """Send every transmission and CAN frame to ``sink`` (hil.sim.pcap.PcapWriter's
         methods ``radio``, ``can``, ``can_error``), keyed as ``capture_interfaces`` names."""
         self.pcap = sink
         self._radio_key = {id(radio): key for key, radio in self.radios.items()}
