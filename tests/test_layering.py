@@ -18,10 +18,10 @@ ROOT = Path(__file__).resolve().parent.parent
 FORBIDDEN = {
     "can_bus": ("firmware_model", "hil"),
     "firmware_model": ("hil",),
-    "hil/sim": ("hil.bench", "hil.view", "hil.cli"),
-    "hil/bench": ("hil.view", "hil.cli"),
-    "hil/view": ("hil.cli",),
-    "hil/wireshark": ("hil.sim", "hil.bench", "hil.view", "hil.cli"),
+    "hil/sim": ("hil.bench", "hil.view", "hil.cli", "hil.campaign"),
+    "hil/bench": ("hil.view", "hil.cli", "hil.campaign"),
+    "hil/view": ("hil.cli", "hil.campaign"),
+    "hil/wireshark": ("hil.sim", "hil.bench", "hil.view", "hil.cli", "hil.campaign"),
 }
 
 

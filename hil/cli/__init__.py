@@ -13,14 +13,14 @@ import argparse
 import sys
 from typing import Sequence
 
-from . import (bench, codec, conformance, demo, hub, inject, monitor, plot, robots, sim, soak,
-               wireshark)
+from . import (bench, campaign, codec, conformance, demo, hub, inject, monitor, plot, robots, sim,
+               soak, wireshark)
 from .common import Parser, UserError
 
 __all__ = ["build_parser", "main", "UserError"]
 
-COMMANDS = (sim, demo, robots, plot, monitor, soak, hub, inject, bench, conformance, codec,
-            wireshark)
+COMMANDS = (sim, demo, robots, plot, monitor, soak, campaign, hub, inject, bench, conformance,
+            codec, wireshark)
 """Each adds its subcommands in this order (the order of ``rprs --help``)."""
 
 

@@ -103,21 +103,11 @@ class SoakResult:
         }
 
 
-def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
-             checksum: bool = True, can: bool = True, load: float = 0.5,
-             progress=None, faults: list[Fault] | None = None) -> SoakResult:
-    """Run the soak; ``progress(simulated_s)`` is called as it goes."""
-    rng = random.Random(f"{seed}:soak")
-    standby = 0 in robots
-    if faults is None:
-        faults = random_faults(rng, robots, hours, can, standby)
-    duration = hours * 3600.0
-    cfg = SimConfig(robots=robots, duration=duration, seed=seed, load=load,
-                    load_until=duration - 110.0, can=can, father_standby=standby,
-                    faults=tuple(faults), mac=MacConfig(checksum=checksum,
-                                                        max_age=s_to_ticks(60)))
-    t0 = time.perf_counter()
-    w = World(cfg)
+def run_timing_reformations(w: World, faults, progress=None) -> tuple[list[float], int]:
+    """Run ``w`` to its end in steps of SAMPLE_S; after each fault ends with no other active,
+    time how long until the ring is whole again (``World.ring_complete``). Returns those
+    times (s, to SAMPLE_S) and how many re-formations did not happen (within 4 x the bound,
+    or by the end). ``progress(simulated_s)`` is called at each step."""
     ends = sorted({round(f.end, 6) for f in faults if f.kind != "skew"})
     starts = [(f.at, f.end) for f in faults]
     reform: list[float] = []
@@ -145,6 +135,25 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
             progress(now_s)
     if pending_end is not None and not w.ring_complete():
         not_reformed += 1
+    return reform, not_reformed
+
+
+def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
+             checksum: bool = True, can: bool = True, load: float = 0.5,
+             progress=None, faults: list[Fault] | None = None) -> SoakResult:
+    """Run the soak; ``progress(simulated_s)`` is called as it goes."""
+    rng = random.Random(f"{seed}:soak")
+    standby = 0 in robots
+    if faults is None:
+        faults = random_faults(rng, robots, hours, can, standby)
+    duration = hours * 3600.0
+    cfg = SimConfig(robots=robots, duration=duration, seed=seed, load=load,
+                    load_until=duration - 110.0, can=can, father_standby=standby,
+                    faults=tuple(faults), mac=MacConfig(checksum=checksum,
+                                                        max_age=s_to_ticks(60)))
+    t0 = time.perf_counter()
+    w = World(cfg)
+    reform, not_reformed = run_timing_reformations(w, faults, progress)
     counts: dict[str, int] = {}
     for f in faults:
         counts[f.kind] = counts.get(f.kind, 0) + 1

@@ -1,0 +1,156 @@
+"""Running a campaign on Dask distributed (docs/campaigns.md).
+
+The embedded default is a ``LocalCluster`` with one single-threaded worker process per core;
+``scheduler="tcp://HOST:8786"`` runs the same campaign on a real cluster (``dask scheduler`` /
+``dask worker``, or dask-jobqueue on Slurm/PBS). Runs already in the results file are skipped
+(run-missing); results from another commit, or from a tree with uncommitted changes, are not
+mixed unless ``allow_dirty``. Runs go to the workers in chunks; the rows come back to this
+process, which alone writes the SQLite file, chunk by chunk (a killed campaign loses at most
+the chunks in flight).
+"""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from .runs import metrics_of, run_chunk
+from .seeds import run_key, run_seed
+from .spec import Spec
+from .store import Store, StoreError
+
+SOURCE = Path(__file__).resolve().parents[2]
+
+
+def source_state(root: Path = SOURCE) -> tuple[str, bool]:
+    """(commit, dirty) of the project's source: the git commit, and whether tracked files
+    differ from it. Not a git checkout (an installed package): ("rprs <version>", False)."""
+    try:
+        commit = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"],
+                                capture_output=True, text=True, timeout=10, check=True
+                                ).stdout.strip()
+        status = subprocess.run(["git", "-C", str(root), "status", "--porcelain",
+                                 "--untracked-files=no"], capture_output=True, text=True,
+                                timeout=10, check=True).stdout
+        return commit, bool(status.strip())
+    except (OSError, subprocess.SubprocessError):
+        from importlib.metadata import PackageNotFoundError, version
+        try:
+            return f"rprs {version('rprs')}", False
+        except PackageNotFoundError:
+            return "unknown", False
+
+
+@dataclass
+class Outcome:
+    planned: int
+    skipped: int
+    ran: int
+    crashed: int
+    wall_s: float
+    task_s: float
+    chunks: int
+    workers: int = 1
+
+    @property
+    def overhead(self) -> float:
+        """Share of the workers' time (wall time x workers) not spent inside runs: scheduling,
+        transfers, the database, and workers idle at the end for want of work."""
+        if self.wall_s <= 0:
+            return 0.0
+        return max(0.0, 1.0 - self.task_s / (self.wall_s * self.workers))
+
+
+def plan(spec: Spec, done: set[str]) -> list[tuple]:
+    """Every (run key, point key, args, index, seed) of ``spec`` not in ``done``."""
+    items = []
+    for p in spec.points:
+        for i in range(spec.seeds):
+            k = run_key(p.key, i)
+            if k not in done:
+                items.append((k, p.key, p.args, i, run_seed(spec.root_seed, p.key, i)))
+    return items
+
+
+def chunked(items: list, workers: int, chunk: int = 0) -> list[list]:
+    """Split into chunks: ``chunk`` runs each, or by default about 4 chunks per worker, at
+    most 25 runs a chunk (a killed campaign then loses little)."""
+    if not items:
+        return []
+    n = chunk or max(1, min(25, math.ceil(len(items) / (4 * max(1, workers)))))
+    return [items[i:i + n] for i in range(0, len(items), n)]
+
+
+def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
+                 workers: int | None = None, allow_dirty: bool = False,
+                 measure: Callable[[Any], dict] = metrics_of,
+                 on_progress: Callable[[int, int], None] | None = None,
+                 client: Any = None) -> Outcome:
+    """Run every missing run of ``spec`` into ``store``. StoreError when results would mix
+    commits or come from a dirty tree (unless ``allow_dirty``)."""
+    commit, dirty = source_state()
+    if not allow_dirty:
+        if dirty:
+            raise StoreError("the source tree has uncommitted changes: commit them, or "
+                             "--allow-dirty to run anyway (rows are marked dirty)")
+        other = {c for c, d in store.commits() if c != commit or d}
+        if other:
+            raise StoreError(f"{store.path} holds runs made with {', '.join(sorted(other))}; "
+                             f"this source is {commit}: use another --db, or --allow-dirty "
+                             "to mix them")
+    store.claim(spec.name, spec.root_seed)
+    done = store.done()
+    items = plan(spec, done)
+    skipped = spec.runs - len(items)
+    if not items:
+        return Outcome(spec.runs, skipped, 0, 0, 0.0, 0.0, 0)
+    own = client is None
+    cluster = None
+    if own:
+        from dask.distributed import Client, LocalCluster
+        if scheduler:
+            client = Client(scheduler, timeout="30s")
+        else:
+            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1,
+                                   threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=40)
+            client = Client(cluster)
+    try:
+        from dask.distributed import as_completed
+        if cluster is not None:
+            client.wait_for_workers(workers or os.cpu_count() or 1, timeout=120)
+        elif workers:                        # a real cluster: wait until that many joined
+            client.wait_for_workers(workers, timeout=300)
+        nworkers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
+        t0 = time.perf_counter()             # the runs' wall time, not the cluster's start
+        chunks = chunked(items, nworkers, spec.chunk)
+        futures = client.map(run_chunk, chunks, measure=measure, pure=False)
+        ran = crashed = 0
+        task_s = 0.0
+        todo = {f.key: c for f, c in zip(futures, chunks)}
+        for fut in as_completed(futures):
+            chunk = todo[fut.key]
+            try:
+                rows = fut.result()
+            except Exception as e:    # noqa: BLE001 - a lost worker: its runs are recorded
+                rows = [{"run_key": k, "point_key": pk, "args": list(a), "seed_index": i,
+                         "seed": s, "status": "crashed", "metrics": None, "wall_s": 0.0,
+                         "worker": "?", "error": f"the task failed: {type(e).__name__}: {e}"}
+                        for k, pk, a, i, s in chunk]
+            store.add(rows, commit, dirty)
+            ran += len(rows)
+            crashed += sum(1 for r in rows if r["status"] != "ok")
+            task_s += sum(r["wall_s"] for r in rows)
+            if on_progress is not None:
+                on_progress(ran, len(items))
+    finally:
+        if own:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    wall = time.perf_counter() - t0
+    return Outcome(spec.runs, skipped, ran, crashed, wall, task_s, len(chunks), nworkers)

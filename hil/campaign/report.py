@@ -1,0 +1,147 @@
+"""A campaign's statistics, per grid point, with confidence intervals (docs/campaigns.md).
+
+* Proportions (messages failed, runs that broke an invariant): the Wilson score interval,
+  95 %: ``(p + z^2/2n -+ z sqrt(p(1-p)/n + z^2/4n^2)) / (1 + z^2/n)``, z = 1.96. It stays
+  inside [0, 1] and is sound for 0 or n successes, where the normal interval is not. Messages
+  of one run are not independent (a dead robot fails several at once): the message rate is
+  pooled over runs and its interval is narrower than the truth; the per-run rate is not.
+* Percentiles (the longest re-formation of a run): the empirical quantile, and a 95 %
+  percentile-bootstrap interval (resampling runs with replacement, 2000 times, a fixed seed).
+* Every run that broke an invariant or crashed, as the ``rprs sim`` command that repeats it.
+"""
+from __future__ import annotations
+
+import json
+import math
+from collections import defaultdict
+from typing import Any
+
+from .runs import broken
+
+Z95 = 1.959963984540054
+
+
+def wilson(k: int, n: int, z: float = Z95) -> tuple[float, float]:
+    """The Wilson score interval of ``k`` successes in ``n`` trials."""
+    if n <= 0:
+        return (0.0, 1.0)
+    p = k / n
+    d = 1 + z * z / n
+    c = p + z * z / (2 * n)
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    lo = 0.0 if k == 0 else max(0.0, (c - h) / d)
+    hi = 1.0 if k == n else min(1.0, (c + h) / d)
+    return (lo, hi)
+
+
+def bootstrap_quantile(values: list[float], q: float, n_boot: int = 2000,
+                       seed: int = 0) -> tuple[float, float, float]:
+    """(empirical ``q`` quantile, 95 % bootstrap low, high) of ``values``."""
+    import numpy as np
+    v = np.asarray(values, dtype=float)
+    est = float(np.quantile(v, q))
+    if len(v) < 2:
+        return est, est, est
+    rng = np.random.default_rng(seed)
+    boots = np.quantile(v[rng.integers(0, len(v), size=(n_boot, len(v)))], q, axis=1)
+    return est, float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))
+
+
+def command(row: dict[str, Any]) -> str:
+    """The one-line ``rprs sim`` command that repeats a run exactly."""
+    import shlex
+    return "rprs sim " + " ".join(shlex.quote(a) for a in row["args"]) + f" --seed {row['seed']}"
+
+
+def _broke(row: dict[str, Any]) -> list[str]:
+    return broken(row["metrics"] if row["status"] == "ok" else None, row["args"])
+
+
+def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per grid point: counts, rates with Wilson intervals, re-formation quantiles with
+    bootstrap intervals, and the failing runs' commands."""
+    by_point: dict[str, list[dict]] = defaultdict(list)
+    for r in rows:
+        by_point[r["point_key"]].append(r)
+    out = []
+    for key in sorted(by_point):
+        runs = by_point[key]
+        ok = [r for r in runs if r["status"] == "ok"]
+        sub = sum(r["metrics"]["submitted"] for r in ok)
+        fail = sum(r["metrics"]["failed"] for r in ok)
+        bad = [r for r in runs if _broke(r)]
+        reform = [r["metrics"]["reform_max_s"] for r in ok
+                  if r["metrics"]["reform_max_s"] is not None]
+        point = {
+            "point": json.loads(key), "runs": len(runs), "crashed": len(runs) - len(ok),
+            "messages": sub, "failed": fail,
+            "failed_rate": fail / sub if sub else None, "failed_ci95": wilson(fail, sub),
+            "runs_broken": len(bad), "runs_broken_rate": len(bad) / len(runs),
+            "runs_broken_ci95": wilson(len(bad), len(runs)),
+            "reform_runs": len(reform),
+            "corrupted_acted_on": sum(r["metrics"]["corrupted_acted_on"] for r in ok),
+            "failing": [{"command": command(r), "broke": _broke(r)} for r in bad],
+        }
+        for q, name in ((0.5, "p50"), (0.99, "p99"), (0.999, "p99.9")):
+            if reform:
+                est, lo, hi = bootstrap_quantile(reform, q)
+                point[f"reform_{name}_s"] = [round(est, 3), round(lo, 3), round(hi, 3)]
+        out.append(point)
+    return out
+
+
+def plot(points: list[dict[str, Any]], rows: list[dict[str, Any]], directory) -> list[str]:
+    """failure rate against BER per ring size (when the grid varies ``ber``) and the CDF of
+    each point's longest re-formation; PNG files written into ``directory``."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from pathlib import Path
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    written = []
+    bers = {p["point"].get("ber", 0.0) for p in points}
+    if len(bers) > 1:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        series: dict[str, list] = defaultdict(list)
+        for p in points:
+            rest = {k: v for k, v in p["point"].items() if k != "ber"}
+            if p["failed_rate"] is not None:
+                series[json.dumps(rest, sort_keys=True)].append(
+                    (p["point"].get("ber", 0.0), p["failed_rate"], *p["failed_ci95"]))
+        for label, pts in sorted(series.items()):
+            pts.sort()
+            x = [a[0] for a in pts]
+            y = [a[1] for a in pts]
+            err = [[max(0.0, a[1] - a[2]) for a in pts], [max(0.0, a[3] - a[1]) for a in pts]]
+            ax.errorbar(x, y, yerr=err, marker="o", capsize=3,
+                        label=json.loads(label).get("robots", label))
+        ax.set_xlabel("byte error rate")
+        ax.set_ylabel("messages failed (Wilson 95 %)")
+        ax.legend(title="robots", fontsize=8)
+        f = d / "failure_vs_ber.png"
+        fig.tight_layout()
+        fig.savefig(f, dpi=100)
+        plt.close(fig)
+        written.append(str(f))
+    fig, ax = plt.subplots(figsize=(6, 4))
+    any_line = False
+    by_point: dict[str, list[float]] = defaultdict(list)
+    for r in rows:
+        if r["status"] == "ok" and r["metrics"]["reform_max_s"] is not None:
+            by_point[r["point_key"]].append(r["metrics"]["reform_max_s"])
+    for key, vals in sorted(by_point.items()):
+        vals.sort()
+        ax.step(vals, [(i + 1) / len(vals) for i in range(len(vals))], where="post",
+                label=key[:60])
+        any_line = True
+    if any_line:
+        ax.set_xlabel("longest ring re-formation of a run (s)")
+        ax.set_ylabel("share of runs")
+        ax.legend(fontsize=6)
+        f = d / "reformation_cdf.png"
+        fig.tight_layout()
+        fig.savefig(f, dpi=100)
+        written.append(str(f))
+    plt.close(fig)
+    return written

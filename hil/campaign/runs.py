@@ -1,0 +1,97 @@
+"""One run of a campaign: a grid point's ``rprs sim`` arguments and a seed in, one row out.
+
+This is what the Dask workers execute (``run_chunk``). A run that raises is recorded as
+``crashed`` with its traceback, never dropped. The metrics are the soak's invariants
+(hil/sim/soak.py) and the delivery accounting of ``World.summary``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import socket
+import time
+import traceback
+from typing import Any, Callable, Sequence
+
+from ..sim.soak import run_timing_reformations
+from ..sim.world import SimConfig, World
+
+Item = tuple[str, str, tuple[str, ...], int, int]
+"""(run key, point key, rprs sim arguments, seed index, seed)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise ValueError(message)
+
+
+def sim_config_for(args: Sequence[str], seed: int) -> SimConfig:
+    """The SimConfig ``rprs sim ARGS --seed SEED`` runs; ValueError for what it refuses."""
+    from ..cli.common import UserError
+    from ..cli.sim import add_sim_options, sim_config
+    p = _Parser(prog="rprs sim", add_help=False)
+    add_sim_options(p)
+    a = p.parse_args([*args, "--seed", str(seed)])
+    try:
+        return sim_config(a)
+    except UserError as e:
+        raise ValueError(str(e)) from None
+
+
+def check_args(args: Sequence[str]) -> None:
+    """ValueError if ``rprs sim ARGS`` would refuse them."""
+    sim_config_for(args, 0)
+
+
+def metrics_of(cfg: SimConfig) -> dict[str, Any]:
+    """Run the world of ``cfg`` to its end; the campaign's metrics."""
+    w = World(cfg)
+    reform, not_reformed = run_timing_reformations(w, cfg.faults)
+    s = w.summary()
+    return {
+        "submitted": s["submitted"], "delivered": s["delivered"], "failed": s["failed"],
+        "pending": s["pending"], "duplicates": s["duplicate_deliveries"],
+        "misdelivered": s["wrong_robot_deliveries"],
+        "corrupted_acted_on": s["corrupt_deliveries"], "collisions": s["collisions"],
+        "membership_changes": len(s["membership_changes"]),
+        "reformations": len(reform), "reform_max_s": max(reform) if reform else None,
+        "not_reformed": not_reformed,
+    }
+
+
+def broken(m: dict[str, Any] | None, args: Sequence[str] = ()) -> list[str]:
+    """The invariants a run's metrics break (docs/guarantees.md). A corrupted command acted
+    on breaks one only with the checksum extension (``--checksum`` in ``args``): without it
+    the count is what the paper's frame lets through."""
+    if m is None:
+        return ["crashed"]
+    out = []
+    if m["duplicates"]:
+        out.append("delivered twice")
+    if m["misdelivered"]:
+        out.append("delivered to the wrong robot")
+    if m["corrupted_acted_on"] and "--checksum" in args:
+        out.append("acted on a corrupted command")
+    if m["not_reformed"]:
+        out.append("ring did not re-form")
+    return out
+
+
+def run_one(item: Item, measure: Callable[[SimConfig], dict] = metrics_of) -> dict[str, Any]:
+    """One run as a database row (``status`` ok or crashed, with the traceback)."""
+    key, point_key, args, index, seed = item
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {"run_key": key, "point_key": point_key, "args": list(args),
+                           "seed_index": index, "seed": seed,
+                           "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    try:
+        row.update(status="ok", error=None, metrics=measure(sim_config_for(args, seed)))
+    except Exception:   # noqa: BLE001 - a crashed run is a result, recorded with its cause
+        row.update(status="crashed", error=traceback.format_exc(), metrics=None)
+    row["wall_s"] = time.perf_counter() - t0
+    return row
+
+
+def run_chunk(items: list[Item], measure: Callable[[SimConfig], dict] = metrics_of) -> list[dict]:
+    """Several runs in one task (fewer tasks: less scheduling overhead)."""
+    return [run_one(it, measure) for it in items]

@@ -1,0 +1,144 @@
+"""A campaign's specification: a TOML file naming a grid of ``rprs sim`` parameters and the
+seeds per point (docs/campaigns.md).
+
+    [campaign]
+    name = "ber-vs-ring"
+    seeds = 20                  # runs per grid point
+    root_seed = 2026            # every run's seed derives from it (seeds.py)
+    duration = 60               # simulated seconds, unless the grid says otherwise
+
+    [grid]                      # every combination of these is one point
+    robots = ["0,1,2", "0,1,2,3,4"]
+    ber = [0.0, 0.001]
+    checksum = [false, true]
+    fault = [[], ["fail:2@10", "recover:2@20"]]
+
+Grid keys are ``rprs sim`` options without the dashes (``father_standby`` for
+``--father-standby``): a boolean is a flag, ``fault`` (and ``fail``, ``recover``, ``power``)
+a list of values for the repeatable option, anything else one value. Each point is checked
+with ``rprs sim``'s own option parser before anything runs, so a bad value is one clear error.
+Outputs (``trace``, ``vcd``, ``pcap``, ``json``) and ``seed`` are the campaign's, not the
+grid's.
+"""
+from __future__ import annotations
+
+import itertools
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+REPEATABLE = ("fault", "fail", "recover", "power")
+NOT_IN_GRID = ("seed", "trace", "vcd", "pcap", "json", "no_progress", "cpu_report")
+
+
+class SpecError(ValueError):
+    """A campaign file that cannot be run; the message says where and why."""
+
+
+@dataclass(frozen=True)
+class Point:
+    """One grid point: its parameters and the ``rprs sim`` arguments they make."""
+
+    params: tuple[tuple[str, Any], ...]
+    args: tuple[str, ...]
+
+    @property
+    def key(self) -> str:
+        """Canonical text of the parameters: the point's identity in the database."""
+        return json.dumps(dict(self.params), sort_keys=True, separators=(",", ":"))
+
+
+@dataclass(frozen=True)
+class Spec:
+    name: str
+    seeds: int
+    root_seed: int
+    points: tuple[Point, ...]
+    chunk: int
+
+    @property
+    def runs(self) -> int:
+        return self.seeds * len(self.points)
+
+
+def _args(params: dict[str, Any]) -> tuple[str, ...]:
+    out: list[str] = []
+    for k in sorted(params):
+        v = params[k]
+        opt = "--" + k.replace("_", "-")
+        if isinstance(v, bool):
+            if v:
+                out.append(opt)
+        elif k in REPEATABLE:
+            for item in v:
+                out += [opt, str(item)]
+        else:
+            out += [opt, str(v)]
+    return tuple(out)
+
+
+def points_of(grid: dict[str, list[Any]], base: dict[str, Any]) -> tuple[Point, ...]:
+    keys = sorted(grid)
+    out = []
+    for combo in itertools.product(*(grid[k] for k in keys)):
+        params = dict(base)
+        params.update(zip(keys, combo))
+        out.append(Point(tuple(sorted(params.items(), key=lambda kv: kv[0])), _args(params)))
+    return tuple(out)
+
+
+def load_spec(path: str | Path, check=None) -> Spec:
+    """Read and check a campaign file. ``check(args)`` raises ValueError for arguments
+    ``rprs sim`` refuses (the CLI passes its parser)."""
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as e:
+        raise SpecError(f"cannot read campaign file {path}: {e.strerror}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise SpecError(f"{path}: not TOML: {e}") from None
+    unknown = set(data) - {"campaign", "grid"}
+    if unknown:
+        raise SpecError(f"{path}: unknown table(s) {', '.join(sorted(unknown))}; "
+                        "use [campaign] and [grid]")
+    camp = data.get("campaign", {})
+    grid = data.get("grid", {})
+    if not isinstance(camp, dict) or not isinstance(grid, dict):
+        raise SpecError(f"{path}: [campaign] and [grid] must be tables")
+    extra = set(camp) - {"name", "seeds", "root_seed", "duration", "chunk"}
+    if extra:
+        raise SpecError(f"{path}: unknown [campaign] key(s) {', '.join(sorted(extra))}")
+    name = camp.get("name", Path(path).stem)
+    seeds = camp.get("seeds", 10)
+    root = camp.get("root_seed", 0)
+    chunk = camp.get("chunk", 0)
+    for what, v, lo in (("seeds", seeds, 1), ("root_seed", root, 0), ("chunk", chunk, 0)):
+        if not isinstance(v, int) or isinstance(v, bool) or v < lo:
+            raise SpecError(f"{path}: [campaign] {what} must be an integer >= {lo}, got {v!r}")
+    if not isinstance(name, str) or not name:
+        raise SpecError(f"{path}: [campaign] name must be a non-empty string")
+    base: dict[str, Any] = {}
+    if "duration" in camp:
+        base["duration"] = camp["duration"]
+    for k, v in grid.items():
+        if k in NOT_IN_GRID:
+            raise SpecError(f"{path}: [grid] {k}: the campaign sets it (seeds derive from "
+                            "root_seed; outputs are the database)")
+        if not isinstance(v, list) or not v:
+            raise SpecError(f"{path}: [grid] {k} must be a non-empty list of values")
+        if k in REPEATABLE and not all(isinstance(x, list) for x in v):
+            raise SpecError(f"{path}: [grid] {k}: each value is a list of {k} specs, e.g. "
+                            f"{k} = [[], [\"...\"]]")
+    points = points_of(grid, base)
+    if check is not None:
+        for p in points:
+            try:
+                check(p.args)
+            except ValueError as e:
+                raise SpecError(f"{path}: grid point {p.key}: {e}") from None
+    return Spec(name, seeds, root, points, chunk)

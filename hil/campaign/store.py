@@ -1,0 +1,120 @@
+"""A campaign's results: one SQLite file, one row per run (docs/campaigns.md).
+
+Table ``runs``: ``run_key`` (primary key: a run is stored once), ``point_key`` (the grid
+point's canonical parameters, JSON), ``args`` (its ``rprs sim`` arguments, JSON), ``seed_index``,
+``seed``, ``status`` (``ok`` or ``crashed``), ``error`` (the traceback of a crashed run),
+``metrics`` (JSON), ``wall_s``, ``worker``, ``commit_id`` and ``dirty`` (the source the run
+was made with), ``finished_at`` (UTC). Table ``meta``: the campaign's name and root seed.
+"""
+from __future__ import annotations
+
+import csv
+import datetime
+import json
+import sqlite3
+from pathlib import Path
+from typing import Any, Iterable
+
+COLUMNS = ("run_key", "point_key", "args", "seed_index", "seed", "status", "error", "metrics",
+           "wall_s", "worker", "commit_id", "dirty", "finished_at")
+
+
+class StoreError(ValueError):
+    """A results file that cannot be opened or does not belong to this campaign."""
+
+
+class Store:
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        try:
+            self.db = sqlite3.connect(self.path)
+            self.db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
+            self.db.execute(
+                "CREATE TABLE IF NOT EXISTS runs (run_key TEXT PRIMARY KEY, point_key TEXT, "
+                "args TEXT, seed_index INTEGER, seed INTEGER, status TEXT, error TEXT, "
+                "metrics TEXT, wall_s REAL, worker TEXT, commit_id TEXT, dirty INTEGER, "
+                "finished_at TEXT)")
+            self.db.commit()
+        except sqlite3.DatabaseError as e:
+            raise StoreError(f"{path}: not a campaign results file ({e})") from None
+
+    def close(self) -> None:
+        self.db.close()
+
+    # -- meta -------------------------------------------------------------------------------
+    def meta(self) -> dict[str, str]:
+        return dict(self.db.execute("SELECT key, value FROM meta"))
+
+    def claim(self, name: str, root_seed: int) -> None:
+        """Mark the file as this campaign's; StoreError if it holds another one."""
+        m = self.meta()
+        want = {"name": name, "root_seed": str(root_seed)}
+        for k, v in want.items():
+            if k in m and m[k] != v:
+                raise StoreError(f"{self.path} holds campaign {m.get('name')!r} with "
+                                 f"root_seed {m.get('root_seed')}, not {name!r} with "
+                                 f"root_seed {root_seed}: use another --db")
+        self.db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", want.items())
+        self.db.commit()
+
+    # -- runs -------------------------------------------------------------------------------
+    def done(self) -> set[str]:
+        return {k for (k,) in self.db.execute("SELECT run_key FROM runs")}
+
+    def commits(self) -> set[tuple[str, int]]:
+        return set(self.db.execute("SELECT DISTINCT commit_id, dirty FROM runs"))
+
+    def add(self, rows: Iterable[dict[str, Any]], commit_id: str, dirty: bool) -> int:
+        """Store rows (a run already stored is kept as it was); returns how many were new."""
+        now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+        cur = self.db.executemany(
+            "INSERT OR IGNORE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            [(r["run_key"], r["point_key"], json.dumps(r["args"]), r["seed_index"], r["seed"],
+              r["status"], r["error"], json.dumps(r["metrics"]), r["wall_s"], r["worker"],
+              commit_id, int(dirty), now) for r in rows])
+        self.db.commit()
+        return cur.rowcount
+
+    def rows(self) -> list[dict[str, Any]]:
+        out = []
+        for values in self.db.execute(f"SELECT {', '.join(COLUMNS)} FROM runs "
+                                      "ORDER BY point_key, seed_index"):
+            r = dict(zip(COLUMNS, values))
+            r["args"] = json.loads(r["args"])
+            r["metrics"] = json.loads(r["metrics"]) if r["metrics"] else None
+            out.append(r)
+        return out
+
+    # -- export -----------------------------------------------------------------------------
+    def flat_rows(self) -> list[dict[str, Any]]:
+        """One flat dict a run: the columns, each grid parameter and each metric."""
+        out = []
+        for r in self.rows():
+            flat = {k: v for k, v in r.items() if k not in ("metrics", "args")}
+            flat["args"] = " ".join(r["args"])
+            flat.update({f"param_{k}": json.dumps(v) if isinstance(v, list) else v
+                         for k, v in json.loads(r["point_key"]).items()})
+            flat.update({f"m_{k}": v for k, v in (r["metrics"] or {}).items()})
+            out.append(flat)
+        return out
+
+    def export_csv(self, path: str | Path) -> int:
+        rows = self.flat_rows()
+        fields = sorted({k for r in rows for k in r}, key=lambda k: (
+            COLUMNS.index(k) if k in COLUMNS else len(COLUMNS), k))
+        with open(path, "w", newline="", encoding="utf-8") as fh:
+            w = csv.DictWriter(fh, fieldnames=fields)
+            w.writeheader()
+            w.writerows(rows)
+        return len(rows)
+
+    def export_parquet(self, path: str | Path) -> int:
+        try:
+            import pandas as pd
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise StoreError("Parquet needs pandas and pyarrow (pip install pandas pyarrow); "
+                             "--csv needs nothing more") from None
+        rows = self.flat_rows()
+        pd.DataFrame(rows).to_parquet(path, index=False)
+        return len(rows)

@@ -1,0 +1,158 @@
+"""``rprs campaign run|report|export``: thousands of seeded simulator runs on Dask, their
+results in SQLite, statistics with confidence intervals (hil/campaign, docs/campaigns.md)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .common import UserError, stderr_console
+
+
+def _db_for(spec_path: str, db: str | None) -> str:
+    return db or str(Path(spec_path).with_suffix(".sqlite"))
+
+
+def cmd_run(a: argparse.Namespace) -> int:
+    from ..campaign.engine import run_campaign
+    from ..campaign.runs import check_args
+    from ..campaign.spec import SpecError, load_spec
+    from ..campaign.store import Store, StoreError
+    if a.workers is not None and a.workers < 1:
+        raise UserError("--workers must be at least 1")
+    try:
+        spec = load_spec(a.spec, check=check_args)
+    except SpecError as e:
+        raise UserError(str(e)) from None
+    db = _db_for(a.spec, a.db)
+    try:
+        store = Store(db)
+    except StoreError as e:
+        raise UserError(str(e)) from None
+    progress = None
+    bar = None
+    if not a.no_progress and sys.stderr.isatty():
+        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
+                                   TimeRemainingColumn)
+        bar = Progress(TextColumn(f"campaign {spec.name}"), BarColumn(), MofNCompleteColumn(),
+                       TextColumn("{task.fields[rate]} runs/s"), TimeRemainingColumn(),
+                       console=stderr_console(), transient=True)
+        task = bar.add_task("runs", total=None, rate="-")
+        import time
+        t0 = time.perf_counter()
+
+        def progress(done: int, total: int) -> None:
+            dt = time.perf_counter() - t0
+            bar.update(task, completed=done, total=total,
+                       rate=f"{done / dt:.1f}" if dt > 0 else "-")
+        bar.start()
+    try:
+        out = run_campaign(spec, store, scheduler=a.scheduler, workers=a.workers,
+                           allow_dirty=a.allow_dirty, on_progress=progress)
+    except StoreError as e:
+        raise UserError(str(e)) from None
+    except OSError as e:
+        raise UserError(f"cannot reach the Dask scheduler {a.scheduler}: {e}") from None
+    finally:
+        if bar is not None:
+            bar.stop()
+        store.close()
+    print(f"campaign {spec.name}: {out.planned} runs planned, {out.skipped} already in {db}, "
+          f"{out.ran} run now ({out.crashed} crashed) in {out.wall_s:.1f} s on "
+          f"{out.workers} worker(s), {out.chunks} chunks; time not in runs "
+          f"{out.overhead * 100:.1f} %")
+    return 0
+
+
+def cmd_report(a: argparse.Namespace) -> int:
+    from ..campaign.report import plot, summarize
+    from ..campaign.store import Store, StoreError
+    if not Path(a.db).is_file():
+        raise UserError(f"no results file {a.db}")
+    try:
+        store = Store(a.db)
+        rows = store.rows()
+    except StoreError as e:
+        raise UserError(str(e)) from None
+    points = summarize(rows)
+    if a.plots:
+        try:
+            files = plot(points, rows, a.plots)
+        except OSError as e:
+            raise UserError(f"cannot write plots into {a.plots}: {e.strerror}") from None
+    else:
+        files = []
+    if a.json:
+        print(json.dumps({"points": points, "plots": files}, indent=1))
+        return 0
+    meta = store.meta()
+    print(f"campaign {meta.get('name', '?')} (root seed {meta.get('root_seed', '?')}): "
+          f"{len(rows)} runs, {sum(p['crashed'] for p in points)} crashed")
+    for p in points:
+        print(f"\n{json.dumps(p['point'], sort_keys=True)}: {p['runs']} runs")
+        if p["failed_rate"] is not None:
+            lo, hi = p["failed_ci95"]
+            print(f"  messages failed: {p['failed']}/{p['messages']} = "
+                  f"{p['failed_rate']:.4f} (95 % CI {lo:.4f}-{hi:.4f})")
+        if p["corrupted_acted_on"]:
+            print(f"  corrupted commands acted on: {p['corrupted_acted_on']}")
+        lo, hi = p["runs_broken_ci95"]
+        print(f"  runs that broke an invariant or crashed: {p['runs_broken']}/{p['runs']} "
+              f"(95 % CI {lo:.3f}-{hi:.3f})")
+        for name in ("p50", "p99", "p99.9"):
+            v = p.get(f"reform_{name}_s")
+            if v:
+                print(f"  longest re-formation {name}: {v[0]} s (95 % CI {v[1]}-{v[2]}, "
+                      f"{p['reform_runs']} runs)")
+        for f in p["failing"]:
+            print(f"  FAILED ({', '.join(f['broke'])}): {f['command']}")
+    for f in files:
+        print(f"plot: {f}")
+    return 0
+
+
+def cmd_export(a: argparse.Namespace) -> int:
+    from ..campaign.store import Store, StoreError
+    if not Path(a.db).is_file():
+        raise UserError(f"no results file {a.db}")
+    if not (a.csv or a.parquet):
+        raise UserError("give --csv FILE and/or --parquet FILE")
+    try:
+        store = Store(a.db)
+        for path, fn in ((a.csv, store.export_csv), (a.parquet, store.export_parquet)):
+            if path:
+                print(f"{fn(path)} runs -> {path}")
+    except StoreError as e:
+        raise UserError(str(e)) from None
+    except OSError as e:
+        raise UserError(f"cannot write {e.filename}: {e.strerror}") from None
+    return 0
+
+
+def add(sub) -> None:
+    ca = sub.add_parser("campaign", help="many seeded simulator runs on Dask, with statistics")
+    csub = ca.add_subparsers(dest="campaign_command", metavar="ACTION", required=True,
+                             parser_class=type(ca))
+    r = csub.add_parser("run", help="run every missing (grid point, seed) of a campaign file")
+    r.add_argument("spec", metavar="SPEC.toml", help="the campaign file (docs/campaigns.md)")
+    r.add_argument("--db", metavar="FILE", help="the results file (default: SPEC.sqlite)")
+    r.add_argument("--scheduler", metavar="tcp://HOST:8786", help="a running Dask scheduler "
+                   "(default: a local cluster, one worker per core)")
+    r.add_argument("--workers", type=int, help="local cluster: worker processes (default: "
+                   "one per core); with --scheduler: wait until that many workers joined")
+    r.add_argument("--allow-dirty", action="store_true", help="run from a tree with "
+                   "uncommitted changes, or add to results of another commit")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.set_defaults(func=cmd_run)
+    rep = csub.add_parser("report", help="per grid point: rates with Wilson intervals, "
+                          "re-formation quantiles, the failing runs as commands")
+    rep.add_argument("db", metavar="RESULTS.sqlite")
+    rep.add_argument("--plots", metavar="DIR", help="write PNG plots into DIR")
+    rep.add_argument("--json", action="store_true", help="print the statistics as JSON")
+    rep.set_defaults(func=cmd_report)
+    ex = csub.add_parser("export", help="the runs as CSV or Parquet (pandas, DuckDB)")
+    ex.add_argument("db", metavar="RESULTS.sqlite")
+    ex.add_argument("--csv", metavar="FILE")
+    ex.add_argument("--parquet", metavar="FILE")
+    ex.set_defaults(func=cmd_export)
