@@ -269,8 +269,19 @@ def test_cli_run_report_and_export(spec_file, tmp_path):
     data = json.loads(rep.stdout)
     assert len(data["points"]) == 2 and all(p["runs"] == 2 for p in data["points"])
     assert all(Path(f).is_file() for f in data["plots"])
-    ex = rprs("campaign", "export", str(db), "--csv", str(tmp_path / "runs.csv"))
-    assert ex.returncode == 0 and (tmp_path / "runs.csv").read_text().count("\n") == 5
+    ex = rprs("campaign", "export", str(db), "--csv", str(tmp_path / "runs.csv"),
+              "--parquet", str(tmp_path / "runs.parquet"))
+    assert ex.returncode == 0, ex.stderr
+    import csv
+    with open(tmp_path / "runs.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == 4 and {r["status"] for r in table} == {"ok"}
+    assert {r["param_robots"] for r in table} == {"1,2", "0,1,2"}
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow not installed (the 'test' "
+                             "extra has it)")
+    t = pq.read_table(tmp_path / "runs.parquet").to_pylist()
+    assert sorted((r["run_key"], r["m_submitted"]) for r in t) == \
+        sorted((r["run_key"], int(r["m_submitted"])) for r in table)
 
 
 @pytest.mark.parametrize("args,words", [

@@ -3,8 +3,11 @@ the simulator and on the pty radio hub with real ``rprs child`` processes (issue
 simulator predicts the bench"; the original finding was made this way, by writing random
 bytes into a third node's pty).
 
-The hub run is measured first: the test writes N random bytes into a spare node right after it
-hears a frame from R1 end (R2's turn is starting), and a passive sniffer times everything. The
+The hub run is measured first: the hub's air itself puts N random bytes on air 1.5 ms after the
+end of an R1 frame (R2's turn is starting), in the air's own clock, and a passive sniffer
+times everything. (Writing them into a spare node when the sniffer heard R1's End put them at
+an offset known only to the sniffer's few milliseconds of latency: near R2's start, 5 ms
+after the End, the two worlds then saw different scenarios, and the test was flaky.) The
 simulator then runs the same ring with the real-time margins the processes use
 (``realtime_config``), puts the same bytes on air at the same offset from the end of an R1
 frame, and the two outcomes are compared:
@@ -18,7 +21,6 @@ frame, and the two outcomes are compared:
 """
 from __future__ import annotations
 
-import os
 import random
 import time
 
@@ -46,32 +48,56 @@ def outcome(frames, t0, n, src_key="src"):
     return first[0], (first[1] - t0) / 16_000, misses
 
 
+OFFSET_TICKS = 24_000
+"""The burst starts 1.5 ms after R1's End: inside R2's Ttrans switch (5 ms), so that R2's
+frame always runs into it, whatever the processes' few milliseconds of latency."""
+
+
+class _EndOfR1:
+    """A capture sink for the hub (``RadioHub.capture``): at the end of R1's next whole frame
+    (node 0), once armed, it puts the burst on the hub's air ``OFFSET_TICKS`` later, in the
+    air's own clock, and notes the sniffer's clock then."""
+
+    tsresol = 9
+    epoch_units = 0
+
+    def __init__(self, hub, sniffer, data):
+        self.hub, self.sniffer, self.data = hub, sniffer, data
+        self.armed = False
+        self.t0 = None
+
+    def radio(self, key, tick, data, comment=None):
+        if self.armed and key == 0 and comment is None and data.startswith(b"\x0f\x0a\x05"):
+            self.armed = False
+            self.hub.sched.at(tick + OFFSET_TICKS, self._inject)
+
+    def _inject(self):
+        self.t0 = self.sniffer.tick()
+        self.hub.air.inject(self.data)
+
+
 def hub_run(n, seed):
-    hub = RadioHub(nodes=4, seed=1).start()
+    hub = RadioHub(nodes=4, seed=1)
     kids = [spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", "1,2")
             for i in (1, 2)]
     sniffer = bench.Sniffer(hub.paths[3]).start()
-    fd = os.open(hub.paths[2], os.O_RDWR | os.O_NOCTTY)
+    trigger = _EndOfR1(hub, sniffer, random.Random(seed).randbytes(n))
+    hub.capture(trigger)
+    hub.start()
     try:
         assert wait_for(lambda: ring_is(sniffer, [1, 2]), 40.0), "the ring did not form"
-        last = sniffer.snapshot()[-1].end
-        assert wait_for(lambda: sniffer.snapshot()[-1].end > last and
-                        sniffer.snapshot()[-1].src == 1, 5.0)
-        e1 = sniffer.snapshot()[-1].end
-        data = random.Random(seed).randbytes(n)
-        t0 = sniffer.tick()
-        os.write(fd, data)                            # a foreign transmitter on node 2
+        trigger.armed = True                          # a foreign transmitter, on the air
+        assert wait_for(lambda: trigger.t0 is not None, 5.0)
         time.sleep(n / 960 + 3.0)
         frames = [(f.src, f.start, f.end) for f in sniffer.snapshot()]
         alive = {p.poll() is None for p in kids}
     finally:
-        os.close(fd)
         sniffer.stop()
         stop(kids)
         hub.stop()
         hub.close()
     assert alive == {True}
-    return (t0 - e1), frames, t0
+    return frames, trigger.t0
 
 
 def sim_run(offset_ticks, n, seed):
@@ -94,11 +120,11 @@ def sim_run(offset_ticks, n, seed):
 
 @pytest.mark.parametrize("n, seed", BURSTS, ids=[f"{n}B" for n, _ in BURSTS])
 def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed):
-    offset, hframes, ht0 = hub_run(n, seed)
+    hframes, ht0 = hub_run(n, seed)
     hub_src, hub_gap, hub_misses = outcome(hframes, ht0, n)
-    sframes, st0, drops = sim_run(offset, n, seed)
+    sframes, st0, drops = sim_run(OFFSET_TICKS, n, seed)
     sim_src, sim_gap, sim_misses = outcome(sframes, st0, n)
-    report = dict(offset_ms=offset / 16_000, hub=(hub_src, hub_gap, hub_misses),
+    report = dict(offset_ms=OFFSET_TICKS / 16_000, hub=(hub_src, hub_gap, hub_misses),
                   sim=(sim_src, sim_gap, sim_misses))
     assert not drops and {f[0] for f in hframes if f[1] > ht0 + s_to_ticks(1.5)} == {1, 2}, report
     assert hub_misses == sim_misses == 0, report

@@ -110,11 +110,13 @@ class Store:
 
     def export_parquet(self, path: str | Path) -> int:
         try:
-            import pandas as pd
-            import pyarrow  # noqa: F401
+            import pyarrow as pa
+            import pyarrow.parquet as pq
         except ImportError:
-            raise StoreError("Parquet needs pandas and pyarrow (pip install pandas pyarrow); "
-                             "--csv needs nothing more") from None
+            raise StoreError("Parquet needs pyarrow (pip install pyarrow, or the project's "
+                             "'test' extra); --csv needs nothing more") from None
         rows = self.flat_rows()
-        pd.DataFrame(rows).to_parquet(path, index=False)
+        names = sorted({k for r in rows for k in r}, key=lambda k: (
+            COLUMNS.index(k) if k in COLUMNS else len(COLUMNS), k))
+        pq.write_table(pa.Table.from_pylist([{k: r.get(k) for k in names} for r in rows]), path)
         return len(rows)

@@ -153,6 +153,8 @@ def add(sub) -> None:
     rep.set_defaults(func=cmd_report)
     ex = csub.add_parser("export", help="the runs as CSV or Parquet (pandas, DuckDB)")
     ex.add_argument("db", metavar="RESULTS.sqlite")
-    ex.add_argument("--csv", metavar="FILE")
-    ex.add_argument("--parquet", metavar="FILE")
+    ex.add_argument("--csv", metavar="FILE", help="one row a run: the columns, each grid "
+                    "parameter (param_*) and each metric (m_*)")
+    ex.add_argument("--parquet", metavar="FILE", help="the same rows as Parquet (needs "
+                    "pyarrow)")
     ex.set_defaults(func=cmd_export)
