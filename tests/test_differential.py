@@ -124,8 +124,14 @@ def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed):
     hub_src, hub_gap, hub_misses = outcome(hframes, ht0, n)
     sframes, st0, drops = sim_run(OFFSET_TICKS, n, seed)
     sim_src, sim_gap, sim_misses = outcome(sframes, st0, n)
+    near = lambda fs, t0: [(f[0], round((f[1] - t0) / 16_000, 1), round((f[2] - t0) / 16_000, 1))
+                           for f in fs if -40 * 16_000 < f[1] - t0 < (n + 300) * 16_000]  # noqa: E731
+    # the frames around the burst, in ms from its start, go in the report: a rare hub outcome
+    # (first good frame 143 ms after a 120-byte burst where the simulator says 249 at every
+    # offset from 0 to 20 ms, once in about 23 runs) is not explained yet
     report = dict(offset_ms=OFFSET_TICKS / 16_000, hub=(hub_src, hub_gap, hub_misses),
-                  sim=(sim_src, sim_gap, sim_misses))
+                  sim=(sim_src, sim_gap, sim_misses), hub_frames=near(hframes, ht0),
+                  sim_frames=near(sframes, st0))
     assert not drops and {f[0] for f in hframes if f[1] > ht0 + s_to_ticks(1.5)} == {1, 2}, report
     assert hub_misses == sim_misses == 0, report
     assert hub_src == sim_src, report
