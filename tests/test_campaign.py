@@ -165,8 +165,9 @@ def test_a_real_scheduler_and_two_workers_give_the_same_rows(spec_file, tmp_path
 
 def test_a_killed_campaign_resumes_losing_nothing_and_repeating_nothing(tmp_path):
     spec = tmp_path / "k.toml"
-    spec.write_text(SPEC.replace("seeds = 2", "seeds = 12").replace("duration = 3",
-                                                                     "duration = 4"))
+    # 24 runs of about half a second, one a task, so that the kill lands in the middle
+    spec.write_text(SPEC.replace("seeds = 2", "seeds = 12\nchunk = 1")
+                    .replace("duration = 3", "duration = 40"))
     db = tmp_path / "k.sqlite"
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
     cmd = [sys.executable, "-m", "hil.cli", "campaign", "run", str(spec), "--db", str(db),
