@@ -4,12 +4,15 @@ Timing bounds are generous (a loaded 2-core machine wakes threads late) but one-
 that physics guarantees are exact: no byte can arrive before its stop bit has ended."""
 from __future__ import annotations
 
+import fcntl
 import os
 import select
 import shutil
 import signal
 import subprocess
+import struct
 import sys
+import termios
 import threading
 import time
 
@@ -132,6 +135,11 @@ def test_write_while_on_air_continues_the_same_burst(hubs):
     assert hub.stats()["collisions"] == 0
 
 
+def _waiting(fd: int) -> int:
+    """Bytes waiting to be read on ``fd`` (FIONREAD)."""
+    return struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0]
+
+
 def test_two_nodes_at_once_collide_into_garbage(hubs):
     hub = hubs(3)
     fds = [open_node(hubs, p) for p in hub.paths]
@@ -142,12 +150,14 @@ def test_two_nodes_at_once_collide_into_garbage(hubs):
     # written bytes to its master side asynchronously (the kernel's flip-buffer work), and
     # once in a 20x loop the hub heard the first node's 400 bytes with their last 100 clean:
     # the second node's bytes had not reached its master when the hub first looked. So the
-    # hub starts only once both masters have the bytes.
+    # hub starts only once both masters have all the bytes (FIONREAD: a master can be
+    # readable with part of a write, seen once more in a 20x loop on a loaded machine).
     os.write(fds[0], a)
     os.write(fds[1], b)
     deadline = time.monotonic() + 10.0
-    while len(select.select(hub.masters[:2], [], [], 0.05)[0]) < 2:
+    while min(_waiting(m) for m in hub.masters[:2]) < len(a):
         assert time.monotonic() < deadline, "the written bytes never reached the hub's ptys"
+        time.sleep(0.01)
     hub.start()
     got = read_for(fds[2], 1.5)
     assert len(got) >= 300                        # garbage at the byte rate while overlapped
