@@ -31,7 +31,8 @@ LOADS = {"idle": {}, "saturated": {"load": "saturate"}, "BER 1e-3": {"ber": 1e-3
 
 
 def ours(seconds: float, can: bool = False, **kw) -> tuple[float, int]:
-    """(wall s, frames) of one run of the 7-robot ring."""
+    """(wall s, frames) of one run of the 7-robot ring (``can_sleep=False`` in ``kw``: every
+    CAN frame one by one)."""
     from hil.sim.world import SimConfig, World
     w = World(SimConfig(robots=RING, duration=seconds, can=can, **kw))
     gc.collect()
@@ -48,16 +49,18 @@ def simpy_peer(seconds: float) -> tuple[float, int]:
 
 
 def side_by_side(runs: int, seconds: float) -> None:
-    print("| 7-robot ring | CAN off (x real time) | CAN on (x real time) | on / off | target |")
-    print("|---|---|---|---|---|")
+    print("| 7-robot ring | CAN off (x real time) | CAN on (x real time) | on / off | target "
+          "| CAN on, every frame run (x real time) |")
+    print("|---|---|---|---|---|---|")
     for name, kw in LOADS.items():
-        off, on = [], []
+        off, on, each = [], [], []
         for _ in range(runs):
             off.append(seconds / ours(seconds, False, **kw)[0])
             on.append(seconds / ours(seconds, True, **kw)[0])
-        a, b = statistics.median(off), statistics.median(on)
+            each.append(seconds / ours(seconds, True, can_sleep=False, **kw)[0])
+        a, b, c = (statistics.median(x) for x in (off, on, each))
         print(f"| {name} | {a:,.0f} | {b:,.0f} | {b / a:.2f} | >= 0.50 "
-              f"{'met' if b / a >= 0.5 else 'NOT met'} |", flush=True)
+              f"{'met' if b / a >= 0.5 else 'NOT met'} | {c:,.0f} |", flush=True)
     try:
         import simpy  # noqa: F401
     except ImportError:
@@ -109,6 +112,28 @@ def memory(can: bool) -> None:
           f"{'met' if abs(grow) <= 0.10 else 'NOT met'})")
 
 
+def soak(hours: float, runs: int) -> None:
+    """``rprs soak``'s run with the CAN sides sleeping and with every frame run, same seed:
+    speed and whether the accounting is the same."""
+    from hil.sim.soak import run_soak
+    walls: dict[bool, list[float]] = {True: [], False: []}
+    results = {}
+    for _ in range(runs):
+        for sleep in (False, True):
+            r = run_soak(hours, seed=11, can_sleep=sleep)
+            walls[sleep].append(r.wall_s)
+            results[sleep] = json.dumps([r.summary, r.reform_s, r.not_reformed,
+                                         r.isolations, r.bus_offs], sort_keys=True,
+                                        default=str)
+    a, b = statistics.median(walls[False]), statistics.median(walls[True])
+    print(f"\n| rprs soak --hours {hours:g} --seed 11 | wall s | x real time |")
+    print("|---|---|---|")
+    print(f"| every CAN frame run | {a:.1f} | {hours * 3600 / a:,.0f} |")
+    print(f"| CAN sides sleeping | {b:.1f} | {hours * 3600 / b:,.0f} |")
+    print(f"\nspeed-up {a / b:.2f}x (target 4x: {'met' if a / b >= 4 else 'NOT met'}); "
+          f"accounting {'the same' if results[True] == results[False] else 'DIFFERENT'}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--runs", type=int, default=3)
@@ -116,8 +141,14 @@ def main() -> None:
     p.add_argument("--memory", action="store_true", help="also the 1 h / 24 h RSS check")
     p.add_argument("--memory-can", action="store_true",
                    help="the RSS check with --can (about 10 minutes of wall time)")
+    p.add_argument("--soak", type=float, metavar="HOURS",
+                   help="also the soak with and without sleeping CAN sides")
+    p.add_argument("--only-soak", action="store_true", help="skip the ring tables")
     a = p.parse_args()
-    side_by_side(a.runs, a.seconds)
+    if not a.only_soak:
+        side_by_side(a.runs, a.seconds)
+    if a.soak:
+        soak(a.soak, a.runs)
     if a.memory:
         memory(False)
     if a.memory_can:

@@ -199,11 +199,16 @@ class ChildFirmware:
     """A child robot: the radio station and, through the dispatcher, its CAN side."""
 
     def __init__(self, station: RadioStation, controller: CanController,
-                 transceiver: Any, costs: CycleCosts | None = None) -> None:
+                 transceiver: Any, costs: CycleCosts | None = None,
+                 clock: Scheduler | None = None) -> None:
         """``costs`` runs the firmware on the CPU model with that cycle-cost table (radio
-        handlers included); None is the ideal CPU (every handler in zero time)."""
+        handlers included); None is the ideal CPU (every handler in zero time). ``clock``:
+        what the CAN side (driver, dispatcher timer, ideal CPU) schedules on, by default the
+        station's scheduler (the simulator gives it a domain clock, hil/sim/quiet_can.py)."""
+        if costs is not None and clock is not None:
+            raise ValueError("the CPU model runs the radio and the CAN side on one clock")
         self.station = station
-        self.sched = station.sched
+        self.sched = clock if clock is not None else station.sched
         self.id = station.id
         self.costs = costs
         self.cpu = Cpu(self.sched, costs, name=f"MB90F549-R{self.id}")

@@ -4,6 +4,13 @@ Time is a Python ``int`` count of ticks (62.5 ns at 16 MHz). Events at the same 
 order they were scheduled (FIFO), which makes every run with the same inputs identical.
 Cancelling is lazy: a cancelled entry stays in the heap and is skipped when it comes up, so
 re-arming a timer costs one heap push and nothing else.
+
+A part of the world may run as a *domain* (a child's CAN side, hil/sim/quiet_can.py): its
+events, scheduled with :meth:`Scheduler.at_first`, run before every other event of the same
+tick (FIFO among themselves). That makes the order of simultaneous events in independent parts
+a rule rather than an accident of when each was scheduled, so a domain can be taken out of
+the heap (:meth:`Scheduler.take`) and put back (:meth:`Scheduler.put_back`) without changing
+what runs first.
 """
 from __future__ import annotations
 
@@ -11,16 +18,22 @@ import heapq
 from typing import Any, Callable
 
 
+_FIRST = 1 << 62
+"""Subtracted from a domain event's sequence number: it sorts before every other at its tick."""
+
+
 class Event:
     """A scheduled callback. ``cancel()`` makes it a no-op; ``when`` is its tick."""
 
-    __slots__ = ("when", "fn", "args", "cancelled")
+    __slots__ = ("when", "fn", "args", "cancelled", "owner")
 
-    def __init__(self, when: int, fn: Callable[..., Any], args: tuple) -> None:
+    def __init__(self, when: int, fn: Callable[..., Any], args: tuple,
+                 owner: object = None) -> None:
         self.when = when
         self.fn = fn
         self.args = args
         self.cancelled = False
+        self.owner = owner
 
     def cancel(self) -> None:
         self.cancelled = True
@@ -48,6 +61,44 @@ class Scheduler:
         self._seq += 1
         heapq.heappush(self._heap, (when, self._seq, ev))
         return ev
+
+    def at_first(self, owner: object, when: int, fn: Callable[..., Any], *args: Any) -> Event:
+        """Like :meth:`at`, for an event of the domain ``owner``: at its tick it runs before
+        every event scheduled with :meth:`at` (module docstring)."""
+        if when < self.now:
+            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
+        ev = Event(when, fn, args, owner)
+        self._seq += 1
+        heapq.heappush(self._heap, (when, self._seq - _FIRST, ev))
+        return ev
+
+    def pending(self, owner: object) -> list[Event]:
+        """``owner``'s live events, in the order they will run."""
+        return [e[2] for e in self._mine(owner)]
+
+    def _mine(self, owner: object) -> list[tuple[int, int, Event]]:
+        return sorted((e for e in self._heap if e[2].owner is owner and not e[2].cancelled),
+                      key=lambda e: (e[0], e[1]))
+
+    def take(self, owner: object) -> list[Event]:
+        """Remove ``owner``'s live events from the heap; they come back in the order they
+        would have run."""
+        mine = self._mine(owner)
+        if mine:
+            # in place: run_until holds the list
+            self._heap[:] = [e for e in self._heap if e[2].owner is not owner]
+            heapq.heapify(self._heap)
+        return [e[2] for e in mine]
+
+    def put_back(self, events: list[Event]) -> None:
+        """Schedule events of a domain again (after :meth:`take`), at their ``when``, in the
+        given order among themselves."""
+        for ev in events:
+            if ev.when < self.now:
+                raise ValueError(f"cannot put back an event at tick {ev.when}: now is "
+                                 f"tick {self.now}")
+            self._seq += 1
+            heapq.heappush(self._heap, (ev.when, self._seq - _FIRST, ev))
 
     def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
         """Run ``fn(*args)`` ``delay`` ticks from now."""

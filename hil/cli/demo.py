@@ -146,7 +146,7 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
                  if p1 == "start" and p2 == "done" and r1 == r2]
     longest = max(durations) / TICK_HZ if durations else 0
     t0, t1 = acts[0][0], acts[-1][0]
-    turns = world.frames_between(t0, t1)
+    turns = world.action_turns[-1] - world.action_turns[0]    # transmissions meanwhile
     print(f"\n{cycles} cycle(s) done in {ticks_to_s(t1 - t0):.2f} s; each action took up to "
           f"{longest:.2f} s (Tmax 0.6 s), and the ring took {turns} turns meanwhile: the "
           f"action cycle and the communication cycle ran asynchronously.")

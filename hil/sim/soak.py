@@ -140,15 +140,18 @@ def run_timing_reformations(w: World, faults, progress=None) -> tuple[list[float
 
 def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
              checksum: bool = True, can: bool = True, load: float = 0.5,
-             progress=None, faults: list[Fault] | None = None) -> SoakResult:
-    """Run the soak; ``progress(simulated_s)`` is called as it goes."""
+             progress=None, faults: list[Fault] | None = None,
+             can_sleep: bool = True) -> SoakResult:
+    """Run the soak; ``progress(simulated_s)`` is called as it goes. ``can_sleep``: see
+    SimConfig (the result is the same either way)."""
     rng = random.Random(f"{seed}:soak")
     standby = 0 in robots
     if faults is None:
         faults = random_faults(rng, robots, hours, can, standby)
     duration = hours * 3600.0
     cfg = SimConfig(robots=robots, duration=duration, seed=seed, load=load,
-                    load_until=duration - 110.0, can=can, father_standby=standby,
+                    load_until=duration - 110.0, can=can, can_sleep=can_sleep,
+                    father_standby=standby,
                     faults=tuple(faults), mac=MacConfig(checksum=checksum,
                                                         max_age=s_to_ticks(60)))
     t0 = time.perf_counter()

@@ -16,6 +16,7 @@ from typing import Callable, Iterable
 
 from can_bus.bits import BitTiming
 from can_bus.bus import CanBus
+from can_bus.dbc import STATE_MOVING
 from can_bus.submodules import make_submodules
 from can_bus.transceiver import Transceiver82C250
 from firmware_model.child import ChildFirmware
@@ -38,6 +39,7 @@ from .air import Air, Transmission
 from .faults import (
     AIR_KINDS, CAN_KINDS, KINDS, Fault, FaultError, apply_air_fault, schedule as schedule_fault,
 )
+from .quiet_can import PERIOD as CAN_PERIOD, QuietCan
 from .realtime import RealTimeScheduler
 from .trace import TRACE_VERSION, TraceWriter
 
@@ -76,6 +78,10 @@ class SimConfig:
     mac: MacConfig | None = None
     can: bool = False
     """Give every child its CAN side: controller, 82C250, dispatcher and six submodules."""
+    can_sleep: bool = True
+    """A child's CAN side that only repeats itself is moved on in whole periods instead of
+    frame by frame (hil/sim/quiet_can.py). The run is the same to the tick either way;
+    False is slower and exists to show that."""
     sequence: tuple[tuple[int, ...], int] | None = None
     """(row order, cycles): the children run the paper's action sequence (needs ``can``)."""
     realtime: bool = False
@@ -217,9 +223,15 @@ class World:
         self.dispatch_latency: list[tuple[int, int, int]] = []   # (robot, End tick, SOF tick)
         self.can_buses: dict[int, CanBus] = {}
         self.submodules: dict[int, dict] = {}
-        self.can_frames = 0
+        self._can_tally: dict[int, _Tally] = {}
+        self.quiet: dict[int, QuietCan] = {}
+        """Each child's CAN side as a domain that sleeps while it only repeats itself
+        (hil/sim/quiet_can.py); none with the CPU model, which times every handler."""
         self.actions: list[tuple[int, int, int, str]] = []   # (tick, robot, action, phase)
-        self._tx_starts: list[int] = []
+        self.transmissions = 0
+        """Transmissions started on the air so far (a count: a 24-hour run keeps no list)."""
+        self.action_turns: list[int] = []
+        """``transmissions`` when each entry of ``actions`` happened."""
         self.radios = {}
         self.stats: dict[int, RobotStats] = {r: RobotStats() for r in config.robots}
         self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
@@ -294,10 +306,13 @@ class World:
                        if config.can else {})}, meta=True)
 
     def _build_can_side(self, r: int, st: RadioStation) -> None:
-        bus = CanBus(self.sched, CAN_TIMING)
-        ctrl = CanController(self.sched, CAN_TIMING)
+        quiet = QuietCan(self.sched, name=f"R{r} CAN") if self.cfg.cpu is None else None
+        clock = quiet.clock if quiet is not None else self.sched
+        bus = CanBus(clock, CAN_TIMING)
+        ctrl = CanController(clock, CAN_TIMING)
         xcvr = Transceiver82C250(bus, ctrl, name=f"82C250-R{r}")
-        child = ChildFirmware(st, ctrl, xcvr, costs=self.cfg.cpu)
+        child = ChildFirmware(st, ctrl, xcvr, costs=self.cfg.cpu,
+                              clock=quiet.clock if quiet is not None else None)
         self.children[r] = child
         if self.cfg.cpu is not None:
             self.cpus[r] = child.cpu
@@ -305,13 +320,53 @@ class World:
         if self.cfg.sequence is not None and r in self.cfg.sequence[0]:
             child.run_sequence(*self.cfg.sequence)
         self.can_buses[r] = bus
-        self.submodules[r] = make_submodules(self.sched, bus, initial_angles=HOME)
-        bus.trace = lambda frame, start, end, winner, r=r: self._on_can(r, frame, start, end)
+        self.submodules[r] = make_submodules(clock, bus, initial_angles=HOME)
+        tally = self._can_tally[r] = _Tally()
+        bus.trace = lambda frame, start, end, winner, r=r, tally=tally: \
+            self._on_can(r, tally, frame, start, end)
+        if quiet is not None:
+            self._make_domain(r, quiet, st, [bus, ctrl, xcvr, child, self.submodules[r], tally])
+
+    def _make_domain(self, r: int, quiet: QuietCan, st: RadioStation, parts: list) -> None:
+        """Child ``r``'s CAN side sleeps while it only repeats itself; whatever reaches it
+        from the radio wakes it first."""
+        bus, child, nodes = self.can_buses[r], self.children[r], self.submodules[r]
+        world_trace = bus.trace
+        quiet.roots = parts
+        quiet.boundary = [st, self.sched]
+        quiet.enabled = (self.cfg.can_sleep and not self.cfg.realtime
+                         and self.cfg.sequence is None)
+        quiet.may_sleep = lambda: (
+            self.trace is None and self.on_event is None and self.pcap is None
+            and bus.trace is world_trace and bus.error_trace is None
+            and not child.dispatcher.jobs
+            and all(n.state != STATE_MOVING for n in nodes.values()))
+        app = st.app
+
+        def app_awake(d, now: int) -> None:
+            quiet.wake()
+            app(d, now)
+        st.app = app_awake
+        self.quiet[r] = quiet
+        quiet.start(self.sched.now + CAN_PERIOD)
+
+    def wake_can(self) -> None:
+        """Bring every child's CAN side up to the tick now (before reading it)."""
+        for q in self.quiet.values():
+            q.wake()
+
+    @property
+    def can_frames(self) -> int:
+        """CAN frames sent without error, on every child's bus."""
+        self.wake_can()
+        return sum(t.frames for t in self._can_tally.values())
 
     def capture(self, sink) -> None:
         """Send every transmission and CAN frame to ``sink`` (hil.sim.pcap.PcapWriter's
         methods ``radio``, ``can``, ``can_error``), keyed as ``capture_interfaces`` names."""
         self.pcap = sink
+        for q in self.quiet.values():
+            q.disable()
         self._radio_key = {id(radio): key for key, radio in self.radios.items()}
         for r, bus in self.can_buses.items():
             bus.error_trace = (lambda kind, frame, start, now, idle, tx, r=r:
@@ -337,11 +392,12 @@ class World:
 
     def _on_action(self, robot: int, action: int, phase: str, now: int) -> None:
         self.actions.append((now, robot, action, phase))
+        self.action_turns.append(self.transmissions)
         self._emit({"ev": "action", "robot": robot, "phase": phase,
                     "name": ACTION_NAMES.get(action, str(action))})
 
-    def _on_can(self, r: int, frame, start: int, end: int) -> None:
-        self.can_frames += 1
+    def _on_can(self, r: int, tally: "_Tally", frame, start: int, end: int) -> None:
+        tally.frames += 1
         if self.pcap is not None:
             self.pcap.can(r, end, frame.id, frame.data)
         child = self.children.get(r)
@@ -362,6 +418,7 @@ class World:
     def run(self, until: int | None = None) -> None:
         """Advance to tick ``until`` (default: the configured duration)."""
         self.sched.run_until(self.end_tick if until is None else min(until, self.end_tick))
+        self.wake_can()
 
     @property
     def now(self) -> int:
@@ -407,6 +464,9 @@ class World:
 
     def _fault_act(self, f: Fault, phase: str) -> None:
         k = f.kind
+        q = self.quiet.get(f.robot)
+        if q is not None:
+            q.wake()
         if k in AIR_KINDS:
             apply_air_fault(self.air, self.radios.__getitem__, f, phase, self.cfg.ber,
                             self.cfg.noise)
@@ -445,7 +505,7 @@ class World:
 
     def _on_transmission(self, tx: Transmission) -> None:
         r = tx.radio.robot
-        self._tx_starts.append(tx.t0)
+        self.transmissions += 1
         if self.pcap is not None:
             sent = tx.data if not tx.aborted else tx.data[:(tx.end - tx.t0) // tx.bt]
             marks = [w for w, on in (("collided", tx.collided), ("aborted: the sender's radio "
@@ -636,10 +696,6 @@ class World:
 
     # -- results --------------------------------------------------------------------------
 
-    def frames_between(self, t0: int, t1: int) -> int:
-        """Transmissions that started in [t0, t1] (counted by the air as they start)."""
-        return sum(1 for t in self._tx_starts if t0 <= t <= t1)
-
     def alive(self) -> tuple[int, ...]:
         """Robots whose radio works now (the father counts if either PC's does)."""
         out = [r for r in self.cfg.robots if self.radios[r].alive]
@@ -671,6 +727,7 @@ class World:
 
     def summary(self) -> dict:
         """The figures of the paper's simulator (Fig. 9) and the delivery accounting."""
+        self.wake_can()
         robots = {}
         for r in sorted(self.stations):
             st, s = self.stations[r], self.stats[r]
@@ -705,6 +762,15 @@ class World:
                 "duplicate_deliveries": dup_deliveries,
                 "corrupt_deliveries": self.corrupt_deliveries,
                 "wrong_robot_deliveries": self.wrong_deliveries}
+
+
+class _Tally:
+    """The world's count of one bus's frames, kept in that child's CAN domain."""
+
+    __slots__ = ("frames",)
+
+    def __init__(self) -> None:
+        self.frames = 0
 
 
 def _spread(values: list[int]) -> dict:

@@ -1,0 +1,173 @@
+"""A child's CAN side on its own clock, run in whole status periods while nothing happens there.
+
+An idle child's CAN side repeats itself: each of its six submodules sends the same status
+frame every 100 ms (:data:`~can_bus.submodules.STATUS_PERIOD_TICKS`), the bus carries the same
+bits at the same offsets, the controller, the CAN driver and the dispatcher note the same
+things. Running that frame by frame costs the simulator most of a ``--can`` run
+(docs/performance.md). So the simulator runs each child's CAN side as a *domain*:
+
+* Its parts (bus, 82C250, controller, CAN driver, dispatcher timer, submodules) are built on a
+  :class:`DomainClock`. Their events run before the other events of the same tick
+  (``Scheduler.at_first``), which makes the order of simultaneous radio and CAN events a rule
+  (CAN first) instead of an accident of when each was scheduled.
+* Once a period (at the phase the status grid started on) a probe takes a snapshot of the
+  domain (hil/sim/state_walk.py: every attribute of every part, and the domain's pending
+  events). If nothing outside listens to the bus (no trace, capture, sniffer) and two
+  snapshots a period apart differ only by ticks moved on by exactly the period and by counters
+  (:data:`COUNTERS`), the domain is *quiet*: its events leave the scheduler and it stops.
+* Anything that touches the domain (a message the radio delivers to the child, a fault, the
+  end of ``World.run``, a summary) calls :meth:`QuietCan.wake` first. The domain moves on by
+  the whole periods that passed (ticks and counters, in one step) and runs the last partial
+  period's events on a private scheduler up to the tick now (its events run first at a tick),
+  then its events go back into the world's scheduler.
+
+The result is the run the frame-by-frame simulation gives, to the tick: the state is the same
+after k periods whether they ran or were added up, because the snapshot covers all of it
+(tests/test_quiet_can.py compares the two on seeded runs with orders, faults, byte errors and
+load, part by part).
+"""
+from __future__ import annotations
+
+from functools import partial
+from typing import Any, Callable
+
+from can_bus.submodules import STATUS_PERIOD_TICKS
+from firmware_model.mcu.scheduler import Event, Scheduler
+
+from .state_walk import Snapshot, Unwalkable, advance, period_delta, snapshot
+
+__all__ = ["COUNTERS", "PERIOD", "DomainClock", "QuietCan"]
+
+PERIOD = STATUS_PERIOD_TICKS
+"""1,600,000 ticks (100 ms): the submodules' status period, the domain's period."""
+
+COUNTERS = frozenset({
+    "sent",          # submodule: frames sent and acknowledged
+    "_order",        # submodule: its queue's tie-break counter (only compared within it)
+    "frames_ok",     # bus: frames sent without error
+    "frames_received",  # controller: frames it stored
+    "calls",         # ideal CPU: handler calls (HandlerStats)
+    "frames",        # world's tally of the bus's frames
+})
+"""Attributes that only count what happened: they may grow by any amount a period without
+making the domain other than periodic (nothing reads them to decide what to do)."""
+
+
+class DomainClock:
+    """The clock a domain's parts are built on (the :class:`~can_bus.clock.Clock` protocol):
+    the world's scheduler, with the domain's events first at a tick, or, while the domain
+    catches up, a private scheduler."""
+
+    __slots__ = ("world", "owner", "private", "at")
+
+    def __init__(self, world: Scheduler, owner: object) -> None:
+        self.world = world
+        self.owner = owner
+        self.private: Scheduler | None = None
+        self.at: Callable[..., Event] = partial(world.at_first, owner)
+        """``at(when, fn, *args)``: schedule on whichever scheduler runs the domain now."""
+
+    def use(self, private: Scheduler | None) -> None:
+        """Run the domain on ``private`` (None: on the world's scheduler again)."""
+        self.private = private
+        self.at = partial((private if private is not None else self.world).at_first,
+                          self.owner)
+
+    @property
+    def now(self) -> int:
+        p = self.private
+        return (p if p is not None else self.world).now
+
+    def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
+        return self.at(self.now + delay, fn, *args)
+
+
+class QuietCan:
+    """One child's CAN domain: probes for quiet, sleeps, wakes (module docstring).
+
+    ``roots``: the domain's parts; ``boundary``: objects they refer to that are not theirs
+    (the radio station); ``may_sleep()``: False while something outside watches the bus or
+    the domain is plainly busy (a job running), which saves the snapshot."""
+
+    def __init__(self, world: Scheduler, name: str = "CAN") -> None:
+        self.name = name
+        self.world = world
+        self.clock = DomainClock(world, self)
+        self.roots: list[Any] = []
+        self.boundary: list[Any] = []
+        self.may_sleep: Callable[[], bool] = lambda: True
+        self.enabled = True
+        self.asleep = False
+        self.periods_skipped = 0
+        """Periods the domain did not run frame by frame (figures for docs/performance.md)."""
+        self.sleeps = 0
+        self._last: Snapshot | None = None
+        self._moved: list[tuple[Any, Any, int]] = []
+        self._since = 0
+        self._events: list[Event] = []
+        self._misses = 0          # probes in a row that found the domain not periodic
+        self._skip = 0            # probes left to skip (backing off while it is busy)
+
+    def start(self, phase: int) -> None:
+        """Probe every period from tick ``phase`` on (a tick the status grid is idle at)."""
+        self.clock.at(phase, self._probe)
+
+    def disable(self) -> None:
+        """Never sleep again (something now watches every frame: a capture)."""
+        self.wake()
+        self.enabled = False
+
+    def _probe(self) -> None:
+        clock = self.clock
+        clock.at(clock.now + PERIOD, self._probe)
+        if clock.private is not None or not self.enabled or not self.may_sleep():
+            self._last = None
+            self._misses = self._skip = 0
+            return
+        if self._skip:
+            self._skip -= 1
+            return
+        try:
+            snap = snapshot([*self.roots, self.world.pending(self)],
+                            [*self.boundary, clock, self])
+        except Unwalkable:
+            self.enabled = False
+            return
+        last, self._last = self._last, snap
+        if last is None:
+            return
+        moved = period_delta(last, snap, PERIOD, COUNTERS)
+        if moved is None:
+            # busy but not in a way may_sleep sees (a wheel cruising): look again in 1, 2, 4
+            # ... 16 periods, and compare with the snapshot then
+            self._misses += 1
+            self._skip = min(1 << (self._misses - 1), 16) - 1
+            if self._skip:
+                self._last = None
+            return
+        self._misses = 0
+        self._events = self.world.take(self)
+        self._moved = moved
+        self._since = clock.now
+        self.asleep = True
+        self.sleeps += 1
+
+    def wake(self) -> None:
+        """Bring the domain up to the tick now (the world's), before anything touches it."""
+        if not self.asleep:
+            return
+        self.asleep = False
+        self._last = None
+        now = self.world.now
+        k = (now - self._since) // PERIOD
+        advance(self._moved, k)       # the pending events' ticks are among the moved ints
+        self.periods_skipped += k
+        private = Scheduler(self._since + k * PERIOD)
+        private.put_back(self._events)
+        self._events = []
+        self.clock.use(private)
+        try:
+            private.run_until(now)
+        finally:
+            self.clock.use(None)
+        self.world.put_back(private.take(self))
