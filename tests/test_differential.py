@@ -26,6 +26,8 @@ import time
 
 import pytest
 
+from firmware_model.radio.errors import FrameError
+from firmware_model.radio.frame import parse_frame
 from firmware_model.radio.mac import MacConfig
 from firmware_model.timing import PC_BYTE_TICKS, TMAX_TICKS, s_to_ticks
 from hil.bench import scripts as bench
@@ -56,7 +58,15 @@ frame always runs into it, whatever the processes' few milliseconds of latency."
 class _EndOfR1:
     """A capture sink for the hub (``RadioHub.capture``): at the end of R1's next whole frame
     (node 0), once armed, it puts the burst on the hub's air ``OFFSET_TICKS`` later, in the
-    air's own clock, and notes the sniffer's clock then."""
+    air's own clock, and notes the sniffer's clock then.
+
+    Whole: the packet parses as one frame. A frame the hub read from R1's pty in two pieces
+    with a gap between them is two packets, the first starting with the Header; firing on it
+    put the burst in the middle of R1's frame instead of R2's hand-over, a different scenario.
+    That is the likely cause of a rare outcome seen until 2026-11-23 (first good frame 143 ms
+    after a 120-byte burst where the simulator says 249 ms, about once in 23 runs on a loaded
+    machine; a pty master can hold part of a write, tests/test_radio_hub.py saw it too).
+    ``split`` counts such packets for the failure report."""
 
     tsresol = 9
     epoch_units = 0
@@ -65,11 +75,18 @@ class _EndOfR1:
         self.hub, self.sniffer, self.data = hub, sniffer, data
         self.armed = False
         self.t0 = None
+        self.split = 0
 
     def radio(self, key, tick, data, comment=None):
-        if self.armed and key == 0 and comment is None and data.startswith(b"\x0f\x0a\x05"):
-            self.armed = False
-            self.hub.sched.at(tick + OFFSET_TICKS, self._inject)
+        if not (self.armed and key == 0 and comment is None):
+            return
+        try:
+            parse_frame(data)
+        except FrameError:
+            self.split += 1
+            return
+        self.armed = False
+        self.hub.sched.at(tick + OFFSET_TICKS, self._inject)
 
     def _inject(self):
         self.t0 = self.sniffer.tick()
@@ -97,7 +114,7 @@ def hub_run(n, seed):
         hub.stop()
         hub.close()
     assert alive == {True}
-    return frames, trigger.t0
+    return frames, trigger.t0, trigger.split
 
 
 def sim_run(offset_ticks, n, seed):
@@ -120,16 +137,16 @@ def sim_run(offset_ticks, n, seed):
 
 @pytest.mark.parametrize("n, seed", BURSTS, ids=[f"{n}B" for n, _ in BURSTS])
 def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed):
-    hframes, ht0 = hub_run(n, seed)
+    hframes, ht0, split = hub_run(n, seed)
     hub_src, hub_gap, hub_misses = outcome(hframes, ht0, n)
     sframes, st0, drops = sim_run(OFFSET_TICKS, n, seed)
     sim_src, sim_gap, sim_misses = outcome(sframes, st0, n)
     near = lambda fs, t0: [(f[0], round((f[1] - t0) / 16_000, 1), round((f[2] - t0) / 16_000, 1))
                            for f in fs if -40 * 16_000 < f[1] - t0 < (n + 300) * 16_000]  # noqa: E731
-    # the frames around the burst, in ms from its start, go in the report: a rare hub outcome
-    # (first good frame 143 ms after a 120-byte burst where the simulator says 249 at every
-    # offset from 0 to 20 ms, once in about 23 runs) is not explained yet
-    report = dict(offset_ms=OFFSET_TICKS / 16_000, hub=(hub_src, hub_gap, hub_misses),
+    # the frames around the burst, in ms from its start, and R1's packets that were not a whole
+    # frame (_EndOfR1) go in the report
+    report = dict(offset_ms=OFFSET_TICKS / 16_000, split_packets=split,
+                  hub=(hub_src, hub_gap, hub_misses),
                   sim=(sim_src, sim_gap, sim_misses), hub_frames=near(hframes, ht0),
                   sim_frames=near(sframes, st0))
     assert not drops and {f[0] for f in hframes if f[1] > ht0 + s_to_ticks(1.5)} == {1, 2}, report

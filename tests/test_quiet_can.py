@@ -91,6 +91,21 @@ def test_period_delta_tells_ticks_counters_and_change_apart():
     assert period_delta(snapshot([a]), snapshot([b]), PERIOD, frozenset()) is None
 
 
+def test_a_record_is_taken_by_its_length_and_still_must_not_grow():
+    """A loaded child's dispatcher log grows all run long: walking it would make every probe
+    of a 24-hour run slower than the last."""
+    a, b = _part(100, 4, 7), _part(100 + PERIOD, 10, 7)
+    a.log = [(t, "refused movex") for t in range(5000)]
+    b.log = list(a.log)
+    records = frozenset({"log"})
+    sa, sb = snapshot([a], records=records), snapshot([b], records=records)
+    assert len(sa.shape) < 20
+    assert period_delta(sa, sb, PERIOD, frozenset({"sent"})) is not None
+    b.log.append((5000, "refused movex"))
+    assert period_delta(sa, snapshot([b], records=records), PERIOD,
+                        frozenset({"sent"})) is None
+
+
 def test_a_random_generator_is_state_a_snapshot_cannot_see():
     p = _part(0, 0, 0)
     p.rng = random.Random(1)

@@ -36,7 +36,7 @@ from firmware_model.mcu.scheduler import Event, Scheduler
 
 from .state_walk import Snapshot, Unwalkable, advance, period_delta, snapshot
 
-__all__ = ["COUNTERS", "PERIOD", "DomainClock", "QuietCan"]
+__all__ = ["COUNTERS", "PERIOD", "RECORDS", "DomainClock", "QuietCan"]
 
 PERIOD = STATUS_PERIOD_TICKS
 """1,600,000 ticks (100 ms): the submodules' status period, the domain's period."""
@@ -51,6 +51,14 @@ COUNTERS = frozenset({
 })
 """Attributes that only count what happened: they may grow by any amount a period without
 making the domain other than periodic (nothing reads them to decide what to do)."""
+
+
+RECORDS = frozenset({
+    "log",           # dispatcher: what it noticed, in words (tests and the monitor read it)
+    "events",        # submodule: every EVENT it queued (tests read it)
+})
+"""Append-only lists of what happened that nothing in the model reads: a snapshot takes
+their length only (hil/sim/state_walk.py)."""
 
 
 class DomainClock:
@@ -129,7 +137,7 @@ class QuietCan:
             return
         try:
             snap = snapshot([*self.roots, self.world.pending(self)],
-                            [*self.boundary, clock, self])
+                            [*self.boundary, clock, self], records=RECORDS)
         except Unwalkable:
             self.enabled = False
             return

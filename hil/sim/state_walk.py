@@ -64,9 +64,12 @@ def _all_slots(cls: type) -> list[str]:
 
 
 def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
-             rng_state: bool = False) -> Snapshot:
+             rng_state: bool = False, records: frozenset[str] = frozenset()) -> Snapshot:
     """Walk ``roots`` (module docstring). ``rng_state``: a random generator is its state
-    (to compare two runs) instead of a reason to refuse."""
+    (to compare two runs) instead of a reason to refuse. ``records``: attributes that are
+    append-only lists nothing in the model reads (a log): only their length is taken, so a
+    long run's log does not make every snapshot longer (a part whose log grew is still not
+    periodic)."""
     shape: list = []
     ints: list[tuple[int, Any, Any, str]] = []
     seen: dict[int, int] = {}
@@ -119,7 +122,10 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             d = getattr(x, "__dict__", None)
             if d is not None:
                 for k, v in d.items():
-                    visit(v, x, k, k)
+                    if k in records and type(v) is list:
+                        shape.append(("record", len(v)))
+                    else:
+                        visit(v, x, k, k)
             for k in _slot_names(t):
                 if hasattr(x, k):
                     visit(getattr(x, k), x, k, k)
