@@ -294,3 +294,38 @@ def test_cli_run_report_and_export(spec_file, tmp_path):
 def test_cli_mistakes_are_one_line(args, words, spec_file):
     r = rprs(*[a.format(spec=spec_file) for a in args])
     assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_the_progress_bar_shows_runs_per_second_and_time_left_on_a_terminal(spec_file,
+                                                                           tmp_path):
+    """On a terminal (stderr is a pty here) ``campaign run`` draws a bar with M/N runs, runs/s
+    and the time left; with ``--no-progress`` or a pipe it draws nothing (the other tests)."""
+    import pty
+    import re
+    master, slave = pty.openpty()
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "campaign", "run", str(spec_file),
+                          "--db", str(tmp_path / "bar.sqlite"), "--workers", "1",
+                          "--allow-dirty"], stdout=subprocess.PIPE, stderr=slave,
+                         preexec_fn=_nice, env=dict(os.environ, COLUMNS="120", TERM="xterm"))
+    os.close(slave)
+    seen = bytearray()
+    try:
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:                      # EIO: the child closed its end
+                break
+            if not chunk:
+                break
+            seen += chunk
+        assert p.wait(timeout=300) == 0
+    finally:
+        if p.poll() is None:
+            p.kill()
+        os.close(master)
+    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", seen.decode(errors="replace"))
+    assert "campaign t" in text
+    assert re.search(r"\b[1-4]/4\b", text), text[-500:]             # M of N runs
+    assert re.search(r"\d+\.\d runs/s", text), text[-500:]
+    assert re.search(r"\d:\d\d:\d\d|-:--:--", text), text[-500:]     # rich's time remaining
+    assert b"4 runs planned" in p.stdout.read()

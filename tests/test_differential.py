@@ -62,11 +62,11 @@ class _EndOfR1:
 
     Whole: the packet parses as one frame. A frame the hub read from R1's pty in two pieces
     with a gap between them is two packets, the first starting with the Header; firing on it
-    put the burst in the middle of R1's frame instead of R2's hand-over, a different scenario.
-    That is the likely cause of a rare outcome seen until 2026-11-23 (first good frame 143 ms
-    after a 120-byte burst where the simulator says 249 ms, about once in 23 runs on a loaded
-    machine; a pty master can hold part of a write, tests/test_radio_hub.py saw it too).
-    ``split`` counts such packets for the failure report."""
+    would put the burst in the middle of R1's frame instead of R2's hand-over, a different
+    scenario. ``split`` counts such packets for the failure report. (It is not the cause of
+    the rare outcome this test still shows on a loaded machine, R1 taking its turn about 10
+    ms after the burst ends where the simulator waits 124 ms: in the one failure caught with
+    the frames in the report, R1's frame before the burst was whole.)
 
     tsresol = 9
     epoch_units = 0
