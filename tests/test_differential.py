@@ -66,7 +66,7 @@ class _EndOfR1:
     scenario. ``split`` counts such packets for the failure report. (It is not the cause of
     the rare outcome this test still shows on a loaded machine, R1 taking its turn about 10
     ms after the burst ends where the simulator waits 124 ms: in the one failure caught with
-    the frames in the report, R1's frame before the burst was whole.)
+    the frames in the report, R1's frame before the burst was whole.)"""
 
     tsresol = 9
     epoch_units = 0
@@ -93,10 +93,13 @@ class _EndOfR1:
         self.hub.air.inject(self.data)
 
 
-def hub_run(n, seed):
+def hub_run(n, seed, logs):
+    """The hub run; each child's MAC events (``--events``) go to ``logs``/R<i>.jsonl, for the
+    failure report."""
     hub = RadioHub(nodes=4, seed=1)
-    kids = [spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", "1,2")
-            for i in (1, 2)]
+    outs = [open(logs / f"R{i}.jsonl", "w") for i in (1, 2)]
+    kids = [spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", "1,2",
+                  "--events", stdout=outs[i - 1]) for i in (1, 2)]
     sniffer = bench.Sniffer(hub.paths[3]).start()
     trigger = _EndOfR1(hub, sniffer, random.Random(seed).randbytes(n))
     hub.capture(trigger)
@@ -111,6 +114,8 @@ def hub_run(n, seed):
     finally:
         sniffer.stop()
         stop(kids)
+        for f in outs:
+            f.close()
         hub.stop()
         hub.close()
     assert alive == {True}
@@ -136,8 +141,8 @@ def sim_run(offset_ticks, n, seed):
 
 
 @pytest.mark.parametrize("n, seed", BURSTS, ids=[f"{n}B" for n, _ in BURSTS])
-def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed):
-    hframes, ht0, split = hub_run(n, seed)
+def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed, tmp_path):
+    hframes, ht0, split = hub_run(n, seed, tmp_path)
     hub_src, hub_gap, hub_misses = outcome(hframes, ht0, n)
     sframes, st0, drops = sim_run(OFFSET_TICKS, n, seed)
     sim_src, sim_gap, sim_misses = outcome(sframes, st0, n)
@@ -146,6 +151,7 @@ def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed):
     # the frames around the burst, in ms from its start, and R1's packets that were not a whole
     # frame (_EndOfR1) go in the report
     report = dict(offset_ms=OFFSET_TICKS / 16_000, split_packets=split,
+                  children_mac_events=str(tmp_path),
                   hub=(hub_src, hub_gap, hub_misses),
                   sim=(sim_src, sim_gap, sim_misses), hub_frames=near(hframes, ht0),
                   sim_frames=near(sframes, st0))
