@@ -272,8 +272,12 @@ def test_each_bench_process_captures_its_own_port_and_bus(hub, tmp_path):
     lines: list[str] = []
     _lines_of(father, lines)
     try:
+        # on failure: the father's last events, and each other process's exit status and
+        # stderr if it ended (a run in a 20x loop saw the father alone for 40 s)
         assert wait_for(lambda: any('"ev":"join"' in x and '"robot":1' in x for x in lines),
-                        40.0), lines[-5:]
+                        40.0), (lines[-5:], [(p.args[3], p.poll(), p.stderr.read()
+                                              if p.poll() is not None else "")
+                                             for p in kids], hub.stats())
         time.sleep(0.5)
         father.stdin.write("1 joint(1,20)\n")
         father.stdin.close()
