@@ -9,6 +9,7 @@ import json
 import os
 import statistics
 import subprocess
+import signal
 import sys
 import time
 
@@ -159,6 +160,20 @@ def test_runner_errors_are_one_line():
 
 
 @pytest.mark.skipif(not hasattr(os, "killpg"), reason="needs POSIX signals")
+def test_sigusr1_prints_every_threads_stack_and_the_process_goes_on(hub):
+    p = spawn("child", "--id", "1", "--radio", hub.paths[0], "--team", "1,2")
+    try:
+        time.sleep(1.5)
+        p.send_signal(signal.SIGUSR1)
+        time.sleep(0.5)
+        assert p.poll() is None                       # still running
+    finally:
+        stop([p])
+    err = p.stderr.read()
+    assert "Current thread" in err or "Thread 0x" in err, err
+    assert "File " in err and "run" in err, err
+
+
 def test_child_stops_cleanly_on_sigterm(hub):
     p = spawn("child", "--id", "1", "--radio", hub.paths[0], "--can", "virtual:x")
     time.sleep(1.5)
@@ -241,6 +256,17 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
     assert len(lines) < 30, lines
 
 
+def _stacks(procs) -> list:
+    """(command, exit status, stderr) of each process; a running one is first asked for its
+    threads' stacks (SIGUSR1, hil/cli) and stopped."""
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGUSR1)
+    time.sleep(0.5)
+    stop(procs)
+    return [(p.args[3], p.returncode, p.stderr.read()[-3000:]) for p in procs]
+
+
 def _pcap(path):
     import pcapng
     ifaces, out = {}, []
@@ -274,10 +300,11 @@ def test_each_bench_process_captures_its_own_port_and_bus(hub, tmp_path):
     try:
         # on failure: the father's last events, and each other process's exit status and
         # stderr if it ended (a run in a 20x loop saw the father alone for 40 s)
-        assert wait_for(lambda: any('"ev":"join"' in x and '"robot":1' in x for x in lines),
-                        40.0), (lines[-5:], [(p.args[3], p.poll(), p.stderr.read()
-                                              if p.poll() is not None else "")
-                                             for p in kids], hub.stats())
+        if not wait_for(lambda: any('"ev":"join"' in x and '"robot":1' in x for x in lines),
+                        40.0):
+            pytest.fail(f"R1 never joined: the father's last events {lines[-5:]}; the hub "
+                        f"{hub.stats()}; the other processes and where they wait: "
+                        f"{_stacks(kids)}")
         time.sleep(0.5)
         father.stdin.write("1 joint(1,20)\n")
         father.stdin.close()

@@ -10,6 +10,7 @@ A user mistake (bad option value, unreadable file, malformed input) prints one l
 from __future__ import annotations
 
 import argparse
+import io
 import sys
 from typing import Sequence
 
@@ -45,7 +46,20 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _stacks_on_sigusr1() -> None:
+    """``kill -USR1 PID`` makes a running ``rprs`` print every thread's stack on stderr and go
+    on: how to see where a bench process that has gone quiet is waiting."""
+    import faulthandler
+    import signal
+    if hasattr(signal, "SIGUSR1"):
+        try:
+            faulthandler.register(signal.SIGUSR1, all_threads=True, chain=False)
+        except (ValueError, OSError, RuntimeError, io.UnsupportedOperation):
+            pass                     # no usable stderr (an embedding), or not the main thread
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    _stacks_on_sigusr1()
     parser = build_parser()
     try:
         a = parser.parse_args(argv)
