@@ -204,7 +204,7 @@ class ChildFirmware:
         """``costs`` runs the firmware on the CPU model with that cycle-cost table (radio
         handlers included); None is the ideal CPU (every handler in zero time). ``clock``:
         what the CAN side (driver, dispatcher timer, ideal CPU) schedules on, by default the
-        station's scheduler (the simulator gives it a domain clock, hil/sim/quiet_can.py)."""
+        station's scheduler (a caller may give the CAN side a clock of its own)."""
         if costs is not None and clock is not None:
             raise ValueError("the CPU model runs the radio and the CAN side on one clock")
         self.station = station

@@ -5,7 +5,7 @@ order they were scheduled (FIFO), which makes every run with the same inputs ide
 Cancelling is lazy: a cancelled entry stays in the heap and is skipped when it comes up, so
 re-arming a timer costs one heap push and nothing else.
 
-A part of the world may run as a *domain* (a child's CAN side, hil/sim/quiet_can.py): its
+A part of the world may run as a *domain* (the simulator runs a child's CAN side so): its
 events, scheduled with :meth:`Scheduler.at_first`, run before every other event of the same
 tick (FIFO among themselves). That makes the order of simultaneous events in independent parts
 a rule rather than an accident of when each was scheduled, so a domain can be taken out of

@@ -307,12 +307,12 @@ class World:
 
     def _build_can_side(self, r: int, st: RadioStation) -> None:
         quiet = QuietCan(self.sched, name=f"R{r} CAN") if self.cfg.cpu is None else None
-        clock = quiet.clock if quiet is not None else self.sched
+        domain_clock = quiet.clock if quiet is not None else None
+        clock = domain_clock or self.sched
         bus = CanBus(clock, CAN_TIMING)
         ctrl = CanController(clock, CAN_TIMING)
         xcvr = Transceiver82C250(bus, ctrl, name=f"82C250-R{r}")
-        child = ChildFirmware(st, ctrl, xcvr, costs=self.cfg.cpu,
-                              clock=quiet.clock if quiet is not None else None)
+        child = ChildFirmware(st, ctrl, xcvr, costs=self.cfg.cpu, clock=domain_clock)
         self.children[r] = child
         if self.cfg.cpu is not None:
             self.cpus[r] = child.cpu
