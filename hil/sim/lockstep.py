@@ -22,11 +22,13 @@ from dataclasses import dataclass
 
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, \
     s_to_ticks
+from hil.sim.air import FOREIGN_BYTE_TICKS
 from hil.sim.world import SimConfig, World
 
+__all__ = ["FOREIGN_BYTE_TICKS", "Case", "Verdict", "formed_world", "idle_cycle_ticks",
+           "run_case", "search"]
+
 PICKLE = pickle.HIGHEST_PROTOCOL
-FOREIGN_BYTE_TICKS = PC_BYTE_TICKS
-"""The interferer sends at exact 9600 baud (ticks a byte)."""
 
 
 @dataclass(frozen=True)
