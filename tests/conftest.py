@@ -4,6 +4,8 @@ from __future__ import annotations
 import fcntl
 import os
 import tempfile
+import threading
+import time
 import uuid
 from pathlib import Path
 
@@ -117,3 +119,23 @@ def _cpu_to_itself(request):
             yield
         finally:
             fcntl.flock(cpu, fcntl.LOCK_UN)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _no_thread_outlives_its_module(request):
+    """A wall-clock module leaves no thread of its own running: a ring left running by one
+    module (a session-wide acceptance target once did) takes CPU and the GIL from every later
+    test of the process, timing tests included. Threads get 5 s to end after the module's
+    fixtures are torn down."""
+    if not is_realtime(request.node.nodeid):
+        yield
+        return
+    before = set(threading.enumerate())
+    yield
+    deadline = time.monotonic() + 5.0
+    while True:
+        left = [t.name for t in threading.enumerate() if t not in before and t.is_alive()]
+        if not left or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    assert not left, f"threads still running after {request.node.nodeid}: {left}"
