@@ -13,9 +13,9 @@ hub gave it. The wall clock of a thread of the test process (a sniffer's, or the
 injects) can be read 100 ms and more late on a loaded 2-core machine (the GIL, the collector),
 which would make the gap after the burst look that much shorter; ``inject_late_ms`` in the
 failure report says how late the hub's thread ran the injection (the burst's place on air does
-not depend on it). The simulator then runs the same ring
-with the real-time margins the processes use (``realtime_config``), puts the same bytes on air
-at the same offset from the end of an R1 frame, and the two outcomes are compared:
+not depend on it). The simulator then runs the same ring with the real-time margins the
+processes use (``realtime_config``), puts the same bytes on air at the same offset from the end
+of an R1 frame, and the two outcomes are compared:
 
 * drops: equal (none);
 * missed turns: equal (none: no gap of about Tmax after the burst);
