@@ -2,7 +2,9 @@
 
 Any object with an integer ``now`` (ticks) and ``at(when, fn, *args)`` returning something
 with ``cancel()`` will do: the project's discrete-event scheduler, a real-time scheduler, or a
-test's own. Bit timing says how many ticks a bit takes, so the tick rate is a parameter of
+test's own. A clock may also offer ``at_top(when, fn, *args)``, for an event that runs before
+every other event of its tick (the project's scheduler does); the wheel's 1 ms steps use it
+when it is there. Bit timing says how many ticks a bit takes, so the tick rate is a parameter of
 :class:`~can_bus.bits.BitTiming` (``tick_hz``), not a property of the clock.
 """
 from __future__ import annotations

@@ -41,6 +41,12 @@ Physical models
   most one step's speed change, and the speed is then 0); EVENT done at that step. A
   distance-0 command ("keep running") completes with EVENT done when the speed reaches the
   target. Status ``speed`` (mm/s) and ``odometer`` (mm) are truncated toward zero.
+  A step runs before every other event of its tick (``Scheduler.at_top``), so whatever reads
+  the wheel at tick T sees the step of T done. That rule lets a *cruising* wheel (at the
+  commanded speed, no distance to go) stop scheduling its steps: the odometer at any tick is
+  the odometer at the last step taken plus the speed times the whole milliseconds since
+  (:attr:`WheelNode.x_nm`); a command, ESTOP, stall or fault first takes those steps and puts
+  the next one back on the same 1 ms grid.
 * :class:`PawNode`: constant travel speed, a full stroke (0..100 %) in 800 ms, positions in
   0.01 % units, analytic like the joint. Closing with an object present stops where the
   fingers meet it (``object_size_pct``, default 40 %), grip=1, state 2 holding; EVENT done
@@ -668,8 +674,11 @@ class WheelNode(_Submodule):
         self._a = accel_mm_s2
         self.v_ums = 0
         """Speed, um/s (signed)."""
-        self.x_nm = 0
-        """Odometer, nm (signed)."""
+        self._x_nm = 0
+        """Odometer, nm (signed), at the last step taken (see :attr:`x_nm`)."""
+        self._cruise_from: int | None = None
+        """While cruising (constant speed, nothing left to do but roll): the tick of the last
+        step taken. The steps after it are not scheduled; their sum is :attr:`x_nm`."""
         self._v_cmd = 0
         self._remaining: int | None = None  # nm still to go (distance command), else None
         self._dir = 0
@@ -679,6 +688,33 @@ class WheelNode(_Submodule):
         self._noprog_since: int | None = None
         self.jammed = False
         super().__init__(sched, bus, dbc.WHEEL_NUMBER, status_offset)
+
+    @property
+    def x_nm(self) -> int:
+        """Odometer, nm (signed), now: with the step of this tick done (``Scheduler.at_top``).
+        While cruising, each 1 ms step since the last one taken adds the speed (v um/s for
+        1 ms is v nm): the steps are counted, not run."""
+        c = self._cruise_from
+        if c is None:
+            return self._x_nm
+        return self._x_nm + self.v_ums * ((self.sched.now - c) // WHEEL_STEP_TICKS)
+
+    @property
+    def cruising(self) -> bool:
+        """Rolling at the commanded constant speed, its steps counted in closed form."""
+        return self._cruise_from is not None
+
+    def _stop_cruising(self) -> None:
+        """Take the steps counted while cruising and schedule the next one on the same 1 ms
+        grid, as if every step had run: called before anything reads or changes the motion
+        other than through :attr:`x_nm`."""
+        c = self._cruise_from
+        if c is None:
+            return
+        k = (self.sched.now - c) // WHEEL_STEP_TICKS
+        self._x_nm += self.v_ums * k
+        self._cruise_from = None
+        self._step_ev = self._at_step(c + (k + 1) * WHEEL_STEP_TICKS)
 
     @property
     def speed_mm_s(self) -> int:
@@ -694,6 +730,7 @@ class WheelNode(_Submodule):
     # ------------------------------------------------------------ commands
     def _command(self, v: dict[str, int]) -> None:
         seq, speed, dist = v["seq"], v["speed"], v["distance"]
+        self._stop_cruising()
         if self.faulted:
             self._refuse(seq, REFUSED_FAULTED)
             return
@@ -717,7 +754,15 @@ class WheelNode(_Submodule):
             self._finish_continuous()
             return
         if self._step_ev is None:
-            self._step_ev = self.sched.at(self.sched.now + WHEEL_STEP_TICKS, self._step)
+            self._step_ev = self._at_step(self.sched.now + WHEEL_STEP_TICKS)
+
+    def _at_step(self, when: int) -> Event:
+        """Schedule a 1 ms step at tick ``when``, before every other event of that tick when
+        the clock can (``Scheduler.at_top``): whatever reads the wheel during a tick sees the
+        step of that tick done."""
+        sched = self.sched
+        at = getattr(sched, "at_top", None) or sched.at
+        return at(when, self._step)
 
     def _finish_continuous(self) -> None:
         self._reported = True
@@ -739,9 +784,14 @@ class WheelNode(_Submodule):
             v, tgt = self.v_ums, self._v_cmd
             v += max(-a, min(a, tgt - v))
             self.v_ums = v
-            self.x_nm += v
-            if v == tgt and not self._reported:
-                self._finish_continuous()
+            self._x_nm += v
+            if v == tgt:
+                if not self._reported:
+                    self._finish_continuous()
+                if v != 0:
+                    # cruising: every further step adds v and changes nothing else
+                    self._cruise_from = self.sched.now
+                return
         else:
             d = self._dir
             u = d * self.v_ums
@@ -763,7 +813,7 @@ class WheelNode(_Submodule):
                         h = m
                 w = l
             if w >= rem:
-                self.x_nm += d * rem
+                self._x_nm += d * rem
                 self.v_ums = 0
                 self._remaining = None
                 self._v_cmd = 0
@@ -771,11 +821,11 @@ class WheelNode(_Submodule):
                 self.state = STATE_IDLE
                 self._event(EVENT_DONE, self.seq)
             else:
-                self.x_nm += d * w
+                self._x_nm += d * w
                 self._remaining = rem - w
                 self.v_ums = d * w
         if self.v_ums != 0 or self._remaining is not None or self.v_ums != self._v_cmd:
-            self._step_ev = self.sched.at(self.sched.now + WHEEL_STEP_TICKS, self._step)
+            self._step_ev = self._at_step(self.sched.now + WHEEL_STEP_TICKS)
 
     # ------------------------------------------------------------ stall / halt
     def _stall_detected(self) -> None:
@@ -788,6 +838,7 @@ class WheelNode(_Submodule):
         self._event(EVENT_FAULT, self.seq, FAULT_STALLED)
 
     def _stop_stepping(self) -> None:
+        self._stop_cruising()
         if self._step_ev is not None:
             self._step_ev.cancel()
             self._step_ev = None
@@ -819,6 +870,7 @@ class WheelNode(_Submodule):
             self.state = STATE_IDLE
 
     def clear_fault(self) -> None:
+        self._stop_cruising()
         self.jammed = False
         if self.faulted:
             self._halt()
@@ -826,7 +878,7 @@ class WheelNode(_Submodule):
         elif self._stall_ev is not None:  # blocked, not yet detected: resume
             self._cancel_stall()
             if self._step_ev is None:
-                self._step_ev = self.sched.at(self.sched.now + WHEEL_STEP_TICKS, self._step)
+                self._step_ev = self._at_step(self.sched.now + WHEEL_STEP_TICKS)
 
 
 def make_submodules(sched: Scheduler, bus: CanBus,

@@ -422,3 +422,86 @@ def test_wheel_reversal_distance_is_relative_to_the_command(env):
     env.run(env.sched.now + 5 * TICK_HZ)
     assert w.x_nm - x0 == -200_000_000 and w.v_ums == 0
     assert [e[1:] for e in w.events] == [(DONE, 1, 0), (DONE, 2, 0)]
+
+
+def _stepping_reference(w: WheelNode) -> None:
+    """Make ``w`` run every 1 ms step as an event, as before its cruise had a closed form:
+    after each step, stop cruising at once (which schedules the next step on the grid)."""
+    def step():
+        WheelNode._step(w)
+        w._stop_cruising()
+    w._step = step
+
+
+_WHEEL_ACTIONS = st.one_of(
+    # distance 0: a continuous command (it cruises once at speed); else a distance to go
+    st.tuples(st.just("cmd"), st.integers(-300, 300),
+              st.one_of(st.just(0), st.just(0), st.integers(-400, 400))),
+    st.tuples(st.sampled_from(["stall", "clear", "estop", "fault", "observe"])),
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 600), st.sampled_from([0, 1, -1, 7]), _WHEEL_ACTIONS),
+                min_size=1, max_size=12))
+def test_a_cruising_wheel_in_closed_form_is_the_wheel_stepping_every_ms(script):
+    """The cruise counts its steps instead of running them (WheelNode.x_nm). Against a wheel
+    that runs every step as an event, the same script of commands, ESTOPs, stalls and faults
+    gives the same frames, EVENTs and state at every tick either reads, ties included: the
+    actions land on whole milliseconds after the first command (a step's tick) or one tick
+    either side, and statuses (every 100 ms) meet steps whenever the grid allows."""
+    def play(reference: bool):
+        e = Env()
+        w = e.nodes["WHEEL"]
+        if reference:
+            _stepping_reference(w)
+        seen: list = []
+        t = T0
+        seq = 0
+
+        def act(action):
+            nonlocal seq
+            kind = action[0]
+            if kind == "cmd":
+                speed, dist = action[1], action[2]
+                if dist and (speed == 0 or (dist > 0) != (speed > 0)):
+                    dist = -dist if speed else 0
+                seq = (seq + 1) % 256
+                frame = dbc.encode_raw("WHEEL_CMD", speed=speed, distance=dist, seq=seq)
+                w.on_frame(frame, e.sched.now - 100, e.sched.now)
+            elif kind == "estop":
+                w.on_frame(dbc.encode("ESTOP", reason=1), e.sched.now - 100, e.sched.now)
+            elif kind == "stall":
+                w.stall()
+            elif kind == "clear":
+                w.clear_fault()
+            elif kind == "fault":
+                w.fault()
+            seen.append((e.sched.now, kind, w.x_nm, w.v_ums, w.state, w.status_signals()))
+
+        for ms, off, action in script:
+            t += ms * MS + off
+            e.sched.at(t, act, action)
+        e.run(t + 3 * TICK_HZ)
+        return seen, e.drv.rx, w.events, w.x_nm, w.v_ums, w.state
+
+    assert play(False) == play(True)
+
+
+def test_a_cruising_wheel_schedules_no_steps(env):
+    """What the closed form is for: at a constant speed the wheel has no event pending but its
+    status; its odometer still moves every 1 ms (including the step of the tick read)."""
+    w = env.nodes["WHEEL"]
+    env.run(T0)
+    end = env.send("WHEEL_CMD", speed=100, distance=0, seq=1)
+    env.run(end + 200 * MS)          # the 200th step reaches 100 mm/s
+    assert w.cruising and w.v_ums == 100_000
+    x = w.x_nm
+    before = len(env.sched)
+    env.run(end + 1200 * MS)
+    assert len(env.sched) <= before
+    assert w.x_nm == x + 100_000 * 1000
+    env.run(end + 1200 * MS + MS - 1)
+    assert w.x_nm == x + 100_000 * 1000
+    env.run(end + 1201 * MS)
+    assert w.x_nm == x + 100_000 * 1001

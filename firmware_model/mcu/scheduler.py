@@ -11,6 +11,12 @@ tick (FIFO among themselves). That makes the order of simultaneous events in ind
 a rule rather than an accident of when each was scheduled, so a domain can be taken out of
 the heap (:meth:`Scheduler.take`) and put back (:meth:`Scheduler.put_back`) without changing
 what runs first.
+
+A physical step of a model (a wheel's 1 ms control step) may be scheduled with
+:meth:`Scheduler.at_top`: it runs before every other event of its tick, so whatever looks at
+that model during tick T sees the state after the step at T. That is what lets a model skip
+its steps while they only repeat (a cruising wheel) and give the state at any tick in closed
+form: no observer's place in the tick depends on when it was scheduled.
 """
 from __future__ import annotations
 
@@ -19,21 +25,25 @@ from typing import Any, Callable
 
 
 _FIRST = 1 << 62
-"""Subtracted from a domain event's sequence number: it sorts before every other at its tick."""
+"""Subtracted from a domain event's sequence number once per rank: rank 1 (a domain's event)
+sorts before every rank-0 event at its tick, rank 2 (a step, :meth:`Scheduler.at_top`)
+before every rank-1 and rank-0 event."""
 
 
 class Event:
     """A scheduled callback. ``cancel()`` makes it a no-op; ``when`` is its tick."""
 
-    __slots__ = ("when", "fn", "args", "cancelled", "owner")
+    __slots__ = ("when", "fn", "args", "cancelled", "owner", "rank")
 
     def __init__(self, when: int, fn: Callable[..., Any], args: tuple,
-                 owner: object = None) -> None:
+                 owner: object = None, rank: int = 0) -> None:
         self.when = when
         self.fn = fn
         self.args = args
         self.cancelled = False
         self.owner = owner
+        self.rank = rank
+        """0: an ordinary event, 1: a domain's, 2: a step's (module docstring)."""
 
     def cancel(self) -> None:
         self.cancelled = True
@@ -67,9 +77,21 @@ class Scheduler:
         every event scheduled with :meth:`at` (module docstring)."""
         if when < self.now:
             raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
-        ev = Event(when, fn, args, owner)
+        ev = Event(when, fn, args, owner, 1)
         self._seq += 1
         heapq.heappush(self._heap, (when, self._seq - _FIRST, ev))
+        return ev
+
+    def at_top(self, when: int, fn: Callable[..., Any], *args: Any,
+               owner: object = None) -> Event:
+        """Like :meth:`at`, for a model's physical step: at its tick it runs before every
+        other event, domain events included (module docstring). ``owner``: the domain the
+        step belongs to, if any."""
+        if when < self.now:
+            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
+        ev = Event(when, fn, args, owner, 2)
+        self._seq += 1
+        heapq.heappush(self._heap, (when, self._seq - 2 * _FIRST, ev))
         return ev
 
     def pending(self, owner: object) -> list[Event]:
@@ -92,13 +114,13 @@ class Scheduler:
 
     def put_back(self, events: list[Event]) -> None:
         """Schedule events of a domain again (after :meth:`take`), at their ``when``, in the
-        given order among themselves."""
+        given order among events of the same rank."""
         for ev in events:
             if ev.when < self.now:
                 raise ValueError(f"cannot put back an event at tick {ev.when}: now is "
                                  f"tick {self.now}")
             self._seq += 1
-            heapq.heappush(self._heap, (ev.when, self._seq - _FIRST, ev))
+            heapq.heappush(self._heap, (ev.when, self._seq - ev.rank * _FIRST, ev))
 
     def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
         """Run ``fn(*args)`` ``delay`` ticks from now."""

@@ -66,7 +66,7 @@ class DomainClock:
     the world's scheduler, with the domain's events first at a tick, or, while the domain
     catches up, a private scheduler."""
 
-    __slots__ = ("world", "owner", "private", "at")
+    __slots__ = ("world", "owner", "private", "at", "at_top")
 
     def __init__(self, world: Scheduler, owner: object) -> None:
         self.world = world
@@ -74,12 +74,15 @@ class DomainClock:
         self.private: Scheduler | None = None
         self.at: Callable[..., Event] = partial(world.at_first, owner)
         """``at(when, fn, *args)``: schedule on whichever scheduler runs the domain now."""
+        self.at_top: Callable[..., Event] = partial(world.at_top, owner=owner)
+        """``at_top(when, fn, *args)``: a step of a domain's part (``Scheduler.at_top``)."""
 
     def use(self, private: Scheduler | None) -> None:
         """Run the domain on ``private`` (None: on the world's scheduler again)."""
         self.private = private
-        self.at = partial((private if private is not None else self.world).at_first,
-                          self.owner)
+        sched = private if private is not None else self.world
+        self.at = partial(sched.at_first, self.owner)
+        self.at_top = partial(sched.at_top, owner=self.owner)
 
     @property
     def now(self) -> int:
