@@ -54,6 +54,26 @@ def test_take_and_put_back_keep_the_order_and_work_while_running():
     assert s.pending(owner) == [] and s.take(owner) == []
 
 
+def test_steps_run_before_domain_events_and_keep_their_rank_when_put_back():
+    """``at_top`` (a wheel's 1 ms step): first at its tick, before the domains' events and the
+    world's, whenever each was scheduled; taking a domain out and putting it back keeps it so."""
+    s = Scheduler()
+    owner = object()
+    out: list[str] = []
+    s.at_first(owner, 50, out.append, "domain")
+    s.at(50, out.append, "world")
+    s.at_top(50, out.append, "step", owner=owner)
+    s.at_first(owner, 50, out.append, "domain 2")
+    taken: list = []
+    s.at(20, lambda: taken.extend(s.take(owner)))
+    s.at(25, lambda: s.at_first(owner, 50, out.append, "domain, while taken"))
+    s.at(30, lambda: s.put_back(taken))
+    s.run_until(100)
+    assert out == ["step", "domain, while taken", "domain", "domain 2", "world"]
+    with pytest.raises(ValueError):
+        s.at_top(99, out.append, "the past")
+
+
 def test_put_back_refuses_the_past():
     s = Scheduler()
     owner = object()
