@@ -1,56 +1,39 @@
-"""Digests of the simulator's traces for a fixed set of seeded runs, through the ``rprs sim``
-command a user runs. A change meant to leave behaviour alone (a restructuring, a speed-up)
-must leave every digest unchanged:
+"""Digests of the simulator's traces for a fixed set of seeded runs (hil/cli/trace_digests.py).
 
-    python scripts/trace_digest.py > before.txt      # on the old commit
-    python scripts/trace_digest.py | diff before.txt -   # on the new one
+    python scripts/trace_digest.py            # print them, and say which differ from the record
+    python scripts/trace_digest.py --write    # record them (tests/data/trace_digests.txt)
 
-Each run covers a different part of the firmware and the air: a loaded ring with the father,
-every child's CAN side with CAN faults, byte errors with idle noise, a forced collision and a
-foreign burst with the checksum, a father failover, and the peer MACs.
+A change meant to leave behaviour alone must leave every digest unchanged
+(tests/test_trace_digests.py checks it); record them again only for a change of behaviour that
+is meant, and say why in the commit.
 """
 from __future__ import annotations
 
-import hashlib
-import os
-import subprocess
+import argparse
 import sys
-import tempfile
 
-RUNS = {
-    "loaded ring of 7": "--robots 0,1,2,3,4,5,6 --duration 30 --seed 1 --load 2",
-    "CAN side and CAN faults": "--robots 0,1,2,3 --duration 20 --seed 2 --can --load 1 "
-                               "--fault busoff:2@4 --fault stuck:3@6-7 "
-                               "--fault stall:1.JOINT1@5 --fault silent:2.WHEEL@8-9",
-    "byte errors and noise": "--robots 1,2,3,4 --duration 20 --seed 3 --ber 0.001 --noise "
-                             "--load 1",
-    "collision, burst, checksum": "--robots 0,1,2,3 --duration 20 --seed 4 --checksum --load 1 "
-                                  "--fault steal:2@3 --fault burst@6:0.3 --fault fail:1@8 "
-                                  "--fault recover:1@12",
-    "father failover": "--robots 0,1,2 --duration 20 --seed 5 --father-standby --load 1 "
-                       "--fault fail:0@6",
-    "power-on order and skew": "--robots 1,2,3,4,5 --duration 20 --seed 6 --power 3@1.5 "
-                               "--power 1@0.7 --fault skew:2:0.02 --fault drop@5-9:0.002",
-    "csma peer": "--robots 1,2,3 --duration 10 --seed 7 --mac csma --load 5",
-}
-
-
-def digest(args: str) -> str:
-    with tempfile.TemporaryDirectory() as d:
-        path = os.path.join(d, "trace.jsonl")
-        cmd = [sys.executable, "-m", "hil.cli", "sim", *args.split(), "--trace", path,
-               "--no-progress", "--json"]
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        if r.returncode:
-            raise SystemExit(f"rprs sim {args} failed ({r.returncode}): {r.stderr.strip()}")
-        with open(path, "rb") as f:
-            return hashlib.sha256(f.read()).hexdigest()
+from hil.cli.trace_digests import RECORDED, RUNS, digest, read_recorded
 
 
 def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--write", action="store_true", help=f"record the digests in {RECORDED}")
+    a = p.parse_args()
+    recorded = read_recorded() if RECORDED.exists() else {}
+    lines, changed = [], 0
     for name, args in RUNS.items():
-        print(f"{digest(args)}  {name}", flush=True)
-    return 0
+        h = digest(args)
+        lines.append(f"{h}  {name}")
+        old = recorded.get(name)
+        mark = "" if old == h else ("   (no record)" if old is None else
+                                    "   (differs from the record)")
+        changed += bool(mark)
+        print(f"{h}  {name}{mark}", flush=True)
+    if a.write:
+        RECORDED.write_text("\n".join(lines) + "\n")
+        print(f"recorded in {RECORDED}")
+        return 0
+    return 1 if changed else 0
 
 
 if __name__ == "__main__":

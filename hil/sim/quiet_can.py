@@ -149,8 +149,8 @@ class QuietCan:
             return
         moved = period_delta(last, snap, PERIOD, COUNTERS)
         if moved is None:
-            # busy but not in a way may_sleep sees (a wheel cruising): look again in 1, 2, 4
-            # ... 16 periods, and compare with the snapshot then
+            # busy in a way may_sleep does not see (it knows jobs and moving nodes only): look
+            # again in 1, 2, 4 ... 16 periods, and compare with the snapshot then
             self._misses += 1
             self._skip = min(1 << (self._misses - 1), 16) - 1
             if self._skip:
