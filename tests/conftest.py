@@ -36,13 +36,36 @@ def is_realtime(nodeid: str) -> bool:
     return module in REALTIME_MODULES or f"{path}::{name.partition('[')[0]}" in REALTIME_TESTS
 
 
+def _lock_base(config) -> Path:
+    """Path stem of this test run's lock files (``_cpu_to_itself``): one pair per run, shared
+    by its xdist workers through the run's uid, removed when the run ends."""
+    worker = getattr(config, "workerinput", None)
+    if worker:
+        uid = worker["testrunuid"]
+    else:
+        uid = getattr(config.option, "testrunuid", None) or f"solo-{os.getpid()}"
+    return Path(tempfile.gettempdir()) / f"rprs-tests-{uid}"
+
+
 def pytest_configure(config):
+    if not getattr(config, "workerinput", None) and \
+            getattr(config.option, "testrunuid", "unset") is None:
+        # xdist would draw the uid in its node manager, out of the controller's reach; drawn
+        # here, the controller knows which lock files are the run's to remove at its end
+        config.option.testrunuid = uuid.uuid4().hex
     config.addinivalue_line(
         "markers",
         "vcan: needs a SocketCAN vcan0 interface (run them for real with scripts/vcan-vm.sh)",
     )
     config.addinivalue_line(
         "markers", "realtime: runs on the wall clock (tests/conftest.py: is_realtime)")
+
+
+def pytest_unconfigure(config):
+    if not getattr(config, "workerinput", None):
+        base = _lock_base(config)
+        for suffix in (".turnstile", ".cpu"):
+            Path(f"{base}{suffix}").unlink(missing_ok=True)
 
 
 def pytest_collection_modifyitems(config, items):
@@ -104,9 +127,7 @@ def _cpu_to_itself(request):
     came 70 ms late now and then. Such a test takes a run-wide lock exclusively, every other
     test shares it; a turnstile lock first keeps a waiting timing test from being starved by
     a stream of others (a fair readers-writer lock on flock)."""
-    worker = getattr(request.config, "workerinput", None)
-    uid = worker["testrunuid"] if worker else f"solo-{os.getpid()}"
-    base = Path(tempfile.gettempdir()) / f"rprs-tests-{uid}"
+    base = _lock_base(request.config)
     module = request.node.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
     exclusive = module in TIMING_MODULES
     with open(f"{base}.turnstile", "a+") as gate, open(f"{base}.cpu", "a+") as cpu:
