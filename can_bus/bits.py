@@ -23,6 +23,7 @@ built the same way (6 flag bits, 6..12 superposed, 8 delimiter bits).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Iterable, Sequence
@@ -241,11 +242,74 @@ def unstuff(bits: Sequence[int]) -> list[int]:
     return out
 
 
+def _crc15_byte_table() -> tuple[int, ...]:
+    """``crc15`` of eight zero bits from the register ``i << 7``, for each top byte ``i``:
+    one data byte then costs a table lookup instead of eight shifts (the result is the same)."""
+    table = []
+    for i in range(256):
+        crc = i << 7
+        for _ in range(8):
+            top = crc >> 14
+            crc = (crc << 1) & 0x7FFF
+            if top:
+                crc ^= CRC15_POLY
+        table.append(crc)
+    return tuple(table)
+
+
+_CRC15_BYTE = _crc15_byte_table()
+_RUN_OF_FIVE = re.compile("00000|11111")
+_FOUR = {"0": "0000", "1": "1111"}
+_FLIP = {"0": "1", "1": "0"}
+_TO_BITS = bytes.maketrans(b"01", b"\x00\x01")
+_TRAILER = "1" * TRAILER_BITS    # CRC delimiter, ACK slot (recessive as sent), ACK delimiter, EOF
+
+
+@lru_cache(maxsize=1024)
+def _header_crc(header: int) -> int:
+    """CRC-15 register after the 19 header bits (SOF, ID, RTR, IDE, r0, DLC)."""
+    return crc15(_int_bits(header, 19))
+
+
+def _stuff_text(bits: str) -> str:
+    """``stuff`` on a string of '0'/'1': frames have few stuff bits, so the string is searched
+    for runs of five instead of walked bit by bit."""
+    m = _RUN_OF_FIVE.search(bits)
+    if m is None:
+        return bits
+    out = []
+    pos = 0
+    while m is not None:
+        end = m.end()
+        out.append(bits[pos:end])
+        stuff_bit = _FLIP[bits[end - 1]]
+        # the stuff bit is the first of the next run: four more equal bits make five
+        while bits.startswith(_FOUR[stuff_bit], end):
+            out.append(stuff_bit)
+            out.append(bits[end:end + 4])
+            end += 4
+            stuff_bit = _FLIP[stuff_bit]
+        out.append(stuff_bit)
+        pos = end
+        m = _RUN_OF_FIVE.search(bits, pos)
+    out.append(bits[pos:])
+    return "".join(out)
+
+
 @lru_cache(maxsize=4096)
 def _wire(can_id: int, data: bytes, rtr: bool, dlc: int) -> tuple[int, ...]:
-    stuffed = stuff(_frame_bits(can_id, data, rtr, dlc))
-    # CRC delimiter, ACK slot (recessive as sent), ACK delimiter, EOF.
-    return tuple(stuffed) + (1,) * TRAILER_BITS
+    """``stuff(frame_bits(...))`` and the 10 trailer bits, as a tuple. A status frame whose data
+    changes misses the cache, so this is computed from integers and strings (the same bits as
+    the bit-by-bit functions above, tested against them) rather than lists of bits."""
+    header = can_id << 7 | (rtr << 6) | dlc      # SOF 0, ID, RTR, IDE 0, r0 0, DLC
+    crc = _header_crc(header)
+    table = _CRC15_BYTE
+    for byte in data:
+        crc = ((crc << 8) & 0x7FFF) ^ table[((crc >> 7) ^ byte) & 0xFF]
+    n = 8 * len(data)
+    value = ((header << n | int.from_bytes(data, "big")) << 15) | crc
+    text = _stuff_text(format(value, f"0{34 + n}b")) + _TRAILER
+    return tuple(text.encode("ascii").translate(_TO_BITS))
 
 
 def wire_bits(can_id: int, data: bytes = b"", rtr: bool = False, dlc: int | None = None) -> list[int]:

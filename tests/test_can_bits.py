@@ -12,6 +12,8 @@ from can_bus.bits import (
     OVERLOAD_FRAME_BITS,
     BitTiming,
     StuffError,
+    _stuff_text,
+    _wire,
     crc15,
     frame_bits,
     frame_length_bits,
@@ -189,6 +191,37 @@ def test_stuff_round_trip(bits):
     assert unstuff(s) == bits
     assert len(s) - len(bits) == stuff_count(bits)
     assert "000000" not in b2s(s) and "111111" not in b2s(s)
+
+
+runs_st = st.lists(st.tuples(st.integers(0, 1), st.integers(1, 12)), max_size=30).map(
+    lambda runs: [bit for bit, n in runs for _ in range(n)])
+
+
+@settings(max_examples=300)
+@given(st.one_of(bits_st, runs_st))
+def test_stuffing_a_string_is_stuffing_bit_by_bit(bits):
+    # the frame path stuffs text (few stuff bits, so it searches for runs); long equal runs
+    # and runs of four right after a stuff bit are where the two could part
+    assert _stuff_text(b2s(bits)) == b2s(stuff(bits))
+
+
+wire_args_st = st.one_of(
+    st.tuples(st.integers(0, 0x7FF), st.just(b""), st.just(True), st.integers(0, 15)),
+    st.binary(max_size=8).flatmap(lambda d: st.tuples(
+        st.integers(0, 0x7FF), st.just(d), st.just(False),
+        st.integers(8, 15) if len(d) == 8 else st.just(len(d)))),
+    st.tuples(st.sampled_from([0, 0x7FF, 0x400, 0x3FF]),
+              st.sampled_from([bytes(8), b"\xff" * 8, b"\x0f\xf0" * 4]),
+              st.just(False), st.just(8)),
+)
+
+
+@settings(max_examples=300)
+@given(wire_args_st)
+def test_wire_from_integers_is_the_bit_by_bit_wire(args):
+    can_id, data, rtr, dlc = args
+    expected = tuple(stuff(frame_bits(can_id, data, rtr, dlc))) + (1,) * 10
+    assert _wire.__wrapped__(can_id, data, rtr, dlc) == expected
 
 
 # ---------------------------------------------------------------- validation
