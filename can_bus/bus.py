@@ -11,6 +11,12 @@ A node is any object; the bus looks up these optional methods once, at :meth:`Ca
 * ``pending() -> CanFrame | None``: the node's highest-priority frame waiting to be sent. If the
   node has it, the node keeps its own queue and the bus asks at every arbitration; otherwise the
   bus keeps a per-node priority queue filled by ``bus.request(node, frame)``.
+* ``pending_after_request`` (optional, read at attach): True promises that ``pending()`` has no
+  side effect when it returns None and returns None until the node next calls
+  ``bus.request(node)``; the bus then stops asking it once it had nothing, until its next
+  request (a submodule's six status frames a period would otherwise be asked for at every
+  arbitration of the bus). Without it the node is asked at every arbitration (an 82C250 in
+  standby watches for SOFs that way).
 * ``on_frame(frame, start_tick, end_tick)``: a frame was received (every node that is not
   bus-off receives every frame it did not send; filtering is the node's business).
 * ``acknowledges`` (optional, read at each frame): False while the node cannot drive the ACK
@@ -231,7 +237,7 @@ class _Node:
     __slots__ = (
         "node", "tec", "rec", "state", "suspend_until", "occ", "recover_ev", "queue", "seq",
         "pending_fn", "on_frame", "on_tx_done", "on_lost", "on_error", "on_state", "attached",
-        "entry", "counting", "count_from", "loop",
+        "entry", "counting", "count_from", "loop", "after_request", "asked",
     )
 
     def __init__(self, node: Any) -> None:
@@ -248,6 +254,8 @@ class _Node:
         self.seq = 0
         self.entry: tuple[int, bool, int, CanFrame] | None = None
         self.pending_fn = getattr(node, "pending", None)
+        self.after_request = bool(getattr(node, "pending_after_request", False))
+        self.asked = True           # pending() may return a frame (cleared when it had none)
         self.on_frame = getattr(node, "on_frame", None)
         self.on_tx_done = getattr(node, "on_tx_done", None)
         self.on_lost = getattr(node, "on_arbitration_lost", None)
@@ -400,6 +408,7 @@ class CanBus:
         """Ask to transmit. Nodes with ``pending()`` just wake the bus (``frame`` is ignored,
         the bus sends what ``pending()`` returns); others have ``frame`` queued by priority."""
         ns = self._ns(node)
+        ns.asked = True
         if ns.pending_fn is None:
             if frame is None:
                 raise ValueError("a node without pending() must pass the frame to request()")
@@ -466,7 +475,12 @@ class CanBus:
         return self.status(node).rec
 
     def error_state(self, node: Any) -> ErrorState:
-        return self.status(node).state
+        """The node's error state, without building a NodeStatus (the firmware's supervision
+        asks at every frame it receives)."""
+        ns = self._ns(node)
+        if self._hold is not None:
+            self._settle(self.sched.now)
+        return ns.state
 
     def queued(self, node: Any) -> list[CanFrame]:
         """Frames in the bus-kept queue of a node without pending(), highest priority first."""
@@ -576,8 +590,11 @@ class CanBus:
             if ns.state is BUS_OFF:
                 continue
             if ns.pending_fn is not None:
+                if not ns.asked:
+                    continue
                 f = ns.pending_fn()
                 if f is None:
+                    ns.asked = not ns.after_request
                     continue
                 if not isinstance(f, CanFrame):
                     f = CanFrame.from_message(f)

@@ -190,6 +190,9 @@ class _Submodule:
         return f"<{type(self).__name__} {self.name}>"
 
     # ------------------------------------------------------------ bus node interface
+    pending_after_request = True
+    """Every frame is queued by ``_push``, which asks the bus (can_bus/bus.py, Nodes)."""
+
     def pending(self) -> CanFrame | None:
         if self._silent or not self._queue:
             return None

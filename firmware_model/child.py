@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from can_bus.bus import CanFrame
+from can_bus.bus import CanFrame, ErrorState
 
 from .cycle_costs import DEFAULT_COSTS, CycleCosts, message_cycles
 from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, REQUEST_TYPES, Dispatcher
@@ -159,10 +159,15 @@ class CanDriver:
 
     def deadline(self) -> int | None:
         """When the supervision next needs the timer."""
-        ticks = [t for t in (self._restart_at, self._retry_at) if t is not None]
-        if not self.isolated and self.can.error_state.value != "error-active":
-            ticks.append((self.last_rx or 0) + BLOCKED)
-        return min(ticks) if ticks else None
+        best = self._restart_at
+        retry = self._retry_at
+        if retry is not None and (best is None or retry < best):
+            best = retry
+        if not self.isolated and self.can.error_state is not ErrorState.ACTIVE:
+            blocked = (self.last_rx or 0) + BLOCKED
+            if best is None or blocked < best:
+                best = blocked
+        return best
 
     def on_timer(self, now: int) -> None:
         c = self.can
@@ -180,7 +185,7 @@ class CanDriver:
             for buf, q in self._queue.items():
                 if q:
                     self._load(buf)
-        if not self.isolated and c.error_state.value != "error-active" and \
+        if not self.isolated and c.error_state is not ErrorState.ACTIVE and \
                 now - (self.last_rx or 0) >= BLOCKED:
             self.isolate(now)
 

@@ -398,3 +398,39 @@ def test_random_traffic_and_faults_keep_invariants(n_nodes, ops):
     assert sum(len(m.done) for m in nodes) == requested  # all sent once faults are gone
     spans = sorted([(s_, e + 3 * TPB) for _, s_, e, _ in log] + [(e[2], e[4]) for e in errs if e[4] is not None])
     assert all(q[0] >= p[1] for p, q in zip(spans, spans[1:]))  # nothing overlaps on the wire
+
+
+class CountingNode(QueueNode):
+    """A QueueNode that counts how often the bus asks it for a frame."""
+
+    def __init__(self, name):
+        super().__init__(name)
+        self.asked = 0
+
+    def pending(self):
+        self.asked += 1
+        return super().pending()
+
+
+class AfterRequestNode(CountingNode):
+    pending_after_request = True
+
+
+def test_a_node_pending_after_request_is_asked_again_only_after_its_request():
+    # Node a sends three frames; b has nothing the whole time. b without the promise is asked
+    # at every arbitration (at each request and at each frame's end); with it, only at the
+    # first one, then never again until it requests (can_bus/bus.py, Nodes).
+    for cls, b_asked in ((CountingNode, 6), (AfterRequestNode, 1)):
+        sched, bus, (a, b), log, _ = make(2, cls=cls)
+        for k in range(3):
+            sched.at(k * 3000, lambda k=k: (a.q.append(CanFrame(0x100 + k, b"x")),
+                                            bus.request(a)))
+        sched.run_until(10_000)
+        assert [f.id for f, *_ in log] == [0x100, 0x101, 0x102]
+        assert b.asked == b_asked, cls.__name__
+        # a frame b queues is sent once b asks the bus, however long b was left alone
+        b.q.append(CanFrame(0x050, b"y"))
+        sched.at(12_000, bus.request, b)
+        sched.run_until(15_000)
+        assert [f.id for f, *_ in log][-1] == 0x050
+        assert b.done and b.done[-1][0].id == 0x050

@@ -354,7 +354,8 @@ class CanController:
     @property
     def error_state(self) -> ErrorState:
         """The bus's view of this node (error-active / error-passive / bus-off)."""
-        return self._status()[2]
+        x = self.transceiver
+        return _ACTIVE if x is None else x.error_state()
 
     @property
     def node_status(self) -> int:
