@@ -134,6 +134,10 @@ class PythonCanBus:
         """Error counters are the adapter's business; python-can does not report them."""
         return NodeStatus(0, 0, ErrorState.ACTIVE)
 
+    def error_state(self, node: Any) -> ErrorState:
+        """``status(node).state``: always error-active (python-can reports no counters)."""
+        return ErrorState.ACTIVE
+
     def hold_dominant(self, node: Any, on: bool = True) -> None:
         raise NotImplementedError("a stuck-dominant TXD can only be injected on the simulated "
                                   "bus (can_bus.bus.CanBus)")

@@ -350,3 +350,30 @@ def test_a_transceiver_on_a_python_can_bus_has_no_simulated_physics_to_tell():
         assert x.mode is RsMode.HIGH_SPEED
     finally:
         bus.close()
+
+
+def test_the_controller_reads_its_error_state_through_the_simulated_bus():
+    # The child's supervision asks the controller for the error state at every frame it
+    # receives; the controller asks its transceiver, which asks the bus.
+    sched, bus, (c,), (x,), log, errs = rig(1)
+    assert c.error_state is ErrorState.ACTIVE is x.error_state()
+    c.transmit(0, b"\x01")              # nobody to acknowledge: an ACK error each try, TEC + 8
+    sched.run_until(sched.now + 20 * 100 * 32)
+    assert len(errs) >= 16
+    assert c.error_state is ErrorState.PASSIVE is x.error_state() is x.status().state
+
+
+def test_the_controller_reads_its_error_state_through_python_can():
+    # The python-can bridge once lacked CanBus.error_state, and every `rprs child --can`
+    # process died at its first received frame; only the wall-clock tests showed it.
+    import can
+
+    from can_bus.bridge import PythonCanBus
+    sched = Scheduler()
+    bus = PythonCanBus(sched, can.Bus(interface="virtual", channel=f"xcvr-{id(sched)}"))
+    try:
+        c = CanController(sched)
+        x = Transceiver82C250(bus, c)
+        assert c.error_state is ErrorState.ACTIVE is x.error_state() is x.status().state
+    finally:
+        bus.close()
