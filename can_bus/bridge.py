@@ -129,6 +129,7 @@ class PythonCanBus:
 
     idle = True          # the wire's state is not visible through python-can
     held = False
+    frame_on_air = None  # ... nor the frame on it (an 82C250 in standby asks, to wake at SOF)
 
     def status(self, node: Any) -> NodeStatus:
         """Error counters are the adapter's business; python-can does not report them."""

@@ -377,3 +377,24 @@ def test_the_controller_reads_its_error_state_through_python_can():
         assert c.error_state is ErrorState.ACTIVE is x.error_state() is x.status().state
     finally:
         bus.close()
+
+
+def test_the_python_can_bridge_answers_everything_a_transceiver_asks_of_its_bus():
+    # Read from the transceiver's source: each ``self.bus.NAME`` it reads without a getattr
+    # default must exist on the bridge as on the simulated bus (a missing one killed every
+    # `rprs child --can` process once: error_state).
+    import re
+    from pathlib import Path
+
+    import can_bus.transceiver as transceiver
+    from can_bus.bridge import PythonCanBus
+    names = set(re.findall(r"self\.bus\.([a-z_]+)", Path(transceiver.__file__).read_text()))
+    assert {"status", "error_state", "request", "frame_on_air", "tpb"} <= names
+    import can
+    bridge = PythonCanBus(Scheduler(), can.Bus(interface="virtual", channel=f"names-{id(names)}"))
+    try:
+        for bus in (CanBus(Scheduler()), bridge):
+            missing = sorted(n for n in names if not hasattr(bus, n))
+            assert not missing, f"{type(bus).__name__} lacks {missing}"
+    finally:
+        bridge.close()
