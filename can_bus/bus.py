@@ -19,9 +19,14 @@ A node is any object; the bus looks up these optional methods once, at :meth:`Ca
   standby watches for SOFs that way).
 * ``on_frame(frame, start_tick, end_tick)``: a frame was received (every node that is not
   bus-off receives every frame it did not send; filtering is the node's business).
-* ``acknowledges`` (optional, read at each frame): False while the node cannot drive the ACK
-  slot (a halted controller, a transceiver in standby); with no receiver that can, the frame
-  ends in an ACK error.
+* ``rx_ids`` (optional, read at attach): a frozenset of the identifiers whose frames the node
+  acts on; it promises that ``on_frame`` does nothing with any other, so the bus does not call
+  it for them (acceptance decided once per identifier and node: a submodule hears its command
+  and ESTOP, not the other submodules' six status frames a period). The node still receives
+  every frame as far as the error counters go (REC).
+* ``acknowledges`` (optional; if the node has it when attached, read at each frame): False
+  while the node cannot drive the ACK slot (a halted controller, a transceiver in standby);
+  with no receiver that can, the frame ends in an ACK error. A node without it always can.
 * Its loop delay (TXD to RXD through its transceiver), set with :meth:`CanBus.set_loop_delay`
   (default: a high-speed 82C250). A transmitter that gets no acknowledging receiver's ACK back
   within the bit timing's round-trip budget (:mod:`can_bus.physical`: ``(tseg1 - sjw)``
@@ -237,7 +242,8 @@ class _Node:
     __slots__ = (
         "node", "tec", "rec", "state", "suspend_until", "occ", "recover_ev", "queue", "seq",
         "pending_fn", "on_frame", "on_tx_done", "on_lost", "on_error", "on_state", "attached",
-        "entry", "counting", "count_from", "loop", "after_request", "asked",
+        "entry", "counting", "count_from", "loop", "after_request", "asked", "rx_ids",
+        "always_acks",
     )
 
     def __init__(self, node: Any) -> None:
@@ -257,6 +263,9 @@ class _Node:
         self.after_request = bool(getattr(node, "pending_after_request", False))
         self.asked = True           # pending() may return a frame (cleared when it had none)
         self.on_frame = getattr(node, "on_frame", None)
+        ids = getattr(node, "rx_ids", None)
+        self.rx_ids: frozenset[int] | None = None if ids is None else frozenset(ids)
+        self.always_acks = not hasattr(node, "acknowledges")
         self.on_tx_done = getattr(node, "on_tx_done", None)
         self.on_lost = getattr(node, "on_arbitration_lost", None)
         self.on_error = getattr(node, "on_error", None)
@@ -661,10 +670,14 @@ class CanBus:
         self._cur_late = False
         if err is None or err[0] > nstuffed + 1:
             if not self._ack_limited:
-                if not any(getattr(ns.node, "acknowledges", True) for ns in rx):
-                    err = (nstuffed + 1, "ack")  # no receiver able to drive the ACK slot
+                for ns in rx:
+                    if ns.always_acks:
+                        break
+                else:
+                    if not any(ns.node.acknowledges for ns in rx):
+                        err = (nstuffed + 1, "ack")  # no receiver able to drive the ACK slot
             else:
-                acking = [ns for ns in rx if getattr(ns.node, "acknowledges", True)]
+                acking = [ns for ns in rx if ns.always_acks or ns.node.acknowledges]
                 budget = self._ack_budget - max(ns.loop for ns in tx)
                 if not acking:
                     err = (nstuffed + 1, "ack")
@@ -745,9 +758,10 @@ class CanBus:
     @staticmethod
     def _rx_deliver(frame: CanFrame, start: int, now: int, rx: list[_Node],
                     deaf: set[int]) -> None:
+        fid = frame.id
         for ns in rx:
             if ns.on_frame is not None and ns.attached and ns.state is not BUS_OFF and \
-                    not (deaf and id(ns) in deaf):
+                    not (deaf and id(ns) in deaf) and (ns.rx_ids is None or fid in ns.rx_ids):
                 ns.on_frame(frame, start, now)
 
     def _late_ack_received(self, frame: CanFrame, start: int, tx: _Node,

@@ -168,6 +168,8 @@ class _Submodule:
         self.status_name = dbc.status_name(number)
         self.event_name = dbc.event_name(number)
         self._estop_id = dbc.frame_id(dbc.ESTOP)
+        self.rx_ids = frozenset({self.cmd_id, self._estop_id})
+        """The frames ``on_frame`` acts on (a bus promise, can_bus/bus.py, Nodes)."""
         self.state = STATE_IDLE
         self.seq = 0
         """seq of the last command taken."""

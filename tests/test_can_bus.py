@@ -434,3 +434,50 @@ def test_a_node_pending_after_request_is_asked_again_only_after_its_request():
         sched.run_until(15_000)
         assert [f.id for f, *_ in log][-1] == 0x050
         assert b.done and b.done[-1][0].id == 0x050
+
+
+class FilteringNode(Node):
+    """A node that acts only on identifier 0x120 and says so (``rx_ids``)."""
+
+    rx_ids = frozenset({0x120})
+
+
+class DeafNode(Node):
+    acknowledges = False
+
+
+def _filter_run(b_cls):
+    """a sends 0x110, 0x120, 0x130 (the first one destroyed by a local error at b), then
+    0x140 once b is gone; c cannot acknowledge."""
+    sched = Scheduler()
+    bus = CanBus(sched, BitTiming())
+    a, b, c = Node("a"), b_cls("b"), DeafNode("c")
+    for x in (a, b, c):
+        bus.attach(x)
+    log = []
+    bus.trace = lambda f, s_, e, w: log.append((f, s_, e, w.name))
+    bus.inject_local_error(b)
+    for k, fid in enumerate((0x110, 0x120, 0x130)):
+        sched.at(k * 3000, bus.request, a, CanFrame(fid, b"x"))
+    sched.run_until(20_000)
+    seen = (log[:], [(f.id, t) for f, t in a.done], [e.kind for e in a.errors],
+            bus.rec(b), bus.tec(a), list(c.rx))
+    bus.detach(b)
+    sched.at(sched.now, bus.request, a, CanFrame(0x140, b"y"))
+    sched.run_until(sched.now + 3000)
+    return seen, b.rx, [e.kind for e in a.errors]
+
+
+def test_a_node_with_rx_ids_hears_only_those_and_the_bus_runs_as_without_them():
+    """``rx_ids`` only spares the calls: b still acknowledges every frame (c cannot, so
+    without b a frame ends in an ACK error), its REC follows every frame, the timing is the
+    same."""
+    plain, plain_rx, _ = _filter_run(Node)
+    filtered, filtered_rx, errors = _filter_run(FilteringNode)
+    assert filtered == plain
+    assert [f.id for f, *_ in plain_rx] == [0x110, 0x120, 0x130]
+    assert [f.id for f, *_ in filtered_rx] == [0x120]
+    log, done, _, rec, _, c_rx = plain
+    assert [i for i, _ in done] == [0x110, 0x120, 0x130] and len(c_rx) == 3
+    assert rec > 0                         # the local error, partly worked off
+    assert errors[-1] == "ack"             # 0x140 with nobody able to acknowledge it
