@@ -273,7 +273,8 @@ class ChildFirmware:
     def _on_message(self, d: Deliver, now: int) -> None:
         """The radio handler hands the message to the main loop, which parses and plans it."""
         end = self.station.deframer.last_tick
-        body = message_cycles(d.commands, self.costs or DEFAULT_COSTS)
+        # (the ideal CPU runs it in zero time: its cycles need no counting)
+        body = 0 if self.cpu.ideal else message_cycles(d.commands, self.costs or DEFAULT_COSTS)
         self.cpu.task(DISPATCH_TASK, body, self._dispatch, d, end)
 
     def _dispatch(self, d: Deliver, end: int | None) -> None:

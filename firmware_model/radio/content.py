@@ -169,11 +169,14 @@ def format_number(v: int | float) -> str:
 
 def _normalise(spec: CommandSpec, p: Param, v: object) -> tuple[int | float | None, str]:
     """(value, '') or (None, reason) for Python value ``v`` of parameter ``p``."""
+    if type(v) is int:                  # the common case, without the numbers ABCs
+        return _check_value(spec, p, v)
     if isinstance(v, bool):
         return None, f"{spec.name} parameter {p.name} must be a number, got {v!r}"
-    if isinstance(v, numbers.Integral):
+    t = type(v)
+    if t is not float and isinstance(v, numbers.Integral):
         v = int(v)
-    elif p.kind == "num" and isinstance(v, numbers.Real):
+    elif p.kind == "num" and (t is float or isinstance(v, numbers.Real)):
         v = float(v)
         if not math.isfinite(v):
             return None, f"{spec.name} parameter {p.name} must be finite, got {v!r}"

@@ -13,6 +13,7 @@ Check value: CRC-16/CCITT-FALSE of b"123456789" is 0x29B1 (10673).
 from __future__ import annotations
 
 from binascii import crc_hqx
+from functools import lru_cache
 
 from .frame import CONTENT_OFFSET, Frame
 
@@ -35,8 +36,10 @@ def seal(dst: int, src: int, num: int, type: int, body: bytes) -> Frame:
                  content=body + b"crc(%05d)" % crc16(covered))
 
 
+@lru_cache(maxsize=1024)
 def check(frame: Frame) -> bool:
-    """True when ``frame`` ends with a ``crc(NNNNN)`` matching its bytes."""
+    """True when ``frame`` ends with a ``crc(NNNNN)`` matching its bytes (memoised: every
+    receiver of a transmission checks the same frame)."""
     c = frame.content
     if len(c) < CRC_TEXT_LEN or c[-CRC_TEXT_LEN:-6] != b"crc(" or c[-1:] != b")":
         return False
