@@ -18,7 +18,8 @@ from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.radio.content import cmd
 from hil.sim.faults import parse_fault
 from hil.sim.quiet_can import PERIOD
-from hil.sim.state_walk import Unwalkable, advance, period_delta, portable, snapshot
+from hil.sim.state_walk import (Unwalkable, advance, on_orbit, period_delta, period_steps,
+                                portable, snapshot)
 from hil.sim.world import SimConfig, World
 
 
@@ -126,6 +127,31 @@ def test_a_record_is_taken_by_its_length_and_still_must_not_grow():
                         frozenset({"sent"})) is None
 
 
+def test_back_on_its_orbit_after_a_wake_a_part_may_sleep_at_once():
+    """A part fell asleep on ``orbit`` (a period moves ``when`` by PERIOD and ``sent`` by 6);
+    something woke it and left a grown log and more sent frames: k periods later it is the
+    orbit moved on, as far as its future goes. Anything else is not."""
+    records, counters = frozenset({"log"}), frozenset({"sent"})
+    a, b = _part(100, 4, 7), _part(100 + PERIOD, 10, 7)
+    a.log, b.log = [1], [1]
+    steps = period_steps(snapshot([a], records=records), orbit := snapshot([b], records=records),
+                         PERIOD, counters)
+    assert steps is not None
+
+    def now(when: int, sent: int, level: int, log: list) -> object:
+        p = _part(when, sent, level)
+        p.log = log
+        return snapshot([p], records=records)
+    assert on_orbit(orbit, steps, 3, now(100 + 4 * PERIOD, 25, 7, [1, 2, 3]), counters)
+    assert on_orbit(orbit, steps, 3, now(100 + 4 * PERIOD, 10, 7, [1]), counters)
+    for wrong in (now(100 + 4 * PERIOD + 2, 25, 7, [1]),     # a tick off the grid
+                  now(100 + 3 * PERIOD, 25, 7, [1]),         # ... or a period behind
+                  now(100 + 4 * PERIOD, 25, 8, [1]),         # a level changed
+                  now(100 + 4 * PERIOD, 9, 7, [1])):         # a counter went down
+        assert not on_orbit(orbit, steps, 3, wrong, counters)
+    assert not on_orbit(orbit, steps, 0, orbit, counters)
+
+
 def test_a_random_generator_is_state_a_snapshot_cannot_see():
     p = _part(0, 0, 0)
     p.rng = random.Random(1)
@@ -185,6 +211,8 @@ def test_a_sleeping_can_side_gives_the_frame_by_frame_run(name):
     assert _state(fast) == _state(slow)
     assert all(q.periods_skipped == 0 for q in slow.quiet.values())
     assert sum(q.periods_skipped for q in fast.quiet.values()) > 0
+    if name in ("saturated", "orders"):    # woken by orders, asleep again at once
+        assert sum(q.resleeps for q in fast.quiet.values()) > 0
 
 
 def test_woken_at_awkward_ticks_it_is_still_the_same_run():
@@ -205,6 +233,7 @@ def test_woken_at_awkward_ticks_it_is_still_the_same_run():
         assert _state(fast) == _state(slow), f"different at tick {t}"
     assert _summary(fast) == _summary(slow)
     assert sum(q.sleeps for q in fast.quiet.values()) >= len(cuts)
+    assert sum(q.resleeps for q in fast.quiet.values()) > len(cuts) // 2
 
 
 def test_an_idle_ring_sleeps_most_of_the_time():

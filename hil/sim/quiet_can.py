@@ -20,6 +20,11 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
   the whole periods that passed (ticks and counters, in one step) and runs the last partial
   period's events on a private scheduler up to the tick now (its events run first at a tick),
   then its events go back into the world's scheduler.
+* At the first probe after a wake, if what woke it left the domain exactly on the orbit it
+  slept on, moved on by whole periods (ticks moved by their steps, counters up, logs of any
+  length: :func:`~hil.sim.state_walk.on_orbit`), it sleeps again at once, on the same
+  steps, instead of comparing two snapshots a period apart (an order the dispatcher refuses
+  costs one snapshot, not two).
 
 The result is the run the frame-by-frame simulation gives, to the tick: the state is the same
 after k periods whether they ran or were added up, because the snapshot covers all of it
@@ -34,7 +39,7 @@ from typing import Any, Callable
 from can_bus.submodules import STATUS_PERIOD_TICKS
 from firmware_model.mcu.scheduler import Event, Scheduler
 
-from .state_walk import Snapshot, Unwalkable, advance, period_delta, snapshot
+from .state_walk import Snapshot, Unwalkable, advance, on_orbit, period_steps, snapshot, writable
 
 __all__ = ["COUNTERS", "PERIOD", "RECORDS", "DomainClock", "QuietCan"]
 
@@ -114,6 +119,10 @@ class QuietCan:
         self.sleeps = 0
         self._last: Snapshot | None = None
         self._moved: list[tuple[Any, Any, int]] = []
+        self._orbit: Snapshot | None = None     # the snapshot it last fell asleep on
+        self._steps: dict[int, int] = {}        # how a period moves that snapshot on
+        self.resleeps = 0
+        """Sleeps taken at the first probe after a wake, the state back on the orbit."""
         self._since = 0
         self._events: list[Event] = []
         self._misses = 0          # probes in a row that found the domain not periodic
@@ -146,9 +155,17 @@ class QuietCan:
             return
         last, self._last = self._last, snap
         if last is None:
+            orbit = self._orbit
+            if orbit is None or not on_orbit(orbit, self._steps, (clock.now - self._since)
+                                             // PERIOD, snap, COUNTERS):
+                return
+            # Back on the orbit it slept on (what woke it left nothing that a period does not
+            # move on): sleep again now rather than one period later.
+            self.resleeps += 1
+            self._sleep(snap, self._steps)
             return
-        moved = period_delta(last, snap, PERIOD, COUNTERS)
-        if moved is None:
+        steps = period_steps(last, snap, PERIOD, COUNTERS)
+        if steps is None:
             # busy in a way may_sleep does not see (it knows jobs and moving nodes only): look
             # again in 1, 2, 4 ... 16 periods, and compare with the snapshot then
             self._misses += 1
@@ -156,10 +173,14 @@ class QuietCan:
             if self._skip:
                 self._last = None
             return
+        self._sleep(snap, steps)
+
+    def _sleep(self, snap: Snapshot, steps: dict[int, int]) -> None:
         self._misses = 0
         self._events = self.world.take(self)
-        self._moved = moved
-        self._since = clock.now
+        self._moved = writable(snap, steps)
+        self._orbit, self._steps = snap, steps
+        self._since = self.clock.now
         self.asleep = True
         self.sleeps += 1
 

@@ -23,7 +23,8 @@ import types
 from enum import Enum
 from typing import Any, Iterable
 
-__all__ = ["Snapshot", "Unwalkable", "snapshot", "period_delta", "advance", "portable"]
+__all__ = ["Snapshot", "Unwalkable", "snapshot", "period_delta", "on_orbit", "advance",
+           "portable"]
 
 _OURS = ("can_bus", "firmware_model", "hil")
 _VALUE_TYPES = (bool, float, str, bytes, type(None), Enum, frozenset, set)
@@ -39,10 +40,13 @@ class Unwalkable(Exception):
 class Snapshot:
     """``shape``: every position's kind and value (ints included), in walk order;
     ``ints``: (position in shape, holder, key, name) of every int a period may move on
-    (holder None inside a tuple: it cannot be written)."""
+    (holder None inside a tuple: it cannot be written); ``alive``: every object whose
+    identity the shape records, kept alive with the snapshot so that no other object can take
+    its id while the snapshot may still be compared."""
 
     shape: list
     ints: list[tuple[int, Any, Any, str]]
+    alive: list = dataclasses.field(default_factory=list, repr=False)
 
 
 _SLOTS: dict[type, list[str]] = {}
@@ -63,6 +67,40 @@ def _all_slots(cls: type) -> list[str]:
     return [n for n in names if n not in ("__dict__", "__weakref__")]
 
 
+_INT, _VALUE, _FN, _TUPLE, _LIST, _DICT, _FROZEN, _RNG, _ITER, _OBJ, _FOREIGN = (
+    "int", "value", "fn", "tuple", "list", "dict", "frozen", "rng", "iterator", "object",
+    "foreign")
+_KINDS: dict[type, str] = {}
+"""How :func:`snapshot` takes a value of each type (decided once per type)."""
+
+
+def _kind(t: type) -> str:
+    if t is int:
+        k = _INT
+    elif issubclass(t, _VALUE_TYPES):
+        k = _VALUE
+    elif issubclass(t, _FN_TYPES):
+        k = _FN
+    elif t is tuple:
+        k = _TUPLE
+    elif issubclass(t, list):
+        k = _LIST
+    elif issubclass(t, dict):
+        k = _DICT
+    elif dataclasses.is_dataclass(t) and t.__dataclass_params__.frozen:
+        k = _FROZEN
+    elif issubclass(t, random.Random):
+        k = _RNG
+    elif hasattr(t, "__next__"):
+        k = _ITER
+    elif t.__module__.split(".")[0] in _OURS:
+        k = _OBJ
+    else:
+        k = _FOREIGN
+    _KINDS[t] = k
+    return k
+
+
 def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
              rng_state: bool = False, records: frozenset[str] = frozenset()) -> Snapshot:
     """Walk ``roots`` (module docstring). ``rng_state``: a random generator is its state
@@ -74,21 +112,27 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
     ints: list[tuple[int, Any, Any, str]] = []
     seen: dict[int, int] = {}
     stop = {id(b) for b in boundary}
-    keep: list[Any] = []            # objects seen, alive until the walk ends (stable ids)
+    keep: list[Any] = []            # objects whose ids the shape holds (Snapshot.alive)
 
     def visit(x: Any, holder: Any, key: Any, name: str) -> None:
         t = type(x)
-        if t is int:
+        kind = _KINDS.get(t)
+        if kind is None:
+            kind = _kind(t)
+        if kind is _INT:
             ints.append((len(shape), holder, key, name))
             shape.append(x)
             return
-        if isinstance(x, _VALUE_TYPES):
+        if kind is _VALUE:
             shape.append(x)
             return
-        if isinstance(x, _FN_TYPES):
+        if kind is _FN:
             self_ = getattr(x, "__self__", None)
-            shape.append(("fn", id(getattr(x, "__func__", x)), id(self_),
-                          getattr(x, "__qualname__", type(x).__name__)))
+            fn = getattr(x, "__func__", x)
+            keep.append(fn)
+            keep.append(self_)
+            shape.append(("fn", id(fn), id(self_),
+                          getattr(x, "__qualname__", t.__name__)))
             return
         i = id(x)
         if i in stop:
@@ -99,25 +143,7 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             return
         seen[i] = len(shape)
         keep.append(x)
-        if t is tuple:
-            shape.append(("tuple", len(x)))
-            for j, v in enumerate(x):
-                visit(v, None, j, name)
-        elif isinstance(x, list):
-            shape.append(("list", len(x)))
-            for j, v in enumerate(x):
-                visit(v, x, j, name)
-        elif isinstance(x, dict):
-            shape.append(("dict", tuple(x)))
-            for k, v in x.items():
-                visit(v, x, k, k if isinstance(k, str) else name)
-        elif dataclasses.is_dataclass(x) and x.__dataclass_params__.frozen:
-            shape.append(x)
-        elif rng_state and isinstance(x, random.Random):
-            shape.append(("rng", x.getstate()))
-        elif isinstance(x, random.Random) or hasattr(x, "__next__"):
-            raise Unwalkable(f"{name}: a {t.__name__} keeps state a snapshot cannot see")
-        elif t.__module__.split(".")[0] in _OURS:
+        if kind is _OBJ:
             shape.append(("obj", t))
             d = getattr(x, "__dict__", None)
             if d is not None:
@@ -129,12 +155,30 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             for k in _slot_names(t):
                 if hasattr(x, k):
                     visit(getattr(x, k), x, k, k)
+        elif kind is _TUPLE:
+            shape.append(("tuple", len(x)))
+            for j, v in enumerate(x):
+                visit(v, None, j, name)
+        elif kind is _LIST:
+            shape.append(("list", len(x)))
+            for j, v in enumerate(x):
+                visit(v, x, j, name)
+        elif kind is _DICT:
+            shape.append(("dict", tuple(x)))
+            for k, v in x.items():
+                visit(v, x, k, k if isinstance(k, str) else name)
+        elif kind is _FROZEN:
+            shape.append(x)
+        elif kind is _RNG and rng_state:
+            shape.append(("rng", x.getstate()))
+        elif kind is _RNG or kind is _ITER or hasattr(x, "__next__"):
+            raise Unwalkable(f"{name}: a {t.__name__} keeps state a snapshot cannot see")
         else:
             shape.append(("id", i, None, t.__name__))
 
     for root in roots:
         visit(root, None, None, "root")
-    return Snapshot(shape, ints)
+    return Snapshot(shape, ints, keep)
 
 
 def period_delta(before: Snapshot, after: Snapshot, period: int,
@@ -143,23 +187,71 @@ def period_delta(before: Snapshot, after: Snapshot, period: int,
     of every int of ``after`` that moved, each either a tick moved by exactly ``period`` or a
     counter (an attribute or key named in ``counters``) moved by any amount. Everything else
     must be equal."""
+    steps = period_steps(before, after, period, counters)
+    return None if steps is None else writable(after, steps)
+
+
+def period_steps(before: Snapshot, after: Snapshot, period: int,
+                 counters: frozenset[str]) -> dict[int, int] | None:
+    """:func:`period_delta` by position in the shape: {position: delta}."""
     a, b = before.shape, after.shape
     if len(a) != len(b):
         return None
-    int_at = {pos: (holder, key, name) for pos, holder, key, name in after.ints}
-    moved: list[tuple[Any, Any, int]] = []
+    int_at = {pos: (holder, name) for pos, holder, _, name in after.ints}
+    steps: dict[int, int] = {}
     for pos, (x, y) in enumerate(zip(a, b)):
         if x == y and type(x) is type(y):
             continue
         spot = int_at.get(pos)
         if spot is None or type(x) is not int or type(y) is not int:
             return None
-        holder, key, name = spot
+        holder, name = spot
         d = y - x
         if holder is None or not (d == period or (name in counters and d > 0)):
             return None
-        moved.append((holder, key, d))
-    return moved
+        steps[pos] = d
+    return steps
+
+
+def on_orbit(orbit: Snapshot, steps: dict[int, int], periods: int, now: Snapshot,
+             counters: frozenset[str]) -> bool:
+    """Is ``now`` the state of a periodic part ``periods`` whole periods after ``orbit``, as far
+    as its future goes? ``steps``: how one period moves it (:func:`period_steps` of two
+    snapshots a period apart, the second being ``orbit``). Every tick that a period moves on
+    must have moved by exactly ``periods`` of its steps; a counter (named in ``counters``) may
+    have moved by any amount, up, and a record (an append-only log nothing reads) may have any
+    length, as neither is read by the model; everything else must be equal. Then the part goes
+    on exactly as the orbit would: it may sleep again at once, moved on by ``steps``."""
+    a, b = orbit.shape, now.shape
+    if len(a) != len(b) or periods < 1:
+        return False
+    counter_at = {pos for pos, holder, _, name in now.ints
+                  if holder is not None and name in counters}
+    for pos, (x, y) in enumerate(zip(a, b)):
+        d = steps.get(pos)
+        if d is not None and pos not in counter_at:
+            if type(y) is not int or y - x != d * periods:
+                return False
+            continue
+        if x == y and type(x) is type(y):
+            continue
+        if type(x) is int and type(y) is int and pos in counter_at and y > x:
+            continue
+        if type(x) is tuple and type(y) is tuple and len(x) == len(y) == 2 \
+                and x[0] == y[0] == "record":
+            continue
+        return False
+    return True
+
+
+def writable(snap: Snapshot, steps: dict[int, int]) -> list[tuple[Any, Any, int]]:
+    """(holder, key, delta) of every position in ``steps``, in ``snap``'s objects."""
+    out = []
+    for pos, holder, key, _ in snap.ints:
+        d = steps.get(pos)
+        if d is not None:
+            out.append((holder, key, d))
+    return out
 
 
 def advance(moved: list[tuple[Any, Any, int]], periods: int) -> None:
