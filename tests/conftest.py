@@ -142,21 +142,46 @@ def _cpu_to_itself(request):
             fcntl.flock(cpu, fcntl.LOCK_UN)
 
 
+def _child_processes() -> set[tuple[int, str]] | None:
+    """(pid, command name) of this process's live children (Linux /proc; None elsewhere)."""
+    if not os.path.isdir("/proc/self"):
+        return None
+    me, out = os.getpid(), set()
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat", "rb") as f:
+                stat = f.read().decode(errors="replace")
+        except OSError:
+            continue                       # it ended meanwhile
+        name, _, rest = stat.rpartition(")")
+        fields = rest.split()
+        if len(fields) > 1 and fields[1] == str(me) and fields[0] not in ("Z", "X"):
+            out.add((int(entry), name.partition("(")[2]))
+    return out
+
+
 @pytest.fixture(scope="module", autouse=True)
-def _no_thread_outlives_its_module(request):
-    """A wall-clock module leaves no thread of its own running: a ring left running by one
-    module (a session-wide acceptance target once did) takes CPU and the GIL from every later
-    test of the process, timing tests included. Threads get 5 s to end after the module's
-    fixtures are torn down."""
-    if not is_realtime(request.node.nodeid):
-        yield
-        return
+def _nothing_outlives_its_module(request):
+    """A module leaves no process of its own running, and a wall-clock module no thread: a
+    ring left running by one module (a session-wide acceptance target once did) takes CPU
+    and the GIL from every later test of the process, timing tests included; a robot or
+    hub process left behind holds its ports and a core. Both get 5 s to end after the
+    module's fixtures are torn down."""
+    realtime = is_realtime(request.node.nodeid)
     before = set(threading.enumerate())
+    procs_before = _child_processes()
     yield
     deadline = time.monotonic() + 5.0
     while True:
-        left = [t.name for t in threading.enumerate() if t not in before and t.is_alive()]
-        if not left or time.monotonic() > deadline:
+        left = [t.name for t in threading.enumerate()
+                if t not in before and t.is_alive()] if realtime else []
+        now = _child_processes()
+        procs = sorted(now - procs_before) if now is not None and procs_before is not None \
+            else []
+        if (not left and not procs) or time.monotonic() > deadline:
             break
         time.sleep(0.05)
     assert not left, f"threads still running after {request.node.nodeid}: {left}"
+    assert not procs, f"processes still running after {request.node.nodeid}: {procs}"
