@@ -63,16 +63,18 @@ call :meth:`standby` from an ISR running inside a bus callback.
 from __future__ import annotations
 
 from enum import Enum
-from typing import Any, Callable
+from typing import Any, Callable, Protocol
 
 from can_bus import physical
 from can_bus.bits import wire_bits
-from can_bus.bus import CanBus, CanErrorEvent, CanFrame, ErrorState, NodeStatus
+from can_bus.bus import CanErrorEvent, CanFrame, ErrorState, NodeStatus
+from can_bus.clock import Clock
 from can_bus.physical import HIGH_SPEED_MAX_OHMS, MAX_BITRATE, loop_delay_s, slew_rate
 
 __all__ = [
     "RsMode",
     "Transceiver82C250",
+    "TransceiverBus",
     "HIGH_SPEED_MAX_OHMS",
     "SLOPE_MIN_OHMS",
     "SLOPE_MAX_OHMS",
@@ -122,6 +124,41 @@ def _check_ohms(rs_ohms: int) -> int:
     return rs_ohms
 
 
+class TransceiverBus(Protocol):
+    """What an 82C250 needs of the bus it sits on, in one place: the simulated
+    :class:`~can_bus.bus.CanBus` and the python-can bridge (:mod:`can_bus.bridge`) both give
+    it (tests/test_transceiver.py holds both to this list, and this list to the source).
+
+    Optional, looked up with ``getattr``: ``start_recovery(node)`` (a bus-off node counts
+    its recovery on request), ``set_loop_delay(node, s)``, ``ack_budget_s`` and ``length_m``
+    (the ACK timing a simulated bus keeps; a real bus has its own)."""
+
+    sched: Clock
+    tpb: int
+    """Ticks per bit."""
+    timing: Any
+    """The :class:`~can_bus.bits.BitTiming` (its ``tick_hz`` among others)."""
+
+    def attach(self, node: Any) -> None: ...
+
+    def request(self, node: Any, frame: Any = None) -> None: ...
+
+    def status(self, node: Any) -> NodeStatus: ...
+
+    def error_state(self, node: Any) -> ErrorState: ...
+
+    def hold_dominant(self, node: Any, on: bool = True) -> None: ...
+
+    @property
+    def idle(self) -> bool: ...
+
+    @property
+    def held(self) -> bool: ...
+
+    @property
+    def frame_on_air(self) -> tuple[CanFrame, int] | None: ...
+
+
 class Transceiver82C250:
     """One 82C250 on ``bus``; ``rs_ohms`` is the resistor fitted between Rs and the port pin
     that drives it (0: high-speed). ``standby=True`` starts with the pin high."""
@@ -132,7 +169,7 @@ class Transceiver82C250:
         "_c_pending", "_c_frame", "_c_tx_done", "_c_lost", "_c_error", "_c_state",
     )
 
-    def __init__(self, bus: CanBus, controller: Any = None, rs_ohms: int = 0,
+    def __init__(self, bus: TransceiverBus, controller: Any = None, rs_ohms: int = 0,
                  standby: bool = False, name: str = "82C250") -> None:
         self.bus = bus
         self.sched = bus.sched
