@@ -23,8 +23,8 @@ import types
 from enum import Enum
 from typing import Any, Iterable
 
-__all__ = ["Snapshot", "Unwalkable", "snapshot", "period_delta", "on_orbit", "advance",
-           "portable"]
+__all__ = ["Snapshot", "Unwalkable", "snapshot", "period_delta", "period_steps", "on_orbit",
+           "writable", "advance", "portable"]
 
 _OURS = ("can_bus", "firmware_model", "hil")
 _VALUE_TYPES = (bool, float, str, bytes, type(None), Enum, frozenset, set)
