@@ -267,6 +267,13 @@ class _Submodule:
         """Raw signal values of the node's status frame, now."""
         raise NotImplementedError
 
+    @property
+    def cruising(self) -> bool:
+        """Moving with nothing left to do but repeat itself, its motion in closed form (no
+        events of its own but the status frames): a wheel at its commanded speed. A joint or
+        the paw never cruises: a move ends."""
+        return False
+
     # ------------------------------------------------------------ fault injection
     @property
     def is_silent(self) -> bool:

@@ -246,3 +246,16 @@ def test_demo_ring_tells_the_story_of_its_run(capsys):
     # while its radio is cut off, R1's own view (everyone else missing) is not the story
     assert not [t for t in text[cut:back] if "misses its turn" in t and not t.startswith("R1")]
     assert "(+" not in out and "member 1" not in out
+
+
+def test_the_progress_bar_run_is_the_same_run():
+    """With a progress bar the world runs in one-second steps that leave sleeping CAN sides
+    asleep (``World.run(wake_can=False)``); the summary is the one-go run's."""
+    from hil.cli.sim import run_world
+    from hil.sim.world import SimConfig
+    cfg = SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=3, load=1)
+    stepped, _ = run_world(cfg, None, True)
+    whole, _ = run_world(cfg, None, False)
+    assert sum(q.periods_skipped for q in stepped.quiet.values()) > 0
+    assert json.dumps(stepped.summary(), sort_keys=True) == \
+        json.dumps(whole.summary(), sort_keys=True)

@@ -18,8 +18,8 @@ from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.radio.content import cmd
 from hil.sim.faults import parse_fault
 from hil.sim.quiet_can import PERIOD
-from hil.sim.state_walk import (Unwalkable, advance, on_orbit, period_delta, period_steps,
-                                portable, snapshot)
+from hil.sim.state_walk import (Unwalkable, advance, latest_moved, on_orbit, period_delta,
+                                period_steps, portable, snapshot)
 from hil.sim.world import SimConfig, World
 
 
@@ -152,6 +152,49 @@ def test_back_on_its_orbit_after_a_wake_a_part_may_sleep_at_once():
     assert not on_orbit(orbit, steps, 0, orbit, counters)
 
 
+class _Latest:        # a record of the last of something, rewritten every period
+    pass
+
+
+_Latest.__module__ = "hil.tests_quiet_can"
+
+
+def test_a_latest_record_may_change_and_then_asks_for_the_last_period_to_run():
+    """A part whose record of the last status changed (a cruising wheel's odometer) is still
+    periodic, but moving it on does not give that record: latest_moved says so. Everything
+    outside the record is held as before, and the records must sit at the same places."""
+    def part(when: int, sent: int, odo: int, seen: int, level: int = 7) -> _Part:
+        p = _part(when, sent, level)
+        p.view = _Latest()
+        p.view.odometer, p.view.last_seen, p.view.extra = odo, seen, {"odometer": odo}
+        return p
+
+    def snap(p: _Part):
+        return snapshot([p], latest=(_Latest,))
+
+    counters = frozenset({"sent"})
+    a = snap(part(100, 4, 39, 90))
+    assert sorted(a.shape[pos] for pos in a.free if type(a.shape[pos]) is int) == [39, 39, 90]
+    assert a.shape.index(7) not in a.free                # the level is outside the record
+    # the record moved as a tick does: a step, no need to run the period
+    b = snap(part(100 + PERIOD, 10, 39, 90 + PERIOD))
+    steps = period_steps(a, b, PERIOD, counters)
+    assert steps is not None and not latest_moved(a, b, steps)
+    # the odometer and the frame's end moved otherwise: periodic, but the period must run
+    c = snap(part(100 + PERIOD, 10, 43, 93 + PERIOD))
+    steps = period_steps(a, c, PERIOD, counters)
+    assert steps is not None and latest_moved(a, c, steps)
+    assert on_orbit(c, steps, 2, snap(part(100 + 3 * PERIOD, 20, 50, 7)), counters)
+    # outside the record nothing else may change, and a record is not free without its type
+    assert period_steps(a, snap(part(100 + PERIOD, 10, 43, 93, level=8)), PERIOD,
+                        counters) is None
+    assert not on_orbit(c, steps, 2, snap(part(100 + 3 * PERIOD, 20, 50, 7, level=8)),
+                        counters)
+    plain = snapshot([part(100 + PERIOD, 10, 43, 93 + PERIOD)])
+    assert not plain.free and period_steps(snapshot([part(100, 4, 39, 90)]), plain, PERIOD,
+                                           counters) is None
+
+
 def test_a_random_generator_is_state_a_snapshot_cannot_see():
     p = _part(0, 0, 0)
     p.rng = random.Random(1)
@@ -177,11 +220,22 @@ def _pair(cfg: SimConfig) -> tuple[World, World]:
     return World(replace(cfg, can_sleep=False)), World(cfg)
 
 
-def _orders(w: World) -> None:
-    """The father asks for status, moves a joint, drives the wheel, at set times."""
-    for t, r, c in ((2.0, 1, cmd("status")), (3.3, 2, cmd("joint", 1, 20)),
-                    (6.1, 3, cmd("wheel", 50)), (9.0, 3, cmd("wheel", 0)),
-                    (12.5, 1, cmd("status")), (12.5, 2, cmd("paw", 0))):
+ORDERS = {
+    # the father asks for status, moves a joint, drives the wheel, at set times
+    "orders": ((2.0, 1, cmd("status")), (3.3, 2, cmd("joint", 1, 20)),
+               (6.1, 3, cmd("wheel", 50)), (9.0, 3, cmd("wheel", 0)),
+               (12.5, 1, cmd("status")), (12.5, 2, cmd("paw", 0))),
+    # wheels cruising for seconds (their odometers change every status frame), asked for
+    # status meanwhile, a joint moving beside one, then stopped
+    "cruising wheels": ((1.0, 1, cmd("wheel", 80)), (3.0, 2, cmd("wheel", -45)),
+                        (5.0, 1, cmd("status")), (9.37, 1, cmd("status")),
+                        (11.0, 2, cmd("joint", 1, 20)), (13.61, 2, cmd("status")),
+                        (16.0, 1, cmd("wheel", 0)), (17.2, 1, cmd("status"))),
+}
+
+
+def _orders(w: World, name: str = "orders") -> None:
+    for t, r, c in ORDERS[name]:
         w.sched.at(round(t * 16_000_000), lambda r=r, c=c: w.submit(0, r, [c]))
 
 
@@ -197,14 +251,15 @@ SCENARIOS = {
     "saturated": SimConfig(robots=(0, 1, 2, 3), duration=15, can=True, seed=4,
                            load="saturate"),
     "no father": SimConfig(robots=(1, 2, 3), duration=15, can=True, seed=5, load=0.3),
+    "cruising wheels": SimConfig(robots=(0, 1, 2, 3), duration=20, can=True, seed=9),
 }
 
 
 @pytest.mark.parametrize("name", list(SCENARIOS))
 def test_a_sleeping_can_side_gives_the_frame_by_frame_run(name):
     slow, fast = _pair(SCENARIOS[name])
-    if name == "orders":
-        _orders(slow), _orders(fast)
+    if name in ORDERS:
+        _orders(slow, name), _orders(fast, name)
     slow.run()
     fast.run()
     assert _summary(fast) == _summary(slow)
@@ -213,13 +268,18 @@ def test_a_sleeping_can_side_gives_the_frame_by_frame_run(name):
     assert sum(q.periods_skipped for q in fast.quiet.values()) > 0
     if name in ("saturated", "orders"):    # woken by orders, asleep again at once
         assert sum(q.resleeps for q in fast.quiet.values()) > 0
+    if name == "cruising wheels":
+        # asleep while its wheel cruises; each wake ran the last period to learn the odometer
+        assert fast.quiet[1].periods_skipped > 0.5 * 20 * 16_000_000 // PERIOD
+        assert fast.quiet[1].replays > 0 and slow.quiet[1].replays == 0
 
 
-def test_woken_at_awkward_ticks_it_is_still_the_same_run():
+@pytest.mark.parametrize("name", ["orders", "cruising wheels"])
+def test_woken_at_awkward_ticks_it_is_still_the_same_run(name):
     """Runs cut on status SOFs, just after them, at frame ends, and at random ticks: every
     cut wakes every CAN side, and the state must match the frame-by-frame run at each."""
-    slow, fast = _pair(SCENARIOS["orders"])
-    _orders(slow), _orders(fast)
+    slow, fast = _pair(SCENARIOS[name])
+    _orders(slow, name), _orders(fast, name)
     rng = random.Random(5)
     cuts, t = [], 0
     while t < 19 * 16_000_000:
@@ -234,6 +294,21 @@ def test_woken_at_awkward_ticks_it_is_still_the_same_run():
     assert _summary(fast) == _summary(slow)
     assert sum(q.sleeps for q in fast.quiet.values()) >= len(cuts)
     assert sum(q.resleeps for q in fast.quiet.values()) > len(cuts) // 2
+
+
+def test_stepping_without_waking_leaves_it_asleep_and_the_same_run():
+    """The soak and the progress bar run in steps and read only the radio side between them
+    (``World.run(wake_can=False)``): a sleeping CAN side sleeps on across the steps."""
+    slow, fast = _pair(SCENARIOS["cruising wheels"])
+    _orders(slow, "cruising wheels"), _orders(fast, "cruising wheels")
+    asleep_at_steps = 0
+    while fast.now < fast.end_tick:
+        slow.run(slow.now + PERIOD * 5 // 2, wake_can=False)
+        fast.run(fast.now + PERIOD * 5 // 2, wake_can=False)
+        asleep_at_steps += sum(q.asleep for q in fast.quiet.values())
+    assert asleep_at_steps > 50
+    assert _summary(fast) == _summary(slow)
+    assert _state(fast) == _state(slow)
 
 
 def test_an_idle_ring_sleeps_most_of_the_time():

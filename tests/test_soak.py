@@ -17,6 +17,15 @@ def test_short_soak_keeps_every_guarantee():
     assert not failed, (failed, r.summary["pending"], r.reform_s, r.not_reformed)
 
 
+def test_a_soak_is_the_same_run_whether_its_can_sides_sleep_or_not():
+    """Sleeping CAN sides (hil/sim/quiet_can.py: idle, and with cruising wheels) across the
+    soak's steps, which do not wake them: the same accounting, faults and re-formations."""
+    a, b = (vars(run_soak(0.05, seed=3, can_sleep=s)).copy() for s in (False, True))
+    a.pop("wall_s"), b.pop("wall_s")
+    assert a["summary"]["submitted"] > 100 and a["summary"]["can_frames"] > 40_000
+    assert a == b
+
+
 def test_fault_schedule_is_seeded_and_round_trips():
     a = random_faults(random.Random("1"), (0, 1, 2, 3), 1.0, True, True)
     b = random_faults(random.Random("1"), (0, 1, 2, 3), 1.0, True, True)

@@ -171,8 +171,9 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
                 task = bar.add_task("sim", total=ticks_to_s(end))
                 step = TICK_HZ
                 while world.now < end:
-                    world.run(world.now + step)
+                    world.run(world.now + step, wake_can=False)  # the bar reads the clock only
                     bar.update(task, completed=ticks_to_s(world.now))
+                world.wake_can()
         else:
             world.run()
         wall = time.perf_counter() - t0

@@ -19,7 +19,9 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
   end of ``World.run``, a summary) calls :meth:`QuietCan.wake` first. The domain moves on by
   the whole periods that passed (ticks and counters, in one step) and runs the last partial
   period's events on a private scheduler up to the tick now (its events run first at a tick),
-  then its events go back into the world's scheduler.
+  then its events go back into the world's scheduler. If a latest status changed from one
+  period to the next, the last whole period runs on the private scheduler too, and rewrites
+  it as the skipped periods would have.
 * At the first probe after a wake, if what woke it left the domain exactly on the orbit it
   slept on, moved on by whole periods (ticks moved by their steps, counters up, logs of any
   length: :func:`~hil.sim.state_walk.on_orbit`), it sleeps again at once, on the same
@@ -37,11 +39,13 @@ from functools import partial
 from typing import Any, Callable
 
 from can_bus.submodules import STATUS_PERIOD_TICKS
+from firmware_model.dispatcher import NodeView
 from firmware_model.mcu.scheduler import Event, Scheduler
 
-from .state_walk import Snapshot, Unwalkable, advance, on_orbit, period_steps, snapshot, writable
+from .state_walk import (Snapshot, Unwalkable, advance, latest_moved, on_orbit, period_steps,
+                         snapshot, writable)
 
-__all__ = ["COUNTERS", "PERIOD", "RECORDS", "DomainClock", "QuietCan"]
+__all__ = ["COUNTERS", "LATEST", "PERIOD", "RECORDS", "DomainClock", "QuietCan"]
 
 PERIOD = STATUS_PERIOD_TICKS
 """1,600,000 ticks (100 ms): the submodules' status period, the domain's period."""
@@ -64,6 +68,15 @@ RECORDS = frozenset({
 })
 """Append-only lists of what happened that nothing in the model reads: a snapshot takes
 their length only (hil/sim/state_walk.py)."""
+
+LATEST: tuple[type, ...] = (NodeView,)
+"""Types holding only the latest of something each period rewrites before anything in a
+sleeping domain reads it: the dispatcher's record of a submodule's last status frame (each
+status frame sets all of it; with no job running, only the radio side reads it, and a
+message wakes the domain first). A cruising wheel's odometer changes it every period: such a
+domain sleeps all the same, and at its wake runs its last whole period frame by frame, which
+writes the values the skipped periods would have left (hil/sim/state_walk.py, free
+positions)."""
 
 
 class DomainClock:
@@ -121,6 +134,9 @@ class QuietCan:
         self._moved: list[tuple[Any, Any, int]] = []
         self._orbit: Snapshot | None = None     # the snapshot it last fell asleep on
         self._steps: dict[int, int] = {}        # how a period moves that snapshot on
+        self._replay = False                    # run the last whole period at the wake
+        self.replays = 0
+        """Wakes that ran the last whole period frame by frame (a latest status changed)."""
         self.resleeps = 0
         """Sleeps taken at the first probe after a wake, the state back on the orbit."""
         self._since = 0
@@ -149,20 +165,20 @@ class QuietCan:
             return
         try:
             snap = snapshot([*self.roots, self.world.pending(self)],
-                            [*self.boundary, clock, self], records=RECORDS)
+                            [*self.boundary, clock, self], records=RECORDS, latest=LATEST)
         except Unwalkable:
             self.enabled = False
             return
         last, self._last = self._last, snap
         if last is None:
-            orbit = self._orbit
-            if orbit is None or not on_orbit(orbit, self._steps, (clock.now - self._since)
-                                             // PERIOD, snap, COUNTERS):
+            orbit, steps = self._orbit, self._steps
+            periods = (clock.now - self._since) // PERIOD
+            if orbit is None or not on_orbit(orbit, steps, periods, snap, COUNTERS):
                 return
             # Back on the orbit it slept on (what woke it left nothing that a period does not
             # move on): sleep again now rather than one period later.
             self.resleeps += 1
-            self._sleep(snap, self._steps)
+            self._sleep(snap, steps, self._replay or latest_moved(orbit, snap, steps, periods))
             return
         steps = period_steps(last, snap, PERIOD, COUNTERS)
         if steps is None:
@@ -173,10 +189,11 @@ class QuietCan:
             if self._skip:
                 self._last = None
             return
-        self._sleep(snap, steps)
+        self._sleep(snap, steps, latest_moved(last, snap, steps))
 
-    def _sleep(self, snap: Snapshot, steps: dict[int, int]) -> None:
+    def _sleep(self, snap: Snapshot, steps: dict[int, int], replay: bool) -> None:
         self._misses = 0
+        self._replay = replay
         self._events = self.world.take(self)
         self._moved = writable(snap, steps)
         self._orbit, self._steps = snap, steps
@@ -192,6 +209,9 @@ class QuietCan:
         self._last = None
         now = self.world.now
         k = (now - self._since) // PERIOD
+        if self._replay and k:
+            k -= 1                    # the last whole period runs frame by frame (LATEST)
+            self.replays += 1
         advance(self._moved, k)       # the pending events' ticks are among the moved ints
         self.periods_skipped += k
         private = Scheduler(self._since + k * PERIOD)

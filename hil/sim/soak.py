@@ -116,7 +116,7 @@ def run_timing_reformations(w: World, faults, progress=None) -> tuple[list[float
     step = s_to_ticks(SAMPLE_S)
     i = 0
     while w.now < w.end_tick:
-        w.run(w.now + step)
+        w.run(w.now + step, wake_can=False)      # the ring check reads the radio side only
         now_s = w.now / TICK_HZ
         while i < len(ends) and ends[i] <= now_s:
             # a fault just ended; if nothing else is active, time the re-formation
@@ -157,6 +157,7 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
     t0 = time.perf_counter()
     w = World(cfg)
     reform, not_reformed = run_timing_reformations(w, faults, progress)
+    w.wake_can()
     counts: dict[str, int] = {}
     for f in faults:
         counts[f.kind] = counts.get(f.kind, 0) + 1

@@ -14,6 +14,12 @@ object's inside is not looked at, so a part whose state hides in one, a random g
 refused by :func:`snapshot`). A ``boundary`` object (the world's scheduler, the radio station
 a child talks to) is compared by identity and not entered. An object reached twice is a
 reference to its first visit, so sharing is part of the shape.
+
+An object of a ``latest`` type holds the latest of something the part rewrites every period
+before it reads it (a record of a submodule's last status frame): its fields are *free*
+positions. Two snapshots whose free values differ are still periodic, but the period's own
+run is then needed to know them (:func:`latest_moved`): the sleeping part runs its last
+period frame by frame when it wakes (hil/sim/quiet_can.py).
 """
 from __future__ import annotations
 
@@ -24,7 +30,7 @@ from enum import Enum
 from typing import Any, Iterable
 
 __all__ = ["Snapshot", "Unwalkable", "snapshot", "period_delta", "period_steps", "on_orbit",
-           "writable", "advance", "portable"]
+           "latest_moved", "writable", "advance", "portable"]
 
 _OURS = ("can_bus", "firmware_model", "hil")
 _VALUE_TYPES = (bool, float, str, bytes, type(None), Enum, frozenset, set)
@@ -42,11 +48,13 @@ class Snapshot:
     ``ints``: (position in shape, holder, key, name) of every int a period may move on
     (holder None inside a tuple: it cannot be written); ``alive``: every object whose
     identity the shape records, kept alive with the snapshot so that no other object can take
-    its id while the snapshot may still be compared."""
+    its id while the snapshot may still be compared; ``free``: the positions inside objects of
+    a ``latest`` type (module docstring)."""
 
     shape: list
     ints: list[tuple[int, Any, Any, str]]
     alive: list = dataclasses.field(default_factory=list, repr=False)
+    free: frozenset[int] = frozenset()
 
 
 _SLOTS: dict[type, list[str]] = {}
@@ -70,6 +78,9 @@ def _all_slots(cls: type) -> list[str]:
 _INT, _VALUE, _FN, _TUPLE, _LIST, _DICT, _FROZEN, _RNG, _ITER, _OBJ, _FOREIGN = (
     "int", "value", "fn", "tuple", "list", "dict", "frozen", "rng", "iterator", "object",
     "foreign")
+_PLAIN = frozenset({float, str, bool, bytes, type(None)})
+"""Value types taken as they are without asking :func:`_kind` (the commonest leaves)."""
+_ABSENT = object()
 _KINDS: dict[type, str] = {}
 """How :func:`snapshot` takes a value of each type (decided once per type)."""
 
@@ -102,17 +113,61 @@ def _kind(t: type) -> str:
 
 
 def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
-             rng_state: bool = False, records: frozenset[str] = frozenset()) -> Snapshot:
+             rng_state: bool = False, records: frozenset[str] = frozenset(),
+             latest: tuple[type, ...] = ()) -> Snapshot:
     """Walk ``roots`` (module docstring). ``rng_state``: a random generator is its state
     (to compare two runs) instead of a reason to refuse. ``records``: attributes that are
     append-only lists nothing in the model reads (a log): only their length is taken, so a
     long run's log does not make every snapshot longer (a part whose log grew is still not
-    periodic)."""
+    periodic). ``latest``: the types whose fields are free positions (module docstring)."""
     shape: list = []
     ints: list[tuple[int, Any, Any, str]] = []
     seen: dict[int, int] = {}
     stop = {id(b) for b in boundary}
     keep: list[Any] = []            # objects whose ids the shape holds (Snapshot.alive)
+    free: list[range] = []
+
+    append, note_int = shape.append, ints.append
+
+    # Ints and plain values, most of the leaves, are taken in the loops below without a call
+    # of visit (the same entries visit would make: a snapshot costs about a period's frames).
+    def fields_of(x: Any, t: type) -> None:
+        d = getattr(x, "__dict__", None)
+        if d is not None:
+            for k, v in d.items():
+                tv = type(v)
+                if tv is int:
+                    note_int((len(shape), x, k, k))
+                    append(v)
+                elif tv in _PLAIN:
+                    append(v)
+                elif tv is list and k in records:
+                    append(("record", len(v)))
+                else:
+                    visit(v, x, k, k)
+        for k in _slot_names(t):
+            v = getattr(x, k, _ABSENT)
+            tv = type(v)
+            if tv is int:
+                note_int((len(shape), x, k, k))
+                append(v)
+            elif tv in _PLAIN:
+                append(v)
+            elif v is not _ABSENT:
+                visit(v, x, k, k)
+
+    def items_of(pairs: Iterable[tuple[Any, Any]], holder: Any, name: str,
+                 by_key: bool) -> None:
+        for k, v in pairs:
+            tv = type(v)
+            n = k if by_key and type(k) is str else name
+            if tv is int:
+                note_int((len(shape), holder, k, n))
+                append(v)
+            elif tv in _PLAIN:
+                append(v)
+            else:
+                visit(v, holder, k, n)
 
     def visit(x: Any, holder: Any, key: Any, name: str) -> None:
         t = type(x)
@@ -145,28 +200,21 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
         keep.append(x)
         if kind is _OBJ:
             shape.append(("obj", t))
-            d = getattr(x, "__dict__", None)
-            if d is not None:
-                for k, v in d.items():
-                    if k in records and type(v) is list:
-                        shape.append(("record", len(v)))
-                    else:
-                        visit(v, x, k, k)
-            for k in _slot_names(t):
-                if hasattr(x, k):
-                    visit(getattr(x, k), x, k, k)
+            if t in latest:
+                start = len(shape)
+                fields_of(x, t)
+                free.append(range(start, len(shape)))
+                return
+            fields_of(x, t)
         elif kind is _TUPLE:
             shape.append(("tuple", len(x)))
-            for j, v in enumerate(x):
-                visit(v, None, j, name)
+            items_of(enumerate(x), None, name, False)
         elif kind is _LIST:
             shape.append(("list", len(x)))
-            for j, v in enumerate(x):
-                visit(v, x, j, name)
+            items_of(enumerate(x), x, name, False)
         elif kind is _DICT:
             shape.append(("dict", tuple(x)))
-            for k, v in x.items():
-                visit(v, x, k, k if isinstance(k, str) else name)
+            items_of(x.items(), x, name, True)
         elif kind is _FROZEN:
             shape.append(x)
         elif kind is _RNG and rng_state:
@@ -178,7 +226,7 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
 
     for root in roots:
         visit(root, None, None, "root")
-    return Snapshot(shape, ints, keep)
+    return Snapshot(shape, ints, keep, frozenset(p for r in free for p in r))
 
 
 def period_delta(before: Snapshot, after: Snapshot, period: int,
@@ -186,17 +234,20 @@ def period_delta(before: Snapshot, after: Snapshot, period: int,
     """How one period moved the part on, or None if it is not periodic: (holder, key, delta)
     of every int of ``after`` that moved, each either a tick moved by exactly ``period`` or a
     counter (an attribute or key named in ``counters``) moved by any amount. Everything else
-    must be equal."""
+    must be equal, but for free positions (module docstring), which may hold anything."""
     steps = period_steps(before, after, period, counters)
     return None if steps is None else writable(after, steps)
 
 
 def period_steps(before: Snapshot, after: Snapshot, period: int,
                  counters: frozenset[str]) -> dict[int, int] | None:
-    """:func:`period_delta` by position in the shape: {position: delta}."""
+    """:func:`period_delta` by position in the shape: {position: delta}. A free position
+    that moved as a tick or a counter does is a step; one that changed otherwise is allowed
+    and is not (:func:`latest_moved` tells whether there is one)."""
     a, b = before.shape, after.shape
-    if len(a) != len(b):
+    if len(a) != len(b) or before.free != after.free:
         return None
+    free = after.free
     int_at = {pos: (holder, name) for pos, holder, _, name in after.ints}
     steps: dict[int, int] = {}
     for pos, (x, y) in enumerate(zip(a, b)):
@@ -204,10 +255,14 @@ def period_steps(before: Snapshot, after: Snapshot, period: int,
             continue
         spot = int_at.get(pos)
         if spot is None or type(x) is not int or type(y) is not int:
+            if pos in free:
+                continue
             return None
         holder, name = spot
         d = y - x
         if holder is None or not (d == period or (name in counters and d > 0)):
+            if pos in free:
+                continue
             return None
         steps[pos] = d
     return steps
@@ -220,14 +275,19 @@ def on_orbit(orbit: Snapshot, steps: dict[int, int], periods: int, now: Snapshot
     snapshots a period apart, the second being ``orbit``). Every tick that a period moves on
     must have moved by exactly ``periods`` of its steps; a counter (named in ``counters``) may
     have moved by any amount, up, and a record (an append-only log nothing reads) may have any
-    length, as neither is read by the model; everything else must be equal. Then the part goes
-    on exactly as the orbit would: it may sleep again at once, moved on by ``steps``."""
+    length, as neither is read by the model; a free position may hold anything (the period's
+    own run rewrites it before anything reads it: :func:`latest_moved`); everything else must be
+    equal. Then the part goes on exactly as the orbit would: it may sleep again at once, moved
+    on by ``steps``."""
     a, b = orbit.shape, now.shape
-    if len(a) != len(b) or periods < 1:
+    if len(a) != len(b) or periods < 1 or orbit.free != now.free:
         return False
+    free = now.free
     counter_at = {pos for pos, holder, _, name in now.ints
                   if holder is not None and name in counters}
     for pos, (x, y) in enumerate(zip(a, b)):
+        if pos in free:
+            continue
         d = steps.get(pos)
         if d is not None and pos not in counter_at:
             if type(y) is not int or y - x != d * periods:
@@ -242,6 +302,24 @@ def on_orbit(orbit: Snapshot, steps: dict[int, int], periods: int, now: Snapshot
             continue
         return False
     return True
+
+
+def latest_moved(before: Snapshot, after: Snapshot, steps: dict[int, int],
+                 periods: int = 1) -> bool:
+    """Did a free position of ``after`` (``periods`` periods after ``before``, which
+    :func:`period_steps` or :func:`on_orbit` accepted) change other than by ``periods`` of its
+    step? Then moving ``before`` on by ``steps`` does not give those values: the part must run
+    its last period frame by frame to have them."""
+    a, b = before.shape, after.shape
+    for pos in after.free:
+        x, y = a[pos], b[pos]
+        d = steps.get(pos)
+        if d is not None:
+            if y - x != d * periods:
+                return True
+        elif x != y or type(x) is not type(y):
+            return True
+    return False
 
 
 def writable(snap: Snapshot, steps: dict[int, int]) -> list[tuple[Any, Any, int]]:

@@ -340,7 +340,7 @@ class World:
             self.trace is None and self.on_event is None and self.pcap is None
             and bus.trace is world_trace and bus.error_trace is None
             and not child.dispatcher.jobs
-            and all(n.state != STATE_MOVING for n in nodes.values()))
+            and all(n.state != STATE_MOVING or n.cruising for n in nodes.values()))
         app = st.app
 
         def app_awake(d, now: int) -> None:
@@ -415,10 +415,15 @@ class World:
 
     # -- running --------------------------------------------------------------------------
 
-    def run(self, until: int | None = None) -> None:
-        """Advance to tick ``until`` (default: the configured duration)."""
+    def run(self, until: int | None = None, wake_can: bool = True) -> None:
+        """Advance to tick ``until`` (default: the configured duration). ``wake_can``: bring
+        every child's CAN side up to the tick (so that its parts may be read at once); a
+        caller that reads only the radio side between steps (a progress bar, the soak's ring
+        check) passes False and lets a sleeping CAN side sleep on (:meth:`wake_can`,
+        :meth:`summary` and whatever touches it still wake it)."""
         self.sched.run_until(self.end_tick if until is None else min(until, self.end_tick))
-        self.wake_can()
+        if wake_can:
+            self.wake_can()
 
     @property
     def now(self) -> int:
