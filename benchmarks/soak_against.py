@@ -1,0 +1,111 @@
+"""The soak against an earlier commit, side by side: the same ``rprs soak`` on the same seed,
+alternating between a checkout of ``--base`` and this tree, the accounting compared.
+
+    python benchmarks/soak_against.py --base a4cc274 [--hours 0.25] [--seed 11] [--runs 3]
+
+Issue 14 asks for the soak at least 4x faster than it was, its accounting unchanged. This
+checks both in one run: ``--base`` is checked out in a temporary git worktree (removed at
+the end), each run is its own process started in its tree (``python -m hil.cli soak ...
+--json``, the tree first on ``sys.path``), the runs alternate so that a noisy machine slows
+both alike, and every run's JSON, without its wall time, must be the same as every other's
+(exit status 1 if not). Prints a Markdown table (docs/performance.md) and the medians' ratio.
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _git(*args: str) -> str:
+    return subprocess.run(["git", "-C", ROOT, *args], check=True, capture_output=True,
+                          text=True).stdout.strip()
+
+
+def accounting(out: str) -> str:
+    """A digest of the soak's JSON without its wall times (the figures that must not change)."""
+    def strip(o):
+        if isinstance(o, dict):
+            return {k: strip(v) for k, v in o.items() if k != "wall_s"}
+        if isinstance(o, list):
+            return [strip(x) for x in o]
+        return o
+    return hashlib.sha256(json.dumps(strip(json.loads(out)), sort_keys=True)
+                          .encode()).hexdigest()[:16]
+
+
+def run_in(tree: str, hours: float, seed: int) -> tuple[float, str]:
+    """(wall s of the whole process, accounting digest) of one soak run from ``tree``."""
+    env = dict(os.environ, PYTHONPATH=tree)
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "soak", "--hours", str(hours),
+                        "--seed", str(seed), "--json"], cwd=tree, env=env,
+                       capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if p.returncode != 0:
+        raise SystemExit(f"the soak failed in {tree}:\n{p.stderr[-2000:]}")
+    return wall, accounting(p.stdout)
+
+
+def imports_from(tree: str) -> str:
+    """Where ``hil`` is imported from when run in ``tree`` (it must be that tree)."""
+    env = dict(os.environ, PYTHONPATH=tree)
+    return subprocess.run([sys.executable, "-c", "import hil, os; print(os.path.dirname("
+                           "os.path.dirname(os.path.abspath(hil.__file__))))"], cwd=tree,
+                          env=env, check=True, capture_output=True, text=True).stdout.strip()
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--base", required=True, help="the commit to compare with (e.g. a4cc274)")
+    p.add_argument("--hours", type=float, default=0.25)
+    p.add_argument("--seed", type=int, default=11)
+    p.add_argument("--runs", type=int, default=3)
+    a = p.parse_args(argv)
+    try:
+        base = _git("rev-parse", "--short", a.base + "^{commit}")
+    except subprocess.CalledProcessError:
+        p.error(f"--base {a.base!r} is not a commit of {ROOT}")
+    head = _git("rev-parse", "--short", "HEAD")
+    dirty = " (and its uncommitted changes)" if _git("status", "--porcelain", "-uno") else ""
+    with tempfile.TemporaryDirectory(prefix="soak-base-") as tmp:
+        tree = os.path.join(tmp, base)
+        _git("worktree", "add", "--detach", tree, base)
+        try:
+            for t in (tree, ROOT):
+                if os.path.realpath(imports_from(t)) != os.path.realpath(t):
+                    raise SystemExit(f"running in {t} imports hil from {imports_from(t)}")
+            walls: dict[str, list[float]] = {base: [], head: []}
+            digests: set[str] = set()
+            for i in range(a.runs):
+                for name, t in ((base, tree), (head, ROOT)):
+                    wall, digest = run_in(t, a.hours, a.seed)
+                    walls[name].append(wall)
+                    digests.add(digest)
+                    print(f"run {i + 1} {name}: {wall:.1f} s, accounting {digest}",
+                          file=sys.stderr, flush=True)
+        finally:
+            _git("worktree", "remove", "--force", tree)
+    mb, mh = statistics.median(walls[base]), statistics.median(walls[head])
+    print(f"| rprs soak --hours {a.hours:g} --seed {a.seed} | wall s, {a.runs} runs "
+          "| median |")
+    print("|---|---|---|")
+    for name, label in ((base, base), (head, head + dirty)):
+        runs = " / ".join(f"{w:.1f}" for w in walls[name])
+        print(f"| {label} | {runs} | {statistics.median(walls[name]):.1f} |")
+    same = len(digests) == 1
+    print(f"\n{head} against {base}: {mb / mh:.2f}x (target 4x against the issue's main); "
+          f"accounting {'the same in every run: ' + digests.pop() if same else 'DIFFERS'}")
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

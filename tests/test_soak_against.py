@@ -1,0 +1,42 @@
+"""benchmarks/soak_against.py: the soak beside an older commit, in a temporary worktree,
+its accounting compared run by run."""
+from __future__ import annotations
+
+import importlib.util
+import pathlib
+import subprocess
+
+import pytest
+
+ROOT = pathlib.Path(__file__).parent.parent
+_spec = importlib.util.spec_from_file_location("soak_against",
+                                               ROOT / "benchmarks" / "soak_against.py")
+bench = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(bench)
+
+
+def _worktrees() -> str:
+    return subprocess.run(["git", "-C", str(ROOT), "worktree", "list"], check=True,
+                          capture_output=True, text=True).stdout
+
+
+def test_the_accounting_leaves_out_wall_times_only():
+    a = '[{"wall_s": 1.5, "summary": {"delivered": 3}, "reform_s": [1.0]}]'
+    b = '[{"wall_s": 9.0, "summary": {"delivered": 3}, "reform_s": [1.0]}]'
+    c = '[{"wall_s": 1.5, "summary": {"delivered": 4}, "reform_s": [1.0]}]'
+    assert bench.accounting(a) == bench.accounting(b) != bench.accounting(c)
+
+
+def test_a_commit_that_does_not_exist_is_a_clear_error(capsys):
+    with pytest.raises(SystemExit) as e:
+        bench.main(["--base", "no-such-commit-0000"])
+    assert e.value.code == 2
+    assert "is not a commit" in capsys.readouterr().err
+
+
+def test_head_against_itself_gives_the_same_accounting_and_leaves_no_worktree(capsys):
+    before = _worktrees()
+    assert bench.main(["--base", "HEAD", "--hours", "0.04", "--runs", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "accounting the same in every run" in out and "| rprs soak --hours 0.04" in out
+    assert _worktrees() == before
