@@ -311,6 +311,21 @@ def test_stepping_without_waking_leaves_it_asleep_and_the_same_run():
     assert _state(fast) == _state(slow)
 
 
+def test_an_event_a_period_does_not_move_keeps_the_domain_awake_until_it_has_run():
+    """A one-shot event of the domain (a recovery, a stall timer: none is left pending by an
+    idle child today) is the same tick in two snapshots a period apart, so the snapshots
+    alone call the domain periodic; asleep, the event would be skipped or put back in the
+    past. The domain stays awake until it has run, then sleeps."""
+    w = World(SimConfig(robots=(0, 1), duration=6, can=True, seed=1))
+    q = w.quiet[1]
+    at, fired = round(4.05 * 16_000_000), []
+    q.clock.at(at, lambda: fired.append(q.clock.now))
+    w.run(at - 1)
+    assert q.periods_skipped == 0 and q.one_shots > 0 and not q.asleep
+    w.run()
+    assert fired == [at] and q.periods_skipped > 0
+
+
 def test_an_idle_ring_sleeps_most_of_the_time():
     w = World(SimConfig(robots=(0, 1, 2, 3, 4, 5, 6), duration=30, can=True, seed=1))
     w.run()

@@ -139,6 +139,8 @@ class QuietCan:
         """Wakes that ran the last whole period frame by frame (a latest status changed)."""
         self.resleeps = 0
         """Sleeps taken at the first probe after a wake, the state back on the orbit."""
+        self.one_shots = 0
+        """Sleeps refused because an event of the domain was not moved by the period."""
         self._since = 0
         self._events: list[Event] = []
         self._misses = 0          # probes in a row that found the domain not periodic
@@ -192,10 +194,17 @@ class QuietCan:
         self._sleep(snap, steps, latest_moved(last, snap, steps))
 
     def _sleep(self, snap: Snapshot, steps: dict[int, int], replay: bool) -> None:
+        moved = writable(snap, steps)
+        stepped = {id(holder) for holder, key, _ in moved if key == "when"}
+        if any(id(ev) not in stepped for ev in self.world.pending(self)):
+            # an event of its own that a period does not move (a one-shot: a recovery, a
+            # stall timer) ends the repetition at its tick: stay awake
+            self.one_shots += 1
+            return
         self._misses = 0
         self._replay = replay
         self._events = self.world.take(self)
-        self._moved = writable(snap, steps)
+        self._moved = moved
         self._orbit, self._steps = snap, steps
         self._since = self.clock.now
         self.asleep = True
