@@ -22,6 +22,7 @@ from firmware_model.radio.mac import MacConfig
 from firmware_model.timing import TICK_HZ, s_to_ticks
 
 from .faults import NODES, Fault
+from .quiet_can import PERIOD
 from .world import SimConfig, World
 
 REFORM_BOUND_S = 15.0
@@ -88,6 +89,9 @@ class SoakResult:
     wall_s: float = 0.0
     isolations: int = 0
     bus_offs: int = 0
+    can_periods_skipped: float = 0.0
+    """Share of the children's CAN status periods that slept instead of running frame by
+    frame (hil/sim/quiet_can.py; how the run was computed, not what it found)."""
 
     @property
     def invariants(self) -> dict[str, bool]:
@@ -165,6 +169,9 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
                      time.perf_counter() - t0)
     res.isolations = sum(c.can.isolations for c in w.children.values())
     res.bus_offs = sum(c.can.bus_offs for c in w.children.values())
+    if w.quiet:
+        periods = len(w.quiet) * (w.end_tick // PERIOD)
+        res.can_periods_skipped = sum(q.periods_skipped for q in w.quiet.values()) / periods
     return res
 
 
