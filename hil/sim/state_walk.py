@@ -129,35 +129,10 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
 
     append, note_int = shape.append, ints.append
 
-    # Ints and plain values, most of the leaves, are taken in the loops below without a call
+    # Ints and plain values, most of the leaves, are taken in the loop below without a call
     # of visit (the same entries visit would make: a snapshot costs about a period's frames).
-    def fields_of(x: Any, t: type) -> None:
-        d = getattr(x, "__dict__", None)
-        if d is not None:
-            for k, v in d.items():
-                tv = type(v)
-                if tv is int:
-                    note_int((len(shape), x, k, k))
-                    append(v)
-                elif tv in _PLAIN:
-                    append(v)
-                elif tv is list and k in records:
-                    append(("record", len(v)))
-                else:
-                    visit(v, x, k, k)
-        for k in _slot_names(t):
-            v = getattr(x, k, _ABSENT)
-            tv = type(v)
-            if tv is int:
-                note_int((len(shape), x, k, k))
-                append(v)
-            elif tv in _PLAIN:
-                append(v)
-            elif v is not _ABSENT:
-                visit(v, x, k, k)
-
-    def items_of(pairs: Iterable[tuple[Any, Any]], holder: Any, name: str,
-                 by_key: bool) -> None:
+    def items_of(pairs: Iterable[tuple[Any, Any]], holder: Any, name: str, by_key: bool,
+                 recs: frozenset[str] = frozenset()) -> None:
         for k, v in pairs:
             tv = type(v)
             n = k if by_key and type(k) is str else name
@@ -166,8 +141,19 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
                 append(v)
             elif tv in _PLAIN:
                 append(v)
+            elif tv is list and k in recs:
+                append(("record", len(v)))
             else:
                 visit(v, holder, k, n)
+
+    def fields_of(x: Any, t: type) -> None:
+        d = getattr(x, "__dict__", None)
+        if d is not None:
+            items_of(d.items(), x, "", True, records)
+        slots = _slot_names(t)
+        if slots:
+            items_of([(k, v) for k in slots if (v := getattr(x, k, _ABSENT)) is not _ABSENT],
+                     x, "", True)
 
     def visit(x: Any, holder: Any, key: Any, name: str) -> None:
         t = type(x)
