@@ -135,7 +135,7 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
                  recs: frozenset[str] = frozenset()) -> None:
         for k, v in pairs:
             tv = type(v)
-            n = k if by_key and type(k) is str else name
+            n = k if by_key and isinstance(k, str) else name
             if tv is int:
                 note_int((len(shape), holder, k, n))
                 append(v)
