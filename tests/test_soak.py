@@ -2,11 +2,13 @@
 and traffic, then the guarantees of docs/guarantees.md."""
 from __future__ import annotations
 
+import random
+
+import pytest
+
 from hil.cli import main
 from hil.sim.faults import parse_fault
 from hil.sim.soak import random_faults, run_soak
-
-import random
 
 
 def test_short_soak_keeps_every_guarantee():
@@ -17,10 +19,17 @@ def test_short_soak_keeps_every_guarantee():
     assert not failed, (failed, r.summary["pending"], r.reform_s, r.not_reformed)
 
 
-def test_a_soak_is_the_same_run_whether_its_can_sides_sleep_or_not():
+@pytest.mark.parametrize("faults", [False, True], ids=["traffic", "CAN faults"])
+def test_a_soak_is_the_same_run_whether_its_can_sides_sleep_or_not(faults):
     """Sleeping CAN sides (hil/sim/quiet_can.py: idle, and with cruising wheels) across the
-    soak's steps, which do not wake them: the same accounting, faults and re-formations."""
-    a, b = (vars(run_soak(0.05, seed=3, can_sleep=s)).copy() for s in (False, True))
+    soak's steps, which do not wake them: the same accounting, faults and re-formations; with
+    faults every 8 s or so too (a bus-off, silent nodes, a stalled wheel, noise, BER)."""
+    schedule = random_faults(random.Random(3), (0, 1, 2, 3, 4), 0.05, True, True,
+                             mean_gap_s=8.0) if faults else None
+    if faults:
+        assert {"busoff", "silent", "stall"} <= {f.kind for f in schedule}
+    a, b = (vars(run_soak(0.05, seed=3, can_sleep=s, faults=schedule)).copy()
+            for s in (False, True))
     a.pop("wall_s"), b.pop("wall_s")
     assert a.pop("can_periods_skipped") == 0.0 and b.pop("can_periods_skipped") > 0.2
     assert a["summary"]["submitted"] > 100 and a["summary"]["can_frames"] > 40_000
