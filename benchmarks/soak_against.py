@@ -83,24 +83,25 @@ def main(argv: list[str] | None = None) -> int:
             for t in (tree, ROOT):
                 if os.path.realpath(imports_from(t)) != os.path.realpath(t):
                     raise SystemExit(f"running in {t} imports hil from {imports_from(t)}")
-            walls: dict[str, list[float]] = {base: [], head: []}
+            # by tree, not by commit name: the base may be HEAD itself
+            walls: dict[str, list[float]] = {tree: [], ROOT: []}
             digests: set[str] = set()
             for i in range(a.runs):
                 for name, t in ((base, tree), (head, ROOT)):
                     wall, digest = run_in(t, a.hours, a.seed)
-                    walls[name].append(wall)
+                    walls[t].append(wall)
                     digests.add(digest)
                     print(f"run {i + 1} {name}: {wall:.1f} s, accounting {digest}",
                           file=sys.stderr, flush=True)
         finally:
             _git("worktree", "remove", "--force", tree)
-    mb, mh = statistics.median(walls[base]), statistics.median(walls[head])
+    mb, mh = statistics.median(walls[tree]), statistics.median(walls[ROOT])
     print(f"| rprs soak --hours {a.hours:g} --seed {a.seed} | wall s, {a.runs} runs "
           "| median |")
     print("|---|---|---|")
-    for name, label in ((base, base), (head, head + dirty)):
-        runs = " / ".join(f"{w:.1f}" for w in walls[name])
-        print(f"| {label} | {runs} | {statistics.median(walls[name]):.1f} |")
+    for t, label in ((tree, base), (ROOT, head + dirty)):
+        runs = " / ".join(f"{w:.1f}" for w in walls[t])
+        print(f"| {label} | {runs} | {statistics.median(walls[t]):.1f} |")
     same = len(digests) == 1
     print(f"\n{head} against {base}: {mb / mh:.2f}x (target 4x against the issue's main); "
           f"accounting {'the same in every run: ' + digests.pop() if same else 'DIFFERS'}")
