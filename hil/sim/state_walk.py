@@ -45,14 +45,14 @@ class Unwalkable(Exception):
 @dataclasses.dataclass
 class Snapshot:
     """``shape``: every position's kind and value (ints included), in walk order;
-    ``ints``: (position in shape, holder, key, name) of every int a period may move on
+    ``ints``: position in shape -> (holder, key, name) of every int a period may move on
     (holder None inside a tuple: it cannot be written); ``alive``: every object whose
     identity the shape records, kept alive with the snapshot so that no other object can take
     its id while the snapshot may still be compared; ``free``: the positions inside objects of
     a ``latest`` type (module docstring)."""
 
     shape: list
-    ints: list[tuple[int, Any, Any, str]]
+    ints: dict[int, tuple[Any, Any, str]]
     alive: list = dataclasses.field(default_factory=list, repr=False)
     free: frozenset[int] = frozenset()
 
@@ -121,13 +121,13 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
     long run's log does not make every snapshot longer (a part whose log grew is still not
     periodic). ``latest``: the types whose fields are free positions (module docstring)."""
     shape: list = []
-    ints: list[tuple[int, Any, Any, str]] = []
+    ints: dict[int, tuple[Any, Any, str]] = {}
     seen: dict[int, int] = {}
     stop = {id(b) for b in boundary}
     keep: list[Any] = []            # objects whose ids the shape holds (Snapshot.alive)
     free: list[range] = []
 
-    append, note_int = shape.append, ints.append
+    append = shape.append
 
     # Ints and plain values, most of the leaves, are taken in the loop below without a call
     # of visit (the same entries visit would make: a snapshot costs about a period's frames).
@@ -137,7 +137,7 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             tv = type(v)
             n = k if by_key and isinstance(k, str) else name
             if tv is int:
-                note_int((len(shape), holder, k, n))
+                ints[len(shape)] = (holder, k, n)
                 append(v)
             elif tv in _PLAIN:
                 append(v)
@@ -161,7 +161,7 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
         if kind is None:
             kind = _kind(t)
         if kind is _INT:
-            ints.append((len(shape), holder, key, name))
+            ints[len(shape)] = (holder, key, name)
             shape.append(x)
             return
         if kind is _VALUE:
@@ -234,7 +234,7 @@ def period_steps(before: Snapshot, after: Snapshot, period: int,
     if len(a) != len(b) or before.free != after.free:
         return None
     free = after.free
-    int_at = {pos: (holder, name) for pos, holder, _, name in after.ints}
+    int_at = after.ints
     steps: dict[int, int] = {}
     for pos, (x, y) in enumerate(zip(a, b)):
         if x == y and type(x) is type(y):
@@ -244,7 +244,7 @@ def period_steps(before: Snapshot, after: Snapshot, period: int,
             if pos in free:
                 continue
             return None
-        holder, name = spot
+        holder, _, name = spot
         d = y - x
         if holder is None or not (d == period or (name in counters and d > 0)):
             if pos in free:
@@ -269,19 +269,23 @@ def on_orbit(orbit: Snapshot, steps: dict[int, int], periods: int, now: Snapshot
     if len(a) != len(b) or periods < 1 or orbit.free != now.free:
         return False
     free = now.free
-    counter_at = {pos for pos, holder, _, name in now.ints
-                  if holder is not None and name in counters}
+    ints = now.ints
+
+    def counter(pos: int) -> bool:
+        spot = ints.get(pos)
+        return spot is not None and spot[0] is not None and spot[2] in counters
+
     for pos, (x, y) in enumerate(zip(a, b)):
         if pos in free:
             continue
         d = steps.get(pos)
-        if d is not None and pos not in counter_at:
+        if d is not None and not counter(pos):
             if type(y) is not int or y - x != d * periods:
                 return False
             continue
         if x == y and type(x) is type(y):
             continue
-        if type(x) is int and type(y) is int and pos in counter_at and y > x:
+        if type(x) is int and type(y) is int and y > x and counter(pos):
             continue
         if type(x) is tuple and type(y) is tuple and len(x) == len(y) == 2 \
                 and x[0] == y[0] == "record":
@@ -310,12 +314,8 @@ def latest_moved(before: Snapshot, after: Snapshot, steps: dict[int, int],
 
 def writable(snap: Snapshot, steps: dict[int, int]) -> list[tuple[Any, Any, int]]:
     """(holder, key, delta) of every position in ``steps``, in ``snap``'s objects."""
-    out = []
-    for pos, holder, key, _ in snap.ints:
-        d = steps.get(pos)
-        if d is not None:
-            out.append((holder, key, d))
-    return out
+    ints = snap.ints
+    return [(ints[pos][0], ints[pos][1], d) for pos, d in sorted(steps.items())]
 
 
 def advance(moved: list[tuple[Any, Any, int]], periods: int) -> None:
