@@ -64,7 +64,9 @@ NEEDED = {
     "saturated 7-robot ring, --can": ("CAN on / off >= 0.5", 0.5 / 0.10),
     "rprs soak --hours 0.1 --seed 11": ("4x the issue's main", 4 / 1.74),
 }
-"""The speed-up each target still needs (figures of docs/performance.md, 2026-11-25)."""
+"""The speed-up each target still needs, from the last measured figures (docs/performance.md,
+2026-11-25: radio only 13.4x the SimPy peer, saturated on/off 0.10, soak 1.74x the issue's
+main); update them with the figures of ``speed_targets.py`` and ``soak_against.py``."""
 
 
 def own_time(raw_lines: Iterable[str], root: str, inside: str = "World.run") -> Counter:
@@ -146,7 +148,7 @@ def main() -> int:
     print("|---|---|" + "---|" * len(cols))
     for name, n, shares in rows:
         print(f"| {name} | {n:,} | " + " | ".join(f"{shares[c]:.0%}" for c in cols) + " |")
-    print("\n| workload | target needs | " + " | ".join(f"at most, {b} compiled to nothing"
+    print("\n| workload | target needs (from the figures in NEEDED) | " + " | ".join(f"at most, {b} compiled to nothing"
                                                      for b in BOUNDS) + " |")
     print("|---|---|" + "---|" * len(BOUNDS))
     for name, _, shares in rows:
