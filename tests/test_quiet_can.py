@@ -185,6 +185,10 @@ def test_a_latest_record_may_change_and_then_asks_for_the_last_period_to_run():
     steps = period_steps(a, c, PERIOD, counters)
     assert steps is not None and latest_moved(a, c, steps)
     assert on_orbit(c, steps, 2, snap(part(100 + 3 * PERIOD, 20, 50, 7)), counters)
+    # on the orbit a free value may be anything, even where a period stepped it: to be run
+    b_steps = period_steps(a, b, PERIOD, counters)
+    gone = snap(part(100 + 3 * PERIOD, 20, 39, None))
+    assert on_orbit(b, b_steps, 2, gone, counters) and latest_moved(b, gone, b_steps, 2)
     # outside the record nothing else may change, and a record is not free without its type
     assert period_steps(a, snap(part(100 + PERIOD, 10, 43, 93, level=8)), PERIOD,
                         counters) is None

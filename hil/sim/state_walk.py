@@ -305,7 +305,7 @@ def latest_moved(before: Snapshot, after: Snapshot, steps: dict[int, int],
         x, y = a[pos], b[pos]
         d = steps.get(pos)
         if d is not None:
-            if y - x != d * periods:
+            if type(y) is not int or y - x != d * periods:   # a free value may be anything
                 return True
         elif x != y or type(x) is not type(y):
             return True
