@@ -277,6 +277,18 @@ class ChildFirmware:
         body = 0 if self.cpu.ideal else message_cycles(d.commands, self.costs or DEFAULT_COSTS)
         self.cpu.task(DISPATCH_TASK, body, self._dispatch, d, end)
 
+    def notes_only(self, d: Deliver) -> bool:
+        """Would handling ``d`` only note it? True for information (Types '3' and '4': a
+        reply, a ``done()`` or ``fail()`` notice, docs/protocol.md §3) reaching a child with no
+        job (so no job deadline), no output waiting, no CAN supervision pending, its timer
+        stopped, no action sequence, on the ideal CPU: the dispatcher appends it to its log and
+        counts a call, and nothing else changes, whatever the tick of its CAN side
+        (hil/sim/quiet_can.py: a sleeping CAN domain need not wake for it)."""
+        disp = self.dispatcher
+        return (d.type not in REQUEST_TYPES and self.sequence is None and self.cpu.ideal
+                and not disp.jobs and not disp.has_output()
+                and self.timer.expiry is None and self.can.deadline() is None)
+
     def _dispatch(self, d: Deliver, end: int | None) -> None:
         now = self.sched.now
         self.dispatcher.on_message(d.src, d.dst, d.commands, now, d.type)

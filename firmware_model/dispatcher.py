@@ -125,6 +125,10 @@ class Dispatcher:
         out, self._radio = self._radio, []
         return out
 
+    def has_output(self) -> bool:
+        """Are CAN frames or radio messages waiting for ``take_can`` / ``take_radio``?"""
+        return bool(self._can or self._radio)
+
     # -- inputs --------------------------------------------------------------------------
 
     def on_message(self, src: int, dst: int, commands: tuple[Command, ...], now: int,

@@ -14,8 +14,11 @@ from dataclasses import replace
 import pytest
 
 from can_bus.submodules import STATUS_STAGGER_TICKS
+from firmware_model.cycle_costs import DEFAULT_COSTS
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.radio.content import cmd
+from firmware_model.radio.frame import FrameType
+from firmware_model.radio.mac import Deliver
 from hil.sim.faults import parse_fault
 from hil.sim.quiet_can import PERIOD
 from hil.sim.state_walk import (Unwalkable, advance, latest_moved, on_orbit, period_delta,
@@ -362,3 +365,68 @@ def test_the_cpu_model_has_no_sleeping_can_side():
     assert w.quiet == {}
     w.run()
     assert w.can_frames == 6 * 10
+
+
+# -- news: noted without waking ----------------------------------------------------------------
+
+def _news(done_at: float = 4.0) -> tuple:
+    return ((done_at, (cmd("done"), cmd("movex", 8)), FrameType.BROADCAST_INFO),
+            (6.5, (cmd("fail", 3), cmd("moveto", 900, 0, 0)), FrameType.FAILURE),
+            (9.0, (cmd("status"),), FrameType.INSTRUCTION))
+
+
+def test_news_reaching_a_sleeping_child_is_noted_and_it_sleeps_on():
+    """A done() or fail() notice (the soak's children get about one a second, half of what
+    woke them) only goes into the dispatcher's log: the child's CAN side sleeps on through
+    it, and the run is still the frame-by-frame run. An order wakes it."""
+    slow, fast = _pair(SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=6))
+    asleep_after: list[bool] = []
+    for w in (slow, fast):
+        for t, commands, type_ in _news():
+            w.sched.at(round(t * 16_000_000),
+                       lambda w=w, c=commands, ty=type_: w.submit(0, 1, c, int(ty)))
+    q = fast.quiet[1]
+    for until in (5.0, 7.5):            # each notice delivered by then
+        fast.run(round(until * 16_000_000), wake_can=False)
+        asleep_after.append(q.asleep)
+    slow.run()
+    fast.run()
+    assert asleep_after == [True, True] and q.noted == 2
+    assert [text for _, text in fast.children[1].dispatcher.log[-2:]] == [
+        "robot 0: done()", "robot 0: fail(3)"]
+    assert _summary(fast) == _summary(slow)
+    assert _state(fast) == _state(slow)
+    assert slow.quiet[1].noted == 0 and q.periods_skipped > 0.5 * 12 * 16_000_000 // PERIOD
+
+
+def _child_with(condition: str):
+    w = World(SimConfig(robots=(0, 1), duration=5, can=True, seed=1,
+                        cpu=DEFAULT_COSTS if condition == "the CPU model" else None))
+    w.run(2 * 16_000_000)
+    child, now = w.children[1], w.now
+    if condition == "an order under way":
+        child.dispatcher.on_message(0, 1, (cmd("joint", 1, 20),), now)
+        child.dispatcher.take_can()
+    elif condition == "a reply waiting":
+        child.dispatcher.on_message(0, 1, (cmd("status"),), now)
+    elif condition == "its timer armed":
+        child.timer.arm_at(now + 16_000)
+    elif condition == "CAN supervision pending":
+        child.can.isolate(now)
+    elif condition == "an action sequence":
+        child.run_sequence((2, 1), 1)      # its turn comes after robot 2's: nothing starts
+    return child
+
+
+@pytest.mark.parametrize("condition", ["nothing", "an order under way", "a reply waiting",
+                                       "its timer armed",
+                                       "CAN supervision pending", "an action sequence",
+                                       "the CPU model"])
+def test_only_news_to_a_child_with_nothing_under_way_is_only_noted(condition):
+    """What handling news does otherwise depends on ticks a sleeping CAN side has not moved on
+    (a job's deadline, the supervision's, the timer) or runs on the CPU model's clock."""
+    child = _child_with(condition)
+    notice = Deliver(0, 1, 5, int(FrameType.BROADCAST_INFO), (cmd("done"), cmd("movex", 8)))
+    order = Deliver(0, 1, 6, int(FrameType.INSTRUCTION), (cmd("movex", 8),))
+    assert child.notes_only(notice) is (condition == "nothing")
+    assert not child.notes_only(order)

@@ -22,6 +22,9 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
   then its events go back into the world's scheduler. If a latest status changed from one
   period to the next, the last whole period runs on the private scheduler too, and rewrites
   it as the skipped periods would have.
+* News (a reply, a ``done()`` or ``fail()`` notice) reaching a child that has nothing under
+  way is only noted, in the dispatcher's log (``ChildFirmware.notes_only``): it reads nothing a
+  period changes and changes nothing a period moves, so it does not wake the domain.
 * At the first probe after a wake, if what woke it left the domain exactly on the orbit it
   slept on, moved on by whole periods (ticks moved by their steps, counters up, logs of any
   length: :func:`~hil.sim.state_walk.on_orbit`), it sleeps again at once, on the same
@@ -141,6 +144,9 @@ class QuietCan:
         """Sleeps taken at the first probe after a wake, the state back on the orbit."""
         self.one_shots = 0
         """Sleeps refused because an event of the domain was not moved by the period."""
+        self.noted = 0
+        """Messages the child only noted while the domain slept, without waking it (news:
+        ``ChildFirmware.notes_only``)."""
         self._since = 0
         self._events: list[Event] = []
         self._misses = 0          # probes in a row that found the domain not periodic

@@ -344,7 +344,10 @@ class World:
         app = st.app
 
         def app_awake(d, now: int) -> None:
-            quiet.wake()
+            if quiet.asleep and child.notes_only(d):
+                quiet.noted += 1             # news only noted: the CAN side sleeps on
+            else:
+                quiet.wake()
             app(d, now)
         st.app = app_awake
         self.quiet[r] = quiet
