@@ -430,3 +430,40 @@ def test_only_news_to_a_child_with_nothing_under_way_is_only_noted(condition):
     order = Deliver(0, 1, 6, int(FrameType.INSTRUCTION), (cmd("movex", 8),))
     assert child.notes_only(notice) is (condition == "nothing")
     assert not child.notes_only(order)
+
+
+def _random_ring(seed: int) -> tuple[SimConfig, list[int]]:
+    """A seeded ring of 2-6 children (the father in most), load, CAN faults and a dead radio
+    at random ticks, and three random cuts."""
+    rng = random.Random(seed)
+    robots = tuple(sorted({0} | set(rng.sample(range(1, 7), rng.randint(2, 5)))))
+    if rng.random() < 0.2:
+        robots = robots[1:]
+    children = [r for r in robots if r]
+    faults = []
+    for _ in range(rng.randint(0, 3)):
+        t, r = rng.uniform(3, 12), rng.choice(children)
+        faults += {
+            "busoff": [f"busoff:{r}@{t:.2f}"],
+            "stall": [f"stall:{r}.JOINT{rng.randint(1, 4)}@{t:.2f}"],
+            "silent": [f"silent:{r}.WHEEL@{t:.2f}-{t + 1:.2f}"],
+            "stuck": [f"stuck:{r}@{t:.2f}-{t + 0.5:.2f}"],
+            "fail": [f"fail:{r}@{t:.2f}", f"recover:{r}@{t + 3:.2f}"],
+        }[rng.choice(["busoff", "stall", "silent", "stuck", "fail"])]
+    cfg = SimConfig(robots=robots, duration=18, can=True, seed=seed,
+                    load=rng.choice([0.3, 0.7, 1.5]), faults=F(*faults))
+    return cfg, sorted(rng.randrange(1, 18 * 16_000_000) for _ in range(3))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_rings_with_faults_asleep_and_cut_are_the_frame_by_frame_run(seed):
+    """Rings nobody chose: children sending each other orders (and so news), CAN faults, a
+    radio failing; state compared at three random cuts and at the end."""
+    cfg, cuts = _random_ring(seed)
+    slow, fast = _pair(cfg)
+    for t in [*cuts, None]:
+        slow.run(t)
+        fast.run(t)
+        assert _state(fast) == _state(slow), f"different at tick {t}"
+    assert _summary(fast) == _summary(slow)
+    assert sum(q.periods_skipped for q in fast.quiet.values()) > 0
