@@ -26,6 +26,7 @@ Submodule numbers: joints 1-4, wheel 5, paw 6 (docs/can.md).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 from can_bus import dbc
 from can_bus.bus import CanFrame
@@ -69,6 +70,25 @@ REQUEST_TYPES = frozenset({int(FrameType.SEEK_HELP), int(FrameType.INVITATION),
                            int(FrameType.INSTRUCTION)})
 """Types '0'-'2': messages that ask something of their destination (docs/protocol.md §3);
 '3' and '4' are information."""
+
+@lru_cache(maxsize=1024)
+def _pose(q: tuple[float, float, float, float]):
+    """:func:`~firmware_model.kinematics.forward`, remembered: relative orders are planned
+    from the commanded pose, which changes only when an order is accepted."""
+    return forward(q)
+
+
+@lru_cache(maxsize=4096, typed=True)
+def _reach(x: float, y: float, z: float,
+           phi: float) -> tuple[tuple[float, float, float, float] | None, int, str]:
+    """(joint angles, 0, '') or (None, failure code, reason): :func:`~firmware_model.kinematics.
+    inverse`, remembered (pure; the same order from the same pose is planned once, in the
+    simulation; the CPU model still charges every plan its cycles)."""
+    try:
+        return inverse(x, y, z, phi), 0, ""
+    except Unreachable as exc:
+        return None, exc.code, str(exc)
+
 
 CODE_NO_CAN = 42
 """The child has no CAN side at all (a radio-only ``rprs child``): it cannot act on orders."""
@@ -215,7 +235,7 @@ class Dispatcher:
         self._move_relative(src, c, now, 0.0, 0.0, c.args[0])
 
     def _cmd_moveto(self, src: int, c: Command, now: int) -> None:
-        p = forward(tuple(self.target))
+        p = _pose(tuple(self.target))
         self._move_to(src, c, now, float(c.args[0]), float(c.args[1]), float(c.args[2]), p.phi)
 
     def _cmd_joint(self, src: int, c: Command, now: int) -> None:
@@ -316,16 +336,15 @@ class Dispatcher:
 
     def _move_relative(self, src: int, c: Command, now: int, dx: float, dy: float,
                        dz: float) -> None:
-        p = forward(tuple(self.target))
+        p = _pose(tuple(self.target))
         self._move_to(src, c, now, p.x + dx, p.y + dy, p.z + dz, p.phi)
 
     def _move_to(self, src: int, c: Command, now: int, x: float, y: float, z: float,
                  phi: float) -> None:
-        try:
-            q = inverse(x, y, z, phi)
-        except Unreachable as exc:
-            self.log.append((now, f"{c.text()}: {exc}"))
-            self._fail(src, exc.code, c)
+        q, code, reason = _reach(x, y, z, phi)
+        if q is None:
+            self.log.append((now, f"{c.text()}: {reason}"))
+            self._fail(src, code, c)
             return
         self._drive_joints(src, c, now, list(q))
 

@@ -108,6 +108,21 @@ def test_cmd_validation(args, match):
     assert ei.value.offset is None
 
 
+def test_cmd_hands_out_one_value_for_the_same_name_and_typed_arguments():
+    """Commands are immutable values, so ``cmd`` remembers those it made; an argument of
+    another type (1.0 for 1, True for 1) is another command, validated on its own."""
+    assert cmd("joint", 1, 20) is cmd("joint", 1, 20)
+    assert type(cmd("movex", 20.0).args[0]) is float and type(cmd("movex", 20).args[0]) is int
+    with pytest.raises(ContentError, match="must be an integer"):
+        cmd("joint", 1.0, 20)
+    with pytest.raises(ContentError, match="must be a number"):
+        cmd("movex", True)
+    with pytest.raises(ContentError, match="must be a number"):
+        cmd("movex", [5])                   # unhashable: still a ContentError
+    assert Command("moveto", (1.0, 2, 3)).text() == cmd("moveto", 1, 2, 3).text() == \
+        "moveto(1,2,3)"
+
+
 @pytest.mark.parametrize(
     "text, offset, field, match",
     [

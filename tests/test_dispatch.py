@@ -354,3 +354,24 @@ def test_notices_and_replies_are_never_acted_on():
     assert [text for _, text in d.log] == ["robot 3: done()", "robot 3: fail(1)"]
     d.on_message(3, 1, (cmd("movex", 8),), 0, int(FrameType.INSTRUCTION))   # an order
     assert d.take_can() and d.jobs
+
+
+def test_a_remembered_plan_answers_as_a_fresh_one():
+    """The dispatcher remembers its kinematics (pure functions): the same order from the same
+    pose, refused or accepted, gets the answer the kinematics gives afresh."""
+    from firmware_model.dispatcher import Dispatcher
+    from firmware_model.kinematics import Unreachable, forward, inverse
+    d = Dispatcher(1)
+    for _ in range(2):
+        d.on_message(0, 1, (cmd("movex", 123456789),), 0)
+    first, second = d.take_radio()
+    assert first == second and first[1][0] == cmd("fail", 1)
+    p = forward(HOME)
+    with pytest.raises(Unreachable) as ei:
+        inverse(p.x + 123456789, p.y, p.z, p.phi)
+    assert [text for _, text in d.log] == [f"movex(123456789): {ei.value}"] * 2
+    want = inverse(p.x + 10, p.y, p.z, p.phi)
+    for _ in range(2):
+        d.on_message(0, 1, (cmd("movex", 10),), 0)
+        assert d.target == list(want)
+        d.on_message(0, 1, (cmd("movex", -10),), 0)

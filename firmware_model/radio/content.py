@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Iterable
 
 from firmware_model.radio.errors import ContentError, describe_byte
@@ -249,15 +250,34 @@ class Command:
 
     def text(self) -> str:
         """Wire text, e.g. ``moveto(1.5,-2,0)``."""
-        return f"{self.name}({','.join(format_number(a) for a in self.args)})"
+        return _text(self)
 
     def __str__(self) -> str:
         return self.text()
 
 
 def cmd(name: str, *args: int | float) -> Command:
-    """``cmd('moveto', 1.5, -2, 0)``: a validated :class:`Command` (raises :class:`ContentError`)."""
+    """``cmd('moveto', 1.5, -2, 0)``: a validated :class:`Command` (raises :class:`ContentError`).
+
+    Commands are immutable values, so one made before with the same name and arguments (of
+    the same types) is handed out again instead of being validated anew: the simulator's load
+    and the dispatcher's failure replies make the same few commands over and over."""
+    try:
+        return _made(name, *args)
+    except TypeError:                  # an unhashable argument: let the validation say why
+        return Command(name, args)
+
+
+@lru_cache(maxsize=4096, typed=True)
+def _made(name: str, *args: int | float) -> Command:
     return Command(name, args)
+
+
+@lru_cache(maxsize=4096)
+def _text(c: Command) -> str:
+    """A command's wire text (equal commands have the same text: ``1`` and ``1.0`` are both
+    written ``1``)."""
+    return f"{c.name}({','.join(format_number(a) for a in c.args)})"
 
 
 # --------------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ from __future__ import annotations
 import random
 from collections import Counter
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from typing import Callable, Iterable
 
 from can_bus.bits import BitTiming
@@ -183,7 +184,8 @@ def _random_commands(rng: random.Random) -> list[Command]:
     return out
 
 
-def _filled_commands(size: int) -> list[Command]:
+@lru_cache(maxsize=64)
+def _filled_commands(size: int) -> tuple[Command, ...]:
     """Commands whose Content is ``size`` bytes or up to 7 fewer (a full-size message)."""
     out = []
     left = size
@@ -192,7 +194,7 @@ def _filled_commands(size: int) -> list[Command]:
         left -= 16
     if left >= 8:
         out.append(cmd("movex", int("1" * (left - 7))))
-    return out
+    return tuple(out)
 
 
 class World:
