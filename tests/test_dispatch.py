@@ -302,9 +302,11 @@ def test_a_radio_only_child_answers_orders_with_a_failure():
     deliver(Deliver(0, 7, 7, 2, (cmd("act", 1, 0),)), 0)             # broadcast
     deliver(Deliver(3, 2, 8, 3, (cmd("joint", 1, 5.0),)), 0)          # a reply: news
     deliver(Deliver(3, 2, 9, 4, (cmd("fail", 42), cmd("status"))), 0)  # a failure: news
+    deliver(Deliver(0, 2, 10, 2, (cmd("paw", 1), cmd("wheel", 40))), 0)  # one failure a message
     assert sent == [(0, (cmd("fail", 42), cmd("joint", 1, 12)), int(FrameType.FAILURE)),
-                    (0, (cmd("fail", 42), cmd("status")), int(FrameType.FAILURE))]
-    assert child.refused == 2
+                    (0, (cmd("fail", 42), cmd("status")), int(FrameType.FAILURE)),
+                    (0, (cmd("fail", 42), cmd("paw", 1)), int(FrameType.FAILURE))]
+    assert child.refused == 3
 
 
 def test_a_finished_order_is_reported_done_to_its_sender():
