@@ -184,6 +184,36 @@ def test_every_option_of_every_command_has_help_text():
     assert not missing, missing
 
 
+def test_each_command_is_built_alone_from_its_own_module_as_in_the_whole_parser():
+    """``rprs NAME ...`` builds only NAME's module (start-up); MODULE_OF must name every
+    command, and the command built alone must be the command of the whole parser."""
+    from hil.cli import MODULE_OF, build_parser
+    whole = dict(_every_parser(build_parser()))
+    commands = {path[1] for path in whole if len(path) == 2}
+    assert commands == set(MODULE_OF)
+    for name, module in MODULE_OF.items():
+        alone = dict(_every_parser(build_parser((module,))))
+        mine = {p: q for p, q in alone.items() if len(p) >= 2 and p[1] == name}
+        assert set(mine) == {p for p in whole if len(p) >= 2 and p[1] == name}
+        for path, parser in mine.items():
+            assert parser.format_help() == whole[path].format_help(), path
+
+
+def test_a_light_command_does_not_import_the_simulator():
+    """``rprs encode`` and ``rprs --version`` once took 0.5 s, importing every command and
+    with them python-can and cantools; each imports its own module now."""
+    code = ("import sys; from hil.cli import main\n"
+            "for argv in (['encode', '--src', '1', '--dst', '0', 'status()'], ['--version']):\n"
+            "    try:\n        main(argv)\n    except SystemExit:\n        pass\n"
+            "heavy = sorted(m for m in ('hil.sim.world', 'can', 'cantools', 'hil.cli.sim')"
+            " if m in sys.modules)\n"
+            "print('HEAVY', heavy)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "0f0a0530313030323030303873746174757328291719" in r.stdout
+    assert "HEAVY []" in r.stdout, r.stdout
+
+
 def test_demo_takes_the_action_sequence_options_without_naming_it(capsys):
     """``rprs demo --cycles 1`` is ``rprs demo action-sequence --cycles 1`` (it once said
     "invalid choice: '1'")."""
