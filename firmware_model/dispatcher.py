@@ -32,7 +32,7 @@ from can_bus import dbc
 from can_bus.bus import CanFrame
 
 from .kinematics import (
-    HOME, JOINT_LIMITS, WHEEL_MAX_SPEED, Unreachable, forward, inverse,
+    HOME, JOINT_LIMITS, WHEEL_MAX_SPEED, Pose, Unreachable, forward, inverse,
 )
 from .radio.content import Command, cmd
 from .radio.frame import BROADCAST, FrameType
@@ -71,8 +71,9 @@ REQUEST_TYPES = frozenset({int(FrameType.SEEK_HELP), int(FrameType.INVITATION),
 """Types '0'-'2': messages that ask something of their destination (docs/protocol.md §3);
 '3' and '4' are information."""
 
+
 @lru_cache(maxsize=1024)
-def _pose(q: tuple[float, float, float, float]):
+def _pose(q: tuple[float, float, float, float]) -> Pose:
     """:func:`~firmware_model.kinematics.forward`, remembered: relative orders are planned
     from the commanded pose, which changes only when an order is accepted."""
     return forward(q)
