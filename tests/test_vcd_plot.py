@@ -334,10 +334,10 @@ def test_plot_refuses_files_that_are_not_traces(idle_run, tmp_path):
     out = tmp_path / "x.png"
     plot_trace(idle_run, str(out))
     text = "".join(json.dumps(e) + "\n" for e in idle_run).encode()
-    (tmp_path / "notes.md").write_bytes("# RPRS \u2014 notes\n".encode("utf-8"))
+    (tmp_path / "notes.txt").write_bytes("# RPRS \u2014 notes\n".encode("utf-8"))
     (tmp_path / "cut.gz").write_bytes(gzip.compress(text)[:400])
     (tmp_path / "meta-less.jsonl").write_bytes(text.split(b"\n", 1)[1])
-    cases = {"x.png": "not a JSON line", "notes.md": "not a JSON line",
+    cases = {"x.png": "not a JSON line", "notes.txt": "not a JSON line",
              "cut.gz": "unreadable after line", "meta-less.jsonl": "must be the meta event"}
     for name, why in cases.items():
         with pytest.raises(TraceError, match=why):
