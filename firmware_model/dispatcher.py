@@ -66,6 +66,7 @@ CODE_REFUSED = 20
 CODE_SILENT = 30
 CODE_BUS_OFF = 40
 CODE_BLOCKED = 41
+_MOVES = frozenset({"movex", "movey", "movez", "moveto"})
 REQUEST_TYPES = frozenset({int(FrameType.SEEK_HELP), int(FrameType.INVITATION),
                            int(FrameType.INSTRUCTION)})
 """Types '0'-'2': messages that ask something of their destination (docs/protocol.md §3);
@@ -227,36 +228,21 @@ class Dispatcher:
     # -- commands (the Content command table's app layer) ----------------------------------
 
     def _cmd_movex(self, src: int, c: Command, now: int) -> None:
-        self._move_relative(src, c, now, c.args[0], 0.0, 0.0)
+        self._move(src, c, now)
 
-    def _cmd_movey(self, src: int, c: Command, now: int) -> None:
-        self._move_relative(src, c, now, 0.0, c.args[0], 0.0)
-
-    def _cmd_movez(self, src: int, c: Command, now: int) -> None:
-        self._move_relative(src, c, now, 0.0, 0.0, c.args[0])
-
-    def _cmd_moveto(self, src: int, c: Command, now: int) -> None:
-        p = _pose(tuple(self.target))
-        self._move_to(src, c, now, float(c.args[0]), float(c.args[1]), float(c.args[2]), p.phi)
+    _cmd_movey = _cmd_movez = _cmd_moveto = _cmd_movex
 
     def _cmd_joint(self, src: int, c: Command, now: int) -> None:
-        i, angle = int(c.args[0]), float(c.args[1])
-        if i not in JOINT_LIMITS:
-            self._fail(src, CODE_RANGE, c)
-            return
-        lo, hi = JOINT_LIMITS[i]
-        if not lo <= angle <= hi:
-            self._fail(src, 2, c)
+        if self._refused(src, c, now):
             return
         q = list(self.target)
-        q[i - 1] = round(angle, 2)
+        q[int(c.args[0]) - 1] = round(float(c.args[1]), 2)
         self._drive_joints(src, c, now, q)
 
     def _cmd_wheel(self, src: int, c: Command, now: int) -> None:
-        speed = c.args[0]
-        if not -WHEEL_MAX_SPEED <= speed <= WHEEL_MAX_SPEED:
-            self._fail(src, CODE_RANGE, c)
+        if self._refused(src, c, now):
             return
+        speed = c.args[0]
         seq = self._next_seq(WHEEL)
         self._can.append(dbc.encode("WHEEL_CMD", speed=int(round(speed)), distance=0, seq=seq))
         # done when the wheel reaches the speed: at most 2 x 300 mm/s at 500 mm/s^2, 1.2 s
@@ -335,19 +321,63 @@ class Dispatcher:
 
     # -- planning --------------------------------------------------------------------------
 
-    def _move_relative(self, src: int, c: Command, now: int, dx: float, dy: float,
-                       dz: float) -> None:
+    def _goal(self, c: Command) -> tuple[float, float, float, float]:
+        """Where a move order (``movex``, ``movey``, ``movez``, ``moveto``) sends the tip:
+        (x, y, z, phi), from the commanded pose (paper §V.B: relative moves are planned from
+        where the arm was last sent)."""
         p = _pose(tuple(self.target))
-        self._move_to(src, c, now, p.x + dx, p.y + dy, p.z + dz, p.phi)
+        if c.name == "moveto":
+            return float(c.args[0]), float(c.args[1]), float(c.args[2]), p.phi
+        d = c.args[0]
+        if c.name == "movex":
+            return p.x + d, p.y + 0.0, p.z + 0.0, p.phi
+        if c.name == "movey":
+            return p.x + 0.0, p.y + d, p.z + 0.0, p.phi
+        return p.x + 0.0, p.y + 0.0, p.z + d, p.phi
 
-    def _move_to(self, src: int, c: Command, now: int, x: float, y: float, z: float,
-                 phi: float) -> None:
-        q, code, reason = _reach(x, y, z, phi)
-        if q is None:
+    def refusal(self, c: Command) -> tuple[int, str | None] | None:
+        """(failure code, reason to log or None) if order ``c`` is refused at once, judged from
+        the order and the commanded pose alone (out of reach 1, a joint outside its limits 2,
+        a parameter out of range 3); None if it is carried out (or refused later, by a
+        submodule) or is not such an order. A refusal reads nothing the CAN side changes and
+        changes nothing but the log and the failure reply (docs/dispatcher.md)."""
+        name = c.name
+        if name in _MOVES:
+            q, code, reason = _reach(*self._goal(c))
+            return None if q is not None else (code, reason)
+        if name == "joint":
+            i, angle = int(c.args[0]), float(c.args[1])
+            if i not in JOINT_LIMITS:
+                return CODE_RANGE, None
+            lo, hi = JOINT_LIMITS[i]
+            return None if lo <= angle <= hi else (2, None)
+        if name == "wheel":
+            speed = c.args[0]
+            return None if -WHEEL_MAX_SPEED <= speed <= WHEEL_MAX_SPEED else (CODE_RANGE, None)
+        return None
+
+    def refuses_all(self, dst: int, commands: tuple[Command, ...], type_: int) -> bool:
+        """Would :meth:`on_message` only refuse ``commands``: a request (Types '0'-'2') to this
+        robot alone whose every command :meth:`refusal` refuses? Then handling it logs and
+        answers each with its failure, and nothing else changes."""
+        return (type_ in REQUEST_TYPES and dst != BROADCAST and bool(commands)
+                and all(self.refusal(c) is not None for c in commands))
+
+    def _refused(self, src: int, c: Command, now: int) -> bool:
+        """Refuse ``c`` if :meth:`refusal` says so (a move's reason goes to the log)."""
+        refused = self.refusal(c)
+        if refused is None:
+            return False
+        code, reason = refused
+        if reason is not None:
             self.log.append((now, f"{c.text()}: {reason}"))
-            self._fail(src, code, c)
+        self._fail(src, code, c)
+        return True
+
+    def _move(self, src: int, c: Command, now: int) -> None:
+        if self._refused(src, c, now):
             return
-        self._drive_joints(src, c, now, list(q))
+        self._drive_joints(src, c, now, list(_reach(*self._goal(c))[0]))
 
     def _drive_joints(self, src: int, c: Command, now: int, q: list[float]) -> Job | None:
         """Coordinated motion: the joints that move arrive at about the same time.

@@ -377,3 +377,39 @@ def test_a_remembered_plan_answers_as_a_fresh_one():
         d.on_message(0, 1, (cmd("movex", 10),), 0)
         assert d.target == list(want)
         d.on_message(0, 1, (cmd("movex", -10),), 0)
+
+
+@pytest.mark.parametrize("command", [
+    cmd("moveto", 900, 0, 0), cmd("movez", -200), cmd("movex", 123456789), cmd("movey", -5),
+    cmd("joint", 2, 150), cmd("joint", 1, 20), cmd("wheel", 500),
+    cmd("wheel", -300), cmd("paw", 1), cmd("status"), cmd("stop"), cmd("act", 1, 0),
+])
+def test_a_refusal_is_exactly_what_handling_the_order_does(command):
+    """``Dispatcher.refusal`` decides a sleeping CAN side need not wake (hil/sim/quiet_can.py):
+    it must say refused exactly when handling the order only logs it and answers a failure,
+    with that code, and nothing else of the dispatcher changes."""
+    from firmware_model.dispatcher import Dispatcher
+    d = Dispatcher(1)
+    before = (list(d.target), dict(d._seq), d.deadline)
+    refused = d.refusal(command)
+    d.on_message(0, 1, (command,), 0)
+    radio, can = d.take_radio(), d.take_can()
+    if refused is None:     # it goes to the submodules, or (status) reads what they sent
+        assert can or command.name == "status"
+    else:
+        assert radio == [(0, (cmd("fail", refused[0]), command), 4)] and not can
+        assert (list(d.target), dict(d._seq), d.deadline) == before and not d.jobs
+        assert len(d.log) == (0 if refused[1] is None else 1)
+
+
+def test_only_a_request_to_this_robot_of_refused_orders_is_refused_whole():
+    from firmware_model.dispatcher import Dispatcher
+    from firmware_model.radio.frame import BROADCAST, FrameType
+    d = Dispatcher(1)
+    far, near = cmd("movex", 123456789), cmd("movex", 5)
+    order = int(FrameType.INSTRUCTION)
+    assert d.refuses_all(1, (far, cmd("joint", 2, 150)), order)
+    assert not d.refuses_all(1, (far, near), order)                  # one it can carry out
+    assert not d.refuses_all(1, (), order)                           # nothing to refuse
+    assert not d.refuses_all(BROADCAST, (far,), order)               # a broadcast order
+    assert not d.refuses_all(1, (far,), int(FrameType.FAILURE))      # news is only noted

@@ -273,8 +273,11 @@ def test_a_sleeping_can_side_gives_the_frame_by_frame_run(name):
     assert _state(fast) == _state(slow)
     assert all(q.periods_skipped == 0 for q in slow.quiet.values())
     assert sum(q.periods_skipped for q in fast.quiet.values()) > 0
-    if name in ("saturated", "orders"):    # woken by orders, asleep again at once
+    if name == "orders":                   # woken by orders, asleep again at once
         assert sum(q.resleeps for q in fast.quiet.values()) > 0
+    if name == "saturated":                # every order out of reach: refused, still asleep
+        assert sum(q.refused for q in fast.quiet.values()) > 0
+        assert sum(q.refused for q in slow.quiet.values()) == 0
     if name == "cruising wheels":
         # asleep while its wheel cruises; each wake ran the last period to learn the odometer
         assert fast.quiet[1].periods_skipped > 0.5 * 20 * 16_000_000 // PERIOD
@@ -399,6 +402,35 @@ def test_news_reaching_a_sleeping_child_is_noted_and_it_sleeps_on():
     assert slow.quiet[1].noted == 0 and q.periods_skipped > 0.5 * 12 * 16_000_000 // PERIOD
 
 
+def test_orders_refused_at_once_leave_a_sleeping_child_asleep():
+    """Orders the dispatcher refuses from the order alone (out of reach, a joint outside its
+    limits) are answered with failures while the CAN side sleeps on; the run is still the
+    frame-by-frame run. A message with one order it can carry out wakes it."""
+    orders = ((4.0, (cmd("movex", 123456789), cmd("joint", 2, 500))),
+              (6.5, (cmd("moveto", 900, 0, 0),)),
+              (9.0, (cmd("movex", 123456789), cmd("joint", 1, 20))))
+    slow, fast = _pair(SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=6))
+    for w in (slow, fast):
+        for t, commands in orders:
+            w.sched.at(round(t * 16_000_000), lambda w=w, c=commands: w.submit(0, 1, c))
+    q = fast.quiet[1]
+    asleep_after, sleeps = [], []
+    for until in (6.0, 8.5, 11.0):      # each message delivered by then
+        fast.run(round(until * 16_000_000), wake_can=False)
+        asleep_after.append(q.asleep)
+        sleeps.append(q.sleeps)
+    slow.run()
+    fast.run()
+    assert asleep_after[:2] == [True, True] and sleeps[0] == sleeps[1] and q.refused == 2
+    assert sleeps[2] > sleeps[1]        # the last one woke it: it moved joint 1, then slept
+    assert fast.children[1].dispatcher.target[0] == 20
+    failures = [m.content for m in fast.messages if m.src == 1]
+    assert [c.split(b")")[0] for c in failures[:3]] == [b"fail(1", b"fail(2", b"fail(1"]
+    assert _summary(fast) == _summary(slow)
+    assert _state(fast) == _state(slow)
+    assert slow.quiet[1].refused == 0
+
+
 def _child_with(condition: str):
     w = World(SimConfig(robots=(0, 1), duration=5, can=True, seed=1,
                         cpu=DEFAULT_COSTS if condition == "the CPU model" else None))
@@ -430,6 +462,9 @@ def test_only_news_to_a_child_with_nothing_under_way_is_only_noted(condition):
     order = Deliver(0, 1, 6, int(FrameType.INSTRUCTION), (cmd("movex", 8),))
     assert child.notes_only(notice) is (condition == "nothing")
     assert not child.notes_only(order)
+    refused = Deliver(0, 1, 7, int(FrameType.INSTRUCTION), (cmd("movex", 123456789),))
+    assert child.refuses_only(refused) is (condition == "nothing")
+    assert not child.refuses_only(order) and not child.refuses_only(notice)
 
 
 def _random_ring(seed: int) -> tuple[SimConfig, list[int]]:

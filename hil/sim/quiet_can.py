@@ -24,7 +24,10 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
   it as the skipped periods would have.
 * News (a reply, a ``done()`` or ``fail()`` notice) reaching a child that has nothing under
   way is only noted, in the dispatcher's log (``ChildFirmware.notes_only``): it reads nothing a
-  period changes and changes nothing a period moves, so it does not wake the domain.
+  period changes and changes nothing a period moves, so it does not wake the domain. Nor does
+  an order message the dispatcher refuses whole at once, from the order and the commanded pose
+  alone (out of reach, outside a joint's limits: ``ChildFirmware.refuses_only``): the log and
+  the failure replies, which go to the radio, are all it changes.
 * At the first probe after a wake, if what woke it left the domain exactly on the orbit it
   slept on, moved on by whole periods (ticks moved by their steps, counters up, logs of any
   length: :func:`~hil.sim.state_walk.on_orbit`), it sleeps again at once, on the same
@@ -147,6 +150,9 @@ class QuietCan:
         self.noted = 0
         """Messages the child only noted while the domain slept, without waking it (news:
         ``ChildFirmware.notes_only``)."""
+        self.refused = 0
+        """Messages whose every order the child refused at once while the domain slept,
+        without waking it (``ChildFirmware.refuses_only``)."""
         self._since = 0
         self._events: list[Event] = []
         self._misses = 0          # probes in a row that found the domain not periodic

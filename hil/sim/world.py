@@ -348,6 +348,8 @@ class World:
         def app_awake(d, now: int) -> None:
             if quiet.asleep and child.notes_only(d):
                 quiet.noted += 1             # news only noted: the CAN side sleeps on
+            elif quiet.asleep and child.refuses_only(d):
+                quiet.refused += 1           # orders refused at once: it sleeps on too
             else:
                 quiet.wake()
             app(d, now)
