@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from firmware_model.radio.content import (
@@ -228,3 +228,63 @@ def test_split_layers():
     assert [c.name for c in app] == ["movex", "stop"]
     assert split_layers(()) == ((), ())
     assert cs[0].layer == "mac" and cs[1].layer == "app"
+
+
+def _one_at_a_time(data: bytes):
+    """The reader before the remembered fast path: every command read where it stands."""
+    from firmware_model.radio.content import _parse_one
+    out, i = [], 0
+    while i < len(data):
+        c, i = _parse_one(data, i)
+        out.append(c)
+    return tuple(out)
+
+
+def _outcome(fn, data: bytes):
+    try:
+        return "ok", fn(data)
+    except ContentError as exc:
+        return "error", (str(exc), exc.field, exc.offset, exc.byte)
+
+
+_PIECES = st.sampled_from([
+    b"movex(", b"moveto(", b"joint(", b"ack(", b"fail(", b"status(", b"paw(", b"crc(",
+    b"bogus(", b"wheel(", b")", b",", b"-", b".", b"0", b"1", b"12", b"123456789",
+    b"1.5", b"1.2345", b"4", b"-7", b"300", b"999999999999999", b"x", b" ", b"(", b"_a(",
+])
+
+
+_WHOLE = st.sampled_from([
+    b"movex(1)", b"movex(123456789)", b"moveto(1.5,-2,0)", b"joint(2,150)", b"ack(3,17)",
+    b"status()", b"done()", b"joint(9,1)", b"movex(1.2345)", b"bogus(1)", b"movex(1,2)",
+    b"ack(3)", b"paw(1.5)", b"movex(9999999999999)",
+])
+"""Whole commands, good and bad, for the pieces to fall between."""
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.lists(st.one_of(_WHOLE, _WHOLE, _PIECES), max_size=14).map(b"".join)
+       | st.binary(max_size=40))
+@example(b"movex(1),")
+@example(b"movex(1)joint(9,1)status()")
+@example(b"ack(3,17)movex(1.2345)")
+@example(b"movex(1)movex(1)(")
+def test_the_fast_path_reads_content_as_the_command_by_command_reader(data):
+    """parse_content takes well-shaped commands from a memo: commands, errors, their fields
+    and offsets must be what reading every command where it stands gives, twice over (the
+    second time from the memo)."""
+    want = _outcome(_one_at_a_time, data)
+    assert _outcome(parse_content, data) == want
+    assert _outcome(parse_content, data) == want
+
+
+def test_a_remembered_command_is_read_once_and_errors_keep_their_offsets():
+    from firmware_model.radio.content import _known
+    _known.cache_clear()
+    content = b"movex(123456789)" * 14 + b"ack(3,17)"
+    assert parse_content(content) == (cmd("movex", 123456789),) * 14 + (cmd("ack", 3, 17),)
+    assert _known.cache_info().misses == 2 and _known.cache_info().hits == 13
+    # a well-shaped command the checks refuse is read where it stands: the offset is there
+    with pytest.raises(ContentError) as ei:
+        parse_content(b"movex(1)joint(9,10)")
+    assert ei.value.offset == 14 and ei.value.field == "params"

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Iterable
@@ -330,6 +331,11 @@ def parse_content(data: bytes | str) -> tuple[Command, ...]:
 
     Raises :class:`ContentError` whose offset is the Content byte where parsing stopped: bad
     character, unknown command name, wrong arity, bad number, parameter outside its hard bound.
+
+    A command whose bytes have the shape of one (:data:`_SHAPE`) is taken from
+    :func:`_known` (the same text is read once: a saturated sender repeats its commands);
+    anything else, and any command :func:`_known` refuses, is read by :func:`_parse_one` where
+    it stands, which gives the error and its offset.
     """
     if isinstance(data, str):
         try:
@@ -342,56 +348,88 @@ def parse_content(data: bytes | str) -> tuple[Command, ...]:
         data = bytes(data)
     n = len(data)
     out: list[Command] = []
+    match = _SHAPE.match
     i = 0
     while i < n:
-        # command name
-        start = i
-        if data[i] not in _NAME_START:
-            raise _err(data, i, "command", f"expected a command name, got {_got(data, i)}")
-        i += 1
-        while i < n and data[i] in _NAME_REST:
-            i += 1
-        name = data[start:i].decode("ascii")
-        spec = COMMANDS.get(name)
-        if spec is None:
-            raise ContentError(
-                f"unknown command {name!r}", field="command", offset=start, byte=data[start]
-            )
-        if i >= n or data[i] != 0x28:  # '('
-            raise _err(data, i, "command", f"expected '(' after {name}, got {_got(data, i)}")
-        i += 1
-        ctx = f"{name}(...)"
-        # parameters: number (',' number)* then ')' -- or ')' at once
-        tokens: list[tuple[int, int, bool]] = []
-        if i < n and data[i] == 0x29:  # ')'
-            i += 1
-        else:
-            while True:
-                j, dotted = _scan_number(data, i, ctx)
-                tokens.append((i, j, dotted))
-                if j < n and data[j] == 0x2C:  # ','
-                    i = j + 1
-                    continue
-                if j < n and data[j] == 0x29:
-                    i = j + 1
-                    break
-                raise _err(data, j, "params", f"expected ',' or ')' in {ctx}, got {_got(data, j)}")
-        if len(tokens) != spec.arity:
-            # too many: point at the first extra parameter; too few: at the closing ')'
-            at = tokens[spec.arity][0] if len(tokens) > spec.arity else i - 1
-            raise _err(data, at, "params", _arity_reason(spec, len(tokens)))
-        args = []
-        for p, (a, b, dotted) in zip(spec.params, tokens):
-            text = data[a:b].decode("ascii")
-            if p.kind == "int" and dotted:
-                raise _err(data, a, "params", f"{name} parameter {p.name} must be an integer, got {text}")
-            v: int | float = float(text) + 0.0 if dotted else int(text)
-            _, reason = _check_value(spec, p, v)
-            if reason:
-                raise _err(data, a, "params", reason)
-            args.append(v)
-        out.append(Command(name, tuple(args)))
+        m = match(data, i)
+        if m is not None:
+            c = _known(m.group())
+            if c is not None:
+                out.append(c)
+                i = m.end()
+                continue
+        c, i = _parse_one(data, i)
+        out.append(c)
     return tuple(out)
+
+
+_SHAPE = re.compile(rb"[A-Za-z_][A-Za-z0-9_]*\((?:-?[0-9]+(?:\.[0-9]+)?"
+                    rb"(?:,-?[0-9]+(?:\.[0-9]+)?)*)?\)")
+"""The bytes :func:`_parse_one` reads as one command, before its checks (a name, '(', numbers
+separated by ',', ')'): a match ends where that command ends."""
+
+
+@lru_cache(maxsize=4096)
+def _known(text: bytes) -> Command | None:
+    """The command ``text`` (one whole command of :data:`_SHAPE`) is, or None if
+    :func:`_parse_one` refuses it (an unknown name, an arity, a bound)."""
+    try:
+        return _parse_one(text, 0)[0]
+    except ContentError:
+        return None
+
+
+def _parse_one(data: bytes, i: int) -> tuple[Command, int]:
+    """The command starting at Content offset ``i`` and the offset after it; a
+    :class:`ContentError` at the first byte that does not fit."""
+    n = len(data)
+    # command name
+    start = i
+    if data[i] not in _NAME_START:
+        raise _err(data, i, "command", f"expected a command name, got {_got(data, i)}")
+    i += 1
+    while i < n and data[i] in _NAME_REST:
+        i += 1
+    name = data[start:i].decode("ascii")
+    spec = COMMANDS.get(name)
+    if spec is None:
+        raise ContentError(
+            f"unknown command {name!r}", field="command", offset=start, byte=data[start]
+        )
+    if i >= n or data[i] != 0x28:  # '('
+        raise _err(data, i, "command", f"expected '(' after {name}, got {_got(data, i)}")
+    i += 1
+    ctx = f"{name}(...)"
+    # parameters: number (',' number)* then ')' -- or ')' at once
+    tokens: list[tuple[int, int, bool]] = []
+    if i < n and data[i] == 0x29:  # ')'
+        i += 1
+    else:
+        while True:
+            j, dotted = _scan_number(data, i, ctx)
+            tokens.append((i, j, dotted))
+            if j < n and data[j] == 0x2C:  # ','
+                i = j + 1
+                continue
+            if j < n and data[j] == 0x29:
+                i = j + 1
+                break
+            raise _err(data, j, "params", f"expected ',' or ')' in {ctx}, got {_got(data, j)}")
+    if len(tokens) != spec.arity:
+        # too many: point at the first extra parameter; too few: at the closing ')'
+        at = tokens[spec.arity][0] if len(tokens) > spec.arity else i - 1
+        raise _err(data, at, "params", _arity_reason(spec, len(tokens)))
+    args = []
+    for p, (a, b, dotted) in zip(spec.params, tokens):
+        text = data[a:b].decode("ascii")
+        if p.kind == "int" and dotted:
+            raise _err(data, a, "params", f"{name} parameter {p.name} must be an integer, got {text}")
+        v: int | float = float(text) + 0.0 if dotted else int(text)
+        _, reason = _check_value(spec, p, v)
+        if reason:
+            raise _err(data, a, "params", reason)
+        args.append(v)
+    return Command(name, tuple(args)), i
 
 
 def format_content(commands: Iterable[Command]) -> bytes:
