@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import numbers
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Iterable
 
@@ -224,6 +224,9 @@ class Command:
 
     name: str
     args: tuple = ()
+    wire: str = field(init=False, repr=False, compare=False)
+    """The wire text (:meth:`text`), made once with the command (a saturated sender formats
+    the same fourteen orders for every message)."""
 
     def __post_init__(self) -> None:
         spec = COMMANDS.get(self.name)
@@ -238,7 +241,10 @@ class Command:
             if reason:
                 raise ContentError(reason, field="params")
             out.append(value)
-        object.__setattr__(self, "args", tuple(out))
+        args = tuple(out)
+        object.__setattr__(self, "args", args)
+        object.__setattr__(self, "wire",
+                           f"{self.name}({','.join(format_number(a) for a in args)})")
 
     @property
     def spec(self) -> CommandSpec:
@@ -250,8 +256,9 @@ class Command:
         return COMMANDS[self.name].layer
 
     def text(self) -> str:
-        """Wire text, e.g. ``moveto(1.5,-2,0)``."""
-        return _text(self)
+        """Wire text, e.g. ``moveto(1.5,-2,0)`` (equal commands have the same text: ``1`` and
+        ``1.0`` are both written ``1``)."""
+        return self.wire
 
     def __str__(self) -> str:
         return self.text()
@@ -272,13 +279,6 @@ def cmd(name: str, *args: int | float) -> Command:
 @lru_cache(maxsize=4096, typed=True)
 def _made(name: str, *args: int | float) -> Command:
     return Command(name, args)
-
-
-@lru_cache(maxsize=4096)
-def _text(c: Command) -> str:
-    """A command's wire text (equal commands have the same text: ``1`` and ``1.0`` are both
-    written ``1``)."""
-    return f"{c.name}({','.join(format_number(a) for a in c.args)})"
 
 
 # --------------------------------------------------------------------------------------------
@@ -434,7 +434,7 @@ def _parse_one(data: bytes, i: int) -> tuple[Command, int]:
 
 def format_content(commands: Iterable[Command]) -> bytes:
     """Commands -> Content bytes (ASCII). ``parse_content(format_content(cs)) == tuple(cs)``."""
-    return "".join(c.text() for c in commands).encode("ascii")
+    return "".join([c.wire for c in commands]).encode("ascii")
 
 
 def split_layers(commands: Iterable[Command]) -> tuple[tuple[Command, ...], tuple[Command, ...]]:
