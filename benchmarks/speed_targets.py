@@ -13,7 +13,8 @@
 Runs alternate between the compared models so that a noisy machine slows both alike; each
 figure is the median of ``--runs``. Each timed run is a process of its own (since 2026-11-25,
 session 18): the model remembers pure results (commands, Content, CAN frames), and a run in
-the same process as the last one with the same seed found the last one's in its memos. Prints Markdown tables (docs/performance.md).
+the same process as the last one with the same seed found the last one's in its memos.
+Prints Markdown tables (docs/performance.md).
 """
 from __future__ import annotations
 

@@ -43,7 +43,7 @@ from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
 from .radio.content import cmd
 from .radio.frame import BROADCAST, FrameType
-from .radio.mac import Deliver, Join, ModeChange
+from .radio.mac import Deliver, Join, ModeChange, QueueFull
 from .sequence import ActionSequence
 from .station import RadioStation
 from .timing import TICK_HZ
@@ -340,8 +340,10 @@ class ChildFirmware:
         for dst, commands, type_ in d.take_radio():
             try:
                 self.station.submit(dst, commands, type_)
+            except QueueFull:
+                break  # the rest would be refused as well: the queue drains only in turns
             except ValueError:
-                pass  # refused (queue full, destination not valid): nothing else to do here
+                pass  # refused (destination not valid): nothing else to do here
         ticks = [t for t in (d.deadline, self.can.deadline()) if t is not None]
         if ticks:
             self.timer.arm_at(min(ticks))

@@ -413,3 +413,36 @@ def test_only_a_request_to_this_robot_of_refused_orders_is_refused_whole():
     assert not d.refuses_all(1, (), order)                           # nothing to refuse
     assert not d.refuses_all(BROADCAST, (far,), order)               # a broadcast order
     assert not d.refuses_all(1, (far,), int(FrameType.FAILURE))      # news is only noted
+
+
+def test_a_full_queue_ends_the_childs_replies_for_the_moment():
+    """Both MACs refuse a message with QueueFull (a SubmitError) while ``max_queue`` wait;
+    the child then stops offering the rest of its replies, which would be refused too (the
+    queue drains only in turns): the saturated ring used to offer 28,000 in 600 s."""
+    from firmware_model.radio.frame import FrameType
+    from firmware_model.radio.mac import MacConfig, QueueFull, RotationalMac, SubmitError
+    from firmware_model.radio.peer_macs import AlohaMac
+    for mac in (RotationalMac(1, MacConfig(max_queue=2)), AlohaMac(1, MacConfig(max_queue=2))):
+        mac.submit(0, [cmd("status")], 0)
+        mac.submit(0, [cmd("status")], 0)
+        with pytest.raises(QueueFull, match="queue full"):
+            mac.submit(0, [cmd("status")], 0)
+        assert issubclass(QueueFull, SubmitError)
+    w, evs = child_world()
+    child = w.children[1]
+    offered = []
+    real = child.station.submit
+
+    def submit(dst, commands, type_=2):
+        offered.append(commands)
+        return real(dst, commands, type_)
+    child.station.submit = submit
+    mac = child.station.mac
+    while mac.pending < mac.cfg.max_queue:
+        mac.submit(0, [cmd("status")], w.now)
+    before = mac.pending
+    child.dispatcher.on_message(0, 1, (cmd("movex", 123456789),) * 3, w.now,
+                                int(FrameType.INSTRUCTION))
+    child._pump()
+    assert mac.pending == before and len(offered) == 1      # one refused, the rest not offered
+    assert not child.dispatcher.has_output()

@@ -91,6 +91,11 @@ class SubmitError(ValueError):
     """A message the MAC refuses at submission (too long for one turn, bad destination, full)."""
 
 
+class QueueFull(SubmitError):
+    """The queue holds ``max_queue`` messages: nothing more is taken until one ends (which
+    needs a turn of the ring, so not before the caller's next event)."""
+
+
 # ---------------------------------------------------------------------------------------------
 # Actions (for the driver) and observations (for traces, tests and the application)
 
@@ -473,7 +478,7 @@ class RotationalMac:
                 f"{', checksum included' if limit < self.max_content else ''}); "
                 f"split the message")
         if self.pending >= self.cfg.max_queue:
-            raise SubmitError(f"queue full ({self.cfg.max_queue} messages pending)")
+            raise QueueFull(f"queue full ({self.cfg.max_queue} messages pending)")
         msg = Message(self.id, dst, self._next_num, int(type), commands, content, now)
         self._next_num = (self._next_num + 1) % 100
         self._queue.append(msg)

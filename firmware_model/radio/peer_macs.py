@@ -47,7 +47,7 @@ from .frame import BROADCAST, Frame, FrameType
 from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
 from .mac import (
     MEMBER, LISTEN, BadChecksum, BadContent, Deliver, Duplicate, MacConfig, Message, ModeChange,
-    Outcome, RotationalMac, SubmitError, Transmit, TxEnable, _layers, check_submission,
+    Outcome, QueueFull, RotationalMac, SubmitError, Transmit, TxEnable, _layers, check_submission,
 )
 
 try:                                        # (the rotational MAC's spoofing observation)
@@ -220,7 +220,7 @@ class PeerMac:
                 f"-byte frame; the {self.kind} MAC sends at most {limit + crc + FRAME_OVERHEAD}"
                 f"-byte frames{self._limit_why()}; split the message")
         if self.pending >= self.cfg.max_queue:
-            raise SubmitError(f"queue full ({self.cfg.max_queue} messages pending)")
+            raise QueueFull(f"queue full ({self.cfg.max_queue} messages pending)")
         msg = Message(self.id, dst, self._next_num, int(type), commands, content, now)
         self._last_num = self._next_num
         self._next_num = (self._next_num + 1) % 100
