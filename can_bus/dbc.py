@@ -238,12 +238,14 @@ _ENCODED: dict[tuple, CanFrame] = {}
 _DECODED: dict[tuple, tuple[str, dict[str, Any]]] = {}
 _CACHE_MAX = 4096
 """Encoding and decoding are pure functions of their inputs; periodic status frames repeat
-the same values, so the results are memoised (bounded; decoded dicts are copied out)."""
+the same values, so the results are memoised (bounded; decoded dicts are copied out). An
+encoding's key holds the values' types too: ``True`` and ``1.0`` equal ``1`` but are refused
+where ``1`` is taken, whatever was encoded before."""
 
 
 def _encode(name: str, signals: dict[str, Any], raw: bool) -> CanFrame:
     try:
-        key = (name, raw, tuple(sorted(signals.items())))
+        key = (name, raw, tuple(signals.items()), tuple(map(type, signals.values())))
         hit = _ENCODED.get(key)
     except TypeError:               # an unhashable value: let the checks below report it
         key = hit = None

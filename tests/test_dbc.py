@@ -266,3 +266,15 @@ def test_event_codes_have_a_value_table():
         assert names[dbc.REFUSED_RANGE].endswith("out_of_range(refused)")
         assert names[dbc.FAULT_OVERCURRENT] == "overcurrent(fault)/faulted(refused)"
         assert dbc.REFUSED_FAULTED == dbc.FAULT_OVERCURRENT and dbc.REFUSED_BUSY == dbc.FAULT_LIMIT
+
+
+@pytest.mark.parametrize("bad", [True, 1.0])
+def test_a_remembered_encoding_does_not_accept_what_encoding_refuses(bad):
+    """encode_raw(speed=1) is remembered; speed=True (not a number) and speed=1.0 (not an int)
+    equal 1 as dict keys, and must still be refused, whatever was encoded before."""
+    good = dbc.encode_raw("WHEEL_CMD", speed=1, distance=0, seq=1)
+    assert dbc.encode_raw("WHEEL_CMD", seq=1, distance=0, speed=1) == good   # any order
+    with pytest.raises(dbc.DbcError, match="speed"):
+        dbc.encode_raw("WHEEL_CMD", speed=bad, distance=0, seq=1)
+    with pytest.raises(dbc.DbcError, match="must be a number"):
+        dbc.encode("WHEEL_CMD", speed=True, distance=0, seq=1)
