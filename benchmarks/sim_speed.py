@@ -4,17 +4,19 @@
 
 Rings of 3, 4 and 7 robots (7 = the father and six children), idle, saturated and with byte
 errors, radio side alone and with every child's CAN side (``--can``). Each figure is the
-median of ``--runs`` runs in one process; the machine is shared, so compare ratios within a
-run. Prints a Markdown table.
+median of ``--runs`` runs, each in a process of its own (since 2026-11-25, session 18:
+benchmarks/fresh_process.py); the machine is shared, so compare ratios within a run. Prints a
+Markdown table.
 """
 from __future__ import annotations
 
 import argparse
-import gc
+import os
 import statistics
-import time
+import sys
 
-from hil.sim.world import SimConfig, World
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from fresh_process import timed  # noqa: E402
 
 RINGS = {3: (1, 2, 3), 4: (1, 2, 3, 4), 7: (0, 1, 2, 3, 4, 5, 6)}
 LOADS = {"idle": {}, "saturated": {"load": "saturate"}, "BER 1e-3": {"ber": 1e-3}}
@@ -23,12 +25,7 @@ LOADS = {"idle": {}, "saturated": {"load": "saturate"}, "BER 1e-3": {"ber": 1e-3
 def measure(robots, seconds: float, runs: int, can: bool, **kw) -> tuple[float, float, int]:
     speeds, costs, frames = [], [], 0
     for _ in range(runs):
-        w = World(SimConfig(robots=robots, duration=seconds, can=can, **kw))
-        gc.collect()
-        t0 = time.perf_counter()
-        w.run()
-        wall = time.perf_counter() - t0
-        frames = w.air.occupations
+        wall, frames = timed(robots, seconds, can, **kw)
         speeds.append(seconds / wall)
         costs.append(wall / max(1, frames) * 1e6)
     return statistics.median(speeds), statistics.median(costs), frames

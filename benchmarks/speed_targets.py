@@ -12,8 +12,7 @@
 
 Runs alternate between the compared models so that a noisy machine slows both alike; each
 figure is the median of ``--runs``. Each timed run is a process of its own (since 2026-11-25,
-session 18): the model remembers pure results (commands, Content, CAN frames), and a run in
-the same process as the last one with the same seed found the last one's in its memos.
+session 18; benchmarks/fresh_process.py says why).
 Prints Markdown tables (docs/performance.md).
 """
 from __future__ import annotations
@@ -27,51 +26,20 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-_ENV = dict(os.environ, PYTHONPATH=os.path.dirname(HERE) + os.pathsep +
-            os.environ.get("PYTHONPATH", ""))
+from fresh_process import ENV, timed  # noqa: E402  (benchmarks/ is on sys.path now)
+
 RING = (0, 1, 2, 3, 4, 5, 6)
 LOADS = {"idle": {}, "saturated": {"load": "saturate"}, "BER 1e-3": {"ber": 1e-3}}
-
-
-_RUN = """
-import gc, json, sys, time
-sys.path.insert(0, {here!r})
-kind, seconds, can, kw = {args!r}
-if kind == "simpy":
-    import simpy_ring
-    gc.collect()
-    r = simpy_ring.run({ring!r}, seconds)
-    wall, frames = r["wall"], r["frames"]
-else:
-    from hil.sim.world import SimConfig, World
-    w = World(SimConfig(robots={ring!r}, duration=seconds, can=can, **kw))
-    gc.collect()
-    t0 = time.perf_counter()
-    w.run()
-    wall, frames = time.perf_counter() - t0, w.air.occupations
-print(json.dumps([wall, frames]))
-"""
-
-
-def _timed(kind: str, seconds: float, can: bool = False, **kw) -> tuple[float, int]:
-    """(wall s, frames) of one run in a process of its own, as ``rprs sim`` makes one: the
-    model's memos (commands, Content, CAN frames) start empty, as a user's run does, instead of
-    holding the previous run's, whose contents a run with the same seed repeats."""
-    code = _RUN.format(here=HERE, args=(kind, seconds, can, kw), ring=RING)
-    out = subprocess.run([sys.executable, "-c", code], check=True, env=_ENV,
-                         capture_output=True, text=True).stdout
-    wall, frames = json.loads(out)
-    return wall, frames
 
 
 def ours(seconds: float, can: bool = False, **kw) -> tuple[float, int]:
     """(wall s, frames) of one run of the 7-robot ring (``can_sleep=False`` in ``kw``: every
     CAN frame one by one)."""
-    return _timed("ours", seconds, can, **kw)
+    return timed(RING, seconds, can, **kw)
 
 
 def simpy_peer(seconds: float) -> tuple[float, int]:
-    return _timed("simpy", seconds)
+    return timed(RING, seconds, simpy=True)
 
 
 def side_by_side(runs: int, seconds: float) -> None:
@@ -136,7 +104,7 @@ def memory(can: bool) -> None:
     out = {}
     for label, secs in (("1 hour", 3600), ("24 hours", 86400)):
         code = _RSS.format(ring=RING, secs=secs, can=can)
-        r = json.loads(subprocess.run([sys.executable, "-c", code], check=True, env=_ENV,
+        r = json.loads(subprocess.run([sys.executable, "-c", code], check=True, env=ENV,
                                       capture_output=True, text=True).stdout)
         out[label] = r["rss_kib"]
         print(f"| 7-robot ring{' with --can' if can else ''} | {label} | "
