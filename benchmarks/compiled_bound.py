@@ -66,7 +66,7 @@ NEEDED = {
 }
 """The speed-up each target still needs, from the last measured figures (docs/performance.md,
 2026-11-25, session 18: radio only 12.8x the SimPy peer, saturated on/off 0.43 over 60 s
-(0.74 over 600 s: met), soak 1.59x the issue's main); update them with the figures of
+(0.49 over 600 s, 0.56 over 1200 s), soak 1.59x the issue's main); update them with the figures of
 ``speed_targets.py`` and ``soak_against.py``."""
 
 
