@@ -226,7 +226,7 @@ class Command:
     args: tuple = ()
     wire: str = field(init=False, repr=False, compare=False)
     """The wire text (:meth:`text`), made once with the command (a saturated sender formats
-    the same fourteen orders for every message)."""
+    the same 31 orders for every message)."""
 
     def __post_init__(self) -> None:
         spec = COMMANDS.get(self.name)
