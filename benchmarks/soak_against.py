@@ -19,15 +19,10 @@ import os
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def _git(*args: str) -> str:
-    return subprocess.run(["git", "-C", ROOT, *args], check=True, capture_output=True,
-                          text=True).stdout.strip()
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from base_tree import ROOT, checkout, head_label, resolve  # noqa: E402  (benchmarks/ on sys.path)
 
 
 def accounting(out: str) -> str:
@@ -55,14 +50,6 @@ def run_in(tree: str, hours: float, seed: int) -> tuple[float, str]:
     return wall, accounting(p.stdout)
 
 
-def imports_from(tree: str) -> str:
-    """Where ``hil`` is imported from when run in ``tree`` (it must be that tree)."""
-    env = dict(os.environ, PYTHONPATH=tree)
-    return subprocess.run([sys.executable, "-c", "import hil, os; print(os.path.dirname("
-                           "os.path.dirname(os.path.abspath(hil.__file__))))"], cwd=tree,
-                          env=env, check=True, capture_output=True, text=True).stdout.strip()
-
-
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--base", required=True, help="the commit to compare with (e.g. a4cc274)")
@@ -70,41 +57,30 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=11)
     p.add_argument("--runs", type=int, default=3)
     a = p.parse_args(argv)
-    try:
-        base = _git("rev-parse", "--short", a.base + "^{commit}")
-    except subprocess.CalledProcessError:
+    if resolve(a.base) is None:
         p.error(f"--base {a.base!r} is not a commit of {ROOT}")
-    head = _git("rev-parse", "--short", "HEAD")
-    dirty = " (and its uncommitted changes)" if _git("status", "--porcelain", "-uno") else ""
-    with tempfile.TemporaryDirectory(prefix="soak-base-") as tmp:
-        tree = os.path.join(tmp, base)
-        _git("worktree", "add", "--detach", tree, base)
-        try:
-            for t in (tree, ROOT):
-                if os.path.realpath(imports_from(t)) != os.path.realpath(t):
-                    raise SystemExit(f"running in {t} imports hil from {imports_from(t)}")
-            # by tree, not by commit name: the base may be HEAD itself
-            walls: dict[str, list[float]] = {tree: [], ROOT: []}
-            digests: set[str] = set()
-            for i in range(a.runs):
-                for name, t in ((base, tree), (head, ROOT)):
-                    wall, digest = run_in(t, a.hours, a.seed)
-                    walls[t].append(wall)
-                    digests.add(digest)
-                    print(f"run {i + 1} {name}: {wall:.1f} s, accounting {digest}",
-                          file=sys.stderr, flush=True)
-        finally:
-            _git("worktree", "remove", "--force", tree)
+    head = head_label()
+    with checkout(a.base, prefix="soak-base-") as (base, tree):
+        # by tree, not by commit name: the base may be HEAD itself
+        walls: dict[str, list[float]] = {tree: [], ROOT: []}
+        digests: set[str] = set()
+        for i in range(a.runs):
+            for name, t in ((base, tree), (head, ROOT)):
+                wall, digest = run_in(t, a.hours, a.seed)
+                walls[t].append(wall)
+                digests.add(digest)
+                print(f"run {i + 1} {name}: {wall:.1f} s, accounting {digest}",
+                      file=sys.stderr, flush=True)
     mb, mh = statistics.median(walls[tree]), statistics.median(walls[ROOT])
     print(f"| rprs soak --hours {a.hours:g} --seed {a.seed} | wall s, {a.runs} runs "
           "| median |")
     print("|---|---|---|")
-    for t, label in ((tree, base), (ROOT, head + dirty)):
+    for t, label in ((tree, base), (ROOT, head)):
         runs = " / ".join(f"{w:.1f}" for w in walls[t])
         print(f"| {label} | {runs} | {statistics.median(walls[t]):.1f} |")
     same = len(digests) == 1
-    print(f"\n{head} against {base}: {mb / mh:.2f}x (target 4x against the issue's main); "
-          f"accounting {'the same in every run: ' + digests.pop() if same else 'DIFFERS'}")
+    print(f"\n{head.split()[0]} against {base}: {mb / mh:.2f}x (target 4x against the issue's "
+          f"main); accounting {'the same in every run: ' + digests.pop() if same else 'DIFFERS'}")
     return 0 if same else 1
 
 

@@ -1,0 +1,166 @@
+"""Instructions the simulator executes for fixed workloads, counted by valgrind's callgrind:
+a speed figure that is the same on every run of the same tree, however busy the machine is.
+
+    python benchmarks/instructions.py [--base COMMIT] [--only idle,saturated,soak]
+
+Wall times on a shared 2-core machine move by 20-40 % from run to run (docs/performance.md),
+so a change worth 3 % cannot be seen in them without dozens of runs. The count of machine
+instructions can: with ``PYTHONHASHSEED=0`` the same tree gives the same count to within a
+few hundred instructions in a billion. It is not a time (a cache miss costs more than an add),
+so the wall-time benchmarks stay the judges of the targets; this one says, for certain,
+whether a change made the model do less.
+
+Each workload runs in a process of its own under ``valgrind --tool=callgrind``, and only the
+run is counted: the script calls it through ``functools.reduce`` and callgrind collects only
+inside that C function (``--toggle-collect=functools_reduce``), so the interpreter's start, the
+imports and the world's construction are left out. (Nothing in the model calls ``reduce``; if
+libpython's symbols were stripped nothing would be counted, and the script says so.)
+
+* ``idle``: the radio-only idle 7-robot ring, 60 simulated s;
+* ``saturated``: the 7-robot ring with every child's CAN side, ``load=saturate``, 60 s;
+* ``soak``: ``run_soak(0.02 h, seed 11)``, the whole soak (faults, traffic, CAN sides).
+
+``--base COMMIT`` counts the same workloads in a temporary worktree of that commit too
+(benchmarks/base_tree.py) and prints the ratio base / this tree. Needs valgrind (Debian's
+package). A workload costs 30-120 s of wall time under callgrind.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from base_tree import ROOT, checkout, head_label, resolve  # noqa: E402  (benchmarks/ on sys.path)
+
+RING = (0, 1, 2, 3, 4, 5, 6)
+
+WORKLOADS: dict[str, str] = {
+    "idle": f"""
+from hil.sim.world import SimConfig, World
+w = World(SimConfig(robots={RING!r}, duration=60.0, can=False))
+run = w.run
+done = lambda: (60.0, w.air.occupations)
+""",
+    "saturated": f"""
+from hil.sim.world import SimConfig, World
+w = World(SimConfig(robots={RING!r}, duration=60.0, can=True, load="saturate"))
+run = w.run
+done = lambda: (60.0, w.air.occupations)
+""",
+    "soak": """
+from hil.sim.soak import run_soak
+out = []
+run = lambda: out.append(run_soak(0.02, 11))
+done = lambda: (0.02 * 3600, out[0].summary["occupations"])
+""",
+}
+"""Each defines ``run()`` (what is counted) and ``done()`` -> (simulated s, radio frames)."""
+
+_DRIVER = """
+import functools, json, sys
+sys.path.insert(0, {tree!r})
+{setup}
+functools.reduce(lambda _a, _b: run(), (0,), 0)
+print(json.dumps(done()))
+"""
+
+_COLLECTED = re.compile(r"Collected\s*:\s*([\d,]+)")
+
+
+class NoValgrind(RuntimeError):
+    """valgrind is not installed, or it counted nothing (libpython without symbols)."""
+
+
+def collected(stderr: str) -> int:
+    """The instruction count callgrind printed ('==123== Collected : 1,234')."""
+    m = _COLLECTED.search(stderr)
+    if m is None:
+        raise NoValgrind("callgrind printed no count:\n" + stderr[-1000:])
+    return int(m.group(1).replace(",", ""))
+
+
+def count(tree: str, workload: str) -> tuple[int, float, int]:
+    """(instructions, simulated s, radio frames) of one run of ``workload`` from ``tree``."""
+    if shutil.which("valgrind") is None:
+        raise NoValgrind("valgrind is not installed (Debian: apt-get install valgrind)")
+    code = _DRIVER.format(tree=tree, setup=WORKLOADS[workload])
+    env = dict(os.environ, PYTHONPATH=tree, PYTHONHASHSEED="0")
+    p = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+                        "--collect-atstart=no", "--toggle-collect=functools_reduce",
+                        sys.executable, "-c", code], cwd=tree, env=env,
+                       capture_output=True, text=True)
+    if p.returncode != 0:
+        raise SystemExit(f"{workload} failed in {tree}:\n{p.stderr[-2000:]}")
+    n = collected(p.stderr)
+    if n == 0:
+        raise NoValgrind("callgrind counted nothing: this libpython has no functools_reduce "
+                         "symbol (stripped?)")
+    seconds, frames = json.loads(p.stdout.strip().splitlines()[-1])
+    return n, seconds, frames
+
+
+def table(rows: list[tuple[str, int, float, int, int | None]], base: str | None) -> str:
+    """Markdown: per workload, instructions per simulated s and per radio frame, and with a
+    base, its count and base / this (above 1: this tree does less)."""
+    head = "| workload | instructions | per simulated s | per radio frame |"
+    rule = "|---|---|---|---|"
+    if base is not None:
+        head += f" {base} | {base} / this |"
+        rule += "---|---|"
+    out = [head, rule]
+    for name, n, seconds, frames, b in rows:
+        line = f"| {name} | {n:,} | {n / seconds:,.0f} | {n / max(frames, 1):,.0f} |"
+        if base is not None and b is not None:
+            line += f" {b:,} | {b / n:.3f} |"
+        out.append(line)
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--base", help="also count a commit's tree and give the ratio")
+    p.add_argument("--only", default=",".join(WORKLOADS),
+                   help="comma-separated workloads (default: %(default)s)")
+    a = p.parse_args(argv)
+    names = [w for w in a.only.split(",") if w]
+    unknown = [w for w in names if w not in WORKLOADS]
+    if unknown or not names:
+        p.error(f"unknown workload(s) {', '.join(unknown) or '(none given)'}; "
+                f"known: {', '.join(WORKLOADS)}")
+    if a.base is not None and resolve(a.base) is None:
+        p.error(f"--base {a.base!r} is not a commit of {ROOT}")
+    if shutil.which("valgrind") is None:
+        print("valgrind is not installed (Debian: apt-get install valgrind)", file=sys.stderr)
+        return 2
+    here = head_label()
+    rows = []
+    try:
+        if a.base is None:
+            for w in names:
+                n, s, f = count(ROOT, w)
+                print(f"{w}: {n:,}", file=sys.stderr, flush=True)
+                rows.append((w, n, s, f, None))
+            base = None
+        else:
+            with checkout(a.base, prefix="instr-base-") as (base, tree):
+                for w in names:
+                    b = count(tree, w)[0]
+                    n, s, f = count(ROOT, w)
+                    print(f"{w}: {base} {b:,}, this tree {n:,}", file=sys.stderr, flush=True)
+                    rows.append((w, n, s, f, b))
+    except NoValgrind as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    print(f"Instructions of {here}" + (f" and {base}" if base else "")
+          + " (callgrind, PYTHONHASHSEED=0, the run only):\n")
+    print(table(rows, base))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
