@@ -5,10 +5,12 @@ a speed figure that is the same on every run of the same tree, however busy the 
 
 Wall times on a shared 2-core machine move by 20-40 % from run to run (docs/performance.md),
 so a change worth 3 % cannot be seen in them without dozens of runs. The count of machine
-instructions can: with ``PYTHONHASHSEED=0`` the same tree gives the same count to within a
-few hundred instructions in a billion. It is not a time (a cache miss costs more than an add),
-so the wall-time benchmarks stay the judges of the targets; this one says, for certain,
-whether a change made the model do less.
+instructions can: with ``PYTHONHASHSEED=0`` the same files give the same count to the
+instruction, run after run; only the memory layout (sets of objects iterate in address order)
+moves it, by up to 0.4 % between two states of the same tree (a source file newer than its
+cached bytecode), so differences under 1 % say nothing. It is not a time (a cache miss costs
+more than an add), so the wall-time benchmarks stay the judges of the targets; this one says
+whether a change made the model do less, and by how much.
 
 Each workload runs in a process of its own under ``valgrind --tool=callgrind``, and only the
 run is counted: the script calls it through ``functools.reduce`` and callgrind collects only
