@@ -696,3 +696,39 @@ def test_foreign_fault_is_heard_exactly_from_its_tick(bbb):
     for r in range(3):                             # every radio listens: no robot sent it
         assert net.logs[r] == expect(data, T0, FOREIGN_BYTE_TICKS)
     assert net.air.sent == {-1: 1} and net.air.collisions == 0
+
+
+class _Heard:
+    """A radio that only records what a reception hands it (data, first stop tick, byte time)."""
+
+    def __init__(self):
+        self.got = []
+
+    def deliver(self, data, t0, dt):
+        self.got.append((bytes(data), t0, dt))
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=st.binary(min_size=1, max_size=40), t0=st.integers(0, 10**9),
+       bt=st.sampled_from([BT, PC_BYTE_TICKS, 7]), pos=st.integers(0, 40),
+       holes=st.none() | st.frozensets(st.integers(0, 39), min_size=1))
+@example(data=b"\x0f\x0a\x05", t0=0, bt=BT, pos=0, holes=None)
+def test_finishing_a_reception_is_flushing_it_at_its_last_stop_bit(data, t0, bt, pos, holes):
+    """``Reception.finish`` (the air's end of a transmission) hands over exactly what
+    ``flush`` at the tick the last stop bit ends would, whatever went before (a sync part-way:
+    ``pos``) and whatever the UART lost (``holes``); when nothing went before and nothing was
+    lost, in one hand-over."""
+    from hil.sim.air import Reception
+    n = len(data)
+    pos = min(pos, n)
+    holes = None if holes is None else frozenset(i for i in holes if i < n) or None
+    a, b = Reception(data, t0, bt, n, holes=holes), Reception(data, t0, bt, n, holes=holes)
+    ra, rb = _Heard(), _Heard()
+    for rx, radio in ((a, ra), (b, rb)):
+        rx.flush(radio, t0 + pos * bt)          # what a sync delivered before the end
+    ra.got.clear(), rb.got.clear()
+    a.finish(ra)
+    b.flush(rb, t0 + n * bt)
+    assert ra.got == rb.got and a.pos == b.pos == n
+    if pos == 0 and holes is None:
+        assert ra.got == [(data, t0 + bt, bt)]

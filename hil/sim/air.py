@@ -132,6 +132,16 @@ class Reception:
                                   self.bt)
                     start = None
 
+    def finish(self, radio: Ptr2000) -> None:
+        """Deliver every byte not delivered yet, the transmission being over: ``flush`` at the
+        tick its last stop bit ends, in one hand-over of the whole ``data`` when no byte went
+        before and none was lost (most receptions: 3 % of an idle ring's instructions)."""
+        if self.pos == 0 and self.holes is None and self.data is not None:
+            self.pos = self.n
+            radio.deliver(self.data, self.t0 + self.bt, self.bt)
+        else:
+            self.flush(radio, self.t0 + self.n * self.bt)
+
 
 class Air:
     """The shared channel. ``attach`` radios, then let their UARTs transmit."""
@@ -157,6 +167,7 @@ class Air:
         self._drop_rng: list[random.Random] = []
         self._skew: dict[int, float] = {}
         self._rates_ok: dict[tuple[int, int], bool] = {}
+        self._clean_by_bt: dict[int, list[bool]] = {}
         self._phantom: Ptr2000 | None = None
         self.bursts = 0
         self.occupations = 0
@@ -170,6 +181,7 @@ class Air:
         radio.channel = self
         radio.idx = len(self.radios)
         self.radios.append(radio)
+        self._clean_by_bt.clear()
         name = f"{self.seed}:{radio.robot}"
         self._garbage.append(ByteStream(random.Random(f"{name}:garbage")))
         self._noise.append(ByteStream(random.Random(f"{name}:noise")))
@@ -223,6 +235,15 @@ class Air:
             ok = self._rates_ok[key] = rates_agree(tx_bt, rx_bt)
         return ok
 
+    def _clean_for(self, tx_bt: int) -> list[bool]:
+        """``_clean(tx_bt, r)`` of every radio, by ``r.idx``: computed once per byte time
+        (a radio's UART is wired before it is attached, and its rate never changes; ``attach``
+        forgets the table)."""
+        got = self._clean_by_bt.get(tx_bt)
+        if got is None:
+            got = self._clean_by_bt[tx_bt] = [self._clean(tx_bt, r) for r in self.radios]
+        return got
+
     def burst(self, seconds: float, byte_ticks: int = FOREIGN_BYTE_TICKS) -> None:
         """A burst of interference now: random bytes on air for ``seconds`` from a transmitter
         that is no robot; it collides with whatever else is sent meanwhile."""
@@ -263,6 +284,7 @@ class Air:
             self.active.append(tx)
             plain = self.ber == 0.0 and self.drop == 0.0 and not self.byte_by_byte
             noise = self.noise
+            clean = self._clean_for(bt) if plain else None
             for r in self.radios:
                 if r is radio or not r.alive or t0 < r.rx_from:
                     continue
@@ -274,7 +296,7 @@ class Air:
                 if noise:
                     self._noise_upto(r, t0)
                     self._noise_gen[r.idx] += 1
-                r.rx = Reception(data, t0, bt, tx.n, tx) if plain and self._clean(bt, r) \
+                r.rx = Reception(data, t0, bt, tx.n, tx) if plain and clean[r.idx] \
                     else self._reception(r, tx)
         self.sched.at(tx.end, self._end, tx)
 
@@ -585,7 +607,7 @@ class Air:
             for r in self.radios:
                 rx = r.rx
                 if rx is not None and rx.tx is tx:
-                    rx.flush(r, now)
+                    rx.finish(r)
                     r.rx = None
                     if noise:
                         self._idle_from(r, now)
