@@ -158,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     except NoValgrind as exc:
         print(exc, file=sys.stderr)
         return 2
-    print(f"Instructions of {here}" + (f" and {base}" if base else "")
+    print(f"Instructions of this tree ({here})" + (f" and of {base}" if base else "")
           + " (callgrind, PYTHONHASHSEED=0, the run only):\n")
     print(table(rows, base))
     return 0

@@ -107,6 +107,11 @@ class TxEnable:
     on: bool
 
 
+TX_ON = TxEnable(True)
+TX_OFF = TxEnable(False)
+"""The two TXEN actions (frozen: one object each serves every turn)."""
+
+
 @dataclass(frozen=True, slots=True)
 class Transmit:
     """Send these bytes now (the radio has been in TX for Ttrans)."""
@@ -434,10 +439,10 @@ class RotationalMac:
         self._last_num = 0                 # the BOOT frame is Number '00' ...
         self._next_num = 1                 # ... and messages start at '01'
         self.deadline = now + self._claim_ticks()
-        return [TxEnable(False)]
+        return [TX_OFF]
 
     def _paper_power_on(self, now: int) -> list:
-        out: list = [TxEnable(False)]
+        out: list = [TX_OFF]
         self._last_num = 0
         self._next_num = 0                 # the paper: a robot's first message is '00'
 
@@ -894,7 +899,7 @@ class RotationalMac:
 
     def on_tx_done(self, now: int) -> list:
         """The last bit of our End left the radio: our turn closes at ``now``."""
-        out: list = [TxEnable(False)]
+        out: list = [TX_OFF]
         self.frames_sent += 1
         self._heard_since_tx = False
         self._noise_since_tx = False
@@ -1115,7 +1120,7 @@ class RotationalMac:
         self.owner = self.id
         self.turn_start = now
         self.deadline = now + self.cfg.ttrans
-        out.append(TxEnable(True))
+        out.append(TX_ON)
 
     def _send(self, now: int, out: list) -> None:
         frame, data = self._build_frame(now, out)
@@ -1409,7 +1414,7 @@ class RotationalMac:
             msg = None
             room = self.max_content - crc_room
         carried: list[Command] = []
-        used = sum(len(c.text()) for c in extra)
+        used = sum(len(c.text()) for c in extra) if extra else 0
         if used > room:
             extra, used, poll_to = [], 0, None
         elif extra:

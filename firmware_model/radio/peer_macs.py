@@ -47,7 +47,8 @@ from .frame import BROADCAST, Frame, FrameType
 from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
 from .mac import (
     MEMBER, LISTEN, BadChecksum, BadContent, Deliver, Duplicate, MacConfig, Message, ModeChange,
-    Outcome, QueueFull, RotationalMac, SubmitError, Transmit, TxEnable, _layers, check_submission,
+    Outcome, QueueFull, RotationalMac, SubmitError, TX_OFF, TX_ON, Transmit, _layers,
+    check_submission,
 )
 
 try:                                        # (the rotational MAC's spoofing observation)
@@ -206,7 +207,7 @@ class PeerMac:
         self.phase = RX
         self._rx_from = now
         self._arm(now)
-        return [TxEnable(False), ModeChange(MEMBER, f"{self.kind} MAC on")]
+        return [TX_OFF, ModeChange(MEMBER, f"{self.kind} MAC on")]
 
     def submit(self, dst: int, commands: Iterable[Command], now: int,
                type: int = FrameType.INSTRUCTION) -> Message:
@@ -305,7 +306,7 @@ class PeerMac:
 
     def on_tx_done(self, now: int) -> list:
         """The last bit of our frame left: back to receive, start the ack wait."""
-        out: list = [TxEnable(False)]
+        out: list = [TX_OFF]
         self.frames_sent += 1
         self.phase = RX
         self._rx_from = now + self.cfg.ttrans
@@ -462,7 +463,7 @@ class PeerMac:
         self.phase = SWITCH
         self._txen_at = now
         self._tx_at = now + self.cfg.ttrans if tx_at is None else tx_at
-        out.append(TxEnable(True))
+        out.append(TX_ON)
 
     def _frame_room(self) -> int:
         """Bytes a frame may have (``frame_bytes``; a lone data frame may be longer)."""
@@ -488,7 +489,7 @@ class PeerMac:
         if msg is None and not carried:
             self.phase = RX                   # nothing left to say (acked meanwhile)
             self._rx_from = now + self.cfg.ttrans
-            out.append(TxEnable(False))
+            out.append(TX_OFF)
             return
         for a in carried:
             self._acks.remove(a)

@@ -276,7 +276,7 @@ class Air:
         tx = Transmission(radio, data, t0, bt)
         self.occupations += 1
         self.sent[radio.robot] = self.sent.get(radio.robot, 0) + 1
-        overlapping = [a for a in self.active if a.end > t0]
+        overlapping = [a for a in self.active if a.end > t0] if self.active else []
         if overlapping or t0 < self.collision_until:
             self.active.append(tx)
             self._collide(tx, overlapping, t0)
