@@ -135,7 +135,7 @@ class Reception:
     def finish(self, radio: Ptr2000) -> None:
         """Deliver every byte not delivered yet, the transmission being over: ``flush`` at the
         tick its last stop bit ends, in one hand-over of the whole ``data`` when no byte went
-        before and none was lost (most receptions: 3 % of an idle ring's instructions)."""
+        before and none was lost (most receptions)."""
         if self.pos == 0 and self.holes is None and self.data is not None:
             self.pos = self.n
             radio.deliver(self.data, self.t0 + self.bt, self.bt)
