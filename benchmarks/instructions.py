@@ -8,10 +8,10 @@ so a change worth 3 % cannot be seen in them without dozens of runs. The count o
 instructions can: with ``PYTHONHASHSEED=0`` the same files give the same count to the
 instruction, run after run; only the memory layout (sets of objects iterate in address order)
 moves it, by up to 0.4 % between two states of the same tree (a source file newer than its
-cached bytecode), so differences under 1 % say nothing. It is not a time: the processor
-hides much of the cheap work a change removes (10.7 % fewer instructions of the idle ring
-were 1-4 % of its time, docs/performance.md), so the wall-time benchmarks stay the judges of
-the targets; this one says whether a change made the model do less, its size an upper bound.
+cached bytecode), so differences under 1 % say nothing. It is not a time (a cache miss costs
+more than an add), so the wall-time benchmarks stay the judges of the targets; this one says
+whether a change made the model do less, and roughly how much (10.7 % fewer instructions of
+the idle ring were 13 % less CPU time: docs/performance.md).
 
 Each workload runs in a process of its own under ``valgrind --tool=callgrind``, and only the
 run is counted: the script calls it through ``functools.reduce`` and callgrind collects only
