@@ -14,7 +14,9 @@ import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-ENV = dict(os.environ, PYTHONPATH=os.path.dirname(HERE) + os.pathsep +
+ROOT = os.path.dirname(HERE)
+"""This checkout."""
+ENV = dict(os.environ, PYTHONPATH=ROOT + os.pathsep +
            os.environ.get("PYTHONPATH", ""))
 """The environment of a benchmark's child process: this checkout importable."""
 
@@ -43,7 +45,9 @@ def timed(robots: tuple[int, ...], seconds: float, can: bool = False, simpy: boo
     """(wall s, radio frames) of one run of ``robots`` for ``seconds`` simulated seconds
     (``kw``: more SimConfig fields), or of the SimPy peer (benchmarks/simpy_ring.py)."""
     code = _RUN.format(here=HERE, args=("simpy" if simpy else "ours", robots, seconds, can, kw))
-    out = subprocess.run([sys.executable, "-c", code], check=True, env=ENV,
+    # started in the checkout: ``python -c`` puts its working directory first on sys.path,
+    # so a run started elsewhere could import another tree's hil
+    out = subprocess.run([sys.executable, "-c", code], check=True, env=ENV, cwd=ROOT,
                          capture_output=True, text=True).stdout
     wall, frames = json.loads(out)
     return wall, frames

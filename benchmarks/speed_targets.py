@@ -26,7 +26,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
-from fresh_process import ENV, timed  # noqa: E402  (benchmarks/ is on sys.path now)
+from fresh_process import ENV, ROOT, timed  # noqa: E402  (benchmarks/ is on sys.path now)
 
 RING = (0, 1, 2, 3, 4, 5, 6)
 SHORT_WALL_S = 0.25
@@ -116,6 +116,7 @@ def memory(can: bool) -> None:
     for label, secs in (("1 hour", 3600), ("24 hours", 86400)):
         code = _RSS.format(ring=RING, secs=secs, can=can)
         r = json.loads(subprocess.run([sys.executable, "-c", code], check=True, env=ENV,
+                                      cwd=ROOT,
                                       capture_output=True, text=True).stdout)
         out[label] = r["rss_kib"]
         print(f"| 7-robot ring{' with --can' if can else ''} | {label} | "

@@ -30,3 +30,20 @@ def test_a_figure_from_runs_shorter_than_a_quarter_second_is_flagged(monkeypatch
 def test_runs_long_enough_carry_no_warning(monkeypatch, capsys):
     out = _table(monkeypatch, capsys, [2.0, 3.0, 3.0])
     assert "| saturated |" in out and "Shortest timed run" not in out
+
+
+def test_a_timed_run_imports_this_checkout_wherever_it_is_started_from(tmp_path, monkeypatch):
+    """``python -c`` puts its working directory first on sys.path: a run started from a
+    directory holding another ``hil`` must still time this checkout's model."""
+    fake = tmp_path / "hil"
+    fake.mkdir()
+    (fake / "__init__.py").write_text("raise ImportError('the wrong tree')\n")
+    monkeypatch.chdir(tmp_path)
+    import sys
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        from fresh_process import timed
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    wall, frames = timed((0, 1), 8.0)
+    assert wall > 0 and frames > 0
