@@ -28,8 +28,13 @@ from hil.bench.radio_hub import RadioHub
 from hil.sim.world import SimConfig, World
 
 
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
 def spawn(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "hil.cli", *args],
+    """``rprs ARGS`` as a process of this checkout (``-m`` puts the working directory first on
+    sys.path: started elsewhere, the child could run another tree's hil)."""
+    return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
