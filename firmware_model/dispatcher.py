@@ -364,20 +364,25 @@ class Dispatcher:
                 and all(self.refusal(c) is not None for c in commands))
 
     def _refused(self, src: int, c: Command, now: int) -> bool:
-        """Refuse ``c`` if :meth:`refusal` says so (a move's reason goes to the log)."""
+        """Refuse ``c`` if :meth:`refusal` says so."""
         refused = self.refusal(c)
-        if refused is None:
-            return False
-        code, reason = refused
+        if refused is not None:
+            self._refuse(src, c, now, *refused)
+        return refused is not None
+
+    def _refuse(self, src: int, c: Command, now: int, code: int, reason: str | None) -> None:
+        """Answer ``c`` with failure ``code``; a move's ``reason`` goes to the log."""
         if reason is not None:
             self.log.append((now, f"{c.text()}: {reason}"))
         self._fail(src, code, c)
-        return True
 
     def _move(self, src: int, c: Command, now: int) -> None:
-        if self._refused(src, c, now):
+        # the plan that refusal() judges, made once: refused here exactly when it refuses
+        q, code, reason = _reach(*self._goal(c))
+        if q is None:
+            self._refuse(src, c, now, code, reason)
             return
-        self._drive_joints(src, c, now, list(_reach(*self._goal(c))[0]))
+        self._drive_joints(src, c, now, list(q))
 
     def _drive_joints(self, src: int, c: Command, now: int, q: list[float]) -> Job | None:
         """Coordinated motion: the joints that move arrive at about the same time.

@@ -166,7 +166,6 @@ class Air:
         self.drop = 0.0
         self._drop_rng: list[random.Random] = []
         self._skew: dict[int, float] = {}
-        self._rates_ok: dict[tuple[int, int], bool] = {}
         self._clean_by_bt: dict[int, list[bool]] = {}
         self._phantom: Ptr2000 | None = None
         self.bursts = 0
@@ -226,22 +225,15 @@ class Air:
         receiver reads follows from the two byte times, firmware_model.mcu.uart.sample_byte)."""
         self._skew[radio.idx] = eps
 
-    def _clean(self, tx_bt: int, r: Ptr2000) -> bool:
-        """Every byte sent at ``tx_bt`` reaches ``r``'s UART unchanged (cached per pair)."""
-        rx_bt = r.uart.byte_ticks if r.uart is not None else tx_bt
-        key = (tx_bt, rx_bt)
-        ok = self._rates_ok.get(key)
-        if ok is None:
-            ok = self._rates_ok[key] = rates_agree(tx_bt, rx_bt)
-        return ok
-
     def _clean_for(self, tx_bt: int) -> list[bool]:
-        """``_clean(tx_bt, r)`` of every radio, by ``r.idx``: computed once per byte time
-        (a radio's UART is wired before it is attached, and its rate never changes; ``attach``
-        forgets the table)."""
+        """Does every byte sent at ``tx_bt`` reach each radio's UART unchanged? By ``r.idx``,
+        computed once per byte time (a radio's UART is wired before it is attached, and its
+        rate never changes; ``attach`` forgets the table)."""
         got = self._clean_by_bt.get(tx_bt)
         if got is None:
-            got = self._clean_by_bt[tx_bt] = [self._clean(tx_bt, r) for r in self.radios]
+            got = self._clean_by_bt[tx_bt] = [
+                rates_agree(tx_bt, r.uart.byte_ticks if r.uart is not None else tx_bt)
+                for r in self.radios]
         return got
 
     def burst(self, seconds: float, byte_ticks: int = FOREIGN_BYTE_TICKS) -> None:
@@ -418,7 +410,7 @@ class Air:
             if lost:
                 holes = frozenset(lost)
                 first_bad = min(first_bad, lost[0])
-        if not self._clean(tx.bt, r):
+        if not self._clean_for(tx.bt)[r.idx]:
             # the two UARTs' rates differ enough for the receiver's mid-bit samples to fall in
             # the wrong bit cells: what it reads depends on the bits (sample_byte); a byte
             # whose start edge it was not ready for is misframed
