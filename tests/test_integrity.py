@@ -42,3 +42,35 @@ def test_paper_format_receivers_still_parse_a_sealed_frame():
     f = seal(2, 1, 5, 2, b"movex(10)")
     mac, app = split_layers(parse_content(f.content))
     assert [c.text() for c in app] == ["movex(10)"] and mac[0].name == "crc"
+
+
+def _member_waiting_for_robot_1(checksum: bool):
+    """R2 invited into ring (1, 2) by R1, its own first frame sent: it waits for R1's turn."""
+    from firmware_model.radio.mac import MacConfig, RotationalMac
+    mac = RotationalMac(2, MacConfig(checksum=checksum))
+    mac.power_on(0)
+    poll = seal(7, 1, 5, 3, b"poll(2,2)") if checksum else \
+        Frame(dst=7, src=1, num=5, type=3, content=b"poll(2,2)")
+    mac.on_frame(poll, 0, 1000, 1000)
+    mac.on_timer(mac.deadline)
+    mac.on_tx_done(2_000_000)
+    assert (mac.phase, mac.owner) == ("wait", 1)
+    return mac
+
+
+def test_with_the_extension_on_the_owners_heartbeat_without_a_checksum_is_refused():
+    """docs/protocol.md §3.4: a receiver with the extension on refuses a frame whose checksum
+    is missing, the turn owner's empty heartbeat too (it once took a fast path that did not
+    look): the turn is not handed on."""
+    from firmware_model.radio.mac import BadChecksum, TxEnable
+    t = 3_000_000
+    mac = _member_waiting_for_robot_1(checksum=True)
+    out = mac.on_frame(Frame(dst=7, src=1, num=5, type=3, content=b""), t, t + 1000, t + 1000)
+    assert [type(a) for a in out] == [BadChecksum]          # no TxEnable: not our turn
+    assert mac.phase != "switch"
+    sealed = seal(7, 1, 6, 3, b"")
+    out = _member_waiting_for_robot_1(checksum=True).on_frame(sealed, t, t + 1000, t + 1000)
+    assert any(isinstance(a, TxEnable) for a in out)       # the sealed heartbeat hands it on
+    mac = _member_waiting_for_robot_1(checksum=False)
+    out = mac.on_frame(Frame(dst=7, src=1, num=5, type=3, content=b""), t, t + 1000, t + 1000)
+    assert any(isinstance(a, TxEnable) for a in out)       # extension off: a plain heartbeat

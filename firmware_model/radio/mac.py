@@ -393,6 +393,7 @@ class RotationalMac:
         self.turns = 0
         self._hb_cache: dict[tuple, tuple[Frame, bytes]] = {}
         self._paper = cfg.profile == "paper"
+        self._hb_len = CRC_TEXT_LEN if cfg.checksum else 0   # a heartbeat's Content (bytes)
         self._tx_end = 0                  # End of our own last frame
         self._noise_since_tx = False      # garbage or a failed frame heard since our frame
         self._rejected = 0                # paper profile: our frames not heard, in a row
@@ -498,10 +499,14 @@ class RotationalMac:
         if self._paper:
             return self._paper_frame(frame, first, end, now)
         self._heard_since_tx = True
-        if src == self.owner and phase == WAIT and not frame.content and frame.type == 3 \
-                and src != self.id:
-            # Fast path, the expected owner's heartbeat: hand the turn on.
+        if src == self.owner and phase == WAIT and frame.type == 3 and src != self.id and (
+                not frame.content if not self._hb_len
+                else len(frame.content) == CRC_TEXT_LEN and crc_ok(frame)):
+            # Fast path, the expected owner's heartbeat (empty Content, or only its checksum
+            # when the extension is on): hand the turn on, as the general path below does.
             self._last_heard = (src, end)
+            if self._booting_peers:
+                self._booting_peers.discard(src)
             self.misses[src] = 0
             self._silent = 0
             ring = self.ring
