@@ -80,6 +80,20 @@ def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
     (["soak", "--hours", "-1"], "positive"),
     (["child", "--id", "7", "--radio", "x"], "child ID must be 1-6"),
     (["bogus"], "invalid choice"),
+    # outputs refused before the run, not after it (an outside tester's findings)
+    (["sim", "--trace", "."], "cannot write trace .: Is a directory"),
+    (["sim", "--vcd", "."], "cannot write VCD .: Is a directory"),
+    (["sim", "--trace", "/nonexistent-dir/x", "--vcd", "/nonexistent-dir/x"],
+     "--trace and --vcd name the same file"),
+    (["sim", "--trace", "/nonexistent-dir/x", "--pcap", "/nonexistent-dir/./x"],
+     "--trace and --pcap name the same file"),
+    (["conformance", "--radio", "x", "--id", "1", "--junit", "."], "it is a directory"),
+    (["conformance", "--radio", "x", "--id", "1", "--tolerance-ms", "-5"], "positive"),
+    (["campaign", "run", "none.toml", "--scheduler", "bogus"], "missing port number"),
+    (["campaign", "run", "none.toml", "--scheduler", "foo://x"], "unknown address scheme"),
+    (["soak", "--hours", "0.01"], "too short"),
+    (["sim", "--load", "1e9"], "'saturate'"),
+    (["encode", "--src", "1", "--dst", "2", "movex(1)" * 80], "more than a frame carries (562"),
 ])
 def test_user_mistakes_are_one_line_and_status_2(capsys, args, needle):
     code, out, err = rprs(capsys, *args)
@@ -289,3 +303,40 @@ def test_the_progress_bar_run_is_the_same_run():
     assert sum(q.periods_skipped for q in stepped.quiet.values()) > 0
     assert json.dumps(stepped.summary(), sort_keys=True) == \
         json.dumps(whole.summary(), sort_keys=True)
+
+
+def test_a_directory_given_for_campaign_results_is_refused(tmp_path, capsys):
+    spec = tmp_path / "c.toml"
+    spec.write_text('[campaign]\nname = "x"\nseeds = 1\nduration = 5\n[grid]\nber = [0.0]\n')
+    code, _, err = rprs(capsys, "campaign", "run", str(spec), "--db", str(tmp_path))
+    assert code == 2 and "is a directory" in err and "Traceback" not in err
+    code, _, err = rprs(capsys, "campaign", "run", str(spec), "--db",
+                        str(tmp_path / "no" / "r.sqlite"))
+    assert code == 2 and "no directory" in err and not (tmp_path / "no").exists()
+
+
+def test_encode_notes_a_frame_no_station_sends_but_encodes_it(capsys):
+    """Receivers must take reserved Destinations and Types (docs/protocol.md §3), so a test
+    frame may carry them: encoded, with a note on stderr."""
+    code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "8", "movex(1)")
+    assert code == 0 and bytes.fromhex(out.strip())[3:5] == b"81"
+    assert "reserved" in err and "Traceback" not in err
+
+
+def test_the_ring_demo_tells_the_ring_it_runs(capsys):
+    """Its default outage is of the ring's first child, and only when the run lasts long
+    enough to see it come back (it once named R1 and R1-R4 whatever --robots said)."""
+    code, out, _ = rprs(capsys, "demo", "ring", "--robots", "0,2,3")
+    assert code == 0
+    assert out.startswith("Demo: the father (ID 0), R2, R3 power on together")
+    assert "R2's radio goes silent at 8 s" in out and "R1" not in out
+    code, out, _ = rprs(capsys, "demo", "ring", "--duration", "5")
+    assert code == 0 and "goes silent" not in out and "R4 power on" in out
+
+
+def test_sim_json_with_the_cpu_report_is_one_document(capsys):
+    code, out, _ = rprs(capsys, "sim", "--robots", "0,1", "--duration", "2", "--cpu-report",
+                        "--json")
+    assert code == 0
+    doc = json.loads(out)
+    assert "cpu_report" in doc and "delivered" in doc

@@ -26,6 +26,10 @@ class StoreError(ValueError):
 class Store:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        if not self.path.parent.is_dir():
+            raise StoreError(f"{path}: no directory {self.path.parent} to keep the results in")
+        if self.path.is_dir():
+            raise StoreError(f"{path} is a directory, not a campaign results file")
         try:
             self.db = sqlite3.connect(self.path)
             self.db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")

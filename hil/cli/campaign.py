@@ -14,6 +14,20 @@ def _db_for(spec_path: str, db: str | None) -> str:
     return db or str(Path(spec_path).with_suffix(".sqlite"))
 
 
+def _check_scheduler(address: str) -> None:
+    """A Dask scheduler address Dask can parse (scheme known, host and port for TCP), checked
+    before the results file is made: a UserError otherwise."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    from distributed.comm.registry import get_backend
+    try:
+        scheme, loc = parse_address(address)
+        get_backend(scheme)
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            parse_host_port(loc)
+    except ValueError as e:
+        raise UserError(f"--scheduler {address}: {e} (e.g. tcp://HOST:8786)") from None
+
+
 def cmd_run(a: argparse.Namespace) -> int:
     from ..campaign.engine import run_campaign
     from ..campaign.runs import check_args
@@ -21,6 +35,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     from ..campaign.store import Store, StoreError
     if a.workers is not None and a.workers < 1:
         raise UserError("--workers must be at least 1")
+    if a.scheduler:
+        _check_scheduler(a.scheduler)
     try:
         spec = load_spec(a.spec, check=check_args)
     except SpecError as e:

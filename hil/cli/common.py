@@ -3,6 +3,7 @@ validate as they parse, and the MAC, TXEN and real-time options of the robot com
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 
@@ -13,6 +14,32 @@ class UserError(Exception):
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, status 2, no usage dump
         raise UserError(f"{message} (see '{self.prog} --help')")
+
+
+def output_file(path: str, what: str) -> str:
+    """``path``, checked before a run that ends by writing ``what`` there: a directory or a
+    missing parent directory is a UserError now, not an error after the run."""
+    if os.path.isdir(path):
+        raise UserError(f"cannot write {what} {path}: it is a directory")
+    d = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(d):
+        raise UserError(f"cannot write {what} {path}: no directory {d}")
+    return path
+
+
+def distinct_outputs(**paths: str | None) -> None:
+    """Two output options naming one file would overwrite each other (the later writer wins,
+    or the two renames of PATH.partial fail after the run): a UserError before anything runs.
+    ``paths``: option name (``_`` for ``-``) -> the path given, or None."""
+    seen: dict[str, str] = {}
+    for opt, path in paths.items():
+        if not path or path == "-":
+            continue
+        key = os.path.realpath(path)
+        if key in seen:
+            raise UserError(f"--{seen[key]} and --{opt.replace('_', '-')} name the same file "
+                            f"{path}: give each its own")
+        seen[key] = opt.replace("_", "-")
 
 
 def robot_list(text: str) -> tuple[int, ...]:
@@ -77,7 +104,17 @@ def load_spec(text: str) -> str | float:
     if not v > 0 or v == float("inf"):
         raise argparse.ArgumentTypeError(
             f"{text!r} is not idle, saturate or a positive rate in messages/s per robot")
+    if v > LOAD_MAX:
+        raise argparse.ArgumentTypeError(
+            f"{text} messages/s per robot is more than {LOAD_MAX:g}: the channel carries a few "
+            f"dozen short messages a second in all, so any rate far above that is 'saturate' "
+            f"(which runs as fast; a rate costs the simulator each message it offers)")
     return v
+
+
+LOAD_MAX = 1000.0
+"""Messages/s per robot: the highest ``--load`` rate taken (tens of times what the whole channel
+carries)."""
 
 
 def digit(lo: int, hi: int, what: str):

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
-from .common import UserError, digit
+from .common import UserError, digit, output_file, positive
 
 
 def cmd_conformance(a: argparse.Namespace) -> int:
@@ -15,9 +14,7 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     if a.tester is not None and a.tester == a.id:
         raise UserError(f"--tester must differ from --id (both {a.id})")
     if a.junit:
-        d = os.path.dirname(os.path.abspath(a.junit))
-        if not os.path.isdir(d):
-            raise UserError(f"cannot write {a.junit}: no directory {d}")
+        output_file(a.junit, "JUnit XML")
     quiet = a.quiet
     try:
         t = Tester(a.radio, a.id, a.profile, a.tester, a.tolerance_ms, a.turns,
@@ -45,8 +42,11 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     if error:
         print(f"rprs conformance: stopped: {error}")
     if a.junit:
-        with open(a.junit, "wb") as fh:
-            fh.write(rep.junit())
+        try:
+            with open(a.junit, "wb") as fh:
+                fh.write(rep.junit())
+        except OSError as exc:
+            raise UserError(f"cannot write JUnit XML {a.junit}: {exc.strerror}") from None
     return 0 if rep.passed and not error else 1
 
 
@@ -62,7 +62,7 @@ def add(sub) -> None:
     p.add_argument("--tester", type=digit(0, 6, "tester ID"), default=None,
                    help="this PC's robot ID in the ring (default 0, or 1 when testing 0); "
                    "the robot's team must hold it")
-    p.add_argument("--tolerance-ms", type=float, default=15.0, metavar="MS",
+    p.add_argument("--tolerance-ms", type=positive, default=15.0, metavar="MS",
                    help="timing tolerance for a PC and its port (default 15)")
     p.add_argument("--turns", type=digit(3, 1000, "turns"), default=20,
                    help="hand-overs timed (default 20)")

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 
 from ..sim.world import ConfigError
-from .common import UserError, positive
+from .common import UserError, distinct_outputs, positive
 from .sim import add_sim_options, close_writers, open_writers, print_summary, sim_config
 
 def cmd_monitor(a: argparse.Namespace) -> int:
@@ -25,6 +25,7 @@ def cmd_monitor(a: argparse.Namespace) -> int:
         cfg.validate()
     except ConfigError as exc:
         raise UserError(str(exc)) from None
+    distinct_outputs(trace=a.trace, vcd=a.vcd)
     trace, vcd = open_writers(a.trace, a.vcd)
     ok = False
     try:

@@ -11,7 +11,7 @@ from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
-from .common import UserError, checked_mac_config, digit, profile_option, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
+from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                     progress: bool = True) -> None:
@@ -129,7 +129,8 @@ def open_writers(trace_path: str | None, vcd_path: str | None):
         except (OSError, VcdError) as exc:
             if trace is not None:
                 trace.discard()
-            raise UserError(f"cannot write waveform {vcd_path}: {exc}") from None
+            raise UserError(str(exc) if isinstance(exc, VcdError) else
+                            f"cannot write waveform {vcd_path}: {exc.strerror}") from None
     return trace, vcd
 
 
@@ -137,7 +138,10 @@ def close_writers(trace, vcd, ok: bool) -> None:
     """Close the writers (their files appear whole) or, if the run failed, discard them."""
     for w in (trace, vcd):
         if w is not None:
-            w.close() if ok else w.discard()
+            try:
+                w.close() if ok else w.discard()
+            except OSError as exc:     # the path became a directory, the disk filled...
+                raise UserError(f"cannot write {w.path}: {exc.strerror}") from None
 
 
 def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
@@ -145,6 +149,7 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
               pcap_path: str | None = None) -> tuple[World, float]:
     """Run the world to its end, with its trace, waveform and capture files; ``on_event``
     gets every event too."""
+    distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
     pcap_file = None
     if pcap_path:
@@ -189,10 +194,13 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
     return world, wall
 
 
-def print_summary(world: World, wall: float, as_json: bool, membership: bool = True) -> None:
+def print_summary(world: World, wall: float, as_json: bool, membership: bool = True,
+                  extra: dict | None = None) -> None:
     """The summary table; ``membership=False`` leaves out the list of membership changes
-    (the demos tell them as a story instead)."""
+    (the demos tell them as a story instead). ``extra``: more keys of the JSON document (one
+    document, whatever is asked for)."""
     s = world.summary()
+    s.update(extra or {})
     sim_s = ticks_to_s(s["duration_ticks"])
     s["wall_seconds"] = round(wall, 3)
     s["speed"] = round(sim_s / wall, 1) if wall > 0 else None
@@ -260,15 +268,17 @@ def cmd_sim(a: argparse.Namespace, demo: bool = False, before_summary=None) -> i
                             pcap_path=getattr(a, "pcap", None))
     if before_summary is not None:
         before_summary(events)
-    print_summary(world, wall, a.json, membership=before_summary is None)
-    if getattr(a, "cpu_report", False):
-        from ..view.cpu_report import cpu_budget, print_cpu_report
-        if a.json:
-            print(json.dumps({"cpu_report": {r: cpu_budget(
-                c, cfg.cpu.sample_wait_max.cycles, world.byte_ticks[r], world.sched.now)
-                for r, c in sorted(world.cpus.items())}}, indent=1))
-        else:
-            print_cpu_report(world, cfg.cpu)
+    report = getattr(a, "cpu_report", False)
+    extra = None
+    if report and a.json:
+        from ..view.cpu_report import cpu_budget
+        extra = {"cpu_report": {r: cpu_budget(
+            c, cfg.cpu.sample_wait_max.cycles, world.byte_ticks[r], world.sched.now)
+            for r, c in sorted(world.cpus.items())}}
+    print_summary(world, wall, a.json, membership=before_summary is None, extra=extra)
+    if report and not a.json:
+        from ..view.cpu_report import print_cpu_report
+        print_cpu_report(world, cfg.cpu)
     return 0
 
 

@@ -6,6 +6,7 @@ byte-identical file.
 """
 from __future__ import annotations
 
+import errno
 import gzip
 import json
 import os
@@ -15,14 +16,23 @@ from typing import IO, Any, Iterator
 TRACE_VERSION = 1
 
 
+def open_partial(path: str) -> tuple[str, IO[str]]:
+    """(``PATH.partial``, that file open for ASCII text): a writer renames it to ``path`` when
+    complete. ``path`` naming a directory is refused here (OSError), before anything is
+    written, rather than at the rename after the whole run."""
+    if os.path.isdir(path):
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), path)
+    tmp = f"{path}.partial"
+    return tmp, open(tmp, "w", encoding="ascii", newline="\n")
+
+
 class TraceWriter:
     """Writes events to ``path`` atomically: the file appears complete at ``close()`` or not at
     all (a run that fails leaves no partial trace behind)."""
 
     def __init__(self, path: str) -> None:
         self.path = path
-        self._tmp = f"{path}.partial"
-        self._f: IO[str] = open(self._tmp, "w", encoding="ascii", newline="\n")
+        self._tmp, self._f = open_partial(path)
         self._dumps = json.JSONEncoder(separators=(",", ":"), ensure_ascii=True).encode
         self.count = 0
 

@@ -32,7 +32,7 @@ from typing import Any, Iterable, Iterator
 
 from vcd import VCDWriter
 
-from ..sim.trace import TraceError
+from ..sim.trace import TraceError, open_partial
 
 __all__ = ["VcdError", "VcdTraceWriter", "write_vcd", "TIMESCALE", "checked_events",
            "TickReorder"]
@@ -166,9 +166,8 @@ class VcdTraceWriter:
 
     def __init__(self, path: str) -> None:
         self.path = path
-        self._tmp = f"{path}.partial"
         try:
-            self._f = open(self._tmp, "w", encoding="ascii", newline="\n")
+            self._tmp, self._f = open_partial(path)
         except OSError as exc:
             raise VcdError(f"cannot write VCD {path}: {exc.strerror}") from None
         self._w: VCDWriter | None = None
