@@ -21,7 +21,7 @@ libpython's symbols were stripped nothing would be counted, and the script says 
 
 * ``idle``: the radio-only idle 7-robot ring, 60 simulated s;
 * ``saturated``: the 7-robot ring with every child's CAN side, ``load=saturate``, 60 s;
-* ``soak``: ``run_soak(0.02 h, seed 11)``, the whole soak (faults, traffic, CAN sides).
+* ``soak``: ``run_soak(0.05 h, seed 11)``, the whole soak (faults, traffic, CAN sides).
 
 ``--base COMMIT`` counts the same workloads in a temporary worktree of that commit too
 (benchmarks/base_tree.py) and prints the ratio base / this tree. Needs valgrind (Debian's
@@ -58,8 +58,8 @@ done = lambda: (60.0, w.air.occupations)
     "soak": """
 from hil.sim.soak import run_soak
 out = []
-run = lambda: out.append(run_soak(0.02, 11))
-done = lambda: (0.02 * 3600, out[0].summary["occupations"])
+run = lambda: out.append(run_soak(0.05, 11))
+done = lambda: (0.05 * 3600, out[0].summary["occupations"])
 """,
 }
 """Each defines ``run()`` (what is counted) and ``done()`` -> (simulated s, radio frames)."""

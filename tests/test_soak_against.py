@@ -36,9 +36,9 @@ def test_a_commit_that_does_not_exist_is_a_clear_error(capsys):
 
 def test_head_against_itself_gives_the_same_accounting_and_leaves_no_worktree(capsys):
     before = _worktrees()
-    assert bench.main(["--base", "HEAD", "--hours", "0.04", "--runs", "1"]) == 0
+    assert bench.main(["--base", "HEAD", "--hours", "0.05", "--runs", "1"]) == 0
     out = capsys.readouterr().out
-    assert "accounting the same in every run" in out and "| rprs soak --hours 0.04" in out
+    assert "accounting the same in every run" in out and "| rprs soak --hours 0.05" in out
     # a row for the base and one for this tree, each with its own run (once, both were
     # filed under the one commit name and each row showed both runs)
     rows = [line for line in out.splitlines() if line.startswith("| ") and " s, " not in line

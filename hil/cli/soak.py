@@ -7,6 +7,16 @@ import json
 
 from .common import positive, progress_bar, robot_list
 
+def _hours(text: str) -> float:
+    from ..sim.soak import DRAIN_S, MIN_HOURS
+    h = positive(text)
+    if h < MIN_HOURS:
+        raise argparse.ArgumentTypeError(
+            f"{text} h is too short: a soak lasts at least {MIN_HOURS:g} h ({MIN_HOURS * 3600:g} "
+            f"s; faults stop {DRAIN_S:g} s before the end so that the ring can drain)")
+    return h
+
+
 def cmd_soak(a: argparse.Namespace) -> int:
     from ..sim.soak import report, run_soak
     robots = a.robots
@@ -33,8 +43,9 @@ def cmd_soak(a: argparse.Namespace) -> int:
 def add(sub) -> None:
     so = sub.add_parser("soak", help="hours of simulated time with random faults and "
                         "traffic; ends with the invariants")
-    so.add_argument("--hours", type=positive, default=1.0,
-                    help="simulated hours (default %(default)s)")
+    so.add_argument("--hours", type=_hours, default=1.0,
+                    help="simulated hours (default %(default)s; a soak too short to inject "
+                    "anything is refused)")
     so.add_argument("--seed", type=int, default=0,
                     help="the same seed gives the same faults, traffic and trace")
     so.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4),

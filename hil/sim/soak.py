@@ -29,6 +29,15 @@ REFORM_BOUND_S = 15.0
 """Documented bound (docs/guarantees.md): the ring is whole again within this long after the
 last fault ends. Start-up claim |team| x Tmax (4.2 s for 7) + invitations (P x gap cycles)."""
 
+SETTLE_S = 10.0
+"""Simulated seconds from the start before the first fault: the ring forms."""
+DRAIN_S = 120.0
+"""Simulated seconds at the end with no new fault (and, 10 s later, no new traffic): the
+queues drain and the ring re-forms before the invariants are read."""
+MIN_HOURS = 0.05
+"""The shortest soak (180 s): shorter ones would end their fault window and their traffic
+before either began, and pass having tested nothing."""
+
 SAMPLE_S = 0.25
 
 
@@ -41,9 +50,9 @@ def random_faults(rng: random.Random, robots: tuple[int, ...], hours: float, can
         kinds += ["busoff", "stuck", "silent", "stall"]
     if standby and 0 in robots:
         kinds.append("father")
-    end = hours * 3600.0 - 120.0              # leave time to drain
+    end = hours * 3600.0 - DRAIN_S
     out: list[Fault] = []
-    t = 10.0
+    t = SETTLE_S
     while True:
         t += rng.expovariate(1.0 / mean_gap_s)
         if t >= end:
@@ -147,14 +156,19 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
              progress=None, faults: list[Fault] | None = None,
              can_sleep: bool = True) -> SoakResult:
     """Run the soak; ``progress(simulated_s)`` is called as it goes. ``can_sleep``: see
-    SimConfig (the result is the same either way)."""
+    SimConfig (the result is the same either way). ``hours`` below :data:`MIN_HOURS`: a
+    ValueError."""
+    if not hours >= MIN_HOURS:
+        raise ValueError(f"a soak lasts at least {MIN_HOURS:g} h ({MIN_HOURS * 3600:g} s): "
+                         f"faults begin {SETTLE_S:g} s in and stop {DRAIN_S:g} s before the "
+                         f"end, so a shorter one would test nothing (asked {hours:g} h)")
     rng = random.Random(f"{seed}:soak")
     standby = 0 in robots
     if faults is None:
         faults = random_faults(rng, robots, hours, can, standby)
     duration = hours * 3600.0
     cfg = SimConfig(robots=robots, duration=duration, seed=seed, load=load,
-                    load_until=duration - 110.0, can=can, can_sleep=can_sleep,
+                    load_until=duration - DRAIN_S + SETTLE_S, can=can, can_sleep=can_sleep,
                     father_standby=standby,
                     faults=tuple(faults), mac=MacConfig(checksum=checksum,
                                                         max_age=s_to_ticks(60)))
