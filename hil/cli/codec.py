@@ -9,7 +9,7 @@ import sys
 from firmware_model.radio.content import parse_content
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from firmware_model.radio.errors import WireError
-from firmware_model.radio.frame import Frame
+from firmware_model.radio.frame import MAX_CONTENT, Frame
 
 from .common import UserError, digit
 
@@ -17,6 +17,17 @@ def cmd_encode(a: argparse.Namespace) -> int:
     content = a.content.encode("ascii", "strict") if a.content.isascii() else None
     if content is None:
         raise UserError("Content must be ASCII text such as 'movex(10)'")
+    if len(content) > MAX_CONTENT:
+        # docs/protocol.md clause 11: Length is at most 562; a longer Content is refused,
+        # never cut (clause 14). `rprs inject --hex` writes any bytes, an invalid frame too.
+        raise UserError(f"Content is {len(content)} bytes, more than a frame carries "
+                        f"({MAX_CONTENT}, docs/protocol.md clause 11)")
+    if a.dst in (8, 9) or a.type >= 7 or (a.dst == a.src):
+        what = ("Destination '8' and '9' are reserved" if a.dst in (8, 9) else
+                f"Type '{a.type}' is reserved" if a.type >= 7 else
+                "a station never sends to its own ID")
+        print(f"rprs encode: note: {what}: no station sends this frame (docs/protocol.md "
+              f"§3); receivers must still take it", file=sys.stderr)
     try:
         parse_content(content)
         frame = Frame(dst=a.dst, src=a.src, num=a.num, type=a.type, content=content)
@@ -103,5 +114,6 @@ def add(sub) -> None:
     c = sub.add_parser("decode", help="find frames in hex or in a byte stream")
     c.add_argument("hexdata", nargs="*", metavar="HEX")
     c.add_argument("--stream", action="store_true", help="read bytes from stdin")
-    c.add_argument("--hex", action="store_true", help="with --stream: stdin is hex text")
+    c.add_argument("--hex", action="store_true", help="with --stream: stdin is hex text "
+                   "(without --stream the HEX arguments are hex already)")
     c.set_defaults(func=cmd_decode)

@@ -68,13 +68,28 @@ def ring_story(events: list[dict]) -> list[str]:
     return lines
 
 
+RING_DEMO_FAIL_S = 8.0
+RING_DEMO_RECOVER_S = 16.0
+"""Simulated seconds: when ``rprs demo ring``'s child goes silent and comes back."""
+
+
 def cmd_demo_ring(a: argparse.Namespace) -> int:
     if not a.fail and not a.recover and not a.json:
-        a.fail = [(1, 8.0)]
-        a.recover = [(1, 16.0)]
-        print("Demo: the father (ID 0) and children R1-R4 power on together, form the ring "
-              "and exchange seeded commands;\nR1's radio goes silent at 8 s (dropped after "
-              "three missed turns) and comes back at 16 s (invited back).\n")
+        robots = sorted(a.robots)
+        names = ", ".join("the father (ID 0)" if r == 0 else f"R{r}" for r in robots)
+        children = [r for r in robots if r != 0]
+        what = (f"Demo: {names} power on together, form the ring and exchange seeded "
+                f"commands")
+        if len(robots) >= 3 and children and a.duration >= RING_DEMO_RECOVER_S + 8.0:
+            # one child's radio fails and comes back, when there is time to see it invited
+            # back (a few cycles after its recovery) and a ring left while it is away
+            victim = children[0]
+            a.fail = [(victim, RING_DEMO_FAIL_S)]
+            a.recover = [(victim, RING_DEMO_RECOVER_S)]
+            what += (f";\nR{victim}'s radio goes silent at {RING_DEMO_FAIL_S:g} s (dropped "
+                     f"after three missed turns) and comes back at {RING_DEMO_RECOVER_S:g} s "
+                     f"(invited back)")
+        print(what + ".\n")
 
     def story(events: list[dict]) -> None:
         if a.json:

@@ -14,8 +14,8 @@ def cmd_plot(a: argparse.Namespace) -> int:
     except (TraceError, PlotError) as exc:
         raise UserError(str(exc)) from None
     print(f"wrote {a.output}: {info['turns']} turns from {info['window_s'][0]:.3f} s to "
-          f"{info['window_s'][1]:.3f} s, {info['misses']} missed, {info['collided']} collided",
-          file=sys.stderr)
+          f"{info['window_s'][1]:.3f} s; in the whole trace {info['misses']} missed, "
+          f"{info['collided']} collided", file=sys.stderr)
     return 0
 
 
