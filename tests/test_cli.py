@@ -94,6 +94,11 @@ def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
     (["soak", "--hours", "0.01"], "too short"),
     (["sim", "--load", "1e9"], "'saturate'"),
     (["encode", "--src", "1", "--dst", "2", "movex(1)" * 80], "more than a frame carries (562"),
+    (["sim", "--bogus"], "unrecognized arguments: --bogus (see 'rprs sim --help')"),
+    (["wireshark", "--dir", "x"], "give --install too"),
+    (["sim", "--frame-bytes", "100"], "sizes the peer MACs' frames"),
+    (["bench", "latency", "--radio", "x", "--dst", "0"], "the bench's own ID"),
+    (["bench", "latency", "--radio", "x", "--dst", "3", "--team", "0,1"], "must hold"),
 ])
 def test_user_mistakes_are_one_line_and_status_2(capsys, args, needle):
     code, out, err = rprs(capsys, *args)
@@ -340,3 +345,19 @@ def test_sim_json_with_the_cpu_report_is_one_document(capsys):
     assert code == 0
     doc = json.loads(out)
     assert "cpu_report" in doc and "delivered" in doc
+
+
+def test_a_can_log_that_cannot_be_written_is_one_line_and_closes_the_bus():
+    """python-can warns at exit about a bus never shut down: that was a second line."""
+    for log in (".", "x.unknown-format"):
+        r = subprocess.run([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--can",
+                            "virtual:cli-test", "--can-log", log], capture_output=True,
+                           text=True, timeout=60)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+        assert r.stderr.startswith("rprs: error: cannot write CAN log")
+
+
+def test_a_father_order_that_is_not_ascii_is_refused_in_words():
+    from hil.bench.runner import parse_order
+    with pytest.raises(ValueError, match="'é' is not ASCII"):
+        parse_order("2 movex(1é)")

@@ -13,6 +13,7 @@ prints what it receives.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import sys
 import threading
@@ -163,11 +164,16 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
 
 
 def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
+    if log and os.path.isdir(log):
+        raise RunError(f"cannot write CAN log {log}: it is a directory")
     try:
-        bus = PythonCanBus(runner.sched, open_bus(spec), log=log, channel=parse_spec(spec)[1])
+        raw = open_bus(spec)
     except CanOpenError as exc:
         raise RunError(str(exc)) from None
-    except (OSError, ValueError) as exc:
+    try:
+        bus = PythonCanBus(runner.sched, raw, log=log, channel=parse_spec(spec)[1])
+    except (OSError, ValueError, CanOpenError) as exc:
+        raw.shutdown()                 # else python-can warns at exit, a second line
         raise RunError(f"cannot write CAN log {log}: {exc}") from None
     runner.on_close(bus.close)
     return bus
@@ -252,9 +258,14 @@ def parse_order(line: str) -> tuple[int, list]:
         raise ValueError(f"destination must be 0-7, got {dst}")
     if not text.strip():
         raise ValueError("no commands after the destination")
+    text = text.strip()
+    if not text.isascii():
+        bad = next(c for c in text if not c.isascii())
+        raise ValueError(f"{bad!r} is not ASCII: Content is ASCII text such as 'movex(10)' "
+                         f"(docs/protocol.md §3.3)")
     try:
-        commands = list(parse_content(text.strip().encode("ascii")))
-    except (WireError, UnicodeEncodeError) as exc:
+        commands = list(parse_content(text.encode("ascii")))
+    except WireError as exc:
         raise ValueError(str(exc)) from None
     return dst, commands
 

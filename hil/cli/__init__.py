@@ -83,10 +83,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         parser = _parser_for(argv)
-        a = parser.parse_args(argv)
+        a, extra = parser.parse_known_args(argv)
         if not getattr(a, "command", None):
+            if extra:
+                parser.error(f"unrecognized arguments: {' '.join(extra)}")
             parser.print_help()
             return 2
+        if extra:              # the command's own help lists what it takes
+            raise UserError(f"unrecognized arguments: {' '.join(extra)} "
+                            f"(see 'rprs {a.command} --help')")
         return a.func(a)
     except UserError as exc:
         print(f"rprs: error: {exc}", file=sys.stderr)

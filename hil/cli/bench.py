@@ -52,6 +52,12 @@ def cmd_bench(a: argparse.Namespace) -> int:
             print(f"  robot {r}: {rep['frames_per_robot'][r]} frames, cycle median {c:.1f} ms")
         return 0
     # latency: join the ring as a member and ask a robot for its status
+    if a.dst == a.id:
+        raise UserError(f"--dst {a.dst} is the bench's own ID (--id {a.id}): ask another "
+                        f"robot")
+    if a.team and (a.dst not in a.team or a.id not in a.team):
+        raise UserError(f"--team {','.join(map(str, a.team))} must hold the bench (--id "
+                        f"{a.id}) and the robot asked (--dst {a.dst})")
     from firmware_model.radio.mac import MacConfig
     from ..bench.runner import Runner, RunError, build_child, build_father
     import threading

@@ -22,6 +22,8 @@ def personal_plugins_dir() -> Path:
 def cmd_wireshark(a: argparse.Namespace) -> int:
     from ..wireshark import plugin_path
     src = plugin_path()
+    if a.dir and not a.install:
+        raise UserError("--dir names where --install copies the dissector: give --install too")
     if a.install:
         dest_dir = Path(a.dir) if a.dir else personal_plugins_dir()
         try:
