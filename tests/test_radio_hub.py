@@ -385,6 +385,37 @@ def test_run_forever_in_the_calling_thread(hubs):
     assert not t.is_alive()
 
 
+@pytest.mark.parametrize("run", [
+    lambda s: s.run_forever(), lambda s: s.run_for(1e300), lambda s: s.run_for(1e303),
+    lambda s: s.run_until(10 ** 400),
+], ids=["run_forever", "run_for-1e300", "run_for-1e303", "run_until-10**400"])
+def test_the_scheduler_waits_for_a_far_event_or_end_without_overflow(run):
+    """An event or an end beyond ``threading.TIMEOUT_MAX`` (a hub's drop at 1e300 s, a robot's
+    ``--duration 1e300``) killed the scheduler's loop with "OverflowError: timestamp out of
+    range for platform time_t" at its first wait. It waits in slices now and still runs what
+    other threads post, and stops when told."""
+    from firmware_model.timing import s_to_ticks
+    from hil.sim.realtime import RealTimeScheduler
+    sched = RealTimeScheduler()
+    sched.at(s_to_ticks(1e300), lambda: None)
+    failed: list[BaseException] = []
+    ran = threading.Event()
+
+    def loop():
+        try:
+            run(sched)
+        except BaseException as exc:          # noqa: BLE001 - the test reports it
+            failed.append(exc)
+
+    t = threading.Thread(target=loop)
+    t.start()
+    sched.post(ran.set)
+    assert ran.wait(10.0), failed
+    sched.stop()
+    t.join(10.0)
+    assert not t.is_alive() and not failed
+
+
 @pytest.mark.parametrize("kw, msg", [
     (dict(nodes=0), "nodes"), (dict(nodes=8), "nodes"), (dict(baud=0), "baud"),
     (dict(baud=-9600), "baud"), (dict(ber=1.0), "error rate"), (dict(ber=-0.1), "error rate"),
