@@ -420,6 +420,9 @@ def test_the_scheduler_waits_for_a_far_event_or_end_without_overflow(run):
     (dict(nodes=0), "nodes"), (dict(nodes=8), "nodes"), (dict(baud=0), "baud"),
     (dict(baud=-9600), "baud"), (dict(ber=1.0), "error rate"), (dict(ber=-0.1), "error rate"),
     (dict(drops=[(3, 0, 1)]), "drop node"), (dict(drops=[(0, 2, 1)]), "window"),
+    (dict(baud=1e9), "baud"), (dict(baud=16_000_001), "baud"), (dict(baud=0.5), "baud"),
+    (dict(baud=1e-300), "baud"), (dict(baud=float("nan")), "baud"),
+    (dict(drops=[(0, 0, 1e300)]), "window"), (dict(drops=[(0, 0, 10_000_001)]), "window"),
 ])
 def test_bad_arguments(kw, msg):
     args = dict(nodes=2, baud=9600, ber=0.0, drops=())
@@ -434,9 +437,61 @@ def test_bad_arguments(kw, msg):
 
 def test_parse_drop():
     assert parse_drop("2@5-8.5") == (2, 5.0, 8.5)
-    for bad in ("2@5", "x@1-2", "2-5", "9@1-2", "1@3-2"):
+    assert parse_drop("1@0-10000000") == (1, 0.0, 1e7)
+    for bad in ("2@5", "x@1-2", "2-5", "9@1-2", "1@3-2", "1@0-1e300", "1@0-10000001",
+                "1@0-inf", "1@nan-2"):
         with pytest.raises(ValueError):
             parse_drop(bad)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--baud", "1e9"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "3.3e8"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "1e-300"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "0"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "inf"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "fast"], "is not a number"),
+    (["--drop", "1@0-1e300"], "END <= 10000000"),
+    (["--fault", "noise@0-10000001"], "at most 10000000 s"),
+    (["--fault", "foreign@99999999:3"], "at most 10000000 s"),
+    (["--fault", "fail:1@10000000.5"], "at most 10000000 s"),
+    (["--fault", "noise@0-1" + "0" * 400], "too large to be finite"),
+])
+def test_cli_refuses_values_the_hub_cannot_play_when_it_parses_them(capsys, args, needle):
+    """``--baud 1e9`` (a byte of 0 ticks: ZeroDivisionError at the first byte), ``--baud
+    1e-300`` and ``--drop 1@0-1e300`` (OverflowError in the scheduler) were accepted and killed
+    the hub's air thread while the hub ran on. Now they are one line at parse time, status 2,
+    before any pty is made."""
+    from hil.cli import main
+    assert main(["radio-hub", "--nodes", "2", *args]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith("rprs: error: ") and err.count("\n") == 1
+    assert needle in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("baud", [16_000_000, 3.3e5])
+def test_the_fastest_air_carries_bytes(hubs, baud):
+    """At the fastest baud the hub accepts a byte lasts 10 ticks and reaches the other node."""
+    hub = hubs(2, baud=baud).start()
+    assert hub.byte_ticks == round(160_000_000 / baud) >= 10
+    fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
+    os.write(fd0, b"xyz" * 100)
+    assert read_n(fd1, 300, 5.0)[0] == b"xyz" * 100
+
+
+def test_the_latest_drop_and_fault_are_accepted_and_the_hub_runs(hubs):
+    """A drop window and a fault at the documented maximum (MAX_SECONDS) are scheduled
+    without overflow, and the air goes on carrying bytes."""
+    from hil.bench.radio_hub import MAX_SECONDS
+    from hil.sim.faults import parse_fault
+    hub = hubs(2, drops=[(1, MAX_SECONDS - 1, MAX_SECONDS)],
+               faults=[parse_fault(f"noise@{MAX_SECONDS - 1}-{MAX_SECONDS}"),
+                       parse_fault(f"foreign@{MAX_SECONDS}:3")]).start()
+    fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
+    os.write(fd0, b"xyz")
+    assert read_n(fd1, 3, 5.0)[0] == b"xyz"
+    os.write(fd1, b"abc")
+    assert read_n(fd0, 3, 5.0)[0] == b"abc"
 
 
 def test_cli_prints_paths_and_summary_on_signal(tmp_path):

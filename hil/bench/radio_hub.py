@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import errno
-import math
 import os
 import select
 import signal
@@ -60,6 +59,18 @@ MAX_BURST = 1024
 BACKLOG_LIMIT = 4096
 """Bytes a node may have waiting for the air before the hub stops reading its pty."""
 
+MIN_BAUD = 1
+"""Slowest air the hub plays: one bit a second, a byte in 10 s."""
+
+MAX_BAUD = TICK_HZ
+"""Fastest air, 16,000,000 baud: a bit lasts one tick of the 16 MHz time base, a byte 10 ticks.
+Faster, a byte's time rounds towards 0 ticks (at 1e9 baud a byte of 0 ticks made the Air's
+rate check divide by zero)."""
+
+MAX_SECONDS = 10_000_000
+"""Latest time, in seconds after the hub starts, of a ``--drop`` window or a ``--fault``
+(about 116 days): finite, and a whole number of ticks far from any float or timeout limit."""
+
 READ_SIZE = 4096
 POLL_S = 0.02
 """The reader thread re-checks backlogs and the stop flag at least this often."""
@@ -77,8 +88,9 @@ def check_args(nodes: int, baud: float, ber: float,
         raise ValueError(f"nodes must be an integer from 1 to {MAX_NODES} (robot IDs 0-6), "
                          f"got {nodes!r}")
     if isinstance(baud, bool) or not isinstance(baud, (int, float)) \
-            or not 0 < baud < math.inf:
-        raise ValueError(f"baud must be a positive number, got {baud!r}")
+            or not MIN_BAUD <= baud <= MAX_BAUD:
+        raise ValueError(f"baud must be a number from {MIN_BAUD} to {MAX_BAUD} (a bit lasts "
+                         f"from 1 s down to one 62.5 ns tick), got {baud!r}")
     if isinstance(ber, bool) or not isinstance(ber, (int, float)) or not 0.0 <= ber < 1.0:
         raise ValueError(f"byte error rate must be in [0, 1), got {ber!r}")
     for d in drops:
@@ -89,9 +101,35 @@ def check_args(nodes: int, baud: float, ber: float,
         if isinstance(node, bool) or not isinstance(node, int) or not 0 <= node < nodes:
             raise ValueError(f"drop node {node!r} is not one of the hub's nodes 0-{nodes - 1}")
         if not (isinstance(start, (int, float)) and isinstance(end, (int, float))
-                and 0 <= start < end < math.inf):
+                and 0 <= start < end <= MAX_SECONDS):
             raise ValueError(f"drop window {start!r}-{end!r} s of node {node} must satisfy "
-                             f"0 <= start < end (finite seconds)")
+                             f"0 <= start < end <= {MAX_SECONDS} (seconds)")
+
+
+def check_fault(f: Any, nodes: int = MAX_NODES) -> None:
+    """Raise ValueError (one line) for a fault (hil.sim.faults.Fault) the hub cannot play: not
+    an air fault, a node it does not have, or a time after ``MAX_SECONDS``."""
+    from ..sim.faults import AIR_KINDS
+    if f.kind not in AIR_KINDS:
+        raise ValueError(f"the radio hub takes air faults ({', '.join(AIR_KINDS)}), "
+                         f"not {f.spec()}")
+    if f.robot is not None and not 0 <= f.robot < nodes:
+        raise ValueError(f"fault {f.spec()}: the hub has nodes 0-{nodes - 1}")
+    if not f.end <= MAX_SECONDS:
+        raise ValueError(f"fault {f.spec()}: times must be at most {MAX_SECONDS} s after "
+                         f"the hub starts")
+
+
+def parse_baud(text: str) -> float:
+    """``--baud``: a number from MIN_BAUD to MAX_BAUD; ValueError (one line) if not."""
+    try:
+        baud = float(text)
+    except ValueError:
+        raise ValueError(f"baud {text!r} is not a number") from None
+    if not MIN_BAUD <= baud <= MAX_BAUD:
+        raise ValueError(f"baud must be a number from {MIN_BAUD} to {MAX_BAUD} (a bit lasts "
+                         f"from 1 s down to one 62.5 ns tick), got {text}")
+    return baud
 
 
 def parse_drop(text: str) -> tuple[int, float, float]:
@@ -106,8 +144,9 @@ def parse_drop(text: str) -> tuple[int, float, float]:
         raise ValueError(f"{text!r} is not ID@START-END, e.g. 2@5-8.5")
     if not 0 <= node < MAX_NODES:
         raise ValueError(f"node {node} in {text!r} is not 0-{MAX_NODES - 1}")
-    if not (0 <= s < e < math.inf):
-        raise ValueError(f"window in {text!r} must satisfy 0 <= START < END (seconds)")
+    if not (0 <= s < e <= MAX_SECONDS):
+        raise ValueError(f"window in {text!r} must satisfy 0 <= START < END <= {MAX_SECONDS} "
+                         f"(seconds)")
     return node, s, e
 
 
@@ -184,15 +223,10 @@ class RadioHub:
                  drops: Sequence[tuple[int, float, float]] = (),
                  faults: Sequence[Any] = ()) -> None:
         drops = [tuple(d) for d in drops]
-        from ..sim.faults import AIR_KINDS
-        for f in faults:
-            if f.kind not in AIR_KINDS:
-                raise ValueError(f"the radio hub takes air faults ({', '.join(AIR_KINDS)}), "
-                                 f"not {f.spec()}")
-            if f.robot is not None and not 0 <= f.robot < nodes:
-                raise ValueError(f"fault {f.spec()}: the hub has nodes 0-{nodes - 1}")
-        self.faults = list(faults)
         check_args(nodes, baud, ber, drops)
+        for f in faults:
+            check_fault(f, nodes)
+        self.faults = list(faults)
         self.nodes = nodes
         self.baud = baud
         self.ber = float(ber)
@@ -677,7 +711,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
             raise argparse.ArgumentTypeError(str(e)) from None
 
     p.add_argument("--nodes", type=int, default=4, help="number of ptys/robots, 1-7 (4)")
-    p.add_argument("--baud", type=float, default=9600, help="air bit rate, 8N1 (9600)")
+    def baud(text: str) -> float:
+        try:
+            return parse_baud(text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+
+    p.add_argument("--baud", type=baud, default=9600,
+                   help=f"air bit rate, 8N1, {MIN_BAUD}-{MAX_BAUD} (9600)")
     p.add_argument("--ber", type=float, default=0.0, help="byte error rate per receiver (0)")
     p.add_argument("--noise", action="store_true", help="idle nodes hear random bytes")
     p.add_argument("--seed", type=int, default=0, help="seed of every random stream (0)")
@@ -688,7 +729,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "streams it to stdout for a live view: | wireshark -k -i - (the node "
                    "paths then go to stderr)")
     p.add_argument("--drop", type=drop, action="append", default=[], metavar="ID@START-END",
-                   help="node ID's link is down from START to END s after start (repeatable)")
+                   help=f"node ID's link is down from START to END s after start, END at most "
+                   f"{MAX_SECONDS} (repeatable)")
 
     def fault(text: str):
         from ..sim.faults import AIR_KINDS, FaultError, parse_fault
@@ -698,6 +740,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
             raise argparse.ArgumentTypeError(str(e)) from None
         if f.kind not in AIR_KINDS:
             raise argparse.ArgumentTypeError(f"the hub takes air faults ({', '.join(AIR_KINDS)})")
+        try:
+            check_fault(f)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
         return f
     p.add_argument("--fault", type=fault, action="append", default=[], metavar="SPEC",
                    help="an air fault, as in rprs sim --fault: ber@T1-T2:P, noise@T1-T2, "
