@@ -385,6 +385,106 @@ def test_run_forever_in_the_calling_thread(hubs):
     assert not t.is_alive()
 
 
+def _threads_of(hub) -> list[threading.Thread]:
+    return [t for t in hub._threads if t.is_alive()]
+
+
+def test_a_failing_air_thread_stops_the_hub_and_says_why(hubs):
+    """A byte of 0 ticks (``--baud 1e9``, refused by the parser now) raised ZeroDivisionError
+    in the air thread: the thread died, the reader and the ptys lived on, and the hub looked
+    alive. Any exception in the air thread now stops the whole hub, keeps the exception and
+    says in one line what and where."""
+    hub = hubs(2)
+    hub.byte_ticks = 0                        # what round(1.6e8 / 1e9) gave
+    hub.start()
+    fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
+    os.write(fd0, b"x")
+    assert hub.wait(10.0)
+    assert isinstance(hub.error, ZeroDivisionError)
+    line = hub.failure()
+    assert "\n" not in line and line.startswith("the radio hub stopped: its air thread failed")
+    assert "ZeroDivisionError" in line and "firmware_model/mcu/uart.py" in line
+    assert "rates_agree" in line
+    hub.stop()
+    assert not _threads_of(hub)
+    assert hub.stats()["bytes_in"] == 1
+    assert read_for(fd1, 0.1) == b""
+
+
+def test_a_failing_reader_thread_stops_the_hub(hubs, monkeypatch):
+    """The reader returned silently on an unexpected OSError, leaving the air running with
+    nobody reading the ptys. Now that stops the hub too."""
+    import errno as errno_
+    import types
+
+    from hil.bench import radio_hub
+
+    def bad_select(*args):
+        raise OSError(errno_.EBADF, "Bad file descriptor")
+
+    monkeypatch.setattr(radio_hub, "select", types.SimpleNamespace(select=bad_select))
+    hub = hubs(2).start()
+    assert hub.wait(10.0)
+    assert isinstance(hub.error, OSError)
+    assert "its reader thread failed with OSError" in hub.failure()
+    hub.stop()
+    assert not _threads_of(hub)
+
+
+def test_run_forever_raises_what_stopped_the_hub(hubs):
+    from hil.bench.radio_hub import HubError
+    hub = hubs(2)
+    hub.byte_ticks = 0
+    raised: list[BaseException] = []
+
+    def run():
+        try:
+            hub.run_forever()
+        except BaseException as exc:           # noqa: BLE001 - the test looks at it
+            raised.append(exc)
+
+    t = threading.Thread(target=run)
+    t.start()
+    while not hub.paths or hub.sched is None:
+        time.sleep(0.01)
+    fd0 = open_node(hubs, hub.paths[0])
+    os.write(fd0, b"x")
+    t.join(10.0)
+    assert not t.is_alive()
+    assert len(raised) == 1 and isinstance(raised[0], HubError)
+    assert isinstance(raised[0].__cause__, ZeroDivisionError)
+    assert str(raised[0]) == hub.failure()
+
+
+def test_cli_hub_whose_air_thread_fails_exits_by_itself_in_one_line():
+    """``rprs radio-hub --baud 1e9`` and a byte written: the air thread died of
+    ZeroDivisionError, the hub ran on with a dead channel and exited 0 on Ctrl-C. With the
+    same failure forced (the parser now refuses that baud), the hub stops at once, prints its
+    summary and one line ``rprs: error: ...``, status 2, no traceback."""
+    code = ("import sys; import hil.bench.radio_hub as h; h.byte_ticks_for = lambda baud: 0; "
+            "from hil.cli import main; sys.exit(main(['radio-hub', '--nodes', '2']))")
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    fd = -1
+    try:
+        paths = [p.stdout.readline().split()[2] for _ in range(2)]
+        fd = os.open(paths[0], os.O_RDWR | os.O_NOCTTY)
+        os.write(fd, b"x")
+        out, err = p.communicate(timeout=30)   # no signal: it ends by itself
+    finally:
+        if fd >= 0:
+            os.close(fd)
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 2, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("rprs: error: the radio hub stopped: its air thread failed with "
+                          "ZeroDivisionError")
+    assert "rates_agree" in err
+    assert out.strip().splitlines()[-1].startswith("radio-hub: ")
+
+
 @pytest.mark.parametrize("run", [
     lambda s: s.run_forever(), lambda s: s.run_for(1e300), lambda s: s.run_for(1e303),
     lambda s: s.run_until(10 ** 400),

@@ -23,10 +23,12 @@ The hub models no radio switching time and no deafness: every robot process runs
 PTR2000 model (TXEN, Ttrans) and ignores what it could not have heard.
 
 Threads: a reader thread ``select``s over the masters and ``post``s (node, bytes) into the
-scheduler, whose thread owns all air state. Writes to masters are non-blocking: bytes a slow
-reader has no room for are dropped and counted. A node writing faster than the air carries
-stops being read once ``BACKLOG_LIMIT`` bytes wait, so its writer blocks as on a real serial
-port instead of the hub buffering without bound.
+scheduler, whose thread owns all air state. An exception in either thread stops the whole hub
+(``error``, ``failure()``; ``run_forever`` raises :class:`HubError`, the command exits with one
+line): a hub whose air or reader died must not go on looking alive. Writes to masters are
+non-blocking: bytes a slow reader has no room for are dropped and counted. A node writing
+faster than the air carries stops being read once ``BACKLOG_LIMIT`` bytes wait, so its writer
+blocks as on a real serial port instead of the hub buffering without bound.
 
 Over 500 lines on purpose: the hub's pty I/O, its timing against the Air model and its command-
 line arguments are one program, run as one process.
@@ -150,6 +152,28 @@ def parse_drop(text: str) -> tuple[int, float, float]:
     return node, s, e
 
 
+class HubError(RuntimeError):
+    """The hub stopped because one of its threads failed (one line, ``RadioHub.failure()``);
+    the exception itself is ``RadioHub.error`` and this error's ``__cause__``."""
+
+
+def _where(exc: BaseException) -> str:
+    """``path:line in function`` of the function that raised ``exc``, a generator expression
+    or comprehension named by the function it is in (paths relative to the checkout when
+    inside it)."""
+    import traceback
+    frames = traceback.extract_tb(exc.__traceback__)
+    if not frames:
+        return "an unknown place"
+    inner = ("<genexpr>", "<listcomp>", "<dictcomp>", "<setcomp>")
+    fr = next((f for f in reversed(frames) if f.name not in inner), frames[-1])
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    path = os.path.abspath(fr.filename)
+    if path.startswith(root + os.sep):
+        path = os.path.relpath(path, root)
+    return f"{path}:{fr.lineno} in {fr.name}"
+
+
 class _Uart:
     __slots__ = ("byte_ticks",)
 
@@ -263,6 +287,9 @@ class RadioHub:
         self._t_start = 0.0
         self.pcap: Any = None
         self.capture_error: str | None = None
+        self.error: BaseException | None = None
+        """The exception that stopped the hub from one of its threads, or None."""
+        self._error_thread = ""
         self._cap: list[tuple[int, bytearray, set[str]] | None] = [None] * nodes
         try:
             for _ in range(nodes):
@@ -371,16 +398,45 @@ class RadioHub:
 
     def run_forever(self) -> None:
         """Run the hub in the calling thread until ``stop()`` (from another thread or a
-        signal handler)."""
+        signal handler). Raises HubError if one of its threads failed."""
         self._setup()
         try:
             self._run_sched()
         finally:
             self.stop()
+        if self.error is not None:
+            raise HubError(self.failure()) from self.error
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait until the hub stops (``stop()``, or a thread that failed: see ``error``);
+        True if it has."""
+        return self._stopping.wait(timeout)
+
+    def failure(self) -> str | None:
+        """One line for the exception that stopped the hub, or None if none did."""
+        exc = self.error
+        if exc is None:
+            return None
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        return (f"the radio hub stopped: its {self._error_thread} thread failed with "
+                f"{type(exc).__name__}{': ' + text if text else ''} (at {_where(exc)})")
+
+    def _fail(self, exc: BaseException, thread: str) -> None:
+        """A thread of the hub raised ``exc``: keep the first such exception and stop the
+        hub (from that thread: it does not join itself)."""
+        with self._lock:
+            if self.error is None:
+                self.error, self._error_thread = exc, thread
+        self._stopping.set()
+        if self.sched is not None:
+            self.sched.stop()
+        self._wake()
 
     def _run_sched(self) -> None:
         try:
             self.sched.run_forever()
+        except Exception as exc:            # noqa: BLE001 - any bug stops the hub, loudly
+            self._fail(exc, "air")
         finally:
             self._stopping.set()
             self._wake()
@@ -425,6 +481,12 @@ class RadioHub:
     # -- the reader thread ----------------------------------------------------------------
 
     def _reader(self) -> None:
+        try:
+            self._read_loop()
+        except Exception as exc:            # noqa: BLE001 - any bug stops the hub, loudly
+            self._fail(exc, "reader")
+
+    def _read_loop(self) -> None:
         masters = list(self.masters)
         wake = self._wake_r
         sched = self.sched
@@ -434,7 +496,9 @@ class RadioHub:
             try:
                 ready, _, _ = select.select(fds + [wake], [], [], POLL_S)
             except (OSError, ValueError):
-                return
+                if self._stopping.is_set():
+                    return                 # the fds were closed under us: the hub stops
+                raise
             if wake in ready:
                 try:
                     os.read(wake, 64)
@@ -453,7 +517,9 @@ class RadioHub:
                 except OSError as e:
                     if e.errno == errno.EIO:   # no slave open (cannot happen: we hold one)
                         continue
-                    return
+                    if self._stopping.is_set():
+                        return
+                    raise
                 if data:
                     with self._lock:
                         self._backlog[i] += len(data)
@@ -650,7 +716,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
                 drops: Sequence[tuple[int, float, float]] = (),
                 faults: Sequence[Any] = (), pcap: str | None = None) -> int:
     """The ``rprs radio-hub`` command: print the node paths, run until SIGINT/SIGTERM, print a
-    summary. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
+    summary; HubError (one line) after the summary if a thread of the hub failed and stopped
+    it. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
     packet (``| wireshark -k -i -``; the paths and the summary then go to stderr). Bad
     arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])
@@ -686,8 +753,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
                 print(line, file=out)
             out.flush()
             hub.start()
-            while not done.wait(0.5):
-                pass
+            while not done.is_set() and not hub.wait(0.2):
+                pass                   # a signal, or a thread of the hub that failed
         finally:
             hub.close()
             for s, h in old.items():
@@ -699,6 +766,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
         print(f"radio-hub: {hub.capture_error}", file=sys.stderr)
     print(summary_line(hub.stats()), file=out)
     out.flush()
+    if hub.error is not None:
+        raise HubError(hub.failure()) from hub.error
     return 0
 
 
