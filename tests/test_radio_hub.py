@@ -682,6 +682,9 @@ def test_inject_writes_exact_bytes_after_at_seconds(capsys):
     (["--radio", "/dev/null", "--random", "0"], "whole number of bytes"),
     (["--radio", "/dev/null", "--random", "x"], "invalid int"),
     (["--radio", "/dev/null", "--hex", "00", "--at", "-1"], "seconds >= 0"),
+    (["--radio", "/dev/null", "--hex", "00", "--at", "1e300"], "at most 10000000 seconds"),
+    (["--radio", "/dev/null", "--hex", "00", "--at", "inf"], "seconds >= 0"),
+    (["--radio", "/dev/null", "--random", "65537"], "1-65536"),
     (["--radio", "/dev/null", "--hex", "00", "--random", "3"], "not allowed with"),
     (["--radio", "/dev/null"], "one of the arguments --hex --random is required"),
 ])
@@ -698,6 +701,85 @@ def test_inject_process_bad_port_is_one_line_status_2():
                         "--hex", "00"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
     assert r.stderr.startswith("rprs: error: serial port /nonexistent does not exist")
+
+
+def test_inject_large_hex_waits_for_a_slow_port_instead_of_timing_out(capsys):
+    """The port was opened with a 2 s write timeout: a payload that takes the port longer
+    than 2 s to accept (beyond its ~20 KB of buffer) failed with "Write timeout" after part of
+    it was written. The reader of the pty here takes 10 KB/s, so the 60000 bytes need about
+    4 s; a slower reader (a busy machine) only makes it take longer, nothing is dropped."""
+    import random as random_
+
+    from hil.cli import main
+    data = random_.Random(11).randbytes(60_000)
+    master, slave = os.openpty()
+    got = bytearray()
+    stop = threading.Event()
+
+    def slow_reader():
+        while not stop.is_set() and len(got) < len(data):
+            r, _, _ = select.select([master], [], [], 0.1)
+            if r:
+                got.extend(os.read(master, 1024))
+                time.sleep(0.1)
+
+    t = threading.Thread(target=slow_reader)
+    t.start()
+    try:
+        code = main(["inject", "--radio", os.ttyname(slave), "--hex", data.hex()])
+        out, err = capsys.readouterr()
+        assert code == 0, err
+        assert out.startswith(f"wrote {len(data)} bytes to ")
+        t.join(60.0)
+        assert bytes(got) == data
+    finally:
+        stop.set()
+        t.join(10.0)
+        os.close(master)
+        os.close(slave)
+
+
+def test_inject_65536_random_bytes_through_a_hub_process_all_arrive():
+    """``rprs inject --random N`` failed above about 14,000 bytes into a hub at 9600 baud
+    ("Write timeout", part of the data already on air) although 1-65536 is documented. At
+    64000 baud (6400 bytes/s: about 10 s, four times the old 2 s timeout beyond what the pty
+    and the hub's backlog buffer) every byte goes on air and reaches the other node, read
+    with pyserial, in order."""
+    from hil.sim.faults import foreign_bytes, parse_fault
+    want = foreign_bytes(parse_fault("foreign@0:65536"), 5)
+    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                            "--baud", "64000"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    rx = inj = None
+    try:
+        paths = [hub.stdout.readline().split()[2] for _ in range(2)]
+        rx = serial.Serial(paths[1], timeout=0.5)
+        inj = subprocess.Popen([sys.executable, "-m", "hil.cli", "inject", "--radio", paths[0],
+                                "--random", "65536", "--seed", "5"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        got = bytearray()
+        deadline = time.monotonic() + 120.0
+        while len(got) < len(want) and time.monotonic() < deadline \
+                and inj.poll() in (None, 0):
+            got += rx.read(len(want) - len(got))
+        out, err = inj.communicate(timeout=60)
+        assert inj.returncode == 0, err
+        assert out.startswith("wrote 65536 bytes to ")
+        assert len(got) == len(want) and bytes(got) == want
+        rx.timeout = 0.2
+        assert rx.read(1) == b""
+        hub.send_signal(signal.SIGTERM)
+        hub_out, hub_err = hub.communicate(timeout=20)
+    finally:
+        if rx is not None:
+            rx.close()
+        for proc in (inj, hub):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert hub.returncode == 0, hub_err
+    summary = hub_out.strip().splitlines()[-1]
+    assert "65536 bytes in, 65536 bytes out" in summary and "0 dropped" in summary
 
 
 def test_inject_and_foreign_fault_against_a_radio_hub_process():
