@@ -77,6 +77,8 @@ def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
     (["plot", "/nonexistent/trace.jsonl", "-o", "/tmp/x.png"], "cannot read trace"),
     (["sim", "--fault", "ber@5-2:0.1"], "empty"),
     (["sim", "--fault", "stall:1.PAW@3"], "cannot stall"),
+    (["sim", "--fault", "noise@1-1" + "0" * 400], "too large to be finite"),
+    (["sim", "--fault", "fail:1@1" + "0" * 400], "too large to be finite"),
     (["soak", "--hours", "-1"], "positive"),
     (["child", "--id", "7", "--radio", "x"], "child ID must be 1-6"),
     (["bogus"], "invalid choice"),

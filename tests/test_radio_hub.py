@@ -385,10 +385,144 @@ def test_run_forever_in_the_calling_thread(hubs):
     assert not t.is_alive()
 
 
+def _threads_of(hub) -> list[threading.Thread]:
+    return [t for t in hub._threads if t.is_alive()]
+
+
+def test_a_failing_air_thread_stops_the_hub_and_says_why(hubs):
+    """A byte of 0 ticks (``--baud 1e9``, refused by the parser now) raised ZeroDivisionError
+    in the air thread: the thread died, the reader and the ptys lived on, and the hub looked
+    alive. Any exception in the air thread now stops the whole hub, keeps the exception and
+    says in one line what and where."""
+    hub = hubs(2)
+    hub.byte_ticks = 0                        # what round(1.6e8 / 1e9) gave
+    hub.start()
+    fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
+    os.write(fd0, b"x")
+    assert hub.wait(10.0)
+    assert isinstance(hub.error, ZeroDivisionError)
+    line = hub.failure()
+    assert "\n" not in line and line.startswith("the radio hub stopped: its air thread failed")
+    assert "ZeroDivisionError" in line and "firmware_model/mcu/uart.py" in line
+    assert "rates_agree" in line
+    hub.stop()
+    assert not _threads_of(hub)
+    assert hub.stats()["bytes_in"] == 1
+    assert read_for(fd1, 0.1) == b""
+
+
+def test_a_failing_reader_thread_stops_the_hub(hubs, monkeypatch):
+    """The reader returned silently on an unexpected OSError, leaving the air running with
+    nobody reading the ptys. Now that stops the hub too."""
+    import errno as errno_
+    import types
+
+    from hil.bench import radio_hub
+
+    def bad_select(*args):
+        raise OSError(errno_.EBADF, "Bad file descriptor")
+
+    monkeypatch.setattr(radio_hub, "select", types.SimpleNamespace(select=bad_select))
+    hub = hubs(2).start()
+    assert hub.wait(10.0)
+    assert isinstance(hub.error, OSError)
+    assert "its reader thread failed with OSError" in hub.failure()
+    hub.stop()
+    assert not _threads_of(hub)
+
+
+def test_run_forever_raises_what_stopped_the_hub(hubs):
+    from hil.bench.radio_hub import HubError
+    hub = hubs(2)
+    hub.byte_ticks = 0
+    raised: list[BaseException] = []
+
+    def run():
+        try:
+            hub.run_forever()
+        except BaseException as exc:           # noqa: BLE001 - the test looks at it
+            raised.append(exc)
+
+    t = threading.Thread(target=run)
+    t.start()
+    while not hub.paths or hub.sched is None:
+        time.sleep(0.01)
+    fd0 = open_node(hubs, hub.paths[0])
+    os.write(fd0, b"x")
+    t.join(10.0)
+    assert not t.is_alive()
+    assert len(raised) == 1 and isinstance(raised[0], HubError)
+    assert isinstance(raised[0].__cause__, ZeroDivisionError)
+    assert str(raised[0]) == hub.failure()
+
+
+def test_cli_hub_whose_air_thread_fails_exits_by_itself_in_one_line():
+    """``rprs radio-hub --baud 1e9`` and a byte written: the air thread died of
+    ZeroDivisionError, the hub ran on with a dead channel and exited 0 on Ctrl-C. With the
+    same failure forced (the parser now refuses that baud), the hub stops at once, prints its
+    summary and one line ``rprs: error: ...``, status 2, no traceback."""
+    code = ("import sys; import hil.bench.radio_hub as h; h.byte_ticks_for = lambda baud: 0; "
+            "from hil.cli import main; sys.exit(main(['radio-hub', '--nodes', '2']))")
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    fd = -1
+    try:
+        paths = [p.stdout.readline().split()[2] for _ in range(2)]
+        fd = os.open(paths[0], os.O_RDWR | os.O_NOCTTY)
+        os.write(fd, b"x")
+        out, err = p.communicate(timeout=30)   # no signal: it ends by itself
+    finally:
+        if fd >= 0:
+            os.close(fd)
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 2, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("rprs: error: the radio hub stopped: its air thread failed with "
+                          "ZeroDivisionError")
+    assert "rates_agree" in err
+    assert out.strip().splitlines()[-1].startswith("radio-hub: ")
+
+
+@pytest.mark.parametrize("run", [
+    lambda s: s.run_forever(), lambda s: s.run_for(1e300), lambda s: s.run_for(1e303),
+    lambda s: s.run_until(10 ** 400),
+], ids=["run_forever", "run_for-1e300", "run_for-1e303", "run_until-10**400"])
+def test_the_scheduler_waits_for_a_far_event_or_end_without_overflow(run):
+    """An event or an end beyond ``threading.TIMEOUT_MAX`` (a hub's drop at 1e300 s, a robot's
+    ``--duration 1e300``) killed the scheduler's loop with "OverflowError: timestamp out of
+    range for platform time_t" at its first wait. It waits in slices now and still runs what
+    other threads post, and stops when told."""
+    from firmware_model.timing import s_to_ticks
+    from hil.sim.realtime import RealTimeScheduler
+    sched = RealTimeScheduler()
+    sched.at(s_to_ticks(1e300), lambda: None)
+    failed: list[BaseException] = []
+    ran = threading.Event()
+
+    def loop():
+        try:
+            run(sched)
+        except BaseException as exc:          # noqa: BLE001 - the test reports it
+            failed.append(exc)
+
+    t = threading.Thread(target=loop)
+    t.start()
+    sched.post(ran.set)
+    assert ran.wait(10.0), failed
+    sched.stop()
+    t.join(10.0)
+    assert not t.is_alive() and not failed
+
+
 @pytest.mark.parametrize("kw, msg", [
     (dict(nodes=0), "nodes"), (dict(nodes=8), "nodes"), (dict(baud=0), "baud"),
     (dict(baud=-9600), "baud"), (dict(ber=1.0), "error rate"), (dict(ber=-0.1), "error rate"),
     (dict(drops=[(3, 0, 1)]), "drop node"), (dict(drops=[(0, 2, 1)]), "window"),
+    (dict(baud=1e9), "baud"), (dict(baud=16_000_001), "baud"), (dict(baud=0.5), "baud"),
+    (dict(baud=1e-300), "baud"), (dict(baud=float("nan")), "baud"),
+    (dict(drops=[(0, 0, 1e300)]), "window"), (dict(drops=[(0, 0, 10_000_001)]), "window"),
 ])
 def test_bad_arguments(kw, msg):
     args = dict(nodes=2, baud=9600, ber=0.0, drops=())
@@ -403,9 +537,61 @@ def test_bad_arguments(kw, msg):
 
 def test_parse_drop():
     assert parse_drop("2@5-8.5") == (2, 5.0, 8.5)
-    for bad in ("2@5", "x@1-2", "2-5", "9@1-2", "1@3-2"):
+    assert parse_drop("1@0-10000000") == (1, 0.0, 1e7)
+    for bad in ("2@5", "x@1-2", "2-5", "9@1-2", "1@3-2", "1@0-1e300", "1@0-10000001",
+                "1@0-inf", "1@nan-2"):
         with pytest.raises(ValueError):
             parse_drop(bad)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--baud", "1e9"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "3.3e8"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "1e-300"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "0"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "inf"], "baud must be a number from 1 to 16000000"),
+    (["--baud", "fast"], "is not a number"),
+    (["--drop", "1@0-1e300"], "END <= 10000000"),
+    (["--fault", "noise@0-10000001"], "at most 10000000 s"),
+    (["--fault", "foreign@99999999:3"], "at most 10000000 s"),
+    (["--fault", "fail:1@10000000.5"], "at most 10000000 s"),
+    (["--fault", "noise@0-1" + "0" * 400], "too large to be finite"),
+])
+def test_cli_refuses_values_the_hub_cannot_play_when_it_parses_them(capsys, args, needle):
+    """``--baud 1e9`` (a byte of 0 ticks: ZeroDivisionError at the first byte), ``--baud
+    1e-300`` and ``--drop 1@0-1e300`` (OverflowError in the scheduler) were accepted and killed
+    the hub's air thread while the hub ran on. Now they are one line at parse time, status 2,
+    before any pty is made."""
+    from hil.cli import main
+    assert main(["radio-hub", "--nodes", "2", *args]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith("rprs: error: ") and err.count("\n") == 1
+    assert needle in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("baud", [16_000_000, 3.3e5])
+def test_the_fastest_air_carries_bytes(hubs, baud):
+    """At the fastest baud the hub accepts a byte lasts 10 ticks and reaches the other node."""
+    hub = hubs(2, baud=baud).start()
+    assert hub.byte_ticks == round(160_000_000 / baud) >= 10
+    fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
+    os.write(fd0, b"xyz" * 100)
+    assert read_n(fd1, 300, 5.0)[0] == b"xyz" * 100
+
+
+def test_the_latest_drop_and_fault_are_accepted_and_the_hub_runs(hubs):
+    """A drop window and a fault at the documented maximum (MAX_SECONDS) are scheduled
+    without overflow, and the air goes on carrying bytes."""
+    from hil.bench.radio_hub import MAX_SECONDS
+    from hil.sim.faults import parse_fault
+    hub = hubs(2, drops=[(1, MAX_SECONDS - 1, MAX_SECONDS)],
+               faults=[parse_fault(f"noise@{MAX_SECONDS - 1}-{MAX_SECONDS}"),
+                       parse_fault(f"foreign@{MAX_SECONDS}:3")]).start()
+    fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
+    os.write(fd0, b"xyz")
+    assert read_n(fd1, 3, 5.0)[0] == b"xyz"
+    os.write(fd1, b"abc")
+    assert read_n(fd0, 3, 5.0)[0] == b"abc"
 
 
 def test_cli_prints_paths_and_summary_on_signal(tmp_path):
@@ -496,6 +682,9 @@ def test_inject_writes_exact_bytes_after_at_seconds(capsys):
     (["--radio", "/dev/null", "--random", "0"], "whole number of bytes"),
     (["--radio", "/dev/null", "--random", "x"], "invalid int"),
     (["--radio", "/dev/null", "--hex", "00", "--at", "-1"], "seconds >= 0"),
+    (["--radio", "/dev/null", "--hex", "00", "--at", "1e300"], "at most 10000000 seconds"),
+    (["--radio", "/dev/null", "--hex", "00", "--at", "inf"], "seconds >= 0"),
+    (["--radio", "/dev/null", "--random", "65537"], "1-65536"),
     (["--radio", "/dev/null", "--hex", "00", "--random", "3"], "not allowed with"),
     (["--radio", "/dev/null"], "one of the arguments --hex --random is required"),
 ])
@@ -512,6 +701,85 @@ def test_inject_process_bad_port_is_one_line_status_2():
                         "--hex", "00"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
     assert r.stderr.startswith("rprs: error: serial port /nonexistent does not exist")
+
+
+def test_inject_large_hex_waits_for_a_slow_port_instead_of_timing_out(capsys):
+    """The port was opened with a 2 s write timeout: a payload that takes the port longer
+    than 2 s to accept (beyond its ~20 KB of buffer) failed with "Write timeout" after part of
+    it was written. The reader of the pty here takes 10 KB/s, so the 60000 bytes need about
+    4 s; a slower reader (a busy machine) only makes it take longer, nothing is dropped."""
+    import random as random_
+
+    from hil.cli import main
+    data = random_.Random(11).randbytes(60_000)
+    master, slave = os.openpty()
+    got = bytearray()
+    stop = threading.Event()
+
+    def slow_reader():
+        while not stop.is_set() and len(got) < len(data):
+            r, _, _ = select.select([master], [], [], 0.1)
+            if r:
+                got.extend(os.read(master, 1024))
+                time.sleep(0.1)
+
+    t = threading.Thread(target=slow_reader)
+    t.start()
+    try:
+        code = main(["inject", "--radio", os.ttyname(slave), "--hex", data.hex()])
+        out, err = capsys.readouterr()
+        assert code == 0, err
+        assert out.startswith(f"wrote {len(data)} bytes to ")
+        t.join(60.0)
+        assert bytes(got) == data
+    finally:
+        stop.set()
+        t.join(10.0)
+        os.close(master)
+        os.close(slave)
+
+
+def test_inject_65536_random_bytes_through_a_hub_process_all_arrive():
+    """``rprs inject --random N`` failed above about 14,000 bytes into a hub at 9600 baud
+    ("Write timeout", part of the data already on air) although 1-65536 is documented. At
+    64000 baud (6400 bytes/s: about 10 s, four times the old 2 s timeout beyond what the pty
+    and the hub's backlog buffer) every byte goes on air and reaches the other node, read
+    with pyserial, in order."""
+    from hil.sim.faults import foreign_bytes, parse_fault
+    want = foreign_bytes(parse_fault("foreign@0:65536"), 5)
+    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                            "--baud", "64000"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    rx = inj = None
+    try:
+        paths = [hub.stdout.readline().split()[2] for _ in range(2)]
+        rx = serial.Serial(paths[1], timeout=0.5)
+        inj = subprocess.Popen([sys.executable, "-m", "hil.cli", "inject", "--radio", paths[0],
+                                "--random", "65536", "--seed", "5"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        got = bytearray()
+        deadline = time.monotonic() + 120.0
+        while len(got) < len(want) and time.monotonic() < deadline \
+                and inj.poll() in (None, 0):
+            got += rx.read(len(want) - len(got))
+        out, err = inj.communicate(timeout=60)
+        assert inj.returncode == 0, err
+        assert out.startswith("wrote 65536 bytes to ")
+        assert len(got) == len(want) and bytes(got) == want
+        rx.timeout = 0.2
+        assert rx.read(1) == b""
+        hub.send_signal(signal.SIGTERM)
+        hub_out, hub_err = hub.communicate(timeout=20)
+    finally:
+        if rx is not None:
+            rx.close()
+        for proc in (inj, hub):
+            if proc is not None and proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert hub.returncode == 0, hub_err
+    summary = hub_out.strip().splitlines()[-1]
+    assert "65536 bytes in, 65536 bytes out" in summary and "0 dropped" in summary
 
 
 def test_inject_and_foreign_fault_against_a_radio_hub_process():

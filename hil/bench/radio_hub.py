@@ -23,10 +23,12 @@ The hub models no radio switching time and no deafness: every robot process runs
 PTR2000 model (TXEN, Ttrans) and ignores what it could not have heard.
 
 Threads: a reader thread ``select``s over the masters and ``post``s (node, bytes) into the
-scheduler, whose thread owns all air state. Writes to masters are non-blocking: bytes a slow
-reader has no room for are dropped and counted. A node writing faster than the air carries
-stops being read once ``BACKLOG_LIMIT`` bytes wait, so its writer blocks as on a real serial
-port instead of the hub buffering without bound.
+scheduler, whose thread owns all air state. An exception in either thread stops the whole hub
+(``error``, ``failure()``; ``run_forever`` raises :class:`HubError`, the command exits with one
+line): a hub whose air or reader died must not go on looking alive. Writes to masters are
+non-blocking: bytes a slow reader has no room for are dropped and counted. A node writing
+faster than the air carries stops being read once ``BACKLOG_LIMIT`` bytes wait, so its writer
+blocks as on a real serial port instead of the hub buffering without bound.
 
 Over 500 lines on purpose: the hub's pty I/O, its timing against the Air model and its command-
 line arguments are one program, run as one process.
@@ -35,7 +37,6 @@ from __future__ import annotations
 
 import argparse
 import errno
-import math
 import os
 import select
 import signal
@@ -60,6 +61,18 @@ MAX_BURST = 1024
 BACKLOG_LIMIT = 4096
 """Bytes a node may have waiting for the air before the hub stops reading its pty."""
 
+MIN_BAUD = 1
+"""Slowest air the hub plays: one bit a second, a byte in 10 s."""
+
+MAX_BAUD = TICK_HZ
+"""Fastest air, 16,000,000 baud: a bit lasts one tick of the 16 MHz time base, a byte 10 ticks.
+Faster, a byte's time rounds towards 0 ticks (at 1e9 baud a byte of 0 ticks made the Air's
+rate check divide by zero)."""
+
+MAX_SECONDS = 10_000_000
+"""Latest time, in seconds after the hub starts, of a ``--drop`` window or a ``--fault``
+(about 116 days): finite, and a whole number of ticks far from any float or timeout limit."""
+
 READ_SIZE = 4096
 POLL_S = 0.02
 """The reader thread re-checks backlogs and the stop flag at least this often."""
@@ -77,8 +90,9 @@ def check_args(nodes: int, baud: float, ber: float,
         raise ValueError(f"nodes must be an integer from 1 to {MAX_NODES} (robot IDs 0-6), "
                          f"got {nodes!r}")
     if isinstance(baud, bool) or not isinstance(baud, (int, float)) \
-            or not 0 < baud < math.inf:
-        raise ValueError(f"baud must be a positive number, got {baud!r}")
+            or not MIN_BAUD <= baud <= MAX_BAUD:
+        raise ValueError(f"baud must be a number from {MIN_BAUD} to {MAX_BAUD} (a bit lasts "
+                         f"from 1 s down to one 62.5 ns tick), got {baud!r}")
     if isinstance(ber, bool) or not isinstance(ber, (int, float)) or not 0.0 <= ber < 1.0:
         raise ValueError(f"byte error rate must be in [0, 1), got {ber!r}")
     for d in drops:
@@ -89,9 +103,35 @@ def check_args(nodes: int, baud: float, ber: float,
         if isinstance(node, bool) or not isinstance(node, int) or not 0 <= node < nodes:
             raise ValueError(f"drop node {node!r} is not one of the hub's nodes 0-{nodes - 1}")
         if not (isinstance(start, (int, float)) and isinstance(end, (int, float))
-                and 0 <= start < end < math.inf):
+                and 0 <= start < end <= MAX_SECONDS):
             raise ValueError(f"drop window {start!r}-{end!r} s of node {node} must satisfy "
-                             f"0 <= start < end (finite seconds)")
+                             f"0 <= start < end <= {MAX_SECONDS} (seconds)")
+
+
+def check_fault(f: Any, nodes: int = MAX_NODES) -> None:
+    """Raise ValueError (one line) for a fault (hil.sim.faults.Fault) the hub cannot play: not
+    an air fault, a node it does not have, or a time after ``MAX_SECONDS``."""
+    from ..sim.faults import AIR_KINDS
+    if f.kind not in AIR_KINDS:
+        raise ValueError(f"the radio hub takes air faults ({', '.join(AIR_KINDS)}), "
+                         f"not {f.spec()}")
+    if f.robot is not None and not 0 <= f.robot < nodes:
+        raise ValueError(f"fault {f.spec()}: the hub has nodes 0-{nodes - 1}")
+    if not f.end <= MAX_SECONDS:
+        raise ValueError(f"fault {f.spec()}: times must be at most {MAX_SECONDS} s after "
+                         f"the hub starts")
+
+
+def parse_baud(text: str) -> float:
+    """``--baud``: a number from MIN_BAUD to MAX_BAUD; ValueError (one line) if not."""
+    try:
+        baud = float(text)
+    except ValueError:
+        raise ValueError(f"baud {text!r} is not a number") from None
+    if not MIN_BAUD <= baud <= MAX_BAUD:
+        raise ValueError(f"baud must be a number from {MIN_BAUD} to {MAX_BAUD} (a bit lasts "
+                         f"from 1 s down to one 62.5 ns tick), got {text}")
+    return baud
 
 
 def parse_drop(text: str) -> tuple[int, float, float]:
@@ -106,9 +146,32 @@ def parse_drop(text: str) -> tuple[int, float, float]:
         raise ValueError(f"{text!r} is not ID@START-END, e.g. 2@5-8.5")
     if not 0 <= node < MAX_NODES:
         raise ValueError(f"node {node} in {text!r} is not 0-{MAX_NODES - 1}")
-    if not (0 <= s < e < math.inf):
-        raise ValueError(f"window in {text!r} must satisfy 0 <= START < END (seconds)")
+    if not (0 <= s < e <= MAX_SECONDS):
+        raise ValueError(f"window in {text!r} must satisfy 0 <= START < END <= {MAX_SECONDS} "
+                         f"(seconds)")
     return node, s, e
+
+
+class HubError(RuntimeError):
+    """The hub stopped because one of its threads failed (one line, ``RadioHub.failure()``);
+    the exception itself is ``RadioHub.error`` and this error's ``__cause__``."""
+
+
+def _where(exc: BaseException) -> str:
+    """``path:line in function`` of the function that raised ``exc``, a generator expression
+    or comprehension named by the function it is in (paths relative to the checkout when
+    inside it)."""
+    import traceback
+    frames = traceback.extract_tb(exc.__traceback__)
+    if not frames:
+        return "an unknown place"
+    inner = ("<genexpr>", "<listcomp>", "<dictcomp>", "<setcomp>")
+    fr = next((f for f in reversed(frames) if f.name not in inner), frames[-1])
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    path = os.path.abspath(fr.filename)
+    if path.startswith(root + os.sep):
+        path = os.path.relpath(path, root)
+    return f"{path}:{fr.lineno} in {fr.name}"
 
 
 class _Uart:
@@ -184,15 +247,10 @@ class RadioHub:
                  drops: Sequence[tuple[int, float, float]] = (),
                  faults: Sequence[Any] = ()) -> None:
         drops = [tuple(d) for d in drops]
-        from ..sim.faults import AIR_KINDS
-        for f in faults:
-            if f.kind not in AIR_KINDS:
-                raise ValueError(f"the radio hub takes air faults ({', '.join(AIR_KINDS)}), "
-                                 f"not {f.spec()}")
-            if f.robot is not None and not 0 <= f.robot < nodes:
-                raise ValueError(f"fault {f.spec()}: the hub has nodes 0-{nodes - 1}")
-        self.faults = list(faults)
         check_args(nodes, baud, ber, drops)
+        for f in faults:
+            check_fault(f, nodes)
+        self.faults = list(faults)
         self.nodes = nodes
         self.baud = baud
         self.ber = float(ber)
@@ -229,6 +287,9 @@ class RadioHub:
         self._t_start = 0.0
         self.pcap: Any = None
         self.capture_error: str | None = None
+        self.error: BaseException | None = None
+        """The exception that stopped the hub from one of its threads, or None."""
+        self._error_thread = ""
         self._cap: list[tuple[int, bytearray, set[str]] | None] = [None] * nodes
         try:
             for _ in range(nodes):
@@ -337,16 +398,45 @@ class RadioHub:
 
     def run_forever(self) -> None:
         """Run the hub in the calling thread until ``stop()`` (from another thread or a
-        signal handler)."""
+        signal handler). Raises HubError if one of its threads failed."""
         self._setup()
         try:
             self._run_sched()
         finally:
             self.stop()
+        if self.error is not None:
+            raise HubError(self.failure()) from self.error
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait until the hub stops (``stop()``, or a thread that failed: see ``error``);
+        True if it has."""
+        return self._stopping.wait(timeout)
+
+    def failure(self) -> str | None:
+        """One line for the exception that stopped the hub, or None if none did."""
+        exc = self.error
+        if exc is None:
+            return None
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        return (f"the radio hub stopped: its {self._error_thread} thread failed with "
+                f"{type(exc).__name__}{': ' + text if text else ''} (at {_where(exc)})")
+
+    def _fail(self, exc: BaseException, thread: str) -> None:
+        """A thread of the hub raised ``exc``: keep the first such exception and stop the
+        hub (from that thread: it does not join itself)."""
+        with self._lock:
+            if self.error is None:
+                self.error, self._error_thread = exc, thread
+        self._stopping.set()
+        if self.sched is not None:
+            self.sched.stop()
+        self._wake()
 
     def _run_sched(self) -> None:
         try:
             self.sched.run_forever()
+        except Exception as exc:            # noqa: BLE001 - any bug stops the hub, loudly
+            self._fail(exc, "air")
         finally:
             self._stopping.set()
             self._wake()
@@ -391,6 +481,12 @@ class RadioHub:
     # -- the reader thread ----------------------------------------------------------------
 
     def _reader(self) -> None:
+        try:
+            self._read_loop()
+        except Exception as exc:            # noqa: BLE001 - any bug stops the hub, loudly
+            self._fail(exc, "reader")
+
+    def _read_loop(self) -> None:
         masters = list(self.masters)
         wake = self._wake_r
         sched = self.sched
@@ -400,7 +496,9 @@ class RadioHub:
             try:
                 ready, _, _ = select.select(fds + [wake], [], [], POLL_S)
             except (OSError, ValueError):
-                return
+                if self._stopping.is_set():
+                    return                 # the fds were closed under us: the hub stops
+                raise
             if wake in ready:
                 try:
                     os.read(wake, 64)
@@ -419,7 +517,9 @@ class RadioHub:
                 except OSError as e:
                     if e.errno == errno.EIO:   # no slave open (cannot happen: we hold one)
                         continue
-                    return
+                    if self._stopping.is_set():
+                        return
+                    raise
                 if data:
                     with self._lock:
                         self._backlog[i] += len(data)
@@ -616,7 +716,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
                 drops: Sequence[tuple[int, float, float]] = (),
                 faults: Sequence[Any] = (), pcap: str | None = None) -> int:
     """The ``rprs radio-hub`` command: print the node paths, run until SIGINT/SIGTERM, print a
-    summary. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
+    summary; HubError (one line) after the summary if a thread of the hub failed and stopped
+    it. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
     packet (``| wireshark -k -i -``; the paths and the summary then go to stderr). Bad
     arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])
@@ -652,8 +753,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
                 print(line, file=out)
             out.flush()
             hub.start()
-            while not done.wait(0.5):
-                pass
+            while not done.is_set() and not hub.wait(0.2):
+                pass                   # a signal, or a thread of the hub that failed
         finally:
             hub.close()
             for s, h in old.items():
@@ -665,6 +766,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
         print(f"radio-hub: {hub.capture_error}", file=sys.stderr)
     print(summary_line(hub.stats()), file=out)
     out.flush()
+    if hub.error is not None:
+        raise HubError(hub.failure()) from hub.error
     return 0
 
 
@@ -677,7 +780,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
             raise argparse.ArgumentTypeError(str(e)) from None
 
     p.add_argument("--nodes", type=int, default=4, help="number of ptys/robots, 1-7 (4)")
-    p.add_argument("--baud", type=float, default=9600, help="air bit rate, 8N1 (9600)")
+    def baud(text: str) -> float:
+        try:
+            return parse_baud(text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+
+    p.add_argument("--baud", type=baud, default=9600,
+                   help=f"air bit rate, 8N1, {MIN_BAUD}-{MAX_BAUD} (9600)")
     p.add_argument("--ber", type=float, default=0.0, help="byte error rate per receiver (0)")
     p.add_argument("--noise", action="store_true", help="idle nodes hear random bytes")
     p.add_argument("--seed", type=int, default=0, help="seed of every random stream (0)")
@@ -688,7 +798,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "streams it to stdout for a live view: | wireshark -k -i - (the node "
                    "paths then go to stderr)")
     p.add_argument("--drop", type=drop, action="append", default=[], metavar="ID@START-END",
-                   help="node ID's link is down from START to END s after start (repeatable)")
+                   help=f"node ID's link is down from START to END s after start, END at most "
+                   f"{MAX_SECONDS} (repeatable)")
 
     def fault(text: str):
         from ..sim.faults import AIR_KINDS, FaultError, parse_fault
@@ -698,6 +809,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
             raise argparse.ArgumentTypeError(str(e)) from None
         if f.kind not in AIR_KINDS:
             raise argparse.ArgumentTypeError(f"the hub takes air faults ({', '.join(AIR_KINDS)})")
+        try:
+            check_fault(f)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
         return f
     p.add_argument("--fault", type=fault, action="append", default=[], metavar="SPEC",
                    help="an air fault, as in rprs sim --fault: ber@T1-T2:P, noise@T1-T2, "

@@ -6,10 +6,10 @@ import argparse
 from .common import UserError
 
 def cmd_radio_hub(a: argparse.Namespace) -> int:
-    from ..bench.radio_hub import main_radio_hub
+    from ..bench.radio_hub import HubError, main_radio_hub
     try:
         return main_radio_hub(a)
-    except ValueError as exc:
+    except (ValueError, HubError) as exc:
         raise UserError(str(exc)) from None
 
 

@@ -112,6 +112,9 @@ def parse_fault(text: str) -> Fault:
     at = float(m["at"]) if m["at"] is not None else None
     until = float(m["until"]) if m["until"] is not None else None
     value = float(m["value"]) if m["value"] is not None else None
+    if any(x == float("inf") for x in (at, until, value)):
+        raise FaultError(f"{text!r}: a number too large to be finite (times are seconds, "
+                         f"each mapped to a whole tick)")
     needs_robot = kind in ("fail", "recover", "steal", "skew", "busoff", "stuck", "silent",
                            "stall", "noisy")
     if needs_robot and robot is None:

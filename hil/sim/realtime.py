@@ -20,6 +20,12 @@ from firmware_model.timing import TICK_HZ
 
 _NS_PER_TICK_NUM = TICK_HZ          # ticks = ns * TICK_HZ / 1e9
 
+MAX_WAIT_S = 60.0
+"""Longest single wait for the next event or a post; the loop then looks again. An event or
+an end far in the future (a drop at 10**7 s, a ``--duration`` of 1e300 s) is still waited for,
+without asking the OS for a timeout it cannot represent (``threading.TIMEOUT_MAX``)."""
+_MAX_WAIT_TICKS = round(MAX_WAIT_S * TICK_HZ)
+
 
 class RealTimeScheduler(Scheduler):
     """Runs events at their wall-clock tick; ``post`` is the thread-safe way in."""
@@ -53,8 +59,13 @@ class RealTimeScheduler(Scheduler):
         return self._stop.is_set()
 
     def run_for(self, seconds: float) -> None:
-        """Run for ``seconds`` of wall-clock time (or until ``stop()``)."""
-        self._run((self.wall() if self._started else self.now) + round(seconds * TICK_HZ))
+        """Run for ``seconds`` of wall-clock time (or until ``stop()``); a span too long to
+        count in ticks (``inf``, 1e300 s) runs until ``stop()``."""
+        ticks = seconds * TICK_HZ
+        if ticks == float("inf"):
+            self._run(None)
+            return
+        self._run((self.wall() if self._started else self.now) + round(ticks))
 
     def run_forever(self) -> None:
         self._run(None)
@@ -88,16 +99,16 @@ class RealTimeScheduler(Scheduler):
                     self.late_events += 1
                 ev.fn(*ev.args)
             # then whatever other threads handed in
-            timeout = None
+            wait = _MAX_WAIT_TICKS          # whole ticks: no float of a far tick overflows
             nxt = self.next_time()
+            wall = self.wall()
             if nxt is not None:
-                timeout = max(0.0, (nxt - self.wall()) / TICK_HZ)
+                wait = min(wait, nxt - wall)
             if end is not None:
-                left = max(0.0, (end - self.wall()) / TICK_HZ)
-                timeout = left if timeout is None else min(timeout, left)
+                wait = min(wait, end - wall)
+            timeout = max(0, wait) / TICK_HZ
             try:
-                item = inbox.get(timeout=timeout) if timeout is None or timeout > 0 \
-                    else inbox.get_nowait()
+                item = inbox.get(timeout=timeout) if timeout > 0 else inbox.get_nowait()
             except queue.Empty:
                 continue
             while item is not None:
