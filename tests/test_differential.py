@@ -85,6 +85,9 @@ class _AirLog:
         self.frames: list[tuple[int, int, int]] = []
         self._deframers: dict[object, Deframer] = {}
 
+    def follow(self, clock):              # PcapWriter's: stamps stay ticks here
+        pass
+
     def radio(self, key, tick, data, comment=None):
         if key == "foreign":                   # the burst itself: no robot's frame
             return

@@ -151,6 +151,9 @@ class _Starts:
         self.bt = byte_ticks
         self.start: dict[object, int] = {}
 
+    def follow(self, clock):              # PcapWriter's: stamps stay ticks here
+        pass
+
     def radio(self, key, tick, data, comment=None):
         self.start.setdefault(key, (tick - len(data) * self.bt) // self.bt)
 

@@ -4,22 +4,28 @@ Wireshark (docs/wireshark.md).
 
 Interfaces (hil.sim.pcap): ``R<id> radio, sent`` (each frame this process wrote to its
 radio's serial port, one packet, stamped when its last stop bit ends), ``R<id> radio, heard``
-(the bytes its serial port received, one packet per burst: a burst ends after two byte times
-without a byte; noise and cut frames stay in, the dissector flags them), and one CAN interface
+(the bytes its serial port received, cut where a frame begins and ends, as the robot's own
+deframer reads them: each frame one packet, what came between two frames (noise, garbage)
+one packet, a frame cut short a packet when nothing more came for :data:`QUIET_BYTES` byte
+times; the dissector flags all but the frames), and one CAN interface
 (each frame sent or received on the python-can bus). Timestamps are the wall clock, in ns.
 A FIFO works as FILE (``mkfifo f; wireshark -k -i f``) for a live view.
 """
 from __future__ import annotations
 
-import time
+from collections import deque
 from typing import Any, BinaryIO
 
-from firmware_model.timing import TICK_HZ
+from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived
 
 from ..sim.pcap import PcapWriter
 
-GAP_BYTES = 2
-"""A heard burst ends after this many byte times without a byte."""
+QUIET_BYTES = 20
+"""Byte times (about 35 ms at 9600 baud) without a byte after which a frame still open is
+written as it is, cut. Bytes reach the process in chunks, as late as a USB-serial adapter's
+latency timer (16 ms by default) and the machine's load make them, so arrival gaps cannot tell
+where frames end (a gap of two byte times once cut a third of the frames heard in two); the
+deframer's reading of the bytes does."""
 
 
 class BenchCapture:
@@ -33,13 +39,13 @@ class BenchCapture:
                                        "heard": f"R{robot} radio, heard"}
         buses = {} if can is None else {0: f"CAN {can}"}
         self.writer = PcapWriter(stream, radios, buses, tsresol=9)
-        # the scheduler's tick 0 on the wall clock, in ns
-        self.writer.epoch_units = time.time_ns() - sched.wall() * 1_000_000_000 // TICK_HZ
+        self.writer.follow(sched)       # stamps: the wall clock of the scheduler's tick 0
         self.stream = stream
-        self._heard = bytearray()
-        self._heard_end = 0
+        self._deframer = Deframer()
+        self._heard = bytearray()       # bytes heard and not yet in a packet
+        self._base = 0                  # their offset in everything heard
+        self._chunks: deque[tuple[int, int, int]] = deque()   # (end offset, tick, byte ticks)
         self._flush_ev: Any = None
-        self._bt = 16_640
         self.error: str | None = None
 
     # -- the serial port --------------------------------------------------------------------
@@ -49,19 +55,57 @@ class BenchCapture:
         self._write("sent", t0 + len(data) * bt, bytes(data))
 
     def heard(self, data: bytes, now: int, bt: int) -> None:
-        """Bytes the port received (the last one complete at ``now``)."""
-        self._bt = bt
+        """Bytes the port received (the last one complete at ``now``, ``bt`` ticks each)."""
+        if not data:
+            return
+        offset = self._base + len(self._heard)
         self._heard += data
-        self._heard_end = now
+        self._chunks.append((offset + len(data), now, bt))
+        # the deframer counts in bytes here: an event's ticks are offsets in the stream
+        self._cut(self._deframer.feed(bytes(data), offset, 1))
         if self._flush_ev is not None:
             self._flush_ev.cancel()
-        self._flush_ev = self.sched.at(now + GAP_BYTES * bt, self._flush_heard)
+            self._flush_ev = None
+        if self._heard:                  # a frame (or a partial Header) still open
+            self._flush_ev = self.sched.at(now + QUIET_BYTES * bt, self._flush_heard)
+
+    def _cut(self, events: list) -> None:
+        """A frame (good or failed) is a packet, and what came before it since the last one
+        (noise, garbage) another; garbage waits for the next frame or the quiet time, so
+        that noise read in several chunks is one packet."""
+        for ev in events:
+            if isinstance(ev, FrameReceived):
+                stop = ev.end + 1
+            elif isinstance(ev, FrameFailed):
+                stop = ev.at                 # the byte that broke it is read again
+            else:                            # Garbage: stays until the next frame
+                continue
+            self._packet(ev.first)
+            self._packet(stop)
+
+    def _packet(self, stop: int) -> None:
+        """Write the heard bytes before offset ``stop`` as one packet, stamped with the tick
+        its last byte completed."""
+        n = stop - self._base
+        if n <= 0:
+            return
+        data, self._heard = bytes(self._heard[:n]), self._heard[n:]
+        last = stop - 1
+        chunks = self._chunks
+        while chunks[0][0] <= last:
+            chunks.popleft()
+        end, tick, bt = chunks[0]
+        self._base = stop
+        self._write("heard", tick - (end - 1 - last) * bt, data)
 
     def _flush_heard(self) -> None:
+        """Nothing heard for a while: what is open was cut short; write it as it is."""
         self._flush_ev = None
-        if self._heard:
-            data, self._heard = bytes(self._heard), bytearray()
-            self._write("heard", self._heard_end, data)
+        failed = self._deframer.abort(self._base + len(self._heard))
+        if failed is not None:
+            self._cut([failed])
+        self._packet(self._base + len(self._heard))
+        self._deframer.reset()
 
     # -- the CAN bus ------------------------------------------------------------------------
 

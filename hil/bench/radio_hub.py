@@ -368,8 +368,7 @@ class RadioHub:
                            byte_by_byte=True)
         self.air.on_collision = self._on_collision
         if self.pcap is not None:
-            # the air's tick 0 is now: the capture's timestamps are the wall clock
-            self.pcap.epoch_units = time.time_ns() * 10 ** self.pcap.tsresol // 10 ** 9
+            self.pcap.follow(self.sched)    # stamps: the wall clock of the air's tick 0
             self.air.on_transmission = self._on_transmission
         for i in range(self.nodes):
             r = _Node(self, i, self.byte_ticks)

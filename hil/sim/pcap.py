@@ -12,7 +12,7 @@ packet comment saying which; CAN error frames are SocketCAN error frames (``CAN_
 from __future__ import annotations
 
 import struct
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import pcapng
 from pcapng import blocks
@@ -53,10 +53,10 @@ class PcapWriter:
     packet (pcapng declares interfaces up front).
 
     Timestamps are ``epoch_units + tick`` in units of 10^-``tsresol`` s: a simulation starts
-    at 0 with ``tsresol`` 10 (a tick exactly); a bench capture sets ``epoch_units`` to the
-    wall clock of its tick 0 and uses ``tsresol`` 9 (ns: the Unix epoch at 10^-10 s would
-    overflow pcapng's 64 bits in 2028). ``live``: flush after every packet (a pipe to
-    ``wireshark -k -i -``)."""
+    at 0 with ``tsresol`` 10 (a tick exactly); a bench capture takes ``epoch_units`` from the
+    wall clock of its real-time scheduler's tick 0 (:meth:`follow`) and uses ``tsresol`` 9
+    (ns: the Unix epoch at 10^-10 s would overflow pcapng's 64 bits in 2028). ``live``:
+    flush after every packet (a pipe to ``wireshark -k -i -``)."""
 
     def __init__(self, stream: BinaryIO, radios: dict[object, str], buses: dict[int, str],
                  tsresol: int = TSRESOL, epoch_units: int = 0, live: bool = False) -> None:
@@ -73,6 +73,7 @@ class PcapWriter:
             self._add(("can", key), LINKTYPE_CAN_SOCKETCAN, name, "CAN 2.0A, 500 kbit/s")
         self.writer = pcapng.FileWriter(stream, self.shb)
         self.packets = 0
+        self._clock: Any = None
         if live:
             stream.flush()
 
@@ -82,9 +83,20 @@ class PcapWriter:
                                            "if_tsresol": bytes((self.tsresol,))})
         self._ifaces[key] = idb.interface_id
 
+    def follow(self, clock: Any) -> None:
+        """Stamp packets on the wall clock of ``clock``'s tick 0 (a
+        :class:`~hil.sim.realtime.RealTimeScheduler`'s ``epoch_ns``), read at the first
+        packet: the scheduler fixes it when it starts running, after its process has built
+        what it runs (a stamp taken earlier put every packet that much too early). A clock
+        without a wall clock (a simulated scheduler) leaves the stamps ticks from 0."""
+        self._clock = clock if hasattr(clock, "epoch_ns") else None
+
     def _packet(self, key: tuple[str, object], tick: int, data: bytes,
                 comment: str | None) -> None:
         scale = 10 ** self.tsresol
+        if self._clock is not None and self._clock.epoch_ns is not None:
+            self.epoch_units = self._clock.epoch_ns * scale // 1_000_000_000
+            self._clock = None
         ts = self.epoch_units + (tick * scale * 2 + TICK_HZ) // (2 * TICK_HZ)
         opts = {"opt_comment": comment} if comment else {}
         epb = self.shb.new_member(blocks.EnhancedPacket, interface_id=self._ifaces[key],

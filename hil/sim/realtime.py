@@ -30,12 +30,15 @@ _MAX_WAIT_TICKS = round(MAX_WAIT_S * TICK_HZ)
 class RealTimeScheduler(Scheduler):
     """Runs events at their wall-clock tick; ``post`` is the thread-safe way in."""
 
-    __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started")
+    __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started", "epoch_ns")
 
     def __init__(self) -> None:
         super().__init__(0)
         self._t0 = time.monotonic_ns()
         self._started = False
+        self.epoch_ns: int | None = None
+        """The wall clock (``time.time_ns()``) at tick 0, fixed when running starts; None
+        before (a capture stamps its packets ``epoch_ns`` + their tick in ns)."""
         self._inbox: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
         self.max_late = 0
@@ -78,7 +81,9 @@ class RealTimeScheduler(Scheduler):
         if not self._started:
             # The wall clock starts when running starts (building the world takes time).
             self._started = True
-            self._t0 = time.monotonic_ns() - self.now * 1_000_000_000 // _NS_PER_TICK_NUM
+            since_0 = self.now * 1_000_000_000 // _NS_PER_TICK_NUM
+            self._t0 = time.monotonic_ns() - since_0
+            self.epoch_ns = time.time_ns() - since_0
         heap = self._heap
         inbox = self._inbox
         while not self._stop.is_set():
