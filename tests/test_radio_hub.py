@@ -940,3 +940,15 @@ def test_a_capture_that_cannot_be_written_is_one_line(tmp_path):
                        capture_output=True, text=True, timeout=30)
     assert r.returncode == 2 and "cannot write capture" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_the_foreign_fault_goes_out_at_the_hubs_own_rate(hubs):
+    """On a hub at another --baud than 9600 the foreign transmitter sends at that rate too
+    (at 9600 the nodes' UARTs heard its bytes as garbage, a rate they do not read)."""
+    from hil.sim.faults import parse_fault
+    hub = hubs(2, baud=64000, faults=[parse_fault(f"foreign@0.1:x{FOREIGN.hex()}")])
+    fds = [open_node(hubs, p) for p in hub.paths]
+    hub.start()
+    for fd in fds:
+        got, _ = read_n(fd, len(FOREIGN), 10.0)
+        assert got == FOREIGN

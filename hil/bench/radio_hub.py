@@ -645,7 +645,8 @@ class RadioHub:
         elif f.kind == "recover":
             self._link_up(f.robot)
         else:
-            apply_air_fault(self.air, self._radios.__getitem__, f, phase, self.ber, self.noise)
+            apply_air_fault(self.air, self._radios.__getitem__, f, phase, self.ber, self.noise,
+                            foreign_byte_ticks=self.byte_ticks)
             if f.kind == "noise" and phase == "start" and not self._pumping:
                 self._pumping = True
                 self.sched.at(self.sched.now + self.byte_ticks, self._pump)

@@ -196,9 +196,10 @@ def foreign_bytes(fault: Fault, seed: int) -> bytes:
 
 
 def apply_air_fault(air, radio_of, fault: Fault, phase: str, base_ber: float = 0.0,
-                    base_noise: bool = False) -> None:
+                    base_noise: bool = False, foreign_byte_ticks: int | None = None) -> None:
     """Start (``phase='start'``) or end (``'end'``) an air fault on ``air``; ``radio_of(id)``
-    finds a robot's radio."""
+    finds a robot's radio. ``foreign_byte_ticks``: the byte time of a ``foreign``
+    transmitter (ticks; default 9600 8N1, the radio hub gives its own ``--baud``'s)."""
     now = air.sched.now
     k = fault.kind
     if k == "fail":
@@ -214,7 +215,11 @@ def apply_air_fault(air, radio_of, fault: Fault, phase: str, base_ber: float = 0
     elif k == "burst":
         air.burst(fault.value)
     elif k == "foreign":
-        air.inject(foreign_bytes(fault, air.seed))
+        data = foreign_bytes(fault, air.seed)
+        if foreign_byte_ticks is None:
+            air.inject(data)
+        else:
+            air.inject(data, foreign_byte_ticks)
     else:
         raise FaultError(f"{k} is not an air fault")
 
