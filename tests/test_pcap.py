@@ -266,3 +266,22 @@ def test_a_field_that_is_not_digits_has_no_value_and_names_its_byte(not_digits):
     for field in ("rprs.dst", "rprs.src", "rprs.num", "rprs.len"):
         assert len(tshark("-Y", f"{field} && {foreign}")) == 1, field     # the first only
     assert len(tshark("-Y", "rprs.digit.bad")) == 2
+
+
+def test_can_error_frames_carry_the_type_the_bus_knows(tmp_path):
+    # docs/wireshark.md, "Interfaces": busoff -> bit errors, stuck with no transmitter ->
+    # stuff, noisy (a local error only the disturbed node sees the cause of) -> no type
+    from hil.sim.pcap import CAN_ERR_PROT
+    p = rprs("sim", "--robots", "1,2", "--duration", "4", "--can", "--load", "1",
+             "--fault", "noisy:1.JOINT2@1-1.5", "--fault", "stuck:2@2-2.1",
+             "--fault", "busoff:1@3", "--no-progress", "--pcap", str(tmp_path / "e.pcapng"))
+    assert p.returncode == 0, p.stderr
+    _, pkts = _packets(tmp_path / "e.pcapng")
+    errors = {}
+    for (link, _), _, data, comment in pkts:
+        can_id = int.from_bytes(data[:4], "big")
+        if link == 227 and can_id & CAN_ERR_FLAG:
+            kind = comment.split("(")[1].split(")")[0] if "(" in comment else comment
+            errors.setdefault(kind, set()).add((can_id & ~CAN_ERR_FLAG, data[8 + 2]))
+    assert errors == {"local": {(CAN_ERR_PROT, 0)}, "bit": {(CAN_ERR_PROT, 0x01)},
+                      "stuff": {(CAN_ERR_PROT, 0x04)}}, errors
