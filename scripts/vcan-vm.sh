@@ -56,17 +56,38 @@ if ! command -v ip >/dev/null; then
   fi
 fi
 IP=$(command -v ip)
-# can-utils: candump, an independent reader of vcan0 that tests compare our CAN logs with. If it
-# cannot be installed, those tests skip and say so; nothing else needs it.
-if ! command -v candump >/dev/null && [ "$(id -u)" = 0 ]; then
-  say "installing can-utils on the host (candump, for the tests that compare logs with it)"
-  { apt-get install -y -qq can-utils || { apt-get update -qq && apt-get install -y -qq can-utils; }; } \
-    >/dev/null 2>&1 || say "could not install can-utils: the candump comparison will skip"
-fi
 
 mkdir -p "$CACHE"
 # everything in the cache stays out of git, whatever the project's .gitignore says
 [ -f "$CACHE/.gitignore" ] || printf '*\n' > "$CACHE/.gitignore"
+
+# can-utils: candump, an independent reader of vcan0 that tests compare our CAN logs with. The
+# host's own, if it has one; else, like patchelf, fetched from the host's apt sources and
+# unpacked into the cache (never installed), and its bin/ goes on the guest's PATH. If it
+# cannot be fetched, those tests skip and say so; nothing else needs it.
+CANUTILS=
+get_candump() {
+  command -v candump >/dev/null && return 0
+  local dir=$CACHE/can-utils
+  if [ ! -x "$dir/usr/bin/candump" ]; then
+    say "fetching can-utils from the host's own apt sources (candump, for the tests that compare logs with it; no install)"
+    local d; d=$(mktemp -d "$CACHE/tmp.XXXXXX")
+    if ! (cd "$d" && apt-get download -qq can-utils) >/dev/null 2>&1; then
+      if [ "$(id -u)" = 0 ]; then apt-get update -qq >/dev/null 2>&1 || true; fi
+      (cd "$d" && apt-get download -qq can-utils) >/dev/null 2>&1 || true
+    fi
+    if ls "$d"/can-utils_*.deb >/dev/null 2>&1; then
+      rm -rf "$dir"; dpkg-deb -x "$d"/can-utils_*.deb "$dir"
+    fi
+    rm -rf "$d"
+  fi
+  if [ -x "$dir/usr/bin/candump" ]; then
+    CANUTILS=$dir/usr/bin
+  else
+    say "could not fetch can-utils with apt-get download: the candump comparison will skip"
+  fi
+}
+get_candump
 
 # ---------------------------------------------------------------- prepare (cached)
 uml_ok() { [ -f "$UMLDIR/READY" ] && "$UML" --version >/dev/null 2>&1; }
@@ -164,7 +185,7 @@ trap 'exit 130' INT TERM
     printf 'export %s=%q\n' "$v" "${!v}"
   done
   printf 'export RPRS_VCAN=1\n'
-  printf 'export PATH=%q\n' "${PYBIN:+$PYBIN:}$PATH:/usr/local/sbin:/usr/sbin:/sbin"
+  printf 'export PATH=%q\n' "${PYBIN:+$PYBIN:}$PATH:/usr/local/sbin:/usr/sbin:/sbin${CANUTILS:+:$CANUTILS}"
   # the guest's stdout is its console, a tty: no colour codes when ours is a pipe or a file
   [ -t 1 ] || printf 'export PY_COLORS=${PY_COLORS:-0} NO_COLOR=${NO_COLOR:-1}\n'
 } > "$RUN/env"

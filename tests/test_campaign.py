@@ -18,7 +18,7 @@ import pytest
 
 from hil.campaign import engine
 from hil.campaign.engine import run_campaign
-from hil.campaign.report import summarize, wilson
+from hil.campaign.report import ber_series, plot, summarize, wilson
 from hil.campaign.runs import check_args
 from hil.campaign.seeds import run_key, run_seed
 from hil.campaign.spec import SpecError, load_spec
@@ -72,6 +72,28 @@ def test_wilson_interval_matches_published_values():
     for (k, n), (lo, hi) in {(0, 10): (0.0, 0.2775), (1, 10): (0.0179, 0.4042),
                              (5, 10): (0.2366, 0.7634), (10, 10): (0.7225, 1.0)}.items():
         assert wilson(k, n) == pytest.approx((lo, hi), abs=5e-5)
+
+
+def test_the_ber_plot_draws_one_line_per_rest_of_point_labelled_with_all_of_it(tmp_path,
+                                                                              monkeypatch):
+    # robots and load both vary besides ber: four lines, none merging two loads of one ring
+    points = [{"point": {"robots": r, "load": ld, "checksum": True, "ber": b},
+               "failed_rate": 0.1 * b, "failed_ci95": (0.0, 0.2)}
+              for r in ("1,2", "0,1,2") for ld in ("1", "saturate") for b in (0.02, 0.01)]
+    series = ber_series(points)
+    assert sorted(series) == ["checksum=true load=1 robots=0,1,2",
+                              "checksum=true load=1 robots=1,2",
+                              "checksum=true load=saturate robots=0,1,2",
+                              "checksum=true load=saturate robots=1,2"]
+    assert all([p[0] for p in pts] == [0.01, 0.02] for pts in series.values())
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    seen, legend = [], plt.Axes.legend
+    monkeypatch.setattr(plt.Axes, "legend", lambda ax, *a, **k: (
+        seen.append(ax.get_legend_handles_labels()[1]), legend(ax, *a, **k))[1])
+    assert plot(points, [], tmp_path) == [str(tmp_path / "failure_vs_ber.png")]
+    assert seen == [list(series)]                    # the labels drawn, in order
 
 
 def test_seeds_depend_on_the_point_and_index_only():

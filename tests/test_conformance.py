@@ -14,7 +14,8 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
-from hil.bench.conformance import Check, ConformanceError, Tester
+from firmware_model.radio.frame import BROADCAST, Frame
+from hil.bench.conformance import MS, TTRANS, Check, ConformanceError, Heard, Report, Tester
 
 from test_paper_profile import PaperRobot
 import test_paper_profile
@@ -71,6 +72,59 @@ def _cases(path: Path) -> dict[tuple[str, str], bool]:
             for c in suite.iter("testcase")}
 
 
+def _skipped(path: Path) -> set[str]:
+    """The clauses JUnit has as skipped (not applicable)."""
+    return {c.get("classname").split()[1] for c in ET.parse(path).getroot().iter("testcase")
+            if c.find("skipped") is not None}
+
+
+# ---------------------------------------------------------------- verdicts, without a robot
+def test_a_clause_not_applicable_is_skipped_in_junit_with_its_reason_and_fails_nothing():
+    rep = Report(1, "rprs", [Check("34", "answers", True, "Type '6'"),
+                             Check("29", "a BOOT frame is Number '00'", True,
+                                   "Type '6', Number '01': not a BOOT frame", applicable=False),
+                             Check("23", "hands over", False, "Header +30.0 ms")])
+    assert [c.verdict for c in rep.checks] == ["pass", "n/a", "FAIL"]
+    suite = ET.fromstring(rep.junit())
+    assert (suite.get("tests"), suite.get("failures"), suite.get("skipped")) == ("3", "1", "1")
+    cases = {c.get("classname"): c for c in suite.iter("testcase")}
+    assert cases["clause 29"].find("skipped").get("message") == \
+        "not applicable: Type '6', Number '01': not a BOOT frame"
+    assert cases["clause 29"].find("failure") is None
+    assert cases["clause 34"].find("skipped") is None and cases["clause 34"].find("failure") is None
+    assert cases["clause 23"].find("failure") is not None
+    assert not rep.passed
+    rep.checks.pop()
+    assert rep.passed                               # n/a is no failure
+    assert not Report(1, "rprs", [rep.checks[1]]).passed     # but nothing checked is no pass
+
+
+def _tester_answered_with(frame: Frame) -> Tester:
+    """A Tester without a port whose invitation the robot answers with ``frame``, Ttrans after
+    our End; its run stops at the next turn (no more frames)."""
+    t = Tester.__new__(Tester)
+    t.robot, t.me, t.profile, t.tol = 1, 0, "rprs", 15 * MS
+    t.report, t.progress, t.acks, t.num, t.last_end = Report(1, "rprs"), lambda s: None, [], 0, 0
+    answers = [Heard(frame, 100 * MS + TTRANS, 100 * MS + TTRANS + 14 * 16667)]
+    t.now = lambda: 0
+    t.send = lambda f, at: 100 * MS
+    t.wait_frame = lambda after, timeout, src=None: answers.pop(0) if answers else None
+    return t
+
+
+@pytest.mark.parametrize("type_,num,verdict", [(6, 1, "n/a"), (5, 0, "pass"), (5, 3, "FAIL"),
+                                               (3, 0, "n/a")])
+def test_clause_29_is_judged_on_a_boot_frame_only(type_, num, verdict):
+    # docs/protocol.md clause 29: a BOOT frame is Number '00'; a JOIN answer has none
+    t = _tester_answered_with(Frame(dst=BROADCAST, src=1, num=num, type=type_, content=b""))
+    with pytest.raises(ConformanceError):
+        t._start()
+    c29 = next(c for c in t.report.checks if c.clause == "29")
+    assert c29.verdict == verdict, c29
+    assert c29.figure.startswith(f"Type '{type_}', Number '{num:02d}'")
+    assert ("not a BOOT frame" in c29.figure) == (type_ != 5)
+
+
 @pytest.mark.parametrize("profile", ["rprs", "paper"])
 def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
     child = _spawn("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
@@ -91,6 +145,10 @@ def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
         {"29", "34", "36", "45", "48"} if profile == "rprs" else set())
     assert clauses == expected and all(cases.values()), cases
     assert "pass" in run.stdout and "FAIL" not in run.stdout
+    # paper: 38 does not apply (the paper admits any team robot); a robot just powered on
+    # answers the invitation with BOOT, so 29 is judged
+    assert _skipped(junit) == ({"38"} if profile == "paper" else set()), _skipped(junit)
+    assert ("n/a" in run.stdout) == (profile == "paper")
 
 
 def _run_against(robot: PaperRobot, port: str, profile: str) -> dict[tuple[str, str], bool]:

@@ -221,3 +221,67 @@ def test_crc_is_verified_and_a_wrong_one_flagged(checksummed):
     assert (foreign[0][1], foreign[0][2], foreign[0][3]) == ("12345", str(want), "0") or \
         (foreign[0][1], foreign[0][2], foreign[0][3]) == ("12345", str(want), "False")
     assert "crc() does not match" in foreign[0][4]
+
+
+@pytest.fixture(scope="module")
+def not_digits(tmp_path_factory):
+    # two forged frames: Type 'x' only, then every digit field bad (Destination 'a', Source
+    # 'b', Number '0x', Type 'y', Length '00z0')
+    d = tmp_path_factory.mktemp("digits")
+    one = b"\x0f\x0a\x05" + b"7100x0000" + b"\x17\x19"
+    every = b"\x0f\x0a\x05" + b"ab0xy00z0" + b"\x17\x19"
+    p = rprs("sim", "--robots", "1,2", "--duration", "6", "--checksum", "--no-progress",
+             "--fault", f"foreign@4.5:x{one.hex()}", "--fault", f"foreign@5:x{every.hex()}",
+             "--pcap", str(d / "forged.pcapng"))
+    assert p.returncode == 0, p.stderr
+    return d / "forged.pcapng"
+
+
+@needs_tshark
+def test_a_field_that_is_not_digits_has_no_value_and_names_its_byte(not_digits):
+    # protocol clause 3.1: Destination, Source, Number, Type and Length are ASCII digits; a
+    # field that is not gets no value (no filter on it matches) and a '?' in the Info column
+    def tshark(*args):
+        out = subprocess.run([TSHARK, "-X", f"lua_script:{plugin_path()}", "-r",
+                              str(not_digits), *args], capture_output=True, text=True,
+                             timeout=120)
+        assert out.returncode == 0, out.stderr
+        return out.stdout.splitlines()
+    foreign = 'frame.interface_name == "foreign transmitters"'
+    summary = tshark("-Y", foreign)               # the Info column ends each line
+    assert len(summary) == 2
+    assert summary[0].endswith(" 1 -> 7 #0 type ?") and summary[1].endswith(" ? -> ? #? type ?")
+    rows = tshark("-Y", foreign, "-T", "fields", "-E", "separator=|", "-E", "occurrence=a",
+                  "-E", "aggregator=;", "-e", "rprs.dst", "-e", "rprs.src", "-e", "rprs.num",
+                  "-e", "rprs.type", "-e", "rprs.len", "-e", "_ws.expert.message")
+    one, every = [r.split("|") for r in rows]
+    assert one[:5] == ["7", "1", "0", "", "0"]
+    assert "Type: byte 1 of 1, 0x78 'x', is not an ASCII decimal digit" in one[5]
+    assert every[:5] == ["", "", "", "", ""]
+    for bad in ("Destination: byte 1 of 1, 0x61 'a'", "Source: byte 1 of 1, 0x62 'b'",
+                "Number: byte 2 of 2, 0x78 'x'", "Type: byte 1 of 1, 0x79 'y'",
+                "Length: byte 3 of 4, 0x7a 'z'"):
+        assert bad + ", is not an ASCII decimal digit" in every[5], every[5]
+    assert tshark("-Y", f"rprs.type == 0 && {foreign}") == []
+    for field in ("rprs.dst", "rprs.src", "rprs.num", "rprs.len"):
+        assert len(tshark("-Y", f"{field} && {foreign}")) == 1, field     # the first only
+    assert len(tshark("-Y", "rprs.digit.bad")) == 2
+
+
+def test_can_error_frames_carry_the_type_the_bus_knows(tmp_path):
+    # docs/wireshark.md, "Interfaces": busoff -> bit errors, stuck with no transmitter ->
+    # stuff, noisy (a local error only the disturbed node sees the cause of) -> no type
+    from hil.sim.pcap import CAN_ERR_PROT
+    p = rprs("sim", "--robots", "1,2", "--duration", "4", "--can", "--load", "1",
+             "--fault", "noisy:1.JOINT2@1-1.5", "--fault", "stuck:2@2-2.1",
+             "--fault", "busoff:1@3", "--no-progress", "--pcap", str(tmp_path / "e.pcapng"))
+    assert p.returncode == 0, p.stderr
+    _, pkts = _packets(tmp_path / "e.pcapng")
+    errors = {}
+    for (link, _), _, data, comment in pkts:
+        can_id = int.from_bytes(data[:4], "big")
+        if link == 227 and can_id & CAN_ERR_FLAG:
+            kind = comment.split("(")[1].split(")")[0] if "(" in comment else comment
+            errors.setdefault(kind, set()).add((can_id & ~CAN_ERR_FLAG, data[8 + 2]))
+    assert errors == {"local": {(CAN_ERR_PROT, 0)}, "bit": {(CAN_ERR_PROT, 0x01)},
+                      "stuff": {(CAN_ERR_PROT, 0x04)}}, errors

@@ -269,6 +269,25 @@ def test_plot_svg_with_window(fault_run, tmp_path):
     assert again.read_bytes() == out.read_bytes()      # reproducible
 
 
+def test_the_zoom_is_one_cycle_inside_the_window_from_the_lowest_id(fault_run, tmp_path):
+    # docs/visualisation.md, Fig. 7 item 2. With --start 14.9 the zoom began at R3 at
+    # 14.892 s: a frame straddling the window's start, and a cycle that did not start at R1
+    out = str(tmp_path / "z.png")
+    for start in (14.85, 14.9, 14.95):
+        s = plot_trace(fault_run, out, start_s=start, end_s=start + 0.7)
+        lo, hi = s["zoom_s"]
+        assert start <= lo < hi <= start + 0.7, (start, s["zoom_s"])
+        ids = s["zoom_robots"]           # a robot's turn up to its next: one whole cycle
+        assert ids[0] == ids[-1] == min(ids) and len(set(ids)) == len(ids) - 1, (start, ids)
+    # 14.85: R1 is still out of the ring (R2 R3 R4), and a cycle from R2 ends before the
+    # radio comes back; 14.9: the cycles before it no longer start at R2, so one after it
+    assert plot_trace(fault_run, out, start_s=14.85, end_s=15.55)["zoom_robots"] == [2, 3, 4, 2]
+    s = plot_trace(fault_run, out, start_s=14.9, end_s=15.6)
+    assert s["zoom_robots"] == [1, 2, 3, 4, 1] and s["zoom_s"][0] > 15.0
+    s = plot_trace(fault_run, out)       # the default window: the last cycle before R1 fails
+    assert s["zoom_robots"] == [1, 2, 3, 4, 1] and s["zoom_s"][1] <= 8.0
+
+
 def test_plot_idle_ring_from_file(idle_run, tmp_path):
     tr = tmp_path / "t.jsonl"
     tr.write_text("".join(json.dumps(e) + "\n" for e in idle_run))

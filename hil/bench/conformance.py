@@ -10,7 +10,8 @@ clause        what is checked, and the figure reported
 ===========  ================================================================================
 15, 6-13      every frame from the robot is a good frame (bytes heard, frames, failures)
 34, 29, 36    it answers an invitation with BOOT ('5', Number '00') or JOIN ('6') at
-              E + Ttrans, and stops announcing once acknowledged (rprs)
+              E + Ttrans, and stops announcing once acknowledged (rprs); 29 is n/a (not
+              applicable, JUnit "skipped") when the answer is not a BOOT frame
 23            its Header begins Ttrans after our End (median and worst gap over the turns)
 26            with our frames 300 ms late, still Ttrans after our End: it resynchronises
 21            a frame with nothing to say is an empty heartbeat (or, rprs, a control frame)
@@ -19,7 +20,7 @@ clause        what is checked, and the figure reported
               (rprs); in the paper profile nothing is acknowledged
 45            its reply to our next status() takes the Number after its first reply's (rprs)
 38            a frame with a forged Source (a team robot outside the ring) is not acted on
-              (rprs; the paper profile admits any team robot that sends)
+              (rprs; n/a in the paper profile, which admits any team robot that sends)
 41, 15, 11    frames that break (a bad digit in the Number; Length 9999) are not acted on,
               and close our turn: the robot takes the next
 24, 44        when we fall silent it takes the turn: Tmax after its own End, plus R-stagger and
@@ -61,13 +62,22 @@ BYTE = PC_BYTE_TICKS
 
 @dataclass
 class Check:
-    """One verdict: the clause, what was checked, passed or not, and the measured figure."""
+    """One verdict: the clause, what was checked, passed or not, and the measured figure.
+    ``applicable`` False: nothing was there to check (a robot that answered with JOIN has no
+    BOOT frame for clause 29); the verdict is ``n/a``, ``figure`` says why, and it counts as
+    no failure."""
 
     clause: str
     name: str
     passed: bool
     figure: str
     seconds: float = 0.0
+    applicable: bool = True
+
+    @property
+    def verdict(self) -> str:
+        """``pass``, ``FAIL`` or ``n/a``."""
+        return "n/a" if not self.applicable else "pass" if self.passed else "FAIL"
 
 
 @dataclass
@@ -85,19 +95,25 @@ class Report:
 
     @property
     def passed(self) -> bool:
-        return bool(self.checks) and all(c.passed for c in self.checks)
+        """Something was checked and every clause passed or was not applicable."""
+        return any(c.applicable for c in self.checks) and \
+            all(c.passed or not c.applicable for c in self.checks)
 
     def junit(self) -> bytes:
-        """JUnit XML: one testcase per clause checked, a failure element where it failed."""
+        """JUnit XML: one testcase per clause, a failure element where it failed, a skipped
+        element with the reason where it was not applicable."""
         suite = ET.Element("testsuite", name=f"rprs conformance robot {self.robot} "
                            f"({self.profile})", tests=str(len(self.checks)),
-                           failures=str(sum(not c.passed for c in self.checks)))
+                           failures=str(sum(c.verdict == "FAIL" for c in self.checks)),
+                           skipped=str(sum(c.verdict == "n/a" for c in self.checks)))
         for c in self.checks:
             case = ET.SubElement(suite, "testcase", classname=f"clause {c.clause}",
                                  name=c.name, time=f"{c.seconds:.3f}")
             ET.SubElement(case, "system-out").text = c.figure
-            if not c.passed:
+            if c.verdict == "FAIL":
                 ET.SubElement(case, "failure", message=c.figure)
+            elif c.verdict == "n/a":
+                ET.SubElement(case, "skipped", message=f"not applicable: {c.figure}")
         return ET.tostring(ET.ElementTree(suite).getroot(), encoding="utf-8",
                            xml_declaration=True)
 
@@ -193,10 +209,14 @@ class Tester:
         self.acks.clear()
         return out
 
-    def check(self, clause: str, name: str, passed: bool, figure: str, t0: float) -> None:
-        self.report.checks.append(Check(clause, name, bool(passed), figure,
-                                        time.monotonic() - t0))
-        self.progress(f"clause {clause}: {'pass' if passed else 'FAIL'} {name}: {figure}")
+    def check(self, clause: str, name: str, passed: bool, figure: str, t0: float,
+              applicable: bool = True) -> None:
+        """Record a verdict; ``applicable`` False when nothing was there to check (then
+        ``figure`` says why, and ``passed`` is ignored)."""
+        c = Check(clause, name, bool(passed) or not applicable, figure,
+                  time.monotonic() - t0, applicable)
+        self.report.checks.append(c)
+        self.progress(f"clause {clause}: {c.verdict} {name}: {figure}")
 
     # -- the run -------------------------------------------------------------------------
 
@@ -264,8 +284,11 @@ class Tester:
         self.check("34", "answers an invitation Ttrans after its End", f.type in (5, 6) and
                    abs(gap) * MS <= self.tol, f"Type '{f.type}', Header {gap:+.1f} ms from "
                    f"E + Ttrans", t0)
-        self.check("29", "a BOOT frame is Number '00'", f.type != 5 or f.num == 0,
-                   f"Type '{f.type}', Number '{f.num:02d}'", t0)
+        # clause 29 is about BOOT frames: a JOIN (or anything else) leaves nothing to check
+        self.check("29", "a BOOT frame is Number '00'", f.num == 0,
+                   f"Type '{f.type}', Number '{f.num:02d}'" + (
+                       "" if f.type == 5 else ": not a BOOT frame"), t0,
+                   applicable=f.type == 5)
         self._note_acks(h)
         t0 = time.monotonic()
         announcing = []
@@ -388,8 +411,9 @@ class Tester:
         status() for the robot, then our own frame: the robot must refuse the forged one."""
         t0 = time.monotonic()
         if self.profile == "paper":
-            self.check("38", "a forged Source is refused", True, "not applicable: the paper "
-                       "profile admits any team robot that sends (docs/protocol.md §9.1)", t0)
+            self.check("38", "a forged Source is refused", True, "the paper profile admits "
+                       "any team robot that sends (docs/protocol.md §9.1)", t0,
+                       applicable=False)
             return h
         self._note_acks(h)
         forged = self.frame(b"status()", dst=self.robot, type_=2, num=42, src=self.forger)

@@ -90,9 +90,29 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+def point_label(point: dict[str, Any]) -> str:
+    """A grid point (or the rest of one) as a legend label: ``checksum=true load=1
+    robots=1,2``, every key, sorted, values as the campaign file writes them."""
+    return " ".join(f"{k}={v if isinstance(v, str) else json.dumps(v)}"
+                    for k, v in sorted(point.items())) or "(one point)"
+
+
+def ber_series(points: list[dict[str, Any]]) -> dict[str, list[tuple[float, ...]]]:
+    """The lines of the failure-vs-BER plot: {label: [(ber, rate, ci low, ci high), ...]
+    sorted by ber}, one line per rest-of-point (every grid key but ``ber``), so points that
+    differ in any other key (robots, load, checksum, ...) are never drawn as one line."""
+    series: dict[str, list] = defaultdict(list)
+    for p in points:
+        if p["failed_rate"] is not None:
+            rest = {k: v for k, v in p["point"].items() if k != "ber"}
+            series[point_label(rest)].append(
+                (p["point"].get("ber", 0.0), p["failed_rate"], *p["failed_ci95"]))
+    return {label: sorted(pts) for label, pts in sorted(series.items())}
+
+
 def plot(points: list[dict[str, Any]], rows: list[dict[str, Any]], directory) -> list[str]:
-    """failure rate against BER per ring size (when the grid varies ``ber``) and the CDF of
-    each point's longest re-formation; PNG files written into ``directory``."""
+    """failure rate against BER, one line per rest-of-point (when the grid varies ``ber``),
+    and the CDF of each point's longest re-formation; PNG files written into ``directory``."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -103,22 +123,14 @@ def plot(points: list[dict[str, Any]], rows: list[dict[str, Any]], directory) ->
     bers = {p["point"].get("ber", 0.0) for p in points}
     if len(bers) > 1:
         fig, ax = plt.subplots(figsize=(6, 4))
-        series: dict[str, list] = defaultdict(list)
-        for p in points:
-            rest = {k: v for k, v in p["point"].items() if k != "ber"}
-            if p["failed_rate"] is not None:
-                series[json.dumps(rest, sort_keys=True)].append(
-                    (p["point"].get("ber", 0.0), p["failed_rate"], *p["failed_ci95"]))
-        for label, pts in sorted(series.items()):
-            pts.sort()
+        for label, pts in ber_series(points).items():
             x = [a[0] for a in pts]
             y = [a[1] for a in pts]
             err = [[max(0.0, a[1] - a[2]) for a in pts], [max(0.0, a[3] - a[1]) for a in pts]]
-            ax.errorbar(x, y, yerr=err, marker="o", capsize=3,
-                        label=json.loads(label).get("robots", label))
+            ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=label)
         ax.set_xlabel("byte error rate")
         ax.set_ylabel("messages failed (Wilson 95 %)")
-        ax.legend(title="robots", fontsize=8)
+        ax.legend(title="grid point but ber", fontsize=6)
         f = d / "failure_vs_ber.png"
         fig.tight_layout()
         fig.savefig(f, dpi=100)
@@ -133,7 +145,7 @@ def plot(points: list[dict[str, Any]], rows: list[dict[str, Any]], directory) ->
     for key, vals in sorted(by_point.items()):
         vals.sort()
         ax.step(vals, [(i + 1) / len(vals) for i in range(len(vals))], where="post",
-                label=key[:60])
+                label=point_label(json.loads(key)))
         any_line = True
     if any_line:
         ax.set_xlabel("longest ring re-formation of a run (s)")

@@ -8,6 +8,10 @@ import sys
 from .common import UserError, digit, output_file, positive
 
 
+VERDICT_STYLE = {"pass": "[green]pass[/green]", "FAIL": "[red]FAIL[/red]", "n/a": "[dim]n/a[/dim]"}
+"""How the table shows each verdict (hil.bench.conformance.Check.verdict)."""
+
+
 def cmd_conformance(a: argparse.Namespace) -> int:
     from ..bench.conformance import ConformanceError, Tester
     from ..bench.serial_radio import PortError
@@ -36,8 +40,7 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     for col in ("clause", "check", "verdict", "measured"):
         table.add_column(col)
     for c in rep.checks:
-        table.add_row(c.clause, c.name, "[green]pass[/green]" if c.passed else
-                      "[red]FAIL[/red]", c.figure)
+        table.add_row(c.clause, c.name, VERDICT_STYLE[c.verdict], c.figure)
     Console().print(table)
     if error:
         print(f"rprs conformance: stopped: {error}")

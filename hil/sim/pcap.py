@@ -39,7 +39,11 @@ def socketcan_frame(can_id: int, data: bytes) -> bytes:
 
 
 def error_frame(kind: str) -> bytes:
-    """A SocketCAN error frame for a bus error of ``kind`` (bit, stuff, form, ack, local)."""
+    """A SocketCAN error frame for a bus error of ``kind`` (can_bus.bus ``error_trace``):
+    ``ack`` is ``CAN_ERR_ACK``; ``bit``, ``stuff`` and ``form`` are ``CAN_ERR_PROT`` with that
+    type in data[2]; ``local`` (one node's disturbed stub, a ``noisy`` fault: only that node
+    sees the cause, the others a bit, stuff or form error of its flag) is ``CAN_ERR_PROT``
+    with no type, ``CAN_ERR_PROT_UNSPEC`` (docs/wireshark.md, "Interfaces")."""
     if kind == "ack":
         return socketcan_frame(CAN_ERR_FLAG | CAN_ERR_ACK, bytes(8))
     data = bytearray(8)

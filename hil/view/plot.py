@@ -332,33 +332,45 @@ def _draw_rows(ax, items, robots, unit_div, x0, x1, labels=False):
     return handles
 
 
-def _zoom_span(items, robots, ttrans):
-    """One cycle at the turn scale, so the Ttrans gaps show, closed by the next cycle's first
-    turn: normal turns (every gap exactly Ttrans, no collision), as many robots as possible,
-    starting at the lowest ID; the last such cycle before the first interesting item of the
-    window, else the first one. Returns (start, end) ticks or None."""
-    frames = [it for it in items if it[0] == "frame"]
+def _zoom_span(items, robots, ttrans, lo=None, hi=None):
+    """One cycle at the turn scale, so the Ttrans gaps show: a robot's turn up to its next
+    one (the next cycle's first turn), every turn normal (every gap exactly Ttrans, no
+    collision), each frame wholly inside the window [``lo``, ``hi``] ticks when one is given
+    (a frame that straddles its edge is not one of them). Of those, the cycles that start at
+    their lowest ID (the ring's, at that time) if any does; of these, the last that ends
+    before the first interesting item of the window, else the first (docs/visualisation.md,
+    Fig. 7 item 2). With no whole cycle, the same choice among normal runs of |robots|
+    turns, else of 2. Returns (start, end) ticks or None."""
+    frames = [it for it in items if it[0] == "frame" and (lo is None or it[1] >= lo)
+              and (hi is None or it[2] <= hi)]
     first = next((it[1] for it in items if it[0] in ("miss", "mark", "noise")
                   or (it[0] == "frame" and (it[4] or it[5]))), None)
     n = len(robots)
+
+    def normal(run):
+        return all(not f[4] and not f[5] for f in run) and all(
+            b[1] - a[2] == ttrans for a, b in zip(run, run[1:]))
+
+    def span(run, cyc):
+        ids = [f[3] for f in cyc]
+        return (ids[0] == min(ids), run[0][1], run[-1][2])
+
     runs = []
-    for k in (n + 1, n, 2):
-        for i in range(len(frames) - k + 1):
-            run = frames[i:i + k]
-            if all(not f[4] and not f[5] for f in run) and all(
-                    b[1] - a[2] == ttrans for a, b in zip(run, run[1:])):
-                cyc = run[:n]
-                runs.append((-len({f[3] for f in cyc}), cyc[0][3] != min(f[3] for f in cyc),
-                             run[0][1], run[-1][2]))
+    for i, f in enumerate(frames):           # whole cycles: R_a ... up to R_a's next turn
+        j = next((j for j in range(i + 1, min(len(frames), i + n + 1))
+                  if frames[j][3] == f[3]), None)
+        if j is not None and normal(frames[i:j + 1]):
+            runs.append(span(frames[i:j + 1], frames[i:j]))
+    for k in (n, 2):
         if runs:
             break
+        runs = [span(frames[i:i + k], frames[i:i + k]) for i in range(len(frames) - k + 1)
+                if normal(frames[i:i + k])]
     if runs:
-        before = [r for r in runs if first is not None and r[3] <= first]
-        if before:
-            pick = min(before, key=lambda r: (r[0], r[1], -r[2]))
-        else:
-            pick = min(runs)
-        return pick[2], pick[3]
+        runs = [r for r in runs if r[0]] or runs          # starting at the lowest ID
+        before = [r for r in runs if first is not None and r[2] <= first]
+        pick = before[-1] if before else runs[0]
+        return pick[1], pick[2]
     if frames:
         return frames[0][1], frames[min(len(frames), n) - 1][2]
     return None
@@ -398,7 +410,9 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
     ``start_s``/``end_s`` bound the timeline (seconds); by default it shows at most
     ``max_turns`` turns, starting a little before the first miss, collision, fault, disable
     or rejoin (or at the first turn when the run has none). Returns a summary: ``path``,
-    ``format``, ``window_s`` [start, end], ``turns`` drawn, the trace's ``frames``,
+    ``format``, ``window_s`` [start, end], ``turns`` drawn, ``zoom_s`` [first bit of the
+    zoomed cycle, end of its last frame] and ``zoom_robots`` (its senders in order), the
+    trace's ``frames``,
     ``collided``, ``misses`` (deduplicated), ``disables``, ``rejoins``, ``interference``,
     ``utilisation_bin_s``
     and ``utilisation`` (whole-trace mean). Raises :class:`PlotError` for an unsupported
@@ -472,7 +486,8 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
 
     # zoom at the turn scale
     axz = fig.add_subplot(gs[1])
-    zs = _zoom_span(items, robots, meta["ttrans"])
+    zs = _zoom_span(items, robots, meta["ttrans"], *((x0t, x1t) if col.given else ()))
+    zoom_robots: list[int] = []
     if zs is not None:
         z0, z1 = zs
         r0, r1 = zs
@@ -493,8 +508,9 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
                            f"Ttrans {gap * 1000 / hz:g} ms")
                 axz.vlines([a[2] / zdiv, b[1] / zdiv], min(row[a[3]], row[b[3]]) - 0.3,
                            max(row[a[3]], row[b[3]]) + 0.3, color="#777777", linewidth=0.6)
-        turn = [(it[2] - it[1]) * 1000 / hz for it in zf if z0 <= it[1] and it[2] <= z1]
-        axz.set_title(f"zoom on one cycle at {z0 / hz:.3f} s: each turn is one frame "
+        turn = [(it[2] - it[1]) * 1000 / hz for it in zf if r0 <= it[1] and it[2] <= r1]
+        zoom_robots = [it[3] for it in zf if r0 <= it[1] and it[2] <= r1]
+        axz.set_title(f"zoom on one cycle at {r0 / hz:.3f} s: each turn is one frame "
                       f"({', '.join(f'{d:.2f}' for d in turn)} ms), the next robot starts "
                       f"Ttrans after it ends", fontsize=10, loc="left")
         axz.set_xlabel("time (ms)")
@@ -556,5 +572,6 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
         raise
     total_busy = sum(col.busy)
     return {"path": out, "format": ext, "window_s": [x0t / hz, x1t / hz], "turns": len(frames),
-            **col.totals, "utilisation_bin_s": bin_s,
+            "zoom_s": [zs[0] / hz, zs[1] / hz] if zs is not None else None,
+            "zoom_robots": zoom_robots, **col.totals, "utilisation_bin_s": bin_s,
             "utilisation": total_busy / end_tick if end_tick else 0.0}

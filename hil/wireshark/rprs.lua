@@ -63,7 +63,10 @@ local function crc16(bytes)
     return crc
 end
 
-local function number(tvb, offset, width, tree, field)
+-- A field of ASCII decimal digits (protocol clause 3.1). One that is not gets no value, so
+-- a display filter on the field (rprs.type == 0) does not match it: a text item and the
+-- expert info rprs.digit.bad name its first bad byte, and the caller shows "?".
+local function number(tvb, offset, width, tree, field, label)
     local range = tvb(offset, width)
     local text = range:string()
     if text:match("^%d+$") then
@@ -71,7 +74,19 @@ local function number(tvb, offset, width, tree, field)
         tree:add(field, range, value)
         return value
     end
-    tree:add(field, range, 0):add_proto_expert_info(e_digit)
+    local bytes = range:bytes()
+    local at, byte = 0, bytes:get_index(0)
+    for i = 0, width - 1 do
+        local b = bytes:get_index(i)
+        if b < 0x30 or b > 0x39 then at, byte = i, b; break end
+    end
+    local shown = (byte >= 0x20 and byte < 0x7f) and string.format("0x%02x '%c'", byte, byte)
+                  or string.format("0x%02x", byte)
+    local what = string.format("%s: byte %d of %d, %s, is not an ASCII decimal digit", label,
+                               at + 1, width, shown)
+    tree:add(range, string.format("%s: bytes %s, not ASCII decimal digits (no value)", label,
+                                  bytes:tohex()))
+        :add_proto_expert_info(e_digit, what)
     return nil
 end
 
@@ -86,13 +101,13 @@ function rprs.dissector(tvb, pinfo, tree)
         return n
     end
     t:add(f.header, tvb(0, 3))
-    local dst = number(tvb, 3, 1, t, f.dst)
-    local src = number(tvb, 4, 1, t, f.src)
-    local num = number(tvb, 5, 2, t, f.num)
-    local typ = number(tvb, 7, 1, t, f.type)
-    local len = number(tvb, 8, 4, t, f.len)
+    local dst = number(tvb, 3, 1, t, f.dst, "Destination")
+    local src = number(tvb, 4, 1, t, f.src, "Source")
+    local num = number(tvb, 5, 2, t, f.num, "Number")
+    local typ = number(tvb, 7, 1, t, f.type, "Type")
+    local len = number(tvb, 8, 4, t, f.len, "Length")
     local info = string.format("%s -> %s #%s %s", src or "?", dst or "?", num or "?",
-                               type_names[typ] or ("type " .. tostring(typ)))
+                               type_names[typ] or ("type " .. (typ or "?")))
     local clen = len
     if len == nil or 12 + len + 2 > n then
         t:add_proto_expert_info(e_length)
