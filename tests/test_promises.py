@@ -13,6 +13,7 @@ from firmware_model.radio.mac import Deliver, Duplicate, MacConfig, ModeChange, 
 from firmware_model.timing import (
     CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, protocol_max_content, s_to_ticks,
 )
+from hil.sim.faults import Fault
 from hil.sim.world import SimConfig, World
 
 B = PC_BYTE_TICKS          # a foreign transmitter's byte time (9600 baud)
@@ -381,3 +382,34 @@ def test_a_father_pc1_that_took_over_ends_its_probation_and_delivers():
     assert mac._check_turns == 0
     msg = Frame(dst=0, src=1, num=5, type=2, content=b"movex(1)")
     assert any(type(a) is Deliver for a in r1_sends(msg))
+
+
+# -- found by seeded failover runs: a father PC back from a short outage delivered twice -----
+
+@pytest.mark.parametrize("seed, checksum, back", [(0, True, 3.0), (3, False, 3.0),
+                                                  (15, True, 4.0)])
+def test_a_father_pc_back_from_a_short_outage_leaves_delivery_to_the_active_pc(
+        seed, checksum, back):
+    """``rprs sim --robots 0,1,2 --father-standby --fault fail:0@2 --recover 0@3 --load 1``:
+    PC2 took ID 0's turn and ended its probation; PC1's radio came back before PC1 had heard
+    nobody long enough to go to LISTEN, so PC1 was still active, off probation, and both PCs
+    delivered the same broadcast at one tick (1 duplicate, also with the checksum). The trace
+    could not tell them apart: PC2's ``deliver`` events carried no ``"pc": 2``. A father PC
+    that missed two turns with nothing at all heard, or that hears the other PC after a miss
+    with no frame accepted since, is now on probation (clause 50): it stands by for PC2."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(0, 1, 2), duration=30.0, seed=seed, load=1.0,
+                        father_standby=True, mac=MacConfig(checksum=checksum),
+                        faults=(Fault("fail", 0, 2.0), Fault("recover", 0, back))),
+              on_event=evs.append)
+    w.run()
+    assert w.summary()["duplicate_deliveries"] == 0
+    took = next(e["t"] for e in evs if e["ev"] == "mode" and e.get("pc") == 2
+                and "took over" in e["reason"])
+    # PC1's radio is dead until ``back``: what ID 0 delivers meanwhile is PC2's, and says so
+    meanwhile = [e for e in evs if e["ev"] == "deliver" and e["to"] == 0
+                 and took < e["t"] < s_to_ticks(back)]
+    assert meanwhile and all(e.get("pc") == 2 for e in meanwhile)
+    # PC1, back, stands by for PC2
+    assert any(e["ev"] == "mode" and e["robot"] == 0 and "pc" not in e
+               and e["t"] > s_to_ticks(back) and "standing by" in e["reason"] for e in evs)

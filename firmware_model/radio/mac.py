@@ -888,12 +888,19 @@ class RotationalMac:
         out.append(Miss(o))
         self._silent += 1
         self._tell_view = True
+        # An active father PC that missed two turns with nothing at all heard since its own
+        # frame may have been deaf while its standby took ID 0's turn (clause 50): if its radio
+        # comes back before it goes to LISTEN, both PCs are active and both would deliver.
+        deaf = self.id == 0 and not self.standby and self._silent >= 2 and \
+            not self._heard_since_tx and not self._noise_since_tx
         if n >= self.cfg.miss_limit:
             self._drop(o, out)
         if len(self.ring) >= 2 and \
                 self._silent >= max(self.cfg.miss_limit, len(self.ring) - 1):
             self._to_listen(out, now, "heard nobody for a whole round")
             return
+        if deaf:
+            self._check_turns = 3      # probation, as after a takeover (clause 50)
         # The paper's takeover at E + Tmax, except when nobody was heard since our own
         # frame: then we may be one of two members that sent together, each waiting for
         # the other (rule R-stagger).
@@ -986,9 +993,14 @@ class RotationalMac:
                 elif self.mode == MEMBER:      # keep the ring we know; follow the other PC
                     out.append(ModeChange(MEMBER, "another PC is active as ID 0: standing by"))
                 self.standby = True            # the other PC is active: stand by for it
+                self._check_turns = 0          # a standby keeps the Numbers (clause 50)
             else:
                 # PC1 stays active (a PC2 that is active too will yield); the frame, PC2's or
-                # a forger's, is refused and closes the slot it was sent in.
+                # a forger's, is refused and closes the slot it was sent in. Heard after a miss
+                # with no frame accepted since, it says we were deaf while PC2 took over: on
+                # probation we leave new messages to PC2 (clause 50), or both deliver them.
+                if self._silent:
+                    self._check_turns = 3
                 self._own_id_heard(frame.num, end, now, out)
                 return out
         if self.mode == LISTEN:
@@ -1268,6 +1280,7 @@ class RotationalMac:
         self._acks.clear()
         self._announcing = None           # a BOOT not acknowledged is sent again
         self._passed_invite = False
+        self._check_turns = 0             # back only invited (no PC is ID 0) or as a standby
         self.deadline = now + self._claim_ticks()
         out.append(ModeChange(LISTEN, reason))
 

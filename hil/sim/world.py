@@ -541,24 +541,33 @@ class World:
             ev.update(dst=None, num=None, type=None, len=None, kind=None)
         ev.update(start=tx.t0, end=tx.end, bytes=len(d) if not tx.aborted else
                   (tx.end - tx.t0) // tx.bt, collided=tx.collided, aborted=tx.aborted)
+        if tx.radio is self.radios.get(STANDBY):
+            ev["pc"] = 2
         self._emit(ev)
 
     def _on_collision(self, t0: int, robots: list[int]) -> None:
         self.collisions += 1
         self._emit({"ev": "collision", "robots": robots})
 
+    def _emit_pc2(self, ev: dict) -> None:
+        """An event of the father's standby PC: it carries ``"pc": 2`` (docs/trace.md)."""
+        self._emit({**ev, "pc": 2})
+
     def _observe(self, st: RadioStation, a: object, now: int) -> None:
         r = st.id
-        if st is self.standby_station and type(a) is ModeChange:
-            self._emit({"ev": "mode", "robot": 0, "pc": 2, "mode": a.mode, "reason": a.reason})
-            return
+        emit = self._emit
+        if st is self.standby_station:
+            if type(a) is ModeChange:
+                self._emit({"ev": "mode", "robot": 0, "pc": 2, "mode": a.mode,
+                            "reason": a.reason})
+                return
+            emit = self._emit_pc2      # both PCs are ID 0: the tag tells them apart
         t = type(a)
         if t is Transmit:
             return
         if t is TxEnable:
             if self.trace is not None or self.on_event is not None:
-                self._emit({"ev": "txen", "robot": r, "on": a.on,
-                            **({"pc": 2} if st is self.standby_station else {})})
+                emit({"ev": "txen", "robot": r, "on": a.on})
             return
         if t is Miss:
             key = (now, a.robot)
@@ -567,17 +576,17 @@ class World:
                 self._miss_seen.add(key)
                 if a.robot in self.stats:
                     self.stats[a.robot].missed += 1
-            self._emit({"ev": "miss", "robot": a.robot, "by": r})
+            emit({"ev": "miss", "robot": a.robot, "by": r})
         elif t is Disable:
             self._membership("disable", a.robot, now)
-            self._emit({"ev": "disable", "robot": a.robot, "by": r})
+            emit({"ev": "disable", "robot": a.robot, "by": r})
         elif t is Join:
             kind = "rejoin" if a.again else "join"
             self._membership(kind, a.robot, now)
-            self._emit({"ev": kind, "robot": a.robot, "by": r})
+            emit({"ev": kind, "robot": a.robot, "by": r})
         elif t is ModeChange:
             self._membership(a.mode, r, now)
-            self._emit({"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason})
+            emit({"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason})
         elif t is Deliver:
             self.stats[r].received += 1
             # Ground truth the firmware cannot see: is this what the sender submitted? (Any
@@ -596,39 +605,39 @@ class World:
                 self.corrupt_deliveries += 1
             if a.dst not in (r, BROADCAST):
                 self.wrong_deliveries += 1
-            self._emit({"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
-                        "type": a.type, "to": r, "intact": intact})
+            emit({"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
+                  "type": a.type, "to": r, "intact": intact})
         elif t is Duplicate:
             self.stats[r].duplicates += 1
-            self._emit({"ev": "duplicate", "src": a.src, "num": a.num, "to": r})
+            emit({"ev": "duplicate", "src": a.src, "num": a.num, "to": r})
         elif t is Refused:
             self.stats[r].refused_frames += 1
-            self._emit({"ev": "refused", "src": a.src, "num": a.num, "to": r,
-                        "reason": a.reason})
+            emit({"ev": "refused", "src": a.src, "num": a.num, "to": r,
+                  "reason": a.reason})
         elif t is FrameFailed:
             self.stats[r].bad_frames += 1
             if self.trace is not None or self.on_event is not None:
-                self._emit({"ev": "bad_frame", "to": r, "field": a.error.field,
-                            "reason": str(a.error)})
+                emit({"ev": "bad_frame", "to": r, "field": a.error.field,
+                      "reason": str(a.error)})
         elif t is BadContent:
-            self._emit({"ev": "bad_content", "src": a.src, "num": a.num, "to": r,
-                        "reason": str(a.error)})
+            emit({"ev": "bad_content", "src": a.src, "num": a.num, "to": r,
+                  "reason": str(a.error)})
         elif t is Outcome:
             m = a.message
             self.outcomes.append(a)
             s = self.stats[m.src]
             if a.delivered:
                 s.delivered += 1
-                self._emit({"ev": "delivered", "src": m.src, "dst": m.dst, "num": m.num,
-                            "attempts": m.attempts})
+                emit({"ev": "delivered", "src": m.src, "dst": m.dst, "num": m.num,
+                      "attempts": m.attempts})
             elif m.state == UNACKNOWLEDGED:
                 s.unacknowledged += 1
-                self._emit({"ev": "sent", "src": m.src, "dst": m.dst, "num": m.num,
-                            "reason": a.reason})
+                emit({"ev": "sent", "src": m.src, "dst": m.dst, "num": m.num,
+                      "reason": a.reason})
             else:
                 s.failed += 1
-                self._emit({"ev": "fail", "src": m.src, "dst": m.dst, "num": m.num,
-                            "reason": a.reason})
+                emit({"ev": "fail", "src": m.src, "dst": m.dst, "num": m.num,
+                      "reason": a.reason})
             if self.cfg.load == "saturate":
                 self._submit_full(r)
         elif t is Message:
@@ -639,8 +648,8 @@ class World:
             keyed.append(len(self.messages))
             if len(keyed) > 8:
                 del keyed[0]
-            self._emit({"ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
-                        "type": a.type, "len": len(a.content)})
+            emit({"ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
+                  "type": a.type, "len": len(a.content)})
 
     def _membership(self, kind: str, robot: int, now: int) -> None:
         key = (now, kind, robot)
