@@ -71,8 +71,11 @@ from the team, empty heartbeats, no BOOT, JOIN, poll, ring, ack or crc; docs/pro
 UNACKNOWLEDGED = "unacknowledged"
 """A message's final state in the paper profile: sent once, never acknowledged."""
 _NOTHING: tuple = ()
-PC2_CHECK_EVERY = 8
-"""An active PC2 listens for PC1 on one of its turns in this many (docs/mac.md, failover)."""
+PC2_CHECK_EVERY = 7
+"""An active PC2 listens for PC1 on one of its turns in this many (docs/mac.md, failover). Odd:
+in a ring of two with both PCs active PC2 sends twice a cycle, and an even period (8) always
+listened on the same one of the two, the one PC1 does not send in, so they never met
+(docs/guarantees.md)."""
 TAKEOVER_TOLERANCE = 0.05
 """Clock difference (fraction of Tmax) between robots within which a takeover heard before
 our own timer expires is still taken as one (a fast clock's Tmax ends first)."""
