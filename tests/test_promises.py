@@ -432,3 +432,13 @@ def test_two_active_father_pcs_in_a_ring_of_two_meet(seed):
     assert s["duplicate_deliveries"] == 0 and s["collisions"] <= 2
     assert any(e["ev"] == "mode" and e.get("pc") == 2 and e["t"] > s_to_ticks(5.4)
                and "standing by" in e["reason"] for e in evs)
+
+
+def test_the_standby_pc_counts_the_turns_it_sees_missed_by_its_own_radio():
+    """PC1's radio dead, PC2 active, then R1 falls silent: PC2 is the only one to hear R1 miss
+    its three turns, and they count (they were judged by PC1's dead radio, both being robot
+    0, and the summary said R1 missed nothing)."""
+    w = World(SimConfig(robots=(0, 1), duration=20.0, seed=5, load=1.0, father_standby=True,
+                        faults=(Fault("fail", 0, 5.0), Fault("fail", 1, 10.0))))
+    w.run()
+    assert w.stats[1].missed == 3

@@ -571,8 +571,10 @@ class World:
             return
         if t is Miss:
             key = (now, a.robot)
-            if key not in self._miss_seen and self.radios[r].alive:
-                # Counted once per turn, and only by observers that can hear the air.
+            radio = self.radios[STANDBY if st is self.standby_station else r]
+            if key not in self._miss_seen and radio.alive:
+                # Counted once per turn, and only by observers that can hear the air (PC2 by
+                # its own radio: it once went by PC1's, both being robot 0).
                 self._miss_seen.add(key)
                 if a.robot in self.stats:
                     self.stats[a.robot].missed += 1
