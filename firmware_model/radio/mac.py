@@ -268,6 +268,10 @@ class MacConfig:
     """Hot standby for the father (docs/protocol.md §4.9, clause 50; paper's PC1/PC2): follow the
     ring as a replica of ID 0 and take ID 0's turn only when the active PC's header does not
     come (docs/mac.md)."""
+    paired: bool = False
+    """One of the father's two PCs (the other exists): an active PC that may have been deaf
+    while the other took over goes on probation (clause 50). A lone father need not: nobody
+    else delivers as ID 0, and the probation would only delay its messages."""
     quiet_channel: bool = True
     """The radio gives no bytes without a carrier (the pty hub; a radio with squelch). Then an
     owner whose turn follows an uncertain closure waits for the channel to fall quiet before
@@ -894,8 +898,8 @@ class RotationalMac:
         # An active father PC that missed two turns with nothing at all heard since its own
         # frame may have been deaf while its standby took ID 0's turn (clause 50): if its radio
         # comes back before it goes to LISTEN, both PCs are active and both would deliver.
-        deaf = self.id == 0 and not self.standby and self._silent >= 2 and \
-            not self._heard_since_tx and not self._noise_since_tx
+        deaf = self.id == 0 and self.cfg.paired and not self.standby and \
+            self._silent >= 2 and not self._heard_since_tx and not self._noise_since_tx
         if n >= self.cfg.miss_limit:
             self._drop(o, out)
         if len(self.ring) >= 2 and \

@@ -238,7 +238,9 @@ def build_submodules(runner: Runner, can: str, can_log: str | None = None,
 def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool = False,
                  config: MacConfig | None = None, events: TextIO | None = None,
                  pc: int | None = None, pcap: str | None = None) -> RadioStation:
-    cfg = replace(realtime_config(config), standby=standby, pc=pc or (2 if standby else 1))
+    # --standby or --pc says the father is a pair of PCs (docs/protocol.md §4.9)
+    cfg = replace(realtime_config(config), standby=standby, pc=pc or (2 if standby else 1),
+                  paired=standby or pc is not None)
     station, channel = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
                                       _events_printer(events, 0))
     _capture(runner, pcap, 0, channel, None, None)

@@ -176,7 +176,8 @@ def add(sub) -> None:
                     help="start as the hot standby PC (takes ID 0's turn if the active dies)")
     fa.add_argument("--pc", type=digit(1, 2, "PC number"),
                     help="which of the father's two PCs this is (default: 2 with --standby, "
-                    "else 1); PC1 decides first")
+                    "else 1); PC1 decides first. Given (or --standby), the father is a pair: "
+                    "an active PC back from an outage goes on probation")
     fa.add_argument("--no-input", action="store_true", help="do not read orders from stdin")
     fa.add_argument("--json", action="store_true", help="machine output: the station's events "
                     "and each order's changes as JSON lines on stdout (no other output)")

@@ -9,7 +9,8 @@ records them again when a change of behaviour is meant (say why in the commit).
 
 Each run covers a different part of the firmware and the air: a loaded ring with the father,
 every child's CAN side with CAN faults and a cruising wheel, byte errors with idle noise, a
-forced collision and a foreign burst with the checksum, a father failover, power-on order with
+forced collision and a foreign burst with the checksum, a father failover, a father with no
+standby back from a short outage (no probation: MacConfig.paired), power-on order with
 clock skew and dropped bytes, and the peer MACs.
 """
 from __future__ import annotations
@@ -35,6 +36,8 @@ RUNS = {
                                   "--fault recover:1@12",
     "father failover": "--robots 0,1,2 --duration 20 --seed 5 --father-standby --load 1 "
                        "--fault fail:0@6",
+    "lone father outage": "--robots 0,1,2 --duration 20 --seed 9 --load 1 --checksum "
+                          "--fault fail:0@2 --fault recover:0@3",
     "power-on order and skew": "--robots 1,2,3,4,5 --duration 20 --seed 6 --power 3@1.5 "
                                "--power 1@0.7 --fault skew:2:0.02 --fault drop@5-9:0.002",
     "csma peer": "--robots 1,2,3 --duration 10 --seed 7 --mac csma --load 5",

@@ -254,7 +254,8 @@ class World:
         for r, eps in skew.items():
             self.byte_ticks[r] = round(self.byte_ticks[r] * (1 + eps))
         for r in sorted(config.robots):
-            cfg = replace(base, byte_ticks=self.byte_ticks[r])
+            cfg = replace(base, byte_ticks=self.byte_ticks[r],
+                          paired=r == 0 and config.father_standby)
             if r in skew:
                 cfg = _skewed(cfg, skew[r])
             st, radio = build_station(r, self.sched, byte_ticks=self.byte_ticks[r], config=cfg,
@@ -279,7 +280,7 @@ class World:
             self.sched.at(s_to_ticks(config.power_on.get(r, 0.0)), self._power_on, r)
         self.standby_station: RadioStation | None = None
         if config.father_standby:
-            cfg = replace(base, byte_ticks=PC_BYTE_TICKS, standby=True, pc=2)
+            cfg = replace(base, byte_ticks=PC_BYTE_TICKS, standby=True, pc=2, paired=True)
             st, radio = build_station(0, self.sched, byte_ticks=PC_BYTE_TICKS, config=cfg,
                                       observer=self._observe)
             self.air.attach(radio)
