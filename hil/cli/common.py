@@ -35,11 +35,11 @@ def distinct_outputs(**paths: str | None) -> None:
     for opt, path in paths.items():
         if not path or path == "-":
             continue
-        key = os.path.realpath(path)
+        key, name = os.path.realpath(path), opt.replace("_", "-")
         if key in seen:
-            raise UserError(f"--{seen[key]} and --{opt.replace('_', '-')} name the same file "
-                            f"{path}: give each its own")
-        seen[key] = opt.replace("_", "-")
+            raise UserError(f"--{seen[key]} and --{name} name the same file {path}: give each "
+                            f"its own")
+        seen[key] = name
 
 
 def robot_list(text: str) -> tuple[int, ...]:
@@ -94,6 +94,11 @@ def probability(text: str) -> float:
     return v
 
 
+LOAD_MAX = 1000.0
+"""Messages/s per robot: the highest ``--load`` rate taken (tens of times what the whole channel
+carries)."""
+
+
 def load_spec(text: str) -> str | float:
     if text in ("idle", "saturate"):
         return text
@@ -110,11 +115,6 @@ def load_spec(text: str) -> str | float:
             f"dozen short messages a second in all, so any rate far above that is 'saturate' "
             f"(which runs as fast; a rate costs the simulator each message it offers)")
     return v
-
-
-LOAD_MAX = 1000.0
-"""Messages/s per robot: the highest ``--load`` rate taken (tens of times what the whole channel
-carries)."""
 
 
 def digit(lo: int, hi: int, what: str):

@@ -80,10 +80,10 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
     faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
         tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
     peer = None
-    if getattr(a, "frame_bytes", None) and getattr(a, "mac", "rotational") == "rotational":
-        raise UserError("--frame-bytes sizes the peer MACs' frames (--mac aloha|slotted|csma); "
-                        "the rotational MAC's frames are as long as their Content")
     if getattr(a, "frame_bytes", None):
+        if getattr(a, "mac", "rotational") == "rotational":
+            raise UserError("--frame-bytes sizes the peer MACs' frames (--mac aloha|slotted|"
+                            "csma); the rotational MAC's frames are as long as their Content")
         from firmware_model.radio.peer_macs import PeerConfig
         peer = PeerConfig(frame_bytes=a.frame_bytes)
     return SimConfig(robots=a.robots, duration=a.duration, seed=a.seed, cpu=cpu_costs(a),

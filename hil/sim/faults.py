@@ -42,7 +42,7 @@ import random
 import re
 from dataclasses import dataclass
 
-from firmware_model.timing import s_to_ticks
+from firmware_model.timing import PC_BYTE_TICKS, s_to_ticks
 
 KINDS = ("fail", "recover", "steal", "ber", "noise", "burst", "foreign", "drop", "skew",
          "busoff", "stuck", "silent", "stall", "noisy")
@@ -196,7 +196,8 @@ def foreign_bytes(fault: Fault, seed: int) -> bytes:
 
 
 def apply_air_fault(air, radio_of, fault: Fault, phase: str, base_ber: float = 0.0,
-                    base_noise: bool = False, foreign_byte_ticks: int | None = None) -> None:
+                    base_noise: bool = False,
+                    foreign_byte_ticks: int = PC_BYTE_TICKS) -> None:
     """Start (``phase='start'``) or end (``'end'``) an air fault on ``air``; ``radio_of(id)``
     finds a robot's radio. ``foreign_byte_ticks``: the byte time of a ``foreign``
     transmitter (ticks; default 9600 8N1, the radio hub gives its own ``--baud``'s)."""
@@ -215,11 +216,7 @@ def apply_air_fault(air, radio_of, fault: Fault, phase: str, base_ber: float = 0
     elif k == "burst":
         air.burst(fault.value)
     elif k == "foreign":
-        data = foreign_bytes(fault, air.seed)
-        if foreign_byte_ticks is None:
-            air.inject(data)
-        else:
-            air.inject(data, foreign_byte_ticks)
+        air.inject(foreign_bytes(fault, air.seed), foreign_byte_ticks)
     else:
         raise FaultError(f"{k} is not an air fault")
 
