@@ -8,12 +8,16 @@ counters on by any number of periods.
 What a snapshot holds: everything reachable from the roots through instance attributes
 (``__dict__`` and ``__slots__``), lists, dicts and tuples, for objects of this project's
 classes (``can_bus``, ``firmware_model``, ``hil``). Other things are values: numbers,
-strings, bytes, enums, sets and frozen dataclasses (a CAN frame) by ``==``; functions, bound
+strings, bytes, enums, sets and frozen dataclasses (a CAN frame) by ``==``, a bytearray (a
+deframer's buffer) by its bytes; functions, bound
 methods and objects of other libraries by identity (a function is the same function; a foreign
 object's inside is not looked at, so a part whose state hides in one, a random generator, is
 refused by :func:`snapshot`). A ``boundary`` object (the world's scheduler, the radio station
 a child talks to) is compared by identity and not entered. An object reached twice is a
-reference to its first visit, so sharing is part of the shape.
+reference to its first visit, so sharing is part of the shape; a tuple is walked wherever it
+is reached (it cannot change, so only its values matter), and an int inside one is written
+by replacing the tuple in its holder (:class:`InTuple`): a tick in ``(robot, end)`` or in an
+event's arguments moves on like any other.
 
 An object of a ``latest`` type holds the latest of something the part rewrites every period
 before it reads it (a record of a submodule's last status frame): its fields are *free*
@@ -29,7 +33,7 @@ import types
 from enum import Enum
 from typing import Any, Iterable
 
-__all__ = ["Snapshot", "Unwalkable", "snapshot", "period_delta", "period_steps", "on_orbit",
+__all__ = ["InTuple", "Snapshot", "Unwalkable", "snapshot", "period_delta", "period_steps", "on_orbit",
            "latest_moved", "writable", "advance", "portable"]
 
 _OURS = ("can_bus", "firmware_model", "hil")
@@ -46,7 +50,8 @@ class Unwalkable(Exception):
 class Snapshot:
     """``shape``: every position's kind and value (ints included), in walk order;
     ``ints``: position in shape -> (holder, key, name) of every int a period may move on
-    (holder None inside a tuple: it cannot be written); ``alive``: every object whose
+    (holder an :class:`InTuple` inside a tuple; None inside a tuple that is a root: it cannot
+    be written); ``alive``: every object whose
     identity the shape records, kept alive with the snapshot so that no other object can take
     its id while the snapshot may still be compared; ``free``: the positions inside objects of
     a ``latest`` type (module docstring)."""
@@ -55,6 +60,36 @@ class Snapshot:
     ints: dict[int, tuple[Any, Any, str]]
     alive: list = dataclasses.field(default_factory=list, repr=False)
     free: frozenset[int] = frozenset()
+
+
+class InTuple:
+    """The holder of an int inside a tuple: the tuple is ``holder[key]`` (or the attribute
+    ``key`` of ``holder``), itself perhaps an :class:`InTuple`'s tuple. Writing the int
+    replaces the whole tuple there."""
+
+    __slots__ = ("holder", "key")
+
+    def __init__(self, holder: Any, key: Any) -> None:
+        self.holder = holder
+        self.key = key
+
+
+def _read(holder: Any, key: Any) -> Any:
+    if type(holder) is InTuple:
+        return _read(holder.holder, holder.key)[key]
+    if isinstance(holder, (list, dict)):
+        return holder[key]
+    return getattr(holder, key)
+
+
+def _write(holder: Any, key: Any, value: Any) -> None:
+    if type(holder) is InTuple:
+        t = _read(holder.holder, holder.key)
+        _write(holder.holder, holder.key, t[:key] + (value,) + t[key + 1:])
+    elif isinstance(holder, (list, dict)):
+        holder[key] = value
+    else:
+        setattr(holder, key, value)
 
 
 _SLOTS: dict[type, list[str]] = {}
@@ -75,9 +110,9 @@ def _all_slots(cls: type) -> list[str]:
     return [n for n in names if n not in ("__dict__", "__weakref__")]
 
 
-_INT, _VALUE, _FN, _TUPLE, _LIST, _DICT, _FROZEN, _RNG, _ITER, _OBJ, _FOREIGN = (
+_INT, _VALUE, _FN, _TUPLE, _LIST, _DICT, _FROZEN, _RNG, _ITER, _OBJ, _FOREIGN, _BYTES = (
     "int", "value", "fn", "tuple", "list", "dict", "frozen", "rng", "iterator", "object",
-    "foreign")
+    "foreign", "bytearray")
 _PLAIN = frozenset({float, str, bool, bytes, type(None)})
 """Value types taken as they are without asking :func:`_kind` (the commonest leaves)."""
 _ABSENT = object()
@@ -94,6 +129,8 @@ def _kind(t: type) -> str:
         k = _FN
     elif t is tuple:
         k = _TUPLE
+    elif issubclass(t, bytearray):
+        k = _BYTES
     elif issubclass(t, list):
         k = _LIST
     elif issubclass(t, dict):
@@ -175,6 +212,11 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             shape.append(("fn", id(fn), id(self_),
                           getattr(x, "__qualname__", t.__name__)))
             return
+        if kind is _TUPLE:            # walked wherever reached (module docstring)
+            shape.append(("tuple", len(x)))
+            items_of(enumerate(x), None if holder is None else InTuple(holder, key), name,
+                     False)
+            return
         i = id(x)
         if i in stop:
             shape.append(("boundary", i, None, t.__name__))
@@ -192,9 +234,6 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
                 free.append(range(start, len(shape)))
                 return
             fields_of(x, t)
-        elif kind is _TUPLE:
-            shape.append(("tuple", len(x)))
-            items_of(enumerate(x), None, name, False)
         elif kind is _LIST:
             shape.append(("list", len(x)))
             items_of(enumerate(x), x, name, False)
@@ -203,6 +242,8 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             items_of(x.items(), x, name, True)
         elif kind is _FROZEN:
             shape.append(x)
+        elif kind is _BYTES:
+            shape.append(("bytearray", bytes(x)))
         elif kind is _RNG and rng_state:
             shape.append(("rng", x.getstate()))
         elif kind is _RNG or kind is _ITER or hasattr(x, "__next__"):
@@ -226,10 +267,13 @@ def period_delta(before: Snapshot, after: Snapshot, period: int,
 
 
 def period_steps(before: Snapshot, after: Snapshot, period: int,
-                 counters: frozenset[str]) -> dict[int, int] | None:
+                 counters: frozenset[str],
+                 modular: dict[str, int] | None = None) -> dict[int, int] | None:
     """:func:`period_delta` by position in the shape: {position: delta}. A free position
     that moved as a tick or a counter does is a step; one that changed otherwise is allowed
-    and is not (:func:`latest_moved` tells whether there is one)."""
+    and is not (:func:`latest_moved` tells whether there is one). ``modular``: counters the
+    model reads only modulo a number (``turns % 7``), by name: one is a step if it moved up by
+    a multiple of its number."""
     a, b = before.shape, after.shape
     if len(a) != len(b) or before.free != after.free:
         return None
@@ -246,7 +290,8 @@ def period_steps(before: Snapshot, after: Snapshot, period: int,
             return None
         holder, _, name = spot
         d = y - x
-        if holder is None or not (d == period or (name in counters and d > 0)):
+        if holder is None or not (d == period or (name in counters and d > 0) or (
+                modular is not None and name in modular and d > 0 and d % modular[name] == 0)):
             if pos in free:
                 continue
             return None
@@ -325,6 +370,8 @@ def advance(moved: list[tuple[Any, Any, int]], periods: int) -> None:
     for holder, key, d in moved:
         if isinstance(holder, (list, dict)):
             holder[key] += d * periods
+        elif type(holder) is InTuple:
+            _write(holder, key, _read(holder, key) + d * periods)
         else:
             setattr(holder, key, getattr(holder, key) + d * periods)
 
