@@ -49,7 +49,7 @@ BOUNDS: dict[str, tuple[str, ...]] = {
 WORKLOADS: dict[str, str] = {
     "idle 7-robot ring, radio only": (
         "from hil.sim.world import SimConfig, World\n"
-        "World(SimConfig(robots={ring!r}, duration={seconds})).run()\n"),
+        "World(SimConfig(robots={ring!r}, duration={seconds}, ring_sleep=False)).run()\n"),
     "saturated 7-robot ring, --can": (
         "from hil.sim.world import SimConfig, World\n"
         "World(SimConfig(robots={ring!r}, duration={seconds}, can=True, "

@@ -19,7 +19,8 @@ inside that C function (``--toggle-collect=functools_reduce``), so the interpret
 imports and the world's construction are left out. (Nothing in the model calls ``reduce``; if
 libpython's symbols were stripped nothing would be counted, and the script says so.)
 
-* ``idle``: the radio-only idle 7-robot ring, 60 simulated s;
+* ``idle``: the radio-only idle 7-robot ring, 60 simulated s, every frame run (no leap over
+  the cycles it repeats: hil/sim/quiet_ring.py), the cost of the radio path itself;
 * ``saturated``: the 7-robot ring with every child's CAN side, ``load=saturate``, 60 s;
 * ``soak``: ``run_soak(0.05 h, seed 11)``, the whole soak (faults, traffic, CAN sides).
 
@@ -45,7 +46,9 @@ RING = (0, 1, 2, 3, 4, 5, 6)
 WORKLOADS: dict[str, str] = {
     "idle": f"""
 from hil.sim.world import SimConfig, World
-w = World(SimConfig(robots={RING!r}, duration=60.0, can=False))
+# every frame (trees before the ring's leaps have no ring_sleep, and run every frame anyway)
+every = {{"ring_sleep": False}} if "ring_sleep" in SimConfig.__dataclass_fields__ else {{}}
+w = World(SimConfig(robots={RING!r}, duration=60.0, can=False, **every))
 run = w.run
 done = lambda: (60.0, w.air.occupations)
 """,

@@ -312,6 +312,31 @@ def test_the_progress_bar_run_is_the_same_run():
         json.dumps(whole.summary(), sort_keys=True)
 
 
+def test_every_frame_gives_the_same_summary(capsys):
+    """``--every-frame`` runs an idle ring frame by frame, without leaps over its cycles or
+    sleeping CAN sides: the same summary, byte for byte, as the default run, which leaps."""
+    args = ("sim", "--robots", "0,1,2,3", "--duration", "120", "--can", "--fail", "2@40",
+            "--recover", "2@70", "--json")
+    code, fast, _ = rprs(capsys, *args)
+    assert code == 0
+    code, slow, _ = rprs(capsys, *args, "--every-frame")
+    assert code == 0
+    fast, slow = json.loads(fast), json.loads(slow)
+    for timing in ("speed", "wall_seconds"):
+        del fast[timing], slow[timing]
+    assert fast == slow
+    assert fast["occupations"] > 2000
+
+
+def test_the_progress_bar_leaps_too():
+    """The progress bar's steps (a hundredth of the run) leave the ring room to leap."""
+    from hil.cli.sim import run_world
+    from hil.sim.world import SimConfig
+    cfg = SimConfig(robots=(0, 1, 2), duration=600, seed=4)
+    stepped, _ = run_world(cfg, None, True)
+    assert stepped.quiet_ring.ticks_skipped > 0.8 * stepped.now
+
+
 def test_a_directory_given_for_campaign_results_is_refused(tmp_path, capsys):
     spec = tmp_path / "c.toml"
     spec.write_text('[campaign]\nname = "x"\nseeds = 1\nduration = 5\n[grid]\nber = [0.0]\n')

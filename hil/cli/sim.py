@@ -64,6 +64,10 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
         p.add_argument("--cpu-report", action="store_true", help="print each child's CPU "
                        "budget: per handler, per second, worst case; implies --cpu estimated")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+    p.add_argument("--every-frame", action="store_true",
+                   help="run every frame one by one: no leap over the cycles an idle ring "
+                   "repeats, no sleeping CAN side (the same results to the tick, slower; "
+                   "docs/performance.md)")
     if not demo:
         p.add_argument("--pcap", metavar="FILE", help="write a pcapng capture here: every "
                        "radio transmission and CAN frame, for Wireshark with the rprs plugin "
@@ -94,7 +98,8 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                      can=getattr(a, "can", True),
                      mac=checked_mac_config(checksum=a.checksum, profile=a.profile),
                      father_standby=a.father_standby,
-                     mac_kind=getattr(a, "mac", "rotational"), peer=peer)
+                     mac_kind=getattr(a, "mac", "rotational"), peer=peer,
+                     can_sleep=not a.every_frame, ring_sleep=not a.every_frame)
 
 
 def cpu_costs(a: argparse.Namespace):
@@ -177,7 +182,8 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
                     TimeRemainingColumn())
             with Progress(*cols, transient=True, console=stderr_console()) as bar:
                 task = bar.add_task("sim", total=ticks_to_s(end))
-                step = TICK_HZ
+                # a hundred updates at most: each step ends the ring's leaps (quiet_ring.py)
+                step = max(TICK_HZ, end // 100)
                 while world.now < end:
                     world.run(world.now + step, wake_can=False)  # the bar reads the clock only
                     bar.update(task, completed=ticks_to_s(world.now))

@@ -41,6 +41,7 @@ from .faults import (
     AIR_KINDS, CAN_KINDS, KINDS, Fault, FaultError, apply_air_fault, schedule as schedule_fault,
 )
 from .quiet_can import PERIOD as CAN_PERIOD, QuietCan
+from .quiet_ring import QuietRing
 from .realtime import RealTimeScheduler
 from .trace import TRACE_VERSION, TraceWriter
 
@@ -83,6 +84,10 @@ class SimConfig:
     """A child's CAN side that only repeats itself is moved on in whole periods instead of
     frame by frame (hil/sim/quiet_can.py). The run is the same to the tick either way;
     False is slower and exists to show that."""
+    ring_sleep: bool = True
+    """A ring that only repeats itself (idle, nothing watching its frames) is moved on in whole
+    cycles instead of frame by frame (hil/sim/quiet_ring.py). The run is the same to the tick
+    either way; False is slower and exists to show that."""
     sequence: tuple[tuple[int, ...], int] | None = None
     """(row order, cycles): the children run the paper's action sequence (needs ``can``)."""
     realtime: bool = False
@@ -243,6 +248,8 @@ class World:
         self.messages: list[Message] = []
         self.deliveries: Counter = Counter()        # (src, num, submit-serial, receiver)
         self.collisions = 0
+        self.observed = 0
+        """Actions the MACs reported to the world (a count: :meth:`activity`)."""
         self.corrupt_deliveries = 0
         self.wrong_deliveries = 0
         self._rngs = {r: random.Random(f"{config.seed}:load:{r}") for r in config.robots}
@@ -297,6 +304,16 @@ class World:
             if f.kind != "skew":
                 schedule_fault(self.sched, f, self._fault, self._fault_end)
         self.end_tick = s_to_ticks(config.duration)
+        self.quiet_ring: QuietRing | None = None
+        """The radio side as a whole, moved on in whole cycles while it only repeats itself
+        (hil/sim/quiet_ring.py); none where something watches every frame (a trace, an
+        event callback, the CPU model) or the clock is the wall's."""
+        if config.ring_sleep and config.mac_kind == "rotational" and not config.realtime \
+                and config.cpu is None and trace is None and on_event is None:
+            ring = self.quiet_ring = QuietRing(self, min(config.robots), base.poll_every,
+                                               config.father_standby)
+            for q in self.quiet.values():
+                ring.boundary += [q, q.clock, *q.roots]
         self._emit({"ev": "meta", "version": TRACE_VERSION, "tick_hz": TICK_HZ,
                     "byte_ticks": {str(r): self.byte_ticks[r] for r in sorted(config.robots)},
                     "ttrans": base.ttrans, "tmax": base.tmax, "twin": base.twin,
@@ -429,7 +446,15 @@ class World:
         caller that reads only the radio side between steps (a progress bar, the soak's ring
         check) passes False and lets a sleeping CAN side sleep on (:meth:`wake_can`,
         :meth:`summary` and whatever touches it still wake it)."""
-        self.sched.run_until(self.end_tick if until is None else min(until, self.end_tick))
+        end = self.end_tick if until is None else min(until, self.end_tick)
+        ring = self.quiet_ring
+        if ring is not None:
+            ring.until = end
+        try:
+            self.sched.run_until(end)
+        finally:
+            if ring is not None:
+                ring.until = None
         if wake_can:
             self.wake_can()
 
@@ -519,6 +544,8 @@ class World:
     def _on_transmission(self, tx: Transmission) -> None:
         r = tx.radio.robot
         self.transmissions += 1
+        if self.quiet_ring is not None:
+            self.quiet_ring.heard(tx)
         if self.pcap is not None:
             sent = tx.data if not tx.aborted else tx.data[:(tx.end - tx.t0) // tx.bt]
             marks = [w for w, on in (("collided", tx.collided), ("aborted: the sender's radio "
@@ -554,11 +581,18 @@ class World:
         """An event of the father's standby PC: it carries ``"pc": 2`` (docs/trace.md)."""
         self._emit({**ev, "pc": 2})
 
+    def activity(self) -> tuple[int, ...]:
+        """Changes whenever a MAC reports something (any action but its own I/O), two
+        transmissions collide or bytes are injected: a ring that only repeats itself leaves
+        it as it was (hil/sim/quiet_ring.py)."""
+        return (self.observed, self.air.collisions, self.air.bursts)
+
     def _observe(self, st: RadioStation, a: object, now: int) -> None:
         r = st.id
         emit = self._emit
         if st is self.standby_station:
             if type(a) is ModeChange:
+                self.observed += 1
                 self._emit({"ev": "mode", "robot": 0, "pc": 2, "mode": a.mode,
                             "reason": a.reason})
                 return
@@ -570,6 +604,7 @@ class World:
             if self.trace is not None or self.on_event is not None:
                 emit({"ev": "txen", "robot": r, "on": a.on})
             return
+        self.observed += 1
         if t is Miss:
             key = (now, a.robot)
             radio = self.radios[STANDBY if st is self.standby_station else r]

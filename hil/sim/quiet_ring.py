@@ -1,0 +1,191 @@
+"""The radio ring moved on in whole cycles while it only repeats itself.
+
+An idle ring repeats itself: with every robot of the team a member, no message queued and no
+fault under way, each robot sends the same heartbeat at the same offset every cycle, and every
+radio, UART, deframer, MAC and timer notes the same things, ticks moved on by the cycle. Run
+frame by frame, a long idle stretch costs as much as a busy one. So the world (hil/sim/world.py)
+looks for that repetition the way a child's CAN side does (hil/sim/quiet_can.py), at the scale
+of the whole radio side:
+
+* Every ``every`` transmissions of one robot (the *anchor*: the lowest ID at first; the
+  sender of a transmission after three silent 7-robot rounds of the anchor's), a probe runs
+  at the tick that transmission ended, after the events already due then. ``every`` is
+  ``poll_every`` (4 turns: a period holds whole polling rounds), or with the father's standby
+  PC lcm(poll_every, :data:`~firmware_model.radio.mac.PC2_CHECK_EVERY`) = 28, whole rounds of
+  PC2's checks too. If nothing was reported since the last probe (no MAC action: delivery,
+  miss, mode change ...; no collision, no injected burst), it takes a snapshot of the world
+  (hil/sim/state_walk.py: every attribute of every part, and every pending event), random
+  generators by their state.
+* If two snapshots a probe apart differ only by ticks moved on by exactly the time between
+  them (an even number of ticks: the reload timers count the machine clock / 2), by counters
+  nothing reads (:data:`COUNTERS`) and, with the standby PC, by ``turns``, which the MAC then
+  reads modulo 7 (:data:`MODULAR`), the ring is periodic. The probe then moves every moved
+  tick and counter on by k whole periods in one step (the pending events' ticks among them),
+  and the scheduler's clock with them: the state the frame-by-frame run has k periods later,
+  to the tick, counters included.
+* k keeps every moved event before the first event the period does not move (a fault, a
+  message arrival, a robot's power-on: a *horizon*) and within the ``World.run`` under way;
+  the rest runs frame by frame, so every such event happens in the state and at the place
+  among the tick's events it has in the frame-by-frame run.
+* The children's CAN sides must all be asleep (hil/sim/quiet_can.py: a domain with an event
+  in the scheduler is awake, and no probe runs then). A sleeping domain is a closed box: its
+  state is its orbit and the tick it fell asleep at, and when something wakes it, it moves on
+  by the periods that passed whatever the ring did meanwhile; so its parts are left out of the
+  snapshot (``boundary``), and a leap leaves them as they are.
+* Nothing outside may be watching the frames: no trace, no event callback, no capture, no CPU
+  model, the rotational MAC. A snapshot with an object whose inside it cannot see (anything but
+  this project's classes, plain values and containers, bytearrays and random generators) never
+  leads to a leap.
+
+A snapshot that finds no repetition backs off (1, 2, 4 ... 64 probes), and a busy ring takes
+none at all (something is reported every period), so a ring that does not repeat itself pays
+little for the probes. tests/test_quiet_ring.py compares runs with and without leaps, whole world and
+summary, on seeded rings with faults, power-on times, the standby father and stops between.
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from firmware_model.mcu.scheduler import Event
+from firmware_model.radio.mac import PC2_CHECK_EVERY
+
+from .state_walk import advance, period_steps, snapshot, writable
+
+if TYPE_CHECKING:
+    from .air import Transmission
+    from .world import World
+
+__all__ = ["COUNTERS", "MODULAR", "GRAIN", "QuietRing"]
+
+COUNTERS = frozenset({
+    "transmissions",   # world: transmissions started (reports only)
+    "occupations",     # air: frames on air (reports)
+    "sent",            # air: transmissions per robot (reports)
+    "frames_sent",     # MAC: frames it sent (reports)
+    "frames_heard",    # station: frames it took (reports)
+    "bytes_sent",      # UART (reports)
+    "bytes_received",  # UART (reports)
+    "_noise_gen",      # air: a generation number, compared only with its own copies
+})
+"""Attributes (or dict/list names) that only count what happened: they may grow by any amount
+a period (nothing reads them to decide what to do)."""
+
+MODULAR = {"turns": PC2_CHECK_EVERY}
+"""Counters the model reads only modulo a number (``turns``: the standby PC2's checks, mac.py):
+a period must move them by a multiple. Without a standby PC nothing reads ``turns``: it is
+one of the counters then."""
+
+GRAIN = 2
+"""Ticks a period must be a multiple of: the MAC's reload timer and the stall timer count the
+machine clock / 2 (firmware_model/mcu/reload_timer.py), so a deadline's rounding depends on
+the tick's parity."""
+
+_BACKOFF_MAX = 64
+_ANCHOR_LOST = 3 * 7
+"""Transmissions of others after which a silent anchor is replaced."""
+
+
+class QuietRing:
+    """Probes the world's radio side and leaps over the cycles it only repeats (module
+    docstring). ``until``: the last tick of the ``World.run`` under way (None outside one:
+    no leap then)."""
+
+    def __init__(self, world: "World", anchor: int, poll_every: int, paired: bool) -> None:
+        self.world = world
+        self.boundary: list[Any] = []
+        """Objects the snapshot does not enter: the children's CAN domains and their parts."""
+        self.anchor = anchor
+        if paired:
+            self.every = poll_every * PC2_CHECK_EVERY // math.gcd(poll_every, PC2_CHECK_EVERY)
+            self.counters, self.modular = COUNTERS, MODULAR
+        else:
+            self.every = poll_every
+            self.counters, self.modular = COUNTERS | {"turns"}, {}
+        self.enabled = True
+        self.until: int | None = None
+        self.probes = 0
+        self.leaps = 0
+        self.ticks_skipped = 0
+        """Simulated ticks the ring did not run frame by frame (docs/performance.md)."""
+        self._count = 0
+        self._others = 0                       # transmissions since the anchor's last
+        self._last: Any = None
+        self._last_at = 0
+        self._misses = 0
+        self._skip = 0
+        self._activity: tuple[int, ...] = ()
+
+    def heard(self, tx: "Transmission") -> None:
+        """A transmission ended (the air's ``on_transmission``); probe after every
+        ``every``-th of the anchor's."""
+        r = tx.radio.robot
+        if r != self.anchor or not self.enabled:
+            if r >= 0:
+                self._others += 1
+                if self._others > _ANCHOR_LOST:    # the anchor is silent: take this robot
+                    self.anchor, self._count, self._others, self._last = r, 0, 0, None
+            return
+        self._others = 0
+        self._count += 1
+        if self._count % self.every == 0 and self.until is not None:
+            sched = self.world.sched
+            sched.at(sched.now, self._probe)
+
+    def _watched(self) -> bool:
+        w = self.world
+        return w.trace is not None or w.on_event is not None or w.pcap is not None
+
+    def _probe(self) -> None:
+        if self.until is None or self._watched():
+            self._last = None
+            return
+        activity = self.world.activity()
+        if activity != self._activity:         # something reported: not repeating itself
+            self._activity = activity
+            self._last = None
+            return
+        if self._skip:
+            self._skip -= 1
+            return
+        sched = self.world.sched
+        events = sched.pending(None)
+        if len(events) != len(sched):          # another owner's events (a domain): not ours
+            self._last = None
+            return
+        self.probes += 1
+        snap = snapshot([self.world, events], [sched, self, *self.boundary], rng_state=True)
+        if any(type(x) is tuple and x and x[0] == "id" for x in snap.shape):
+            self.enabled = False               # something whose state it cannot see
+            return
+        now = sched.now
+        last, at = self._last, self._last_at
+        self._last, self._last_at = snap, now
+        if last is None:
+            return
+        period = now - at
+        steps = period_steps(last, snap, period, self.counters, self.modular) \
+            if period > 0 and period % GRAIN == 0 else None
+        if steps is None:
+            self._misses += 1
+            self._skip = min(1 << (self._misses - 1), _BACKOFF_MAX) - 1
+            if self._skip:
+                self._last = None
+            return
+        self._misses = 0
+        moved = writable(snap, steps)
+        stepped = {id(h) for h, key, _ in moved if key == "when" and type(h) is Event}
+        horizon = min([e.when for e in events if id(e) not in stepped] + [self.until + 1])
+        reach = max([e.when for e in events if id(e) in stepped] + [now])
+        # every moved event stays before the horizon: strictly, so that one due at the
+        # horizon's tick keeps its place among that tick's events
+        k = (horizon - 1 - reach) // period
+        if k < 1:
+            return
+        taken = sched.take(None)
+        advance(moved, k)
+        sched.skip_to(now + k * period)
+        sched.put_back(taken)
+        self.leaps += 1
+        self.ticks_skipped += k * period
+        self._last = None

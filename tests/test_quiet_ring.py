@@ -1,0 +1,235 @@
+"""The ring moved on in whole cycles while it only repeats itself (hil/sim/quiet_ring.py): the
+same run, to the tick, as frame by frame.
+
+Each scenario runs twice from the same config, once with the ring's leaps and once without,
+stopping at the same ticks; at every stop the whole world (every attribute of every part, the
+pending events, the random generators' states) and the summary must be the same. The idle
+scenarios must also have leapt, so that the comparison is not between two frame-by-frame runs.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import replace
+
+import pytest
+
+from firmware_model.cycle_costs import DEFAULT_COSTS
+from firmware_model.mcu.scheduler import Scheduler
+from firmware_model.radio.content import cmd
+from firmware_model.timing import s_to_ticks
+from hil.sim.faults import parse_fault
+from hil.sim.quiet_ring import QuietRing
+from hil.sim.state_walk import InTuple, advance, period_steps, portable, snapshot, writable
+from hil.sim.trace import TraceWriter
+from hil.sim.world import SimConfig, World
+
+F = lambda *s: tuple(parse_fault(x) for x in s)  # noqa: E731
+RING = (0, 1, 2, 3, 4, 5, 6)
+
+SCENARIOS = {
+    # name: (config, stops in s, least share of the run leapt over; 0.0: no leap at all)
+    "idle ring": (SimConfig(robots=RING, duration=60, seed=1), (7.3, 30.0, 60), 0.7),
+    "a robot fails and comes back": (
+        SimConfig(robots=(0, 1, 2, 3), duration=60, seed=2,
+                  faults=F("fail:2@15", "recover:2@31.5")), (14.0, 15.2, 40.0, 60), 0.4),
+    # after the fault PC1's deaf MAC keeps its own cycle beside the ring's: no period then
+    "standby father, PC1 fails": (
+        SimConfig(robots=(0, 1, 2, 3), duration=60, seed=3, father_standby=True,
+                  faults=F("fail:0@20")), (19.0, 60), 0.1),
+    "late power-on": (
+        SimConfig(robots=(0, 1, 2, 5), duration=50, seed=4, power_on={5: 24.0}),
+        (23.99, 24.5, 50), 0.4),
+    "no father": (SimConfig(robots=(1, 2, 3, 4, 5, 6), duration=40, seed=5), (40,), 0.5),
+    "light load": (SimConfig(robots=(0, 1, 2), duration=80, seed=6, load=0.02), (80,), 0.1),
+    "skewed clock": (
+        SimConfig(robots=(0, 1, 2, 3), duration=40, seed=7, faults=F("skew:2:0.01")),
+        (40,), 0.5),
+    "steal and burst": (
+        SimConfig(robots=(0, 1, 2, 3), duration=40, seed=8,
+                  faults=F("steal:1@12", "burst@25:0.3", "foreign@30:20")), (12.0, 40), 0.3),
+    "byte errors for a while": (
+        SimConfig(robots=(0, 1, 2), duration=40, seed=9, faults=F("ber@10-20:0.002")),
+        (40,), 0.3),
+    "idle ring with CAN sides": (SimConfig(robots=RING, duration=60, seed=15, can=True),
+                                 (10.0, 33.3, 60), 0.5),
+    "CAN faults": (
+        SimConfig(robots=(0, 1, 2, 3), duration=60, seed=16, can=True,
+                  faults=F("busoff:2@20", "stall:1.JOINT1@35", "silent:3.WHEEL@45-46")),
+        (19.9, 40.0, 60), 0.2),
+    # the byte errors draw on the air's random streams every frame: never the same state
+    "byte errors throughout": (SimConfig(robots=(0, 1, 2), duration=20, seed=10, ber=0.001),
+                               (20,), 0.0),
+    "a robot gone for good": (
+        SimConfig(robots=(0, 1, 2, 3), duration=40, seed=11, faults=F("fail:3@8")), (40,),
+        0.1),
+}
+
+
+def _state(w: World) -> list:
+    """The whole world but its ring prober: every part (the CAN sides' too), every pending
+    event, and what each CAN domain did (not the snapshots it keeps to compare)."""
+    parts = {k: v for k, v in vars(w).items() if k not in ("quiet_ring", "cfg", "quiet")}
+    domains = [(q.asleep, q.sleeps, q.periods_skipped, q.replays, q.resleeps, q.noted,
+                q.refused) for q in w.quiet.values()]
+    boundary = [w.sched, *w.quiet.values(), *(q.clock for q in w.quiet.values())]
+    events = [w.sched.pending(owner) for owner in (None, *w.quiet.values())]
+    shape = portable(snapshot([parts, events, domains], boundary, rng_state=True))
+    # a frozen record (an Outcome) holds its Message, equal only to itself: compare its text
+    return [repr(x) if dataclasses.is_dataclass(x) else x for x in shape]
+
+
+def _twins(cfg: SimConfig) -> tuple[World, World]:
+    """(frame by frame, leaping): the same world twice."""
+    plain = World(replace(cfg, ring_sleep=False))
+    assert plain.quiet_ring is None
+    return plain, World(cfg)
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_leaping_ring_is_the_frame_by_frame_ring(name):
+    cfg, stops, least = SCENARIOS[name]
+    plain, leaping = _twins(cfg)
+    for s in stops:
+        for w in (plain, leaping):
+            w.run(until=s_to_ticks(s))
+        assert leaping.now == plain.now == s_to_ticks(s)
+        assert _state(leaping) == _state(plain), f"{name}: the worlds differ at {s} s"
+    assert json.dumps(leaping.summary(), sort_keys=True) == \
+        json.dumps(plain.summary(), sort_keys=True)
+    ring = leaping.quiet_ring
+    share = ring.ticks_skipped / leaping.now
+    if least == 0.0:
+        assert ring.leaps == 0, f"{name}: a ring that never repeats itself leapt"
+    else:
+        assert share >= least, f"{name}: only {share:.0%} leapt over"
+
+
+def test_orders_submitted_between_runs_end_the_repetition():
+    """A message submitted from outside between two runs (the bench, a test) is a change the
+    next snapshot sees: the ring runs it frame by frame, delivered as without leaps."""
+    plain, leaping = _twins(SimConfig(robots=(0, 1, 2), duration=60, seed=12))
+    for t, dst in ((10.0, 1), (25.0, 2), (25.0, 1), (41.3, 2)):
+        for w in (plain, leaping):
+            w.run(until=s_to_ticks(t))
+            w.submit(0, dst, [cmd("status")])
+    for w in (plain, leaping):
+        w.run()
+    assert _state(leaping) == _state(plain)
+    assert leaping.summary() == plain.summary()
+    assert leaping.summary()["delivered"] == 4
+    assert leaping.quiet_ring.ticks_skipped > s_to_ticks(20)
+
+
+def test_orders_to_children_whose_can_sides_sleep():
+    """Orders that wake a child's CAN side (a wheel driven, then stopped, a joint moved) and
+    news that does not: the ring leaps only while every CAN side sleeps, and the children's
+    buses carry the same frames as without leaps."""
+    cfg = SimConfig(robots=(0, 1, 2, 3), duration=60, seed=17, can=True)
+    plain, leaping = _twins(cfg)
+    orders = ((5.0, 1, cmd("wheel", 80)), (20.0, 1, cmd("status")), (31.7, 2, cmd("joint", 1, 20)),
+              (40.0, 1, cmd("wheel", 0)), (52.0, 3, cmd("status")))
+    for w in (plain, leaping):
+        for t, r, c in orders:
+            w.sched.at(s_to_ticks(t), lambda w=w, r=r, c=c: w.submit(0, r, [c]))
+    for s in (12.0, 33.0, 60):
+        for w in (plain, leaping):
+            w.run(until=s_to_ticks(s))
+        assert _state(leaping) == _state(plain), f"the worlds differ at {s} s"
+    assert leaping.summary() == plain.summary()
+    assert leaping.can_frames == plain.can_frames > 0
+    assert leaping.quiet_ring.ticks_skipped > s_to_ticks(10)
+
+
+def test_events_scheduled_from_outside_bound_the_leaps():
+    """An event someone schedules on the world's clock (here a message at 33.3 s) is not moved
+    by the period: the ring leaps only up to it, and the event runs at its tick."""
+    plain, leaping = _twins(SimConfig(robots=(0, 1, 2, 3), duration=50, seed=13))
+    seen = {}
+    for w in (plain, leaping):
+        w.sched.at(s_to_ticks(33.3), lambda w=w: seen.setdefault(id(w), (
+            w.now, w.submit(0, 3, [cmd("status")]).num)))
+        w.run()
+    assert seen[id(plain)] == seen[id(leaping)]
+    assert seen[id(leaping)][0] == s_to_ticks(33.3)
+    assert _state(leaping) == _state(plain)
+    assert leaping.quiet_ring.leaps >= 2
+
+
+def test_no_leap_while_anything_watches_the_frames(tmp_path):
+    """A trace, an event callback or a capture sees every frame: no leap, and a traced run
+    records every transmission of the whole run."""
+    cfg = SimConfig(robots=(0, 1, 2), duration=20, seed=14)
+    tw = TraceWriter(str(tmp_path / "t.jsonl"))
+    traced = World(cfg, trace=tw)
+    traced.run()
+    tw.close()
+    assert traced.quiet_ring is None
+    frames = [json.loads(line) for line in (tmp_path / "t.jsonl").read_text().splitlines()]
+    plain = World(replace(cfg, ring_sleep=False))
+    plain.run()
+    assert sum(1 for e in frames if e.get("ev") == "frame") == plain.transmissions
+    assert World(cfg, on_event=lambda ev: None).quiet_ring is None
+    captured = World(cfg)
+    written = []
+    captured.capture(_Sink(written))
+    captured.run()
+    assert len(written) == plain.transmissions
+    assert captured.quiet_ring.leaps == 0 and captured.quiet_ring.probes == 0
+    idle = World(cfg)
+    idle.run()
+    assert idle.quiet_ring.leaps >= 1
+    for other in (replace(cfg, realtime=True), replace(cfg, mac_kind="aloha"),
+                  replace(cfg, can=True, cpu=DEFAULT_COSTS)):
+        assert World(other).quiet_ring is None
+
+
+class _Sink:
+    """A capture that keeps the radio frames' ends (World.capture's sink)."""
+
+    def __init__(self, out: list) -> None:
+        self.out = out
+
+    def radio(self, key, end, data, note) -> None:
+        self.out.append(end)
+
+    def can(self, *a) -> None: ...
+
+    def can_error(self, *a) -> None: ...
+
+
+def test_a_leap_moves_ticks_inside_tuples():
+    """A tick held in a tuple (a MAC's ``_last_heard``, an event's arguments) moves with the
+    rest: the tuple is replaced in its holder."""
+
+    h = {"pair": (3, 100), "nested": {"k": (1, (2, 500))}, "same": (7, 7)}
+    a = snapshot([h])
+    h["pair"] = (3, 110)
+    h["nested"]["k"] = (1, (2, 510))
+    b = snapshot([h])
+    steps = period_steps(a, b, 10, frozenset())
+    moved = writable(b, steps)
+    assert len(moved) == 2 and {type(holder) for holder, _, _ in moved} == {InTuple}
+    advance(moved, 5)
+    assert h == {"pair": (3, 160), "nested": {"k": (1, (2, 560))}, "same": (7, 7)}
+    # a tuple that is itself a root has no holder to be written in: not periodic
+    assert period_steps(snapshot([(1, 100)]), snapshot([(1, 110)]), 10, frozenset()) is None
+
+
+def test_scheduler_refuses_to_skip_over_an_event():
+    s = Scheduler()
+    s.at(100, lambda: None)
+    with pytest.raises(ValueError, match="event is due at tick 100"):
+        s.skip_to(101)
+    s.skip_to(100)
+    assert s.now == 100
+    with pytest.raises(ValueError):
+        s.skip_to(50)
+
+
+def test_the_period_holds_whole_rounds_of_pc2_checks():
+    """With the standby PC the MAC reads ``turns`` modulo 7: a period must be a multiple of
+    28 anchor turns; without it, 4 (whole polling rounds)."""
+    assert World(SimConfig(robots=(0, 1), father_standby=True)).quiet_ring.every == 28
+    assert World(SimConfig(robots=(0, 1))).quiet_ring.every == 4
+    assert isinstance(World(SimConfig(robots=(1, 2))).quiet_ring, QuietRing)
