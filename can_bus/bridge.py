@@ -6,16 +6,18 @@ and the submodule nodes run unchanged on SocketCAN (``socketcan:vcan0``), python
 ``virtual`` bus, ``udp_multicast`` or a real adapter. The wire does the arbitration; local
 nodes sharing one ``PythonCanBus`` also hear each other's frames, as on a real bus.
 
-It needs a scheduler with ``post`` (``hil.sim.realtime.RealTimeScheduler``): python-can's reader
-thread hands every received frame to the scheduler's thread. ``log`` writes every frame sent or
+It needs a scheduler with ``post`` (``hil.sim.realtime.RealTimeScheduler``): a reader thread
+hands every received frame to the scheduler's thread. A receive or send error (an interface
+taken down) is reported in one line through ``on_error`` and the bus goes on. ``log`` writes every frame sent or
 received with python-can's writers, chosen by the file's extension (candump ``.log``,
 ``.asc``, ``.blf``, ``.csv``, ``.trc``).
 """
 from __future__ import annotations
 
 import errno
+import threading
 import time
-from typing import Any
+from typing import Any, Callable
 
 import can
 
@@ -100,12 +102,19 @@ def open_bus(spec: str, bitrate: int | None = None, **kwargs: Any) -> can.BusABC
 class PythonCanBus:
     """Local CAN nodes on a python-can bus (real time)."""
 
+    RETRY_S = 0.1
+    """Seconds the reader waits after a receive error before it reads again."""
+
     def __init__(self, sched: Any, bus: can.BusABC, timing: BitTiming | None = None,
-                 log: str | None = None, channel: str | None = None) -> None:
+                 log: str | None = None, channel: str | None = None,
+                 on_error: Callable[[str], None] | None = None) -> None:
         """``log``: a python-can log file (.log .asc .blf ...) of every frame sent and
         received, stamped with the wall clock (seconds since the epoch, like SocketCAN's
         receive stamps and candump's), own frames marked as sent (``T``/``Tx``), each with
-        ``channel`` (the bus's channel, e.g. ``vcan0`` or the ``rprs_unix`` directory)."""
+        ``channel`` (the bus's channel, e.g. ``vcan0`` or the ``rprs_unix`` directory).
+        ``on_error``: called in the scheduler's thread with one line for each receive error
+        and for the first of a run of failed sends (an interface taken down or removed);
+        reading and sending go on either way, as an MCU's controller does."""
         self.sched = sched
         self.bus = bus
         self.channel = channel
@@ -116,9 +125,15 @@ class PythonCanBus:
         self.sent = 0
         self.received = 0
         self.send_errors = 0
+        self.receive_errors = 0
+        self.on_error = on_error
+        self._send_failing = False
         self.trace = None          # callable(frame, start, end, node) like CanBus.trace
         self._writer = can.Logger(log) if log else None
-        self._notifier = can.Notifier(bus, [self._from_thread], timeout=0.05)
+        self._closing = threading.Event()
+        self._reader = threading.Thread(target=self._read, name=f"can-reader {channel or ''}",
+                                        daemon=True)
+        self._reader.start()
 
     # -- what a transceiver model reads of its bus ------------------------------------------
 
@@ -190,10 +205,14 @@ class PythonCanBus:
         msg.channel = self.channel
         try:
             self.bus.send(msg, timeout=0.1)
-        except can.CanError:
+        except can.CanError as exc:
             self.send_errors += 1
+            if not self._send_failing:
+                self._send_failing = True
+                self._report(f"sending failed, retrying every 1 ms: {exc}")
             self.sched.after(16_000, self._send_next, node)    # retry in 1 ms
             return
+        self._send_failing = False
         self.sent += 1
         end = now + frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
             * self.timing.ticks_per_bit
@@ -220,6 +239,29 @@ class PythonCanBus:
 
     # -- receiving --------------------------------------------------------------------------
 
+    def _read(self) -> None:
+        """The reader thread: every frame to ``_from_thread``; an error (SocketCAN's ENETDOWN
+        when the interface goes down) is reported and reading goes on."""
+        while not self._closing.is_set():
+            try:
+                msg = self.bus.recv(0.05)
+            except Exception as exc:  # noqa: BLE001 - any driver's error: report, read on
+                if self._closing.is_set():
+                    return
+                self.sched.post(self._receive_failed, exc)
+                self._closing.wait(self.RETRY_S)
+                continue
+            if msg is not None:
+                self._from_thread(msg)
+
+    def _receive_failed(self, exc: Exception) -> None:
+        self.receive_errors += 1
+        self._report(f"receiving failed: {exc}")
+
+    def _report(self, what: str) -> None:
+        if self.on_error is not None:
+            self.on_error(f"CAN bus {self.channel or self.bus.channel_info}: {what}")
+
     def _from_thread(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_extended_id or msg.is_fd:
             return
@@ -245,7 +287,8 @@ class PythonCanBus:
                 node.on_frame(frame, start, end)
 
     def close(self) -> None:
-        self._notifier.stop()
+        self._closing.set()
+        self._reader.join()
         if self._writer is not None:
             self._writer.stop()
         self.bus.shutdown()

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
+import can
 import pytest
 
 from can_bus import dbc
@@ -155,3 +157,77 @@ def test_a_can_log_agrees_with_candump(vcan_channel, tmp_path):
     assert {f: len(v) for f, v in logged.items()} == {f: len(v) for f, v in dumped.items()}
     worst = max(abs(a - b) for f in logged for a, b in zip(sorted(logged[f]), dumped[f]))
     assert worst < 0.02, worst
+
+
+class _FailingBus(can.BusABC):
+    """A python-can bus whose interface goes down and comes back: ``rx`` is what ``recv``
+    gives in turn (an exception is raised), then nothing; the first ``tx_failures`` sends
+    fail as SocketCAN's do on a down interface."""
+
+    def __init__(self, rx, tx_failures=0):
+        super().__init__(channel="flaky")
+        self.rx, self.tx_failures, self.sent = list(rx), tx_failures, []
+
+    def _recv_internal(self, timeout):
+        if self.rx:
+            item = self.rx.pop(0)
+            if isinstance(item, Exception):
+                raise item
+            return item, False
+        time.sleep(timeout or 0)
+        return None, False
+
+    def send(self, msg, timeout=None):
+        if self.tx_failures:
+            self.tx_failures -= 1
+            raise can.CanOperationError("Failed to transmit: Network is down")
+        self.sent.append(msg)
+
+
+def test_a_receive_error_is_one_line_and_reading_goes_on(monkeypatch):
+    """With vcan0 taken down under a running `rprs child`, python-can's reader thread died
+    with a traceback (CanOperationError: Network is down) and the process went on deaf, with
+    exit status 0, even after the interface was up again. The error is now one line through
+    ``on_error`` and the next frame is still delivered."""
+    import threading
+    died = []
+    monkeypatch.setattr(threading, "excepthook", died.append)
+    frame = can.Message(arbitration_id=0x181, data=bytes(6), is_extended_id=False)
+    raw = _FailingBus([can.CanOperationError("Error receiving: Network is down"), frame])
+    sched = RealTimeScheduler()
+    lines, heard = [], []
+
+    class Node:
+        def on_frame(self, f, start, end):
+            heard.append(f.id)
+            sched.stop()
+    bus = PythonCanBus(sched, raw, channel="vcan0", on_error=lines.append)
+    bus.attach(Node())
+    try:
+        sched.run_for(60)                    # stopped by the frame: a bound, not a timing
+    finally:
+        bus.close()
+    assert heard == [0x181] and not died
+    assert lines == ["CAN bus vcan0: receiving failed: Error receiving: Network is down"]
+    assert bus.receive_errors == 1
+
+
+def test_failed_sends_are_reported_once_and_retried():
+    """A send that fails (interface down) was retried every 1 ms in silence; now the first
+    failure of a run is one line, and the frame still goes out once the interface is back."""
+    raw = _FailingBus([], tx_failures=3)
+    sched = RealTimeScheduler()
+    lines = []
+    bus = PythonCanBus(sched, raw, channel="vcan0", on_error=lines.append)
+
+    class Sender:
+        def on_tx_done(self, f, end):
+            sched.stop()
+    try:
+        bus.request(Sender(), dbc.encode("ESTOP", reason=1))
+        sched.run_for(60)                    # stopped when the frame is sent
+    finally:
+        bus.close()
+    assert [m.arbitration_id for m in raw.sent] == [0x010] and bus.send_errors == 3
+    assert lines == ["CAN bus vcan0: sending failed, retrying every 1 ms: "
+                     "Failed to transmit: Network is down"]
