@@ -15,6 +15,7 @@ received with python-can's writers, chosen by the file's extension (candump ``.l
 from __future__ import annotations
 
 import errno
+import logging
 import threading
 import time
 from typing import Any, Callable
@@ -47,6 +48,8 @@ def parse_spec(spec: str) -> tuple[str, str]:
 
 
 IFF_UP = 0x1
+ARPHRD_CAN = 280
+"""The link type of a CAN interface (``/sys/class/net/NAME/type``; linux/if_arp.h)."""
 
 
 def socketcan_missing(channel: str = "vcan0") -> str | None:
@@ -64,6 +67,13 @@ def socketcan_missing(channel: str = "vcan0") -> str | None:
     except OSError:
         return f"no {channel} interface"
     try:
+        with open(f"/sys/class/net/{channel}/type") as f:
+            kind = int(f.read())
+        if kind != ARPHRD_CAN:
+            return f"{channel} is not a CAN interface (link type {kind})"
+    except (OSError, ValueError):
+        pass
+    try:
         with open(f"/sys/class/net/{channel}/flags") as f:
             if not int(f.read(), 16) & IFF_UP:
                 return f"{channel} interface is down"
@@ -72,31 +82,82 @@ def socketcan_missing(channel: str = "vcan0") -> str | None:
     return None
 
 
+def _socketcan_hint(channel: str, why: str) -> str:
+    """What to do about ``socketcan_missing(channel)``'s reason ``why``."""
+    if why == f"no {channel} interface":
+        return f"create it with: ip link add dev {channel} type vcan && ip link set up {channel}"
+    if why == f"{channel} interface is down":
+        return f"bring it up with: ip link set up {channel}"
+    if "not a CAN interface" in why:
+        return "name a CAN interface (ip -details link show type can, or type vcan)"
+    return ("load the can and can-raw modules; without SocketCAN, processes share a bus with "
+            "rprs_unix:DIR (virtual:NAME stays inside one process; docs/vcan.md)")
+
+
 def open_bus(spec: str, bitrate: int | None = None, **kwargs: Any) -> can.BusABC:
     """Open a python-can bus from ``INTERFACE:CHANNEL`` with one-line errors."""
     interface, channel = parse_spec(spec)
     if interface == "socketcan":
         why = socketcan_missing(channel)
         if why is not None:
-            hint = (f"create it with: ip link add dev {channel} type vcan && ip link set up "
-                    f"{channel}" if "interface" in why else
-                    "load the can and can-raw modules; without SocketCAN, processes share "
-                    "a bus with rprs_unix:DIR (virtual:NAME stays inside one process; "
-                    "docs/vcan.md)")
+            hint = _socketcan_hint(channel, why)
             raise CanOpenError(f"cannot open CAN bus {spec}: {why}; {hint}")
+    if interface == "virtual":
+        kwargs.setdefault("receive_own_messages", False)
+    if bitrate is not None and interface not in ("virtual", "socketcan", "udp_multicast"):
+        kwargs["bitrate"] = bitrate
+    held, log = _HeldLog(), logging.getLogger("can")
+    log.addHandler(held)
+    propagate, log.propagate = log.propagate, False
     try:
-        if interface == "virtual":
-            kwargs.setdefault("receive_own_messages", False)
-        if bitrate is not None and interface not in ("virtual", "socketcan", "udp_multicast"):
-            kwargs["bitrate"] = bitrate
-        return can.Bus(interface=interface, channel=channel, **kwargs)
-    except can.CanError as exc:
-        raise CanOpenError(f"cannot open CAN bus {spec}: {exc}") from None
-    except OSError as exc:
-        why = "no such device" if exc.errno == errno.ENODEV else exc.strerror or str(exc)
-        raise CanOpenError(f"cannot open CAN bus {spec}: {why}") from None
-    except (ImportError, ValueError, TypeError) as exc:
-        raise CanOpenError(f"cannot open CAN bus {spec}: {exc}") from None
+        try:
+            bus = can.Bus(interface=interface, channel=channel, **kwargs)
+        except can.CanError as exc:
+            why = str(exc)
+        except OSError as exc:
+            why = "no such device" if exc.errno == errno.ENODEV else exc.strerror or str(exc)
+        except (ImportError, ValueError, TypeError) as exc:
+            why = str(exc)
+        except Exception as exc:  # noqa: BLE001 - a driver's own failure, e.g. python-can's
+            # kvaser without Kvaser's canlib raises NameError: still one line, naming it
+            why = f"python-can's {interface} driver failed: {type(exc).__name__}: {exc}"
+        else:
+            why = None
+    finally:             # the half-built bus is gone by now, with its "not shut down" warning
+        log.removeHandler(held)
+        log.propagate = propagate
+    if why is None:
+        held.replay()
+        return bus
+    said = "; ".join(held.said(why))
+    raise CanOpenError(f"cannot open CAN bus {spec}: {why}" + (f" ({said})" if said else ""))
+
+
+class _HeldLog(logging.Handler):
+    """python-can's log records while a bus opens: its warnings ("Kvaser canlib is
+    unavailable.") join our one-line error when opening fails, and are logged as usual when
+    it works."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)
+
+    def said(self, why: str) -> list[str]:
+        """What python-can said that ``why`` does not, less the half-built bus's warning."""
+        out = []
+        for r in self.records:
+            text = r.getMessage()
+            if r.msg != "%s was not properly shut down" and text not in out and \
+                    str(why) not in text:
+                out.append(text.rstrip("."))
+        return out
+
+    def replay(self) -> None:
+        for r in self.records:
+            logging.getLogger(r.name).handle(r)
 
 
 class PythonCanBus:

@@ -5,6 +5,7 @@ kernel has it (``scripts/vcan-vm.sh`` runs the ``vcan`` ones for real on CI).
 """
 from __future__ import annotations
 
+import gc
 import subprocess
 import sys
 import time
@@ -231,3 +232,65 @@ def test_failed_sends_are_reported_once_and_retried():
     assert [m.arbitration_id for m in raw.sent] == [0x010] and bus.send_errors == 3
     assert lines == ["CAN bus vcan0: sending failed, retrying every 1 ms: "
                      "Failed to transmit: Network is down"]
+
+
+@pytest.mark.vcan
+def test_an_interface_that_is_not_can_is_refused_in_one_line(vcan_channel, caplog):
+    """``--can socketcan:lo`` printed python-can's own log line ("Could not access SocketCAN
+    device lo ([Errno 19] No such device)") before our error: two lines. It is now refused
+    before python-can is asked, as not a CAN interface."""
+    with pytest.raises(CanOpenError) as e:
+        open_bus("socketcan:lo")
+    assert "lo is not a CAN interface" in str(e.value) and "\n" not in str(e.value)
+    assert not [r for r in caplog.records if r.name.startswith("can")]
+
+
+def test_a_driver_that_fails_in_its_own_way_is_one_line(monkeypatch, caplog):
+    """python-can's kvaser driver without Kvaser's canlib logs "Kvaser canlib is
+    unavailable." and raises NameError: ``rprs child --can kvaser:0`` showed that line and a
+    traceback. Whatever a driver raises when opening, and what python-can logs meanwhile, is
+    one line."""
+    import logging
+
+    def broken(**kw):
+        logging.getLogger("can.kvaser").warning("Kvaser canlib is unavailable.")
+        raise NameError("name 'canGetNumberOfChannels' is not defined")
+    monkeypatch.setattr(can, "Bus", broken)
+    with pytest.raises(CanOpenError) as e:
+        open_bus("kvaser:0")
+    assert str(e.value) == ("cannot open CAN bus kvaser:0: python-can's kvaser driver failed: "
+                            "NameError: name 'canGetNumberOfChannels' is not defined "
+                            "(Kvaser canlib is unavailable)")
+    assert not caplog.records
+
+
+def test_a_half_built_bus_adds_no_second_line(monkeypatch, caplog):
+    """``--can udp_multicast:notanaddr`` gave our error, then python-can's "UdpMulticastBus
+    was not properly shut down" for the bus that failed half-way through its constructor."""
+    class HalfBuilt(can.BusABC):
+        def __init__(self, **kw):
+            super().__init__(channel=kw["channel"])
+            raise OSError(None, "Name or service not known")
+
+        def send(self, msg, timeout=None):
+            pass
+    monkeypatch.setattr(can, "Bus", HalfBuilt)
+    with pytest.raises(CanOpenError) as e:
+        open_bus("udp_multicast:notanaddr")
+    assert str(e.value) == ("cannot open CAN bus udp_multicast:notanaddr: Name or service not "
+                            "known")
+    del e
+    gc.collect()                         # whatever still held the half-built bus lets it go
+    assert not caplog.records
+
+
+def test_python_cans_warnings_are_logged_as_usual_when_the_bus_opens(monkeypatch, caplog):
+    import logging
+    real = can.Bus
+
+    def warns(**kw):
+        logging.getLogger("can.virtual").warning("a driver's remark")
+        return real(**kw)
+    monkeypatch.setattr(can, "Bus", warns)
+    open_bus("virtual:remark").shutdown()
+    assert [r.getMessage() for r in caplog.records] == ["a driver's remark"]
