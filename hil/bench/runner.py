@@ -178,7 +178,8 @@ def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
     try:
         bus = PythonCanBus(runner.sched, raw, log=log, channel=parse_spec(spec)[1],
                            on_error=_warn)
-    except (OSError, ValueError, CanOpenError) as exc:
+    except (OSError, ValueError, CanOpenError, NotImplementedError, ImportError) as exc:
+        # NotImplementedError: python-can's .mf4 writer without asammdf
         raw.shutdown()                 # else python-can warns at exit, a second line
         raise RunError(f"cannot write CAN log {log}: {exc}") from None
     runner.on_close(bus.close)
