@@ -356,3 +356,17 @@ def test_monitor_outputs_with_a_radio_are_refused_in_one_line(capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--trace: only for the simulated ring" in err
     assert main(["monitor", "--no-progress"]) == 2          # no progress bar to turn off
+
+
+def test_a_speed_the_keys_cannot_reach_is_refused_and_any_speed_shows_as_it_is():
+    """``--speed 10000`` ran at 4096 and ``--speed 0.001`` at 1/64 without a word, and
+    ``--speed 0.75`` showed as ×1/1."""
+    from hil.cli import UserError, build_parser
+    from hil.view.monitor import _speed_text
+    parser = build_parser(("monitor",))
+    for bad in ("10000", "0.001"):            # parsed only: a taken speed would run the view
+        with pytest.raises(UserError, match=f"'{bad}' is outside 1/64 to 4096"):
+            parser.parse_args(["monitor", "--speed", bad])
+    assert parser.parse_args(["monitor", "--speed", "0.75"]).speed == 0.75
+    assert [_speed_text(s) for s in (1 / 64, 0.5, 0.75, 0.3, 1, 1.5, 4096)] == \
+        ["×1/64", "×1/2", "×0.75", "×0.3", "×1", "×1.5", "×4096"]

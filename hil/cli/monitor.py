@@ -7,6 +7,17 @@ from ..sim.world import ConfigError
 from .common import UserError, distinct_outputs, positive
 from .sim import add_sim_options, close_writers, open_writers, print_summary, sim_config
 
+
+def speed(text: str) -> float:
+    """``--speed``: simulated seconds per wall second, within what ``+``/``-`` reach."""
+    from ..view.monitor import SPEED_MAX, SPEED_MIN
+    v = positive(text)
+    if not SPEED_MIN <= v <= SPEED_MAX:
+        raise argparse.ArgumentTypeError(f"{text!r} is outside 1/64 to 4096 (the speeds + and - "
+                                         f"reach)")
+    return v
+
+
 def cmd_monitor(a: argparse.Namespace) -> int:
     from ..view.monitor import run_monitor_radio, run_monitor_sim
     from ..bench.serial_radio import PortError
@@ -43,7 +54,7 @@ def add(sub) -> None:
     mo = sub.add_parser("monitor", help="live terminal view of the ring (paper Fig. 9): the "
                         "simulator, or --radio PORT")
     add_sim_options(mo, progress=False)   # --trace/--vcd: the world up to where you quit
-    mo.add_argument("--speed", type=positive, default=1.0,
-                    help="simulated seconds per wall second (default 1)")
+    mo.add_argument("--speed", type=speed, default=1.0,
+                    help="simulated seconds per wall second, 1/64 to 4096 (default 1)")
     mo.add_argument("--radio", metavar="PORT", help="listen to a radio hub pty or a USB radio")
     mo.set_defaults(func=cmd_monitor, duration=3600.0)

@@ -97,7 +97,10 @@ def _cut(s: str, width: int) -> str:
 
 
 def _speed_text(speed: float) -> str:
-    return f"×{speed:g}" if speed >= 1 else f"×1/{round(1 / speed):d}"
+    """×4, ×1/8 (a whole fraction), else ×0.75 (``--speed 0.75`` used to show ×1/1)."""
+    if speed < 1 and (1 / speed).is_integer():
+        return f"×1/{round(1 / speed):d}"
+    return f"×{speed:g}"
 
 
 @dataclass
