@@ -370,3 +370,23 @@ def test_a_speed_the_keys_cannot_reach_is_refused_and_any_speed_shows_as_it_is()
     assert parser.parse_args(["monitor", "--speed", "0.75"]).speed == 0.75
     assert [_speed_text(s) for s in (1 / 64, 0.5, 0.75, 0.3, 1, 1.5, 4096)] == \
         ["×1/64", "×1/2", "×0.75", "×0.3", "×1", "×1.5", "×4096"]
+
+
+def _monitor_cmd(*args):
+    import sys
+    return [sys.executable, "-m", "hil.cli", "monitor", *args]
+
+
+def test_the_monitor_without_a_terminal_is_one_line(tmp_path):
+    """``rprs monitor < /dev/null 2> log`` drew the screen's escape codes into the log and,
+    with no ``q`` to read, never ended, even after ``--duration``. Without a terminal on stdin
+    and stderr it is now one line, before any file is written."""
+    import subprocess
+    for args in (("--robots", "0,1", "--duration", "1", "--speed", "64", "--trace",
+                  str(tmp_path / "t.jsonl")), ("--radio", "/dev/null")):
+        r = subprocess.run(_monitor_cmd(*args), stdin=subprocess.DEVNULL, capture_output=True,
+                           text=True, timeout=60)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr[:300]
+        assert r.stderr.startswith("rprs: error: rprs monitor is a live view: it needs a "
+                                   "terminal on stdin and stderr")
+    assert not list(tmp_path.iterdir())

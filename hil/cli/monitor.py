@@ -2,10 +2,20 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ..sim.world import ConfigError
 from .common import UserError, distinct_outputs, positive
 from .sim import add_sim_options, close_writers, open_writers, print_summary, sim_config
+
+
+def _need_a_terminal(instead: str) -> None:
+    """The view reads its keys from stdin and draws on stderr (textual's driver). Without a
+    terminal on both it drew escape codes into a pipe or a file and, with no ``q`` to read,
+    never ended."""
+    if not all(f is not None and f.isatty() for f in (sys.__stdin__, sys.__stderr__)):
+        raise UserError(f"rprs monitor is a live view: it needs a terminal on stdin and stderr "
+                        f"(stdout may go anywhere); without one, {instead}")
 
 
 def speed(text: str) -> float:
@@ -21,12 +31,13 @@ def speed(text: str) -> float:
 def cmd_monitor(a: argparse.Namespace) -> int:
     from ..view.monitor import run_monitor_radio, run_monitor_sim
     from ..bench.serial_radio import PortError
-    if a.radio:
+    if a.radio is not None:
         given = [o for o, v in (("--trace", a.trace), ("--vcd", a.vcd), ("--json", a.json))
                  if v]
         if given:
             raise UserError(f"{', '.join(given)}: only for the simulated ring, not with --radio "
                             f"(record a radio with rprs bench or the hub)")
+        _need_a_terminal("listen with rprs bench link --radio PORT")
         try:
             return run_monitor_radio(a.radio)
         except PortError as exc:
@@ -37,6 +48,7 @@ def cmd_monitor(a: argparse.Namespace) -> int:
     except ConfigError as exc:
         raise UserError(str(exc)) from None
     distinct_outputs(trace=a.trace, vcd=a.vcd)
+    _need_a_terminal("run rprs sim with the same options")
     trace, vcd = open_writers(a.trace, a.vcd)
     ok = False
     try:
