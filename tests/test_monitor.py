@@ -390,3 +390,49 @@ def test_the_monitor_without_a_terminal_is_one_line(tmp_path):
         assert r.stderr.startswith("rprs: error: rprs monitor is a live view: it needs a "
                                    "terminal on stdin and stderr")
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_sigterm_and_sighup_quit_the_monitor_like_q(tmp_path, signame):
+    """SIGTERM (``kill``, ``timeout``) or SIGHUP (the terminal closed) killed the monitor in
+    the terminal's alternate screen, with the keyboard still raw, the trace left as
+    ``.partial`` and no ``--json`` summary. They now quit as ``q`` does."""
+    import pty
+    import signal
+    import subprocess
+    import threading
+    master, slave = pty.openpty()
+    trace = tmp_path / "t.jsonl"
+    p = subprocess.Popen(_monitor_cmd("--robots", "0,1", "--trace", str(trace), "--json"),
+                         stdin=slave, stdout=subprocess.PIPE, stderr=slave, start_new_session=True)
+    os.close(slave)
+    screen = bytearray()
+
+    def read():                       # keep the pty drained, keep what was drawn
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                return
+            if not chunk:
+                return
+            screen.extend(chunk)
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + 120
+        while b"occupations" not in screen and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert b"occupations" in screen, bytes(screen[-500:])
+        p.send_signal(getattr(signal, signame))
+        out, _ = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        os.close(master)
+        reader.join(timeout=10)
+    assert p.returncode == 0
+    assert trace.exists() and not (tmp_path / "t.jsonl.partial").exists()
+    assert b'"robots"' in out                                # the --json summary
+    assert screen.rfind(b"\x1b[?1049l") > screen.rfind(b"occupations")   # screen restored

@@ -77,6 +77,8 @@ BUDGET_S = 0.06
 """Wall time one refresh may spend simulating (of the 0.1 s between refreshes)."""
 CHUNK_TICKS = s_to_ticks(0.02)
 """Simulated time run between two looks at the wall-clock budget."""
+QUIT_SIGNALS = ("SIGTERM", "SIGHUP")
+"""Signals that quit the view as ``q`` does."""
 TYPE_NAMES = {0: "help", 1: "invite", 2: "instr", 3: "info", 4: "failure", 5: "boot"}
 
 
@@ -198,11 +200,31 @@ class MonitorApp(App):
         self.refresh_view()
         # On the view, not on the app: textual stops it before it removes any of the widgets.
         self.refresh_timer = view.set_interval(1 / self.rate, self.tick, name="monitor refresh")
+        self._quit_on_signals(True)
+
+    def _quit_on_signals(self, on: bool) -> None:
+        """SIGTERM and SIGHUP quit like ``q``: the terminal restored, the trace and summary
+        written (they used to kill the process in the alternate screen, the trace left
+        ``.partial``). Only where the app's loop can take signals (the main thread)."""
+        import asyncio
+        import signal
+        loop = asyncio.get_running_loop()
+        for sig in (getattr(signal, n, None) for n in QUIT_SIGNALS):
+            if sig is None:
+                continue
+            try:
+                if on:
+                    loop.add_signal_handler(sig, self.exit)
+                else:
+                    loop.remove_signal_handler(sig)
+            except (ValueError, RuntimeError, NotImplementedError):
+                return                   # not the main thread, or no signals on this platform
 
     def _view_gone(self) -> None:
         """The view is unmounted (its timer already stopped): draw nothing from now on."""
         self._widgets = {}
         self.refresh_timer = None
+        self._quit_on_signals(False)
 
     @property
     def view_ready(self) -> bool:
