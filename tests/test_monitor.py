@@ -436,3 +436,33 @@ def test_sigterm_and_sighup_quit_the_monitor_like_q(tmp_path, signame):
     assert trace.exists() and not (tmp_path / "t.jsonl.partial").exists()
     assert b'"robots"' in out                                # the --json summary
     assert screen.rfind(b"\x1b[?1049l") > screen.rfind(b"occupations")   # screen restored
+
+
+def test_a_radio_port_that_goes_away_is_said(tmp_path):
+    """With the radio hub stopped (or a USB radio unplugged) under ``rprs monitor --radio``,
+    the sniffer's thread ended in silence and the view went on as if listening to a quiet
+    ring. The header now says the port is lost and the events line says why."""
+    pytest.importorskip("serial")
+    from hil.bench.radio_hub import RadioHub
+
+    hub = RadioHub(2).start()
+    app = RadioMonitorApp(hub.paths[0])
+    try:
+        async def go():
+            async with app.run_test(size=SIZE) as pilot:
+                app.refresh_timer.pause()         # the test drains and redraws: tick()
+                app.tick()
+                assert "PORT LOST" not in app.shown("#header")
+                hub.close()
+                end = time.monotonic() + 30.0     # a bound, not a timing: real I/O
+                while app.sniffer.error is None and time.monotonic() < end:
+                    await asyncio.sleep(0.01)
+                app.tick()
+                assert "PORT LOST" in app.shown("#header")
+                assert f"port {hub.paths[0]} lost: " in app.shown("#events")
+                await pilot.press("q")
+        run(go())
+    finally:
+        hub.close()
+        app.close()
+    assert app.return_code == 0

@@ -639,6 +639,8 @@ class RadioMonitorApp(MonitorApp):
         self.occupations = 0
         self.failed = self.garbage = self.bytes = 0
         self._ring_seen: set[int] = set()
+        self.lost = False
+        """Whether the port went away (the header says PORT LOST)."""
 
     def on_mount(self) -> None:
         self.sniffer.start()
@@ -667,6 +669,10 @@ class RadioMonitorApp(MonitorApp):
         for f, content in frames:
             self.feed(f, content)
         now = self.now()
+        if self.sniffer.error is not None and not self.lost:
+            self.lost = True
+            self.events.append(f"{now / TICK_HZ:9.3f} s  port {self.port} lost: "
+                               f"{self.sniffer.error}; nothing more can be heard")
         ring = set(self.ring(now))
         for r in sorted(self._ring_seen - ring):
             self._ring_seen.discard(r)
@@ -723,6 +729,8 @@ class RadioMonitorApp(MonitorApp):
         t.append(f"   failed frames {self.failed}", "red" if self.failed else "")
         t.append(f"   garbage bytes {self.garbage}   bytes {self.bytes}")
         t.append(f"   t = {now / TICK_HZ:.1f} s", "bold")
+        if self.lost:
+            t.append("   PORT LOST", "bold red")
         if self.paused:
             t.append("   FROZEN", "bold yellow")
         return t
