@@ -466,3 +466,14 @@ def test_a_radio_port_that_goes_away_is_said(tmp_path):
         hub.close()
         app.close()
     assert app.return_code == 0
+
+
+@pytest.mark.parametrize("mac", ["aloha", "slotted", "csma"])
+def test_a_peer_mac_is_refused_in_one_line(capsys, mac):
+    """``rprs monitor --mac aloha`` (an option it shares with rprs sim) drew its first
+    refresh into a traceback: AttributeError: 'AlohaMac' object has no attribute 'outbox'.
+    The view is the rotational MAC's ring; a peer MAC is refused before anything runs."""
+    from hil.cli import main
+    assert main(["monitor", "--robots", "1,2,3", "--mac", mac]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--mac {mac}: the monitor shows the rotational MAC" in err

@@ -47,6 +47,10 @@ def cmd_monitor(a: argparse.Namespace) -> int:
         cfg.validate()
     except ConfigError as exc:
         raise UserError(str(exc)) from None
+    if cfg.mac_kind != "rotational":     # the panes read the rotational MAC's ring and queue
+        raise UserError(f"--mac {cfg.mac_kind}: the monitor shows the rotational MAC's ring "
+                        f"(views, turns, queues); compare the peer MACs with rprs sim --mac "
+                        f"{cfg.mac_kind}")
     distinct_outputs(trace=a.trace, vcd=a.vcd)
     _need_a_terminal("run rprs sim with the same options")
     trace, vcd = open_writers(a.trace, a.vcd)
