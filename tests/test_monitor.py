@@ -477,3 +477,21 @@ def test_a_peer_mac_is_refused_in_one_line(capsys, mac):
     assert main(["monitor", "--robots", "1,2,3", "--mac", mac]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"--mac {mac}: the monitor shows the rotational MAC" in err
+
+
+def test_every_kind_of_fault_shows_in_the_events():
+    """``rprs monitor --fault drop@1-2:0.002`` (or ber, burst, busoff, stall, ...: any
+    ``--fault`` but fail, recover and steal) ended in a traceback, KeyError: 'drop', when the
+    fault began: the events line knew only the monitor's own three keys. Every fault now shows
+    as it starts and ends."""
+    from hil.sim.faults import parse_fault
+    specs = ("drop@1-2:0.002", "ber@0.5-1.5:0.001", "burst@1.2:0.05", "busoff:1@1",
+             "stall:2.JOINT1@1.5", "fail:3@2", "recover:3@2.5")
+    app = sim(robots=(0, 1, 2, 3), can=True,
+              faults=tuple(sorted((parse_fault(s) for s in specs), key=lambda f: f.at)))
+    app.advance(3.0)
+    shown = "\n".join(app.events)
+    for line in ("fault drop@1-2:0.002 starts", "fault drop ends", "fault busoff:1@1 starts",
+                 "fault stall:2.JOINT1@1.5 starts", "fault ber ends",
+                 "radio of robot 3 killed", "radio of robot 3 revived"):
+        assert line in shown, (line, shown)

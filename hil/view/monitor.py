@@ -98,6 +98,17 @@ def _cut(s: str, width: int) -> str:
     return s if len(s) <= width else s[:width - 1] + "…"
 
 
+def _fault_line(ev: dict) -> str:
+    """An events line for a world's ``fault`` event: the monitor's own keys in words, any
+    other ``--fault`` by its spec as it starts and by its kind and robot as it ends."""
+    kind, robot = ev["kind"], ev["robot"]
+    if ev.get("phase") == "end":
+        return f"fault {kind}{'' if robot is None else f' on robot {robot}'} ends"
+    own = {"fail": "radio of robot {} killed", "recover": "radio of robot {} revived",
+           "steal": "robot {} steals the turn"}.get(kind)
+    return own.format(robot) if own else f"fault {ev.get('spec', kind)} starts"
+
+
 def _speed_text(speed: float) -> str:
     """×4, ×1/8 (a whole fraction), else ×0.75 (``--speed 0.75`` used to show ×1/1)."""
     if speed < 1 and (1 / speed).is_integer():
@@ -386,8 +397,7 @@ class SimMonitorApp(MonitorApp):
             line = f"robot {ev['robot']}{' PC2' if ev.get('pc') else ''} -> {ev['mode']} " \
                    f"({ev['reason']})"
         elif k == "fault":
-            line = {"fail": "radio of robot {} killed", "recover": "radio of robot {} revived",
-                    "steal": "robot {} steals the turn"}[ev["kind"]].format(ev["robot"])
+            line = _fault_line(ev)
         elif k == "collision":
             line = f"collision between robots {_ids(ev['robots'])}"
         elif k == "fail":
