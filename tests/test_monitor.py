@@ -495,3 +495,19 @@ def test_every_kind_of_fault_shows_in_the_events():
                  "fault stall:2.JOINT1@1.5 starts", "fault ber ends",
                  "radio of robot 3 killed", "radio of robot 3 revived"):
         assert line in shown, (line, shown)
+
+
+def test_outputs_the_monitor_does_not_write_are_refused(tmp_path, capsys):
+    """``rprs monitor --pcap FILE`` and ``--cpu-report`` (taken with rprs sim's options) were
+    accepted and then nothing was written: no capture file, no report in ``--json``."""
+    from hil.cli import main
+    pcap = tmp_path / "m.pcapng"
+    for args, needle in ((["--pcap", str(pcap)], "--pcap: the monitor does not record it"),
+                         (["--cpu-report"], "--cpu-report: the monitor does not record it"),
+                         (["--pcap", str(pcap), "--cpu-report"], "--pcap, --cpu-report: "),
+                         (["--radio", "/dev/null", "--pcap", str(pcap)],
+                          "--pcap: only for the simulated ring")):
+        assert main(["monitor", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and needle in err, err
+    assert not pcap.exists()

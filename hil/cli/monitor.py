@@ -32,8 +32,8 @@ def cmd_monitor(a: argparse.Namespace) -> int:
     from ..view.monitor import run_monitor_radio, run_monitor_sim
     from ..bench.serial_radio import PortError
     if a.radio is not None:
-        given = [o for o, v in (("--trace", a.trace), ("--vcd", a.vcd), ("--json", a.json))
-                 if v]
+        given = [o for o, v in (("--trace", a.trace), ("--vcd", a.vcd), ("--pcap", a.pcap),
+                                ("--json", a.json)) if v]
         if given:
             raise UserError(f"{', '.join(given)}: only for the simulated ring, not with --radio "
                             f"(record a radio with rprs bench or the hub)")
@@ -42,6 +42,11 @@ def cmd_monitor(a: argparse.Namespace) -> int:
             return run_monitor_radio(a.radio)
         except PortError as exc:
             raise UserError(str(exc)) from None
+    unused = [o for o, v in (("--pcap", a.pcap), ("--cpu-report", a.cpu_report)) if v]
+    if unused:      # taken from rprs sim's options, never written by the monitor
+        raise UserError(f"{', '.join(unused)}: the monitor does not record "
+                        f"{'them' if len(unused) > 1 else 'it'}; run rprs sim with the same "
+                        f"options for {'them' if len(unused) > 1 else 'it'}")
     cfg = sim_config(a)
     try:
         cfg.validate()
