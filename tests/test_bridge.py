@@ -294,3 +294,32 @@ def test_python_cans_warnings_are_logged_as_usual_when_the_bus_opens(monkeypatch
     monkeypatch.setattr(can, "Bus", warns)
     open_bus("virtual:remark").shutdown()
     assert [r.getMessage() for r in caplog.records] == ["a driver's remark"]
+
+
+def test_malformed_commands_to_the_submodules_are_counted_in_their_summary():
+    """``cansend vcan0 101#FFFF`` (a JOINT1_CMD of 2 bytes, not 6) or ``101#R`` to ``rprs
+    submodules``: the node ignores it (no EVENT answers a frame it cannot read) and its
+    closing line said nothing of it. The line now counts them per node."""
+    from hil.bench.runner import Runner, build_submodules
+    from hil.cli.robots import submodules_summary
+    channel = "rprs-malformed"
+    runner = Runner()
+    nodes = build_submodules(runner, f"virtual:{channel}")
+    tx = can.Bus(interface="virtual", channel=channel)
+    try:
+        tx.send(can.Message(arbitration_id=0x101, data=b"\xff\xff", is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x106, is_remote_frame=True, dlc=3,
+                            is_extended_id=False))
+
+        def check():
+            if nodes["JOINT1"].bad_frames and nodes["PAW"].bad_frames:
+                runner.stop()
+            else:
+                runner.sched.after(160_000, check)      # every 10 ms
+        runner.sched.post(check)
+        runner.run(60)                                   # stopped by check: a bound
+    finally:
+        tx.shutdown()
+    line = submodules_summary(nodes)
+    assert line.endswith("; malformed commands ignored (wrong length or remote): JOINT1 1, "
+                         "PAW 1"), line
