@@ -190,6 +190,7 @@ class PythonCanBus:
         self.on_error = on_error
         self._send_failing = False
         self.trace = None          # callable(frame, start, end, node) like CanBus.trace
+        self.log = log
         self._writer = can.Logger(log) if log else None
         self._closing = threading.Event()
         self._reader = threading.Thread(target=self._read, name=f"can-reader {channel or ''}",
@@ -278,7 +279,7 @@ class PythonCanBus:
         end = now + frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
             * self.timing.ticks_per_bit
         if self._writer is not None:
-            self._writer.on_message_received(msg)
+            self._log(msg)
         if self.trace is not None:
             self.trace(frame, now, end, node)
         for other in self.nodes:                 # local nodes hear it too, at its end
@@ -340,16 +341,40 @@ class PythonCanBus:
             # Whatever reaches this bus object came from another one: received. (SocketCAN
             # flags every frame sent from this host, another process's too, as not received.)
             msg.is_rx = True
-            self._writer.on_message_received(msg)
+            self._log(msg)
         if self.trace is not None:
             self.trace(frame, start, end, None)
         for node in self.nodes:
             if hasattr(node, "on_frame"):
                 node.on_frame(frame, start, end)
 
+    # -- the log ------------------------------------------------------------------------------
+
+    def _log(self, msg: can.Message) -> None:
+        """``msg`` to the log; a write that fails (a full disk) ends the log in one line, and
+        the bus goes on."""
+        try:
+            self._writer.on_message_received(msg)
+        except (OSError, ValueError) as exc:
+            self._end_log(exc)
+
+    def _end_log(self, exc: Exception | None = None) -> None:
+        """Close the log (its last buffered lines are written now); a failure, or ``exc``
+        that ended it early, is reported once."""
+        writer, self._writer = self._writer, None
+        try:
+            writer.stop()
+        except (OSError, ValueError) as late:
+            exc = exc or late
+        if exc is not None:
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+            self._report(f"cannot write the log {self.log}: {why}; the log ends here")
+
     def close(self) -> None:
         self._closing.set()
         self._reader.join()
-        if self._writer is not None:
-            self._writer.stop()
-        self.bus.shutdown()
+        try:
+            if self._writer is not None:
+                self._end_log()
+        finally:
+            self.bus.shutdown()

@@ -6,6 +6,7 @@ kernel has it (``scripts/vcan-vm.sh`` runs the ``vcan`` ones for real on CI).
 from __future__ import annotations
 
 import gc
+import os
 import subprocess
 import sys
 import time
@@ -323,3 +324,39 @@ def test_malformed_commands_to_the_submodules_are_counted_in_their_summary():
     line = submodules_summary(nodes)
     assert line.endswith("; malformed commands ignored (wrong length or remote): JOINT1 1, "
                          "PAW 1"), line
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full on this system")
+def test_a_can_log_that_fills_the_disk_is_one_line_and_the_bus_goes_on(tmp_path):
+    """``--can-log`` on a full disk: the write that failed ended ``rprs submodules`` in a
+    traceback (OSError: No space left on device), and a log whose last flush failed at close
+    was lost without a word, exit status 0, the bus left open. The failure is now one line, the
+    log ends there, and frames are still received and the bus closed."""
+    log = tmp_path / "full.log"
+    log.symlink_to("/dev/full")
+    channel = "rprs-full-disk"
+    sched = RealTimeScheduler()
+    lines = []
+    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel,
+                       on_error=lines.append)
+    tx = can.Bus(interface="virtual", channel=channel)
+    n = 500                               # more than a write buffer of candump lines
+    try:
+        for i in range(n):
+            tx.send(can.Message(arbitration_id=0x181, data=i.to_bytes(6, "little"),
+                                is_extended_id=False))
+
+        def check():
+            if bus.received == n:
+                sched.stop()
+            else:
+                sched.after(160_000, check)              # every 10 ms
+        sched.post(check)
+        sched.run_for(60)                                # stopped by check: a bound
+    finally:
+        tx.shutdown()
+        bus.close()
+    assert bus.received == n
+    assert lines == [f"CAN bus {channel}: cannot write the log {log}: No space left on device; "
+                     f"the log ends here"], lines
+    assert bus.bus._is_shutdown
