@@ -6,16 +6,19 @@ and the submodule nodes run unchanged on SocketCAN (``socketcan:vcan0``), python
 ``virtual`` bus, ``udp_multicast`` or a real adapter. The wire does the arbitration; local
 nodes sharing one ``PythonCanBus`` also hear each other's frames, as on a real bus.
 
-It needs a scheduler with ``post`` (``hil.sim.realtime.RealTimeScheduler``): python-can's reader
-thread hands every received frame to the scheduler's thread. ``log`` writes every frame sent or
+It needs a scheduler with ``post`` (``hil.sim.realtime.RealTimeScheduler``): a reader thread
+hands every received frame to the scheduler's thread. A receive or send error (an interface
+taken down) is reported in one line through ``on_error`` and the bus goes on. ``log`` writes every frame sent or
 received with python-can's writers, chosen by the file's extension (candump ``.log``,
 ``.asc``, ``.blf``, ``.csv``, ``.trc``).
 """
 from __future__ import annotations
 
 import errno
+import logging
+import threading
 import time
-from typing import Any
+from typing import Any, Callable
 
 import can
 
@@ -45,6 +48,8 @@ def parse_spec(spec: str) -> tuple[str, str]:
 
 
 IFF_UP = 0x1
+ARPHRD_CAN = 280
+"""The link type of a CAN interface (``/sys/class/net/NAME/type``; linux/if_arp.h)."""
 
 
 def socketcan_missing(channel: str = "vcan0") -> str | None:
@@ -62,6 +67,13 @@ def socketcan_missing(channel: str = "vcan0") -> str | None:
     except OSError:
         return f"no {channel} interface"
     try:
+        with open(f"/sys/class/net/{channel}/type") as f:
+            kind = int(f.read())
+        if kind != ARPHRD_CAN:
+            return f"{channel} is not a CAN interface (link type {kind})"
+    except (OSError, ValueError):
+        pass
+    try:
         with open(f"/sys/class/net/{channel}/flags") as f:
             if not int(f.read(), 16) & IFF_UP:
                 return f"{channel} interface is down"
@@ -70,42 +82,100 @@ def socketcan_missing(channel: str = "vcan0") -> str | None:
     return None
 
 
+def _socketcan_hint(channel: str, why: str) -> str:
+    """What to do about ``socketcan_missing(channel)``'s reason ``why``."""
+    if why == f"no {channel} interface":
+        return f"create it with: ip link add dev {channel} type vcan && ip link set up {channel}"
+    if why == f"{channel} interface is down":
+        return f"bring it up with: ip link set up {channel}"
+    if "not a CAN interface" in why:
+        return "name a CAN interface (ip -details link show type can, or type vcan)"
+    return ("load the can and can-raw modules; without SocketCAN, processes share a bus with "
+            "rprs_unix:DIR (virtual:NAME stays inside one process; docs/vcan.md)")
+
+
 def open_bus(spec: str, bitrate: int | None = None, **kwargs: Any) -> can.BusABC:
     """Open a python-can bus from ``INTERFACE:CHANNEL`` with one-line errors."""
     interface, channel = parse_spec(spec)
     if interface == "socketcan":
         why = socketcan_missing(channel)
         if why is not None:
-            hint = (f"create it with: ip link add dev {channel} type vcan && ip link set up "
-                    f"{channel}" if "interface" in why else
-                    "load the can and can-raw modules; without SocketCAN, processes share "
-                    "a bus with rprs_unix:DIR (virtual:NAME stays inside one process; "
-                    "docs/vcan.md)")
+            hint = _socketcan_hint(channel, why)
             raise CanOpenError(f"cannot open CAN bus {spec}: {why}; {hint}")
+    if interface == "virtual":
+        kwargs.setdefault("receive_own_messages", False)
+    if bitrate is not None and interface not in ("virtual", "socketcan", "udp_multicast"):
+        kwargs["bitrate"] = bitrate
+    held, log = _HeldLog(), logging.getLogger("can")
+    log.addHandler(held)
+    propagate, log.propagate = log.propagate, False
     try:
-        if interface == "virtual":
-            kwargs.setdefault("receive_own_messages", False)
-        if bitrate is not None and interface not in ("virtual", "socketcan", "udp_multicast"):
-            kwargs["bitrate"] = bitrate
-        return can.Bus(interface=interface, channel=channel, **kwargs)
-    except can.CanError as exc:
-        raise CanOpenError(f"cannot open CAN bus {spec}: {exc}") from None
-    except OSError as exc:
-        why = "no such device" if exc.errno == errno.ENODEV else exc.strerror or str(exc)
-        raise CanOpenError(f"cannot open CAN bus {spec}: {why}") from None
-    except (ImportError, ValueError, TypeError) as exc:
-        raise CanOpenError(f"cannot open CAN bus {spec}: {exc}") from None
+        try:
+            bus = can.Bus(interface=interface, channel=channel, **kwargs)
+        except can.CanError as exc:
+            why = str(exc)
+        except OSError as exc:
+            why = "no such device" if exc.errno == errno.ENODEV else exc.strerror or str(exc)
+        except (ImportError, ValueError, TypeError) as exc:
+            why = str(exc)
+        except Exception as exc:  # noqa: BLE001 - a driver's own failure, e.g. python-can's
+            # kvaser without Kvaser's canlib raises NameError: still one line, naming it
+            why = f"python-can's {interface} driver failed: {type(exc).__name__}: {exc}"
+        else:
+            why = None
+    finally:             # the half-built bus is gone by now, with its "not shut down" warning
+        log.removeHandler(held)
+        log.propagate = propagate
+    if why is None:
+        held.replay()
+        return bus
+    said = "; ".join(held.said(why))
+    raise CanOpenError(f"cannot open CAN bus {spec}: {why}" + (f" ({said})" if said else ""))
+
+
+class _HeldLog(logging.Handler):
+    """python-can's log records while a bus opens: its warnings ("Kvaser canlib is
+    unavailable.") join our one-line error when opening fails, and are logged as usual when
+    it works."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)
+
+    def said(self, why: str) -> list[str]:
+        """What python-can said that ``why`` does not, less the half-built bus's warning."""
+        out = []
+        for r in self.records:
+            text = r.getMessage()
+            if r.msg != "%s was not properly shut down" and text not in out and \
+                    str(why) not in text:
+                out.append(text.rstrip("."))
+        return out
+
+    def replay(self) -> None:
+        for r in self.records:
+            logging.getLogger(r.name).handle(r)
 
 
 class PythonCanBus:
     """Local CAN nodes on a python-can bus (real time)."""
 
+    RETRY_S = 0.1
+    """Seconds the reader waits after a receive error before it reads again."""
+
     def __init__(self, sched: Any, bus: can.BusABC, timing: BitTiming | None = None,
-                 log: str | None = None, channel: str | None = None) -> None:
+                 log: str | None = None, channel: str | None = None,
+                 on_error: Callable[[str], None] | None = None) -> None:
         """``log``: a python-can log file (.log .asc .blf ...) of every frame sent and
         received, stamped with the wall clock (seconds since the epoch, like SocketCAN's
         receive stamps and candump's), own frames marked as sent (``T``/``Tx``), each with
-        ``channel`` (the bus's channel, e.g. ``vcan0`` or the ``rprs_unix`` directory)."""
+        ``channel`` (the bus's channel, e.g. ``vcan0`` or the ``rprs_unix`` directory).
+        ``on_error``: called in the scheduler's thread with one line for each receive error
+        and for the first of a run of failed sends (an interface taken down or removed);
+        reading and sending go on either way, as an MCU's controller does."""
         self.sched = sched
         self.bus = bus
         self.channel = channel
@@ -116,9 +186,16 @@ class PythonCanBus:
         self.sent = 0
         self.received = 0
         self.send_errors = 0
+        self.receive_errors = 0
+        self.on_error = on_error
+        self._send_failing = False
         self.trace = None          # callable(frame, start, end, node) like CanBus.trace
+        self.log = log
         self._writer = can.Logger(log) if log else None
-        self._notifier = can.Notifier(bus, [self._from_thread], timeout=0.05)
+        self._closing = threading.Event()
+        self._reader = threading.Thread(target=self._read, name=f"can-reader {channel or ''}",
+                                        daemon=True)
+        self._reader.start()
 
     # -- what a transceiver model reads of its bus ------------------------------------------
 
@@ -190,15 +267,19 @@ class PythonCanBus:
         msg.channel = self.channel
         try:
             self.bus.send(msg, timeout=0.1)
-        except can.CanError:
+        except can.CanError as exc:
             self.send_errors += 1
+            if not self._send_failing:
+                self._send_failing = True
+                self._report(f"sending failed, retrying every 1 ms: {exc}")
             self.sched.after(16_000, self._send_next, node)    # retry in 1 ms
             return
+        self._send_failing = False
         self.sent += 1
         end = now + frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
             * self.timing.ticks_per_bit
         if self._writer is not None:
-            self._writer.on_message_received(msg)
+            self._log(msg)
         if self.trace is not None:
             self.trace(frame, now, end, node)
         for other in self.nodes:                 # local nodes hear it too, at its end
@@ -220,6 +301,29 @@ class PythonCanBus:
 
     # -- receiving --------------------------------------------------------------------------
 
+    def _read(self) -> None:
+        """The reader thread: every frame to ``_from_thread``; an error (SocketCAN's ENETDOWN
+        when the interface goes down) is reported and reading goes on."""
+        while not self._closing.is_set():
+            try:
+                msg = self.bus.recv(0.05)
+            except Exception as exc:  # noqa: BLE001 - any driver's error: report, read on
+                if self._closing.is_set():
+                    return
+                self.sched.post(self._receive_failed, exc)
+                self._closing.wait(self.RETRY_S)
+                continue
+            if msg is not None:
+                self._from_thread(msg)
+
+    def _receive_failed(self, exc: Exception) -> None:
+        self.receive_errors += 1
+        self._report(f"receiving failed: {exc}")
+
+    def _report(self, what: str) -> None:
+        if self.on_error is not None:
+            self.on_error(f"CAN bus {self.channel or self.bus.channel_info}: {what}")
+
     def _from_thread(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_extended_id or msg.is_fd:
             return
@@ -237,15 +341,40 @@ class PythonCanBus:
             # Whatever reaches this bus object came from another one: received. (SocketCAN
             # flags every frame sent from this host, another process's too, as not received.)
             msg.is_rx = True
-            self._writer.on_message_received(msg)
+            self._log(msg)
         if self.trace is not None:
             self.trace(frame, start, end, None)
         for node in self.nodes:
             if hasattr(node, "on_frame"):
                 node.on_frame(frame, start, end)
 
+    # -- the log ------------------------------------------------------------------------------
+
+    def _log(self, msg: can.Message) -> None:
+        """``msg`` to the log; a write that fails (a full disk) ends the log in one line, and
+        the bus goes on."""
+        try:
+            self._writer.on_message_received(msg)
+        except (OSError, ValueError) as exc:
+            self._end_log(exc)
+
+    def _end_log(self, exc: Exception | None = None) -> None:
+        """Close the log (its last buffered lines are written now); a failure, or ``exc``
+        that ended it early, is reported once."""
+        writer, self._writer = self._writer, None
+        try:
+            writer.stop()
+        except (OSError, ValueError) as late:
+            exc = exc or late
+        if exc is not None:
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+            self._report(f"cannot write the log {self.log}: {why}; the log ends here")
+
     def close(self) -> None:
-        self._notifier.stop()
-        if self._writer is not None:
-            self._writer.stop()
-        self.bus.shutdown()
+        self._closing.set()
+        self._reader.join()
+        try:
+            if self._writer is not None:
+                self._end_log()
+        finally:
+            self.bus.shutdown()

@@ -5,9 +5,13 @@ kernel has it (``scripts/vcan-vm.sh`` runs the ``vcan`` ones for real on CI).
 """
 from __future__ import annotations
 
+import gc
+import os
 import subprocess
 import sys
+import time
 
+import can
 import pytest
 
 from can_bus import dbc
@@ -155,3 +159,204 @@ def test_a_can_log_agrees_with_candump(vcan_channel, tmp_path):
     assert {f: len(v) for f, v in logged.items()} == {f: len(v) for f, v in dumped.items()}
     worst = max(abs(a - b) for f in logged for a, b in zip(sorted(logged[f]), dumped[f]))
     assert worst < 0.02, worst
+
+
+class _FailingBus(can.BusABC):
+    """A python-can bus whose interface goes down and comes back: ``rx`` is what ``recv``
+    gives in turn (an exception is raised), then nothing; the first ``tx_failures`` sends
+    fail as SocketCAN's do on a down interface."""
+
+    def __init__(self, rx, tx_failures=0):
+        super().__init__(channel="flaky")
+        self.rx, self.tx_failures, self.sent = list(rx), tx_failures, []
+
+    def _recv_internal(self, timeout):
+        if self.rx:
+            item = self.rx.pop(0)
+            if isinstance(item, Exception):
+                raise item
+            return item, False
+        time.sleep(timeout or 0)
+        return None, False
+
+    def send(self, msg, timeout=None):
+        if self.tx_failures:
+            self.tx_failures -= 1
+            raise can.CanOperationError("Failed to transmit: Network is down")
+        self.sent.append(msg)
+
+
+def test_a_receive_error_is_one_line_and_reading_goes_on(monkeypatch):
+    """With vcan0 taken down under a running `rprs child`, python-can's reader thread died
+    with a traceback (CanOperationError: Network is down) and the process went on deaf, with
+    exit status 0, even after the interface was up again. The error is now one line through
+    ``on_error`` and the next frame is still delivered."""
+    import threading
+    died = []
+    monkeypatch.setattr(threading, "excepthook", died.append)
+    frame = can.Message(arbitration_id=0x181, data=bytes(6), is_extended_id=False)
+    raw = _FailingBus([can.CanOperationError("Error receiving: Network is down"), frame])
+    sched = RealTimeScheduler()
+    lines, heard = [], []
+
+    class Node:
+        def on_frame(self, f, start, end):
+            heard.append(f.id)
+            sched.stop()
+    bus = PythonCanBus(sched, raw, channel="vcan0", on_error=lines.append)
+    bus.attach(Node())
+    try:
+        sched.run_for(60)                    # stopped by the frame: a bound, not a timing
+    finally:
+        bus.close()
+    assert heard == [0x181] and not died
+    assert lines == ["CAN bus vcan0: receiving failed: Error receiving: Network is down"]
+    assert bus.receive_errors == 1
+
+
+def test_failed_sends_are_reported_once_and_retried():
+    """A send that fails (interface down) was retried every 1 ms in silence; now the first
+    failure of a run is one line, and the frame still goes out once the interface is back."""
+    raw = _FailingBus([], tx_failures=3)
+    sched = RealTimeScheduler()
+    lines = []
+    bus = PythonCanBus(sched, raw, channel="vcan0", on_error=lines.append)
+
+    class Sender:
+        def on_tx_done(self, f, end):
+            sched.stop()
+    try:
+        bus.request(Sender(), dbc.encode("ESTOP", reason=1))
+        sched.run_for(60)                    # stopped when the frame is sent
+    finally:
+        bus.close()
+    assert [m.arbitration_id for m in raw.sent] == [0x010] and bus.send_errors == 3
+    assert lines == ["CAN bus vcan0: sending failed, retrying every 1 ms: "
+                     "Failed to transmit: Network is down"]
+
+
+@pytest.mark.vcan
+def test_an_interface_that_is_not_can_is_refused_in_one_line(vcan_channel, caplog):
+    """``--can socketcan:lo`` printed python-can's own log line ("Could not access SocketCAN
+    device lo ([Errno 19] No such device)") before our error: two lines. It is now refused
+    before python-can is asked, as not a CAN interface."""
+    with pytest.raises(CanOpenError) as e:
+        open_bus("socketcan:lo")
+    assert "lo is not a CAN interface" in str(e.value) and "\n" not in str(e.value)
+    assert not [r for r in caplog.records if r.name.startswith("can")]
+
+
+def test_a_driver_that_fails_in_its_own_way_is_one_line(monkeypatch, caplog):
+    """python-can's kvaser driver without Kvaser's canlib logs "Kvaser canlib is
+    unavailable." and raises NameError: ``rprs child --can kvaser:0`` showed that line and a
+    traceback. Whatever a driver raises when opening, and what python-can logs meanwhile, is
+    one line."""
+    import logging
+
+    def broken(**kw):
+        logging.getLogger("can.kvaser").warning("Kvaser canlib is unavailable.")
+        raise NameError("name 'canGetNumberOfChannels' is not defined")
+    monkeypatch.setattr(can, "Bus", broken)
+    with pytest.raises(CanOpenError) as e:
+        open_bus("kvaser:0")
+    assert str(e.value) == ("cannot open CAN bus kvaser:0: python-can's kvaser driver failed: "
+                            "NameError: name 'canGetNumberOfChannels' is not defined "
+                            "(Kvaser canlib is unavailable)")
+    assert not caplog.records
+
+
+def test_a_half_built_bus_adds_no_second_line(monkeypatch, caplog):
+    """``--can udp_multicast:notanaddr`` gave our error, then python-can's "UdpMulticastBus
+    was not properly shut down" for the bus that failed half-way through its constructor."""
+    class HalfBuilt(can.BusABC):
+        def __init__(self, **kw):
+            super().__init__(channel=kw["channel"])
+            raise OSError(None, "Name or service not known")
+
+        def send(self, msg, timeout=None):
+            pass
+    monkeypatch.setattr(can, "Bus", HalfBuilt)
+    with pytest.raises(CanOpenError) as e:
+        open_bus("udp_multicast:notanaddr")
+    assert str(e.value) == ("cannot open CAN bus udp_multicast:notanaddr: Name or service not "
+                            "known")
+    del e
+    gc.collect()                         # whatever still held the half-built bus lets it go
+    assert not caplog.records
+
+
+def test_python_cans_warnings_are_logged_as_usual_when_the_bus_opens(monkeypatch, caplog):
+    import logging
+    real = can.Bus
+
+    def warns(**kw):
+        logging.getLogger("can.virtual").warning("a driver's remark")
+        return real(**kw)
+    monkeypatch.setattr(can, "Bus", warns)
+    open_bus("virtual:remark").shutdown()
+    assert [r.getMessage() for r in caplog.records] == ["a driver's remark"]
+
+
+def test_malformed_commands_to_the_submodules_are_counted_in_their_summary():
+    """``cansend vcan0 101#FFFF`` (a JOINT1_CMD of 2 bytes, not 6) or ``101#R`` to ``rprs
+    submodules``: the node ignores it (no EVENT answers a frame it cannot read) and its
+    closing line said nothing of it. The line now counts them per node."""
+    from hil.bench.runner import Runner, build_submodules
+    from hil.cli.robots import submodules_summary
+    channel = "rprs-malformed"
+    runner = Runner()
+    nodes = build_submodules(runner, f"virtual:{channel}")
+    tx = can.Bus(interface="virtual", channel=channel)
+    try:
+        tx.send(can.Message(arbitration_id=0x101, data=b"\xff\xff", is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x106, is_remote_frame=True, dlc=3,
+                            is_extended_id=False))
+
+        def check():
+            if nodes["JOINT1"].bad_frames and nodes["PAW"].bad_frames:
+                runner.stop()
+            else:
+                runner.sched.after(160_000, check)      # every 10 ms
+        runner.sched.post(check)
+        runner.run(60)                                   # stopped by check: a bound
+    finally:
+        tx.shutdown()
+    line = submodules_summary(nodes)
+    assert line.endswith("; malformed commands ignored (wrong length or remote): JOINT1 1, "
+                         "PAW 1"), line
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full on this system")
+def test_a_can_log_that_fills_the_disk_is_one_line_and_the_bus_goes_on(tmp_path):
+    """``--can-log`` on a full disk: the write that failed ended ``rprs submodules`` in a
+    traceback (OSError: No space left on device), and a log whose last flush failed at close
+    was lost without a word, exit status 0, the bus left open. The failure is now one line, the
+    log ends there, and frames are still received and the bus closed."""
+    log = tmp_path / "full.log"
+    log.symlink_to("/dev/full")
+    channel = "rprs-full-disk"
+    sched = RealTimeScheduler()
+    lines = []
+    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel,
+                       on_error=lines.append)
+    tx = can.Bus(interface="virtual", channel=channel)
+    n = 500                               # more than a write buffer of candump lines
+    try:
+        for i in range(n):
+            tx.send(can.Message(arbitration_id=0x181, data=i.to_bytes(6, "little"),
+                                is_extended_id=False))
+
+        def check():
+            if bus.received == n:
+                sched.stop()
+            else:
+                sched.after(160_000, check)              # every 10 ms
+        sched.post(check)
+        sched.run_for(60)                                # stopped by check: a bound
+    finally:
+        tx.shutdown()
+        bus.close()
+    assert bus.received == n
+    assert lines == [f"CAN bus {channel}: cannot write the log {log}: No space left on device; "
+                     f"the log ends here"], lines
+    assert bus.bus._is_shutdown

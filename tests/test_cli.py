@@ -384,6 +384,23 @@ def test_a_can_log_that_cannot_be_written_is_one_line_and_closes_the_bus():
         assert r.stderr.startswith("rprs: error: cannot write CAN log")
 
 
+def test_a_can_log_format_python_can_cannot_write_here_is_one_line(tmp_path, capsys,
+                                                                   monkeypatch):
+    """``--can-log x.mf4`` without asammdf (python-can's optional [mf4]) ended in a
+    NotImplementedError traceback and python-can's 'not properly shut down' line."""
+    import can
+
+    def no_mf4(path, **kw):
+        raise NotImplementedError("The asammdf package was not found. Install python-can with "
+                                  "the optional dependency [mf4] to use the MF4Writer.")
+    monkeypatch.setattr(can, "Logger", no_mf4)
+    log = tmp_path / "x.mf4"
+    code, out, err = rprs(capsys, "child", "--id", "1", "--can", "virtual:cli-mf4",
+                          "--can-log", str(log))
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"rprs: error: cannot write CAN log {log}: The asammdf package")
+
+
 def test_a_father_order_that_is_not_ascii_is_refused_in_words():
     from hil.bench.runner import parse_order
     with pytest.raises(ValueError, match="'é' is not ASCII"):

@@ -356,3 +356,158 @@ def test_monitor_outputs_with_a_radio_are_refused_in_one_line(capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--trace: only for the simulated ring" in err
     assert main(["monitor", "--no-progress"]) == 2          # no progress bar to turn off
+
+
+def test_a_speed_the_keys_cannot_reach_is_refused_and_any_speed_shows_as_it_is():
+    """``--speed 10000`` ran at 4096 and ``--speed 0.001`` at 1/64 without a word, and
+    ``--speed 0.75`` showed as ×1/1."""
+    from hil.cli import UserError, build_parser
+    from hil.view.monitor import _speed_text
+    parser = build_parser(("monitor",))
+    for bad in ("10000", "0.001"):            # parsed only: a taken speed would run the view
+        with pytest.raises(UserError, match=f"'{bad}' is outside 1/64 to 4096"):
+            parser.parse_args(["monitor", "--speed", bad])
+    assert parser.parse_args(["monitor", "--speed", "0.75"]).speed == 0.75
+    assert [_speed_text(s) for s in (1 / 64, 0.5, 0.75, 0.3, 1, 1.5, 4096)] == \
+        ["×1/64", "×1/2", "×0.75", "×0.3", "×1", "×1.5", "×4096"]
+
+
+def _monitor_cmd(*args):
+    import sys
+    return [sys.executable, "-m", "hil.cli", "monitor", *args]
+
+
+def test_the_monitor_without_a_terminal_is_one_line(tmp_path):
+    """``rprs monitor < /dev/null 2> log`` drew the screen's escape codes into the log and,
+    with no ``q`` to read, never ended, even after ``--duration``. Without a terminal on stdin
+    and stderr it is now one line, before any file is written."""
+    import subprocess
+    for args in (("--robots", "0,1", "--duration", "1", "--speed", "64", "--trace",
+                  str(tmp_path / "t.jsonl")), ("--radio", "/dev/null")):
+        r = subprocess.run(_monitor_cmd(*args), stdin=subprocess.DEVNULL, capture_output=True,
+                           text=True, timeout=60)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr[:300]
+        assert r.stderr.startswith("rprs: error: rprs monitor is a live view: it needs a "
+                                   "terminal on stdin and stderr")
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_sigterm_and_sighup_quit_the_monitor_like_q(tmp_path, signame):
+    """SIGTERM (``kill``, ``timeout``) or SIGHUP (the terminal closed) killed the monitor in
+    the terminal's alternate screen, with the keyboard still raw, the trace left as
+    ``.partial`` and no ``--json`` summary. They now quit as ``q`` does."""
+    import pty
+    import signal
+    import subprocess
+    import threading
+    master, slave = pty.openpty()
+    trace = tmp_path / "t.jsonl"
+    p = subprocess.Popen(_monitor_cmd("--robots", "0,1", "--trace", str(trace), "--json"),
+                         stdin=slave, stdout=subprocess.PIPE, stderr=slave, start_new_session=True)
+    os.close(slave)
+    screen = bytearray()
+
+    def read():                       # keep the pty drained, keep what was drawn
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                return
+            if not chunk:
+                return
+            screen.extend(chunk)
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + 120
+        while b"occupations" not in screen and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert b"occupations" in screen, bytes(screen[-500:])
+        p.send_signal(getattr(signal, signame))
+        out, _ = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        os.close(master)
+        reader.join(timeout=10)
+    assert p.returncode == 0
+    assert trace.exists() and not (tmp_path / "t.jsonl.partial").exists()
+    assert b'"robots"' in out                                # the --json summary
+    assert screen.rfind(b"\x1b[?1049l") > screen.rfind(b"occupations")   # screen restored
+
+
+def test_a_radio_port_that_goes_away_is_said(tmp_path):
+    """With the radio hub stopped (or a USB radio unplugged) under ``rprs monitor --radio``,
+    the sniffer's thread ended in silence and the view went on as if listening to a quiet
+    ring. The header now says the port is lost and the events line says why."""
+    pytest.importorskip("serial")
+    from hil.bench.radio_hub import RadioHub
+
+    hub = RadioHub(2).start()
+    app = RadioMonitorApp(hub.paths[0])
+    try:
+        async def go():
+            async with app.run_test(size=SIZE) as pilot:
+                app.refresh_timer.pause()         # the test drains and redraws: tick()
+                app.tick()
+                assert "PORT LOST" not in app.shown("#header")
+                hub.close()
+                end = time.monotonic() + 30.0     # a bound, not a timing: real I/O
+                while app.sniffer.error is None and time.monotonic() < end:
+                    await asyncio.sleep(0.01)
+                app.tick()
+                assert "PORT LOST" in app.shown("#header")
+                assert f"port {hub.paths[0]} lost: " in app.shown("#events")
+                await pilot.press("q")
+        run(go())
+    finally:
+        hub.close()
+        app.close()
+    assert app.return_code == 0
+
+
+@pytest.mark.parametrize("mac", ["aloha", "slotted", "csma"])
+def test_a_peer_mac_is_refused_in_one_line(capsys, mac):
+    """``rprs monitor --mac aloha`` (an option it shares with rprs sim) drew its first
+    refresh into a traceback: AttributeError: 'AlohaMac' object has no attribute 'outbox'.
+    The view is the rotational MAC's ring; a peer MAC is refused before anything runs."""
+    from hil.cli import main
+    assert main(["monitor", "--robots", "1,2,3", "--mac", mac]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"--mac {mac}: the monitor shows the rotational MAC" in err
+
+
+def test_every_kind_of_fault_shows_in_the_events():
+    """``rprs monitor --fault drop@1-2:0.002`` (or ber, burst, busoff, stall, ...: any
+    ``--fault`` but fail, recover and steal) ended in a traceback, KeyError: 'drop', when the
+    fault began: the events line knew only the monitor's own three keys. Every fault now shows
+    as it starts and ends."""
+    from hil.sim.faults import parse_fault
+    specs = ("drop@1-2:0.002", "ber@0.5-1.5:0.001", "burst@1.2:0.05", "busoff:1@1",
+             "stall:2.JOINT1@1.5", "fail:3@2", "recover:3@2.5")
+    app = sim(robots=(0, 1, 2, 3), can=True,
+              faults=tuple(sorted((parse_fault(s) for s in specs), key=lambda f: f.at)))
+    app.advance(3.0)
+    shown = "\n".join(app.events)
+    for line in ("fault drop@1-2:0.002 starts", "fault drop ends", "fault busoff:1@1 starts",
+                 "fault stall:2.JOINT1@1.5 starts", "fault ber ends",
+                 "radio of robot 3 killed", "radio of robot 3 revived"):
+        assert line in shown, (line, shown)
+
+
+def test_outputs_the_monitor_does_not_write_are_refused(tmp_path, capsys):
+    """``rprs monitor --pcap FILE`` and ``--cpu-report`` (taken with rprs sim's options) were
+    accepted and then nothing was written: no capture file, no report in ``--json``."""
+    from hil.cli import main
+    pcap = tmp_path / "m.pcapng"
+    for args, needle in ((["--pcap", str(pcap)], "--pcap: the monitor does not record it"),
+                         (["--cpu-report"], "--cpu-report: the monitor does not record it"),
+                         (["--pcap", str(pcap), "--cpu-report"], "--pcap, --cpu-report: "),
+                         (["--radio", "/dev/null", "--pcap", str(pcap)],
+                          "--pcap: only for the simulated ring")):
+        assert main(["monitor", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and needle in err, err
+    assert not pcap.exists()

@@ -163,6 +163,11 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
     return station, channel
 
 
+def _warn(line: str) -> None:
+    """A trouble the process goes on through (a CAN interface taken down): one line."""
+    print(f"rprs: {line}", file=sys.stderr, flush=True)
+
+
 def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
     if log and os.path.isdir(log):
         raise RunError(f"cannot write CAN log {log}: it is a directory")
@@ -171,8 +176,10 @@ def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
     except CanOpenError as exc:
         raise RunError(str(exc)) from None
     try:
-        bus = PythonCanBus(runner.sched, raw, log=log, channel=parse_spec(spec)[1])
-    except (OSError, ValueError, CanOpenError) as exc:
+        bus = PythonCanBus(runner.sched, raw, log=log, channel=parse_spec(spec)[1],
+                           on_error=_warn)
+    except (OSError, ValueError, CanOpenError, NotImplementedError, ImportError) as exc:
+        # NotImplementedError: python-can's .mf4 writer without asammdf
         raw.shutdown()                 # else python-can warns at exit, a second line
         raise RunError(f"cannot write CAN log {log}: {exc}") from None
     runner.on_close(bus.close)

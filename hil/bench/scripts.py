@@ -64,6 +64,9 @@ class Sniffer:
         self._t0 = time.monotonic_ns()
         self._thread = threading.Thread(target=self._loop, name="sniffer", daemon=True)
         self._lock = threading.Lock()
+        self.error: str | None = None
+        """Why reading stopped before ``stop()`` (the port went away: a radio hub stopped, a
+        USB radio unplugged), or None."""
 
     def tick(self) -> int:
         return (time.monotonic_ns() - self._t0) * TICK_HZ // 1_000_000_000
@@ -99,7 +102,9 @@ class Sniffer:
         while not self._stop.is_set():
             try:
                 data = self.port.read(max(1, self.port.in_waiting))
-            except (OSError, ValueError, TypeError):
+            except (OSError, ValueError, TypeError) as exc:
+                if not self._stop.is_set():
+                    self.error = str(exc) or type(exc).__name__
                 return
             if not data:
                 continue

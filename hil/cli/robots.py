@@ -61,8 +61,17 @@ def cmd_submodules(a: argparse.Namespace) -> int:
         runner.run(0)
         raise UserError(str(exc)) from None
     return run_until_stopped(runner, a, f"running joints 1-4, wheel and paw on CAN {a.can}; Ctrl-C stops",
-                lambda: "submodules: " + ", ".join(
-                    f"{k} {n.sent} sent" for k, n in nodes.items()))
+                lambda: submodules_summary(nodes))
+
+
+def submodules_summary(nodes: dict) -> str:
+    """The closing line of ``rprs submodules``: the frames each node sent, and the commands
+    it ignored as malformed (a wrong length or a remote frame: no EVENT answers those)."""
+    line = "submodules: " + ", ".join(f"{k} {n.sent} sent" for k, n in nodes.items())
+    bad = [f"{k} {n.bad_frames}" for k, n in nodes.items() if n.bad_frames]
+    if bad:
+        line += "; malformed commands ignored (wrong length or remote): " + ", ".join(bad)
+    return line
 
 
 def cmd_father(a: argparse.Namespace) -> int:

@@ -77,6 +77,8 @@ BUDGET_S = 0.06
 """Wall time one refresh may spend simulating (of the 0.1 s between refreshes)."""
 CHUNK_TICKS = s_to_ticks(0.02)
 """Simulated time run between two looks at the wall-clock budget."""
+QUIT_SIGNALS = ("SIGTERM", "SIGHUP")
+"""Signals that quit the view as ``q`` does."""
 TYPE_NAMES = {0: "help", 1: "invite", 2: "instr", 3: "info", 4: "failure", 5: "boot"}
 
 
@@ -96,8 +98,22 @@ def _cut(s: str, width: int) -> str:
     return s if len(s) <= width else s[:width - 1] + "…"
 
 
+def _fault_line(ev: dict) -> str:
+    """An events line for a world's ``fault`` event: the monitor's own keys in words, any
+    other ``--fault`` by its spec as it starts and by its kind and robot as it ends."""
+    kind, robot = ev["kind"], ev["robot"]
+    if ev.get("phase") == "end":
+        return f"fault {kind}{'' if robot is None else f' on robot {robot}'} ends"
+    own = {"fail": "radio of robot {} killed", "recover": "radio of robot {} revived",
+           "steal": "robot {} steals the turn"}.get(kind)
+    return own.format(robot) if own else f"fault {ev.get('spec', kind)} starts"
+
+
 def _speed_text(speed: float) -> str:
-    return f"×{speed:g}" if speed >= 1 else f"×1/{round(1 / speed):d}"
+    """×4, ×1/8 (a whole fraction), else ×0.75 (``--speed 0.75`` used to show ×1/1)."""
+    if speed < 1 and (1 / speed).is_integer():
+        return f"×1/{round(1 / speed):d}"
+    return f"×{speed:g}"
 
 
 @dataclass
@@ -195,11 +211,31 @@ class MonitorApp(App):
         self.refresh_view()
         # On the view, not on the app: textual stops it before it removes any of the widgets.
         self.refresh_timer = view.set_interval(1 / self.rate, self.tick, name="monitor refresh")
+        self._quit_on_signals(True)
+
+    def _quit_on_signals(self, on: bool) -> None:
+        """SIGTERM and SIGHUP quit like ``q``: the terminal restored, the trace and summary
+        written (they used to kill the process in the alternate screen, the trace left
+        ``.partial``). Only where the app's loop can take signals (the main thread)."""
+        import asyncio
+        import signal
+        loop = asyncio.get_running_loop()
+        for sig in (getattr(signal, n, None) for n in QUIT_SIGNALS):
+            if sig is None:
+                continue
+            try:
+                if on:
+                    loop.add_signal_handler(sig, self.exit)
+                else:
+                    loop.remove_signal_handler(sig)
+            except (ValueError, RuntimeError, NotImplementedError):
+                return                   # not the main thread, or no signals on this platform
 
     def _view_gone(self) -> None:
         """The view is unmounted (its timer already stopped): draw nothing from now on."""
         self._widgets = {}
         self.refresh_timer = None
+        self._quit_on_signals(False)
 
     @property
     def view_ready(self) -> bool:
@@ -361,8 +397,7 @@ class SimMonitorApp(MonitorApp):
             line = f"robot {ev['robot']}{' PC2' if ev.get('pc') else ''} -> {ev['mode']} " \
                    f"({ev['reason']})"
         elif k == "fault":
-            line = {"fail": "radio of robot {} killed", "recover": "radio of robot {} revived",
-                    "steal": "robot {} steals the turn"}[ev["kind"]].format(ev["robot"])
+            line = _fault_line(ev)
         elif k == "collision":
             line = f"collision between robots {_ids(ev['robots'])}"
         elif k == "fail":
@@ -614,6 +649,8 @@ class RadioMonitorApp(MonitorApp):
         self.occupations = 0
         self.failed = self.garbage = self.bytes = 0
         self._ring_seen: set[int] = set()
+        self.lost = False
+        """Whether the port went away (the header says PORT LOST)."""
 
     def on_mount(self) -> None:
         self.sniffer.start()
@@ -642,6 +679,10 @@ class RadioMonitorApp(MonitorApp):
         for f, content in frames:
             self.feed(f, content)
         now = self.now()
+        if self.sniffer.error is not None and not self.lost:
+            self.lost = True
+            self.events.append(f"{now / TICK_HZ:9.3f} s  port {self.port} lost: "
+                               f"{self.sniffer.error}; nothing more can be heard")
         ring = set(self.ring(now))
         for r in sorted(self._ring_seen - ring):
             self._ring_seen.discard(r)
@@ -698,6 +739,8 @@ class RadioMonitorApp(MonitorApp):
         t.append(f"   failed frames {self.failed}", "red" if self.failed else "")
         t.append(f"   garbage bytes {self.garbage}   bytes {self.bytes}")
         t.append(f"   t = {now / TICK_HZ:.1f} s", "bold")
+        if self.lost:
+            t.append("   PORT LOST", "bold red")
         if self.paused:
             t.append("   FROZEN", "bold yellow")
         return t
