@@ -51,3 +51,38 @@ def test_soak_command_json(capsys):
     import json
     out = json.loads(capsys.readouterr().out)
     assert out[0]["checksum"] and all(out[0]["invariants"].values())
+
+
+@pytest.mark.parametrize("spec", [
+    ("fail:2@12", "recover:2@20.1"),
+    ("fail:0@7.3", "recover:0@9", "ber@30-31:0.01", "steal:1@44.4"),
+    (),
+])
+def test_reformations_timed_in_long_steps_are_the_same(spec):
+    """Without a progress callback the re-formation timer runs the world in one go between
+    the fault ends it must see (so that an idle ring can leap over its cycles): the same
+    re-formation times, the same run, as step by step."""
+    from hil.sim.soak import run_timing_reformations
+    from hil.sim.world import SimConfig, World
+    faults = tuple(parse_fault(x) for x in spec)
+    cfg = SimConfig(robots=(0, 1, 2, 3), duration=80, seed=5, faults=faults)
+    stepped, whole = World(cfg), World(cfg)
+    calls = []
+    a = run_timing_reformations(stepped, faults, progress=calls.append)
+    b = run_timing_reformations(whole, faults)
+    assert a == b and len(calls) == 320
+    assert stepped.summary() == whole.summary()
+    assert whole.quiet_ring.ticks_skipped > stepped.quiet_ring.ticks_skipped
+    if faults:
+        assert a[1] == 0 and len(a[0]) >= 1
+
+
+def test_step_seeing_lands_on_the_first_sample_past_a_fault_end():
+    from firmware_model.timing import TICK_HZ
+    from hil.sim.soak import SAMPLE_S, _step_seeing
+    step = round(SAMPLE_S * TICK_HZ)
+    assert _step_seeing(0, step, 20.1, 10**12) == round(20.25 * TICK_HZ)
+    assert _step_seeing(0, step, 20.0, 10**12) == 20 * TICK_HZ
+    assert _step_seeing(step, step, 0.1, 10**12) == 2 * step      # at least one step
+    assert _step_seeing(0, step, None, 99) == 99
+    assert _step_seeing(0, step, 50.0, 7 * step) == 7 * step
