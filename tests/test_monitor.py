@@ -194,6 +194,13 @@ def test_the_world_stops_at_its_duration():
             await pilot.pause()
             assert app.finished and "FINISHED" in app.shown("#header")
             assert app.world.now == 2 * TICK_HZ
+            # a fault key once the run is over changes nothing and says why
+            events = list(app.events)
+            await pilot.press("k", "1")
+            assert app.world.radios[1].alive and list(app.events) == events
+            assert "the run has finished" in app.shown("#hint")
+            await pilot.press("n")
+            assert not app.world.air.noise and list(app.events) == events
     run(go())
 
 

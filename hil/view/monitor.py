@@ -566,7 +566,11 @@ class SimMonitorApp(MonitorApp):
         self.fault(what, d)
 
     def fault(self, what: str, r: int) -> bool:
-        """'kill', 'revive' or 'steal' robot ``r`` now (the keys k/r/s then a digit)."""
+        """'kill', 'revive' or 'steal' robot ``r`` now (the keys k/r/s then a digit); not
+        once the run has finished (the trace and the summary end at its end)."""
+        if self.finished:
+            self.flash("the run has finished: nothing more can happen in it")
+            return False
         if r not in self.world.stations:
             self.flash(f"robot {r} is not in this simulation (robots {_ids(self.robots)})")
             return False
@@ -590,6 +594,9 @@ class SimMonitorApp(MonitorApp):
         """Idle noise on the air on/off from now (radios hearing a frame or garbage are not
         disturbed; they start hearing noise when it ends)."""
         air, now = self.world.air, self.world.now
+        if self.finished:
+            self.flash("the run has finished: nothing more can happen in it")
+            return
         if air.noise == on:
             return
         air.set_noise(on)
