@@ -10,7 +10,8 @@ It needs a scheduler with ``post`` (``hil.sim.realtime.RealTimeScheduler``): a r
 hands every received frame to the scheduler's thread. A receive or send error (an interface
 taken down) is reported in one line through ``on_error`` and the bus goes on. ``log`` writes every frame sent or
 received with python-can's writers, chosen by the file's extension (candump ``.log``,
-``.asc``, ``.blf``, ``.csv``, ``.trc``).
+``.asc``, ``.blf``, ``.csv``, ``.trc``), the frames no node here takes too (extended IDs,
+error frames, CAN FD: counted in ``not_ours``), so that the log holds what candump shows.
 """
 from __future__ import annotations
 
@@ -185,6 +186,9 @@ class PythonCanBus:
         self._busy: set[int] = set()
         self.sent = 0
         self.received = 0
+        self.not_ours = 0
+        """Frames heard that are not CAN 2.0A data or remote frames (extended IDs, error
+        frames, CAN FD): logged, handed to no node."""
         self.send_errors = 0
         self.receive_errors = 0
         self.on_error = on_error
@@ -326,8 +330,15 @@ class PythonCanBus:
 
     def _from_thread(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_extended_id or msg.is_fd:
+            self.sched.post(self._not_ours, msg)
             return
         self.sched.post(self._deliver, msg)
+
+    def _not_ours(self, msg: can.Message) -> None:
+        """A frame no node here takes: counted and logged, as candump would show it."""
+        self.not_ours += 1
+        if self._writer is not None:
+            self._log_received(msg)
 
     def _deliver(self, msg: can.Message) -> None:
         frame = CanFrame.from_message(msg)
@@ -336,12 +347,7 @@ class PythonCanBus:
             * self.timing.ticks_per_bit
         self.received += 1
         if self._writer is not None:
-            if msg.channel is None:
-                msg.channel = self.channel
-            # Whatever reaches this bus object came from another one: received. (SocketCAN
-            # flags every frame sent from this host, another process's too, as not received.)
-            msg.is_rx = True
-            self._log(msg)
+            self._log_received(msg)
         if self.trace is not None:
             self.trace(frame, start, end, None)
         for node in self.nodes:
@@ -349,6 +355,14 @@ class PythonCanBus:
                 node.on_frame(frame, start, end)
 
     # -- the log ------------------------------------------------------------------------------
+
+    def _log_received(self, msg: can.Message) -> None:
+        if msg.channel is None:
+            msg.channel = self.channel
+        # Whatever reaches this bus object came from another one: received. (SocketCAN
+        # flags every frame sent from this host, another process's too, as not received.)
+        msg.is_rx = True
+        self._log(msg)
 
     def _log(self, msg: can.Message) -> None:
         """``msg`` to the log; a write that fails (a full disk) ends the log in one line, and

@@ -130,6 +130,38 @@ def test_can_logs_have_wall_clock_times_directions_and_the_channel(can_channel, 
     assert all(m.is_rx == (m.arbitration_id == 0x101) for m in asc)
 
 
+def test_frames_no_node_takes_are_logged_and_counted(can_channel, tmp_path):
+    """An extended-ID frame and an error frame on the bus reach no node (CAN 2.0A only), but
+    the log holds them, as candump shows them, and ``not_ours`` counts them."""
+    import can
+    channel = parse_spec(can_channel)[1]
+    sched = RealTimeScheduler()
+    bus = PythonCanBus(sched, open_bus(can_channel), log=str(tmp_path / "all.log"),
+                       channel=channel)
+    heard = []
+    bus.trace = lambda frame, start, end, node: heard.append(frame.id)
+    other = open_bus(can_channel)
+    try:
+        other.send(can.Message(arbitration_id=0x1ABCDEF, is_extended_id=True, data=b"\x01"))
+        other.send(can.Message(arbitration_id=0x181, is_extended_id=False, data=bytes(8)))
+        if not can_channel.startswith("socketcan"):     # SocketCAN: error frames come from drivers
+            other.send(can.Message(arbitration_id=0x4, is_error_frame=True, dlc=8,
+                                   data=bytes(8)))
+        sched.run_for(0.3)
+    finally:
+        other.shutdown()
+        bus.close()
+    logged = list(can.LogReader(str(tmp_path / "all.log")))
+    assert [m.arbitration_id for m in logged if m.is_extended_id and
+            not m.is_error_frame] == [0x1ABCDEF]
+    assert [m.arbitration_id for m in logged if not m.is_extended_id and
+            not m.is_error_frame] == [0x181]
+    assert heard == [0x181] and bus.received == 1
+    errors = 0 if can_channel.startswith("socketcan") else 1
+    assert bus.not_ours == 1 + errors
+    assert sum(m.is_error_frame for m in logged) == errors
+
+
 @pytest.mark.vcan
 def test_a_can_log_agrees_with_candump(vcan_channel, tmp_path):
     """On SocketCAN, candump (can-utils, an independent reader of the same bus) and the
