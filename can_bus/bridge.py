@@ -83,9 +83,15 @@ def socketcan_missing(channel: str = "vcan0") -> str | None:
     return None
 
 
+IFNAME_MAX = 15
+"""Longest Linux network interface name (IFNAMSIZ 16, with its terminating NUL)."""
+
+
 def _socketcan_hint(channel: str, why: str) -> str:
     """What to do about ``socketcan_missing(channel)``'s reason ``why``."""
     if why == f"no {channel} interface":
+        if len(channel) > IFNAME_MAX:
+            return f"a network interface's name has at most {IFNAME_MAX} characters"
         return f"create it with: ip link add dev {channel} type vcan && ip link set up {channel}"
     if why == f"{channel} interface is down":
         return f"bring it up with: ip link set up {channel}"

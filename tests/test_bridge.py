@@ -392,3 +392,13 @@ def test_a_can_log_that_fills_the_disk_is_one_line_and_the_bus_goes_on(tmp_path)
     assert lines == [f"CAN bus {channel}: cannot write the log {log}: No space left on device; "
                      f"the log ends here"], lines
     assert bus.bus._is_shutdown
+
+
+def test_the_hint_for_a_missing_interface_fits_linux_names():
+    """A missing vcan0 gets the commands that create it; a name Linux cannot have (over 15
+    characters) gets no command that would fail."""
+    from can_bus.bridge import _socketcan_hint
+    assert "ip link add dev vcan0 type vcan" in _socketcan_hint("vcan0", "no vcan0 interface")
+    long = "vcan-much-too-long"
+    hint = _socketcan_hint(long, f"no {long} interface")
+    assert "at most 15 characters" in hint and "ip link add" not in hint

@@ -101,6 +101,11 @@ def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
     (["sim", "--frame-bytes", "100"], "sizes the peer MACs' frames"),
     (["bench", "latency", "--radio", "x", "--dst", "0"], "the bench's own ID"),
     (["bench", "latency", "--radio", "x", "--dst", "3", "--team", "0,1"], "must hold"),
+    # an empty port meant "no radio" to rprs child and a port to others
+    (["child", "--id", "1", "--radio", "", "--can", "virtual:x"], "an empty port name"),
+    (["father", "--radio", " "], "an empty port name"),
+    (["monitor", "--radio", ""], "an empty port name"),
+    (["conformance", "--radio", "", "--id", "1"], "an empty port name"),
 ])
 def test_user_mistakes_are_one_line_and_status_2(capsys, args, needle):
     code, out, err = rprs(capsys, *args)

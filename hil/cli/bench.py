@@ -6,7 +6,8 @@ import json
 import statistics
 import time
 
-from .common import Parser, UserError, digit, positive, progress_bar, robot_list, txen_option
+from .common import (Parser, UserError, digit, port_name, positive, progress_bar, robot_list,
+                     txen_option)
 
 def cmd_bench(a: argparse.Namespace) -> int:
     from ..bench import scripts as bench
@@ -113,7 +114,7 @@ def add(sub) -> None:
     for name, text in (("link", "listen: is anybody talking, and how clean is it"),
                        ("cycle", "listen and time the ring against the spec")):
         b = bsub.add_parser(name, help=text)
-        b.add_argument("--radio", metavar="PORT", required=True,
+        b.add_argument("--radio", type=port_name, metavar="PORT", required=True,
                        help="serial port or pyserial URL of a radio that hears the ring")
         b.add_argument("--duration", type=positive, default=10.0, metavar="SECONDS",
                        help="how long to listen (default %(default)s)")
@@ -121,7 +122,7 @@ def add(sub) -> None:
                        help="print the report as one JSON object")
         b.set_defaults(func=cmd_bench)
     b = bsub.add_parser("latency", help="join the ring and time status requests to a robot")
-    b.add_argument("--radio", metavar="PORT", required=True,
+    b.add_argument("--radio", type=port_name, metavar="PORT", required=True,
                    help="serial port or pyserial URL of the bench's radio")
     b.add_argument("--dst", type=digit(0, 6, "destination"), required=True,
                    help="the robot to ask status() of (0-6)")

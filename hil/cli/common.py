@@ -74,6 +74,15 @@ def id_at(text: str) -> tuple[int, float]:
     return r, t
 
 
+def port_name(text: str) -> str:
+    """A serial port, pty or pyserial URL as given; an empty one is refused (it used to mean
+    "no radio" to some commands and a port to others)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty port name: give a serial port, a pty or a "
+                                         "pyserial URL")
+    return text
+
+
 def positive(text: str) -> float:
     try:
         v = float(text)

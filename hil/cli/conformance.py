@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import UserError, digit, output_file, positive
+from .common import UserError, digit, output_file, port_name, positive
 
 
 VERDICT_STYLE = {"pass": "[green]pass[/green]", "FAIL": "[red]FAIL[/red]", "n/a": "[dim]n/a[/dim]"}
@@ -56,7 +56,7 @@ def cmd_conformance(a: argparse.Namespace) -> int:
 def add(sub) -> None:
     p = sub.add_parser("conformance", help="check a robot against docs/protocol.md, clause by "
                        "clause, from a PC in a ring of two with it")
-    p.add_argument("--radio", required=True, metavar="PORT",
+    p.add_argument("--radio", type=port_name, required=True, metavar="PORT",
                    help="the serial port of this PC's radio (or a radio-hub pty)")
     p.add_argument("--id", type=digit(0, 6, "robot ID"), required=True,
                    help="the ID of the robot under test")

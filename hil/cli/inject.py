@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from .common import UserError
+from .common import UserError, port_name
 
 
 def cmd_inject(a: argparse.Namespace) -> int:
@@ -50,7 +50,7 @@ def cmd_inject(a: argparse.Namespace) -> int:
 def add(sub) -> None:
     inj = sub.add_parser("inject", help="a foreign transmitter: write bytes into a radio-hub "
                          "pty or serial port, like any other program")
-    inj.add_argument("--radio", metavar="PORT", required=True,
+    inj.add_argument("--radio", type=port_name, metavar="PORT", required=True,
                      help="serial port, radio-hub pty or pyserial URL")
     what = inj.add_mutually_exclusive_group(required=True)
     what.add_argument("--hex", metavar="HEX", help="exactly these bytes, e.g. 0f0a05...")

@@ -5,7 +5,7 @@ import argparse
 import sys
 
 from ..sim.world import ConfigError
-from .common import UserError, distinct_outputs, positive
+from .common import UserError, distinct_outputs, port_name, positive
 from .sim import add_sim_options, close_writers, open_writers, print_summary, sim_config
 
 
@@ -77,5 +77,6 @@ def add(sub) -> None:
     add_sim_options(mo, progress=False)   # --trace/--vcd: the world up to where you quit
     mo.add_argument("--speed", type=speed, default=1.0,
                     help="simulated seconds per wall second, 1/64 to 4096 (default 1)")
-    mo.add_argument("--radio", metavar="PORT", help="listen to a radio hub pty or a USB radio")
+    mo.add_argument("--radio", type=port_name, metavar="PORT",
+                    help="listen to a radio hub pty or a USB radio")
     mo.set_defaults(func=cmd_monitor, duration=3600.0)

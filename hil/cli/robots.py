@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import UserError, digit, mac_config, mac_options, realtime_options, run_until_stopped, txen_option
+from .common import (UserError, digit, mac_config, mac_options, port_name, realtime_options,
+                     run_until_stopped, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_child, summary_line
@@ -161,7 +162,8 @@ def add(sub) -> None:
                         "and/or a CAN bus")
     ch.add_argument("--id", type=digit(1, 6, "child ID"), required=True,
                     help="this child's robot ID (1-6)")
-    ch.add_argument("--radio", metavar="PORT", help="serial port or pyserial URL")
+    ch.add_argument("--radio", type=port_name, metavar="PORT",
+                    help="serial port or pyserial URL")
     ch.add_argument("--can", metavar="INTERFACE:CHANNEL",
                     help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can")
     ch.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
@@ -179,7 +181,7 @@ def add(sub) -> None:
     realtime_options(sm)
     sm.set_defaults(func=cmd_submodules)
     fa = sub.add_parser("father", help="the father station (ID 0) on a serial port")
-    fa.add_argument("--radio", metavar="PORT", required=True,
+    fa.add_argument("--radio", type=port_name, metavar="PORT", required=True,
                     help="serial port or pyserial URL of the father's radio")
     fa.add_argument("--standby", action="store_true",
                     help="start as the hot standby PC (takes ID 0's turn if the active dies)")
