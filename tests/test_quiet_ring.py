@@ -254,6 +254,33 @@ class _Sink:
     def can_error(self, *a) -> None: ...
 
 
+def test_no_leap_while_a_hook_of_someone_elses_sees_the_frames():
+    """A hook on the air's transmissions or on a station's actions (a benchmark's, a test's)
+    would miss the frames leapt over: it sees every one of them instead."""
+    cfg = SimConfig(robots=(0, 1, 2), duration=30, seed=18)
+    plain = World(replace(cfg, ring_sleep=False))
+    plain.run()
+    hooked = World(cfg)
+    ends = []
+    world_hook = hooked.air.on_transmission
+
+    def both(tx):
+        ends.append(tx.end)
+        world_hook(tx)
+    hooked.air.on_transmission = both
+    hooked.run()
+    assert hooked.quiet_ring.leaps == 0 and len(ends) == plain.transmissions
+    observed = World(cfg)
+    st = observed.stations[1]
+    world_observer = st.observer
+    st.observer = lambda *a: world_observer(*a)
+    observed.run()
+    assert observed.quiet_ring.leaps == 0
+    unhooked = World(cfg)
+    unhooked.run()
+    assert unhooked.quiet_ring.leaps >= 1
+
+
 def test_a_leap_moves_ticks_inside_tuples():
     """A tick held in a tuple (a MAC's ``_last_heard``, an event's arguments) moves with the
     rest: the tuple is replaced in its holder."""

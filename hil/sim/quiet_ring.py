@@ -33,14 +33,17 @@ of the whole radio side:
   by the periods that passed whatever the ring did meanwhile; so its parts are left out of the
   snapshot (``boundary``), and a leap leaves them as they are.
 * Nothing outside may be watching the frames: no trace, no event callback, no capture, no CPU
-  model, the rotational MAC. A snapshot with an object whose inside it cannot see (anything but
-  this project's classes, plain values and containers, bytearrays and random generators) never
-  leads to a leap.
+  model, and no hook of someone else's on the air's transmissions or collisions or on a
+  station's actions (each would miss the frames leapt over); the MAC must be the rotational
+  one. A snapshot with an object whose inside it cannot see (anything but this project's
+  classes, plain values and containers, bytearrays and random generators) never leads to a
+  leap.
 
 A snapshot that finds no repetition backs off (1, 2, 4 ... 64 probes), and a busy ring takes
 none at all (something is reported every period), so a ring that does not repeat itself pays
-little for the probes. tests/test_quiet_ring.py compares runs with and without leaps, whole world and
-summary, on seeded rings with faults, power-on times, the standby father and stops between.
+little for the probes. tests/test_quiet_ring.py compares runs with and without leaps, whole
+world and summary, on seeded rings with faults, power-on times, the standby father, CAN sides
+and stops between, and on random rings.
 """
 from __future__ import annotations
 
@@ -115,6 +118,7 @@ class QuietRing:
         self._misses = 0
         self._skip = 0
         self._activity: tuple[int, ...] = ()
+        self._own_hooks = world.hooks()      # the world's own wiring, as built
 
     def heard(self, tx: "Transmission") -> None:
         """A transmission ended (the air's ``on_transmission``); probe after every
@@ -133,8 +137,11 @@ class QuietRing:
             sched.at(sched.now, self._probe)
 
     def _watched(self) -> bool:
+        """Does anything outside the world see frames or actions one by one?"""
         w = self.world
-        return w.trace is not None or w.on_event is not None or w.pcap is not None
+        if w.trace is not None or w.on_event is not None or w.pcap is not None:
+            return True
+        return w.hooks() != self._own_hooks
 
     def _probe(self) -> None:
         if self.until is None or self._watched():
