@@ -402,3 +402,19 @@ def test_the_hint_for_a_missing_interface_fits_linux_names():
     long = "vcan-much-too-long"
     hint = _socketcan_hint(long, f"no {long} interface")
     assert "at most 15 characters" in hint and "ip link add" not in hint
+
+
+def test_a_bench_process_that_went_on_through_troubles_exits_1(tmp_path, capsys):
+    """``rprs submodules`` whose CAN log could not be written ran on and said so, but ended
+    with exit status 0: a script running the bench could not tell. It now ends with 1 and
+    says why; a run without trouble still ends with 0."""
+    from hil.cli import main
+    log = tmp_path / "full.log"
+    log.symlink_to("/dev/full")
+    assert main(["submodules", "--can", "virtual:rprs-trouble", "--can-log", str(log),
+                 "--duration", "0.5"]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert any("cannot write the log" in line and "No space left" in line for line in err)
+    assert err[-1] == "rprs: 1 trouble during the run (above): exit status 1"
+    assert main(["submodules", "--can", "virtual:rprs-fine", "--can-log",
+                 str(tmp_path / "fine.log"), "--duration", "0.5"]) == 0

@@ -109,6 +109,15 @@ class Runner:
         self.sched = RealTimeScheduler()
         self._closers: list[Callable[[], None]] = []
         self._stopping = threading.Event()
+        self.troubles = 0
+        """Troubles the process went on through (:meth:`warn`); the command's exit status
+        is 1 if there were any."""
+
+    def warn(self, line: str) -> None:
+        """A trouble the process goes on through (a CAN interface taken down, a CAN log that
+        could not be written): one line now, and exit status 1 at the end."""
+        self.troubles += 1
+        print(f"rprs: {line}", file=sys.stderr, flush=True)
 
     def on_close(self, fn: Callable[[], None], last: bool = False) -> None:
         """Run ``fn`` when the runner stops (in reverse order; ``last``: after all others)."""
@@ -163,11 +172,6 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
     return station, channel
 
 
-def _warn(line: str) -> None:
-    """A trouble the process goes on through (a CAN interface taken down): one line."""
-    print(f"rprs: {line}", file=sys.stderr, flush=True)
-
-
 def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
     if log and os.path.isdir(log):
         raise RunError(f"cannot write CAN log {log}: it is a directory")
@@ -177,7 +181,7 @@ def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
         raise RunError(str(exc)) from None
     try:
         bus = PythonCanBus(runner.sched, raw, log=log, channel=parse_spec(spec)[1],
-                           on_error=_warn)
+                           on_error=runner.warn)
     except (OSError, ValueError, CanOpenError, NotImplementedError, ImportError) as exc:
         # NotImplementedError: python-can's .mf4 writer without asammdf
         raw.shutdown()                 # else python-can warns at exit, a second line

@@ -199,9 +199,16 @@ def realtime_options(p: argparse.ArgumentParser) -> None:
 
 
 def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary) -> int:
+    """Run a bench process to its end; exit status 1 if it went on through troubles (each
+    said in its own line as it happened: ``Runner.warn``), else 0."""
     print(describe, file=sys.stderr, flush=True)
     runner.run(a.duration)
     print(summary(), file=sys.stderr, flush=True)
+    n = getattr(runner, "troubles", 0)
+    if n:
+        print(f"rprs: {n} trouble{'s' if n > 1 else ''} during the run (above): exit status 1",
+              file=sys.stderr, flush=True)
+        return 1
     return 0
 
 
