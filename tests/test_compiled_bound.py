@@ -54,7 +54,7 @@ def test_shares_and_the_amdahl_bound():
                     reason="py-spy is not installed (pip install -e '.[bench]')")
 def test_a_real_profile_charges_the_run_to_its_modules():
     code = ("from hil.sim.world import SimConfig, World\n"
-            "World(SimConfig(robots=(1, 2, 3), duration=60)).run()\n")
+            "World(SimConfig(robots=(1, 2, 3), duration=60, ring_sleep=False)).run()\n")
     samples = bench.profile(code, 200, str(ROOT))
     shares = bench.group_shares(samples)
     assert sum(samples.values()) > 0

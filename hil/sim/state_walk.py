@@ -15,7 +15,9 @@ object's inside is not looked at, so a part whose state hides in one, a random g
 refused by :func:`snapshot`). A ``boundary`` object (the world's scheduler, the radio station
 a child talks to) is compared by identity and not entered. An object reached twice is a
 reference to its first visit, so sharing is part of the shape; a tuple is walked wherever it
-is reached (it cannot change, so only its values matter), and an int inside one is written
+is reached, and a frozen dataclass taken as a value wherever it is reached (neither can
+change, so only their values matter, not whether a memo handed out one object or two equal
+ones), and an int inside a tuple is written
 by replacing the tuple in its holder (:class:`InTuple`): a tick in ``(robot, end)`` or in an
 event's arguments moves on like any other.
 
@@ -212,6 +214,9 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             shape.append(("fn", id(fn), id(self_),
                           getattr(x, "__qualname__", t.__name__)))
             return
+        if kind is _FROZEN:           # a value: equal ones are the same, shared or not
+            shape.append(x)
+            return
         if kind is _TUPLE:            # walked wherever reached (module docstring)
             shape.append(("tuple", len(x)))
             items_of(enumerate(x), None if holder is None else InTuple(holder, key), name,
@@ -240,8 +245,6 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
         elif kind is _DICT:
             shape.append(("dict", tuple(x)))
             items_of(x.items(), x, name, True)
-        elif kind is _FROZEN:
-            shape.append(x)
         elif kind is _BYTES:
             shape.append(("bytearray", bytes(x)))
         elif kind is _RNG and rng_state:
