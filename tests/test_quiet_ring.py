@@ -281,6 +281,20 @@ def test_no_leap_while_a_hook_of_someone_elses_sees_the_frames():
     assert unhooked.quiet_ring.leaps >= 1
 
 
+def test_state_a_snapshot_cannot_see_stops_the_leaps_not_the_run():
+    """Something in the world whose state hides from a snapshot (an iterator, a foreign
+    object) ends the ring's leaps; the run goes on frame by frame, the same run."""
+    cfg = SimConfig(robots=(0, 1, 2), duration=30, seed=19)
+    plain = World(replace(cfg, ring_sleep=False))
+    plain.run()
+    for hidden in (iter(range(3)), __import__("collections").deque([1])):
+        w = World(cfg)
+        w.stations[1].mac.extra = hidden
+        w.run()
+        assert not w.quiet_ring.enabled and w.quiet_ring.leaps == 0
+        assert w.summary() == plain.summary()
+
+
 def test_a_leap_moves_ticks_inside_tuples():
     """A tick held in a tuple (a MAC's ``_last_heard``, an event's arguments) moves with the
     rest: the tuple is replaced in its holder."""

@@ -53,7 +53,7 @@ from typing import TYPE_CHECKING, Any
 from firmware_model.mcu.scheduler import Event
 from firmware_model.radio.mac import PC2_CHECK_EVERY
 
-from .state_walk import advance, period_steps, snapshot, writable
+from .state_walk import Unwalkable, advance, period_steps, snapshot, writable
 
 if TYPE_CHECKING:
     from .air import Transmission
@@ -161,7 +161,11 @@ class QuietRing:
             self._last = None
             return
         self.probes += 1
-        snap = snapshot([self.world, events], [sched, self, *self.boundary], rng_state=True)
+        try:
+            snap = snapshot([self.world, events], [sched, self, *self.boundary], rng_state=True)
+        except Unwalkable:                     # an iterator somewhere: its state is hidden
+            self.enabled = False
+            return
         if any(type(x) is tuple and x and x[0] == "id" for x in snap.shape):
             self.enabled = False               # something whose state it cannot see
             return
