@@ -32,10 +32,14 @@ of the whole radio side:
   state is its orbit and the tick it fell asleep at, and when something wakes it, it moves on
   by the periods that passed whatever the ring did meanwhile; so its parts are left out of the
   snapshot (``boundary``), and a leap leaves them as they are.
-* Nothing outside may be watching the frames: no trace, no event callback, no capture, no CPU
-  model, and no hook of someone else's on the air's transmissions or collisions or on a
-  station's actions (each would miss the frames leapt over); the MAC must be the rotational
-  one. A snapshot with an object whose inside it cannot see (anything but this project's
+* A trace and an event callback get the events of the cycles leapt over: the events of the
+  period before the leap, their ticks (:data:`TICK_KEYS`) moved on by one period, k times.
+  The probe checks that rule on the run itself first: the events of the last period must be
+  those of the period before it, ticks moved on by the period and nothing else changed;
+  otherwise no leap. So a traced run writes the frame-by-frame run's trace, byte for byte.
+* Nothing else may be watching the frames: no capture, no CPU model, and no hook of someone
+  else's on the air's transmissions or collisions or on a station's actions (each would
+  miss the frames leapt over); the MAC must be the rotational one. A snapshot with an object whose inside it cannot see (anything but this project's
   classes, plain values and containers, bytearrays and random generators) never leads to a
   leap.
 
@@ -59,7 +63,7 @@ if TYPE_CHECKING:
     from .air import Transmission
     from .world import World
 
-__all__ = ["COUNTERS", "MODULAR", "GRAIN", "QuietRing"]
+__all__ = ["COUNTERS", "MODULAR", "GRAIN", "TICK_KEYS", "QuietRing"]
 
 COUNTERS = frozenset({
     "transmissions",   # world: transmissions started (reports only)
@@ -78,6 +82,10 @@ MODULAR = {"turns": PC2_CHECK_EVERY}
 """Counters the model reads only modulo a number (``turns``: the standby PC2's checks, mac.py):
 a period must move them by a multiple. Without a standby PC nothing reads ``turns``: it is
 one of the counters then."""
+
+TICK_KEYS = frozenset({"t", "start", "end", "sof"})
+"""Keys of a trace event that hold ticks (docs/trace.md): moved on by the period when the
+events of a cycle leapt over are written."""
 
 GRAIN = 2
 """Ticks a period must be a multiple of: the MAC's reload timer and the stall timer count the
@@ -119,6 +127,25 @@ class QuietRing:
         self._skip = 0
         self._activity: tuple[int, ...] = ()
         self._own_hooks = world.hooks()      # the world's own wiring, as built
+        # trace events since the last probe (only while a World.run is under way), and those
+        # of the interval before the last snapshot: (tick it began, events)
+        self._rec: list[tuple] = []
+        self._rec_from: int | None = None
+        self._last_events: tuple[int | None, list[tuple]] = (None, [])
+
+    def start_run(self, until: int) -> None:
+        """A ``World.run`` up to tick ``until`` begins."""
+        self.until = until
+
+    def end_run(self) -> None:
+        """It ended: no leap, and no event noted, until the next one."""
+        self.until = None
+        self._rec, self._rec_from = [], None
+
+    def note(self, ev: dict) -> None:
+        """An event the world wrote to its trace or event callback."""
+        if self.until is not None:
+            self._rec.append(tuple(ev.items()))
 
     def heard(self, tx: "Transmission") -> None:
         """A transmission ended (the air's ``on_transmission``); probe after every
@@ -137,13 +164,15 @@ class QuietRing:
             sched.at(sched.now, self._probe)
 
     def _watched(self) -> bool:
-        """Does anything outside the world see frames or actions one by one?"""
+        """Does anything outside the world see frames or actions one by one (but the trace
+        and the event callback, which get the events of the cycles leapt over)?"""
         w = self.world
-        if w.trace is not None or w.on_event is not None or w.pcap is not None:
-            return True
-        return w.hooks() != self._own_hooks
+        return w.pcap is not None or w.hooks() != self._own_hooks
 
     def _probe(self) -> None:
+        now = self.world.sched.now
+        recorded, rec_from = self._rec, self._rec_from
+        self._rec, self._rec_from = [], now
         if self.until is None or self._watched():
             self._last = None
             return
@@ -162,16 +191,19 @@ class QuietRing:
             return
         self.probes += 1
         try:
-            snap = snapshot([self.world, events], [sched, self, *self.boundary], rng_state=True)
+            # the trace writer is outside: what it wrote is checked below, event by event
+            snap = snapshot([self.world, events], [sched, self, self.world.trace,
+                                                   *self.boundary], rng_state=True)
         except Unwalkable:                     # an iterator somewhere: its state is hidden
             self.enabled = False
             return
         if any(type(x) is tuple and x and x[0] == "id" for x in snap.shape):
             self.enabled = False               # something whose state it cannot see
             return
-        now = sched.now
         last, at = self._last, self._last_at
+        before = self._last_events
         self._last, self._last_at = snap, now
+        self._last_events = (rec_from, recorded)
         if last is None:
             return
         period = now - at
@@ -193,10 +225,26 @@ class QuietRing:
         k = (horizon - 1 - reach) // period
         if k < 1:
             return
+        w = self.world
+        traced = w.trace is not None or w.on_event is not None
+        if traced and not (rec_from == at and before[0] == at - period and
+                           _shifted(before[1], period) == recorded):
+            return                             # the events do not repeat (yet): no leap
         taken = sched.take(None)
         advance(moved, k)
         sched.skip_to(now + k * period)
         sched.put_back(taken)
+        if traced:
+            for j in range(1, k + 1):
+                for items in _shifted(recorded, j * period):
+                    w.replay(dict(items))
+        self._rec_from = sched.now
         self.leaps += 1
         self.ticks_skipped += k * period
         self._last = None
+
+
+def _shifted(events: list[tuple], by: int) -> list[tuple]:
+    """``events`` (each a tuple of its items) with their ticks moved on by ``by``."""
+    return [tuple((k, v + by) if k in TICK_KEYS and type(v) is int else (k, v)
+                  for k, v in items) for items in events]

@@ -212,6 +212,7 @@ class World:
         self.sched = RealTimeScheduler() if config.realtime else Scheduler()
         self.trace = trace
         self.on_event = on_event
+        self.quiet_ring: QuietRing | None = None
         self.pcap = None
         # On the CPU model every received byte is its own interrupt: the air hands each byte
         # over on its stop-bit tick (the same trace as bursts, tests/test_air.py)
@@ -304,12 +305,11 @@ class World:
             if f.kind != "skew":
                 schedule_fault(self.sched, f, self._fault, self._fault_end)
         self.end_tick = s_to_ticks(config.duration)
-        self.quiet_ring: QuietRing | None = None
-        """The radio side as a whole, moved on in whole cycles while it only repeats itself
-        (hil/sim/quiet_ring.py); none where something watches every frame (a trace, an
-        event callback, the CPU model) or the clock is the wall's."""
+        # The radio side as a whole, moved on in whole cycles while it only repeats itself
+        # (hil/sim/quiet_ring.py; the trace and the event callback get the events of the
+        # cycles leapt over); none with the CPU model or on the wall's clock.
         if config.ring_sleep and config.mac_kind == "rotational" and not config.realtime \
-                and config.cpu is None and trace is None and on_event is None:
+                and config.cpu is None:
             ring = self.quiet_ring = QuietRing(self, min(config.robots), base.poll_every,
                                                config.father_standby)
             for q in self.quiet.values():
@@ -449,12 +449,12 @@ class World:
         end = self.end_tick if until is None else min(until, self.end_tick)
         ring = self.quiet_ring
         if ring is not None:
-            ring.until = end
+            ring.start_run(end)
         try:
             self.sched.run_until(end)
         finally:
             if ring is not None:
-                ring.until = None
+                ring.end_run()
         if wake_can:
             self.wake_can()
 
@@ -465,8 +465,22 @@ class World:
     # -- events from the parts ------------------------------------------------------------
 
     def _emit(self, ev: dict, meta: bool = False) -> None:
+        trace, on_event = self.trace, self.on_event
+        if trace is None and on_event is None:
+            return
         if not meta:
             ev = {"t": self.sched.now, **ev}
+        if trace is not None:
+            trace.write(ev)
+        if on_event is not None:
+            on_event(ev)
+        ring = self.quiet_ring
+        if ring is not None and not meta:
+            ring.note(ev)
+
+    def replay(self, ev: dict) -> None:
+        """Write an event the ring did not run but whose place it knows (a cycle it leapt
+        over, shifted: hil/sim/quiet_ring.py) to the trace and the event callback."""
         if self.trace is not None:
             self.trace.write(ev)
         if self.on_event is not None:
