@@ -54,3 +54,23 @@ def test_typed_orders_history_refusals_and_the_story(tmp_path):
     asyncio.run(go())
     assert hist.read_text().splitlines() == ["1 status()", "1 joint(2,60)", "status()",
                                              "1 status()"]
+
+
+def test_the_view_quits_once_the_firmware_has_stopped_by_itself(tmp_path):
+    """A lost radio port (or --duration) stops the firmware's thread; the view then quits
+    instead of showing a ring that no longer runs."""
+    ended = threading.Event()
+    app = FatherApp(lambda line: None, lambda: "head", str(tmp_path / "h"), rate=10.0,
+                    ended=ended.is_set)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.pause(0.3)
+            assert app.is_running
+            ended.set()
+            for _ in range(100):                 # up to 10 s; a refresh comes every 0.1 s
+                await pilot.pause(0.1)
+                if not app.is_running:
+                    break
+            assert not app.is_running
+    asyncio.run(go())

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from .common import (UserError, digit, mac_config, mac_options, port_name, realtime_options,
-                     run_until_stopped, txen_option)
+                     run_until_stopped, stopped_by_itself, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_child, summary_line
@@ -50,7 +50,7 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
         worker.join(timeout=5)
     from ..bench.runner import summary_line
     print(summary_line(station), file=sys.stderr, flush=True)
-    return 0
+    return stopped_by_itself(runner)
 
 
 def cmd_submodules(a: argparse.Namespace) -> int:
@@ -87,7 +87,8 @@ def cmd_father(a: argparse.Namespace) -> int:
             sys.stdin.isatty() and sys.stdout.isatty():
         from ..bench.runner import HISTORY_FILE
         from ..view.father_app import FatherApp, LinesTo
-        app = FatherApp(lambda line: order(line), lambda: head(), HISTORY_FILE)
+        app = FatherApp(lambda line: order(line), lambda: head(), HISTORY_FILE,
+                        ended=runner.finished.is_set)
         console = FatherConsole(LinesTo(app.post_line), "human")
     else:
         console = FatherConsole(sys.stdout, "json" if a.json else "quiet" if a.quiet
