@@ -425,3 +425,13 @@ def test_a_father_order_that_is_not_ascii_is_refused_in_words():
     from hil.bench.runner import parse_order
     with pytest.raises(ValueError, match="'é' is not ASCII"):
         parse_order("2 movex(1é)")
+
+
+def test_a_father_order_to_the_father_itself_is_refused_as_it_is_parsed():
+    """'0 status()' passed the order's parser ("destination ID (0-7)") and was refused later by
+    the MAC as "a robot ID 0-6 other than 0", a line of another shape; now the parser says it."""
+    from hil.bench.runner import parse_order
+    with pytest.raises(ValueError, match=r"destination must be 1-6 \(a child\) or 7 \(every "
+                       r"robot\), got 0: 0 is the father itself"):
+        parse_order("0 status()")
+    assert parse_order("7 status()")[0] == 7

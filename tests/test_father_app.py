@@ -21,7 +21,7 @@ def test_typed_orders_history_refusals_and_the_story(tmp_path):
 
     def submit(line: str):
         if not line[0].isdigit():
-            return "start with the destination ID (0-7)"
+            return "start with the destination ID (1-7)"
         sent.append(line)
         return None
 

@@ -270,15 +270,17 @@ def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool =
 
 
 def parse_order(line: str) -> tuple[int, list]:
-    """``DST COMMANDS`` (e.g. ``2 movex(10)``, ``7 act(1,0)``) -> (dst, commands)."""
+    """``DST COMMANDS`` (e.g. ``2 movex(10)``, ``7 act(1,0)``) -> (dst, commands); DST is a
+    child (1-6) or 7 (every robot), never the father (0) that sends it."""
     dst_text, _, text = line.strip().partition(" ")
     try:
         dst = int(dst_text)
     except ValueError:
-        raise ValueError(f"start with the destination ID (0-7), e.g. '2 movex(10)'; "
+        raise ValueError(f"start with the destination ID (1-7), e.g. '2 movex(10)'; "
                          f"got {dst_text!r}") from None
-    if not 0 <= dst <= 7:
-        raise ValueError(f"destination must be 0-7, got {dst}")
+    if not 1 <= dst <= 7:
+        raise ValueError(f"destination must be 1-6 (a child) or 7 (every robot), got {dst}"
+                         + (": 0 is the father itself" if dst == 0 else ""))
     if not text.strip():
         raise ValueError("no commands after the destination")
     text = text.strip()
