@@ -5,8 +5,9 @@
              (spec: Ttrans, 5 ms), each robot's cycle, misses (gaps of about Tmax), against
              docs/protocol.md §7.2;
 ``latency``  join the ring as a member (the father by default) and ask a robot for its
-             status: round-trip time (request submitted -> reply delivered), acknowledgement
-             time, and loss.
+             status: round-trip time (request submitted -> answer delivered), acknowledgement
+             time, and loss; answers that refuse (``fail(42)status()``: no CAN side) are
+             counted apart, with the reason.
 
 The listener never transmits. Times are the wall-clock arrival of bytes at this PC, so they
 include the serial port's latency (a few ms on USB adapters); medians and 99th percentiles
@@ -197,6 +198,7 @@ class LatencyResult:
     round_trip_ms: list[float]
     ack_ms: list[float]
     failed: list[str]
+    refusals: list[str] = field(default_factory=list)   # answers that were fail(code)...
 
 
 def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
@@ -206,15 +208,22 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
     from firmware_model.radio.content import cmd
     from firmware_model.radio.mac import Deliver, Outcome
 
+    from .orders import fail_reason
+
     replies: list[tuple[int, int]] = []
+    refusals: list[str] = []
     outcomes: list[tuple[int, Any]] = []
     prev = station.observer
 
     def observe(st: Any, a: object, now: int) -> None:
         if prev is not None:
             prev(st, a, now)
-        if type(a) is Deliver and a.src == dst:
+        if type(a) is Deliver and a.src == dst and a.dst == st.id:   # not its broadcasts
             replies.append((now, a.num))
+            if a.commands and a.commands[0].name == "fail":
+                code = int(a.commands[0].args[0])
+                refusals.append("".join(c.text() for c in a.commands) +
+                                f": {fail_reason(code)}")
         elif type(a) is Outcome:
             outcomes.append((now, a))
     station.observer = observe
@@ -253,7 +262,7 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
         if progress is not None:
             progress(i + 1)
     station.observer = prev
-    return LatencyResult(sent, len(rtt), rtt, ack, failed)
+    return LatencyResult(sent, len(rtt), rtt, ack, failed, refusals)
 
 
 __all__ = ["Sniffer", "listen", "cycle_report", "latency", "LatencyResult", "PortError"]

@@ -95,11 +95,15 @@ def cmd_bench(a: argparse.Namespace) -> int:
     rep = {"sent": r.sent, "replies": r.replies, "loss": 1 - r.replies / r.sent if r.sent else 1,
            "round_trip_ms_median": statistics.median(r.round_trip_ms) if r.round_trip_ms
            else None, "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,
-           "failed": r.failed}
+           "failed": r.failed, "refused": len(r.refusals),
+           "refusal": r.refusals[0] if r.refusals else None}
     if a.json:
         print(json.dumps(rep))
     else:
-        print(f"robot {a.dst}: {r.replies}/{r.sent} status replies; round trip median "
+        what = (f"{r.replies}/{r.sent} status replies" if not r.refusals else
+                f"{r.replies}/{r.sent} answers, {len(r.refusals)} of them refusals "
+                f"({r.refusals[0]})")
+        print(f"robot {a.dst}: {what}; round trip median "
               f"{med(r.round_trip_ms)} ms, p99 {p99(r.round_trip_ms)} ms; acknowledged in "
               f"{med(r.ack_ms)} ms (median); loss {rep['loss']:.1%}")
         for why in r.failed[:5]:
