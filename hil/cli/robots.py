@@ -38,16 +38,22 @@ def _submit_order(station, dst: int, commands: list, console) -> None:
 
 def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> int:
     """The father's live console (hil/view/father_app.py): the firmware in a thread, the
-    view in this one; quitting the view stops the firmware."""
+    view in this one; quitting the view stops the firmware, and SIGTERM stops both cleanly."""
+    import signal
     import threading
     worker = threading.Thread(target=runner.run, args=(a.duration,), name="firmware",
                               daemon=True)
+    # the firmware's thread cannot take signals: SIGTERM (and a SIGINT sent from outside)
+    # stop it from here, and the view quits when it has stopped (FatherApp's ``ended``)
+    old = {sig: signal.signal(sig, runner.stop) for sig in (signal.SIGTERM, signal.SIGINT)}
     worker.start()
     try:
         app.run()
     finally:
         runner.stop()
         worker.join(timeout=5)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
     from ..bench.runner import summary_line
     print(summary_line(station), file=sys.stderr, flush=True)
     return stopped_by_itself(runner)
