@@ -114,6 +114,20 @@ class Dut:
     def in_ring(self) -> bool:
         return self.id in self.father.mac.ring
 
+    def explain(self, msg: Message | None = None) -> str:
+        """What the bench saw, for a failed expectation: the state of the father's message
+        ``msg`` (and why it failed), and the robot's last message to the father."""
+        text = "".join(c.text() for c in msg.commands) if msg is not None else ""
+        parts = [f"the father's {text}: {msg.state}" + (f" ({msg.reason})" if msg.reason
+                                                         else "")] if msg is not None else []
+        got = self.replies()
+        parts.append(f"robot {self.id} sent the father {len(got)} messages" + (
+            f", the last Type '{got[-1].type}' {''.join(c.text() for c in got[-1].commands)}"
+            if got else ""))
+        if not self.in_ring():
+            parts.append(f"robot {self.id} is no longer in the father's ring")
+        return "; ".join(parts)
+
     def heard(self) -> str:
         """What the bench's father heard, for a report: nothing, noise, or frames."""
         f = self.father
