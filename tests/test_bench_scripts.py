@@ -81,3 +81,30 @@ def test_latency_tells_a_refusal_from_a_status_reply_and_skips_broadcasts():
     r = bench.latency(SimpleNamespace(sched=sched), station, 2, 2, 1.0)
     assert (r.sent, r.replies) == (2, 2)
     assert r.refusals == ["fail(42)status(): the child has no CAN side"]
+
+
+def test_a_listener_whose_port_goes_away_stops_and_says_so(capsys, monkeypatch):
+    """The radio hub stopped under 'rprs bench link': it once listened on to the end of
+    --duration and reported a whole run, exit 0."""
+    import tty
+
+    from hil.cli import main
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    real = bench.Sniffer.start
+
+    def start(self):
+        started = real(self)
+        os.close(master)                     # the hub goes away once we listen
+        return started
+    monkeypatch.setattr(bench.Sniffer, "start", start)
+    try:
+        code = main(["bench", "link", "--radio", path, "--duration", "120"])
+    finally:
+        os.close(slave)
+    out, err = capsys.readouterr()
+    assert code == 1, out + err
+    assert out.startswith("link SILENT: 0 bytes in "), out
+    assert err.splitlines()[-1].startswith(f"rprs: error: the radio port {path} went away "
+                                           f"after "), err

@@ -51,6 +51,9 @@ class Listening:
     failed: int = 0
     bytes: int = 0
     seconds: float = 0.0
+    error: str | None = None
+    """Why listening ended early (the port went away), or None; ``seconds`` is then how long
+    it did listen."""
 
 
 class Sniffer:
@@ -87,7 +90,9 @@ class Sniffer:
         self._stop.set()
         self._thread.join(timeout=2.0)
         self.port.close()
-        self.result.seconds = self.tick() / TICK_HZ
+        if self.error is None:
+            self.result.seconds = self.tick() / TICK_HZ
+        self.result.error = self.error
         return self.result
 
     def snapshot(self) -> list[HeardFrame]:
@@ -105,6 +110,7 @@ class Sniffer:
                 data = self.port.read(max(1, self.port.in_waiting))
             except (OSError, ValueError, TypeError) as exc:
                 if not self._stop.is_set():
+                    self.result.seconds = self.tick() / TICK_HZ
                     self.error = str(exc) or type(exc).__name__
                 return
             if not data:
@@ -131,10 +137,11 @@ class Sniffer:
 
 def listen(port: str, seconds: float, progress: Callable[[float], None] | None = None) \
         -> Listening:
+    """Listen on ``port`` for ``seconds``, or until the port goes away (``error``)."""
     s = Sniffer(port).start()
     end = time.monotonic() + seconds
     try:
-        while time.monotonic() < end:
+        while time.monotonic() < end and s.error is None:
             time.sleep(min(0.1, max(0.0, end - time.monotonic())))
             if progress is not None:
                 progress(min(seconds, seconds - (end - time.monotonic())))
@@ -187,7 +194,7 @@ def cycle_report(res: Listening) -> dict[str, Any]:
         "misses": len(misses), "miss_gaps": long_gaps,
         "cycle_ms_median": cycles,
         "garbage_bytes": res.garbage, "joined_mid_frame_bytes": res.joined_mid_frame,
-        "failed_frames": res.failed, "seconds": res.seconds,
+        "failed_frames": res.failed, "seconds": res.seconds, "error": res.error,
     }
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 import time
 
 from .common import (Parser, UserError, digit, port_name, positive, progress_bar, robot_list,
@@ -20,26 +21,33 @@ def cmd_bench(a: argparse.Namespace) -> int:
             raise UserError(str(exc)) from None
         finally:
             close()
+        secs = f"{res.seconds:.1f}" if res.error else f"{a.duration:g}"
+
+        def went_away() -> int:      # the report covers what was heard until then
+            print(f"rprs: error: the radio port {a.radio} went away after {res.seconds:.1f} s "
+                  f"({res.error})", file=sys.stderr, flush=True)
+            return 1
         if a.which == "link":
             robots = sorted({f.src for f in res.frames})
             ok = bool(res.frames)
             report = {"bytes": res.bytes, "frames": len(res.frames), "garbage_bytes": res.garbage,
-                      "failed_frames": res.failed, "robots_heard": robots, "link_ok": ok}
+                      "failed_frames": res.failed, "robots_heard": robots, "link_ok": ok,
+                      "seconds": res.seconds, "error": res.error}
             if a.json:
                 print(json.dumps(report))
             else:
-                print(f"link {'OK' if ok else 'SILENT'}: {res.bytes} bytes in {a.duration:g} s, "
+                print(f"link {'OK' if ok else 'SILENT'}: {res.bytes} bytes in {secs} s, "
                       f"{len(res.frames)} good frames from robots {robots or 'none'}, "
                       f"{res.garbage} garbage bytes, {res.failed} broken frames")
-            return 0 if ok else 1
+            return went_away() if res.error else 0 if ok else 1
         rep = bench.cycle_report(res)
         if a.json:
             print(json.dumps(rep))
-            return 0
+            return went_away() if res.error else 0
         if not rep["frames"]:
-            print(f"no frames heard in {a.duration:g} s on {a.radio}")
-            return 1
-        print(f"ring {rep['robots']}: {rep['frames']} frames in {a.duration:g} s, "
+            print(f"no frames heard in {secs} s on {a.radio}")
+            return went_away() if res.error else 1
+        print(f"ring {rep['robots']}: {rep['frames']} frames in {secs} s, "
               f"{rep['misses']} missed turns, {rep['garbage_bytes']} garbage bytes")
         if rep["turn_gap_ms_median"] is not None:
             print(f"turn hand-over (End -> next Header): median {rep['turn_gap_ms_median']:.2f} "
@@ -51,7 +59,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
                   f"{rep['invitation_windows']}, median {rep['invitation_gap_ms_median']:.1f} ms")
         for r, c in rep["cycle_ms_median"].items():
             print(f"  robot {r}: {rep['frames_per_robot'][r]} frames, cycle median {c:.1f} ms")
-        return 0
+        return went_away() if res.error else 0
     # latency: join the ring as a member and ask a robot for its status
     if a.dst == a.id:
         raise UserError(f"--dst {a.dst} is the bench's own ID (--id {a.id}): ask another "
