@@ -108,3 +108,18 @@ def test_a_listener_whose_port_goes_away_stops_and_says_so(capsys, monkeypatch):
     assert out.startswith("link SILENT: 0 bytes in "), out
     assert err.splitlines()[-1].startswith(f"rprs: error: the radio port {path} went away "
                                            f"after "), err
+
+
+def test_latency_stops_asking_once_the_runner_has_stopped():
+    """With its port gone (the runner stopped), 'rprs bench latency --count 200' waited
+    5 s for each request that could no longer be sent."""
+    import threading
+    from types import SimpleNamespace
+
+    finished = threading.Event()
+    finished.set()
+    station = SimpleNamespace(id=0, observer=None, submit=None)
+    runner = SimpleNamespace(sched=SimpleNamespace(now=0, post=lambda fn, *a: None),
+                             finished=finished)
+    r = bench.latency(runner, station, 1, 200, 10.0)
+    assert (r.sent, r.replies, r.failed) == (0, 0, [])

@@ -211,7 +211,8 @@ class LatencyResult:
 def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
             progress: Callable[[int], None] | None = None) -> LatencyResult:
     """Ask ``dst`` for its status ``count`` times, one at a time, from ``station`` (a member
-    on the real-time ``runner``, which the caller runs in a thread)."""
+    on the real-time ``runner``, which the caller runs in a thread); fewer if the runner
+    stops (its port went away)."""
     from firmware_model.radio.content import cmd
     from firmware_model.radio.mac import Deliver, Outcome
 
@@ -236,7 +237,10 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
     station.observer = observe
     rtt, ack, failed = [], [], []
     sent = 0
+    ended = getattr(runner, "finished", None)      # the runner stopped (its port went away)
     for i in range(count):
+        if ended is not None and ended.is_set():
+            break
         box: list[Any] = []
         ev = threading.Event()
 
@@ -256,7 +260,8 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
         sent += 1
         end = time.monotonic() + timeout
         while time.monotonic() < end and (len(replies) == n_rep or msg.state == "sent"
-                                          or msg.state == "queued"):
+                                          or msg.state == "queued") and \
+                not (ended is not None and ended.is_set()):
             time.sleep(0.005)
         done = [o for t, o in outcomes if o.message is msg]
         if done and done[0].delivered:

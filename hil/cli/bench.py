@@ -84,8 +84,12 @@ def cmd_bench(a: argparse.Namespace) -> int:
     t.start()
     try:
         end = time.monotonic() + a.join_timeout
-        while a.dst not in station.mac.ring and time.monotonic() < end:
+        while a.dst not in station.mac.ring and time.monotonic() < end and \
+                not runner.finished.is_set():
             time.sleep(0.05)
+        if runner.failure is not None:
+            print(f"rprs: error: {runner.failure}", file=sys.stderr, flush=True)
+            return 1
         if a.dst not in station.mac.ring:
             print(f"robot {a.dst} is not in the ring after {a.join_timeout:g} s "
                   f"(ring {list(station.mac.ring)})")
@@ -116,6 +120,9 @@ def cmd_bench(a: argparse.Namespace) -> int:
               f"{med(r.ack_ms)} ms (median); loss {rep['loss']:.1%}")
         for why in r.failed[:5]:
             print(f"  failed: {why}")
+    if runner.failure is not None:                 # the report covers what came until then
+        print(f"rprs: error: {runner.failure}", file=sys.stderr, flush=True)
+        return 1
     return 0 if r.replies else 1
 
 
