@@ -16,6 +16,7 @@ REALTIME_MODULES = frozenset({
     "test_bench_processes", "test_bridge", "test_conformance", "test_differential",
     "test_monitor", "test_paper_profile", "test_radio_hub", "test_stranger_robot",
     "test_unixbus", "test_socketcan_smoke", "test_child_acceptance", "test_father_app",
+    "test_lost_port",
 })
 """Modules whose tests run on the wall clock: processes on the pty hub, CAN buses between
 processes, the timers of a live UI."""

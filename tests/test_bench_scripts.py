@@ -53,3 +53,73 @@ def test_the_sniffer_discards_what_waited_in_the_port_before_it_started():
     assert [(f.src, f.num) for f in res.frames] == [(2, 3), (2, 3)]
     assert res.joined_mid_frame == len(good) - 5      # the tail of a frame we came in on
     assert res.garbage == 2 and res.failed == 0       # between the good frames
+
+
+def test_latency_tells_a_refusal_from_a_status_reply_and_skips_broadcasts():
+    """A radio-only child answers status() with fail(42)status(): that was once counted as
+    "3/3 status replies"; and an act(n,1) broadcast from the robot counted as a reply."""
+    from types import SimpleNamespace
+
+    from firmware_model.radio.content import cmd
+    from firmware_model.radio.frame import BROADCAST
+    from firmware_model.radio.mac import Deliver, Outcome
+
+    station = SimpleNamespace(id=0, observer=None)
+    sched = SimpleNamespace(now=0)
+    answers = iter([(cmd("fail", 42), cmd("status")),
+                    (cmd("joint", 1, 0), cmd("joint", 2, 45))])
+
+    def submit(dst, commands, type_):
+        msg = SimpleNamespace(state="delivered")
+        sched.now += 10 * MS
+        station.observer(station, Deliver(2, BROADCAST, 9, 3, (cmd("act", 1, 1),)), sched.now)
+        station.observer(station, Outcome(msg, True, ""), sched.now)
+        station.observer(station, Deliver(2, 0, 1, 3, next(answers)), sched.now)
+        return msg
+    sched.post = lambda fn, *args: fn(*args)
+    station.submit = submit
+    r = bench.latency(SimpleNamespace(sched=sched), station, 2, 2, 1.0)
+    assert (r.sent, r.replies) == (2, 2)
+    assert r.refusals == ["fail(42)status(): the child has no CAN side"]
+
+
+def test_a_listener_whose_port_goes_away_stops_and_says_so(capsys, monkeypatch):
+    """The radio hub stopped under 'rprs bench link': it once listened on to the end of
+    --duration and reported a whole run, exit 0."""
+    import tty
+
+    from hil.cli import main
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    real = bench.Sniffer.start
+
+    def start(self):
+        started = real(self)
+        os.close(master)                     # the hub goes away once we listen
+        return started
+    monkeypatch.setattr(bench.Sniffer, "start", start)
+    try:
+        code = main(["bench", "link", "--radio", path, "--duration", "120"])
+    finally:
+        os.close(slave)
+    out, err = capsys.readouterr()
+    assert code == 1, out + err
+    assert out.startswith("link SILENT: 0 bytes in "), out
+    assert err.splitlines()[-1].startswith(f"rprs: error: the radio port {path} went away "
+                                           f"after "), err
+
+
+def test_latency_stops_asking_once_the_runner_has_stopped():
+    """With its port gone (the runner stopped), 'rprs bench latency --count 200' waited
+    5 s for each request that could no longer be sent."""
+    import threading
+    from types import SimpleNamespace
+
+    finished = threading.Event()
+    finished.set()
+    station = SimpleNamespace(id=0, observer=None, submit=None)
+    runner = SimpleNamespace(sched=SimpleNamespace(now=0, post=lambda fn, *a: None),
+                             finished=finished)
+    r = bench.latency(runner, station, 1, 200, 10.0)
+    assert (r.sent, r.replies, r.failed) == (0, 0, [])

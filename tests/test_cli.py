@@ -253,6 +253,8 @@ def test_demo_takes_the_action_sequence_options_without_naming_it(capsys):
     (["--target", "board"], "--target board needs --radio PORT and --can"),
     (["--target", "board", "--radio", "/dev/ttyUSB0"], "--target board needs --radio PORT"),
     (["--target", "bored"], "--target 'bored': choose from model, process, board"),
+    (["--target", "model", "--dut-id", "9"], "--dut-id 9: a child's ID is 1-6"),
+    (["--target", "model", "--dut-id", "0"], "--dut-id 0: a child's ID is 1-6"),
 ])
 def test_acceptance_board_without_its_ports_is_a_usage_error(args, needle):
     """A board target with its ports forgotten once reported "6 skipped", exit 0."""
@@ -261,6 +263,19 @@ def test_acceptance_board_without_its_ports_is_a_usage_error(args, needle):
                        cwd=Path(__file__).resolve().parent.parent)
     assert r.returncode == 4, r.stdout + r.stderr
     assert needle in r.stderr and "passed" not in r.stdout and "skipped" not in r.stdout
+
+
+def test_acceptance_board_on_a_port_that_does_not_exist_says_so_in_one_line():
+    """A board bench that cannot open its port once failed every test with a traceback
+    through the runner; now each setup error is one line naming the port."""
+    r = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "0",
+                        "tests/acceptance", "--target", "board", "--radio", "/nonexistent-rprs",
+                        "--can", "virtual:rprs-acc-missing"], capture_output=True, text=True,
+                       timeout=120, cwd=Path(__file__).resolve().parent.parent)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "board: the bench cannot start: serial port /nonexistent-rprs does not exist" \
+        in r.stdout
+    assert "Traceback" not in r.stdout and "runner.py" not in r.stdout, r.stdout
 
 
 def test_txen_on_a_pty_is_refused_in_one_line():
@@ -410,3 +425,13 @@ def test_a_father_order_that_is_not_ascii_is_refused_in_words():
     from hil.bench.runner import parse_order
     with pytest.raises(ValueError, match="'é' is not ASCII"):
         parse_order("2 movex(1é)")
+
+
+def test_a_father_order_to_the_father_itself_is_refused_as_it_is_parsed():
+    """'0 status()' passed the order's parser ("destination ID (0-7)") and was refused later by
+    the MAC as "a robot ID 0-6 other than 0", a line of another shape; now the parser says it."""
+    from hil.bench.runner import parse_order
+    with pytest.raises(ValueError, match=r"destination must be 1-6 \(a child\) or 7 \(every "
+                       r"robot\), got 0: 0 is the father itself"):
+        parse_order("0 status()")
+    assert parse_order("7 status()")[0] == 7

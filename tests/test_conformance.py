@@ -105,6 +105,8 @@ def _tester_answered_with(frame: Frame) -> Tester:
     t = Tester.__new__(Tester)
     t.robot, t.me, t.profile, t.tol = 1, 0, "rprs", 15 * MS
     t.report, t.progress, t.acks, t.num, t.last_end = Report(1, "rprs"), lambda s: None, [], 0, 0
+    t.rx_bytes = t.bad = t.garbage = 0
+    t._mark = (0, 0, 0)
     answers = [Heard(frame, 100 * MS + TTRANS, 100 * MS + TTRANS + 14 * 16667)]
     t.now = lambda: 0
     t.send = lambda f, at: 100 * MS
@@ -199,3 +201,74 @@ def test_a_paper_only_robot_fails_the_protocols_clauses(air):
     assert "34" in failed, verdicts
     assert {"47", "48", "24"} & checked <= failed, verdicts
     assert failed - {"34"}, verdicts           # something more: a failed clause or a stop
+
+
+def _pty_peer(answer, stop: threading.Event) -> tuple[str, threading.Thread]:
+    """A robot 1 in plain bytes on a pty pair (no hub): ``answer(frame_bytes)`` gives what
+    it writes Ttrans after each frame it hears from the tester (or None). A pty does not pace
+    bytes: the frame's End is when it would have ended at 9600 bit/s."""
+    import tty
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    path = os.ttyname(slave)      # kept open until the peer ends: with no slave open, a
+                                  # read of the master fails at once (EIO)
+    def run():
+        buf = b""
+        try:
+            while not stop.is_set():
+                import select
+                if not select.select([master], [], [], 0.05)[0]:
+                    continue
+                buf += os.read(master, 4096)
+                while b"\x17\x19" in buf:
+                    f, _, buf = buf.partition(b"\x17\x19")
+                    f = f[f.find(b"\x0f\x0a\x05"):]
+                    out = answer(f)
+                    if out:
+                        time.sleep((len(f) + 2) * 10 / 9600 + 0.005)
+                        os.write(master, out)
+        finally:
+            os.close(master)
+            os.close(slave)
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    return path, th
+
+
+def test_a_robot_whose_frames_break_fails_clause_15_with_the_reason_not_just_a_stop():
+    """A robot that answers the invitation, then sends every frame with a Length that does
+    not match its Content: the run stops, and clause 15 is judged all the same (it was once
+    left out, with only "robot 1 stopped sending", though the robot had sent)."""
+    def answer(f: bytes) -> bytes | None:
+        if b"poll(1," in f:
+            return Frame(dst=BROADCAST, src=1, num=0, type=5, content=b"").encode()
+        return b"\x0f\x0a\x05" b"7100" b"3" b"0002" b"\x17\x19"     # Length 2, no Content
+    stop = threading.Event()
+    path, th = _pty_peer(answer, stop)
+    t = Tester(path, 1)
+    try:
+        with pytest.raises(ConformanceError) as exc:
+            t.run()
+    finally:
+        stop.set()
+        th.join(timeout=5)
+    assert "sent no good frame" in str(exc.value) and "failed frames" in str(exc.value)
+    c15 = [c for c in t.report.checks if c.clause == "15"]
+    assert [c.verdict for c in c15] == ["FAIL"], t.report.checks
+    assert "the first failed at byte 12 (content): 0x17 is not printable" in c15[0].figure
+
+
+def test_a_run_that_stops_before_the_robot_sent_anything_leaves_clause_15_not_applicable():
+    stop = threading.Event()
+    path, th = _pty_peer(lambda f: None, stop)       # a robot that never answers
+    t = Tester(path, 1)
+    t.wait_frame = lambda after, timeout, src=None: None    # 400 invitations, unanswered,
+    t.send = lambda frame, at: t.now()                       # sent at once
+    try:
+        with pytest.raises(ConformanceError, match="this port heard nothing while it waited"):
+            t.run()
+    finally:
+        stop.set()
+        th.join(timeout=5)
+    assert [c.verdict for c in t.report.checks] == ["n/a"], t.report.checks
+    assert t.report.checks[0].figure.endswith("the run stopped before the robot sent a frame")

@@ -21,7 +21,7 @@ def test_typed_orders_history_refusals_and_the_story(tmp_path):
 
     def submit(line: str):
         if not line[0].isdigit():
-            return "start with the destination ID (0-7)"
+            return "start with the destination ID (1-7)"
         sent.append(line)
         return None
 
@@ -54,3 +54,70 @@ def test_typed_orders_history_refusals_and_the_story(tmp_path):
     asyncio.run(go())
     assert hist.read_text().splitlines() == ["1 status()", "1 joint(2,60)", "status()",
                                              "1 status()"]
+
+
+def test_the_view_quits_once_the_firmware_has_stopped_by_itself(tmp_path):
+    """A lost radio port (or --duration) stops the firmware's thread; the view then quits
+    instead of showing a ring that no longer runs."""
+    ended = threading.Event()
+    app = FatherApp(lambda line: None, lambda: "head", str(tmp_path / "h"), rate=10.0,
+                    ended=ended.is_set)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.pause(0.3)
+            assert app.is_running
+            ended.set()
+            for _ in range(100):                 # up to 10 s; a refresh comes every 0.1 s
+                await pilot.pause(0.1)
+                if not app.is_running:
+                    break
+            assert not app.is_running
+    asyncio.run(go())
+
+
+def test_sigterm_stops_the_live_father_cleanly(tmp_path):
+    """SIGTERM to 'rprs father' at a terminal once killed it outright (the firmware's thread
+    cannot take the signal): "Terminated", status 143, no summary line, the terminal left in
+    the view's modes. Now the view quits and the summary comes, status 0 (docs/bench.md)."""
+    import os
+    import select
+    import signal
+    import subprocess
+    import sys
+    import time
+    import tty
+    term_m, term_s = os.openpty()
+    radio_m, radio_s = os.openpty()
+    tty.setraw(radio_s)
+    env = dict(os.environ, TERM="xterm-256color", HOME=str(tmp_path))
+    proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "father", "--radio",
+                             os.ttyname(radio_s), "--team", "0,1"], stdin=term_s,
+                            stdout=term_s, stderr=term_s, env=env)
+    os.close(term_s)
+    seen = b""
+
+    def drain(until, timeout: float) -> None:
+        nonlocal seen
+        end = time.monotonic() + timeout
+        while not until() and time.monotonic() < end:
+            if select.select([term_m], [], [], 0.1)[0]:
+                try:
+                    seen += os.read(term_m, 65536)
+                except OSError:                   # the process has closed the terminal
+                    return
+    try:
+        drain(lambda: b"DST COMMANDS" in seen or proc.poll() is not None, 60)
+        assert b"DST COMMANDS" in seen, seen[-500:]
+        proc.send_signal(signal.SIGTERM)
+        drain(lambda: proc.poll() is not None, 60)
+        proc.wait(timeout=10)
+        drain(lambda: False, 0.5)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        for fd in (term_m, radio_m, radio_s):
+            os.close(fd)
+    assert proc.returncode == 0, seen[-500:]
+    assert b"robot 0: " in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]

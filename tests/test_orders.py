@@ -32,3 +32,61 @@ def test_a_done_notice_before_the_ack_still_says_the_order_arrived():
                          (cmd("done"), cmd("joint", 1, 20))), 200)
     book.observe(Outcome(msg, True, ""), 300)          # the late ack changes nothing
     assert seen == [(1, "queued", 0), (1, "acknowledged", 200), (1, "done", 200)]
+
+
+def _order(*commands, dst=1):
+    seen = []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state, now, o.reason)))
+    msg = Message(src=0, dst=dst, num=1, type=2, commands=tuple(commands), content=b"",
+                  submitted=0)
+    book.submitted(msg, 0)
+    return book, msg, seen
+
+
+def _said(book, *commands, at):
+    book.observe(Deliver(1, 0, 5, int(FrameType.BROADCAST_INFO), tuple(commands)), at)
+
+
+def test_an_order_of_several_commands_ends_when_the_robot_has_reported_each():
+    """The child reports each command of a message on its own (docs/dispatcher.md): the
+    order of joint(1,20)joint(2,30) ends at the second done(), not never (an rprs father
+    --exit-when-done once waited for it for ever)."""
+    book, msg, seen = _order(cmd("joint", 1, 20), cmd("joint", 2, 30))
+    book.observe(Outcome(msg, True, ""), 100)
+    _said(book, cmd("done"), cmd("joint", 2, 30), at=200)
+    assert book.open_orders()
+    _said(book, cmd("done"), cmd("joint", 1, 20), at=300)
+    assert [s[:3] for s in seen] == [(1, "queued", 0), (1, "acknowledged", 100),
+                                     (1, "done", 300)]
+
+
+def test_a_status_with_a_move_ends_replied_once_both_are_reported():
+    book, msg, seen = _order(cmd("status"), cmd("joint", 3, -80))
+    book.observe(Outcome(msg, True, ""), 100)
+    _said(book, cmd("joint", 1, 0), cmd("joint", 2, 45), cmd("joint", 3, -90),
+          cmd("joint", 4, 45), cmd("wheel", 0), cmd("paw", 1), at=150)
+    _said(book, cmd("done"), cmd("joint", 3, -80), at=400)
+    assert seen[-1][:3] == (1, "replied", 400) and not book.open_orders()
+    assert book.orders[0].reply.startswith("joint 1 0 deg")
+
+
+def test_one_failed_command_fails_the_order_and_names_the_command():
+    book, msg, seen = _order(cmd("joint", 1, 20), cmd("joint", 2, 200))
+    book.observe(Outcome(msg, True, ""), 100)
+    _said(book, cmd("fail", 2), cmd("joint", 2, 200), at=120)
+    assert seen[-1] == (1, "failed", 120, "fail(2): outside a joint's limits: joint(2,200)")
+
+
+def test_a_radio_only_child_fails_a_message_of_several_orders_once():
+    """fail(42) comes once, with the message's first order (docs/dispatcher.md)."""
+    book, msg, seen = _order(cmd("status"), cmd("status"))
+    book.observe(Outcome(msg, True, ""), 100)
+    _said(book, cmd("fail", 42), cmd("status"), at=120)
+    assert seen[-1][1] == "failed" and not book.open_orders()
+
+
+def test_stop_is_done_once_acknowledged():
+    """stop() is carried out at once and reported on no further: its acknowledgement ends it."""
+    book, msg, seen = _order(cmd("stop"))
+    book.observe(Outcome(msg, True, ""), 100)
+    assert seen[-2:] == [(1, "acknowledged", 100, ""), (1, "done", 100, "")]

@@ -47,8 +47,8 @@ def pytest_addoption(parser: Any) -> None:
                 help="board target: the child's CAN bus; process target: instead of rprs_unix")
     g.addoption("--txen", dest="rprs_txen", default="none", choices=("none", "rts", "dtr"),
                 help="board target: the bench radio's TXEN line")
-    g.addoption("--dut-id", dest="rprs_dut_id", type=int, default=1,
-                help="the child's robot ID (default 1)")
+    g.addoption("--dut-id", dest="rprs_dut_id", default="1",
+                help="the child's robot ID, 1-6 (default 1)")
     g.addoption("--real-submodules", dest="rprs_real_submodules", action="store_true",
                 help="board target: the board's own submodules answer (do not emulate them)")
 
@@ -64,6 +64,9 @@ def _targets(config: Any) -> list[str]:
     bad = [t for t in names if t not in TARGETS]
     if bad:
         raise pytest.UsageError(f"--target {bad[0]!r}: choose from {', '.join(TARGETS)}")
+    robot = config.getoption("rprs_dut_id")
+    if not str(robot).isdigit() or not 1 <= int(robot) <= 6:
+        raise pytest.UsageError(f"--dut-id {robot}: a child's ID is 1-6")
     if "board" in names and not (config.getoption("rprs_radio") and
                                  config.getoption("rprs_can")):
         raise pytest.UsageError("--target board needs --radio PORT and --can "
@@ -110,6 +113,26 @@ class Dut:
 
     def in_ring(self) -> bool:
         return self.id in self.father.mac.ring
+
+    def explain(self, msg: Message | None = None) -> str:
+        """What the bench saw, for a failed expectation: the state of the father's message
+        ``msg`` (and why it failed), and the robot's last message to the father."""
+        text = "".join(c.text() for c in msg.commands) if msg is not None else ""
+        parts = [f"the father's {text}: {msg.state}" + (f" ({msg.reason})" if msg.reason
+                                                         else "")] if msg is not None else []
+        got = self.replies()
+        parts.append(f"robot {self.id} sent the father {len(got)} messages" + (
+            f", the last Type '{got[-1].type}' {''.join(c.text() for c in got[-1].commands)}"
+            if got else ""))
+        if not self.in_ring():
+            parts.append(f"robot {self.id} is no longer in the father's ring")
+        return "; ".join(parts)
+
+    def heard(self) -> str:
+        """What the bench's father heard, for a report: nothing, noise, or frames."""
+        f = self.father
+        return (f"{f.frames_heard} good frames, {f.frames_failed} failed frames and "
+                f"{f.garbage_bytes} garbage bytes")
 
     def now_s(self) -> float:
         raise NotImplementedError
@@ -254,7 +277,12 @@ class ProcessDut(_RealTimeDut):
              self.hub.paths[1], "--can", self.can_spec, "--team", team],
             stdout=self._log, stderr=subprocess.STDOUT)
         config = MacConfig(team=frozenset((0, robot)))
-        self._bench_side(self.hub.paths[0], self.can_spec, config)
+        try:
+            self._bench_side(self.hub.paths[0], self.can_spec, config)
+        except Exception:
+            self.runner.run(0)            # closes what the bench side opened
+            self.close()                  # the child process, the hub, the directory
+            raise
         self._start()
 
     def close(self) -> None:
@@ -278,7 +306,11 @@ class BoardDut(_RealTimeDut):
 
     def __init__(self, robot: int, radio: str, can: str, txen: str, emulate: bool) -> None:
         super().__init__(robot)
-        self._bench_side(radio, can, MacConfig(), txen=txen, emulate=emulate)
+        try:
+            self._bench_side(radio, can, MacConfig(), txen=txen, emulate=emulate)
+        except Exception:
+            self.runner.run(0)            # closes the port opened before the bus failed
+            raise
         self._start()
 
 
@@ -290,24 +322,31 @@ def dut(dut_target: str, request: Any):
     bench side's threads in the test process) after its module went on taking CPU and the
     GIL from every later test of that process; the father console's UI test ran 15 s
     instead of 3, and tests that judge wall-clock timing shared the machine with it."""
+    from hil.bench.runner import RunError
     cfg = request.config
-    robot = cfg.getoption("rprs_dut_id")
-    if dut_target == "model":
-        d: Dut = ModelDut(robot)
-    elif dut_target == "process":
-        d = ProcessDut(robot, cfg.getoption("rprs_can"))
-    else:
-        radio, can = cfg.getoption("rprs_radio"), cfg.getoption("rprs_can")
-        d = BoardDut(robot, radio, can, cfg.getoption("rprs_txen"),
-                     not cfg.getoption("rprs_real_submodules"))
+    robot = int(cfg.getoption("rprs_dut_id"))
+    why = None
+    try:
+        if dut_target == "model":
+            d: Dut = ModelDut(robot)
+        elif dut_target == "process":
+            d = ProcessDut(robot, cfg.getoption("rprs_can"))
+        else:
+            radio, can = cfg.getoption("rprs_radio"), cfg.getoption("rprs_can")
+            d = BoardDut(robot, radio, can, cfg.getoption("rprs_txen"),
+                         not cfg.getoption("rprs_real_submodules"))
+    except RunError as exc:           # a port or bus that cannot be opened: one line
+        why = f"{dut_target}: the bench cannot start: {exc}"
+    if why is not None:
+        pytest.fail(why, pytrace=False)
     try:
         if not d.run_until(d.in_ring, 30.0):
             extra = ""
             if isinstance(d, ProcessDut):
                 d._log.flush()
                 extra = "; child log: " + open(d.log_path).read()[-400:]
-            pytest.fail(f"{dut_target}: robot {robot} did not join the father's ring in 30 s"
-                        + extra)
+            pytest.fail(f"{dut_target}: robot {robot} did not join the father's ring in 30 s; "
+                        f"the bench's radio heard {d.heard()}" + extra, pytrace=False)
         yield d
     finally:
         d.close()

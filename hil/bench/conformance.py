@@ -152,6 +152,8 @@ class Tester:
         self.last_end = 0                 # our own last End (estimated)
         self.acks: list[tuple[int, int]] = []
         self.report = Report(robot, profile)
+        self._mark = (0, 0, 0)            # rx_bytes, bad, garbage when the last wait began
+        self.first_failure: str | None = None   # why the first failed frame failed
 
     # -- time, air -----------------------------------------------------------------------
 
@@ -172,10 +174,13 @@ class Tester:
                 self.garbage += ev.count
             elif isinstance(ev, FrameFailed):
                 self.bad += 1
+                if self.first_failure is None:
+                    self.first_failure = str(ev.error)
 
     def wait_frame(self, after: int, timeout_ticks: int, src: int | None = None) -> Heard | None:
         """The first frame (from ``src``) whose End arrived after tick ``after``."""
         deadline = self.now() + timeout_ticks
+        self._mark = (self.rx_bytes, self.bad, self.garbage)
         seen = 0
         while True:
             for h in self.heard[seen:]:
@@ -186,6 +191,15 @@ class Tester:
                 return None
             self._poll_rx()
             time.sleep(0.0003)
+
+    def _quiet(self, what: str) -> ConformanceError:
+        """The run stops: the robot sent no good frame ``what``; with what this port heard
+        since ``_mark`` (silence, broken frames, or garbage), not just "stopped sending"."""
+        b, f, g = (now - was for now, was in zip((self.rx_bytes, self.bad, self.garbage),
+                                                 self._mark))
+        heard = "nothing" if not b else f"{b} bytes: {f} failed frames, {g} garbage bytes"
+        return ConformanceError(f"robot {self.robot} sent no good frame {what}; this port "
+                                f"heard {heard} while it waited")
 
     def send(self, frame: Frame, at: int) -> int:
         """Send ``frame`` with its first bit at tick ``at`` (Ttrans after TXEN); its End."""
@@ -221,6 +235,10 @@ class Tester:
     # -- the run -------------------------------------------------------------------------
 
     def run(self) -> Report:
+        """Every check in order; a run that stops (ConformanceError) still judges clause 15
+        on what it heard, so a robot whose frames all fail is told so (``n/a`` if it sent
+        no frame at all)."""
+        stopped = True
         try:
             last = self._start()
             last = self._rotation(last)
@@ -229,13 +247,19 @@ class Tester:
             last = self._forged(last)
             last = self._broken(last)
             self._silence(last)
+            stopped = False
         finally:
             self.port.close()
-        frames = [h for h in self.heard if h.frame.src == self.robot]
-        t0 = time.monotonic()
-        self.check("15", "every frame from the robot is a good frame", self.bad == 0 and
-                   frames, f"{len(frames)} good frames, {self.bad} failed frames, "
-                   f"{self.garbage} garbage bytes", t0)
+            frames = [h for h in self.heard if h.frame.src == self.robot]
+            why = f"; the first failed at {self.first_failure}" if self.first_failure else ""
+            t0 = time.monotonic()
+            # a run that stopped before any frame, good or failed, has nothing to judge
+            self.check("15", "every frame from the robot is a good frame", self.bad == 0 and
+                       frames, f"{len(frames)} good frames, {self.bad} failed frames, "
+                       f"{self.garbage} garbage bytes{why}" + (
+                           ": the run stopped before the robot sent a frame"
+                           if stopped and not frames and not self.bad else ""), t0,
+                       applicable=not (stopped and not frames and not self.bad))
         return self.report
 
     def _answer_turn(self, h: Heard, content: bytes = b"", **kw) -> int:
@@ -264,7 +288,8 @@ class Tester:
                     break
                 end = self.send(self.frame(), self.now())
             if h is None:
-                raise ConformanceError(f"robot {self.robot} sent no frame in 40 of our turns")
+                self._mark = (0, 0, 0)
+                raise self._quiet("in 40 of our turns")
             self.check("23", "joins the static ring (paper profile)", True,
                        f"its first frame {(h.start - end) / MS:.1f} ms after our End", t0)
             return h
@@ -277,8 +302,9 @@ class Tester:
             if h is not None:
                 break
         else:
-            raise ConformanceError(f"robot {self.robot} never answered an invitation (is it on "
-                                   f"the channel, listening, with both IDs in its team?)")
+            self._mark = (0, 0, 0)
+            raise self._quiet("answering our invitations (is it on the channel, listening, "
+                              "with both IDs in its team?)")
         f = h.frame
         gap = (h.start - end - TTRANS) / MS
         self.check("34", "answers an invitation Ttrans after its End", f.type in (5, 6) and
@@ -334,7 +360,7 @@ class Tester:
             end = self.send(self.frame(self._acks_content()), h.end + TTRANS + 300 * MS)
             h = self.wait_frame(end, TMAX + 4 * TSLOT, self.robot)
             if h is None:
-                raise ConformanceError(f"robot {self.robot} stopped sending after a late frame")
+                raise self._quiet("after a late frame of ours")
             gaps.append(h.start - end - TTRANS)
         med = statistics.median(gaps) / MS
         self.check("26", "times its turn from the End it heard (our frames 300 ms late)",
@@ -353,8 +379,7 @@ class Tester:
             end = self._answer_turn(h, content, **kw)
             h = self.wait_frame(end, TMAX + 4 * TSLOT, self.robot)
             if h is None:
-                raise ConformanceError(f"robot {self.robot} stopped sending (its turn "
-                                       f"after our frame ending at {end / MS:.0f} ms)")
+                raise self._quiet(f"in its turn after our frame ending at {end / MS:.0f} ms")
             if on_frame is not None:
                 on_frame(h, i)
         return h
@@ -421,7 +446,7 @@ class Tester:
         end = self.send(self.frame(self._acks_content()), end + TTRANS)
         h = self.wait_frame(end, TMAX + 4 * TSLOT, self.robot)
         if h is None:
-            raise ConformanceError(f"robot {self.robot} stopped sending after a forged frame")
+            raise self._quiet("after a forged frame")
         bad = f"ack({self.forger},42)".encode()
         acted = []
 
@@ -457,8 +482,7 @@ class Tester:
             if nxt is None:
                 self.check("41", "a frame that breaks is not acted on and closes the turn",
                            False, f"after {name}: no frame from the robot", t0)
-                raise ConformanceError(f"robot {self.robot} stopped sending after a frame "
-                                       f"with {name}")
+                raise self._quiet(f"after a frame with {name}")
             figures.append(f"{name}: its next frame {(nxt.start - end) / MS:.0f} ms after")
             h = nxt
             watch_acts = []

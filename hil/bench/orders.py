@@ -5,11 +5,15 @@ An order goes ``queued`` (submitted to the MAC) -> ``sent`` (its first frame on 
 ``acknowledged`` (the robot's ``ack``) -> ``done`` (the robot's ``done()`` notice, protocol 3.0),
 ``replied`` (the answer to ``status()``), or ``failed`` (no acknowledgement after the MAC's
 attempts, or the robot's ``fail(code)`` with that order). An order of ``act(n,0)`` ends when the
-robot broadcasts ``act(n,1)``; a broadcast (destination 7), and every order in the paper
-profile (nothing is acknowledged there), ends ``sent``. Times are seconds since the order was
-queued (the station's clock). The robot's answer proves the order arrived: an answer that
-comes before the acknowledgement (a lost ack on a lossy channel, retransmitted later) marks
-the order ``acknowledged`` on the same tick, before its end.
+robot broadcasts ``act(n,1)``; ``stop()``, which the robot carries out at once and reports on
+no further, ends with its acknowledgement; a broadcast (destination 7), and every order in the
+paper profile (nothing is acknowledged there), ends ``sent``. A message of several commands
+(``1 joint(1,20)joint(2,30)``) is followed command by command, as the robot reports each on
+its own (docs/dispatcher.md): it ends when every one has, ``failed`` at the first failure.
+Times are seconds since the order was queued (the station's clock). The robot's answer proves
+the order arrived: an answer that comes before the acknowledgement (a lost ack on a lossy
+channel, retransmitted later) marks the order ``acknowledged`` on the same tick, before its
+end.
 """
 from __future__ import annotations
 
@@ -31,6 +35,14 @@ FAIL_REASONS = {
 
 NODE_NAMES = {1: "joint 1", 2: "joint 2", 3: "joint 3", 4: "joint 4", 5: "wheel", 6: "paw"}
 TERMINAL = frozenset({"done", "replied", "failed", "sent-only"})
+REPORTED = frozenset({"movex", "movey", "movez", "moveto", "joint", "wheel", "paw", "status"})
+"""Commands the robot reports on by themselves: ``done()`` and the command, the reply to
+``status()``, or ``fail(code)`` and the command; ``act(n,0)`` is reported by ``act(n,1)``. Any
+other command (``stop()``) is done once acknowledged."""
+
+
+def _reported(c: Command) -> bool:
+    return c.name in REPORTED or (c.name == "act" and len(c.args) == 2 and c.args[1] == 0)
 
 
 def fail_reason(code: int) -> str:
@@ -76,6 +88,7 @@ class Order:
     reply: str = ""
     ended: int | None = None
     history: list[tuple[int, str]] = field(default_factory=list)
+    open_parts: list[str] = field(default_factory=list)   # commands not yet reported on
 
     def seconds(self, now: int) -> float:
         return (now - self.queued) / TICK_HZ
@@ -102,7 +115,7 @@ class OrderBook:
 
     def submitted(self, msg: Message, now: int) -> Order:
         o = Order(len(self.orders) + 1, msg.dst, "".join(c.text() for c in msg.commands), msg,
-                  now)
+                  now, open_parts=[c.text() for c in msg.commands if _reported(c)])
         self.orders.append(o)
         self._by_msg[id(msg)] = o
         self._set(o, "queued", now)
@@ -133,11 +146,30 @@ class OrderBook:
         self._set(o, "acknowledged", now)
         if o.dst == BROADCAST:
             self._set(o, "sent-only", now, "a broadcast: no robot reports on it")
+        else:
+            self._maybe_done(o, now)
 
     def _arrived(self, o: Order, now: int) -> None:
         """The robot answered about ``o``: it has it, acknowledged or not yet."""
         if o.state in ("queued", "sent"):
             self._set(o, "acknowledged", now)
+
+    def _part_ended(self, o: Order, part: str, now: int) -> None:
+        """The robot reported on ``part`` of ``o`` (the whole order when ``part`` is its
+        text); ``o`` ends once every reported command has."""
+        if part == o.text:
+            o.open_parts.clear()
+        elif part in o.open_parts:
+            o.open_parts.remove(part)
+        self._maybe_done(o, now)
+
+    def _maybe_done(self, o: Order, now: int) -> None:
+        if not o.open_parts and o.state == "acknowledged":
+            self._set(o, "replied" if o.reply else "done", now)
+
+    @staticmethod
+    def _about(o: Order, part: str) -> bool:
+        return part == o.text or part in o.open_parts
 
     def _news(self, d: Deliver, now: int) -> None:
         """A message for the father: a done()/fail() about an order, a status reply, an
@@ -147,29 +179,33 @@ class OrderBook:
         matched = False
         if names and names[0] in ("done", "fail") and len(cmds) >= 2:
             about = "".join(c.text() for c in cmds[1:])
-            o = self._oldest(d.src, lambda o: o.text == about)
+            o = self._oldest(d.src, lambda o: self._about(o, about))
             if o is not None:
                 matched = True
                 self._arrived(o, now)
                 if names[0] == "done":
-                    self._set(o, "done", now)
+                    self._part_ended(o, about, now)
                 else:
                     code = int(cmds[0].args[0])
-                    self._set(o, "failed", now, f"fail({code}): {fail_reason(code)}")
+                    part = "" if about == o.text else f": {about}"
+                    self._set(o, "failed", now, f"fail({code}): {fail_reason(code)}{part}")
         elif any(n in ("joint", "wheel", "paw") for n in names) and d.dst != BROADCAST:
-            o = self._oldest(d.src, lambda o: o.text == "status()")
+            o = self._oldest(d.src, lambda o: "status()" in o.open_parts)
             if o is not None:
                 matched = True
                 self._arrived(o, now)
                 o.reply = describe_reply(cmds)
-                self._set(o, "replied", now)
+                self._part_ended(o, "status()", now)
         elif names[:1] == ["act"] and len(cmds[0].args) == 2 and cmds[0].args[1] == 1:
-            o = self._oldest(d.src, lambda o: o.text == f"act({cmds[0].args[0]},0)")
+            about = f"act({cmds[0].args[0]},0)"
+            o = self._oldest(d.src, lambda o: about in o.open_parts)
             if o is not None:
                 matched = True
                 if o.dst != BROADCAST:
                     self._arrived(o, now)
-                self._set(o, "done", now)
+                    self._part_ended(o, about, now)
+                else:
+                    self._set(o, "done", now)
         if not matched and self.on_news is not None:
             self.on_news(d, now)
 

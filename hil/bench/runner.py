@@ -112,6 +112,8 @@ class Runner:
         self.troubles = 0
         """Troubles the process went on through (:meth:`warn`); the command's exit status
         is 1 if there were any."""
+        self.failure: str | None = None   # why the run stopped by itself (a lost port)
+        self.finished = threading.Event()  # run() has returned
 
     def warn(self, line: str) -> None:
         """A trouble the process goes on through (a CAN interface taken down, a CAN log that
@@ -129,6 +131,12 @@ class Runner:
     def stop(self, *_: Any) -> None:
         self._stopping.set()
         self.sched.stop()
+
+    def fail(self, why: str) -> None:
+        """Stop because the run cannot go on (one line, kept in ``failure``)."""
+        if self.failure is None:
+            self.failure = why
+        self.stop()
 
     def run(self, seconds: float | None = None) -> None:
         """Run until Ctrl-C/SIGTERM (or ``seconds``), then close everything."""
@@ -149,6 +157,7 @@ class Runner:
                     fn()
                 except Exception:   # noqa: BLE001 - closing must go on
                     pass
+            self.finished.set()
 
 
 def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_ticks: int,
@@ -166,6 +175,7 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
         port.close()
         raise RunError(str(exc)) from None
     channel.attach(radio)
+    channel.on_lost = lambda why: runner.fail(f"the radio port {port_spec} went away ({why})")
     channel.start()
     runner.on_close(channel.close)
     runner.on_close(lambda: station.txen.set(False, runner.sched.now))
@@ -260,15 +270,17 @@ def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool =
 
 
 def parse_order(line: str) -> tuple[int, list]:
-    """``DST COMMANDS`` (e.g. ``2 movex(10)``, ``7 act(1,0)``) -> (dst, commands)."""
+    """``DST COMMANDS`` (e.g. ``2 movex(10)``, ``7 act(1,0)``) -> (dst, commands); DST is a
+    child (1-6) or 7 (every robot), never the father (0) that sends it."""
     dst_text, _, text = line.strip().partition(" ")
     try:
         dst = int(dst_text)
     except ValueError:
-        raise ValueError(f"start with the destination ID (0-7), e.g. '2 movex(10)'; "
+        raise ValueError(f"start with the destination ID (1-7), e.g. '2 movex(10)'; "
                          f"got {dst_text!r}") from None
-    if not 0 <= dst <= 7:
-        raise ValueError(f"destination must be 0-7, got {dst}")
+    if not 1 <= dst <= 7:
+        raise ValueError(f"destination must be 1-6 (a child) or 7 (every robot), got {dst}"
+                         + (": 0 is the father itself" if dst == 0 else ""))
     if not text.strip():
         raise ValueError("no commands after the destination")
     text = text.strip()

@@ -5,8 +5,9 @@
              (spec: Ttrans, 5 ms), each robot's cycle, misses (gaps of about Tmax), against
              docs/protocol.md §7.2;
 ``latency``  join the ring as a member (the father by default) and ask a robot for its
-             status: round-trip time (request submitted -> reply delivered), acknowledgement
-             time, and loss.
+             status: round-trip time (request submitted -> answer delivered), acknowledgement
+             time, and loss; answers that refuse (``fail(42)status()``: no CAN side) are
+             counted apart, with the reason.
 
 The listener never transmits. Times are the wall-clock arrival of bytes at this PC, so they
 include the serial port's latency (a few ms on USB adapters); medians and 99th percentiles
@@ -50,6 +51,9 @@ class Listening:
     failed: int = 0
     bytes: int = 0
     seconds: float = 0.0
+    error: str | None = None
+    """Why listening ended early (the port went away), or None; ``seconds`` is then how long
+    it did listen."""
 
 
 class Sniffer:
@@ -86,7 +90,9 @@ class Sniffer:
         self._stop.set()
         self._thread.join(timeout=2.0)
         self.port.close()
-        self.result.seconds = self.tick() / TICK_HZ
+        if self.error is None:
+            self.result.seconds = self.tick() / TICK_HZ
+        self.result.error = self.error
         return self.result
 
     def snapshot(self) -> list[HeardFrame]:
@@ -104,6 +110,7 @@ class Sniffer:
                 data = self.port.read(max(1, self.port.in_waiting))
             except (OSError, ValueError, TypeError) as exc:
                 if not self._stop.is_set():
+                    self.result.seconds = self.tick() / TICK_HZ
                     self.error = str(exc) or type(exc).__name__
                 return
             if not data:
@@ -130,10 +137,11 @@ class Sniffer:
 
 def listen(port: str, seconds: float, progress: Callable[[float], None] | None = None) \
         -> Listening:
+    """Listen on ``port`` for ``seconds``, or until the port goes away (``error``)."""
     s = Sniffer(port).start()
     end = time.monotonic() + seconds
     try:
-        while time.monotonic() < end:
+        while time.monotonic() < end and s.error is None:
             time.sleep(min(0.1, max(0.0, end - time.monotonic())))
             if progress is not None:
                 progress(min(seconds, seconds - (end - time.monotonic())))
@@ -186,7 +194,7 @@ def cycle_report(res: Listening) -> dict[str, Any]:
         "misses": len(misses), "miss_gaps": long_gaps,
         "cycle_ms_median": cycles,
         "garbage_bytes": res.garbage, "joined_mid_frame_bytes": res.joined_mid_frame,
-        "failed_frames": res.failed, "seconds": res.seconds,
+        "failed_frames": res.failed, "seconds": res.seconds, "error": res.error,
     }
 
 
@@ -197,30 +205,42 @@ class LatencyResult:
     round_trip_ms: list[float]
     ack_ms: list[float]
     failed: list[str]
+    refusals: list[str] = field(default_factory=list)   # answers that were fail(code)...
 
 
 def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
             progress: Callable[[int], None] | None = None) -> LatencyResult:
     """Ask ``dst`` for its status ``count`` times, one at a time, from ``station`` (a member
-    on the real-time ``runner``, which the caller runs in a thread)."""
+    on the real-time ``runner``, which the caller runs in a thread); fewer if the runner
+    stops (its port went away)."""
     from firmware_model.radio.content import cmd
     from firmware_model.radio.mac import Deliver, Outcome
 
+    from .orders import fail_reason
+
     replies: list[tuple[int, int]] = []
+    refusals: list[str] = []
     outcomes: list[tuple[int, Any]] = []
     prev = station.observer
 
     def observe(st: Any, a: object, now: int) -> None:
         if prev is not None:
             prev(st, a, now)
-        if type(a) is Deliver and a.src == dst:
+        if type(a) is Deliver and a.src == dst and a.dst == st.id:   # not its broadcasts
             replies.append((now, a.num))
+            if a.commands and a.commands[0].name == "fail":
+                code = int(a.commands[0].args[0])
+                refusals.append("".join(c.text() for c in a.commands) +
+                                f": {fail_reason(code)}")
         elif type(a) is Outcome:
             outcomes.append((now, a))
     station.observer = observe
     rtt, ack, failed = [], [], []
     sent = 0
+    ended = getattr(runner, "finished", None)      # the runner stopped (its port went away)
     for i in range(count):
+        if ended is not None and ended.is_set():
+            break
         box: list[Any] = []
         ev = threading.Event()
 
@@ -240,7 +260,8 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
         sent += 1
         end = time.monotonic() + timeout
         while time.monotonic() < end and (len(replies) == n_rep or msg.state == "sent"
-                                          or msg.state == "queued"):
+                                          or msg.state == "queued") and \
+                not (ended is not None and ended.is_set()):
             time.sleep(0.005)
         done = [o for t, o in outcomes if o.message is msg]
         if done and done[0].delivered:
@@ -253,7 +274,7 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
         if progress is not None:
             progress(i + 1)
     station.observer = prev
-    return LatencyResult(sent, len(rtt), rtt, ack, failed)
+    return LatencyResult(sent, len(rtt), rtt, ack, failed, refusals)
 
 
 __all__ = ["Sniffer", "listen", "cycle_report", "latency", "LatencyResult", "PortError"]

@@ -75,6 +75,8 @@ class SerialChannel:
         self.bytes_deaf = 0          # heard while the radio model was switching or sending
         self.errors: list[str] = []
         self.tap: Any = None         # a capture (hil.bench.capture): sent() and heard()
+        self.lost: str | None = None     # why the port went away (a read failed), if it did
+        self.on_lost: Any = None     # called with that reason; default: stop the scheduler
         self._stop = threading.Event()
         self._reader = threading.Thread(target=self._read_loop, name="radio-rx", daemon=True)
 
@@ -166,4 +168,9 @@ class SerialChannel:
         radio.deliver(data, now - (len(data) - 1) * bt, bt)
 
     def _lost(self, why: str) -> None:
-        self.sched.stop()
+        """The port went away (the radio hub stopped, a USB adapter was pulled)."""
+        self.lost = why
+        if self.on_lost is not None:
+            self.on_lost(why)
+        else:
+            self.sched.stop()

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 import time
 
 from .common import (Parser, UserError, digit, port_name, positive, progress_bar, robot_list,
@@ -20,26 +21,33 @@ def cmd_bench(a: argparse.Namespace) -> int:
             raise UserError(str(exc)) from None
         finally:
             close()
+        secs = f"{res.seconds:.1f}" if res.error else f"{a.duration:g}"
+
+        def went_away() -> int:      # the report covers what was heard until then
+            print(f"rprs: error: the radio port {a.radio} went away after {res.seconds:.1f} s "
+                  f"({res.error})", file=sys.stderr, flush=True)
+            return 1
         if a.which == "link":
             robots = sorted({f.src for f in res.frames})
             ok = bool(res.frames)
             report = {"bytes": res.bytes, "frames": len(res.frames), "garbage_bytes": res.garbage,
-                      "failed_frames": res.failed, "robots_heard": robots, "link_ok": ok}
+                      "failed_frames": res.failed, "robots_heard": robots, "link_ok": ok,
+                      "seconds": res.seconds, "error": res.error}
             if a.json:
                 print(json.dumps(report))
             else:
-                print(f"link {'OK' if ok else 'SILENT'}: {res.bytes} bytes in {a.duration:g} s, "
+                print(f"link {'OK' if ok else 'SILENT'}: {res.bytes} bytes in {secs} s, "
                       f"{len(res.frames)} good frames from robots {robots or 'none'}, "
                       f"{res.garbage} garbage bytes, {res.failed} broken frames")
-            return 0 if ok else 1
+            return went_away() if res.error else 0 if ok else 1
         rep = bench.cycle_report(res)
         if a.json:
             print(json.dumps(rep))
-            return 0
+            return went_away() if res.error else 0
         if not rep["frames"]:
-            print(f"no frames heard in {a.duration:g} s on {a.radio}")
-            return 1
-        print(f"ring {rep['robots']}: {rep['frames']} frames in {a.duration:g} s, "
+            print(f"no frames heard in {secs} s on {a.radio}")
+            return went_away() if res.error else 1
+        print(f"ring {rep['robots']}: {rep['frames']} frames in {secs} s, "
               f"{rep['misses']} missed turns, {rep['garbage_bytes']} garbage bytes")
         if rep["turn_gap_ms_median"] is not None:
             print(f"turn hand-over (End -> next Header): median {rep['turn_gap_ms_median']:.2f} "
@@ -51,7 +59,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
                   f"{rep['invitation_windows']}, median {rep['invitation_gap_ms_median']:.1f} ms")
         for r, c in rep["cycle_ms_median"].items():
             print(f"  robot {r}: {rep['frames_per_robot'][r]} frames, cycle median {c:.1f} ms")
-        return 0
+        return went_away() if res.error else 0
     # latency: join the ring as a member and ask a robot for its status
     if a.dst == a.id:
         raise UserError(f"--dst {a.dst} is the bench's own ID (--id {a.id}): ask another "
@@ -76,8 +84,12 @@ def cmd_bench(a: argparse.Namespace) -> int:
     t.start()
     try:
         end = time.monotonic() + a.join_timeout
-        while a.dst not in station.mac.ring and time.monotonic() < end:
+        while a.dst not in station.mac.ring and time.monotonic() < end and \
+                not runner.finished.is_set():
             time.sleep(0.05)
+        if runner.failure is not None:
+            print(f"rprs: error: {runner.failure}", file=sys.stderr, flush=True)
+            return 1
         if a.dst not in station.mac.ring:
             print(f"robot {a.dst} is not in the ring after {a.join_timeout:g} s "
                   f"(ring {list(station.mac.ring)})")
@@ -95,15 +107,22 @@ def cmd_bench(a: argparse.Namespace) -> int:
     rep = {"sent": r.sent, "replies": r.replies, "loss": 1 - r.replies / r.sent if r.sent else 1,
            "round_trip_ms_median": statistics.median(r.round_trip_ms) if r.round_trip_ms
            else None, "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,
-           "failed": r.failed}
+           "failed": r.failed, "refused": len(r.refusals),
+           "refusal": r.refusals[0] if r.refusals else None}
     if a.json:
         print(json.dumps(rep))
     else:
-        print(f"robot {a.dst}: {r.replies}/{r.sent} status replies; round trip median "
+        what = (f"{r.replies}/{r.sent} status replies" if not r.refusals else
+                f"{r.replies}/{r.sent} answers, {len(r.refusals)} of them refusals "
+                f"({r.refusals[0]})")
+        print(f"robot {a.dst}: {what}; round trip median "
               f"{med(r.round_trip_ms)} ms, p99 {p99(r.round_trip_ms)} ms; acknowledged in "
               f"{med(r.ack_ms)} ms (median); loss {rep['loss']:.1%}")
         for why in r.failed[:5]:
             print(f"  failed: {why}")
+    if runner.failure is not None:                 # the report covers what came until then
+        print(f"rprs: error: {runner.failure}", file=sys.stderr, flush=True)
+        return 1
     return 0 if r.replies else 1
 
 

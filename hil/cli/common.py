@@ -200,16 +200,27 @@ def realtime_options(p: argparse.ArgumentParser) -> None:
 
 def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary) -> int:
     """Run a bench process to its end; exit status 1 if it went on through troubles (each
-    said in its own line as it happened: ``Runner.warn``), else 0."""
+    said in its own line as it happened: ``Runner.warn``) or stopped by itself (its radio
+    port went away), else 0."""
     print(describe, file=sys.stderr, flush=True)
     runner.run(a.duration)
     print(summary(), file=sys.stderr, flush=True)
+    if stopped_by_itself(runner):
+        return 1
     n = getattr(runner, "troubles", 0)
     if n:
         print(f"rprs: {n} trouble{'s' if n > 1 else ''} during the run (above): exit status 1",
               file=sys.stderr, flush=True)
         return 1
     return 0
+
+
+def stopped_by_itself(runner) -> int:
+    """1 and one line ``rprs: error: ...`` if ``runner`` stopped by itself, else 0."""
+    if getattr(runner, "failure", None) is None:
+        return 0
+    print(f"rprs: error: {runner.failure}", file=sys.stderr, flush=True)
+    return 1
 
 
 def progress_bar(total: float, label: str):

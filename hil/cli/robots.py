@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from .common import (UserError, digit, mac_config, mac_options, port_name, realtime_options,
-                     run_until_stopped, txen_option)
+                     run_until_stopped, stopped_by_itself, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_child, summary_line
@@ -38,19 +38,25 @@ def _submit_order(station, dst: int, commands: list, console) -> None:
 
 def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> int:
     """The father's live console (hil/view/father_app.py): the firmware in a thread, the
-    view in this one; quitting the view stops the firmware."""
+    view in this one; quitting the view stops the firmware, and SIGTERM stops both cleanly."""
+    import signal
     import threading
     worker = threading.Thread(target=runner.run, args=(a.duration,), name="firmware",
                               daemon=True)
+    # the firmware's thread cannot take signals: SIGTERM (and a SIGINT sent from outside)
+    # stop it from here, and the view quits when it has stopped (FatherApp's ``ended``)
+    old = {sig: signal.signal(sig, runner.stop) for sig in (signal.SIGTERM, signal.SIGINT)}
     worker.start()
     try:
         app.run()
     finally:
         runner.stop()
         worker.join(timeout=5)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
     from ..bench.runner import summary_line
     print(summary_line(station), file=sys.stderr, flush=True)
-    return 0
+    return stopped_by_itself(runner)
 
 
 def cmd_submodules(a: argparse.Namespace) -> int:
@@ -87,7 +93,8 @@ def cmd_father(a: argparse.Namespace) -> int:
             sys.stdin.isatty() and sys.stdout.isatty():
         from ..bench.runner import HISTORY_FILE
         from ..view.father_app import FatherApp, LinesTo
-        app = FatherApp(lambda line: order(line), lambda: head(), HISTORY_FILE)
+        app = FatherApp(lambda line: order(line), lambda: head(), HISTORY_FILE,
+                        ended=runner.finished.is_set)
         console = FatherConsole(LinesTo(app.post_line), "human")
     else:
         console = FatherConsole(sys.stdout, "json" if a.json else "quiet" if a.quiet

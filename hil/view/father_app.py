@@ -55,7 +55,8 @@ class OrderInput(Input):
 
 class FatherApp(App):
     """The father's console. ``submit(line)`` queues a typed order and returns None or the
-    reason it was refused; ``status()`` gives the header's text."""
+    reason it was refused; ``status()`` gives the header's text; ``ended()``, True once the
+    firmware has stopped by itself, ends the view."""
 
     CSS = """
     #head { height: 3; background: $boost; padding: 0 1; }
@@ -65,8 +66,10 @@ class FatherApp(App):
     BINDINGS = [Binding("ctrl+q", "quit", "quit")]
 
     def __init__(self, submit: Callable[[str], str | None], status: Callable[[], str],
-                 history_file: str | None = None, rate: float = 5.0) -> None:
+                 history_file: str | None = None, rate: float = 5.0,
+                 ended: Callable[[], bool] | None = None) -> None:
         super().__init__()
+        self._ended = ended
         self._submit = submit
         self._status = status
         self._rate = rate
@@ -87,7 +90,11 @@ class FatherApp(App):
         self.set_interval(1 / self._rate, self.refresh_head)
 
     def refresh_head(self) -> None:
-        """The header again, and the story lines other threads posted since."""
+        """The header again, and the story lines other threads posted since; the view quits
+        once ``ended()`` says the firmware has stopped (``--duration``, a lost port)."""
+        if self._ended is not None and self._ended():
+            self.exit()
+            return
         while self._posted:
             self.add_line(self._posted.popleft())
         text = self._status()

@@ -26,36 +26,41 @@ def test_a_joint_command_reaches_its_joint_and_completes(dut):
     n0 = len(dut.frames("EVENT1"))
     msg = dut.send([cmd("joint", 1, 25)])
     assert dut.run_until(lambda: any(s["angle"] == 25 for _, _, s in dut.frames("JOINT1_CMD")),
-                         10.0)
-    assert dut.run_until(lambda: len(dut.frames("EVENT1")) > n0, 10.0)
+                         10.0), f"no JOINT1_CMD angle 25 on the CAN bus in 10 s; {dut.explain(msg)}"
+    assert dut.run_until(lambda: len(dut.frames("EVENT1")) > n0, 10.0), \
+        f"joint 1 sent no EVENT1 in 10 s; {dut.explain(msg)}"
     assert dut.frames("EVENT1")[-1][2]["kind"] == 1            # done
-    assert dut.run_until(_done(dut, msg), 10.0) and msg.state == "delivered"
+    assert dut.run_until(_done(dut, msg), 10.0) and msg.state == "delivered", \
+        f"joint(1,25) not acknowledged in 10 s; {dut.explain(msg)}"
     if dut.submodules:
         assert dut.submodules["JOINT1"].angle_deg == pytest.approx(25, abs=0.01)
 
 
 def test_an_unreachable_target_comes_back_as_failure_information(dut):
     n0 = len(dut.replies(4))
-    dut.send([cmd("moveto", 900, 0, 0)])
-    assert dut.run_until(lambda: len(dut.replies(4)) > n0, 10.0)
+    msg = dut.send([cmd("moveto", 900, 0, 0)])
+    assert dut.run_until(lambda: len(dut.replies(4)) > n0, 10.0), \
+        f"no failure information (Type '4') in 10 s; {dut.explain(msg)}"
     reply = dut.replies(4)[-1]
     assert [c.text() for c in reply.commands] == ["fail(1)", "moveto(900,0,0)"]
 
 
 def test_an_action_is_announced_and_reported_done(dut):
     k0 = len(dut.replies())
-    dut.send([cmd("act", 2, 0)])
+    msg = dut.send([cmd("act", 2, 0)])
     notices = lambda: [c.text() for d in dut.replies()[k0:] for c in d.commands]  # noqa: E731
-    assert dut.run_until(lambda: "act(2,1)" in notices(), 15.0)
+    assert dut.run_until(lambda: "act(2,1)" in notices(), 15.0), \
+        f"no act(2,1) notice in 15 s; {dut.explain(msg)}"
     assert notices().index("act(2,0)") < notices().index("act(2,1)")
     assert any(s["angle"] == -90 for _, _, s in dut.frames("JOINT1_CMD"))
 
 
 def test_status_reply_reports_four_joints(dut):
     k0 = len(dut.replies(3))
-    dut.send([cmd("status")])
+    msg = dut.send([cmd("status")])
     assert dut.run_until(lambda: any(c.name == "joint" for d in dut.replies(3)[k0:]
-                                     for c in d.commands), 10.0)
+                                     for c in d.commands), 10.0), \
+        f"no status reply (Type '3', joint(...)) in 10 s; {dut.explain(msg)}"
     got = [c for d in dut.replies(3)[k0:] for c in d.commands if c.name == "joint"]
     assert [c.args[0] for c in got] == [1, 2, 3, 4]
 
@@ -67,8 +72,9 @@ def test_a_stalled_joint_is_reported(dut):
     dut._call(joint.stall)
     try:
         k0 = len(dut.replies(4))
-        dut.send([cmd("joint", 2, 80)])
-        assert dut.run_until(lambda: len(dut.replies(4)) > k0, 10.0)
+        msg = dut.send([cmd("joint", 2, 80)])
+        assert dut.run_until(lambda: len(dut.replies(4)) > k0, 10.0), \
+            f"no failure information (Type '4') in 10 s; {dut.explain(msg)}"
         assert dut.replies(4)[-1].commands[0].text() == "fail(12)"
     finally:
         dut._call(joint.clear_fault)
