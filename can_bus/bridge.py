@@ -8,10 +8,11 @@ nodes sharing one ``PythonCanBus`` also hear each other's frames, as on a real b
 
 It needs a scheduler with ``post`` (``hil.sim.realtime.RealTimeScheduler``): a reader thread
 hands every received frame to the scheduler's thread. A receive or send error (an interface
-taken down) is reported in one line through ``on_error`` and the bus goes on. ``log`` writes every frame sent or
-received with python-can's writers, chosen by the file's extension (candump ``.log``,
-``.asc``, ``.blf``, ``.csv``, ``.trc``), the frames no node here takes too (extended IDs,
-error frames, CAN FD: counted in ``not_ours``), so that the log holds what candump shows.
+taken down) is reported in one line through ``on_error`` and the bus goes on. ``log`` writes
+every frame sent or received with python-can's writers, chosen by the file's extension
+(candump ``.log``, ``.asc``, ``.blf``, ``.csv``, ``.trc``), the frames no node here takes too
+(extended IDs, error frames, CAN FD: counted in ``not_ours``), so that the log holds what
+candump shows.
 """
 from __future__ import annotations
 

@@ -273,6 +273,9 @@ def test_no_leap_while_a_capture_or_the_cpu_model_sees_every_frame():
     assert idle.quiet_ring.leaps >= 1
     for other in (replace(cfg, realtime=True), replace(cfg, can=True, cpu=DEFAULT_COSTS)):
         assert World(other).quiet_ring is None
+    # a trace keeps the CAN sides awake (QuietCan.may_sleep): the ring could never leap
+    assert World(replace(cfg, can=True), on_event=lambda ev: None).quiet_ring is None
+    assert World(replace(cfg, can=True)).quiet_ring is not None
 
 
 class _Sink:

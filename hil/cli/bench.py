@@ -8,7 +8,7 @@ import sys
 import time
 
 from .common import (Parser, UserError, digit, port_name, positive, progress_bar, robot_list,
-                     txen_option)
+                     stopped_by_itself, txen_option)
 
 def cmd_bench(a: argparse.Namespace) -> int:
     from ..bench import scripts as bench
@@ -87,8 +87,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
         while a.dst not in station.mac.ring and time.monotonic() < end and \
                 not runner.finished.is_set():
             time.sleep(0.05)
-        if runner.failure is not None:
-            print(f"rprs: error: {runner.failure}", file=sys.stderr, flush=True)
+        if stopped_by_itself(runner):
             return 1
         if a.dst not in station.mac.ring:
             print(f"robot {a.dst} is not in the ring after {a.join_timeout:g} s "
@@ -120,8 +119,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
               f"{med(r.ack_ms)} ms (median); loss {rep['loss']:.1%}")
         for why in r.failed[:5]:
             print(f"  failed: {why}")
-    if runner.failure is not None:                 # the report covers what came until then
-        print(f"rprs: error: {runner.failure}", file=sys.stderr, flush=True)
+    if stopped_by_itself(runner):                  # the report covers what came until then
         return 1
     return 0 if r.replies else 1
 

@@ -192,8 +192,9 @@ class QuietRing:
         self.probes += 1
         try:
             # the trace writer is outside: what it wrote is checked below, event by event
-            snap = snapshot([self.world, events], [sched, self, self.world.trace,
-                                                   *self.boundary], rng_state=True)
+            trace = [] if self.world.trace is None else [self.world.trace]
+            snap = snapshot([self.world, events], [sched, self, *trace, *self.boundary],
+                            rng_state=True)
         except Unwalkable:                     # an iterator somewhere: its state is hidden
             self.enabled = False
             return

@@ -307,9 +307,11 @@ class World:
         self.end_tick = s_to_ticks(config.duration)
         # The radio side as a whole, moved on in whole cycles while it only repeats itself
         # (hil/sim/quiet_ring.py; the trace and the event callback get the events of the
-        # cycles leapt over); none with the CPU model or on the wall's clock.
+        # cycles leapt over); none with the CPU model or on the wall's clock, nor with CAN
+        # sides that a trace keeps awake (QuietCan.may_sleep): it could never leap there.
+        watched = trace is not None or on_event is not None
         if config.ring_sleep and config.mac_kind == "rotational" and not config.realtime \
-                and config.cpu is None:
+                and config.cpu is None and not (watched and self.quiet):
             ring = self.quiet_ring = QuietRing(self, min(config.robots), base.poll_every,
                                                config.father_standby)
             for q in self.quiet.values():

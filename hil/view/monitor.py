@@ -565,11 +565,17 @@ class SimMonitorApp(MonitorApp):
             return
         self.fault(what, d)
 
+    def _over(self) -> bool:
+        """Has the run finished? Then a fault key says so and does nothing (the trace and
+        the summary end at the run's end)."""
+        if self.finished:
+            self.flash("the run has finished: nothing more can happen in it")
+        return self.finished
+
     def fault(self, what: str, r: int) -> bool:
         """'kill', 'revive' or 'steal' robot ``r`` now (the keys k/r/s then a digit); not
         once the run has finished (the trace and the summary end at its end)."""
-        if self.finished:
-            self.flash("the run has finished: nothing more can happen in it")
+        if self._over():
             return False
         if r not in self.world.stations:
             self.flash(f"robot {r} is not in this simulation (robots {_ids(self.robots)})")
@@ -594,8 +600,7 @@ class SimMonitorApp(MonitorApp):
         """Idle noise on the air on/off from now (radios hearing a frame or garbage are not
         disturbed; they start hearing noise when it ends)."""
         air, now = self.world.air, self.world.now
-        if self.finished:
-            self.flash("the run has finished: nothing more can happen in it")
+        if self._over():
             return
         if air.noise == on:
             return
