@@ -21,6 +21,10 @@ Common behaviour
   busy / bus-off) is replaced by the newer one; events queue up in order.
 * ``ESTOP`` (0x010): every node stops at once and drops its command without an EVENT (joints
   and paw hold where they are; the wheel's speed drops to 0). A faulted node stays faulted.
+  A data frame with the ESTOP identifier stops the node whatever its length (fail-safe: an
+  emergency stop is never refused for its form); a length other than the DBC's 1 byte is
+  also counted in :attr:`bad_frames`. A remote frame with that identifier is no stop, only a
+  bad frame.
 * Fault injection: :meth:`stall` (motion stops; after :data:`STALL_DETECT_TICKS` (200 ms)
   without progress while a motion is commanded, ``EVENT`` kind 2 code 1 and state 3),
   :meth:`fault` (any fault code at once, state 4, or 3 for code 1), :meth:`silent` (the node
@@ -168,6 +172,7 @@ class _Submodule:
         self.status_name = dbc.status_name(number)
         self.event_name = dbc.event_name(number)
         self._estop_id = dbc.frame_id(dbc.ESTOP)
+        self._estop_dlc = dbc.dlc(dbc.ESTOP)
         self.rx_ids = frozenset({self.cmd_id, self._estop_id})
         """The frames ``on_frame`` acts on (a bus promise, can_bus/bus.py, Nodes)."""
         self.state = STATE_IDLE
@@ -229,7 +234,10 @@ class _Submodule:
                 return
             self._command(values)
         elif fid == self._estop_id:
-            self._estop()
+            if frame.rtr or len(frame.data) != self._estop_dlc:
+                self.bad_frames += 1          # counted as malformed (docs/can.md) ...
+            if not frame.rtr:
+                self._estop()                 # ... but a stop is never refused for its form
 
     # ------------------------------------------------------------ sending
     def _push(self, frame: CanFrame) -> tuple[int, int, CanFrame]:

@@ -376,6 +376,32 @@ def test_estop_stops_everything_without_events(env):
     assert env.events(1) == [] and len(env.events(5)) == n_events
 
 
+@pytest.mark.parametrize("data", [b"", bytes(2), bytes(8)])
+def test_an_estop_of_the_wrong_length_still_stops_and_is_counted(env, data):
+    """Fail-safe (docs/can.md): a stop is never refused for its form, only counted."""
+    env.run(T0)
+    env.send("JOINT1_CMD", angle=90, speed=60, seq=1, mode="move")
+    env.run(T0 + 300 * MS)
+    env.bus.request(env.drv, CanFrame(dbc.frame_id("ESTOP"), data))
+    env.run(T0 + 320 * MS)
+    j = env.nodes["JOINT1"]
+    a = j.angle_cdeg
+    env.run(T0 + 2 * TICK_HZ)
+    assert j.angle_cdeg == a and j.state == dbc.STATE_HOLDING and env.events(1) == []
+    assert all(n.bad_frames == 1 for n in env.nodes.values())
+
+
+def test_an_estop_remote_frame_is_no_stop(env):
+    env.run(T0)
+    env.send("JOINT1_CMD", angle=90, speed=60, seq=1, mode="move")
+    env.run(T0 + 300 * MS)
+    env.bus.request(env.drv, CanFrame(dbc.frame_id("ESTOP"), b"", rtr=True))
+    env.run(T0 + 2 * TICK_HZ)
+    j = env.nodes["JOINT1"]
+    assert j.angle_cdeg == 9000 and [e[1] for e in env.events(1)] == [DONE]
+    assert all(n.bad_frames == 1 for n in env.nodes.values())
+
+
 def test_malformed_command_ignored(env):
     env.run(T0)
     env.bus.request(env.drv, CanFrame(dbc.frame_id("JOINT1_CMD"), bytes(5)))
