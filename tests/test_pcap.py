@@ -285,3 +285,90 @@ def test_can_error_frames_carry_the_type_the_bus_knows(tmp_path):
             errors.setdefault(kind, set()).add((can_id & ~CAN_ERR_FLAG, data[8 + 2]))
     assert errors == {"local": {(CAN_ERR_PROT, 0)}, "bit": {(CAN_ERR_PROT, 0x01)},
                       "stuff": {(CAN_ERR_PROT, 0x04)}}, errors
+
+
+def test_a_packet_seen_before_is_written_as_the_library_writes_it():
+    """PcapWriter builds each distinct packet once with python-pcapng and puts the timestamp
+    into those bytes for a repeat: the file must be byte for byte the one the library writes
+    block by block, repeats, comments, both link types and 64-bit timestamps included."""
+    import io
+    import random
+
+    from pcapng import blocks
+
+    from hil.sim.pcap import PcapWriter, socketcan_frame
+
+    rng = random.Random(5)
+    packets = []
+    for i in range(400):
+        radio = rng.random() < 0.6
+        key = rng.choice([0, 1, "foreign"]) if radio else rng.choice([1, 2])
+        data = rng.choice([b"\xaa\x55heartbeat", bytes(rng.randrange(256) for _ in range(5)),
+                           b"\x01"]) if radio else bytes(rng.choice([0, 1, 8]))
+        comment = rng.choice([None, None, "collided", "a transmitter that is no robot; é"])
+        tick = rng.randrange(1 << 54) if i % 50 == 0 else i * 160_000 + rng.randrange(99)
+        packets.append((radio, key, tick, data, comment if radio else None))
+
+    radios, buses = {0: "father 0 radio", 1: "R1 radio", "foreign": "foreign"}, {1: "c1",
+                                                                                  2: "c2"}
+    out = io.BytesIO()
+    w = PcapWriter(out, radios, buses)
+    for radio, key, tick, data, comment in packets:
+        if radio:
+            w.radio(key, tick, data, comment)
+        else:
+            w.can(key, tick, 0x181, data)
+
+    ref = io.BytesIO()
+    shb = blocks.SectionHeader(options={"shb_userappl": "rprs"})
+    ids = {}
+    for key, name in radios.items():
+        ids[("radio", key)] = shb.new_member(
+            blocks.InterfaceDescription, link_type=147, snaplen=65535,
+            options={"if_name": name, "if_description": "RPRS radio channel, 9600 baud "
+                     "(rprs.lua)", "if_tsresol": bytes((10,))}).interface_id
+    for key, name in buses.items():
+        ids[("can", key)] = shb.new_member(
+            blocks.InterfaceDescription, link_type=227, snaplen=65535,
+            options={"if_name": name, "if_description": "CAN 2.0A, 500 kbit/s",
+                     "if_tsresol": bytes((10,))}).interface_id
+    lib = pcapng.FileWriter(ref, shb)
+    for radio, key, tick, data, comment in packets:
+        ts = tick * UNITS_PER_TICK
+        lib.write_block(shb.new_member(
+            blocks.EnhancedPacket, interface_id=ids[("radio" if radio else "can", key)],
+            timestamp_high=ts >> 32, timestamp_low=ts & 0xFFFFFFFF,
+            packet_data=data if radio else socketcan_frame(0x181, data),
+            options={"opt_comment": comment} if comment else {}))
+    assert w.packets == len(packets)
+    assert out.getvalue() == ref.getvalue()
+    assert len(out.getvalue()) > 400 * 32
+
+
+def test_a_radio_that_dies_in_its_first_byte_leaves_an_empty_packet(tmp_path):
+    """A robot failing within the first byte of its frame sent no whole byte: the capture
+    keeps the transmission as a packet of 0 bytes with its comment (python-pcapng refuses
+    to write one; it used to end ``rprs sim --pcap`` with a traceback)."""
+    from firmware_model.timing import TICK_HZ
+    from hil.sim.world import SimConfig, World
+
+    cfg = SimConfig(robots=(0, 1, 2), duration=5, seed=1)
+    evs: list = []
+    World(cfg, on_event=evs.append).run()
+    start = [e for e in evs if e.get("ev") == "frame" and e["src"] == 1][3]["start"]
+    path = tmp_path / "c.pcapng"
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1,2",
+                        "--duration", "5", "--seed", "1", "--no-progress",
+                        "--fail", f"1@{(start + 100) / TICK_HZ!r}", "--pcap", str(path)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    with open(path, "rb") as f:
+        pkts = [b for b in pcapng.FileScanner(f) if isinstance(b, pcapng.blocks.EnhancedPacket)]
+    empty = [p for p in pkts if p.captured_len == 0]
+    assert len(empty) == 1 and empty[0].packet_len == 0
+    assert empty[0].options["opt_comment"] == "aborted: the sender's radio died"
+    assert abs(empty[0].timestamp - (start + 100) / TICK_HZ) < 1e-6   # when it died
+    if shutil.which("tshark"):
+        out = subprocess.run(["tshark", "-r", str(path), "-Y", "frame.len == 0", "-T",
+                              "fields", "-e", "frame.comment"], capture_output=True, text=True)
+        assert out.stdout.strip() == "aborted: the sender's radio died", out.stderr

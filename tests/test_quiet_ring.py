@@ -21,6 +21,7 @@ from firmware_model.radio.mac import MacConfig
 from firmware_model.radio.content import cmd
 from firmware_model.timing import s_to_ticks
 from hil.sim.faults import parse_fault
+from hil.sim.pcap import PcapWriter
 from hil.sim.quiet_ring import QuietRing
 from hil.sim.state_walk import InTuple, advance, period_steps, portable, snapshot, writable
 from hil.sim.trace import TraceWriter
@@ -256,18 +257,44 @@ def test_a_traced_run_leaps_and_writes_the_same_trace(cfg, least, tmp_path):
     assert b'"ev":"frame"' in want
 
 
-def test_no_leap_while_a_capture_or_the_cpu_model_sees_every_frame():
-    """A capture writes every frame's bytes and the CPU model times every handler: no leap
-    with either; a capture holds every frame of the run."""
+def _captured(cfg: SimConfig, path, stops=()) -> tuple[World, bytes]:
+    """Run ``cfg`` with a pcapng capture to ``path`` (hil/sim/pcap.py), stopping at
+    ``stops`` (s); returns the world and the capture's bytes."""
+    with open(path, "wb") as f:
+        w = World(cfg)
+        w.capture(PcapWriter(f, *w.capture_interfaces()))
+        for s in stops:
+            w.run(until=s_to_ticks(s))
+        w.run()
+    return w, path.read_bytes()
+
+
+@pytest.mark.parametrize("cfg,least", [
+    (SimConfig(robots=(0, 1, 2), duration=40, seed=14), 0.5),
+    (SimConfig(robots=RING, duration=60, seed=20, father_standby=True,
+               faults=F("fail:3@20", "recover:3@24.5", "burst@41:0.2", "foreign@50:12")),
+     0.03),
+    # a capture keeps the CAN sides awake (it sees every CAN frame): no leap, the same bytes
+    (SimConfig(robots=(0, 1, 2), duration=20, seed=22, can=True), 0.0),
+], ids=["idle", "faults, foreign bytes and the standby father", "CAN sides"])
+def test_a_captured_run_leaps_and_writes_the_same_capture(cfg, least, tmp_path):
+    """A capture gets the packets of the cycles leapt over, as the trace gets their events:
+    the pcapng file is the frame-by-frame run's, byte for byte."""
+    plain, want = _captured(replace(cfg, ring_sleep=False), tmp_path / "a.pcapng")
+    for stops in ((), (7.77, 15.0)):
+        leaping, got = _captured(cfg, tmp_path / "b.pcapng", stops)
+        assert got == want
+        assert leaping.transmissions == plain.transmissions
+        if least:
+            assert leaping.quiet_ring.ticks_skipped > least * leaping.now
+        else:
+            assert leaping.quiet_ring.leaps == 0
+    assert plain.transmissions > 100
+
+
+def test_no_leap_while_the_cpu_model_times_every_frame():
+    """The CPU model times every handler, and a trace keeps the CAN sides awake: no ring."""
     cfg = SimConfig(robots=(0, 1, 2), duration=20, seed=14)
-    plain = World(replace(cfg, ring_sleep=False))
-    plain.run()
-    captured = World(cfg)
-    written = []
-    captured.capture(_Sink(written))
-    captured.run()
-    assert len(written) == plain.transmissions
-    assert captured.quiet_ring.leaps == 0 and captured.quiet_ring.probes == 0
     idle = World(cfg)
     idle.run()
     assert idle.quiet_ring.leaps >= 1
@@ -276,20 +303,6 @@ def test_no_leap_while_a_capture_or_the_cpu_model_sees_every_frame():
     # a trace keeps the CAN sides awake (QuietCan.may_sleep): the ring could never leap
     assert World(replace(cfg, can=True), on_event=lambda ev: None).quiet_ring is None
     assert World(replace(cfg, can=True)).quiet_ring is not None
-
-
-class _Sink:
-    """A capture that keeps the radio frames' ends (World.capture's sink)."""
-
-    def __init__(self, out: list) -> None:
-        self.out = out
-
-    def radio(self, key, end, data, note) -> None:
-        self.out.append(end)
-
-    def can(self, *a) -> None: ...
-
-    def can_error(self, *a) -> None: ...
 
 
 def test_no_leap_while_a_hook_of_someone_elses_sees_the_frames():

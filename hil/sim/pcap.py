@@ -11,6 +11,7 @@ packet comment saying which; CAN error frames are SocketCAN error frames (``CAN_
 """
 from __future__ import annotations
 
+import io
 import struct
 from typing import Any, BinaryIO
 
@@ -24,6 +25,11 @@ LINKTYPE_CAN_SOCKETCAN = 227
 TSRESOL = 10
 """if_tsresol: timestamps in units of 10^-10 s."""
 UNITS_PER_TICK = 10**TSRESOL // TICK_HZ          # 625
+_TS_AT = 12
+"""Offset of an Enhanced Packet Block's timestamp (upper then lower 32 bits) after its block
+type, total length and interface ID (pcapng, draft-ietf-opsawg-pcapng, 4.3)."""
+_DISTINCT_BLOCKS = 1 << 16
+"""Distinct packets whose bytes a writer keeps (then it starts again: memory stays bounded)."""
 
 CAN_ERR_FLAG = 0x20000000
 CAN_ERR_PROT = 0x00000008
@@ -77,6 +83,14 @@ class PcapWriter:
             self._add(("can", key), LINKTYPE_CAN_SOCKETCAN, name, "CAN 2.0A, 500 kbit/s")
         self.writer = pcapng.FileWriter(stream, self.shb)
         self.packets = 0
+        # The library builds each distinct packet once (its bytes with timestamp 0); a packet
+        # seen before is those bytes with its timestamp put in (a heartbeat's bytes repeat
+        # every cycle, and python-pcapng takes ~100 us to build a block).
+        self._scratch = io.BytesIO()
+        self._encoder = pcapng.FileWriter(self._scratch, self.shb)
+        self._header = self._scratch.tell()
+        self._blocks: dict[tuple[int, bytes, str | None], bytes] = {}
+        self._ts = struct.Struct(self.shb.endianness + "II")
         self._clock: Any = None
         if live:
             stream.flush()
@@ -102,18 +116,41 @@ class PcapWriter:
             self.epoch_units = self._clock.epoch_ns * scale // 1_000_000_000
             self._clock = None
         ts = self.epoch_units + (tick * scale * 2 + TICK_HZ) // (2 * TICK_HZ)
-        opts = {"opt_comment": comment} if comment else {}
-        epb = self.shb.new_member(blocks.EnhancedPacket, interface_id=self._ifaces[key],
-                                  timestamp_high=ts >> 32, timestamp_low=ts & 0xFFFFFFFF,
-                                  packet_data=bytes(data), options=opts)
-        self.writer.write_block(epb)
+        memo = (self._ifaces[key], bytes(data), comment or None)
+        block = self._blocks.get(memo)
+        if block is None:
+            block = self._blocks[memo] = self._encode(*memo)
+            if len(self._blocks) > _DISTINCT_BLOCKS:
+                self._blocks.clear()
+        self.stream.write(block[:_TS_AT] + self._ts.pack(ts >> 32, ts & 0xFFFFFFFF) +
+                          block[_TS_AT + 8:])
         self.packets += 1
         if self.live:
             self.stream.flush()
 
-    def radio(self, key: object, tick: int, data: bytes, comment: str | None = None) -> None:
-        """A transmission on air, ending at ``tick``: the bytes its sender sent."""
-        self._packet(("radio", key), tick, data, comment)
+    def _encode(self, interface: int, data: bytes, comment: str | None) -> bytes:
+        """The Enhanced Packet Block python-pcapng writes for this packet at timestamp 0.
+        python-pcapng refuses an empty packet, which pcapng allows (a radio that died within
+        its first byte sent no whole byte): that block is the one-byte packet's with the
+        lengths 0 and without the data's 4 padded bytes."""
+        if not data:
+            one = self._encode(interface, b"\0", comment)
+            size = struct.pack(self.shb.endianness + "I", len(one) - 4)
+            return (one[:4] + size + one[8:_TS_AT + 8] + bytes(8) + one[_TS_AT + 20:-4] +
+                    size)
+        opts = {"opt_comment": comment} if comment else {}
+        epb = self.shb.new_member(blocks.EnhancedPacket, interface_id=interface,
+                                  timestamp_high=0, timestamp_low=0, packet_data=data,
+                                  options=opts)
+        scratch = self._scratch
+        scratch.seek(self._header)
+        scratch.truncate()
+        self._encoder.write_block(epb)
+        return scratch.getvalue()[self._header:]
+
+    def radio(self, key: object, end: int, data: bytes, comment: str | None = None) -> None:
+        """A transmission on air, ending at tick ``end``: the bytes its sender sent."""
+        self._packet(("radio", key), end, data, comment)
 
     def can(self, bus: int, tick: int, can_id: int, data: bytes) -> None:
         """A CAN frame on ``bus`` that ended (EOF) at ``tick``."""

@@ -32,12 +32,13 @@ of the whole radio side:
   state is its orbit and the tick it fell asleep at, and when something wakes it, it moves on
   by the periods that passed whatever the ring did meanwhile; so its parts are left out of the
   snapshot (``boundary``), and a leap leaves them as they are.
-* A trace and an event callback get the events of the cycles leapt over: the events of the
-  period before the leap, their ticks (:data:`TICK_KEYS`) moved on by one period, k times.
-  The probe checks that rule on the run itself first: the events of the last period must be
-  those of the period before it, ticks moved on by the period and nothing else changed;
-  otherwise no leap. So a traced run writes the frame-by-frame run's trace, byte for byte.
-* Nothing else may be watching the frames: no capture, no CPU model, and no hook of someone
+* A trace and an event callback get the events of the cycles leapt over, and a capture
+  (hil/sim/pcap.py) their packets: those of the period before the leap, their ticks
+  (:data:`TICK_KEYS`) moved on by one period, k times. The probe checks that rule on the run
+  itself first: the events and packets of the last period must be those of the period before
+  it, ticks moved on by the period and nothing else changed; otherwise no leap. So a traced
+  or captured run writes the frame-by-frame run's trace and capture, byte for byte.
+* Nothing else may be watching the frames: no CPU model, and no hook of someone
   else's on the air's transmissions or collisions or on a station's actions (each would
   miss the frames leapt over); the MAC must be the rotational one. A snapshot with an object whose inside it cannot see (anything but this project's
   classes, plain values and containers, bytearrays and random generators) never leads to a
@@ -142,10 +143,11 @@ class QuietRing:
         self.until = None
         self._rec, self._rec_from = [], None
 
-    def note(self, ev: dict) -> None:
-        """An event the world wrote to its trace or event callback."""
+    def note(self, ev: dict, sink: str = "trace") -> None:
+        """Something the world wrote out: an event to its trace or event callback (``sink``
+        "trace"), or a packet to its capture ("pcap": the arguments of ``PcapWriter.radio``)."""
         if self.until is not None:
-            self._rec.append(tuple(ev.items()))
+            self._rec.append((sink, tuple(ev.items())))
 
     def heard(self, tx: "Transmission") -> None:
         """A transmission ended (the air's ``on_transmission``); probe after every
@@ -164,10 +166,9 @@ class QuietRing:
             sched.at(sched.now, self._probe)
 
     def _watched(self) -> bool:
-        """Does anything outside the world see frames or actions one by one (but the trace
-        and the event callback, which get the events of the cycles leapt over)?"""
-        w = self.world
-        return w.pcap is not None or w.hooks() != self._own_hooks
+        """Does anything outside the world see frames or actions one by one (but the trace,
+        the event callback and the capture, which get what the cycles leapt over wrote)?"""
+        return self.world.hooks() != self._own_hooks
 
     def _probe(self) -> None:
         now = self.world.sched.now
@@ -191,9 +192,10 @@ class QuietRing:
             return
         self.probes += 1
         try:
-            # the trace writer is outside: what it wrote is checked below, event by event
-            trace = [] if self.world.trace is None else [self.world.trace]
-            snap = snapshot([self.world, events], [sched, self, *trace, *self.boundary],
+            # the trace writer and the capture are outside: what they were given is
+            # checked below, event by event and packet by packet
+            sinks = [x for x in (self.world.trace, self.world.pcap) if x is not None]
+            snap = snapshot([self.world, events], [sched, self, *sinks, *self.boundary],
                             rng_state=True)
         except Unwalkable:                     # an iterator somewhere: its state is hidden
             self.enabled = False
@@ -227,7 +229,7 @@ class QuietRing:
         if k < 1:
             return
         w = self.world
-        traced = w.trace is not None or w.on_event is not None
+        traced = w.trace is not None or w.on_event is not None or w.pcap is not None
         if traced and not (rec_from == at and before[0] == at - period and
                            _shifted(before[1], period) == recorded):
             return                             # the events do not repeat (yet): no leap
@@ -237,8 +239,8 @@ class QuietRing:
         sched.put_back(taken)
         if traced:
             for j in range(1, k + 1):
-                for items in _shifted(recorded, j * period):
-                    w.replay(dict(items))
+                for sink, items in _shifted(recorded, j * period):
+                    w.replay(dict(items), sink)
         self._rec_from = sched.now
         self.leaps += 1
         self.ticks_skipped += k * period
@@ -246,6 +248,6 @@ class QuietRing:
 
 
 def _shifted(events: list[tuple], by: int) -> list[tuple]:
-    """``events`` (each a tuple of its items) with their ticks moved on by ``by``."""
-    return [tuple((k, v + by) if k in TICK_KEYS and type(v) is int else (k, v)
-                  for k, v in items) for items in events]
+    """``events`` (each (sink, a tuple of its items)) with their ticks moved on by ``by``."""
+    return [(sink, tuple((k, v + by) if k in TICK_KEYS and type(v) is int else (k, v)
+                         for k, v in items)) for sink, items in events]

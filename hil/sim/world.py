@@ -480,9 +480,13 @@ class World:
         if ring is not None and not meta:
             ring.note(ev)
 
-    def replay(self, ev: dict) -> None:
+    def replay(self, ev: dict, sink: str = "trace") -> None:
         """Write an event the ring did not run but whose place it knows (a cycle it leapt
-        over, shifted: hil/sim/quiet_ring.py) to the trace and the event callback."""
+        over, shifted: hil/sim/quiet_ring.py) to the trace and the event callback, or with
+        ``sink`` "pcap" a packet to the capture (``ev``: ``PcapWriter.radio``'s arguments)."""
+        if sink == "pcap":
+            self.pcap.radio(**ev)
+            return
         if self.trace is not None:
             self.trace.write(ev)
         if self.on_event is not None:
@@ -568,8 +572,11 @@ class World:
                                      "died", tx.aborted)) if on]
             if r < 0:
                 marks.insert(0, "a transmitter that is no robot")
-            self.pcap.radio(self._radio_key.get(id(tx.radio), "foreign"), tx.end, sent,
-                            "; ".join(marks) or None)
+            packet = {"key": self._radio_key.get(id(tx.radio), "foreign"), "end": tx.end,
+                      "data": sent, "comment": "; ".join(marks) or None}
+            self.pcap.radio(**packet)
+            if self.quiet_ring is not None:
+                self.quiet_ring.note(packet, "pcap")
         if self.trace is None and self.on_event is None:
             return
         if r < 0:                      # injected bytes or interference, not a robot
