@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import os
+import sys
 import time
 from collections import deque
 
@@ -504,17 +505,94 @@ def test_every_kind_of_fault_shows_in_the_events():
         assert line in shown, (line, shown)
 
 
-def test_outputs_the_monitor_does_not_write_are_refused(tmp_path, capsys):
-    """``rprs monitor --pcap FILE`` and ``--cpu-report`` (taken with rprs sim's options) were
-    accepted and then nothing was written: no capture file, no report in ``--json``."""
+def test_a_capture_with_a_radio_is_refused_in_one_line(tmp_path, capsys):
     from hil.cli import main
     pcap = tmp_path / "m.pcapng"
-    for args, needle in ((["--pcap", str(pcap)], "--pcap: the monitor does not record it"),
-                         (["--cpu-report"], "--cpu-report: the monitor does not record it"),
-                         (["--pcap", str(pcap), "--cpu-report"], "--pcap, --cpu-report: "),
-                         (["--radio", "/dev/null", "--pcap", str(pcap)],
-                          "--pcap: only for the simulated ring")):
-        assert main(["monitor", *args]) == 2
-        err = capsys.readouterr().err
-        assert err.count("\n") == 1 and needle in err, err
+    assert main(["monitor", "--radio", "/dev/null", "--pcap", str(pcap)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--pcap: only for the simulated ring" in err, err
     assert not pcap.exists()
+
+
+def test_the_monitor_captures_what_it_shows(tmp_path):
+    """``rprs monitor --pcap FILE`` was refused (it once was accepted and wrote nothing).
+    The capture of a monitored world is the simulator's capture of the same seed, up to
+    where the view was."""
+    import pcapng
+
+    from hil.cli import main
+    with open(tmp_path / "m.pcapng", "wb") as f:
+        app = SimMonitorApp(SimConfig(robots=(1, 2, 3), seed=5, load=2.0, duration=600.0,
+                                      can=True), paused=True, capture=f)
+
+        async def go():
+            async with app.run_test(size=SIZE) as pilot:
+                app.advance(3.0)
+                await pilot.pause()
+        run(go())
+    assert main(["sim", "--robots", "1,2,3", "--seed", "5", "--load", "2", "--can",
+                 "--duration", "3", "--pcap", str(tmp_path / "s.pcapng"), "--no-progress"]) == 0
+
+    def packets(name):
+        with open(tmp_path / name, "rb") as f:
+            return [(b.interface_id, b.timestamp_high, b.timestamp_low, b.packet_data)
+                    for b in pcapng.FileScanner(f) if isinstance(b, pcapng.blocks.EnhancedPacket)]
+    mon, ref = packets("m.pcapng"), packets("s.pcapng")
+    assert len(ref) > 200
+    assert mon == ref
+
+
+def test_the_monitor_reports_the_cpu_budget_of_what_it_ran(tmp_path):
+    """``rprs monitor --cpu estimated --cpu-report --json``: the report of the world up to
+    where the view was closed, inside the summary, as ``rprs sim`` gives it."""
+    import json
+    import pty
+    import subprocess
+    import threading
+    master, slave = pty.openpty()
+    pcap = tmp_path / "m.pcapng"
+    p = subprocess.Popen(_monitor_cmd("--robots", "0,1", "--can", "--cpu", "estimated",
+                                      "--cpu-report", "--json", "--duration", "2", "--speed",
+                                      "64", "--pcap", str(pcap)),
+                         stdin=slave, stdout=subprocess.PIPE, stderr=slave,
+                         start_new_session=True,
+                         # stdout is a pipe, so the size comes from these (80 columns cut
+                         # the header's "FINISHED" short)
+                         env=dict(os.environ, COLUMNS="200", LINES="50"))
+    os.close(slave)
+    screen = bytearray()
+
+    def read():
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                return
+            if not chunk:
+                return
+            screen.extend(chunk)
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + 120
+        while b"FINISHED" not in screen and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert b"FINISHED" in screen, bytes(screen[-500:])
+        os.write(master, b"q")
+        out, _ = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        os.close(master)
+        reader.join(timeout=10)
+    assert p.returncode == 0
+    sim = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1", "--can",
+                          "--cpu", "estimated", "--cpu-report", "--json", "--duration", "2",
+                          "--no-progress"], capture_output=True, text=True, timeout=120)
+    got, want = json.loads(out), json.loads(sim.stdout)
+    for d in (got, want):
+        del d["wall_seconds"], d["speed"]
+    assert want["cpu_report"]["1"]["handlers"] and want["duration_ticks"] == 2 * TICK_HZ
+    assert got == want
+    assert pcap.stat().st_size > 1000

@@ -6,7 +6,8 @@ import sys
 
 from ..sim.world import ConfigError
 from .common import UserError, distinct_outputs, port_name, positive
-from .sim import add_sim_options, close_writers, open_writers, print_summary, sim_config
+from .sim import (add_sim_options, close_capture, close_writers, open_capture, open_writers,
+                  print_summary_and_report, sim_config)
 
 
 def _need_a_terminal(instead: str) -> None:
@@ -42,11 +43,6 @@ def cmd_monitor(a: argparse.Namespace) -> int:
             return run_monitor_radio(a.radio)
         except PortError as exc:
             raise UserError(str(exc)) from None
-    unused = [o for o, v in (("--pcap", a.pcap), ("--cpu-report", a.cpu_report)) if v]
-    if unused:      # taken from rprs sim's options, never written by the monitor
-        raise UserError(f"{', '.join(unused)}: the monitor does not record "
-                        f"{'them' if len(unused) > 1 else 'it'}; run rprs sim with the same "
-                        f"options for {'them' if len(unused) > 1 else 'it'}")
     cfg = sim_config(a)
     try:
         cfg.validate()
@@ -56,18 +52,28 @@ def cmd_monitor(a: argparse.Namespace) -> int:
         raise UserError(f"--mac {cfg.mac_kind}: the monitor shows the rotational MAC's ring "
                         f"(views, turns, queues); compare the peer MACs with rprs sim --mac "
                         f"{cfg.mac_kind}")
-    distinct_outputs(trace=a.trace, vcd=a.vcd)
+    distinct_outputs(trace=a.trace, vcd=a.vcd, pcap=a.pcap)
     _need_a_terminal("run rprs sim with the same options")
     trace, vcd = open_writers(a.trace, a.vcd)
+    try:
+        capture = open_capture(a.pcap)
+    except UserError:
+        close_writers(trace, vcd, ok=False)
+        raise
     ok = False
     try:
         code, world = run_monitor_sim(cfg, a.speed, trace=trace,
-                                      on_event=vcd.write if vcd is not None else None)
+                                      on_event=vcd.write if vcd is not None else None,
+                                      capture=capture)
         ok = True
     finally:
         close_writers(trace, vcd, ok)
-    if a.json:
-        print_summary(world, 0.0, as_json=True)
+        close_capture(capture, a.pcap, ok)
+    if a.json:                           # the world up to where the view was closed
+        print_summary_and_report(world, 0.0, a, cfg)
+    elif a.cpu_report:
+        from ..view.cpu_report import print_cpu_report
+        print_cpu_report(world, cfg.cpu)
     return code
 
 

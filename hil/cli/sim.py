@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -159,13 +160,11 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
     gets every event too."""
     distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
-    pcap_file = None
-    if pcap_path:
-        try:
-            pcap_file = open(pcap_path, "wb")
-        except OSError as exc:
-            close_writers(trace, vcd, ok=False)
-            raise UserError(f"cannot write capture {pcap_path}: {exc.strerror}") from None
+    try:
+        pcap_file = open_capture(pcap_path)
+    except UserError:
+        close_writers(trace, vcd, ok=False)
+        raise
     sinks = [f for f in (vcd.write if vcd is not None else None, on_event) if f is not None]
     try:
         world = World(cfg, trace, on_event=sinks[0] if len(sinks) == 1 else
@@ -193,14 +192,40 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         wall = time.perf_counter() - t0
     except BaseException:
         close_writers(trace, vcd, ok=False)
-        if pcap_file is not None:
-            pcap_file.close()
-            os.unlink(pcap_path)
+        close_capture(pcap_file, pcap_path, ok=False)
         raise
     close_writers(trace, vcd, ok=True)
-    if pcap_file is not None:
-        pcap_file.close()
+    close_capture(pcap_file, pcap_path, ok=True)
     return world, wall
+
+
+def open_capture(path: str | None):
+    """The binary file a pcapng capture goes to (None without ``--pcap``); one that cannot
+    be opened is a UserError."""
+    if not path:
+        return None
+    try:
+        return open(path, "wb")
+    except OSError as exc:
+        raise UserError(f"cannot write capture {path}: {exc.strerror}") from None
+
+
+def close_capture(f, path: str | None, ok: bool) -> None:
+    """Close the capture; if the run failed, or the file cannot be finished, remove it
+    (nothing half-written is left)."""
+    if f is None:
+        return
+    try:
+        f.close()
+    except OSError as exc:
+        ok, failed = False, exc
+    else:
+        failed = None
+    if not ok:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
+    if failed is not None:
+        raise UserError(f"cannot write capture {path}: {failed.strerror}") from None
 
 
 def print_summary(world: World, wall: float, as_json: bool, membership: bool = True,
@@ -277,6 +302,14 @@ def cmd_sim(a: argparse.Namespace, demo: bool = False, before_summary=None) -> i
                             pcap_path=getattr(a, "pcap", None))
     if before_summary is not None:
         before_summary(events)
+    print_summary_and_report(world, wall, a, cfg, membership=before_summary is None)
+    return 0
+
+
+def print_summary_and_report(world: World, wall: float, a: argparse.Namespace,
+                             cfg: SimConfig, membership: bool = True) -> None:
+    """The run's summary (``--json`` or text), and with ``--cpu-report`` each child's CPU
+    budget: inside the JSON, or as a table after the text."""
     report = getattr(a, "cpu_report", False)
     extra = None
     if report and a.json:
@@ -284,11 +317,10 @@ def cmd_sim(a: argparse.Namespace, demo: bool = False, before_summary=None) -> i
         extra = {"cpu_report": {r: cpu_budget(
             c, cfg.cpu.sample_wait_max.cycles, world.byte_ticks[r], world.sched.now)
             for r, c in sorted(world.cpus.items())}}
-    print_summary(world, wall, a.json, membership=before_summary is None, extra=extra)
+    print_summary(world, wall, a.json, membership=membership, extra=extra)
     if report and not a.json:
         from ..view.cpu_report import print_cpu_report
         print_cpu_report(world, cfg.cpu)
-    return 0
 
 
 def add(sub) -> None:

@@ -50,7 +50,7 @@ from __future__ import annotations
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Iterable
+from typing import Any, BinaryIO, Callable, Iterable
 
 from rich.text import Text
 from textual.app import App, ComposeResult
@@ -66,6 +66,7 @@ from firmware_model.radio.mac import Deliver
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, s_to_ticks
 
 from ..bench.scripts import HeardFrame, Sniffer
+from ..sim.pcap import PcapWriter
 from ..sim.world import SimConfig, World
 
 RATE_HZ = 10.0
@@ -334,13 +335,17 @@ class SimMonitorApp(MonitorApp):
 
     def __init__(self, config: SimConfig, speed: float = 1.0, paused: bool = False,
                  rate: float = RATE_HZ, keep: int = KEEP, trace: Any = None,
-                 on_event: Callable[[dict], None] | None = None) -> None:
-        """``trace`` (a TraceWriter) and ``on_event`` also get the world's events, as in
-        ``rprs sim`` (the caller closes them)."""
+                 on_event: Callable[[dict], None] | None = None,
+                 capture: BinaryIO | None = None) -> None:
+        """``trace`` (a TraceWriter) and ``on_event`` also get the world's events, and
+        ``capture`` (a binary file) its traffic as pcapng (hil/sim/pcap.py), as in ``rprs
+        sim`` (the caller closes them)."""
         if config.realtime:
             config = replace(config, realtime=False)   # the monitor paces the world itself
         self._also = on_event
         self.world = World(config, trace, on_event=self._on_event)
+        if capture is not None:
+            self.world.capture(PcapWriter(capture, *self.world.capture_interfaces()))
         super().__init__(config.robots, rate)
         self.sub_title = "simulator"
         self.speed = min(SPEED_MAX, max(SPEED_MIN, float(speed)))
@@ -801,11 +806,12 @@ class RadioMonitorApp(MonitorApp):
 
 
 def run_monitor_sim(config: SimConfig, speed: float = 1.0, trace: Any = None,
-                    on_event: Callable[[dict], None] | None = None) -> tuple[int, World]:
+                    on_event: Callable[[dict], None] | None = None,
+                    capture: BinaryIO | None = None) -> tuple[int, World]:
     """``rprs monitor [sim options] [--speed X]``: run the TUI on a simulated world until q.
     The world stops at ``config.duration`` (the header then says FINISHED). Returns the exit
     status and the world as it was when the view closed."""
-    app = SimMonitorApp(config, speed=speed, trace=trace, on_event=on_event)
+    app = SimMonitorApp(config, speed=speed, trace=trace, on_event=on_event, capture=capture)
     app.run()
     return app.return_code or 0, app.world
 
