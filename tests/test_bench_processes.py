@@ -220,14 +220,15 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
     """rprs father printed a JSON tx line for every frame; replies and failures were buried.
     Now each order is one line per change of state, with the reason and the time it took:
     a joint move ends done (the child's done() notice), status() replied (decoded), an
-    unreachable target failed with its code in words. --exit-when-done ends the process when
-    the input has ended and every order has; --json gives JSON lines only."""
+    unreachable target failed with its code in words, a move to where the joint already is
+    (never reported on by the child) unreported after --report-within. --exit-when-done ends
+    the process when the input has ended and every order has; --json gives JSON lines only."""
     can = f"rprs_unix:{tmp_path / 'can'}"
     kids = [spawn("child", "--id", "1", "--radio", hub.paths[1], "--team", "0,1", "--can", can),
             spawn("submodules", "--can", can)]
     father = subprocess.Popen(
         [sys.executable, "-m", "hil.cli", "father", "--radio", hub.paths[0], "--team", "0,1",
-         "--exit-when-done", *(["--json"] if mode == "json" else [])],
+         "--exit-when-done", "--report-within", "3", *(["--json"] if mode == "json" else [])],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     lines: list[str] = []
     _lines_of(father, lines)
@@ -239,15 +240,17 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
             return _r1_in_ring(lines)
         assert wait_for(joined, 40.0), lines[-5:]
         time.sleep(0.5)                                   # R1 hears its submodules' status
-        father.stdin.write("1 joint(1,20)\n1 status()\n1 moveto(900,0,0)\n")
+        father.stdin.write("1 joint(1,20)\n1 status()\n1 moveto(900,0,0)\n1 joint(1,20)\n")
         father.stdin.close()
         assert father.wait(timeout=40) == 0, father.stderr.read()
     finally:
         stop([father, *kids])
     if mode == "json":
         evs = [json.loads(x) for x in lines]               # every line is JSON
-        ends = {e["order"]: e for e in evs if e["ev"] == "order" and
+        ends = {e["order"]: e for e in evs if e["ev"] == "order" and e["id"] < 4 and
                 e["state"] in ("done", "replied", "failed")}
+        assert [e["id"] for e in evs if e["ev"] == "order" and
+                e["state"] == "unreported"] == [4]
         assert ends["joint(1,20)"]["state"] == "done"
         assert ends["status()"]["state"] == "replied" and "joint 2 45 deg" in \
             ends["status()"]["reply"]                   # (asked while joint 1 moves)
@@ -259,7 +262,8 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
                  "#1 -> R1 joint(1,20): acknowledged in", "#1 -> R1 joint(1,20): done in",
                  "#2 -> R1 status(): replied in", ", joint 2 45 deg, joint 3 -90 deg",
                  "#3 -> R1 moveto(900,0,0): failed after",
-                 "fail(1): target out of the arm's reach"):
+                 "fail(1): target out of the arm's reach",
+                 "#4 -> R1 joint(1,20): unreported after", "no report within 3 s"):
         assert want in text, (want, lines)
     assert len(lines) < 30, lines
 

@@ -90,3 +90,27 @@ def test_stop_is_done_once_acknowledged():
     book, msg, seen = _order(cmd("stop"))
     book.observe(Outcome(msg, True, ""), 100)
     assert seen[-2:] == [(1, "acknowledged", 100, ""), (1, "done", 100, "")]
+
+
+def test_an_order_the_robot_never_reports_on_ends_unreported():
+    """A move to where the arm already is, or one a newer order replaced, is never reported
+    (docs/dispatcher.md): REPORT_WITHIN_S after its acknowledgement it ends ``unreported``,
+    so ``rprs father --exit-when-done`` ends; an order not yet acknowledged waits on."""
+    from firmware_model.timing import TICK_HZ
+    from hil.bench.orders import REPORT_WITHIN_S, TERMINAL
+    book, msg, seen = _order(cmd("movex", 0))
+    other = Message(src=0, dst=2, num=2, type=2, commands=(cmd("joint", 1, 5),), content=b"",
+                    submitted=0)
+    book.submitted(other, 0)                           # never acknowledged
+    acked = 3 * TICK_HZ
+    book.observe(Outcome(msg, True, ""), acked)
+    book.expire(acked + int(REPORT_WITHIN_S * TICK_HZ) - 1)
+    assert seen[-1][1] == "acknowledged" and len(book.open_orders()) == 2
+    book.expire(acked + int(REPORT_WITHIN_S * TICK_HZ))
+    assert seen[-1][:2] == (1, "unreported") and "no report within 60 s" in seen[-1][3]
+    assert "unreported" in TERMINAL and [o.id for o in book.open_orders()] == [2]
+    book.expire(acked + 10 * int(REPORT_WITHIN_S * TICK_HZ), within_s=1.0)
+    assert [o.id for o in book.open_orders()] == [2]
+    late = Deliver(1, 0, 5, int(FrameType.BROADCAST_INFO), (cmd("done"), cmd("movex", 0)))
+    book.observe(late, acked + 70 * TICK_HZ)            # too late: the order has ended
+    assert seen[-1][:2] == (1, "unreported")

@@ -3,8 +3,9 @@ with the reason and the time it took, and the robots' replies decoded (``rprs fa
 
 An order goes ``queued`` (submitted to the MAC) -> ``sent`` (its first frame on air) ->
 ``acknowledged`` (the robot's ``ack``) -> ``done`` (the robot's ``done()`` notice, protocol 3.0),
-``replied`` (the answer to ``status()``), or ``failed`` (no acknowledgement after the MAC's
-attempts, or the robot's ``fail(code)`` with that order). An order of ``act(n,0)`` ends when the
+``replied`` (the answer to ``status()``), ``failed`` (no acknowledgement after the MAC's
+attempts, or the robot's ``fail(code)`` with that order), or ``unreported`` (acknowledged, and
+no report :data:`REPORT_WITHIN_S` later: :meth:`OrderBook.expire`). An order of ``act(n,0)`` ends when the
 robot broadcasts ``act(n,1)``; ``stop()``, which the robot carries out at once and reports on
 no further, ends with its acknowledgement; a broadcast (destination 7), and every order in the
 paper profile (nothing is acknowledged there), ends ``sent``. A message of several commands
@@ -34,7 +35,12 @@ FAIL_REASONS = {
 """The child's failure codes (docs/dispatcher.md); 10+n, 20+n, 30+n name submodule n."""
 
 NODE_NAMES = {1: "joint 1", 2: "joint 2", 3: "joint 3", 4: "joint 4", 5: "wheel", 6: "paw"}
-TERMINAL = frozenset({"done", "replied", "failed", "sent-only"})
+TERMINAL = frozenset({"done", "replied", "failed", "sent-only", "unreported"})
+REPORT_WITHIN_S = 60.0
+"""Seconds after its acknowledgement by which an order is reported on, or never will be: the
+child reports every job it runs done or failed within twice its planned time + 1 s (at most
+about 13 s: a joint's whole range at its rated speed), and no report at all for a move to where
+the arm already is or an order replaced by a newer one (docs/dispatcher.md)."""
 REPORTED = frozenset({"movex", "movey", "movez", "moveto", "joint", "wheel", "paw", "status"})
 """Commands the robot reports on by themselves: ``done()`` and the command, the reply to
 ``status()``, or ``fail(code)`` and the command; ``act(n,0)`` is reported by ``act(n,1)``. Any
@@ -141,6 +147,16 @@ class OrderBook:
                 self._set(o, "failed", now, a.reason)
         elif t is Deliver:
             self._news(a, now)
+
+    def expire(self, now: int, within_s: float = REPORT_WITHIN_S) -> None:
+        """End ``unreported`` every order acknowledged ``within_s`` seconds ago or more that
+        the robot has not reported on: it never will."""
+        for o in self.open_orders():
+            acked = next((t for t, state in o.history if state == "acknowledged"), None)
+            if acked is not None and (now - acked) / TICK_HZ >= within_s:
+                self._set(o, "unreported", now, f"no report within {within_s:g} s of its "
+                          f"acknowledgement: the robot reports none for a move to where the "
+                          f"arm already is, or for an order a newer one replaced")
 
     def _acknowledged(self, o: Order, now: int) -> None:
         self._set(o, "acknowledged", now)

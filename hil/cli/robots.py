@@ -5,8 +5,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import (UserError, digit, mac_config, mac_options, port_name, realtime_options,
-                     run_until_stopped, stopped_by_itself, txen_option)
+from firmware_model.timing import TICK_HZ
+
+from ..bench.orders import REPORT_WITHIN_S
+from .common import (UserError, digit, mac_config, mac_options, port_name, positive,
+                     realtime_options, run_until_stopped, stopped_by_itself, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_child, summary_line
@@ -124,6 +127,11 @@ def cmd_father(a: argparse.Namespace) -> int:
 
     book = OrderBook(on_change=changed, on_news=console.news)
 
+    def expire() -> None:                          # once a second, on the station's clock
+        book.expire(runner.sched.now, a.report_within)
+        runner.sched.after(TICK_HZ, expire)
+    runner.sched.post(expire)
+
     def order(line: str) -> str | None:          # a typed order (the app's thread)
         from ..bench.runner import parse_order
         try:
@@ -203,6 +211,10 @@ def add(sub) -> None:
                     "replied, failed) and errors")
     fa.add_argument("--exit-when-done", action="store_true", help="exit once the input has "
                     "ended and every order has ended (for scripts)")
+    fa.add_argument("--report-within", type=positive, default=REPORT_WITHIN_S, metavar="S",
+                    help="an acknowledged order with no report S seconds later ends "
+                    "'unreported': the child reports nothing for a move to where the arm "
+                    f"already is, or an order a newer one replaced (default {REPORT_WITHIN_S:g})")
     fa.add_argument("--plain", action="store_true", help="at a terminal, lines instead of the "
                     "live view (the view is used only when stdin and stdout are a terminal)")
     fa.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)

@@ -52,7 +52,7 @@ class FatherConsole:
             tail = f" (Number {o.message.num:02d})"
         elif o.state == "replied":
             tail = f" in {took}: {o.reply}"
-        elif o.state in ("failed", "sent-only"):
+        elif o.state in ("failed", "sent-only", "unreported"):
             tail = f" after {took}: {o.reason}"
         else:
             tail = f" in {took}"
