@@ -6,6 +6,7 @@ import random
 
 import pytest
 
+from firmware_model.timing import TICK_HZ, s_to_ticks
 from hil.cli import main
 from hil.sim.faults import parse_fault
 from hil.sim.soak import random_faults, run_soak
@@ -53,28 +54,57 @@ def test_soak_command_json(capsys):
     assert out[0]["checksum"] and all(out[0]["invariants"].values())
 
 
+def _stepwise(w, faults) -> tuple[list[float], int]:
+    """The re-formation timer as it was first written: the world run in steps of SAMPLE_S,
+    the ring checked at every step after a fault ends with no other active."""
+    from hil.sim.soak import REFORM_BOUND_S, SAMPLE_S
+    ends = sorted({round(f.end, 6) for f in faults if f.kind != "skew"})
+    starts = [(f.at, f.end) for f in faults]
+    reform, not_reformed, pending, i = [], 0, None, 0
+    while w.now < w.end_tick:
+        w.run(w.now + s_to_ticks(SAMPLE_S), wake_can=False)
+        now_s = w.now / TICK_HZ
+        while i < len(ends) and ends[i] <= now_s:
+            if not any(a <= now_s < e for a, e in starts):
+                pending = ends[i] if pending is None else pending
+            i += 1
+        if pending is not None:
+            if w.ring_complete():
+                reform.append(round(now_s - pending, 3))
+                pending = None
+            elif now_s - pending > 4 * REFORM_BOUND_S:
+                not_reformed += 1
+                pending = None
+    if pending is not None and not w.ring_complete():
+        not_reformed += 1
+    return reform, not_reformed
+
+
 @pytest.mark.parametrize("spec", [
     ("fail:2@12", "recover:2@20.1"),
     ("fail:0@7.3", "recover:0@9", "ber@30-31:0.01", "steal:1@44.4"),
     (),
 ])
 def test_reformations_timed_in_long_steps_are_the_same(spec):
-    """Without a progress callback the re-formation timer runs the world in one go between
-    the fault ends it must see (so that an idle ring can leap over its cycles): the same
-    re-formation times, the same run, as step by step."""
+    """The re-formation timer runs the world in one go between the fault ends it must see
+    (so that an idle ring can leap over its cycles), with a progress callback too (then in
+    runs of a hundredth of the soak at most): the same re-formation times, the same run, as
+    step by step."""
     from hil.sim.soak import run_timing_reformations
     from hil.sim.world import SimConfig, World
     faults = tuple(parse_fault(x) for x in spec)
     cfg = SimConfig(robots=(0, 1, 2, 3), duration=80, seed=5, faults=faults)
-    stepped, whole = World(cfg), World(cfg)
+    stepped, shown, whole = World(cfg), World(cfg), World(cfg)
     calls = []
-    a = run_timing_reformations(stepped, faults, progress=calls.append)
-    b = run_timing_reformations(whole, faults)
-    assert a == b and len(calls) == 320
-    assert stepped.summary() == whole.summary()
+    want = _stepwise(stepped, faults)
+    assert run_timing_reformations(shown, faults, progress=calls.append) == want
+    assert run_timing_reformations(whole, faults) == want
+    assert stepped.summary() == shown.summary() == whole.summary()
+    assert 100 <= len(calls) <= 320 and calls == sorted(calls) and calls[-1] == 80.0
+    assert max(b - a for a, b in zip([0.0] + calls, calls)) <= 0.8 + 1e-9
     assert whole.quiet_ring.ticks_skipped > stepped.quiet_ring.ticks_skipped
     if faults:
-        assert a[1] == 0 and len(a[0]) >= 1
+        assert want[1] == 0 and len(want[0]) >= 1
 
 
 def test_step_seeing_lands_on_the_first_sample_past_a_fault_end():
@@ -86,3 +116,26 @@ def test_step_seeing_lands_on_the_first_sample_past_a_fault_end():
     assert _step_seeing(step, step, 0.1, 10**12) == 2 * step      # at least one step
     assert _step_seeing(0, step, None, 99) == 99
     assert _step_seeing(0, step, 50.0, 7 * step) == 7 * step
+
+
+def test_both_checksum_settings_side_by_side_are_the_runs_one_after_the_other():
+    """``rprs soak --checksum both`` runs the two soaks in two processes at once: the same
+    results, in the same order, as one after the other (only the wall time differs); the
+    progress of each is reported under its own index."""
+    from hil.sim.soak import run_soaks
+    seen: dict[int, float] = {}
+    apart = run_soaks(0.05, 3, [True, False], parallel=True, can=False,
+                      progress=lambda i, s: seen.__setitem__(i, max(s, seen.get(i, 0.0))))
+    serial = run_soaks(0.05, 3, [True, False], parallel=False, can=False)
+    for r in apart + serial:
+        r.wall_s = 0.0
+    assert apart == serial
+    assert [r.checksum for r in apart] == [True, False]
+    assert apart[0].summary != apart[1].summary          # two different runs
+    assert set(seen) <= {0, 1} and all(0.0 <= s <= 180.0 for s in seen.values())
+
+
+def test_a_soak_process_that_fails_is_an_error_not_a_hang():
+    from hil.sim.soak import run_soaks
+    with pytest.raises(ValueError, match="at least"):
+        run_soaks(0.001, 3, [True, False], parallel=True, can=False)

@@ -225,14 +225,24 @@ def stopped_by_itself(runner) -> int:
 
 def progress_bar(total: float, label: str):
     """A progress bar on a terminal, nothing otherwise; returns (update, close)."""
+    updates, close = progress_bars(total, [label])
+    return (updates[0] if updates is not None else (lambda x: None)), close
+
+
+def progress_bars(total: float, labels: list[str]):
+    """Progress bars on a terminal, one per label, each going to ``total``; returns
+    (updates, close): ``updates[i](x)`` moves bar i. Not on a terminal: (None, close), so
+    that the caller can run without progress calls at all (a soak then runs in longer
+    stretches, hil/sim/soak.py)."""
     if not sys.stderr.isatty():
-        return (lambda x: None), (lambda: None)
+        return None, (lambda: None)
     from rich.progress import BarColumn, Progress, TextColumn
-    bar = Progress(TextColumn(label), BarColumn(), TextColumn("{task.completed:.0f}/"
-                   "{task.total:.0f}"), transient=True, console=stderr_console())
-    task = bar.add_task(label, total=total)
+    bar = Progress(TextColumn("{task.description}"), BarColumn(),
+                   TextColumn("{task.completed:.0f}/{task.total:.0f}"), transient=True,
+                   console=stderr_console())
+    tasks = [bar.add_task(label, total=total) for label in labels]
     bar.start()
-    return (lambda x: bar.update(task, completed=x)), bar.stop
+    return [(lambda x, t=t: bar.update(t, completed=x)) for t in tasks], bar.stop
 
 
 def stderr_console():

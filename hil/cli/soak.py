@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import positive, progress_bar, robot_list
+from .common import positive, progress_bars, robot_list
 
 def _hours(text: str) -> float:
     from ..sim.soak import DRAIN_S, MIN_HOURS
@@ -18,17 +18,17 @@ def _hours(text: str) -> float:
 
 
 def cmd_soak(a: argparse.Namespace) -> int:
-    from ..sim.soak import report, run_soak
-    robots = a.robots
+    from ..sim.soak import report, run_soaks
     modes = {"on": [True], "off": [False], "both": [True, False]}[a.checksum_mode]
-    results = []
-    for ck in modes:
-        update, close = progress_bar(a.hours * 3600, f"soak, checksum {'on' if ck else 'off'}")
-        try:
-            results.append(run_soak(a.hours, a.seed, robots=robots, checksum=ck, can=not a.no_can,
-                                    load=a.rate, progress=update))
-        finally:
-            close()
+    # one bar per run (with --checksum both, the two run side by side on two CPUs)
+    updates, close = progress_bars(a.hours * 3600, [f"soak, checksum {'on' if ck else 'off'}"
+                                                    for ck in modes])
+    try:
+        results = run_soaks(a.hours, a.seed, modes, robots=a.robots, can=not a.no_can,
+                            load=a.rate, progress=None if updates is None else
+                            (lambda i, s: updates[i](s)))
+    finally:
+        close()
     if a.json:
         print(json.dumps([{"checksum": r.checksum, "invariants": r.invariants,
                            "summary": {k: v for k, v in r.summary.items()

@@ -15,9 +15,12 @@ apart, with traffic, then lets the queues drain and checks the guarantees of doc
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
 import random
 import time
 from dataclasses import dataclass, field
+from functools import partial
 
 from firmware_model.radio.mac import MacConfig
 from firmware_model.timing import TICK_HZ, s_to_ticks
@@ -121,21 +124,24 @@ def run_timing_reformations(w: World, faults, progress=None) -> tuple[list[float
     """Run ``w`` to its end in steps of SAMPLE_S; after each fault ends with no other active,
     time how long until the ring is whole again (``World.ring_complete``). Returns those
     times (s, to SAMPLE_S) and how many re-formations did not happen (within 4 x the bound,
-    or by the end). ``progress(simulated_s)`` is called at each step. Without ``progress``,
-    the steps while no re-formation is being timed go in one run to the step at which the
-    next fault's end is seen: the same samples, and room for an idle ring to leap over its
-    cycles (hil/sim/quiet_ring.py), which a step bounds."""
+    or by the end). While no re-formation is being timed, the steps go in one run to the step
+    at which the next fault's end is seen: the same samples, and room for an idle ring to leap
+    over its cycles (hil/sim/quiet_ring.py), which a step bounds. ``progress(simulated_s)``
+    is called after each run, at least every hundredth of the soak (a run stops there)."""
     ends = sorted({round(f.end, 6) for f in faults if f.kind != "skew"})
     starts = [(f.at, f.end) for f in faults]
     reform: list[float] = []
     not_reformed = 0
     pending_end: float | None = None
     step = s_to_ticks(SAMPLE_S)
+    shown = max(1, w.end_tick // 100 // step) * step      # ticks between progress calls
     i = 0
     while w.now < w.end_tick:
         until = w.now + step
-        if progress is None and pending_end is None:
+        if pending_end is None:
             until = _step_seeing(w.now, step, ends[i] if i < len(ends) else None, w.end_tick)
+            if progress is not None:
+                until = min(until, w.now + shown)
         w.run(until, wake_can=False)             # the ring check reads the radio side only
         now_s = w.now / TICK_HZ
         while i < len(ends) and ends[i] <= now_s:
@@ -207,6 +213,60 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
         periods = len(w.quiet) * (w.end_tick // PERIOD)
         res.can_periods_skipped = sum(q.periods_skipped for q in w.quiet.values()) / periods
     return res
+
+
+def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | None = None,
+              progress=None, **kw) -> list[SoakResult]:
+    """:func:`run_soak` once per checksum setting (the paper's frame against the extension,
+    same seed), in that order. ``parallel`` (default: with two runs and two CPUs or more):
+    each run in a process of its own at the same time; the results are the same as one
+    after the other, only the wall time differs. ``progress(i, simulated_s)`` is called for
+    run ``i`` as it goes."""
+    if parallel is None:
+        parallel = len(checksums) > 1 and (os.cpu_count() or 1) > 1
+    if not parallel:
+        return [run_soak(hours, seed, checksum=ck, progress=None if progress is None else
+                         partial(progress, i), **kw) for i, ck in enumerate(checksums)]
+    ctx = multiprocessing.get_context("fork")
+    done = [ctx.Value("d", 0.0, lock=False) for _ in checksums]
+    out = ctx.SimpleQueue()
+    procs = [ctx.Process(target=_soak_child, args=(out, i, done[i], hours, seed, ck, kw),
+                         daemon=True) for i, ck in enumerate(checksums)]
+    for p in procs:
+        p.start()
+    results: dict[int, SoakResult] = {}
+    try:
+        while len(results) < len(procs):
+            while not out.empty():
+                i, res = out.get()
+                if isinstance(res, BaseException):
+                    raise res
+                results[i] = res
+            if len(results) < len(procs) and not any(p.is_alive() for p in procs) and \
+                    out.empty():
+                raise RuntimeError("a soak process died without a result (exit status "
+                                   + ", ".join(str(p.exitcode) for p in procs) + ")")
+            if progress is not None:
+                for i, v in enumerate(done):
+                    progress(i, v.value)
+            time.sleep(0.1)
+    finally:
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
+            p.join()
+    return [results[i] for i in range(len(procs))]
+
+
+def _soak_child(out, i: int, done, hours: float, seed: int, checksum: bool, kw: dict) -> None:
+    """One run of :func:`run_soaks` in its own process: its result (or its error) goes back
+    through ``out``, its simulated seconds into ``done``."""
+    def progress(s: float) -> None:
+        done.value = s
+    try:
+        out.put((i, run_soak(hours, seed, checksum=checksum, progress=progress, **kw)))
+    except BaseException as exc:          # noqa: BLE001 - handed to the parent, which raises it
+        out.put((i, exc))
 
 
 def report(results: list[SoakResult]) -> str:
