@@ -139,3 +139,35 @@ def test_a_soak_process_that_fails_is_an_error_not_a_hang():
     from hil.sim.soak import run_soaks
     with pytest.raises(ValueError, match="at least"):
         run_soaks(0.001, 3, [True, False], parallel=True, can=False)
+
+
+def test_ctrl_c_stops_both_soaks_and_leaves_no_process():
+    """Ctrl-C (SIGINT to the terminal's process group) during ``--checksum both``: the
+    parent stops its two soak processes and exits 130 with one line; nothing keeps running."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "soak", "--hours", "0.3", "--seed",
+                          "1", "--checksum", "both", "--no-can"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:            # both soak processes started
+            kids = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True,
+                                  text=True).stdout.split()
+            if len(kids) == 2:
+                break
+            time.sleep(0.1)
+        assert len(kids) == 2, kids
+        os.killpg(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+    assert p.returncode == 130 and err.strip() == "rprs: interrupted", err[-500:]
+    for k in kids:
+        assert not os.path.exists(f"/proc/{k}") or \
+            open(f"/proc/{k}/status").read().split("State:")[1].split()[0] == "Z"

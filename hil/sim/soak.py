@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import multiprocessing.connection
 import os
 import random
+import signal
 import time
 from dataclasses import dataclass, field
 from functools import partial
@@ -229,44 +231,57 @@ def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | N
                          partial(progress, i), **kw) for i, ck in enumerate(checksums)]
     ctx = multiprocessing.get_context("fork")
     done = [ctx.Value("d", 0.0, lock=False) for _ in checksums]
-    out = ctx.SimpleQueue()
-    procs = [ctx.Process(target=_soak_child, args=(out, i, done[i], hours, seed, ck, kw),
+    pipes = [ctx.Pipe(duplex=False) for _ in checksums]         # (parent's end, child's)
+    procs = [ctx.Process(target=_soak_child, args=(pipes[i][1], done[i], hours, seed, ck, kw),
                          daemon=True) for i, ck in enumerate(checksums)]
-    for p in procs:
-        p.start()
     results: dict[int, SoakResult] = {}
     try:
-        while len(results) < len(procs):
-            while not out.empty():
-                i, res = out.get()
+        for p in procs:
+            p.start()
+        for _, child_end in pipes:
+            child_end.close()
+        waiting = {parent_end: i for i, (parent_end, _) in enumerate(pipes)}
+        while waiting:
+            for conn in multiprocessing.connection.wait(list(waiting), timeout=0.1):
+                i = waiting.pop(conn)
+                try:
+                    res = conn.recv()
+                except EOFError:
+                    procs[i].join()
+                    raise RuntimeError(f"the soak process with checksum "
+                                       f"{'on' if checksums[i] else 'off'} died without a "
+                                       f"result (exit status {procs[i].exitcode})") from None
                 if isinstance(res, BaseException):
                     raise res
                 results[i] = res
-            if len(results) < len(procs) and not any(p.is_alive() for p in procs) and \
-                    out.empty():
-                raise RuntimeError("a soak process died without a result (exit status "
-                                   + ", ".join(str(p.exitcode) for p in procs) + ")")
             if progress is not None:
                 for i, v in enumerate(done):
                     progress(i, v.value)
-            time.sleep(0.1)
-    finally:
+    finally:                              # Ctrl-C or a failure: no soak is left running
         for p in procs:
             if p.is_alive():
                 p.terminate()
-            p.join()
+            if p.pid is not None:
+                p.join()
+        for parent_end, _ in pipes:
+            parent_end.close()
     return [results[i] for i in range(len(procs))]
 
 
-def _soak_child(out, i: int, done, hours: float, seed: int, checksum: bool, kw: dict) -> None:
+def _soak_child(conn, done, hours: float, seed: int, checksum: bool, kw: dict) -> None:
     """One run of :func:`run_soaks` in its own process: its result (or its error) goes back
-    through ``out``, its simulated seconds into ``done``."""
+    through ``conn``, its simulated seconds into ``done``. Ctrl-C is the parent's to handle
+    (it stops this process)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
     def progress(s: float) -> None:
         done.value = s
     try:
-        out.put((i, run_soak(hours, seed, checksum=checksum, progress=progress, **kw)))
-    except BaseException as exc:          # noqa: BLE001 - handed to the parent, which raises it
-        out.put((i, exc))
+        res: object = run_soak(hours, seed, checksum=checksum, progress=progress, **kw)
+    except Exception as exc:              # noqa: BLE001 - handed to the parent, which raises it
+        res = exc
+    conn.send(res)
+    conn.close()
 
 
 def report(results: list[SoakResult]) -> str:
