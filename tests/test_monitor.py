@@ -380,6 +380,39 @@ def test_a_speed_the_keys_cannot_reach_is_refused_and_any_speed_shows_as_it_is()
         ["×1/64", "×1/2", "×0.75", "×0.3", "×1", "×1.5", "×4096"]
 
 
+def _once_drawn(p, master: int, text: bytes, act) -> tuple[bytes, bytearray]:
+    """Keep the pty's master drained (a full pty blocks the monitor's writes), wait until
+    ``text`` is drawn, ``act()``, and wait for the process: (its stdout, what was drawn)."""
+    import threading
+    screen = bytearray()
+
+    def read():
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:
+                return
+            if not chunk:
+                return
+            screen.extend(chunk)
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + 120
+        while text not in screen and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert text in screen, bytes(screen[-500:])
+        act()
+        out, _ = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        os.close(master)
+        reader.join(timeout=10)
+    return out, screen
+
+
 def _monitor_cmd(*args):
     import sys
     return [sys.executable, "-m", "hil.cli", "monitor", *args]
@@ -408,38 +441,13 @@ def test_sigterm_and_sighup_quit_the_monitor_like_q(tmp_path, signame):
     import pty
     import signal
     import subprocess
-    import threading
     master, slave = pty.openpty()
     trace = tmp_path / "t.jsonl"
     p = subprocess.Popen(_monitor_cmd("--robots", "0,1", "--trace", str(trace), "--json"),
                          stdin=slave, stdout=subprocess.PIPE, stderr=slave, start_new_session=True)
     os.close(slave)
-    screen = bytearray()
-
-    def read():                       # keep the pty drained, keep what was drawn
-        while True:
-            try:
-                chunk = os.read(master, 65536)
-            except OSError:
-                return
-            if not chunk:
-                return
-            screen.extend(chunk)
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    try:
-        deadline = time.monotonic() + 120
-        while b"occupations" not in screen and p.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.1)
-        assert b"occupations" in screen, bytes(screen[-500:])
-        p.send_signal(getattr(signal, signame))
-        out, _ = p.communicate(timeout=120)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-        os.close(master)
-        reader.join(timeout=10)
+    out, screen = _once_drawn(p, master, b"occupations",
+                              lambda: p.send_signal(getattr(signal, signame)))
     assert p.returncode == 0
     assert trace.exists() and not (tmp_path / "t.jsonl.partial").exists()
     assert b'"robots"' in out                                # the --json summary
@@ -548,7 +556,6 @@ def test_the_monitor_reports_the_cpu_budget_of_what_it_ran(tmp_path):
     import json
     import pty
     import subprocess
-    import threading
     master, slave = pty.openpty()
     pcap = tmp_path / "m.pcapng"
     p = subprocess.Popen(_monitor_cmd("--robots", "0,1", "--can", "--cpu", "estimated",
@@ -560,32 +567,7 @@ def test_the_monitor_reports_the_cpu_budget_of_what_it_ran(tmp_path):
                          # the header's "FINISHED" short)
                          env=dict(os.environ, COLUMNS="200", LINES="50"))
     os.close(slave)
-    screen = bytearray()
-
-    def read():
-        while True:
-            try:
-                chunk = os.read(master, 65536)
-            except OSError:
-                return
-            if not chunk:
-                return
-            screen.extend(chunk)
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    try:
-        deadline = time.monotonic() + 120
-        while b"FINISHED" not in screen and p.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.1)
-        assert b"FINISHED" in screen, bytes(screen[-500:])
-        os.write(master, b"q")
-        out, _ = p.communicate(timeout=120)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-        os.close(master)
-        reader.join(timeout=10)
+    out, _ = _once_drawn(p, master, b"FINISHED", lambda: os.write(master, b"q"))
     assert p.returncode == 0
     sim = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1", "--can",
                           "--cpu", "estimated", "--cpu-report", "--json", "--duration", "2",
