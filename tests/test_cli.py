@@ -435,3 +435,70 @@ def test_a_father_order_to_the_father_itself_is_refused_as_it_is_parsed():
                        r"robot\), got 0: 0 is the father itself"):
         parse_order("0 status()")
     assert parse_order("7 status()")[0] == 7
+
+
+def _read_fifo(path: Path, got: list) -> "threading.Thread":
+    """A reader that takes everything written to the FIFO ``path`` into ``got``."""
+    import threading
+
+    def read():
+        with open(path, "rb") as f:
+            got.append(f.read())
+    t = threading.Thread(target=read, daemon=True)
+    t.start()
+    return t
+
+
+def test_outputs_through_a_link_or_into_a_fifo_leave_the_link_and_the_fifo(tmp_path, capsys):
+    """An output was written to ``PATH.partial`` and renamed over PATH, whatever PATH was: a
+    symlink became a regular file (its target never written), a FIFO was replaced by a file
+    (its reader got nothing), and as root ``--trace /dev/null`` replaced /dev/null by a regular
+    file. A link is written through now, and a FIFO or a device straight."""
+    import os
+    import stat
+    real = tmp_path / "real.jsonl"
+    link = tmp_path / "link.jsonl"
+    link.symlink_to(real)
+    fifo = tmp_path / "capture"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = _read_fifo(fifo, got)
+    code, _, err = rprs(capsys, "sim", "--duration", "3", "--trace", str(link), "--pcap",
+                        str(fifo))
+    reader.join(30)
+    assert code == 0, err
+    assert link.is_symlink() and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert real.read_text().startswith('{"ev":"meta"')
+    assert got and got[0][:4] == b"\x0a\x0d\x0d\x0a" and len(got[0]) > 1000   # pcapng SHB
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_a_plot_through_a_link_or_into_a_fifo(tmp_path, capsys):
+    import os
+    import stat
+    trace = tmp_path / "t.jsonl"
+    assert rprs(capsys, "sim", "--duration", "3", "--trace", str(trace))[0] == 0
+    real = tmp_path / "real.svg"
+    link = tmp_path / "link.svg"
+    link.symlink_to(real)
+    assert rprs(capsys, "plot", str(trace), "-o", str(link))[0] == 0
+    assert link.is_symlink() and real.read_bytes().startswith(b"<?xml")
+    fifo = tmp_path / "fig.svg"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = _read_fifo(fifo, got)
+    code, _, err = rprs(capsys, "plot", str(trace), "-o", str(fifo))
+    reader.join(30)
+    assert code == 0, err
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert got and got[0] == real.read_bytes()          # the same bytes, clip paths numbered
+    assert not list(tmp_path.glob("*.partial"))
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_a_full_disk_under_the_capture_is_one_line(capsys):
+    """``--pcap /dev/full`` ended in an OSError traceback when the capture was closed."""
+    code, _, err = rprs(capsys, "sim", "--duration", "2", "--pcap", "/dev/full")
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith("rprs: error: cannot write capture /dev/full: No space left")
+    assert Path("/dev/full").is_char_device()

@@ -9,7 +9,7 @@ import time
 
 from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
-from ..sim.trace import TraceWriter
+from ..sim.trace import OutputFile, TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
 from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
 
@@ -53,7 +53,8 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "comparison; default: the paper's rotational MAC)")
         p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
                        help="peer MACs: frame size of the load (default 80)")
-        p.add_argument("--vcd", metavar="FILE", help="write a waveform (GTKWave) here")
+        p.add_argument("--vcd", metavar="FILE",
+                       help="write a waveform (GTKWave) here")
         p.add_argument("--cpu", choices=("ideal", "estimated"), default=None,
                        help="the children's CPU: ideal (every handler in zero time, the "
                        "paper's timing; the default) or estimated (the MB90F549 model with "
@@ -63,13 +64,15 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "estimated")
         p.add_argument("--cpu-report", action="store_true", help="print each child's CPU "
                        "budget: per handler, per second, worst case; implies --cpu estimated")
-    p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+    p.add_argument("--trace", metavar="FILE",
+                   help="write the JSON Lines trace here")
     p.add_argument("--every-frame", action="store_true",
                    help="run every frame one by one: no leap over the cycles an idle ring "
                    "repeats, no sleeping CAN side (the same results to the tick, slower; "
                    "docs/performance.md)")
     if not demo:
-        p.add_argument("--pcap", metavar="FILE", help="write a pcapng capture here: every "
+        p.add_argument("--pcap", metavar="FILE",
+                       help="write a pcapng capture here: every "
                        "radio transmission and CAN frame, for Wireshark with the rprs plugin "
                        "(docs/wireshark.md)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -143,26 +146,36 @@ def open_writers(trace_path: str | None, vcd_path: str | None):
 
 
 def close_writers(trace, vcd, ok: bool) -> None:
-    """Close the writers (their files appear whole) or, if the run failed, discard them."""
-    for w in (trace, vcd):
+    """Close the writers (their files appear whole) or, if the run failed, discard them. One
+    that cannot be closed (the disk filled) is a UserError, the other closed all the same."""
+    error = None
+    for what, w in (("trace", trace), ("VCD", vcd)):
         if w is not None:
             try:
                 w.close() if ok else w.discard()
             except OSError as exc:     # the path became a directory, the disk filled...
-                raise UserError(f"cannot write {w.path}: {exc.strerror}") from None
+                error = error or UserError(f"cannot write {what} {w.path}: {exc.strerror}")
+    if error is not None:
+        raise error
+
+
+def _outputs(**paths: str | None) -> str:
+    """``trace run.jsonl, capture run.pcapng``: the outputs given, for an error message."""
+    return ", ".join(f"{what} {p}" for what, p in paths.items() if p)
 
 
 def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
               vcd_path: str | None = None, on_event=None,
               pcap_path: str | None = None) -> tuple[World, float]:
     """Run the world to its end, with its trace, waveform and capture files; ``on_event``
-    gets every event too."""
+    gets every event too. An output that cannot be written during the run (a full disk) is a
+    UserError, and no output is left."""
     distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
     pcap_file = None
     if pcap_path:
         try:
-            pcap_file = open(pcap_path, "wb")
+            pcap_file = OutputFile(pcap_path, binary=True)
         except OSError as exc:
             close_writers(trace, vcd, ok=False)
             raise UserError(f"cannot write capture {pcap_path}: {exc.strerror}") from None
@@ -172,7 +185,7 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
                       (lambda ev: [f(ev) for f in sinks]) if sinks else None)
         if pcap_file is not None:
             from ..sim.pcap import PcapWriter
-            world.capture(PcapWriter(pcap_file, *world.capture_interfaces()))
+            world.capture(PcapWriter(pcap_file.f, *world.capture_interfaces()))
         t0 = time.perf_counter()
         end = world.end_tick
         if progress:
@@ -191,15 +204,17 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         else:
             world.run()
         wall = time.perf_counter() - t0
-    except BaseException:
+        if pcap_file is not None:
+            pcap_file.commit()
+    except BaseException as exc:
         close_writers(trace, vcd, ok=False)
         if pcap_file is not None:
-            pcap_file.close()
-            os.unlink(pcap_path)
+            pcap_file.discard()
+        if isinstance(exc, OSError):     # a write of an output failed: the disk is full...
+            which = _outputs(trace=trace_path, VCD=vcd_path, capture=pcap_path)
+            raise UserError(f"cannot write {which}: {exc.strerror or exc}") from None
         raise
     close_writers(trace, vcd, ok=True)
-    if pcap_file is not None:
-        pcap_file.close()
     return world, wall
 
 
