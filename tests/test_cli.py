@@ -502,3 +502,35 @@ def test_a_full_disk_under_the_capture_is_one_line(capsys):
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
     assert err.startswith("rprs: error: cannot write capture /dev/full: No space left")
     assert Path("/dev/full").is_char_device()
+
+
+@pytest.mark.parametrize("sig,status,word", [("SIGTERM", 143, "terminated"),
+                                              ("SIGINT", 130, "interrupted")])
+def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, status, word):
+    """SIGTERM killed ``rprs sim`` where it stood: ``t.jsonl.partial`` and ``v.vcd.partial``
+    were left behind and ``p.pcapng``, written in place, was cut in the middle of a packet
+    (tshark: "appears to have been cut short"). SIGTERM now ends it as Ctrl-C does: one line,
+    no output file of any kind, status 128 + the signal."""
+    import signal
+    import time
+    outs = {"--trace": tmp_path / "t.jsonl", "--vcd": tmp_path / "v.vcd",
+            "--pcap": tmp_path / "p.pcapng"}
+    args = [a for opt, p in outs.items() for a in (opt, str(p))]
+    proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "sim", "--duration", "100000",
+                             "--load", "1", "--no-progress", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 60
+        while not any(p.stat().st_size > 10_000 for p in tmp_path.iterdir()):
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        proc.send_signal(getattr(signal, sig))
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == status, err
+    assert err == f"rprs: {word}\n" and out == ""
+    assert list(tmp_path.iterdir()) == []

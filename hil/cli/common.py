@@ -11,6 +11,11 @@ class UserError(Exception):
     """A mistake the user can fix: printed as one line, exit status 2."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the command stands so that it ends as Ctrl-C ends it: its output
+    files discarded, one line, exit status 143 (128 + SIGTERM)."""
+
+
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, status 2, no usage dump
         raise UserError(f"{message} (see '{self.prog} --help')")
