@@ -534,3 +534,15 @@ def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, st
     assert proc.returncode == status, err
     assert err == f"rprs: {word}\n" and out == ""
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("option", ["--trace", "--vcd", "--pcap"])
+@pytest.mark.parametrize("path", ["", "-"])
+def test_an_empty_or_dash_output_name_is_refused(capsys, tmp_path, monkeypatch, option, path):
+    """``--trace ''`` wrote no trace and said nothing; ``--pcap -`` (stdout, to the radio hub)
+    wrote a file named '-'."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = rprs(capsys, "sim", "--duration", "1", option, path)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert f"argument {option}:" in err
+    assert not list(tmp_path.iterdir())

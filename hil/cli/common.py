@@ -32,6 +32,18 @@ def output_file(path: str, what: str) -> str:
     return path
 
 
+def output_path(text: str) -> str:
+    """The file an output option (``--trace``, ``--vcd``, ``--pcap``) writes. An empty name
+    (which wrote nothing, and said nothing) and ``-`` (standard output to the radio hub; a
+    file named ``-`` here) are refused."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty file name: give the file to write")
+    if text == "-":
+        raise argparse.ArgumentTypeError("'-' is not taken for standard output here: give a "
+                                         "file name")
+    return text
+
+
 def distinct_outputs(**paths: str | None) -> None:
     """Two output options naming one file would overwrite each other (the later writer wins,
     or the two renames of PATH.partial fail after the run): a UserError before anything runs.

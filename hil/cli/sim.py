@@ -11,7 +11,7 @@ from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import OutputFile, TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
-from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
+from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                     progress: bool = True) -> None:
@@ -53,7 +53,7 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "comparison; default: the paper's rotational MAC)")
         p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
                        help="peer MACs: frame size of the load (default 80)")
-        p.add_argument("--vcd", metavar="FILE",
+        p.add_argument("--vcd", type=output_path, metavar="FILE",
                        help="write a waveform (GTKWave) here")
         p.add_argument("--cpu", choices=("ideal", "estimated"), default=None,
                        help="the children's CPU: ideal (every handler in zero time, the "
@@ -64,14 +64,14 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "estimated")
         p.add_argument("--cpu-report", action="store_true", help="print each child's CPU "
                        "budget: per handler, per second, worst case; implies --cpu estimated")
-    p.add_argument("--trace", metavar="FILE",
+    p.add_argument("--trace", type=output_path, metavar="FILE",
                    help="write the JSON Lines trace here")
     p.add_argument("--every-frame", action="store_true",
                    help="run every frame one by one: no leap over the cycles an idle ring "
                    "repeats, no sleeping CAN side (the same results to the tick, slower; "
                    "docs/performance.md)")
     if not demo:
-        p.add_argument("--pcap", metavar="FILE",
+        p.add_argument("--pcap", type=output_path, metavar="FILE",
                        help="write a pcapng capture here: every "
                        "radio transmission and CAN frame, for Wireshark with the rprs plugin "
                        "(docs/wireshark.md)")
