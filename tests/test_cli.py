@@ -546,3 +546,21 @@ def test_an_empty_or_dash_output_name_is_refused(capsys, tmp_path, monkeypatch, 
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
     assert f"argument {option}:" in err
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--fail", "1@20"], "--fail 1@20"),
+    (["--recover", "2@10"], "--recover 2@10"),
+    (["--power", "3@12.5"], "--power 3@12.5"),
+    (["--fault", "steal:2@30"], "--fault steal:2@30"),
+    (["--fault", "ber@10-20:0.01"], "--fault ber@10-20:0.01"),
+])
+def test_a_fault_or_power_on_after_the_end_of_the_run_is_refused(capsys, args, needle):
+    """``--duration 10 --fail 1@20`` ran, exit 0, and no radio failed: the fault was silently
+    never reached. A time the run never gets to is a mistake, said before it runs."""
+    code, _, err = rprs(capsys, "sim", "--duration", "10", *args)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert needle in err and "the run ends at 10 s" in err, err
+    # a window that begins before the end is fine, and so is an event before it
+    assert rprs(capsys, "sim", "--duration", "10", "--fault", "noise@9-20", "--fail", "1@9.9",
+                "--power", "2@5")[0] == 0

@@ -84,6 +84,13 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
     if a.profile == "paper" and a.father_standby:
         raise UserError("--profile paper has no standby PC (--father-standby is this "
                         "project's extension)")
+    late = [f"--{opt} {r}@{t:g}" for opt, times in (("fail", a.fail), ("recover", a.recover),
+                                                    ("power", a.power))
+            for r, t in times if t >= a.duration]
+    late += [f"--fault {f.spec()}" for f in a.fault if f.at >= a.duration]
+    if late:    # it would never happen, and the run would say nothing of it
+        raise UserError(f"{late[0]}: the run ends at {a.duration:g} s (--duration) and never "
+                        f"gets there")
     faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
         tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
     peer = None
