@@ -86,3 +86,32 @@ def test_step_seeing_lands_on_the_first_sample_past_a_fault_end():
     assert _step_seeing(step, step, 0.1, 10**12) == 2 * step      # at least one step
     assert _step_seeing(0, step, None, 99) == 99
     assert _step_seeing(0, step, 50.0, 7 * step) == 7 * step
+
+
+@pytest.mark.parametrize("mode", ["off", "on"])
+def test_a_soak_that_breaks_a_promise_fails_with_the_checksum_off_too(monkeypatch, capsys,
+                                                                     mode):
+    """The exit status judged only the runs with the checksum, so ``--checksum off`` exited 0
+    whatever broke, a ring that never re-formed too. Without the checksum a soak still judges
+    what is promised without it (docs/guarantees.md): every message ended, nothing to the
+    wrong robot, the ring re-formed; not "nothing twice" nor "no corrupted command"."""
+    import hil.sim.soak as soak
+    real = soak.run_soak
+
+    def broken(*args, **kw):
+        r = real(*args, **kw)
+        r.not_reformed = 1
+        return r
+    monkeypatch.setattr(soak, "run_soak", broken)
+    assert main(["soak", "--hours", "0.05", "--seed", "2", "--no-can", "--checksum",
+                 mode]) == 1
+    assert "| **ring re-formed within 15 s of every fault** | **NO** |" in \
+        capsys.readouterr().out
+
+    def corrupted(*args, **kw):
+        r = real(*args, **kw)
+        r.summary["corrupt_deliveries"] = 1        # not promised without the checksum
+        return r
+    monkeypatch.setattr(soak, "run_soak", corrupted)
+    assert main(["soak", "--hours", "0.05", "--seed", "2", "--no-can", "--checksum",
+                 mode]) == (0 if mode == "off" else 1)
