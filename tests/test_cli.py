@@ -435,3 +435,132 @@ def test_a_father_order_to_the_father_itself_is_refused_as_it_is_parsed():
                        r"robot\), got 0: 0 is the father itself"):
         parse_order("0 status()")
     assert parse_order("7 status()")[0] == 7
+
+
+def _read_fifo(path: Path, got: list) -> "threading.Thread":
+    """A reader that takes everything written to the FIFO ``path`` into ``got``."""
+    import threading
+
+    def read():
+        with open(path, "rb") as f:
+            got.append(f.read())
+    t = threading.Thread(target=read, daemon=True)
+    t.start()
+    return t
+
+
+def test_outputs_through_a_link_or_into_a_fifo_leave_the_link_and_the_fifo(tmp_path, capsys):
+    """An output was written to ``PATH.partial`` and renamed over PATH, whatever PATH was: a
+    symlink became a regular file (its target never written), a FIFO was replaced by a file
+    (its reader got nothing), and as root ``--trace /dev/null`` replaced /dev/null by a regular
+    file. A link is written through now, and a FIFO or a device straight."""
+    import os
+    import stat
+    real = tmp_path / "real.jsonl"
+    link = tmp_path / "link.jsonl"
+    link.symlink_to(real)
+    fifo = tmp_path / "capture"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = _read_fifo(fifo, got)
+    code, _, err = rprs(capsys, "sim", "--duration", "3", "--trace", str(link), "--pcap",
+                        str(fifo))
+    reader.join(30)
+    assert code == 0, err
+    assert link.is_symlink() and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert real.read_text().startswith('{"ev":"meta"')
+    assert got and got[0][:4] == b"\x0a\x0d\x0d\x0a" and len(got[0]) > 1000   # pcapng SHB
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_a_plot_through_a_link_or_into_a_fifo(tmp_path, capsys):
+    import os
+    import stat
+    trace = tmp_path / "t.jsonl"
+    assert rprs(capsys, "sim", "--duration", "3", "--trace", str(trace))[0] == 0
+    real = tmp_path / "real.svg"
+    link = tmp_path / "link.svg"
+    link.symlink_to(real)
+    assert rprs(capsys, "plot", str(trace), "-o", str(link))[0] == 0
+    assert link.is_symlink() and real.read_bytes().startswith(b"<?xml")
+    fifo = tmp_path / "fig.svg"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = _read_fifo(fifo, got)
+    code, _, err = rprs(capsys, "plot", str(trace), "-o", str(fifo))
+    reader.join(30)
+    assert code == 0, err
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert got and got[0] == real.read_bytes()          # the same bytes, clip paths numbered
+    assert not list(tmp_path.glob("*.partial"))
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_a_full_disk_under_the_capture_is_one_line(capsys):
+    """``--pcap /dev/full`` ended in an OSError traceback when the capture was closed."""
+    code, _, err = rprs(capsys, "sim", "--duration", "2", "--pcap", "/dev/full")
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith("rprs: error: cannot write capture /dev/full: No space left")
+    assert Path("/dev/full").is_char_device()
+
+
+@pytest.mark.parametrize("sig,status,word", [("SIGTERM", 143, "terminated"),
+                                              ("SIGINT", 130, "interrupted")])
+def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, status, word):
+    """SIGTERM killed ``rprs sim`` where it stood: ``t.jsonl.partial`` and ``v.vcd.partial``
+    were left behind and ``p.pcapng``, written in place, was cut in the middle of a packet
+    (tshark: "appears to have been cut short"). SIGTERM now ends it as Ctrl-C does: one line,
+    no output file of any kind, status 128 + the signal."""
+    import signal
+    import time
+    outs = {"--trace": tmp_path / "t.jsonl", "--vcd": tmp_path / "v.vcd",
+            "--pcap": tmp_path / "p.pcapng"}
+    args = [a for opt, p in outs.items() for a in (opt, str(p))]
+    proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "sim", "--duration", "100000",
+                             "--load", "1", "--no-progress", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 60
+        while not any(p.stat().st_size > 10_000 for p in tmp_path.iterdir()):
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        proc.send_signal(getattr(signal, sig))
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == status, err
+    assert err == f"rprs: {word}\n" and out == ""
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("option", ["--trace", "--vcd", "--pcap"])
+@pytest.mark.parametrize("path", ["", "-"])
+def test_an_empty_or_dash_output_name_is_refused(capsys, tmp_path, monkeypatch, option, path):
+    """``--trace ''`` wrote no trace and said nothing; ``--pcap -`` (stdout, to the radio hub)
+    wrote a file named '-'."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = rprs(capsys, "sim", "--duration", "1", option, path)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert f"argument {option}:" in err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--fail", "1@20"], "--fail 1@20"),
+    (["--recover", "2@10"], "--recover 2@10"),
+    (["--power", "3@12.5"], "--power 3@12.5"),
+    (["--fault", "steal:2@30"], "--fault steal:2@30"),
+    (["--fault", "ber@10-20:0.01"], "--fault ber@10-20:0.01"),
+])
+def test_a_fault_or_power_on_after_the_end_of_the_run_is_refused(capsys, args, needle):
+    """``--duration 10 --fail 1@20`` ran, exit 0, and no radio failed: the fault was silently
+    never reached. A time the run never gets to is a mistake, said before it runs."""
+    code, _, err = rprs(capsys, "sim", "--duration", "10", *args)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert needle in err and "the run ends at 10 s" in err, err
+    # a window that begins before the end is fine, and so is an event before it
+    assert rprs(capsys, "sim", "--duration", "10", "--fault", "noise@9-20", "--fail", "1@9.9",
+                "--power", "2@5")[0] == 0

@@ -141,9 +141,12 @@ def test_a_soak_process_that_fails_is_an_error_not_a_hang():
         run_soaks(0.001, 3, [True, False], parallel=True, can=False)
 
 
-def test_ctrl_c_stops_both_soaks_and_leaves_no_process():
-    """Ctrl-C (SIGINT to the terminal's process group) during ``--checksum both``: the
-    parent stops its two soak processes and exits 130 with one line; nothing keeps running."""
+@pytest.mark.parametrize("signame,status,said", [("SIGINT", 130, "rprs: interrupted"),
+                                                 ("SIGTERM", 143, "rprs: terminated")])
+def test_ctrl_c_stops_both_soaks_and_leaves_no_process(signame, status, said):
+    """Ctrl-C (SIGINT to the terminal's process group) or SIGTERM to the group (``kill``,
+    ``timeout``) during ``--checksum both``: the parent stops its two soak processes and
+    exits with one line; nothing keeps running."""
     import os
     import signal
     import subprocess
@@ -161,13 +164,42 @@ def test_ctrl_c_stops_both_soaks_and_leaves_no_process():
                 break
             time.sleep(0.1)
         assert len(kids) == 2, kids
-        os.killpg(p.pid, signal.SIGINT)
+        os.killpg(p.pid, getattr(signal, signame))
         _, err = p.communicate(timeout=60)
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
             p.wait()
-    assert p.returncode == 130 and err.strip() == "rprs: interrupted", err[-500:]
+    assert p.returncode == status and err.strip() == said, err[-500:]
     for k in kids:
         assert not os.path.exists(f"/proc/{k}") or \
             open(f"/proc/{k}/status").read().split("State:")[1].split()[0] == "Z"
+
+
+@pytest.mark.parametrize("mode", ["off", "on"])
+def test_a_soak_that_breaks_a_promise_fails_with_the_checksum_off_too(monkeypatch, capsys,
+                                                                     mode):
+    """The exit status judged only the runs with the checksum, so ``--checksum off`` exited 0
+    whatever broke, a ring that never re-formed too. Without the checksum a soak still judges
+    what is promised without it (docs/guarantees.md): every message ended, nothing to the
+    wrong robot, the ring re-formed; not "nothing twice" nor "no corrupted command"."""
+    import hil.sim.soak as soak
+    real = soak.run_soak
+
+    def broken(*args, **kw):
+        r = real(*args, **kw)
+        r.not_reformed = 1
+        return r
+    monkeypatch.setattr(soak, "run_soak", broken)
+    assert main(["soak", "--hours", "0.05", "--seed", "2", "--no-can", "--checksum",
+                 mode]) == 1
+    assert "| **ring re-formed within 15 s of every fault** | **NO** |" in \
+        capsys.readouterr().out
+
+    def corrupted(*args, **kw):
+        r = real(*args, **kw)
+        r.summary["corrupt_deliveries"] = 1        # not promised without the checksum
+        return r
+    monkeypatch.setattr(soak, "run_soak", corrupted)
+    assert main(["soak", "--hours", "0.05", "--seed", "2", "--no-can", "--checksum",
+                 mode]) == (0 if mode == "off" else 1)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import datetime
+import io
 import json
 import sqlite3
 from pathlib import Path
@@ -106,10 +107,11 @@ class Store:
         rows = self.flat_rows()
         fields = sorted({k for r in rows for k in r}, key=lambda k: (
             COLUMNS.index(k) if k in COLUMNS else len(COLUMNS), k))
-        with open(path, "w", newline="", encoding="utf-8") as fh:
-            w = csv.DictWriter(fh, fieldnames=fields)
-            w.writeheader()
-            w.writerows(rows)
+        text = io.StringIO(newline="")
+        w = csv.DictWriter(text, fieldnames=fields)
+        w.writeheader()
+        w.writerows(rows)
+        _write_whole(path, text.getvalue().encode("utf-8"))
         return len(rows)
 
     def export_parquet(self, path: str | Path) -> int:
@@ -122,5 +124,24 @@ class Store:
         rows = self.flat_rows()
         names = sorted({k for r in rows for k in r}, key=lambda k: (
             COLUMNS.index(k) if k in COLUMNS else len(COLUMNS), k))
-        pq.write_table(pa.Table.from_pylist([{k: r.get(k) for k in names} for r in rows]), path)
+        buf = io.BytesIO()      # not to ``path``: pyarrow removes a file it fails to write
+        pq.write_table(pa.Table.from_pylist([{k: r.get(k) for k in names} for r in rows]), buf)
+        _write_whole(path, buf.getvalue())
         return len(rows)
+
+
+def _write_whole(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` whole or not at all (``hil.sim.trace.OutputFile``); an
+    OSError names ``path``."""
+    from ..sim.trace import OutputFile
+    try:
+        out = OutputFile(str(path), binary=True)
+        try:
+            out.f.write(data)
+        except BaseException:
+            out.discard()
+            raise
+        out.commit()
+    except OSError as exc:
+        exc.filename = str(path)
+        raise

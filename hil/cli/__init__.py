@@ -6,7 +6,8 @@ types and shared options live in ``common``; ``trace_digests`` holds seeded ``rp
 whose traces must not change by accident (tests/test_trace_digests.py).
 
 A user mistake (bad option value, unreadable file, malformed input) prints one line starting
-``rprs: error:`` and exits with status 2; it never shows a traceback.
+``rprs: error:`` and exits with status 2; it never shows a traceback. Ctrl-C ends a command
+with ``rprs: interrupted`` and status 130, SIGTERM with ``rprs: terminated`` and status 143.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import io
 import sys
 from typing import Sequence
 
-from .common import Parser, UserError
+from .common import Parser, Terminated, UserError
 
 __all__ = ["build_parser", "main", "UserError"]
 
@@ -78,9 +79,36 @@ def _stacks_on_sigusr1() -> None:
             pass                     # no usable stderr (an embedding), or not the main thread
 
 
+def _terminate_on_sigterm():
+    """SIGTERM raises :class:`Terminated` (once: a second one kills) while a command runs, so
+    that it cleans up as on Ctrl-C (it used to die where it stood, leaving ``.partial`` files
+    and a capture cut in the middle of a packet). Commands that stop cleanly on SIGTERM
+    themselves (the bench processes, the monitor) put their own handler over this one.
+    Returns the handler to put back, or None (not the main thread)."""
+    import signal
+
+    def terminate(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        raise Terminated()
+    try:
+        return signal.signal(signal.SIGTERM, terminate)
+    except ValueError:           # not the main thread of the main interpreter
+        return None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     _stacks_on_sigusr1()
     argv = list(sys.argv[1:] if argv is None else argv)
+    old_term = _terminate_on_sigterm()
+    try:
+        return _main(argv)
+    finally:
+        if old_term is not None:
+            import signal
+            signal.signal(signal.SIGTERM, old_term)
+
+
+def _main(argv: list[str]) -> int:
     try:
         parser = _parser_for(argv)
         a, extra = parser.parse_known_args(argv)
@@ -96,6 +124,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UserError as exc:
         print(f"rprs: error: {exc}", file=sys.stderr)
         return 2
+    except Terminated:
+        print("rprs: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("rprs: interrupted", file=sys.stderr)
         return 130

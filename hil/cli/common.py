@@ -11,6 +11,11 @@ class UserError(Exception):
     """A mistake the user can fix: printed as one line, exit status 2."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the command stands so that it ends as Ctrl-C ends it: its output
+    files discarded, one line, exit status 143 (128 + SIGTERM)."""
+
+
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, status 2, no usage dump
         raise UserError(f"{message} (see '{self.prog} --help')")
@@ -25,6 +30,18 @@ def output_file(path: str, what: str) -> str:
     if not os.path.isdir(d):
         raise UserError(f"cannot write {what} {path}: no directory {d}")
     return path
+
+
+def output_path(text: str) -> str:
+    """The file an output option (``--trace``, ``--vcd``, ``--pcap``) writes. An empty name
+    (which wrote nothing, and said nothing) and ``-`` (standard output to the radio hub; a
+    file named ``-`` here) are refused."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty file name: give the file to write")
+    if text == "-":
+        raise argparse.ArgumentTypeError("'-' is not taken for standard output here: give a "
+                                         "file name")
+    return text
 
 
 def distinct_outputs(**paths: str | None) -> None:

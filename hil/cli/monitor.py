@@ -64,7 +64,7 @@ def cmd_monitor(a: argparse.Namespace) -> int:
     try:
         code, world = run_monitor_sim(cfg, a.speed, trace=trace,
                                       on_event=vcd.write if vcd is not None else None,
-                                      capture=capture)
+                                      capture=None if capture is None else capture.f)
         ok = True
     finally:
         close_writers(trace, vcd, ok)

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import sys
@@ -10,9 +9,9 @@ import time
 
 from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
-from ..sim.trace import TraceWriter
+from ..sim.trace import OutputFile, TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
-from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, positive, probability, robot_list, stderr_console
+from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                     progress: bool = True) -> None:
@@ -54,7 +53,8 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "comparison; default: the paper's rotational MAC)")
         p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
                        help="peer MACs: frame size of the load (default 80)")
-        p.add_argument("--vcd", metavar="FILE", help="write a waveform (GTKWave) here")
+        p.add_argument("--vcd", type=output_path, metavar="FILE",
+                       help="write a waveform (GTKWave) here")
         p.add_argument("--cpu", choices=("ideal", "estimated"), default=None,
                        help="the children's CPU: ideal (every handler in zero time, the "
                        "paper's timing; the default) or estimated (the MB90F549 model with "
@@ -64,13 +64,15 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "estimated")
         p.add_argument("--cpu-report", action="store_true", help="print each child's CPU "
                        "budget: per handler, per second, worst case; implies --cpu estimated")
-    p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+    p.add_argument("--trace", type=output_path, metavar="FILE",
+                   help="write the JSON Lines trace here")
     p.add_argument("--every-frame", action="store_true",
                    help="run every frame one by one: no leap over the cycles an idle ring "
                    "repeats, no sleeping CAN side (the same results to the tick, slower; "
                    "docs/performance.md)")
     if not demo:
-        p.add_argument("--pcap", metavar="FILE", help="write a pcapng capture here: every "
+        p.add_argument("--pcap", type=output_path, metavar="FILE",
+                       help="write a pcapng capture here: every "
                        "radio transmission and CAN frame, for Wireshark with the rprs plugin "
                        "(docs/wireshark.md)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -82,6 +84,13 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
     if a.profile == "paper" and a.father_standby:
         raise UserError("--profile paper has no standby PC (--father-standby is this "
                         "project's extension)")
+    late = [f"--{opt} {r}@{t:g}" for opt, times in (("fail", a.fail), ("recover", a.recover),
+                                                    ("power", a.power))
+            for r, t in times if t >= a.duration]
+    late += [f"--fault {f.spec()}" for f in a.fault if f.at >= a.duration]
+    if late:    # it would never happen, and the run would say nothing of it
+        raise UserError(f"{late[0]}: the run ends at {a.duration:g} s (--duration) and never "
+                        f"gets there")
     faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
         tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
     peer = None
@@ -144,20 +153,30 @@ def open_writers(trace_path: str | None, vcd_path: str | None):
 
 
 def close_writers(trace, vcd, ok: bool) -> None:
-    """Close the writers (their files appear whole) or, if the run failed, discard them."""
-    for w in (trace, vcd):
+    """Close the writers (their files appear whole) or, if the run failed, discard them. One
+    that cannot be closed (the disk filled) is a UserError, the other closed all the same."""
+    error = None
+    for what, w in (("trace", trace), ("VCD", vcd)):
         if w is not None:
             try:
                 w.close() if ok else w.discard()
             except OSError as exc:     # the path became a directory, the disk filled...
-                raise UserError(f"cannot write {w.path}: {exc.strerror}") from None
+                error = error or UserError(f"cannot write {what} {w.path}: {exc.strerror}")
+    if error is not None:
+        raise error
+
+
+def _outputs(**paths: str | None) -> str:
+    """``trace run.jsonl, capture run.pcapng``: the outputs given, for an error message."""
+    return ", ".join(f"{what} {p}" for what, p in paths.items() if p)
 
 
 def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
               vcd_path: str | None = None, on_event=None,
               pcap_path: str | None = None) -> tuple[World, float]:
     """Run the world to its end, with its trace, waveform and capture files; ``on_event``
-    gets every event too."""
+    gets every event too. An output that cannot be written during the run (a full disk) is a
+    UserError, and no output is left."""
     distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
     try:
@@ -171,7 +190,7 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
                       (lambda ev: [f(ev) for f in sinks]) if sinks else None)
         if pcap_file is not None:
             from ..sim.pcap import PcapWriter
-            world.capture(PcapWriter(pcap_file, *world.capture_interfaces()))
+            world.capture(PcapWriter(pcap_file.f, *world.capture_interfaces()))
         t0 = time.perf_counter()
         end = world.end_tick
         if progress:
@@ -190,42 +209,42 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         else:
             world.run()
         wall = time.perf_counter() - t0
-    except BaseException:
+        if pcap_file is not None:
+            pcap_file.commit()
+    except BaseException as exc:
         close_writers(trace, vcd, ok=False)
-        close_capture(pcap_file, pcap_path, ok=False)
+        if pcap_file is not None:
+            pcap_file.discard()
+        if isinstance(exc, OSError):     # a write of an output failed: the disk is full...
+            which = _outputs(trace=trace_path, VCD=vcd_path, capture=pcap_path)
+            raise UserError(f"cannot write {which}: {exc.strerror or exc}") from None
         raise
     close_writers(trace, vcd, ok=True)
-    close_capture(pcap_file, pcap_path, ok=True)
     return world, wall
 
 
-def open_capture(path: str | None):
-    """The binary file a pcapng capture goes to (None without ``--pcap``); one that cannot
-    be opened is a UserError."""
+def open_capture(path: str | None) -> OutputFile | None:
+    """The file a pcapng capture goes to (None without ``--pcap``), whole at
+    :func:`close_capture` or not at all; one that cannot be opened is a UserError."""
     if not path:
         return None
     try:
-        return open(path, "wb")
+        return OutputFile(path, binary=True)
     except OSError as exc:
         raise UserError(f"cannot write capture {path}: {exc.strerror}") from None
 
 
-def close_capture(f, path: str | None, ok: bool) -> None:
-    """Close the capture; if the run failed, or the file cannot be finished, remove it
-    (nothing half-written is left)."""
+def close_capture(f: OutputFile | None, path: str | None, ok: bool) -> None:
+    """Put the capture in place, or, if the run failed, leave none."""
     if f is None:
         return
-    try:
-        f.close()
-    except OSError as exc:
-        ok, failed = False, exc
-    else:
-        failed = None
     if not ok:
-        with contextlib.suppress(OSError):
-            os.unlink(path)
-    if failed is not None:
-        raise UserError(f"cannot write capture {path}: {failed.strerror}") from None
+        f.discard()
+        return
+    try:
+        f.commit()
+    except OSError as exc:
+        raise UserError(f"cannot write capture {path}: {exc.strerror or exc}") from None
 
 
 def print_summary(world: World, wall: float, as_json: bool, membership: bool = True,

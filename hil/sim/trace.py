@@ -10,29 +10,68 @@ import errno
 import gzip
 import json
 import os
+import stat
 import zlib
 from typing import IO, Any, Iterator
 
 TRACE_VERSION = 1
 
 
-def open_partial(path: str) -> tuple[str, IO[str]]:
-    """(``PATH.partial``, that file open for ASCII text): a writer renames it to ``path`` when
-    complete. ``path`` naming a directory is refused here (OSError), before anything is
-    written, rather than at the rename after the whole run."""
-    if os.path.isdir(path):
-        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), path)
-    tmp = f"{path}.partial"
-    return tmp, open(tmp, "w", encoding="ascii", newline="\n")
+class OutputFile:
+    """An output that appears whole or not at all: written to ``PATH.partial`` beside the file
+    ``path`` names (through a symlink: the link stays), renamed over it at :meth:`commit`,
+    removed at :meth:`discard`. A ``path`` that names a device or a FIFO (``/dev/null``, a pipe
+    to a reader) is written straight: a file renamed over it would replace it (as root,
+    ``--trace /dev/null`` once replaced /dev/null with a regular file). A directory raises
+    ``IsADirectoryError`` here, before anything is written, rather than at the rename after
+    the whole run. ``binary``: bytes, else ASCII text with ``\n`` line ends."""
+
+    def __init__(self, path: str, binary: bool = False) -> None:
+        self.path = path
+        try:
+            mode = os.stat(path).st_mode          # through symlinks
+        except FileNotFoundError:
+            mode = None
+        if mode is not None and stat.S_ISDIR(mode):
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), path)
+        self.direct = mode is not None and not stat.S_ISREG(mode)
+        self.final = path if self.direct else os.path.realpath(path)
+        self.tmp = self.final if self.direct else f"{self.final}.partial"
+        self.f: IO = (open(self.tmp, "wb") if binary else
+                      open(self.tmp, "w", encoding="ascii", newline="\n"))
+
+    def commit(self) -> None:
+        """Close the file and put it in place; OSError if its last bytes cannot be written (a
+        full disk), and then nothing is left."""
+        try:
+            self.f.close()
+            if not self.direct:
+                os.replace(self.tmp, self.final)
+        except BaseException:
+            self.discard()
+            raise
+
+    def discard(self) -> None:
+        """Close and remove the partial file (a device or FIFO is left as it is)."""
+        try:
+            self.f.close()
+        except OSError:        # the bytes still buffered cannot be written (a full disk)
+            pass
+        if not self.direct:
+            try:
+                os.unlink(self.tmp)
+            except FileNotFoundError:
+                pass
 
 
 class TraceWriter:
     """Writes events to ``path`` atomically: the file appears complete at ``close()`` or not at
-    all (a run that fails leaves no partial trace behind)."""
+    all (a run that fails leaves no partial trace behind; :class:`OutputFile`)."""
 
     def __init__(self, path: str) -> None:
         self.path = path
-        self._tmp, self._f = open_partial(path)
+        self._out = OutputFile(path)
+        self._f = self._out.f
         self._dumps = json.JSONEncoder(separators=(",", ":"), ensure_ascii=True).encode
         self.count = 0
 
@@ -42,15 +81,10 @@ class TraceWriter:
         self.count += 1
 
     def close(self) -> None:
-        self._f.close()
-        os.replace(self._tmp, self.path)
+        self._out.commit()
 
     def discard(self) -> None:
-        self._f.close()
-        try:
-            os.unlink(self._tmp)
-        except FileNotFoundError:
-            pass
+        self._out.discard()
 
 
 class TraceError(ValueError):

@@ -18,13 +18,14 @@ its helpers make sense only for that drawing.
 """
 from __future__ import annotations
 
+import io
 import math
 import os
 import re
 from collections import deque
 from typing import Any, Iterable
 
-from ..sim.trace import TraceError
+from ..sim.trace import OutputFile, TraceError
 from .vcd import TickReorder, checked_events, need, need_int
 
 __all__ = ["PlotError", "plot_trace", "FORMATS", "MAX_TURNS"]
@@ -386,21 +387,18 @@ def _dimension(ax, x0, x1, y, text, colour="black"):
 _CLIP_ID = re.compile(rb'id="(p[0-9a-f]{10})"')
 
 
-def _number_clip_paths(path: str) -> None:
+def _number_clip_paths(data: bytes) -> bytes:
     """Matplotlib names an SVG clip path by hashing, among other things, an object's memory
     address, so the same figure drawn twice in one process could differ there and only there.
     Renaming them clip1, clip2, ... in order of appearance makes the same trace give the same
     SVG bytes."""
-    with open(path, "rb") as f:
-        data = f.read()
     names: dict[bytes, bytes] = {}
     for m in _CLIP_ID.finditer(data):
         names.setdefault(m.group(1), b"clip%d" % (len(names) + 1))
     for old, new in names.items():
         data = data.replace(b'id="' + old + b'"', b'id="' + new + b'"')
         data = data.replace(b"url(#" + old + b")", b"url(#" + new + b")")
-    with open(path, "wb") as f:
-        f.write(data)
+    return data
 
 
 def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
@@ -551,25 +549,22 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
                frameon=False, borderaxespad=0.1)
     axu.grid(color="#dddddd", linewidth=0.6)
 
-    tmp = f"{out}.partial"
+    buf = io.BytesIO()          # drawn whole first: a FIFO or a device gets the final bytes
+    with rc_context({"svg.hashsalt": "rprs"}):   # same trace, same SVG
+        fig.savefig(buf, format=ext, metadata={"Date": None} if ext == "svg" else None)
+    data = buf.getvalue()
+    if ext == "svg":
+        data = _number_clip_paths(data)
     try:
-        with rc_context({"svg.hashsalt": "rprs"}):   # same trace, same SVG
-            fig.savefig(tmp, format=ext, metadata={"Date": None} if ext == "svg" else None)
-        if ext == "svg":
-            _number_clip_paths(tmp)
-        os.replace(tmp, out)
+        dest = OutputFile(out, binary=True)
+        try:
+            dest.f.write(data)
+            dest.commit()
+        except BaseException:
+            dest.discard()
+            raise
     except OSError as exc:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
         raise PlotError(f"cannot write plot {out}: {exc.strerror or exc}") from None
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
     total_busy = sum(col.busy)
     return {"path": out, "format": ext, "window_s": [x0t / hz, x1t / hz], "turns": len(frames),
             "zoom_s": [zs[0] / hz, zs[1] / hz] if zs is not None else None,

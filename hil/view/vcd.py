@@ -21,18 +21,17 @@ lands on its exact tick. Signals (scope ``rprs``):
 Frames and CAN frames are logged at their end (``t`` = ``end``), so changes are reordered
 through a bounded look-back buffer (twice Tmax): memory does not grow with the trace length.
 The output is written to ``PATH.partial`` and renamed when complete, so a failed run leaves no
-partial file.
+partial file (a device or a FIFO is written straight: ``hil.sim.trace.OutputFile``).
 """
 from __future__ import annotations
 
 import heapq
-import os
 from fractions import Fraction
 from typing import Any, Iterable, Iterator
 
 from vcd import VCDWriter
 
-from ..sim.trace import TraceError, open_partial
+from ..sim.trace import OutputFile, TraceError
 
 __all__ = ["VcdError", "VcdTraceWriter", "write_vcd", "TIMESCALE", "checked_events",
            "TickReorder"]
@@ -167,9 +166,10 @@ class VcdTraceWriter:
     def __init__(self, path: str) -> None:
         self.path = path
         try:
-            self._tmp, self._f = open_partial(path)
+            self._out = OutputFile(path)
         except OSError as exc:
             raise VcdError(f"cannot write VCD {path}: {exc.strerror}") from None
+        self._f = self._out.f
         self._w: VCDWriter | None = None
         self._n = 0
         self._closed = False
@@ -362,8 +362,7 @@ class VcdTraceWriter:
             self._flush(None)
             end = max(self.last_tick, int(self.meta.get("duration_ticks") or 0))
             self._w.close(end * self.units)
-            self._f.close()
-            os.replace(self._tmp, self.path)
+            self._out.commit()
         except BaseException:
             self.discard()
             raise
@@ -377,13 +376,7 @@ class VcdTraceWriter:
     def discard(self) -> None:
         """Drop the partial file."""
         self._closed = True
-        try:
-            self._f.close()
-        finally:
-            try:
-                os.unlink(self._tmp)
-            except FileNotFoundError:
-                pass
+        self._out.discard()
 
 
 def write_vcd(events: Iterable[dict], path: str) -> dict:
