@@ -21,6 +21,9 @@ Common behaviour
   busy / bus-off) is replaced by the newer one; events queue up in order.
 * ``ESTOP`` (0x010): every node stops at once and drops its command without an EVENT (joints
   and paw hold where they are; the wheel's speed drops to 0). A faulted node stays faulted.
+  A data frame of any length stops them (an emergency stop errs on the safe side); a remote
+  frame with that id (a request for the frame, ``cansend vcan0 010#R``) is no stop: it is
+  ignored and counted in ``bad_frames`` like a malformed command.
 * Fault injection: :meth:`stall` (motion stops; after :data:`STALL_DETECT_TICKS` (200 ms)
   without progress while a motion is commanded, ``EVENT`` kind 2 code 1 and state 3),
   :meth:`fault` (any fault code at once, state 4, or 3 for code 1), :meth:`silent` (the node
@@ -176,7 +179,8 @@ class _Submodule:
         self.events: list[tuple[int, int, int, int]] = []
         """(tick, kind, seq, code) of every EVENT queued for sending."""
         self.bad_frames = 0
-        """Frames with our command id that do not decode (wrong length, remote): ignored."""
+        """Frames with our command id that do not decode (wrong length, remote), and remote
+        frames with the ESTOP id: ignored."""
         self.sent = 0
         """Frames sent and acknowledged."""
         self._silent = False
@@ -229,6 +233,9 @@ class _Submodule:
                 return
             self._command(values)
         elif fid == self._estop_id:
+            if frame.rtr:                # a request for the MCU's ESTOP, no stop itself
+                self.bad_frames += 1
+                return
             self._estop()
 
     # ------------------------------------------------------------ sending
