@@ -9,7 +9,7 @@ from .common import (UserError, digit, mac_config, mac_options, port_name, realt
                      run_until_stopped, stopped_by_itself, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
-    from ..bench.runner import Runner, RunError, build_child, summary_line
+    from ..bench.runner import Runner, RunError, build_child
     if not a.radio and not a.can:
         raise UserError("give --radio PORT, --can INTERFACE:CHANNEL, or both")
     runner = Runner()
@@ -24,7 +24,19 @@ def cmd_child(a: argparse.Namespace) -> int:
         ([f"CAN {a.can}"] if a.can else ["no CAN side (no --can): orders are answered "
                                           "fail(42)"])
     return run_until_stopped(runner, a, "running " + ", ".join(parts) + "; Ctrl-C stops",
-                lambda: summary_line(station))
+                lambda: child_summary(station, child))
+
+
+def child_summary(station, child) -> str:
+    """The closing line of ``rprs child``: the radio's, and the CAN frames the firmware
+    ignored as malformed (no node's frame: a wrong length, a remote frame, an unknown id)."""
+    from ..bench.runner import summary_line
+    line = summary_line(station)
+    bad = getattr(getattr(child, "dispatcher", None), "bad_frames", 0)
+    if bad:
+        line += (f"; CAN: {bad} malformed frame{'s' if bad > 1 else ''} ignored (wrong length, "
+                 f"remote or unknown id)")
+    return line
 
 
 def _submit_order(station, dst: int, commands: list, console) -> None:
