@@ -344,3 +344,18 @@ def test_a_bad_capture_path_is_one_line(pcap, words):
     r = subprocess.run([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--radio",
                         "loop://", "--pcap", pcap], capture_output=True, text=True, timeout=30)
     assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("command", [["child", "--id", "1"], ["submodules"]])
+def test_a_can_log_and_a_capture_in_one_file_are_refused_before_the_run(tmp_path, command):
+    """``--can-log F --pcap F``: both writers opened the one file and the run went on, exit
+    status 0; what was left was the capture's header, the CAN log was lost. Now one line,
+    status 2, and nothing is written."""
+    out = tmp_path / "both.log"
+    r = subprocess.run([sys.executable, "-m", "hil.cli", *command, "--can",
+                        "virtual:rprs-one-file", "--can-log", str(out), "--pcap", str(out),
+                        "--duration", "0.5"], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.splitlines() == [f"rprs: error: --can-log and --pcap name the same file "
+                                     f"{out}: give each its own"]
+    assert not out.exists()

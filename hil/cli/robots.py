@@ -5,13 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import (UserError, digit, mac_config, mac_options, port_name, realtime_options,
-                     run_until_stopped, stopped_by_itself, txen_option)
+from .common import (UserError, digit, distinct_outputs, mac_config, mac_options, port_name,
+                     realtime_options, run_until_stopped, stopped_by_itself, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_child
     if not a.radio and not a.can:
         raise UserError("give --radio PORT, --can INTERFACE:CHANNEL, or both")
+    distinct_outputs(can_log=a.can_log, pcap=a.pcap)
     runner = Runner()
     try:
         station, child = build_child(runner, a.id, a.radio, a.can, txen=a.txen,
@@ -73,6 +74,7 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
 
 def cmd_submodules(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_submodules
+    distinct_outputs(can_log=a.can_log, pcap=a.pcap)
     runner = Runner()
     try:
         nodes = build_submodules(runner, a.can, a.can_log, pcap=a.pcap)
