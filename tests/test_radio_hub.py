@@ -629,6 +629,30 @@ def test_cli_prints_paths_and_summary_on_signal(tmp_path):
     assert not (tmp_path / "r").exists()
 
 
+@pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP on this platform")
+def test_a_hub_whose_terminal_closes_removes_its_links(tmp_path):
+    """Closing the terminal that runs ``rprs radio-hub`` sends it SIGHUP: it died at once
+    (status 129), its links left pointing at /dev/pts/N, which the next terminal or ssh
+    session is given, so that a robot started on the old link opened someone's terminal.
+    It now stops as on SIGTERM: links removed, summary, status 0."""
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                          "--link-dir", str(tmp_path / "air")], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().startswith("node 0: /dev/")
+        assert p.stdout.readline().startswith("node 1: /dev/")
+        assert (tmp_path / "air" / "node1").is_symlink()
+        p.send_signal(signal.SIGHUP)
+        out, err = p.communicate(timeout=10)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, err
+    assert out.strip().splitlines()[-1].startswith("radio-hub: ")
+    assert not (tmp_path / "air").exists()
+
+
 # -- a foreign transmitter: the hub's ``foreign`` fault and ``rprs inject`` ----------------------
 
 FOREIGN = bytes.fromhex("0f0a0530313233343536373839ff00")

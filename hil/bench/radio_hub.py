@@ -714,13 +714,18 @@ def summary_line(st: dict[str, Any]) -> str:
             f"{st['dropped']} dropped (slow reader), {st['lost']} lost (link down)")
 
 
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                     if hasattr(signal, name))
+"""The signals that stop ``rprs radio-hub`` cleanly (links removed, summary, status 0)."""
+
+
 def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
                 seed: int = 0, link_dir: str | None = None,
                 drops: Sequence[tuple[int, float, float]] = (),
                 faults: Sequence[Any] = (), pcap: str | None = None) -> int:
-    """The ``rprs radio-hub`` command: print the node paths, run until SIGINT/SIGTERM, print a
-    summary; HubError (one line) after the summary if a thread of the hub failed and stopped
-    it. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
+    """The ``rprs radio-hub`` command: print the node paths, run until SIGINT, SIGTERM or
+    SIGHUP (its terminal closed), print a summary; HubError (one line) after the summary if a
+    thread of the hub failed and stopped it. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
     packet (``| wireshark -k -i -``; the paths and the summary then go to stderr). Bad
     arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])
@@ -747,7 +752,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
             from ..sim.pcap import PcapWriter
             hub.capture(PcapWriter(stream, *hub.capture_interfaces(), tsresol=9,
                                    live=pcap == "-"))
-        old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        # SIGHUP too: a closed terminal must not leave links to ptys the next one is given
+        old = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
         try:
             for i, path in enumerate(hub.paths):
                 line = f"node {i}: {path}"
