@@ -560,6 +560,9 @@ def test_parse_drop():
     (["--fault", "foreign@99999999:3"], "at most 10000000 s"),
     (["--fault", "fail:1@10000000.5"], "at most 10000000 s"),
     (["--fault", "noise@0-1" + "0" * 400], "too large to be finite"),
+    # was "its parent directory /work does not exist" (the parent of the working directory)
+    (["--link-dir", ""], "an empty directory name"),
+    (["--link-dir", " "], "an empty directory name"),
 ])
 def test_cli_refuses_values_the_hub_cannot_play_when_it_parses_them(capsys, args, needle):
     """``--baud 1e9`` (a byte of 0 ticks: ZeroDivisionError at the first byte), ``--baud

@@ -800,7 +800,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ber", type=float, default=0.0, help="byte error rate per receiver (0)")
     p.add_argument("--noise", action="store_true", help="idle nodes hear random bytes")
     p.add_argument("--seed", type=int, default=0, help="seed of every random stream (0)")
-    p.add_argument("--link-dir", default=None, metavar="DIR",
+    def link_dir(text: str) -> str:
+        if not text.strip():          # "" was "its parent directory /work does not exist"
+            raise argparse.ArgumentTypeError("an empty directory name: give the directory "
+                                             "for the links, e.g. /tmp/rprs-air")
+        return text
+
+    p.add_argument("--link-dir", type=link_dir, default=None, metavar="DIR",
                    help="also create DIR/node0 ... symlinks to the ptys")
     p.add_argument("--pcap", metavar="FILE", default=None,
                    help="write a pcapng capture of the air here, wall-clock timestamps; '-' "
