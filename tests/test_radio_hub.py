@@ -980,3 +980,29 @@ def test_the_foreign_fault_goes_out_at_the_hubs_own_rate(hubs):
     for fd in fds:
         got, _ = read_n(fd, len(FOREIGN), 10.0)
         assert got == FOREIGN
+
+
+def test_every_documented_link_dir_can_be_made_on_a_fresh_machine():
+    """docs/bench.md's walk-through began ``rprs radio-hub --nodes 4 --link-dir /tmp/wk/air``,
+    which on a fresh machine ends at once: ``its parent directory /tmp/wk does not exist (the
+    hub makes only the last directory)``. Every ``--link-dir DIR`` in a command of the docs
+    names a directory whose parent exists anywhere (``/tmp``) or that an earlier command of
+    the same page makes (``mkdir -p``)."""
+    import re
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    pages = [os.path.join(root, "README.md")] + [
+        os.path.join(root, "docs", n) for n in sorted(os.listdir(os.path.join(root, "docs")))
+        if n.endswith(".md")]
+    seen = 0
+    for page in pages:
+        made = {"/tmp"}
+        for line in open(page, encoding="utf-8"):
+            for d in re.findall(r"mkdir -p (/\S+)", line):
+                while d not in ("/", ""):
+                    made.add(d.rstrip("/"))
+                    d = os.path.dirname(d.rstrip("/"))
+            for d in re.findall(r"--link-dir (/[^\s`]+)", line):
+                seen += 1
+                parent = os.path.dirname(d.rstrip("/"))
+                assert parent in made, f"{os.path.basename(page)}: {line.strip()}"
+    assert seen >= 4
