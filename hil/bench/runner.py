@@ -176,6 +176,7 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
         raise RunError(str(exc)) from None
     channel.attach(radio)
     channel.on_lost = lambda why: runner.fail(f"the radio port {port_spec} went away ({why})")
+    channel.on_error = runner.warn       # a frame that could not be written: lost, said
     channel.start()
     runner.on_close(channel.close)
     runner.on_close(lambda: station.txen.set(False, runner.sched.now))
