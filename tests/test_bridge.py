@@ -359,7 +359,7 @@ def test_malformed_commands_to_the_submodules_are_counted_in_their_summary():
                          "PAW 1"), line
 
 
-def test_malformed_frames_to_the_child_are_counted_in_its_summary():
+def test_malformed_frames_to_the_child_are_counted_in_its_summary(can_channel):
     """``cansend vcan0 181#00`` (a JOINT1_STATUS of 1 byte, not 6), ``181#R`` or ``0C7#01``
     (an id its acceptance masks let in that no node sends) to ``rprs child --can``: the
     firmware ignored them without a count, its closing line said nothing, while ``rprs
@@ -367,11 +367,10 @@ def test_malformed_frames_to_the_child_are_counted_in_its_summary():
     its line as it was."""
     from hil.bench.runner import Runner, build_child
     from hil.cli.robots import child_summary
-    channel = "rprs-child-malformed"
     runner = Runner()
-    station, child = build_child(runner, 1, None, f"virtual:{channel}")
+    station, child = build_child(runner, 1, None, can_channel)
     assert child_summary(station, child) == summary_line(station)
-    tx = can.Bus(interface="virtual", channel=channel)
+    tx = open_bus(can_channel)
     try:
         tx.send(can.Message(arbitration_id=0x181, data=b"\x00", is_extended_id=False))
         tx.send(can.Message(arbitration_id=0x181, is_remote_frame=True, dlc=6,
