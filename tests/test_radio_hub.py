@@ -290,6 +290,31 @@ def test_links_created_and_removed(hubs, tmp_path):
     assert keep.is_dir() and list(keep.iterdir()) == []
 
 
+def test_a_second_hub_on_the_same_link_dir_is_refused_and_the_first_keeps_its_links(
+        hubs, tmp_path):
+    """A second ``rprs radio-hub --link-dir DIR`` (another terminal) took the running hub's
+    links as stale ones and replaced them: robots started after it went to the second air,
+    those before stayed on the first, and when the second hub stopped it removed the links
+    of the first, still running. Now the second is refused in one line; the first hub's
+    links stay, and a hub that is gone (its links stale) is still replaced."""
+    d = tmp_path / "air"
+    first = hubs(2, link_dir=str(d))
+    with pytest.raises(ValueError, match="another radio hub is using it"):
+        RadioHub(2, link_dir=str(d))
+    assert [os.readlink(d / f"node{i}") for i in range(2)] == first.paths
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                        "--link-dir", str(d)], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "another radio hub is using it" in r.stderr
+    assert [os.readlink(d / f"node{i}") for i in range(2)] == first.paths
+    first.close()
+    assert not d.exists()
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "kept" / "node0").symlink_to(first.paths[0])     # left by a killed hub
+    with RadioHub(1, link_dir=str(tmp_path / "kept")) as again:
+        assert os.readlink(tmp_path / "kept" / "node0") == again.paths[0]
+
+
 def test_a_bad_link_dir_is_refused_in_one_line_and_nothing_is_left(tmp_path):
     """A --link-dir under a missing directory, under a file, or holding a regular file named
     nodeN is refused with a ValueError (the CLI's one line, status 2); the hub makes no
