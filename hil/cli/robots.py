@@ -86,9 +86,13 @@ def cmd_submodules(a: argparse.Namespace) -> int:
 
 
 def submodules_summary(nodes: dict) -> str:
-    """The closing line of ``rprs submodules``: the frames each node sent, and the commands
-    it ignored as malformed (a wrong length or a remote frame: no EVENT answers those)."""
+    """The closing line of ``rprs submodules``: the frames each node sent, the commands it
+    refused (each answered by its EVENT kind 3) and those it ignored as malformed (a wrong
+    length or a remote frame: no EVENT answers those)."""
     line = "submodules: " + ", ".join(f"{k} {n.sent} sent" for k, n in nodes.items())
+    refused = [f"{k} {n.refused}" for k, n in nodes.items() if n.refused]
+    if refused:
+        line += "; commands refused (EVENT kind 3): " + ", ".join(refused)
     bad = [f"{k} {n.bad_frames}" for k, n in nodes.items() if n.bad_frames]
     if bad:
         line += "; malformed commands ignored (wrong length or remote): " + ", ".join(bad)
