@@ -138,13 +138,18 @@ class Runner:
             self.failure = why
         self.stop()
 
-    def run(self, seconds: float | None = None) -> None:
-        """Run until Ctrl-C/SIGTERM (or ``seconds``), then close everything."""
+    def run(self, seconds: float | None = None,
+            ready: Callable[[], None] | None = None) -> None:
+        """Run until Ctrl-C/SIGTERM (or ``seconds``), then close everything. ``ready`` runs
+        once Ctrl-C and SIGTERM are handled (the command's "running ..." line: a signal sent
+        when it is seen stops the process cleanly)."""
         old = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 old[sig] = signal.signal(sig, self.stop)
         try:
+            if ready is not None:
+                ready()
             if seconds is None:
                 self.sched.run_forever()
             else:
