@@ -181,7 +181,10 @@ class _Submodule:
         self.events: list[tuple[int, int, int, int]] = []
         """(tick, kind, seq, code) of every EVENT queued for sending."""
         self.bad_frames = 0
-        """Frames with our command id that do not decode (wrong length, remote): ignored."""
+        """Frames with our command id that do not decode (wrong length, remote), and remote
+        frames with the ESTOP id: ignored."""
+        self.refused = 0
+        """Commands refused (EVENT kind 3: out of range, faulted)."""
         self.sent = 0
         """Frames sent and acknowledged."""
         self._silent = False
@@ -254,6 +257,7 @@ class _Submodule:
         self._push(dbc.encode_raw(self.event_name, kind=kind, seq=seq, code=code))
 
     def _refuse(self, seq: int, code: int) -> None:
+        self.refused += 1
         self._event(EVENT_REFUSED, seq, code)
 
     def _status_tick(self) -> None:

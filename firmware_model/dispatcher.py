@@ -133,6 +133,9 @@ class Dispatcher:
         self.deadline: int | None = None
         self.isolated = False
         self.log: list[tuple[int, str]] = []
+        self.bad_frames = 0
+        """CAN frames received that do not decode (a wrong length, a remote frame, an id the
+        acceptance masks let in that no node sends): ignored, counted."""
         self.report_done = True    # a finished order is reported done() to its sender
         self.on_notice = None      # callable(src, action, now): a robot's act(n,1) notice heard
         self.on_action = None      # callable(action, phase, now): our own action starts/ends
@@ -178,6 +181,7 @@ class Dispatcher:
         try:
             name, sig = dbc.decode(frame)
         except dbc.DbcError:
+            self.bad_frames += 1
             return
         if name.endswith("_STATUS"):
             n = _node_of(name)

@@ -24,6 +24,7 @@ from firmware_model.mcu.can_controller import CanController
 from firmware_model.radio.content import cmd
 from firmware_model.radio.mac import Deliver
 from firmware_model.station import build_station
+from hil.bench.runner import summary_line
 from hil.sim.realtime import RealTimeScheduler
 
 
@@ -356,6 +357,70 @@ def test_malformed_commands_to_the_submodules_are_counted_in_their_summary():
     line = submodules_summary(nodes)
     assert line.endswith("; malformed commands ignored (wrong length or remote): JOINT1 1, "
                          "PAW 1"), line
+
+
+def test_commands_the_submodules_refuse_are_counted_in_their_summary():
+    """``cansend vcan0 103#50C3000001FF`` (JOINT3 to 500 deg, mode 255) or a wheel at
+    400 mm/s: each node answers with its EVENT kind 3 (refused, code 1), but the closing line
+    of ``rprs submodules`` said nothing of them, unlike the malformed commands it counts. It
+    now counts them per node, after the frames sent."""
+    from hil.bench.runner import Runner, build_submodules
+    from hil.cli.robots import submodules_summary
+    channel = "rprs-refused"
+    runner = Runner()
+    nodes = build_submodules(runner, f"virtual:{channel}")
+    tx = can.Bus(interface="virtual", channel=channel)
+    try:
+        tx.send(can.Message(arbitration_id=0x103, data=bytes.fromhex("50c3000001ff"),
+                            is_extended_id=False))
+        tx.send(dbc.encode_raw("WHEEL_CMD", speed=400, distance=0, seq=1).to_message())
+
+        def check():
+            if nodes["JOINT3"].refused and nodes["WHEEL"].refused:
+                runner.stop()
+            else:
+                runner.sched.after(160_000, check)      # every 10 ms
+        runner.sched.post(check)
+        runner.run(60)                                   # stopped by check: a bound
+    finally:
+        tx.shutdown()
+    assert [e[1:] for e in nodes["JOINT3"].events] == [(dbc.EVENT_REFUSED, 1, 1)]
+    line = submodules_summary(nodes)
+    assert line.endswith(" sent; commands refused (EVENT kind 3): JOINT3 1, WHEEL 1"), line
+    assert "malformed" not in line
+
+
+def test_malformed_frames_to_the_child_are_counted_in_its_summary(can_channel):
+    """``cansend vcan0 181#00`` (a JOINT1_STATUS of 1 byte, not 6), ``181#R`` or ``0C7#01``
+    (an id its acceptance masks let in that no node sends) to ``rprs child --can``: the
+    firmware ignored them without a count, its closing line said nothing, while ``rprs
+    submodules`` counts the like. The child's line now counts them; a run without any keeps
+    its line as it was."""
+    from hil.bench.runner import Runner, build_child
+    from hil.cli.robots import child_summary
+    runner = Runner()
+    station, child = build_child(runner, 1, None, can_channel)
+    assert child_summary(station, child) == summary_line(station)
+    tx = open_bus(can_channel)
+    try:
+        tx.send(can.Message(arbitration_id=0x181, data=b"\x00", is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x181, is_remote_frame=True, dlc=6,
+                            is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x0C7, data=b"\x01", is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x182, data=bytes(6), is_extended_id=False))
+
+        def check():
+            if child.dispatcher.nodes[2].last_seen is not None:    # the good one, sent last
+                runner.stop()
+            else:
+                runner.sched.after(160_000, check)      # every 10 ms
+        runner.sched.post(check)
+        runner.run(60)                                   # stopped by check: a bound
+    finally:
+        tx.shutdown()
+    assert child.dispatcher.bad_frames == 3
+    assert child_summary(station, child) == summary_line(station) + (
+        "; CAN: 3 malformed frames ignored (wrong length, remote or unknown id)")
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full on this system")

@@ -47,3 +47,29 @@ def test_rprs_child_whose_port_goes_away_exits_1_with_one_line():
     assert proc.returncode == 1, err
     assert lines[-1].startswith(f"rprs: error: the radio port {path} went away"), err
     assert lines[-2].startswith("robot 1: ") and "Traceback" not in err
+
+
+def test_a_radio_port_that_takes_no_bytes_is_said_and_exits_1():
+    """A radio port whose far side stops taking bytes (a stopped ``rprs radio-hub``, Ctrl-Z
+    on its terminal; a stalled ``socket://`` server): every frame's write timed out after 2 s
+    and the frame was lost without a word, the summary counting it sent, exit status 0. Now
+    the first failed write of a run says so in a line, and the exit status is 1."""
+    master, path = _pty()
+    slave = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        while True:                  # fill what the pty holds: the master is never read
+            os.write(slave, bytes(1024))
+    except BlockingIOError:
+        pass
+    try:
+        r = subprocess.run([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--radio",
+                            path, "--team", "0,1", "--duration", "5"], capture_output=True,
+                           text=True, timeout=120)
+    finally:
+        os.close(slave)
+        os.close(master)
+    lines = r.stderr.splitlines()
+    assert r.returncode == 1, r.stderr
+    said = [x for x in lines if x.startswith(f"rprs: the radio port {path}: cannot write")]
+    assert len(said) == 1 and "the frame is lost" in said[0], r.stderr
+    assert lines[-1].startswith("rprs: 1 trouble during the run") and "Traceback" not in r.stderr

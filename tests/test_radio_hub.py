@@ -290,6 +290,31 @@ def test_links_created_and_removed(hubs, tmp_path):
     assert keep.is_dir() and list(keep.iterdir()) == []
 
 
+def test_a_second_hub_on_the_same_link_dir_is_refused_and_the_first_keeps_its_links(
+        hubs, tmp_path):
+    """A second ``rprs radio-hub --link-dir DIR`` (another terminal) took the running hub's
+    links as stale ones and replaced them: robots started after it went to the second air,
+    those before stayed on the first, and when the second hub stopped it removed the links
+    of the first, still running. Now the second is refused in one line; the first hub's
+    links stay, and a hub that is gone (its links stale) is still replaced."""
+    d = tmp_path / "air"
+    first = hubs(2, link_dir=str(d))
+    with pytest.raises(ValueError, match="another radio hub is using it"):
+        RadioHub(2, link_dir=str(d))
+    assert [os.readlink(d / f"node{i}") for i in range(2)] == first.paths
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                        "--link-dir", str(d)], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "another radio hub is using it" in r.stderr
+    assert [os.readlink(d / f"node{i}") for i in range(2)] == first.paths
+    first.close()
+    assert not d.exists()
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "kept" / "node0").symlink_to(first.paths[0])     # left by a killed hub
+    with RadioHub(1, link_dir=str(tmp_path / "kept")) as again:
+        assert os.readlink(tmp_path / "kept" / "node0") == again.paths[0]
+
+
 def test_a_bad_link_dir_is_refused_in_one_line_and_nothing_is_left(tmp_path):
     """A --link-dir under a missing directory, under a file, or holding a regular file named
     nodeN is refused with a ValueError (the CLI's one line, status 2); the hub makes no
@@ -560,6 +585,9 @@ def test_parse_drop():
     (["--fault", "foreign@99999999:3"], "at most 10000000 s"),
     (["--fault", "fail:1@10000000.5"], "at most 10000000 s"),
     (["--fault", "noise@0-1" + "0" * 400], "too large to be finite"),
+    # was "its parent directory /work does not exist" (the parent of the working directory)
+    (["--link-dir", ""], "an empty directory name"),
+    (["--link-dir", " "], "an empty directory name"),
 ])
 def test_cli_refuses_values_the_hub_cannot_play_when_it_parses_them(capsys, args, needle):
     """``--baud 1e9`` (a byte of 0 ticks: ZeroDivisionError at the first byte), ``--baud
@@ -627,6 +655,30 @@ def test_cli_prints_paths_and_summary_on_signal(tmp_path):
     assert out.strip().splitlines()[-1].startswith("radio-hub: ")
     assert "4 bytes in" in out
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP on this platform")
+def test_a_hub_whose_terminal_closes_removes_its_links(tmp_path):
+    """Closing the terminal that runs ``rprs radio-hub`` sends it SIGHUP: it died at once
+    (status 129), its links left pointing at /dev/pts/N, which the next terminal or ssh
+    session is given, so that a robot started on the old link opened someone's terminal.
+    It now stops as on SIGTERM: links removed, summary, status 0."""
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                          "--link-dir", str(tmp_path / "air")], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        assert p.stdout.readline().startswith("node 0: /dev/")
+        assert p.stdout.readline().startswith("node 1: /dev/")
+        assert (tmp_path / "air" / "node1").is_symlink()
+        p.send_signal(signal.SIGHUP)
+        out, err = p.communicate(timeout=10)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, err
+    assert out.strip().splitlines()[-1].startswith("radio-hub: ")
+    assert not (tmp_path / "air").exists()
 
 
 # -- a foreign transmitter: the hub's ``foreign`` fault and ``rprs inject`` ----------------------
@@ -953,3 +1005,29 @@ def test_the_foreign_fault_goes_out_at_the_hubs_own_rate(hubs):
     for fd in fds:
         got, _ = read_n(fd, len(FOREIGN), 10.0)
         assert got == FOREIGN
+
+
+def test_every_documented_link_dir_can_be_made_on_a_fresh_machine():
+    """docs/bench.md's walk-through began ``rprs radio-hub --nodes 4 --link-dir /tmp/wk/air``,
+    which on a fresh machine ends at once: ``its parent directory /tmp/wk does not exist (the
+    hub makes only the last directory)``. Every ``--link-dir DIR`` in a command of the docs
+    names a directory whose parent exists anywhere (``/tmp``) or that an earlier command of
+    the same page makes (``mkdir -p``)."""
+    import re
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    pages = [os.path.join(root, "README.md")] + [
+        os.path.join(root, "docs", n) for n in sorted(os.listdir(os.path.join(root, "docs")))
+        if n.endswith(".md")]
+    seen = 0
+    for page in pages:
+        made = {"/tmp"}
+        for line in open(page, encoding="utf-8"):
+            for d in re.findall(r"mkdir -p (/\S+)", line):
+                while d not in ("/", ""):
+                    made.add(d.rstrip("/"))
+                    d = os.path.dirname(d.rstrip("/"))
+            for d in re.findall(r"--link-dir (/[^\s`]+)", line):
+                seen += 1
+                parent = os.path.dirname(d.rstrip("/"))
+                assert parent in made, f"{os.path.basename(page)}: {line.strip()}"
+    assert seen >= 4

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import fcntl
 import os
 import select
 import signal
@@ -267,6 +268,7 @@ class RadioHub:
         self._slaves: list[int] = []
         self.paths: list[str] = []
         self._made_dir = False
+        self._dir_lock = -1          # the link directory, flock'ed while the hub runs
         self._lock = threading.Lock()
         self._backlog = [0] * nodes
         self.bytes_in = [0] * nodes
@@ -315,12 +317,14 @@ class RadioHub:
 
     def _make_links(self, link_dir: str) -> None:
         """``link_dir/nodeN`` symlinks to the ptys. The directory is made if missing (and
-        removed at close), but not its parents: a mistyped path is refused, not built.
-        Raises ValueError with a one-line reason."""
+        removed at close), but not its parents: a mistyped path is refused, not built. A hub
+        holds a lock on the directory while it runs: links there are a running hub's (refused)
+        or stale (replaced). Raises ValueError with a one-line reason."""
         try:
             if not os.path.isdir(link_dir):
                 os.mkdir(link_dir)
                 self._made_dir = True
+            self._lock_dir(link_dir)
             for i, path in enumerate(self.paths):
                 link = os.path.join(link_dir, f"node{i}")
                 if os.path.islink(link):
@@ -336,6 +340,21 @@ class RadioHub:
         except OSError as exc:
             raise ValueError(f"--link-dir {link_dir}: {exc.strerror}") from None
 
+    def _lock_dir(self, link_dir: str) -> None:
+        """flock ``link_dir`` for as long as the hub runs (released when its fd closes, also
+        when the process is killed); ValueError if another hub holds it."""
+        fd = os.open(link_dir, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise ValueError(f"--link-dir {link_dir}: another radio hub is using it (its "
+                             f"links are live); stop that hub or give another directory") \
+                from None
+        except OSError:
+            pass                     # no locks on this file system: links are replaced as before
+        self._dir_lock = fd
+
     def _release(self) -> None:
         for link in self.links:
             try:
@@ -350,14 +369,14 @@ class RadioHub:
             except OSError:
                 pass
             self._made_dir = False
-        for fd in self.masters + self._slaves + [self._wake_r, self._wake_w]:
+        for fd in self.masters + self._slaves + [self._wake_r, self._wake_w, self._dir_lock]:
             if fd >= 0:
                 try:
                     os.close(fd)
                 except OSError:
                     pass
         self.masters, self._slaves = [], []
-        self._wake_r = self._wake_w = -1
+        self._wake_r = self._wake_w = self._dir_lock = -1
 
     def _setup(self) -> None:
         if self._closed:
@@ -714,13 +733,18 @@ def summary_line(st: dict[str, Any]) -> str:
             f"{st['dropped']} dropped (slow reader), {st['lost']} lost (link down)")
 
 
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                     if hasattr(signal, name))
+"""The signals that stop ``rprs radio-hub`` cleanly (links removed, summary, status 0)."""
+
+
 def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
                 seed: int = 0, link_dir: str | None = None,
                 drops: Sequence[tuple[int, float, float]] = (),
                 faults: Sequence[Any] = (), pcap: str | None = None) -> int:
-    """The ``rprs radio-hub`` command: print the node paths, run until SIGINT/SIGTERM, print a
-    summary; HubError (one line) after the summary if a thread of the hub failed and stopped
-    it. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
+    """The ``rprs radio-hub`` command: print the node paths, run until SIGINT, SIGTERM or
+    SIGHUP (its terminal closed), print a summary; HubError (one line) after the summary if a
+    thread of the hub failed and stopped it. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
     packet (``| wireshark -k -i -``; the paths and the summary then go to stderr). Bad
     arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])
@@ -747,7 +771,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
             from ..sim.pcap import PcapWriter
             hub.capture(PcapWriter(stream, *hub.capture_interfaces(), tsresol=9,
                                    live=pcap == "-"))
-        old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        # SIGHUP too: a closed terminal must not leave links to ptys the next one is given
+        old = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
         try:
             for i, path in enumerate(hub.paths):
                 line = f"node {i}: {path}"
@@ -794,7 +819,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ber", type=float, default=0.0, help="byte error rate per receiver (0)")
     p.add_argument("--noise", action="store_true", help="idle nodes hear random bytes")
     p.add_argument("--seed", type=int, default=0, help="seed of every random stream (0)")
-    p.add_argument("--link-dir", default=None, metavar="DIR",
+    def link_dir(text: str) -> str:
+        if not text.strip():          # "" was "its parent directory /work does not exist"
+            raise argparse.ArgumentTypeError("an empty directory name: give the directory "
+                                             "for the links, e.g. /tmp/rprs-air")
+        return text
+
+    p.add_argument("--link-dir", type=link_dir, default=None, metavar="DIR",
                    help="also create DIR/node0 ... symlinks to the ptys")
     p.add_argument("--pcap", metavar="FILE", default=None,
                    help="write a pcapng capture of the air here, wall-clock timestamps; '-' "

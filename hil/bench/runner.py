@@ -138,13 +138,18 @@ class Runner:
             self.failure = why
         self.stop()
 
-    def run(self, seconds: float | None = None) -> None:
-        """Run until Ctrl-C/SIGTERM (or ``seconds``), then close everything."""
+    def run(self, seconds: float | None = None,
+            ready: Callable[[], None] | None = None) -> None:
+        """Run until Ctrl-C/SIGTERM (or ``seconds``), then close everything. ``ready`` runs
+        once Ctrl-C and SIGTERM are handled (the command's "running ..." line: a signal sent
+        when it is seen stops the process cleanly)."""
         old = {}
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 old[sig] = signal.signal(sig, self.stop)
         try:
+            if ready is not None:
+                ready()
             if seconds is None:
                 self.sched.run_forever()
             else:
@@ -176,6 +181,7 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
         raise RunError(str(exc)) from None
     channel.attach(radio)
     channel.on_lost = lambda why: runner.fail(f"the radio port {port_spec} went away ({why})")
+    channel.on_error = runner.warn       # a frame that could not be written: lost, said
     channel.start()
     runner.on_close(channel.close)
     runner.on_close(lambda: station.txen.set(False, runner.sched.now))

@@ -74,6 +74,9 @@ class SerialChannel:
         self.bytes_in = 0
         self.bytes_deaf = 0          # heard while the radio model was switching or sending
         self.errors: list[str] = []
+        self.write_errors = 0        # frames (or parts) that could not be written: lost
+        self.on_error: Any = None    # called with one line at the first failure of a run
+        self._failing = False
         self.tap: Any = None         # a capture (hil.bench.capture): sent() and heard()
         self.lost: str | None = None     # why the port went away (a read failed), if it did
         self.on_lost: Any = None     # called with that reason; default: stop the scheduler
@@ -107,8 +110,11 @@ class SerialChannel:
             self.port.write(data)
             self.bytes_out += len(data)
         except (serial.SerialException, OSError) as exc:
-            self.errors.append(f"write failed: {exc}")
+            self.write_errors += 1
+            self._trouble(f"cannot write: {exc}; the frame is lost (said once until a write "
+                          f"works again)")
             return
+        self._failing = False
         if self.tap is not None:
             self.tap.sent(data, t0, bt)
 
@@ -136,7 +142,16 @@ class SerialChannel:
             elif self.txen == "dtr":
                 self.port.dtr = level
         except (serial.SerialException, OSError, ValueError) as exc:
-            self.errors.append(f"cannot drive {self.txen.upper()}: {exc}")
+            self._trouble(f"cannot drive {self.txen.upper()}: {exc}")
+
+    def _trouble(self, what: str) -> None:
+        """A write that failed: kept in ``errors``; the first of a run is said through
+        ``on_error`` (the runner's warning: a line, and exit status 1)."""
+        self.errors.append(what)
+        if not self._failing:
+            self._failing = True
+            if self.on_error is not None:
+                self.on_error(f"the radio port {self.port.name}: {what}")
 
     # -- receiving ------------------------------------------------------------------------------
 

@@ -219,8 +219,7 @@ def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary) -> 
     """Run a bench process to its end; exit status 1 if it went on through troubles (each
     said in its own line as it happened: ``Runner.warn``) or stopped by itself (its radio
     port went away), else 0."""
-    print(describe, file=sys.stderr, flush=True)
-    runner.run(a.duration)
+    runner.run(a.duration, ready=lambda: print(describe, file=sys.stderr, flush=True))
     print(summary(), file=sys.stderr, flush=True)
     if stopped_by_itself(runner):
         return 1

@@ -8,13 +8,15 @@ import sys
 from firmware_model.timing import TICK_HZ
 
 from ..bench.orders import REPORT_WITHIN_S
-from .common import (UserError, digit, mac_config, mac_options, port_name, positive,
-                     realtime_options, run_until_stopped, stopped_by_itself, txen_option)
+from .common import (UserError, digit, distinct_outputs, mac_config, mac_options, port_name,
+                     positive, realtime_options, run_until_stopped, stopped_by_itself,
+                     txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
-    from ..bench.runner import Runner, RunError, build_child, summary_line
+    from ..bench.runner import Runner, RunError, build_child
     if not a.radio and not a.can:
         raise UserError("give --radio PORT, --can INTERFACE:CHANNEL, or both")
+    distinct_outputs(can_log=a.can_log, pcap=a.pcap)
     runner = Runner()
     try:
         station, child = build_child(runner, a.id, a.radio, a.can, txen=a.txen,
@@ -27,7 +29,19 @@ def cmd_child(a: argparse.Namespace) -> int:
         ([f"CAN {a.can}"] if a.can else ["no CAN side (no --can): orders are answered "
                                           "fail(42)"])
     return run_until_stopped(runner, a, "running " + ", ".join(parts) + "; Ctrl-C stops",
-                lambda: summary_line(station))
+                lambda: child_summary(station, child))
+
+
+def child_summary(station, child) -> str:
+    """The closing line of ``rprs child``: the radio's, and the CAN frames the firmware
+    ignored as malformed (no node's frame: a wrong length, a remote frame, an unknown id)."""
+    from ..bench.runner import summary_line
+    line = summary_line(station)
+    bad = getattr(getattr(child, "dispatcher", None), "bad_frames", 0)
+    if bad:
+        line += (f"; CAN: {bad} malformed frame{'s' if bad > 1 else ''} ignored (wrong length, "
+                 f"remote or unknown id)")
+    return line
 
 
 def _submit_order(station, dst: int, commands: list, console) -> None:
@@ -64,6 +78,7 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
 
 def cmd_submodules(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_submodules
+    distinct_outputs(can_log=a.can_log, pcap=a.pcap)
     runner = Runner()
     try:
         nodes = build_submodules(runner, a.can, a.can_log, pcap=a.pcap)
@@ -75,9 +90,13 @@ def cmd_submodules(a: argparse.Namespace) -> int:
 
 
 def submodules_summary(nodes: dict) -> str:
-    """The closing line of ``rprs submodules``: the frames each node sent, and the commands
-    it ignored as malformed (a wrong length or a remote frame: no EVENT answers those)."""
+    """The closing line of ``rprs submodules``: the frames each node sent, the commands it
+    refused (each answered by its EVENT kind 3) and those it ignored as malformed (a wrong
+    length or a remote frame: no EVENT answers those)."""
     line = "submodules: " + ", ".join(f"{k} {n.sent} sent" for k, n in nodes.items())
+    refused = [f"{k} {n.refused}" for k, n in nodes.items() if n.refused]
+    if refused:
+        line += "; commands refused (EVENT kind 3): " + ", ".join(refused)
     bad = [f"{k} {n.bad_frames}" for k, n in nodes.items() if n.bad_frames]
     if bad:
         line += "; malformed commands ignored (wrong length or remote): " + ", ".join(bad)
