@@ -99,7 +99,13 @@ def test_father_failover_between_processes(hub):
         assert wait_for(lambda: ring_is(sniffer, [0, 1, 2]), 40.0)
         standby = spawn("father", "--radio", hub.paths[3], "--team", team, "--standby",
                         "--no-input")
-        time.sleep(2.0)                                    # it follows the ring as a replica
+        # it follows the ring as a replica once it runs: wait for its ready line and then a
+        # dozen rotations (a fixed 2 s sleep was not enough on a loaded machine, where the
+        # process could still be importing when the active PC was stopped)
+        ready = standby.stderr.readline()
+        assert ready.startswith("father (ID 0, standby PC)"), ready
+        t_ready = sniffer.tick() / 16e6
+        assert wait_for(lambda: all(heard(sniffer, r, t_ready) >= 12 for r in (0, 1, 2)), 40.0)
         stop([active])
         t_kill = sniffer.tick() / 16e6
         assert wait_for(lambda: heard(sniffer, 0, t_kill + 1.0) > 10, 10.0)

@@ -373,6 +373,12 @@ def test_encode_notes_a_frame_no_station_sends_but_encodes_it(capsys):
     code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "8", "movex(1)")
     assert code == 0 and bytes.fromhex(out.strip())[3:5] == b"81"
     assert "reserved" in err and "Traceback" not in err
+    # a PC's frame over its 561 bytes (clause 14): the same, noted (a child's 562 is fine)
+    big = "movex(1)" * 69 + "movex(100)"                  # 562 bytes
+    code, out, err = rprs(capsys, "encode", "--src", "0", "--dst", "1", big)
+    assert code == 0 and "a PC sends at most 561 Content bytes" in err, err
+    code, out, err = rprs(capsys, "encode", "--src", "2", "--dst", "1", big)
+    assert code == 0 and err == ""
 
 
 def test_the_ring_demo_tells_the_ring_it_runs(capsys):

@@ -10,6 +10,7 @@ from firmware_model.radio.content import parse_content
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.frame import MAX_CONTENT, Frame
+from firmware_model.timing import PC_BYTE_TICKS, max_content_bytes
 
 from .common import UserError, digit
 
@@ -22,10 +23,13 @@ def cmd_encode(a: argparse.Namespace) -> int:
         # never cut (clause 14). `rprs inject --hex` writes any bytes, an invalid frame too.
         raise UserError(f"Content is {len(content)} bytes, more than a frame carries "
                         f"({MAX_CONTENT}, docs/protocol.md clause 11)")
-    if a.dst in (8, 9) or a.type >= 7 or (a.dst == a.src):
+    pc_max = max_content_bytes(PC_BYTE_TICKS)
+    if a.dst in (8, 9) or a.type >= 7 or (a.dst == a.src) or (a.src == 0 and
+                                                                len(content) > pc_max):
         what = ("Destination '8' and '9' are reserved" if a.dst in (8, 9) else
                 f"Type '{a.type}' is reserved" if a.type >= 7 else
-                "a station never sends to its own ID")
+                "a station never sends to its own ID" if a.dst == a.src else
+                f"a PC sends at most {pc_max} Content bytes (its bytes are longer; clause 14)")
         print(f"rprs encode: note: {what}: no station sends this frame (docs/protocol.md "
               f"§3); receivers must still take it", file=sys.stderr)
     try:
