@@ -28,6 +28,18 @@ from hil.bench.runner import summary_line
 from hil.sim.realtime import RealTimeScheduler
 
 
+def _run_until(runner, done) -> None:
+    """Run the bench's real-time ``runner`` until ``done()`` holds, looked at every 10 ms
+    (60 s at most: a bound, not a timing)."""
+    def check():
+        if done():
+            runner.stop()
+        else:
+            runner.sched.after(160_000, check)
+    runner.sched.post(check)
+    runner.run(60)
+
+
 def test_dispatcher_drives_the_submodules_over_python_can(can_channel, tmp_path):
     """A Content command reaches the right joint with the right DBC signals, the joint moves
     and reports done, over a python-can bus shared by two bus objects (as two processes)."""
@@ -345,13 +357,7 @@ def test_malformed_commands_to_the_submodules_are_counted_in_their_summary():
         tx.send(can.Message(arbitration_id=0x106, is_remote_frame=True, dlc=3,
                             is_extended_id=False))
 
-        def check():
-            if nodes["JOINT1"].bad_frames and nodes["PAW"].bad_frames:
-                runner.stop()
-            else:
-                runner.sched.after(160_000, check)      # every 10 ms
-        runner.sched.post(check)
-        runner.run(60)                                   # stopped by check: a bound
+        _run_until(runner, lambda: nodes["JOINT1"].bad_frames and nodes["PAW"].bad_frames)
     finally:
         tx.shutdown()
     line = submodules_summary(nodes)
@@ -375,13 +381,7 @@ def test_commands_the_submodules_refuse_are_counted_in_their_summary():
                             is_extended_id=False))
         tx.send(dbc.encode_raw("WHEEL_CMD", speed=400, distance=0, seq=1).to_message())
 
-        def check():
-            if nodes["JOINT3"].refused and nodes["WHEEL"].refused:
-                runner.stop()
-            else:
-                runner.sched.after(160_000, check)      # every 10 ms
-        runner.sched.post(check)
-        runner.run(60)                                   # stopped by check: a bound
+        _run_until(runner, lambda: nodes["JOINT3"].refused and nodes["WHEEL"].refused)
     finally:
         tx.shutdown()
     assert [e[1:] for e in nodes["JOINT3"].events] == [(dbc.EVENT_REFUSED, 1, 1)]
@@ -409,13 +409,8 @@ def test_malformed_frames_to_the_child_are_counted_in_its_summary(can_channel):
         tx.send(can.Message(arbitration_id=0x0C7, data=b"\x01", is_extended_id=False))
         tx.send(can.Message(arbitration_id=0x182, data=bytes(6), is_extended_id=False))
 
-        def check():
-            if child.dispatcher.nodes[2].last_seen is not None:    # the good one, sent last
-                runner.stop()
-            else:
-                runner.sched.after(160_000, check)      # every 10 ms
-        runner.sched.post(check)
-        runner.run(60)                                   # stopped by check: a bound
+        # the good one, sent last
+        _run_until(runner, lambda: child.dispatcher.nodes[2].last_seen is not None)
     finally:
         tx.shutdown()
     assert child.dispatcher.bad_frames == 3
