@@ -570,3 +570,13 @@ def test_a_fault_or_power_on_after_the_end_of_the_run_is_refused(capsys, args, n
     # a window that begins before the end is fine, and so is an event before it
     assert rprs(capsys, "sim", "--duration", "10", "--fault", "noise@9-20", "--fail", "1@9.9",
                 "--power", "2@5")[0] == 0
+
+
+def test_a_run_shorter_than_one_tick_is_refused(capsys):
+    """``rprs sim --duration 1e-9`` ran 0 ticks and exited 0 as if it had simulated something."""
+    code, out, err = rprs(capsys, "sim", "--duration", "1e-9", "--no-progress")
+    assert code == 2 and err.count("\n") == 1 and "shorter than one tick" in err, err
+    assert out == ""
+    code, _, _ = rprs(capsys, "sim", "--robots", "1,2", "--duration", "0.0000001",
+                      "--no-progress")                   # 1.6 ticks: runs
+    assert code == 0

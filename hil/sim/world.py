@@ -114,6 +114,9 @@ class SimConfig:
             raise ConfigError(f"robot IDs repeat in {list(self.robots)}")
         if not self.duration > 0:
             raise ConfigError(f"duration must be positive, got {self.duration}")
+        if s_to_ticks(self.duration) < 1:
+            raise ConfigError(f"duration {self.duration:g} s is shorter than one tick (62.5 ns): "
+                              f"nothing would run")
         if not 0.0 <= self.ber < 1.0:
             raise ConfigError(f"byte error rate must be in [0, 1), got {self.ber}")
         if self.sequence is not None:
