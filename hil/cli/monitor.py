@@ -67,8 +67,10 @@ def cmd_monitor(a: argparse.Namespace) -> int:
                                       capture=None if capture is None else capture.f)
         ok = True
     finally:
-        close_writers(trace, vcd, ok)
-        close_capture(capture, a.pcap, ok)
+        try:
+            close_writers(trace, vcd, ok)
+        finally:                         # a trace that cannot be finished leaves no capture
+            close_capture(capture, a.pcap, ok)
     if a.json:                           # the world up to where the view was closed
         print_summary_and_report(world, 0.0, a, cfg)
     elif a.cpu_report:

@@ -236,7 +236,9 @@ def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | N
     after the other, only the wall time differs. ``progress(i, simulated_s)`` is called for
     run ``i`` as it goes."""
     if parallel is None:
-        parallel = len(checksums) > 1 and (os.cpu_count() or 1) > 1
+        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else \
+            (os.cpu_count() or 1)                  # the CPUs this process may use
+        parallel = len(checksums) > 1 and cpus > 1
     if not parallel:
         return [run_soak(hours, seed, checksum=ck, progress=None if progress is None else
                          partial(progress, i), **kw) for i, ck in enumerate(checksums)]
