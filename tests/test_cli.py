@@ -146,6 +146,28 @@ def test_decode_stream_from_stdin_bytes(monkeypatch, capsys):
     assert any("truncated" in r.get("error", "") for r in rows)
 
 
+@pytest.mark.parametrize("args,stdin,n", [
+    (["00112233"], None, 4),                                      # garbage only
+    (["0f0a05323130353230303039"], None, 12),                     # a header, cut short
+    (["--stream"], b"", 0),                                       # nothing at all
+    (["--stream"], b"\x00" * 5000, 5000),                         # bytes, none a frame
+    (["--stream", "--hex"], b"ffee\n0f0a\n", 4),
+])
+def test_decode_that_finds_no_frame_says_so_and_exits_1(monkeypatch, capsys, args, stdin, n):
+    """``rprs decode 00112233`` printed its garbage line, "0 frame(s) decoded" and exited 0,
+    as if it had found something. Finding nothing is status 1 (as ``rprs bench link`` and
+    ``bench cycle`` that hear no frame), in one line; the rows still go to stdout."""
+    if stdin is not None:
+        stdin = io.TextIOWrapper(io.BufferedReader(io.BytesIO(stdin)))
+        monkeypatch.setattr(sys, "stdin", stdin)
+    code, out, err = rprs(capsys, "decode", *args)
+    assert code == 1, err
+    assert err == f"rprs decode: no frame in {n} bytes of input\n"
+    assert all("frame" not in json.loads(x) for x in out.splitlines())
+    if n:
+        assert out                                     # what was there: garbage, errors
+
+
 def test_console_script_runs_without_traceback():
     r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "7"],
                        capture_output=True, text=True)
