@@ -594,6 +594,50 @@ def test_a_fault_or_power_on_after_the_end_of_the_run_is_refused(capsys, args, n
                 "--power", "2@5")[0] == 0
 
 
+@pytest.mark.parametrize("mac", ["aloha", "slotted", "csma"])
+@pytest.mark.parametrize("args,needle", [
+    (["--fault", "steal:2@3"], "--fault steal:2@3"),
+    (["--fault", "fail:1@2", "--fault", "steal:3@4.5"], "--fault steal:3@4.5"),
+    (["--profile", "paper"], "--profile paper"),
+    (["--robots", "0,1,2", "--father-standby"], "--father-standby"),
+])
+def test_a_rotational_mac_option_with_a_peer_mac_is_refused(capsys, mac, args, needle):
+    """``--mac csma --fault steal:2@3`` ran and said nothing: a peer MAC has no turn to steal
+    (its ``force_turn`` does nothing). ``--profile paper`` is a profile of the rotational MAC
+    that the peer MACs never read. Each is refused in one line naming the option and the MAC."""
+    code, out, err = rprs(capsys, "sim", "--duration", "5", "--mac", mac, *args)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"rprs: error: {needle}") and f"--mac {mac}" in err, err
+    assert out == ""
+    # the same with the rotational MAC runs (the steals are real steals there)
+    code, _, err = rprs(capsys, "sim", "--duration", "5", "--mac", "rotational", *args)
+    assert code == 0, err
+
+
+def test_the_checksum_and_the_other_sim_options_apply_to_the_peer_macs_too(capsys):
+    """What the peer MACs do use is taken: ``--checksum`` seals and checks their frames
+    (firmware_model/radio/peer_macs.py), and the air's faults, the CAN side and the load are
+    the same for every MAC."""
+    from hil.cli.sim import add_sim_options, sim_config
+    from hil.cli.common import Parser
+    from hil.sim.world import World
+    p = Parser(prog="rprs sim")
+    add_sim_options(p)
+    cfg = sim_config(p.parse_args(["--mac", "aloha", "--checksum", "--duration", "4", "--load",
+                                   "1", "--robots", "0,1,2"]))
+    w = World(cfg)
+    frames: list[bytes] = []
+    heard = w.air.on_transmission
+    w.air.on_transmission = lambda tx: (frames.append(bytes(tx.data)), heard(tx))
+    w.run()
+    assert frames and all(b"crc(" in f for f in frames)
+    code, out, err = rprs(capsys, "sim", "--duration", "5", "--mac", "csma", "--checksum",
+                          "--can", "--fault", "ber@1-2:0.001", "--fault", "skew:1:0.01",
+                          "--fault", "busoff:1@3", "--load", "1", "--json")
+    assert code == 0, err
+    assert json.loads(out)["delivered"] > 0
+
+
 def test_a_run_shorter_than_one_tick_is_refused(capsys):
     """``rprs sim --duration 1e-9`` ran 0 ticks and exited 0 as if it had simulated something."""
     code, out, err = rprs(capsys, "sim", "--duration", "1e-9", "--no-progress")

@@ -50,7 +50,9 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "too: controller, 82C250, dispatcher, joint/wheel/paw submodules")
         p.add_argument("--mac", choices=("rotational", "aloha", "slotted", "csma"),
                        default="rotational", help="the MAC every robot runs (peers for "
-                       "comparison; default: the paper's rotational MAC)")
+                       "comparison; default: the paper's rotational MAC). A peer MAC takes "
+                       "--checksum; --fault steal, --profile paper and --father-standby need "
+                       "the rotational MAC (docs/peer-macs.md)")
         p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
                        help="peer MACs: frame size of the load (default 80)")
         p.add_argument("--vcd", type=output_path, metavar="FILE",
@@ -93,6 +95,7 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                         f"gets there")
     faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
         tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
+    peer_mac_options(a)
     peer = None
     if getattr(a, "frame_bytes", None):
         if getattr(a, "mac", "rotational") == "rotational":
@@ -110,6 +113,27 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                      father_standby=a.father_standby,
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer,
                      can_sleep=not a.every_frame, ring_sleep=not a.every_frame)
+
+
+def peer_mac_options(a: argparse.Namespace) -> None:
+    """A UserError for an option that only the rotational MAC acts on, given with a peer MAC
+    (``--mac aloha|slotted|csma``), where it would be taken and do nothing. The peer MACs do
+    use ``--checksum`` (their frames are sealed and checked), the air's and CAN faults, skew,
+    the load and the CAN side; they have no turns (``steal``: ``force_turn`` does nothing), no
+    standby PC, and never read the profile (they acknowledge and retransmit whatever it says)."""
+    mac = getattr(a, "mac", "rotational")
+    if mac == "rotational":
+        return
+    steal = next((f for f in a.fault if f.kind == "steal"), None)
+    if steal is not None:
+        raise UserError(f"--fault {steal.spec()}: --mac {mac} has no turns to steal (steal "
+                        f"is a fault of the rotational MAC)")
+    if a.profile != "rprs":
+        raise UserError(f"--profile {a.profile} is a profile of the rotational MAC "
+                        f"(docs/protocol.md §9); --mac {mac} does not follow it")
+    if a.father_standby:
+        raise UserError(f"--father-standby needs the rotational MAC: the standby PC takes ID "
+                        f"0's turn, and --mac {mac} has no turns")
 
 
 def cpu_costs(a: argparse.Namespace):
