@@ -532,6 +532,38 @@ def test_a_full_disk_under_the_capture_is_one_line(capsys):
     assert Path("/dev/full").is_char_device()
 
 
+@pytest.mark.parametrize("failing", ["--trace", "--vcd", "--pcap"])
+def test_a_write_error_mid_run_names_the_output_that_failed(tmp_path, capsys, monkeypatch,
+                                                            failing):
+    """A write that failed during the run (a full disk) was reported as "cannot write trace
+    t.jsonl, VCD v.vcd, capture p.pcapng: ...": every output given, not the one that failed.
+    Here one output's file descriptor is swapped for a read-only one once it is open, so each
+    of its writes fails in the OS (EBADF) as a full disk's would (ENOSPC); the others work."""
+    import os
+    from hil.sim import trace as trace_mod
+    outs = {"--trace": tmp_path / "t.jsonl", "--vcd": tmp_path / "v.vcd",
+            "--pcap": tmp_path / "p.pcapng"}
+    readonly = tmp_path / "readonly"
+    readonly.write_bytes(b"")
+    opened = trace_mod.OutputFile.__init__
+
+    def broken_when_failing(self, path, *a, **kw):
+        opened(self, path, *a, **kw)
+        if path == str(outs[failing]):
+            fd = os.open(readonly, os.O_RDONLY)
+            os.dup2(fd, self.f.fileno())
+            os.close(fd)
+    monkeypatch.setattr(trace_mod.OutputFile, "__init__", broken_when_failing)
+    args = [a for opt, p in outs.items() for a in (opt, str(p))]
+    code, out, err = rprs(capsys, "sim", "--duration", "20", "--load", "2", "--no-progress",
+                          *args)
+    what = {"--trace": "trace", "--vcd": "VCD", "--pcap": "capture"}[failing]
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err == f"rprs: error: cannot write {what} {outs[failing]}: Bad file descriptor\n"
+    assert out == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["readonly"]     # nothing left
+
+
 @pytest.mark.parametrize("sig,status,word", [("SIGTERM", 143, "terminated"),
                                               ("SIGINT", 130, "interrupted")])
 def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, status, word):

@@ -191,7 +191,8 @@ def close_writers(trace, vcd, ok: bool) -> None:
 
 
 def _outputs(**paths: str | None) -> str:
-    """``trace run.jsonl, capture run.pcapng``: the outputs given, for an error message."""
+    """``trace run.jsonl, capture run.pcapng``: the outputs given, for an error message that
+    cannot tell which one failed (an OSError without the output's name, ``OutputFile``)."""
     return ", ".join(f"{what} {p}" for what, p in paths.items() if p)
 
 
@@ -200,7 +201,7 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
               pcap_path: str | None = None) -> tuple[World, float]:
     """Run the world to its end, with its trace, waveform and capture files; ``on_event``
     gets every event too. An output that cannot be written during the run (a full disk) is a
-    UserError, and no output is left."""
+    UserError naming that output, and no output is left."""
     distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
     try:
@@ -240,7 +241,9 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         if pcap_file is not None:
             pcap_file.discard()
         if isinstance(exc, OSError):     # a write of an output failed: the disk is full...
-            which = _outputs(trace=trace_path, VCD=vcd_path, capture=pcap_path)
+            outputs = {"trace": trace_path, "VCD": vcd_path, "capture": pcap_path}
+            failed = [f"{what} {p}" for what, p in outputs.items() if p and p == exc.filename]
+            which = failed[0] if failed else f"an output ({_outputs(**outputs)})"
             raise UserError(f"cannot write {which}: {exc.strerror or exc}") from None
         raise
     close_writers(trace, vcd, ok=True)
