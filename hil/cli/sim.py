@@ -38,7 +38,7 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
     p.add_argument("--fault", type=fault_spec, action="append", default=[], metavar="SPEC",
                    help="inject a fault (repeatable): fail:1@5, steal:2@7, ber@10-20:0.01, "
                    "noise@3-6, burst@12:0.05, foreign@2.5:40, foreign@2.5:x0f0a05, "
-                   "drop@5-9:0.002, skew:3:0.02, busoff:1@8, "
+                   "drop@5-9:0.002, skew:3:0.02 (robot 3's clock 2 %% slow), busoff:1@8, "
                    "stuck:2@3-6, silent:1.JOINT2@4-8, stall:1.JOINT1@5 (docs/guarantees.md)")
     p.add_argument("--checksum", action="store_true",
                    help="the opt-in crc() integrity extension on every robot")
