@@ -146,6 +146,28 @@ def test_decode_stream_from_stdin_bytes(monkeypatch, capsys):
     assert any("truncated" in r.get("error", "") for r in rows)
 
 
+@pytest.mark.parametrize("args,stdin,n", [
+    (["00112233"], None, 4),                                      # garbage only
+    (["0f0a05323130353230303039"], None, 12),                     # a header, cut short
+    (["--stream"], b"", 0),                                       # nothing at all
+    (["--stream"], b"\x00" * 5000, 5000),                         # bytes, none a frame
+    (["--stream", "--hex"], b"ffee\n0f0a\n", 4),
+])
+def test_decode_that_finds_no_frame_says_so_and_exits_1(monkeypatch, capsys, args, stdin, n):
+    """``rprs decode 00112233`` printed its garbage line, "0 frame(s) decoded" and exited 0,
+    as if it had found something. Finding nothing is status 1 (as ``rprs bench link`` and
+    ``bench cycle`` that hear no frame), in one line; the rows still go to stdout."""
+    if stdin is not None:
+        stdin = io.TextIOWrapper(io.BufferedReader(io.BytesIO(stdin)))
+        monkeypatch.setattr(sys, "stdin", stdin)
+    code, out, err = rprs(capsys, "decode", *args)
+    assert code == 1, err
+    assert err == f"rprs decode: no frame in {n} bytes of input\n"
+    assert all("frame" not in json.loads(x) for x in out.splitlines())
+    if n:
+        assert out                                     # what was there: garbage, errors
+
+
 def test_console_script_runs_without_traceback():
     r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "7"],
                        capture_output=True, text=True)
@@ -510,6 +532,38 @@ def test_a_full_disk_under_the_capture_is_one_line(capsys):
     assert Path("/dev/full").is_char_device()
 
 
+@pytest.mark.parametrize("failing", ["--trace", "--vcd", "--pcap"])
+def test_a_write_error_mid_run_names_the_output_that_failed(tmp_path, capsys, monkeypatch,
+                                                            failing):
+    """A write that failed during the run (a full disk) was reported as "cannot write trace
+    t.jsonl, VCD v.vcd, capture p.pcapng: ...": every output given, not the one that failed.
+    Here one output's file descriptor is swapped for a read-only one once it is open, so each
+    of its writes fails in the OS (EBADF) as a full disk's would (ENOSPC); the others work."""
+    import os
+    from hil.sim import trace as trace_mod
+    outs = {"--trace": tmp_path / "t.jsonl", "--vcd": tmp_path / "v.vcd",
+            "--pcap": tmp_path / "p.pcapng"}
+    readonly = tmp_path / "readonly"
+    readonly.write_bytes(b"")
+    opened = trace_mod.OutputFile.__init__
+
+    def broken_when_failing(self, path, *a, **kw):
+        opened(self, path, *a, **kw)
+        if path == str(outs[failing]):
+            fd = os.open(readonly, os.O_RDONLY)
+            os.dup2(fd, self.f.fileno())
+            os.close(fd)
+    monkeypatch.setattr(trace_mod.OutputFile, "__init__", broken_when_failing)
+    args = [a for opt, p in outs.items() for a in (opt, str(p))]
+    code, out, err = rprs(capsys, "sim", "--duration", "20", "--load", "2", "--no-progress",
+                          *args)
+    what = {"--trace": "trace", "--vcd": "VCD", "--pcap": "capture"}[failing]
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err == f"rprs: error: cannot write {what} {outs[failing]}: Bad file descriptor\n"
+    assert out == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["readonly"]     # nothing left
+
+
 @pytest.mark.parametrize("sig,status,word", [("SIGTERM", 143, "terminated"),
                                               ("SIGINT", 130, "interrupted")])
 def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, status, word):
@@ -570,6 +624,50 @@ def test_a_fault_or_power_on_after_the_end_of_the_run_is_refused(capsys, args, n
     # a window that begins before the end is fine, and so is an event before it
     assert rprs(capsys, "sim", "--duration", "10", "--fault", "noise@9-20", "--fail", "1@9.9",
                 "--power", "2@5")[0] == 0
+
+
+@pytest.mark.parametrize("mac", ["aloha", "slotted", "csma"])
+@pytest.mark.parametrize("args,needle", [
+    (["--fault", "steal:2@3"], "--fault steal:2@3"),
+    (["--fault", "fail:1@2", "--fault", "steal:3@4.5"], "--fault steal:3@4.5"),
+    (["--profile", "paper"], "--profile paper"),
+    (["--robots", "0,1,2", "--father-standby"], "--father-standby"),
+])
+def test_a_rotational_mac_option_with_a_peer_mac_is_refused(capsys, mac, args, needle):
+    """``--mac csma --fault steal:2@3`` ran and said nothing: a peer MAC has no turn to steal
+    (its ``force_turn`` does nothing). ``--profile paper`` is a profile of the rotational MAC
+    that the peer MACs never read. Each is refused in one line naming the option and the MAC."""
+    code, out, err = rprs(capsys, "sim", "--duration", "5", "--mac", mac, *args)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"rprs: error: {needle}") and f"--mac {mac}" in err, err
+    assert out == ""
+    # the same with the rotational MAC runs (the steals are real steals there)
+    code, _, err = rprs(capsys, "sim", "--duration", "5", "--mac", "rotational", *args)
+    assert code == 0, err
+
+
+def test_the_checksum_and_the_other_sim_options_apply_to_the_peer_macs_too(capsys):
+    """What the peer MACs do use is taken: ``--checksum`` seals and checks their frames
+    (firmware_model/radio/peer_macs.py), and the air's faults, the CAN side and the load are
+    the same for every MAC."""
+    from hil.cli.sim import add_sim_options, sim_config
+    from hil.cli.common import Parser
+    from hil.sim.world import World
+    p = Parser(prog="rprs sim")
+    add_sim_options(p)
+    cfg = sim_config(p.parse_args(["--mac", "aloha", "--checksum", "--duration", "4", "--load",
+                                   "1", "--robots", "0,1,2"]))
+    w = World(cfg)
+    frames: list[bytes] = []
+    heard = w.air.on_transmission
+    w.air.on_transmission = lambda tx: (frames.append(bytes(tx.data)), heard(tx))
+    w.run()
+    assert frames and all(b"crc(" in f for f in frames)
+    code, out, err = rprs(capsys, "sim", "--duration", "5", "--mac", "csma", "--checksum",
+                          "--can", "--fault", "ber@1-2:0.001", "--fault", "skew:1:0.01",
+                          "--fault", "busoff:1@3", "--load", "1", "--json")
+    assert code == 0, err
+    assert json.loads(out)["delivered"] > 0
 
 
 def test_a_run_shorter_than_one_tick_is_refused(capsys):

@@ -52,7 +52,8 @@ def _frame_json(frame: Frame) -> dict:
     return d
 
 
-def _decode_bytes(chunks, out) -> int:
+def _decode_bytes(chunks, out) -> tuple[int, int]:
+    """Print what the bytes hold, a row each; returns (frames decoded, bytes read)."""
     d = Deframer()
     offset = 0
     frames = 0
@@ -72,7 +73,7 @@ def _decode_bytes(chunks, out) -> int:
     for ev in d.flush():
         if isinstance(ev, Garbage):
             out({"offset": ev.first, "garbage": ev.count})
-    return frames
+    return frames, offset
 
 
 def _unhex(text: str) -> bytes:
@@ -92,12 +93,15 @@ def cmd_decode(a: argparse.Namespace) -> int:
         else:
             src = sys.stdin.buffer
             chunks = iter(lambda: src.read1(4096), b"")
-        frames = _decode_bytes(chunks, out)
+        frames, size = _decode_bytes(chunks, out)
     else:
         if not a.hexdata:
             raise UserError("give the frame as hex, or --stream to read stdin")
-        frames = _decode_bytes([_unhex(" ".join(a.hexdata))], out)
+        frames, size = _decode_bytes([_unhex(" ".join(a.hexdata))], out)
     sys.stdout.flush()
+    if not frames:       # found nothing: status 1, as rprs bench link or cycle hearing no frame
+        print(f"rprs decode: no frame in {size} bytes of input", file=sys.stderr)
+        return 1
     print(f"{frames} frame(s) decoded", file=sys.stderr)
     return 0
 
@@ -115,7 +119,10 @@ def add(sub) -> None:
     e.add_argument("--spaced", action="store_true", help="space between bytes")
     e.add_argument("content", help="Content text, e.g. 'movex(10)moveto(1.5,-2,0)'")
     e.set_defaults(func=cmd_encode)
-    c = sub.add_parser("decode", help="find frames in hex or in a byte stream")
+    c = sub.add_parser("decode", help="find frames in hex or in a byte stream",
+                       description="Find frames in hex or in a byte stream: a JSON line on "
+                       "stdout for each frame, run of garbage and broken frame. Exit status "
+                       "1 when no frame is found.")
     c.add_argument("hexdata", nargs="*", metavar="HEX")
     c.add_argument("--stream", action="store_true", help="read bytes from stdin")
     c.add_argument("--hex", action="store_true", help="with --stream: stdin is hex text "

@@ -38,7 +38,7 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
     p.add_argument("--fault", type=fault_spec, action="append", default=[], metavar="SPEC",
                    help="inject a fault (repeatable): fail:1@5, steal:2@7, ber@10-20:0.01, "
                    "noise@3-6, burst@12:0.05, foreign@2.5:40, foreign@2.5:x0f0a05, "
-                   "drop@5-9:0.002, skew:3:0.02, busoff:1@8, "
+                   "drop@5-9:0.002, skew:3:0.02 (robot 3's clock 2 %% slow), busoff:1@8, "
                    "stuck:2@3-6, silent:1.JOINT2@4-8, stall:1.JOINT1@5 (docs/guarantees.md)")
     p.add_argument("--checksum", action="store_true",
                    help="the opt-in crc() integrity extension on every robot")
@@ -50,7 +50,9 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "too: controller, 82C250, dispatcher, joint/wheel/paw submodules")
         p.add_argument("--mac", choices=("rotational", "aloha", "slotted", "csma"),
                        default="rotational", help="the MAC every robot runs (peers for "
-                       "comparison; default: the paper's rotational MAC)")
+                       "comparison; default: the paper's rotational MAC). A peer MAC takes "
+                       "--checksum; --fault steal, --profile paper and --father-standby need "
+                       "the rotational MAC (docs/peer-macs.md)")
         p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
                        help="peer MACs: frame size of the load (default 80)")
         p.add_argument("--vcd", type=output_path, metavar="FILE",
@@ -93,6 +95,7 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                         f"gets there")
     faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
         tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
+    peer_mac_options(a)
     peer = None
     if getattr(a, "frame_bytes", None):
         if getattr(a, "mac", "rotational") == "rotational":
@@ -110,6 +113,27 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                      father_standby=a.father_standby,
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer,
                      can_sleep=not a.every_frame, ring_sleep=not a.every_frame)
+
+
+def peer_mac_options(a: argparse.Namespace) -> None:
+    """A UserError for an option that only the rotational MAC acts on, given with a peer MAC
+    (``--mac aloha|slotted|csma``), where it would be taken and do nothing. The peer MACs do
+    use ``--checksum`` (their frames are sealed and checked), the air's and CAN faults, skew,
+    the load and the CAN side; they have no turns (``steal``: ``force_turn`` does nothing), no
+    standby PC, and never read the profile (they acknowledge and retransmit whatever it says)."""
+    mac = getattr(a, "mac", "rotational")
+    if mac == "rotational":
+        return
+    steal = next((f for f in a.fault if f.kind == "steal"), None)
+    if steal is not None:
+        raise UserError(f"--fault {steal.spec()}: --mac {mac} has no turns to steal (steal "
+                        f"is a fault of the rotational MAC)")
+    if a.profile != "rprs":
+        raise UserError(f"--profile {a.profile} is a profile of the rotational MAC "
+                        f"(docs/protocol.md §9); --mac {mac} does not follow it")
+    if a.father_standby:
+        raise UserError(f"--father-standby needs the rotational MAC: the standby PC takes ID "
+                        f"0's turn, and --mac {mac} has no turns")
 
 
 def cpu_costs(a: argparse.Namespace):
@@ -167,7 +191,8 @@ def close_writers(trace, vcd, ok: bool) -> None:
 
 
 def _outputs(**paths: str | None) -> str:
-    """``trace run.jsonl, capture run.pcapng``: the outputs given, for an error message."""
+    """``trace run.jsonl, capture run.pcapng``: the outputs given, for an error message that
+    cannot tell which one failed (an OSError without the output's name, ``OutputFile``)."""
     return ", ".join(f"{what} {p}" for what, p in paths.items() if p)
 
 
@@ -176,7 +201,7 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
               pcap_path: str | None = None) -> tuple[World, float]:
     """Run the world to its end, with its trace, waveform and capture files; ``on_event``
     gets every event too. An output that cannot be written during the run (a full disk) is a
-    UserError, and no output is left."""
+    UserError naming that output, and no output is left."""
     distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
     try:
@@ -216,7 +241,9 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         if pcap_file is not None:
             pcap_file.discard()
         if isinstance(exc, OSError):     # a write of an output failed: the disk is full...
-            which = _outputs(trace=trace_path, VCD=vcd_path, capture=pcap_path)
+            outputs = {"trace": trace_path, "VCD": vcd_path, "capture": pcap_path}
+            failed = [f"{what} {p}" for what, p in outputs.items() if p and p == exc.filename]
+            which = failed[0] if failed else f"an output ({_outputs(**outputs)})"
             raise UserError(f"cannot write {which}: {exc.strerror or exc}") from None
         raise
     close_writers(trace, vcd, ok=True)

@@ -17,7 +17,11 @@ A fault is written ``KIND[:TARGET]@WHEN[:VALUE]`` (times in seconds from the sta
                            (an even number of hex digits after ``x``; a count never starts
                            with ``x``, so the two forms cannot be confused)
 ``drop@T1-T2:P``           each received byte is lost (UART overrun) with probability P
-``skew:R:E``               robot R's clock (UART and timers) runs E (fraction, e.g. 0.02) fast
+``skew:R:E``               robot R's clock runs E slow (0 <= E < 0.2, e.g. 0.02): its byte
+                           time and every interval it times (UART, timers) are (1 + E) times
+                           nominal; the radio's Ttrans is the PTR2000's. A clock that runs
+                           fast (E < 0) is refused: it would raise TXEN for less than Ttrans
+                           before each frame, and the radio would lose every frame
 ``busoff:R@T``             child R's CAN controller driven bus-off (bit errors on its frames)
 ``stuck:R@T1-T2``          child R's 82C250 TXD stuck dominant from T1 to T2
 ``silent:R.NODE@T1-T2``    submodule NODE (JOINT1-4, WHEEL, PAW) of child R stops answering
@@ -92,7 +96,7 @@ class Fault:
 _NUM = r"[0-9]+(?:\.[0-9]*)?"
 _SPEC = re.compile(rf"^(?P<kind>[a-z]+)(?::(?P<robot>[0-6])(?:\.(?P<node>[A-Z0-9]+))?)?"
                    rf"(?:@(?P<at>{_NUM})(?:-(?P<until>{_NUM}))?)?"
-                   rf"(?::(?:x(?P<hex>\S*)|(?P<value>{_NUM})))?$")
+                   rf"(?::(?:x(?P<hex>\S*)|(?P<value>-?{_NUM})))?$")
 
 
 def parse_fault(text: str) -> Fault:
@@ -138,9 +142,7 @@ def parse_fault(text: str) -> Fault:
     if kind == "skew":
         if at is not None or value is None:
             raise FaultError("skew is for the whole run: skew:ID:FRACTION, e.g. skew:2:0.02")
-        if not -0.2 < value < 0.2:
-            raise FaultError(f"skew {value} is not a small fraction (|E| < 0.2)")
-        return Fault(kind, robot, 0.0, None, value)
+        return Fault(kind, robot, 0.0, None, check_skew(value))
     if at is None:
         raise FaultError(f"{kind} needs a time: {kind}...@SECONDS")
     ranged = kind in ("ber", "noise", "drop", "stuck", "silent", "noisy")
@@ -161,6 +163,26 @@ def parse_fault(text: str) -> Fault:
     elif value is not None:
         raise FaultError(f"{kind} takes no value")
     return Fault(kind, robot, at, until, value, node)
+
+
+SKEW_MAX = 0.2
+"""A ``skew`` is below this fraction."""
+
+
+def check_skew(value: float) -> float:
+    """``value`` if it is a skew the model takes (0 <= E < SKEW_MAX: the clock that much
+    slow), else FaultError. A clock that runs fast is refused, not modelled: it would time
+    Ttrans shorter than its PTR2000 switches, and the radio loses a frame sent before it has
+    switched whole (firmware_model/mcu/ptr2000.py), so the robot would be mute, whatever
+    the skew, rather than skewed."""
+    if value < 0:
+        raise FaultError(f"skew {value:g}: a clock that runs fast (E < 0) is not modelled: the "
+                         f"robot would switch its radio to transmit for less than Ttrans and "
+                         f"lose every frame it sends; E is how much slower the robot's clock "
+                         f"runs, 0 <= E < {SKEW_MAX:g}")
+    if not value < SKEW_MAX:
+        raise FaultError(f"skew {value:g} is not a small fraction: 0 <= E < {SKEW_MAX:g}")
+    return value
 
 
 def foreign_fault(at: float, count: float | None = None, hexdata: str | None = None) -> Fault:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import errno
 import gzip
+import io
 import json
 import os
 import stat
@@ -17,6 +18,24 @@ from typing import IO, Any, Iterator
 TRACE_VERSION = 1
 
 
+class _OutputRaw(io.FileIO):
+    """The file under an :class:`OutputFile`'s buffer: a write that fails (a full disk) raises
+    its OSError with ``filename`` the output's path, so that whoever writes several outputs at
+    once can tell which one failed (the buffers write when they fill, deep inside a run)."""
+
+    def __init__(self, tmp: str, output: str) -> None:
+        super().__init__(tmp, "w")
+        self.output = output
+
+    def write(self, b):
+        try:
+            return super().write(b)
+        except OSError as exc:
+            if exc.filename is None:
+                exc.filename = self.output
+            raise
+
+
 class OutputFile:
     """An output that appears whole or not at all: written to ``PATH.partial`` beside the file
     ``path`` names (through a symlink: the link stays), renamed over it at :meth:`commit`,
@@ -24,7 +43,8 @@ class OutputFile:
     to a reader) is written straight: a file renamed over it would replace it (as root,
     ``--trace /dev/null`` once replaced /dev/null with a regular file). A directory raises
     ``IsADirectoryError`` here, before anything is written, rather than at the rename after
-    the whole run. ``binary``: bytes, else ASCII text with ``\n`` line ends."""
+    the whole run. ``binary``: bytes, else ASCII text with ``\n`` line ends. An OSError from
+    writing ``f`` or from :meth:`commit` has ``filename`` = ``path``: the output that failed."""
 
     def __init__(self, path: str, binary: bool = False) -> None:
         self.path = path
@@ -37,18 +57,29 @@ class OutputFile:
         self.direct = mode is not None and not stat.S_ISREG(mode)
         self.final = path if self.direct else os.path.realpath(path)
         self.tmp = self.final if self.direct else f"{self.final}.partial"
-        self.f: IO = (open(self.tmp, "wb") if binary else
-                      open(self.tmp, "w", encoding="ascii", newline="\n"))
+        # open(tmp, "wb" or "w") but over _OutputRaw: the same buffer, the same bytes
+        raw = _OutputRaw(self.tmp, path)
+        try:
+            size = os.fstat(raw.fileno()).st_blksize
+            buf = io.BufferedWriter(raw, size if size > 1 else io.DEFAULT_BUFFER_SIZE)
+        except BaseException:
+            raw.close()
+            raise
+        self.f: IO = buf if binary else io.TextIOWrapper(
+            buf, encoding="ascii", newline="\n", line_buffering=raw.isatty())
 
     def commit(self) -> None:
-        """Close the file and put it in place; OSError if its last bytes cannot be written (a
-        full disk), and then nothing is left."""
+        """Close the file and put it in place; OSError (``filename``: ``path``) if its last
+        bytes cannot be written (a full disk) or it cannot be put in place, and then nothing
+        is left."""
         try:
             self.f.close()
             if not self.direct:
                 os.replace(self.tmp, self.final)
-        except BaseException:
+        except BaseException as exc:
             self.discard()
+            if isinstance(exc, OSError):   # the rename names PATH.partial: name the output
+                exc.filename, exc.filename2 = self.path, None
             raise
 
     def discard(self) -> None:

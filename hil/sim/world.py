@@ -38,7 +38,8 @@ from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to
 
 from .air import Air, Transmission
 from .faults import (
-    AIR_KINDS, CAN_KINDS, KINDS, Fault, FaultError, apply_air_fault, schedule as schedule_fault,
+    AIR_KINDS, CAN_KINDS, KINDS, Fault, FaultError, apply_air_fault, check_skew,
+    schedule as schedule_fault,
 )
 from .quiet_can import PERIOD as CAN_PERIOD, QuietCan
 from .quiet_ring import QuietRing
@@ -144,6 +145,11 @@ class SimConfig:
                 raise ConfigError(f"fault {f.spec()}: time must not be negative")
             if f.kind in CAN_KINDS and not self.can:
                 raise ConfigError(f"fault {f.spec()} needs the children's CAN side (--can)")
+            if f.kind == "skew":
+                try:
+                    check_skew(f.value)
+                except FaultError as exc:
+                    raise ConfigError(f"fault {f.spec()}: {exc}") from None
         if isinstance(self.load, str):
             if self.load not in ("idle", "saturate"):
                 raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
@@ -874,8 +880,8 @@ def _spread(values: list[int]) -> dict:
 
 
 def _skewed(cfg: MacConfig, eps: float) -> MacConfig:
-    """A robot whose clock runs ``eps`` fast: every interval it times is that much longer
-    in true ticks (rounded to the reload timer's even ticks)."""
+    """A robot whose clock runs ``eps`` slow (``skew:R:E``, 0 <= E < 0.2): every interval it
+    times is that much longer in true ticks (rounded up to the reload timer's even ticks)."""
     def k(t: int) -> int:
         v = round(t * (1 + eps))
         return v + (v & 1)
