@@ -359,6 +359,51 @@ def test_slave_is_raw_no_echo_no_translation(hubs):
     assert read_for(fd0, 0.1) == b""
 
 
+def _cooked(fd: int) -> None:
+    """What ``stty sane`` does to a terminal, done by an outside client on its node: echo,
+    line editing, signals, CR/LF translation and XON/XOFF on."""
+    attrs = termios.tcgetattr(fd)
+    attrs[0] |= termios.ICRNL | termios.IXON
+    attrs[1] |= termios.OPOST | termios.ONLCR
+    attrs[3] |= termios.ECHO | termios.ECHOE | termios.ECHOK | termios.ICANON | termios.ISIG \
+        | termios.IEXTEN
+    termios.tcsetattr(fd, termios.TCSANOW, attrs)
+
+
+def test_a_client_that_turns_echo_on_does_not_echo_the_air_back(hubs):
+    """The hub set its slaves raw once, when it made them. A program that opened a node and
+    turned echo on (``stty sane``, a terminal program, a script's ``os.open`` + termios) made
+    the pty echo every byte the air brought it back to the hub, which put it on air as that
+    node's own transmission: the sender heard its frame come back (a forgery of itself) and
+    the air carried it twice. The hub now keeps its nodes raw: it sets raw mode again before
+    it writes to a node, and once every poll interval, and counts each time it had to."""
+    hub = hubs(2).start()
+    a = serial.Serial(hub.paths[0], timeout=0.3)  # plain pyserial: raw, as it sets itself
+    try:
+        fd = open_node(hubs, hub.paths[1])        # an outside client, cooked
+        _cooked(fd)
+        a.write(b"hel\rlo\n")
+        a.flush()
+        got = read_n(fd, 7, 3.0)[0]
+        assert got == b"hel\rlo\n"                # no CR -> LF, no line discipline
+        assert a.read(64) == b""                  # nothing echoed back on air
+        assert not termios.tcgetattr(fd)[3] & (termios.ECHO | termios.ICANON)
+        n0, n1 = hub.stats()["per_node"][:2]
+        assert n1["bytes_in"] == 0 and n1["raw_restored"] >= 1
+        assert n0["raw_restored"] == 0            # pyserial's own settings are raw enough
+        # turned cooked again while the air is quiet: raw again within a poll interval or so
+        _cooked(fd)
+        deadline = time.monotonic() + 5.0
+        while termios.tcgetattr(fd)[3] & termios.ECHO and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert not termios.tcgetattr(fd)[3] & termios.ECHO
+        os.write(fd, b"x\n")                      # no LF -> CR LF on its way out
+        assert a.read(3) == b"x\n"
+        assert "raw mode restored" in summary_line(hub.stats())
+    finally:
+        a.close()
+
+
 def test_slow_reader_is_dropped_and_the_hub_never_blocks(hubs):
     hub = hubs(2, baud=1_000_000).start()         # 10 us a byte: fill a pty quickly
     data = bytes(i % 251 for i in range(60_000))

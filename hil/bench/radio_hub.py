@@ -31,7 +31,9 @@ hub holds only the masters, so a master reports POLLHUP while no program has its
 bytes for such a node are not written at all (nothing stale waits for a program that opens it
 later) and are counted apart (``not_open``). A node writing faster than the air carries stops
 being read once ``BACKLOG_LIMIT`` bytes wait, so its writer blocks as on a real serial port
-instead of the hub buffering without bound.
+instead of the hub buffering without bound. The hub keeps every slave raw: a program that
+turns echo or line editing on (which would echo the air back onto it) is set back before the
+hub writes to its node and at least every ``POLL_S`` (``raw_restored``).
 
 Over 500 lines on purpose: the hub's pty I/O, its timing against the Air model and its command-
 line arguments are one program, run as one process.
@@ -48,7 +50,6 @@ import sys
 import termios
 import threading
 import time
-import tty
 from typing import Any, Iterable, Sequence
 
 from firmware_model.timing import BITS_PER_BYTE_8N1, TICK_HZ, s_to_ticks
@@ -79,8 +80,26 @@ MAX_SECONDS = 10_000_000
 
 READ_SIZE = 4096
 POLL_S = 0.02
-"""The reader thread re-checks backlogs, the stop flag and which nodes a program has open at
-least this often."""
+"""The reader thread re-checks backlogs, the stop flag, which nodes a program has open and
+that every node is still raw at least this often."""
+
+_RAW_IFLAG_OFF = (termios.IGNBRK | termios.BRKINT | termios.IGNPAR | termios.PARMRK
+                  | termios.INPCK | termios.ISTRIP | termios.INLCR | termios.IGNCR
+                  | termios.ICRNL | termios.IXON | termios.IXANY | termios.IXOFF
+                  | getattr(termios, "IUCLC", 0))
+_RAW_OFLAG_OFF = termios.OPOST
+_RAW_LFLAG_OFF = (termios.ECHO | termios.ECHONL | termios.ICANON | termios.ISIG
+                  | termios.IEXTEN)
+
+
+def raw_attrs(attrs: list) -> list:
+    """``attrs`` (``termios.tcgetattr``) in raw mode, as cfmakeraw makes it: no echo, no line
+    editing or signals, no CR/LF translation, no XON/XOFF, 8 bits. The line's speed and its
+    VMIN/VTIME (how a program's reads return) are the program's, and stay as they are."""
+    iflag, oflag, cflag, lflag = attrs[:4]
+    return [iflag & ~_RAW_IFLAG_OFF, oflag & ~_RAW_OFLAG_OFF,
+            (cflag & ~(termios.CSIZE | termios.PARENB)) | termios.CS8,
+            lflag & ~_RAW_LFLAG_OFF] + list(attrs[4:])
 
 
 def byte_ticks_for(baud: float) -> int:
@@ -282,11 +301,13 @@ class RadioHub:
         self._made_dir = False
         self._dir_lock = -1          # the link directory, flock'ed while the hub runs
         self._lock = threading.Lock()
+        self._raw_lock = threading.Lock()
         self._backlog = [0] * nodes
         self.bytes_in = [0] * nodes
         self.bytes_out = [0] * nodes
         self.dropped = [0] * nodes
         self.not_open = [0] * nodes
+        self.raw_restored = [0] * nodes
         self.lost = [0] * nodes
         self.noise_bytes = [0] * nodes
         self.collisions = 0
@@ -314,7 +335,9 @@ class RadioHub:
                 master, slave = os.openpty()
                 self.masters.append(master)
                 try:
-                    tty.setraw(slave, termios.TCSANOW)
+                    attrs = raw_attrs(termios.tcgetattr(slave))
+                    attrs[6][termios.VMIN], attrs[6][termios.VTIME] = 1, 0
+                    termios.tcsetattr(slave, termios.TCSANOW, attrs)
                     self.paths.append(os.ttyname(slave))
                 finally:
                     # the hub holds only the master: while no program has the slave open,
@@ -532,7 +555,13 @@ class RadioHub:
         index = {fd: i for i, fd in enumerate(masters)}
         wake = self._wake_r
         sched = self.sched
+        next_raw = 0.0
         while not self._stopping.is_set():
+            now = time.monotonic()
+            if now >= next_raw:          # a program may have turned its node's echo on
+                next_raw = now + POLL_S
+                for i in range(len(masters)):
+                    self._keep_raw(i)
             with self._lock:
                 fds = [fd for i, fd in enumerate(masters) if self._backlog[i] < BACKLOG_LIMIT]
             try:
@@ -579,6 +608,21 @@ class RadioHub:
         """A program has node ``i``'s pty open (its master does not report POLLHUP)."""
         return not any(ev & select.POLLHUP for _, ev in self._hup[i].poll(0))
 
+    def _keep_raw(self, i: int) -> None:
+        """Set node ``i``'s pty raw again if a program has turned echo, line editing or
+        translation on (termios on a master is its slave's, on Linux)."""
+        fd = self.masters[i]
+        with self._raw_lock:         # the reader and the air's thread: count each time once
+            try:
+                attrs = termios.tcgetattr(fd)
+                raw = raw_attrs(attrs)
+                if raw == attrs:
+                    return
+                termios.tcsetattr(fd, termios.TCSANOW, raw)
+            except (termios.error, OSError):
+                return               # closed under us as the hub stops
+            self.raw_restored[i] += 1
+
     # -- the air (scheduler thread only) --------------------------------------------------
 
     def _on_write(self, i: int, data: bytes) -> None:
@@ -623,6 +667,7 @@ class RadioHub:
         if not self._is_open(i):
             self.not_open[i] += len(data)     # no program to hear them: not written
             return
+        self._keep_raw(i)                     # echo on would send them back on air
         try:
             n = os.write(self.masters[i], data)
         except BlockingIOError:
@@ -744,6 +789,7 @@ class RadioHub:
             "transmissions": sent.get(i, 0),
             "dropped": self.dropped[i],         # heard, but its reader had no room
             "not_open": self.not_open[i],       # heard while no program had its pty open
+            "raw_restored": self.raw_restored[i],  # times a program had made it non-raw
             "lost": self.lost[i],               # written while its link was down
             "noise": self.noise_bytes[i],
         } for i in range(self.nodes)]
@@ -755,6 +801,7 @@ class RadioHub:
             "collisions": self.collisions,
             "dropped": sum(self.dropped),
             "not_open": sum(self.not_open),
+            "raw_restored": sum(self.raw_restored),
             "lost": sum(self.lost),
             "noise": sum(self.noise_bytes),
             "seconds": (time.monotonic() - self._t_start) if self._started else 0.0,
@@ -766,14 +813,19 @@ class RadioHub:
 def summary_line(st: dict[str, Any]) -> str:
     """The closing line of ``rprs radio-hub``. ``dropped (slow reader)``: bytes a program that
     had its node open had no room for; ``not delivered (node not open)``: bytes for nodes no
-    program had open, not written at all."""
+    program had open, not written at all; the times the hub set a node raw again, if any."""
     c = st["collisions"]
-    return (f"radio-hub: {st['seconds']:.1f} s, {st['bytes_in']} bytes in, "
+    line = (f"radio-hub: {st['seconds']:.1f} s, {st['bytes_in']} bytes in, "
             f"{st['bytes_out']} bytes out, {st['transmissions']} transmissions, "
             f"{c} collision{'s' if c != 1 else ''}, {st['noise']} noise bytes, "
             f"{st['dropped']} dropped (slow reader), "
             f"{st.get('not_open', 0)} not delivered (node not open), "
             f"{st['lost']} lost (link down)")
+    n = st.get("raw_restored", 0)
+    if n:
+        line += (f"; raw mode restored {n} time{'s' if n != 1 else ''} (a program turned echo "
+                 f"or line editing on)")
+    return line
 
 
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
