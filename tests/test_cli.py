@@ -427,6 +427,18 @@ def test_a_can_log_format_python_can_cannot_write_here_is_one_line(tmp_path, cap
     assert err.startswith(f"rprs: error: cannot write CAN log {log}: The asammdf package")
 
 
+def test_a_can_only_child_closes_with_its_can_side_not_radio_fields(capsys):
+    """``rprs child --can ...`` without ``--radio``: its closing line was the radio's, "robot
+    1: listen, ring [], frames sent 0, heard 0, failed 0, pending 0", for a station that
+    never had a radio. It now gives what the child has: its CAN side."""
+    code, out, err = rprs(capsys, "child", "--id", "1", "--can", "virtual:cli-can-only",
+                          "--duration", "0.3")
+    assert code == 0, err
+    last = err.strip().splitlines()[-1]
+    assert last == "robot 1: CAN only (no radio); CAN: 0 frames sent, 0 received", err
+    assert "ring" not in err and "heard" not in err
+
+
 def test_a_father_order_that_is_not_ascii_is_refused_in_words():
     from hil.bench.runner import parse_order
     with pytest.raises(ValueError, match="'é' is not ASCII"):

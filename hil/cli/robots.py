@@ -29,18 +29,27 @@ def cmd_child(a: argparse.Namespace) -> int:
         ([f"CAN {a.can}"] if a.can else ["no CAN side (no --can): orders are answered "
                                           "fail(42)"])
     return run_until_stopped(runner, a, "running " + ", ".join(parts) + "; Ctrl-C stops",
-                lambda: child_summary(station, child))
+                lambda: child_summary(station, child, radio=bool(a.radio)))
 
 
-def child_summary(station, child) -> str:
-    """The closing line of ``rprs child``: the radio's, and the CAN frames the firmware
-    ignored as malformed (no node's frame: a wrong length, a remote frame, an unknown id)."""
+def child_summary(station, child, radio: bool = True) -> str:
+    """The closing line of ``rprs child``: with a radio, the radio's, and the CAN frames the
+    firmware ignored as malformed (no node's frame: a wrong length, a remote frame, an unknown
+    id); without one (``radio`` False: a CAN-only child), only its CAN side: the frames it
+    sent and received, and the malformed ones."""
     from ..bench.runner import summary_line
-    line = summary_line(station)
     bad = getattr(getattr(child, "dispatcher", None), "bad_frames", 0)
-    if bad:
-        line += (f"; CAN: {bad} malformed frame{'s' if bad > 1 else ''} ignored (wrong length, "
+    malformed = (f"{bad} malformed frame{'s' if bad > 1 else ''} ignored (wrong length, "
                  f"remote or unknown id)")
+    if not radio:
+        bus = getattr(getattr(getattr(child, "can", None), "xcvr", None), "bus", None)
+        counts = [f"{bus.sent} frame{'s' if bus.sent != 1 else ''} sent",
+                  f"{bus.received} received"] if bus is not None else []
+        return (f"robot {station.id}: CAN only (no radio); CAN: "
+                + ", ".join(counts + ([malformed] if bad else [])))
+    line = summary_line(station)
+    if bad:
+        line += f"; CAN: {malformed}"
     return line
 
 
