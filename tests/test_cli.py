@@ -5,6 +5,7 @@ import io
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -437,6 +438,46 @@ def test_a_can_only_child_closes_with_its_can_side_not_radio_fields(capsys):
     last = err.strip().splitlines()[-1]
     assert last == "robot 1: CAN only (no radio); CAN: 0 frames sent, 0 received", err
     assert "ring" not in err and "heard" not in err
+
+
+@pytest.mark.parametrize("command", [
+    ["child", "--id", "1", "--team", "1", "--events"],
+    ["father", "--team", "0", "--json", "--no-input"],
+    ["father", "--team", "0"],
+], ids=["child --events", "father --json", "father"])
+def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
+    """``rprs child --events | head -1``: the write after head exited raised BrokenPipeError
+    out of the firmware's scheduler, and the process ended at once with status 0 and no
+    closing line, as if it had never run. A closed stdout now stops a robot as rprs stops
+    every command whose reader went away (hil/cli/__init__.py: status 0, no error): quietly,
+    but cleanly, its ports closed and its closing line on stderr, as on Ctrl-C."""
+    orders = "--no-input" not in command and "--events" not in command
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", *command, "--radio", "loop://",
+                          "--duration", "60"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, stdin=subprocess.PIPE if orders else None,
+                         text=True)
+    try:
+        first = p.stdout.readline()              # a lone robot claims its ring within 1 s
+        assert first.strip(), first
+        p.stdout.close()                          # what head -1 does once it has its line
+        t_closed = time.monotonic()
+        if orders:                                # the father's console writes of it next
+            p.stdin.write("1 status()\n")
+            p.stdin.flush()
+        err = p.stderr.read()
+        code = p.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        if p.stdin is not None:
+            p.stdin.close()
+    assert time.monotonic() - t_closed < 20, "it ran on to its --duration"
+    assert code == 0, err
+    assert "Traceback" not in err and "Exception ignored" not in err and "Broken" not in err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith(("running child 1", "father (ID 0")), err
+    assert lines[-1].startswith(("robot 1: member", "robot 0: member")), err
 
 
 def test_a_father_order_that_is_not_ascii_is_refused_in_words():

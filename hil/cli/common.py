@@ -218,8 +218,14 @@ def realtime_options(p: argparse.ArgumentParser) -> None:
 def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary) -> int:
     """Run a bench process to its end; exit status 1 if it went on through troubles (each
     said in its own line as it happened: ``Runner.warn``) or stopped by itself (its radio
-    port went away), else 0."""
-    runner.run(a.duration, ready=lambda: print(describe, file=sys.stderr, flush=True))
+    port went away), else 0. Standard output closed by its reader (``| head -1``) stops the
+    process as every rprs command stops then, quietly and with status 0, but as cleanly as
+    Ctrl-C does: the runner has closed its ports, and the summary still goes to stderr (the
+    ``--events`` printer stops the runner itself; this catches any other writer)."""
+    try:
+        runner.run(a.duration, ready=lambda: print(describe, file=sys.stderr, flush=True))
+    except BrokenPipeError:
+        pass                      # Runner.run closed everything on its way out
     print(summary(), file=sys.stderr, flush=True)
     if stopped_by_itself(runner):
         return 1
