@@ -480,6 +480,19 @@ def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
     assert lines[-1].startswith(("robot 1: member", "robot 0: member")), err
 
 
+@pytest.mark.parametrize("command", [["child", "--id", "1"], ["submodules"]])
+def test_an_rprs_unix_bus_under_a_missing_directory_is_one_line(tmp_path, capsys, command):
+    """The ``rprs_unix:`` scheme made every missing parent of its directory (a mistyped path
+    gave a bus of its own, silently), the radio hub's ``--link-dir`` none: both now make only
+    the last directory and refuse a missing parent in one line naming it."""
+    bus = tmp_path / "no-such" / "can"
+    code, out, err = rprs(capsys, *command, "--can", f"rprs_unix:{bus}", "--duration", "0.1")
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"rprs: error: cannot open CAN bus rprs_unix:{bus}: ")
+    assert f"its parent directory {bus.parent} does not exist" in err
+    assert not bus.parent.exists()
+
+
 def test_a_father_order_that_is_not_ascii_is_refused_in_words():
     from hil.bench.runner import parse_order
     with pytest.raises(ValueError, match="'é' is not ASCII"):
