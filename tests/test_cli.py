@@ -493,6 +493,28 @@ def test_an_rprs_unix_bus_under_a_missing_directory_is_one_line(tmp_path, capsys
     assert not bus.parent.exists()
 
 
+@pytest.mark.parametrize("command,other", [(["child", "--id", "1"], "rprs submodules"),
+                                           (["submodules"], "rprs child")])
+def test_a_virtual_can_bus_is_said_to_be_out_of_other_processes_reach(tmp_path, capsys,
+                                                                       command, other):
+    """``--can virtual:NAME`` is python-can's in-process bus: no other process (rprs
+    submodules, candump) ever sees its frames, and a user waited for them. The command now
+    says so in one note line after its running line (not an error: it runs, status 0); a
+    bus other processes share gets no note."""
+    code, out, err = rprs(capsys, *command, "--can", "virtual:cli-note", "--duration", "0.2")
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("running "), err
+    notes = [x for x in lines if "note:" in x]
+    assert len(notes) == 1 and lines[1] == notes[0], err
+    assert notes[0].startswith(f"rprs {command[0]}: note: virtual:cli-note is python-can's "
+                               f"in-process bus"), notes
+    assert other in notes[0] and "rprs_unix:DIR" in notes[0] and "error" not in notes[0]
+    code, out, err = rprs(capsys, *command, "--can", f"rprs_unix:{tmp_path / 'can'}",
+                          "--duration", "0.2")
+    assert code == 0 and "note:" not in err, err
+
+
 def test_a_father_order_that_is_not_ascii_is_refused_in_words():
     from hil.bench.runner import parse_order
     with pytest.raises(ValueError, match="'é' is not ASCII"):

@@ -8,9 +8,9 @@ import sys
 from firmware_model.timing import TICK_HZ
 
 from ..bench.orders import REPORT_WITHIN_S
-from .common import (UserError, digit, distinct_outputs, mac_config, mac_options, port_name,
-                     positive, realtime_options, run_until_stopped, stopped_by_itself,
-                     txen_option)
+from .common import (UserError, can_notes, digit, distinct_outputs, mac_config, mac_options,
+                     port_name, positive, realtime_options, run_until_stopped,
+                     stopped_by_itself, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_child
@@ -29,7 +29,8 @@ def cmd_child(a: argparse.Namespace) -> int:
         ([f"CAN {a.can}"] if a.can else ["no CAN side (no --can): orders are answered "
                                           "fail(42)"])
     return run_until_stopped(runner, a, "running " + ", ".join(parts) + "; Ctrl-C stops",
-                lambda: child_summary(station, child, radio=bool(a.radio)))
+                lambda: child_summary(station, child, radio=bool(a.radio)),
+                notes=can_notes("child", a.can))
 
 
 def child_summary(station, child, radio: bool = True) -> str:
@@ -95,7 +96,7 @@ def cmd_submodules(a: argparse.Namespace) -> int:
         runner.run(0)
         raise UserError(str(exc)) from None
     return run_until_stopped(runner, a, f"running joints 1-4, wheel and paw on CAN {a.can}; Ctrl-C stops",
-                lambda: submodules_summary(nodes))
+                lambda: submodules_summary(nodes), notes=can_notes("submodules", a.can))
 
 
 def submodules_summary(nodes: dict) -> str:
@@ -208,7 +209,8 @@ def add(sub) -> None:
     ch.add_argument("--radio", type=port_name, metavar="PORT",
                     help="serial port or pyserial URL")
     ch.add_argument("--can", metavar="INTERFACE:CHANNEL",
-                    help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can")
+                    help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can (both "
+                    "shared with other processes); virtual:NAME stays inside this process")
     ch.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
     ch.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
     txen_option(ch)
@@ -218,7 +220,8 @@ def add(sub) -> None:
     sm = sub.add_parser("submodules", help="run a child's joint/wheel/paw submodules on a CAN "
                         "bus in real time")
     sm.add_argument("--can", metavar="INTERFACE:CHANNEL", required=True,
-                    help="the child's python-can bus, e.g. socketcan:vcan0")
+                    help="the child's python-can bus, e.g. socketcan:vcan0, "
+                    "rprs_unix:/tmp/rprs-can; virtual:NAME stays inside this process")
     sm.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
     sm.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
     realtime_options(sm)
