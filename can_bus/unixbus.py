@@ -6,7 +6,7 @@ There is no server: the channel is a directory, and every bus instance binds an 
 ``*.sock`` in the directory, ``recv`` reads the own socket. Nothing leaves the machine (no
 network interface, no multicast), no privileges are needed, and peers come and go freely::
 
-    bus = can.Bus(interface="rprs_unix", channel="/tmp/rprs-can/bench")
+    bus = can.Bus(interface="rprs_unix", channel="/tmp/rprs-can")
 
 Wire format (one datagram per frame, little endian)::
 
@@ -95,8 +95,10 @@ def decode(datagram: bytes, timestamp: float | None = None, channel: Any = None,
 class UnixDatagramBus(BusABC):
     """A CAN bus over ``AF_UNIX`` datagram sockets in one directory (python-can ``rprs_unix``).
 
-    :param channel: the bus directory, created (mode 0700) if missing; every bus instance on
-        the same directory, in any process of the same user, is on the same bus.
+    :param channel: the bus directory, created (mode 0700) if missing, but not its parents: a
+        mistyped path is refused (one line naming the missing parent), not built into a bus
+        nobody else is on (as ``rprs radio-hub --link-dir`` does); every bus instance on the
+        same directory, in any process of the same user, is on the same bus.
     :param receive_own_messages: also deliver the frames this instance sends to itself.
     :param tx_retry_timeout: the longest one ``send(msg)`` without ``timeout`` waits for full
         peer queues (s) before dropping the frame for them.
@@ -109,14 +111,22 @@ class UnixDatagramBus(BusABC):
                  fd: bool = False, **kwargs: Any) -> None:
         if channel is None or channel == "":
             raise CanInitializationError("rprs_unix needs a channel: the bus directory, e.g. "
-                                         "channel='/tmp/rprs-can/bench'")
+                                         "channel='/tmp/rprs-can'")
         try:
             directory = os.path.abspath(os.fsdecode(os.fspath(channel)))
         except TypeError:
             raise CanInitializationError(
                 f"rprs_unix channel must be a directory path, not {channel!r}") from None
+        parent = os.path.dirname(directory)
+        if not os.path.isdir(directory) and not os.path.isdir(parent) \
+                and not os.path.lexists(parent):
+            raise CanInitializationError(
+                f"rprs_unix channel {directory}: its parent directory {parent} does not exist "
+                f"(the bus makes only the last directory)")
         try:
-            os.makedirs(directory, mode=0o700, exist_ok=True)
+            os.mkdir(directory, mode=0o700)
+        except FileExistsError:
+            pass
         except OSError as exc:
             raise CanInitializationError(
                 f"rprs_unix channel {directory} is not a usable directory: "

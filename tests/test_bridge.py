@@ -394,13 +394,14 @@ def test_malformed_frames_to_the_child_are_counted_in_its_summary(can_channel):
     """``cansend vcan0 181#00`` (a JOINT1_STATUS of 1 byte, not 6), ``181#R`` or ``0C7#01``
     (an id its acceptance masks let in that no node sends) to ``rprs child --can``: the
     firmware ignored them without a count, its closing line said nothing, while ``rprs
-    submodules`` counts the like. The child's line now counts them; a run without any keeps
-    its line as it was."""
+    submodules`` counts the like. The child's line now counts them; a run without any says
+    none. This child has no radio: its line is its CAN side's alone."""
     from hil.bench.runner import Runner, build_child
     from hil.cli.robots import child_summary
     runner = Runner()
     station, child = build_child(runner, 1, None, can_channel)
-    assert child_summary(station, child) == summary_line(station)
+    assert child_summary(station, child, radio=False) == \
+        "robot 1: CAN only (no radio); CAN: 0 frames sent, 0 received"
     tx = open_bus(can_channel)
     try:
         tx.send(can.Message(arbitration_id=0x181, data=b"\x00", is_extended_id=False))
@@ -414,8 +415,25 @@ def test_malformed_frames_to_the_child_are_counted_in_its_summary(can_channel):
     finally:
         tx.shutdown()
     assert child.dispatcher.bad_frames == 3
-    assert child_summary(station, child) == summary_line(station) + (
-        "; CAN: 3 malformed frames ignored (wrong length, remote or unknown id)")
+    assert child_summary(station, child, radio=False) == (
+        "robot 1: CAN only (no radio); CAN: 0 frames sent, 4 received, 3 malformed frames "
+        "ignored (wrong length, remote or unknown id)")
+
+
+def test_a_child_with_a_radio_and_a_can_side_keeps_its_radio_line():
+    """With a radio the closing line is the radio's, and the CAN side adds only what went
+    wrong on it (test_malformed_frames_to_the_child_are_counted_in_its_summary)."""
+    from hil.bench.runner import Runner, build_child
+    from hil.cli.robots import child_summary
+    runner = Runner()
+    station, child = build_child(runner, 1, "loop://", "virtual:rprs-radio-and-can")
+    try:
+        assert child_summary(station, child) == summary_line(station)
+        child.dispatcher.bad_frames = 2
+        assert child_summary(station, child) == summary_line(station) + (
+            "; CAN: 2 malformed frames ignored (wrong length, remote or unknown id)")
+    finally:
+        runner.run(0)
 
 
 def test_a_can_log_that_fills_the_disk_is_one_line_and_the_bus_goes_on(tmp_path, full_device):

@@ -5,6 +5,7 @@ import io
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -447,6 +448,93 @@ def test_a_can_log_format_python_can_cannot_write_here_is_one_line(tmp_path, cap
                           "--can-log", str(log))
     assert code == 2 and err.count("\n") == 1, err
     assert err.startswith(f"rprs: error: cannot write CAN log {log}: The asammdf package")
+
+
+def test_a_can_only_child_closes_with_its_can_side_not_radio_fields(capsys):
+    """``rprs child --can ...`` without ``--radio``: its closing line was the radio's, "robot
+    1: listen, ring [], frames sent 0, heard 0, failed 0, pending 0", for a station that
+    never had a radio. It now gives what the child has: its CAN side."""
+    code, out, err = rprs(capsys, "child", "--id", "1", "--can", "virtual:cli-can-only",
+                          "--duration", "0.3")
+    assert code == 0, err
+    last = err.strip().splitlines()[-1]
+    assert last == "robot 1: CAN only (no radio); CAN: 0 frames sent, 0 received", err
+    assert "ring" not in err and "heard" not in err
+
+
+@pytest.mark.parametrize("command", [
+    ["child", "--id", "1", "--team", "1", "--events"],
+    ["father", "--team", "0", "--json", "--no-input"],
+    ["father", "--team", "0"],
+], ids=["child --events", "father --json", "father"])
+def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
+    """``rprs child --events | head -1``: the write after head exited raised BrokenPipeError
+    out of the firmware's scheduler, and the process ended at once with status 0 and no
+    closing line, as if it had never run. A closed stdout now stops a robot as rprs stops
+    every command whose reader went away (hil/cli/__init__.py: status 0, no error): quietly,
+    but cleanly, its ports closed and its closing line on stderr, as on Ctrl-C."""
+    orders = "--no-input" not in command and "--events" not in command
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", *command, "--radio", "loop://",
+                          "--duration", "60"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, stdin=subprocess.PIPE if orders else None,
+                         text=True)
+    try:
+        first = p.stdout.readline()              # a lone robot claims its ring within 1 s
+        assert first.strip(), first
+        p.stdout.close()                          # what head -1 does once it has its line
+        t_closed = time.monotonic()
+        if orders:                                # the father's console writes of it next
+            p.stdin.write("1 status()\n")
+            p.stdin.flush()
+        err = p.stderr.read()
+        code = p.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        if p.stdin is not None:
+            p.stdin.close()
+    assert time.monotonic() - t_closed < 20, "it ran on to its --duration"
+    assert code == 0, err
+    assert "Traceback" not in err and "Exception ignored" not in err and "Broken" not in err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith(("running child 1", "father (ID 0")), err
+    assert lines[-1].startswith(("robot 1: member", "robot 0: member")), err
+
+
+@pytest.mark.parametrize("command", [["child", "--id", "1"], ["submodules"]])
+def test_an_rprs_unix_bus_under_a_missing_directory_is_one_line(tmp_path, capsys, command):
+    """The ``rprs_unix:`` scheme made every missing parent of its directory (a mistyped path
+    gave a bus of its own, silently), the radio hub's ``--link-dir`` none: both now make only
+    the last directory and refuse a missing parent in one line naming it."""
+    bus = tmp_path / "no-such" / "can"
+    code, out, err = rprs(capsys, *command, "--can", f"rprs_unix:{bus}", "--duration", "0.1")
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"rprs: error: cannot open CAN bus rprs_unix:{bus}: ")
+    assert f"its parent directory {bus.parent} does not exist" in err
+    assert not bus.parent.exists()
+
+
+@pytest.mark.parametrize("command,other", [(["child", "--id", "1"], "rprs submodules"),
+                                           (["submodules"], "rprs child")])
+def test_a_virtual_can_bus_is_said_to_be_out_of_other_processes_reach(tmp_path, capsys,
+                                                                       command, other):
+    """``--can virtual:NAME`` is python-can's in-process bus: no other process (rprs
+    submodules, candump) ever sees its frames, and a user waited for them. The command now
+    says so in one note line after its running line (not an error: it runs, status 0); a
+    bus other processes share gets no note."""
+    code, out, err = rprs(capsys, *command, "--can", "virtual:cli-note", "--duration", "0.2")
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("running "), err
+    notes = [x for x in lines if "note:" in x]
+    assert len(notes) == 1 and lines[1] == notes[0], err
+    assert notes[0].startswith(f"rprs {command[0]}: note: virtual:cli-note is python-can's "
+                               f"in-process bus"), notes
+    assert other in notes[0] and "rprs_unix:DIR" in notes[0] and "error" not in notes[0]
+    code, out, err = rprs(capsys, *command, "--can", f"rprs_unix:{tmp_path / 'can'}",
+                          "--duration", "0.2")
+    assert code == 0 and "note:" not in err, err
 
 
 def test_a_father_order_that_is_not_ascii_is_refused_in_words():

@@ -19,7 +19,7 @@ import time
 import pytest
 
 from firmware_model.radio.frame import Frame
-from hil.bench.radio_hub import RadioHub, check_args, parse_drop, run_hub_cli
+from hil.bench.radio_hub import RadioHub, check_args, parse_drop, run_hub_cli, summary_line
 
 serial = pytest.importorskip("serial")
 
@@ -359,13 +359,59 @@ def test_slave_is_raw_no_echo_no_translation(hubs):
     assert read_for(fd0, 0.1) == b""
 
 
+def _cooked(fd: int) -> None:
+    """What ``stty sane`` does to a terminal, done by an outside client on its node: echo,
+    line editing, signals, CR/LF translation and XON/XOFF on."""
+    attrs = termios.tcgetattr(fd)
+    attrs[0] |= termios.ICRNL | termios.IXON
+    attrs[1] |= termios.OPOST | termios.ONLCR
+    attrs[3] |= termios.ECHO | termios.ECHOE | termios.ECHOK | termios.ICANON | termios.ISIG \
+        | termios.IEXTEN
+    termios.tcsetattr(fd, termios.TCSANOW, attrs)
+
+
+def test_a_client_that_turns_echo_on_does_not_echo_the_air_back(hubs):
+    """The hub set its slaves raw once, when it made them. A program that opened a node and
+    turned echo on (``stty sane``, a terminal program, a script's ``os.open`` + termios) made
+    the pty echo every byte the air brought it back to the hub, which put it on air as that
+    node's own transmission: the sender heard its frame come back (a forgery of itself) and
+    the air carried it twice. The hub now keeps its nodes raw: it sets raw mode again before
+    it writes to a node, and once every poll interval, and counts each time it had to."""
+    hub = hubs(2).start()
+    a = serial.Serial(hub.paths[0], timeout=0.3)  # plain pyserial: raw, as it sets itself
+    try:
+        fd = open_node(hubs, hub.paths[1])        # an outside client, cooked
+        _cooked(fd)
+        a.write(b"hel\rlo\n")
+        a.flush()
+        got = read_n(fd, 7, 3.0)[0]
+        assert got == b"hel\rlo\n"                # no CR -> LF, no line discipline
+        assert a.read(64) == b""                  # nothing echoed back on air
+        assert not termios.tcgetattr(fd)[3] & (termios.ECHO | termios.ICANON)
+        n0, n1 = hub.stats()["per_node"][:2]
+        assert n1["bytes_in"] == 0 and n1["raw_restored"] >= 1
+        assert n0["raw_restored"] == 0            # pyserial's own settings are raw enough
+        # turned cooked again while the air is quiet: raw again within a poll interval or so
+        _cooked(fd)
+        deadline = time.monotonic() + 5.0
+        while termios.tcgetattr(fd)[3] & termios.ECHO and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert not termios.tcgetattr(fd)[3] & termios.ECHO
+        os.write(fd, b"x\n")                      # no LF -> CR LF on its way out
+        assert a.read(3) == b"x\n"
+        assert "raw mode restored" in summary_line(hub.stats())
+    finally:
+        a.close()
+
+
 def test_slow_reader_is_dropped_and_the_hub_never_blocks(hubs):
     hub = hubs(2, baud=1_000_000).start()         # 10 us a byte: fill a pty quickly
     data = bytes(i % 251 for i in range(60_000))
+    fd1 = open_node(hubs, hub.paths[1])           # node 1 has it open, and does not read
     fd0 = os.open(hub.paths[0], os.O_RDWR | os.O_NOCTTY)   # blocking writer
     hubs.fds.append(fd0)
     w = threading.Thread(target=os.write, args=(fd0, data), daemon=True)
-    w.start()                                     # node 1 never reads
+    w.start()
     w.join(20.0)
     assert not w.is_alive(), "writer blocked: the hub stopped taking bytes"
     deadline = time.monotonic() + 20.0
@@ -376,13 +422,55 @@ def test_slow_reader_is_dropped_and_the_hub_never_blocks(hubs):
         time.sleep(0.05)
     n1 = hub.stats()["per_node"][1]
     assert n1["bytes_out"] + n1["dropped"] == len(data)
-    assert n1["dropped"] > 0
+    assert n1["dropped"] > 0 and n1["not_open"] == 0
     assert 0 < n1["bytes_out"] < len(data)
     # node 1 finally reads: the bytes kept are the oldest ones, in order
-    fd1 = open_node(hubs, hub.paths[1])
     kept = read_for(fd1, 0.2)
     assert len(kept) == n1["bytes_out"]
     assert kept[:1000] == data[:1000]
+
+
+def test_a_node_no_program_has_open_is_not_a_slow_reader(hubs):
+    """Bytes for a node whose pty no program had open were written into that pty anyway: up to
+    its buffer (kept for whoever opened it later, stale), then counted with a slow reader's in
+    "dropped (slow reader)", so that a hub with an unused node reported thousands of bytes
+    dropped while every robot read all it was sent. The hub now writes nothing to a node
+    nobody has open and counts those bytes apart, as ``not_open``; a program that opens the
+    node hears the air from then on, and closing it again makes it a node nobody has open."""
+    hub = hubs(3, baud=96_000).start()            # 0.1 ms a byte: 6000 bytes in 0.6 s
+    data = bytes(i % 251 for i in range(6000))
+    fd0 = os.open(hub.paths[0], os.O_RDWR | os.O_NOCTTY)   # blocking writer
+    hubs.fds.append(fd0)
+    fd1 = open_node(hubs, hub.paths[1])           # node 1 reads everything; node 2: nobody
+    w = threading.Thread(target=os.write, args=(fd0, data), daemon=True)
+    w.start()
+    got1 = read_n(fd1, len(data), 30.0)[0]
+    w.join(5.0)
+    assert got1 == data
+    deadline = time.monotonic() + 10.0
+    while hub.stats()["per_node"][2]["not_open"] < len(data) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    st = hub.stats()
+    n2 = st["per_node"][2]
+    assert n2["not_open"] == len(data) and n2["bytes_out"] == 0 and n2["dropped"] == 0
+    assert st["dropped"] == 0 and st["not_open"] == len(data)
+    line = summary_line(st)
+    assert "0 dropped (slow reader)" in line, line
+    assert f"{len(data)} not delivered (node not open)" in line, line
+    # opened now: nothing stale waits in its pty, and it hears what goes on air from now on
+    fd2 = open_node(hubs, hub.paths[2])
+    assert read_for(fd2, 0.1) == b""
+    os.write(fd0, b"now")
+    assert read_n(fd2, 3, 5.0)[0] == b"now"
+    assert read_n(fd1, 3, 5.0)[0] == b"now"
+    # closed again: nobody has it open, and its bytes are counted so again
+    hubs.fds.remove(fd2)
+    os.close(fd2)
+    os.write(fd0, b"later")
+    assert read_n(fd1, 5, 5.0)[0] == b"later"
+    time.sleep(0.05)
+    n2 = hub.stats()["per_node"][2]
+    assert (n2["bytes_out"], n2["dropped"], n2["not_open"]) == (3, 0, len(data) + 5)
 
 
 def test_stop_leaves_no_threads_and_closes_fds(hubs, tmp_path):
@@ -444,14 +532,13 @@ def test_a_failing_reader_thread_stops_the_hub(hubs, monkeypatch):
     """The reader returned silently on an unexpected OSError, leaving the air running with
     nobody reading the ptys. Now that stops the hub too."""
     import errno as errno_
-    import types
 
     from hil.bench import radio_hub
 
-    def bad_select(*args):
+    def bad_poll(*args):
         raise OSError(errno_.EBADF, "Bad file descriptor")
 
-    monkeypatch.setattr(radio_hub, "select", types.SimpleNamespace(select=bad_select))
+    monkeypatch.setattr(radio_hub, "_poll", bad_poll)
     hub = hubs(2).start()
     assert hub.wait(10.0)
     assert isinstance(hub.error, OSError)
@@ -873,7 +960,10 @@ def test_inject_and_foreign_fault_against_a_radio_hub_process():
     assert hub.returncode == 0, err
     summary = out.strip().splitlines()[-1]
     assert f"{len(FOREIGN) + 16} bytes in" in summary and "0 collisions" in summary
-    assert f"{2 * 16 + len(FOREIGN) + 16} bytes out" in summary   # node 0 heard the fault too
+    assert f"{16 + len(FOREIGN) + 16} bytes out" in summary
+    # the fault's bytes for node 0, which no program had open yet: not written, and counted
+    # as such, not as a slow reader's
+    assert "0 dropped (slow reader), 16 not delivered (node not open)" in summary
 
 
 # -- captures: rprs radio-hub --pcap ---------------------------------------------------------

@@ -257,7 +257,7 @@ def test_channel_validation(tmp_path):
         UnixDatagramBus(channel=str(afile))
     with pytest.raises(can.CanInitializationError, match="not a usable directory"):
         UnixDatagramBus(channel=str(afile / "sub"))
-    made = tmp_path / "new" / "bus"
+    made = tmp_path / "bus"                     # the last directory is made, mode 0700
     bus = UnixDatagramBus(channel=str(made))
     try:
         assert made.is_dir() and (made.stat().st_mode & 0o777) == 0o700
@@ -266,8 +266,43 @@ def test_channel_validation(tmp_path):
         bus.shutdown()
 
 
+def test_a_channel_under_a_missing_directory_is_refused_and_nothing_is_made(tmp_path):
+    """``rprs_unix:/tmp/rpsr/can`` (a typo in the parent) made /tmp/rpsr and /tmp/rpsr/can,
+    and the process waited on a bus nobody else was on, while ``rprs radio-hub --link-dir``
+    refuses a missing parent (it makes only the last directory). The bus now does as the hub
+    does: one line naming the parent that is missing, and nothing created."""
+    missing = tmp_path / "typo" / "deeper"
+    with pytest.raises(can.CanInitializationError) as e:
+        UnixDatagramBus(channel=str(missing / "bus"))
+    msg = str(e.value)
+    assert "\n" not in msg
+    assert f"its parent directory {missing} does not exist" in msg, msg
+    assert not (tmp_path / "typo").exists()
+
+
+def test_every_documented_rprs_unix_directory_can_be_made_on_a_fresh_machine():
+    """The bus makes only its last directory: every ``rprs_unix:DIR`` in a command of the
+    docs names a directory whose parent exists anywhere (``/tmp``) or that an earlier command
+    of the same page makes (``mkdir -p``), as for the hub's ``--link-dir``."""
+    import re
+    pages = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
+    seen = 0
+    for page in pages:
+        made = {"/tmp"}
+        for line in page.read_text(encoding="utf-8").splitlines():
+            for d in re.findall(r"mkdir -p (/\S+)", line):
+                while d not in ("/", ""):
+                    made.add(d.rstrip("/"))
+                    d = os.path.dirname(d.rstrip("/"))
+            for d in re.findall(r"rprs_unix:(/[^\s`]+)", line):
+                seen += 1
+                assert os.path.dirname(d.rstrip("/")) in made, f"{page.name}: {line.strip()}"
+    assert seen >= 4
+
+
 def test_long_directory_path(tmp_path, open_bus):
     deep = tmp_path / ("d" * 60) / ("e" * 60)        # longer than a unix socket address
+    deep.parent.mkdir()
     a, b = open_bus(channel=str(deep)), open_bus(channel=str(deep), receive_own_messages=True)
     a.send(FRAMES[0])
     assert same_frame(b.recv(timeout=2), FRAMES[0])

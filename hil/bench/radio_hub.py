@@ -22,13 +22,18 @@ random streams are exactly the simulator's:
 The hub models no radio switching time and no deafness: every robot process runs its own
 PTR2000 model (TXEN, Ttrans) and ignores what it could not have heard.
 
-Threads: a reader thread ``select``s over the masters and ``post``s (node, bytes) into the
+Threads: a reader thread ``poll``s the masters and ``post``s (node, bytes) into the
 scheduler, whose thread owns all air state. An exception in either thread stops the whole hub
 (``error``, ``failure()``; ``run_forever`` raises :class:`HubError`, the command exits with one
 line): a hub whose air or reader died must not go on looking alive. Writes to masters are
-non-blocking: bytes a slow reader has no room for are dropped and counted. A node writing
-faster than the air carries stops being read once ``BACKLOG_LIMIT`` bytes wait, so its writer
-blocks as on a real serial port instead of the hub buffering without bound.
+non-blocking: bytes a slow reader has no room for are dropped and counted (``dropped``). The
+hub holds only the masters, so a master reports POLLHUP while no program has its slave open:
+bytes for such a node are not written at all (nothing stale waits for a program that opens it
+later) and are counted apart (``not_open``). A node writing faster than the air carries stops
+being read once ``BACKLOG_LIMIT`` bytes wait, so its writer blocks as on a real serial port
+instead of the hub buffering without bound. The hub keeps every slave raw: a program that
+turns echo or line editing on (which would echo the air back onto it) is set back before the
+hub writes to its node and at least every ``POLL_S`` (``raw_restored``).
 
 Over 500 lines on purpose: the hub's pty I/O, its timing against the Air model and its command-
 line arguments are one program, run as one process.
@@ -45,7 +50,6 @@ import sys
 import termios
 import threading
 import time
-import tty
 from typing import Any, Iterable, Sequence
 
 from firmware_model.timing import BITS_PER_BYTE_8N1, TICK_HZ, s_to_ticks
@@ -76,7 +80,26 @@ MAX_SECONDS = 10_000_000
 
 READ_SIZE = 4096
 POLL_S = 0.02
-"""The reader thread re-checks backlogs and the stop flag at least this often."""
+"""The reader thread re-checks backlogs, the stop flag, which nodes a program has open and
+that every node is still raw at least this often."""
+
+_RAW_IFLAG_OFF = (termios.IGNBRK | termios.BRKINT | termios.IGNPAR | termios.PARMRK
+                  | termios.INPCK | termios.ISTRIP | termios.INLCR | termios.IGNCR
+                  | termios.ICRNL | termios.IXON | termios.IXANY | termios.IXOFF
+                  | getattr(termios, "IUCLC", 0))
+_RAW_OFLAG_OFF = termios.OPOST
+_RAW_LFLAG_OFF = (termios.ECHO | termios.ECHONL | termios.ICANON | termios.ISIG
+                  | termios.IEXTEN)
+
+
+def raw_attrs(attrs: list) -> list:
+    """``attrs`` (``termios.tcgetattr``) in raw mode, as cfmakeraw makes it: no echo, no line
+    editing or signals, no CR/LF translation, no XON/XOFF, 8 bits. The line's speed and its
+    VMIN/VTIME (how a program's reads return) are the program's, and stay as they are."""
+    iflag, oflag, cflag, lflag = attrs[:4]
+    return [iflag & ~_RAW_IFLAG_OFF, oflag & ~_RAW_OFLAG_OFF,
+            (cflag & ~(termios.CSIZE | termios.PARENB)) | termios.CS8,
+            lflag & ~_RAW_LFLAG_OFF] + list(attrs[4:])
 
 
 def byte_ticks_for(baud: float) -> int:
@@ -159,6 +182,14 @@ def parse_drop(text: str) -> tuple[int, float, float]:
 class HubError(RuntimeError):
     """The hub stopped because one of its threads failed (one line, ``RadioHub.failure()``);
     the exception itself is ``RadioHub.error`` and this error's ``__cause__``."""
+
+
+def _poll(fds: list[int], timeout_s: float) -> list[tuple[int, int]]:
+    """``(fd, revents)`` of ``fds`` ready for reading (or hung up) within ``timeout_s``."""
+    p = select.poll()
+    for fd in fds:
+        p.register(fd, select.POLLIN)
+    return p.poll(timeout_s * 1000)
 
 
 def _where(exc: BaseException) -> str:
@@ -265,15 +296,18 @@ class RadioHub:
         self.link_dir = link_dir
         self.links: list[str] = []
         self.masters: list[int] = []
-        self._slaves: list[int] = []
         self.paths: list[str] = []
+        self._hup: list[Any] = []    # per node: a poll object on its master (POLLHUP: not open)
         self._made_dir = False
         self._dir_lock = -1          # the link directory, flock'ed while the hub runs
         self._lock = threading.Lock()
+        self._raw_lock = threading.Lock()
         self._backlog = [0] * nodes
         self.bytes_in = [0] * nodes
         self.bytes_out = [0] * nodes
         self.dropped = [0] * nodes
+        self.not_open = [0] * nodes
+        self.raw_restored = [0] * nodes
         self.lost = [0] * nodes
         self.noise_bytes = [0] * nodes
         self.collisions = 0
@@ -300,10 +334,19 @@ class RadioHub:
             for _ in range(nodes):
                 master, slave = os.openpty()
                 self.masters.append(master)
-                self._slaves.append(slave)
-                tty.setraw(slave, termios.TCSANOW)
+                try:
+                    attrs = raw_attrs(termios.tcgetattr(slave))
+                    attrs[6][termios.VMIN], attrs[6][termios.VTIME] = 1, 0
+                    termios.tcsetattr(slave, termios.TCSANOW, attrs)
+                    self.paths.append(os.ttyname(slave))
+                finally:
+                    # the hub holds only the master: while no program has the slave open,
+                    # the master reports POLLHUP (``_is_open``)
+                    os.close(slave)
                 os.set_blocking(master, False)
-                self.paths.append(os.ttyname(slave))
+                hup = select.poll()
+                hup.register(master, select.POLLIN)
+                self._hup.append(hup)
             if link_dir is not None:
                 self._make_links(link_dir)
             self._wake_r, self._wake_w = os.pipe()
@@ -369,13 +412,13 @@ class RadioHub:
             except OSError:
                 pass
             self._made_dir = False
-        for fd in self.masters + self._slaves + [self._wake_r, self._wake_w, self._dir_lock]:
+        for fd in self.masters + [self._wake_r, self._wake_w, self._dir_lock]:
             if fd >= 0:
                 try:
                     os.close(fd)
                 except OSError:
                     pass
-        self.masters, self._slaves = [], []
+        self.masters, self._hup = [], []
         self._wake_r = self._wake_w = self._dir_lock = -1
 
     def _setup(self) -> None:
@@ -509,34 +552,49 @@ class RadioHub:
 
     def _read_loop(self) -> None:
         masters = list(self.masters)
+        index = {fd: i for i, fd in enumerate(masters)}
         wake = self._wake_r
         sched = self.sched
+        next_raw = 0.0
         while not self._stopping.is_set():
+            now = time.monotonic()
+            if now >= next_raw:          # a program may have turned its node's echo on
+                next_raw = now + POLL_S
+                for i in range(len(masters)):
+                    self._keep_raw(i)
             with self._lock:
                 fds = [fd for i, fd in enumerate(masters) if self._backlog[i] < BACKLOG_LIMIT]
             try:
-                ready, _, _ = select.select(fds + [wake], [], [], POLL_S)
+                # a master whose slave no program has open reports POLLHUP at once, every
+                # time: find those without waiting, and wait on the others (and the wake
+                # pipe); they are looked at again in the next pass, within POLL_S
+                idle = {fd for fd, ev in _poll(fds, 0)
+                        if ev & select.POLLHUP and not ev & select.POLLIN}
+                ready = _poll([fd for fd in fds if fd not in idle] + [wake], POLL_S)
             except (OSError, ValueError):
                 if self._stopping.is_set():
                     return                 # the fds were closed under us: the hub stops
                 raise
-            if wake in ready:
-                try:
-                    os.read(wake, 64)
-                except OSError:
-                    pass
             if self._stopping.is_set():
                 return
-            for fd in ready:
+            for fd, ev in ready:
+                if ev & select.POLLNVAL:
+                    if self._stopping.is_set():
+                        return
+                    raise OSError(errno.EBADF, f"fd {fd} of the hub was closed under it")
                 if fd == wake:
+                    try:
+                        os.read(wake, 64)
+                    except OSError:
+                        pass
                     continue
-                i = masters.index(fd)
+                i = index[fd]
                 try:
                     data = os.read(fd, READ_SIZE)
                 except BlockingIOError:
                     continue
                 except OSError as e:
-                    if e.errno == errno.EIO:   # no slave open (cannot happen: we hold one)
+                    if e.errno == errno.EIO:   # its last program closed it: nothing to read
                         continue
                     if self._stopping.is_set():
                         return
@@ -545,6 +603,25 @@ class RadioHub:
                     with self._lock:
                         self._backlog[i] += len(data)
                     sched.post(self._on_write, i, data)
+
+    def _is_open(self, i: int) -> bool:
+        """A program has node ``i``'s pty open (its master does not report POLLHUP)."""
+        return not any(ev & select.POLLHUP for _, ev in self._hup[i].poll(0))
+
+    def _keep_raw(self, i: int) -> None:
+        """Set node ``i``'s pty raw again if a program has turned echo, line editing or
+        translation on (termios on a master is its slave's, on Linux)."""
+        fd = self.masters[i]
+        with self._raw_lock:         # the reader and the air's thread: count each time once
+            try:
+                attrs = termios.tcgetattr(fd)
+                raw = raw_attrs(attrs)
+                if raw == attrs:
+                    return
+                termios.tcsetattr(fd, termios.TCSANOW, raw)
+            except (termios.error, OSError):
+                return               # closed under us as the hub stops
+            self.raw_restored[i] += 1
 
     # -- the air (scheduler thread only) --------------------------------------------------
 
@@ -587,6 +664,10 @@ class RadioHub:
     def _deliver(self, i: int, data: bytes) -> None:
         if self.air.in_noise:
             self.noise_bytes[i] += len(data)
+        if not self._is_open(i):
+            self.not_open[i] += len(data)     # no program to hear them: not written
+            return
+        self._keep_raw(i)                     # echo on would send them back on air
         try:
             n = os.write(self.masters[i], data)
         except BlockingIOError:
@@ -707,6 +788,8 @@ class RadioHub:
             "bytes_out": self.bytes_out[i],     # heard by it (written to its pty)
             "transmissions": sent.get(i, 0),
             "dropped": self.dropped[i],         # heard, but its reader had no room
+            "not_open": self.not_open[i],       # heard while no program had its pty open
+            "raw_restored": self.raw_restored[i],  # times a program had made it non-raw
             "lost": self.lost[i],               # written while its link was down
             "noise": self.noise_bytes[i],
         } for i in range(self.nodes)]
@@ -717,6 +800,8 @@ class RadioHub:
             "transmissions": sum(sent.values()),
             "collisions": self.collisions,
             "dropped": sum(self.dropped),
+            "not_open": sum(self.not_open),
+            "raw_restored": sum(self.raw_restored),
             "lost": sum(self.lost),
             "noise": sum(self.noise_bytes),
             "seconds": (time.monotonic() - self._t_start) if self._started else 0.0,
@@ -726,11 +811,21 @@ class RadioHub:
 
 
 def summary_line(st: dict[str, Any]) -> str:
+    """The closing line of ``rprs radio-hub``. ``dropped (slow reader)``: bytes a program that
+    had its node open had no room for; ``not delivered (node not open)``: bytes for nodes no
+    program had open, not written at all; the times the hub set a node raw again, if any."""
     c = st["collisions"]
-    return (f"radio-hub: {st['seconds']:.1f} s, {st['bytes_in']} bytes in, "
+    line = (f"radio-hub: {st['seconds']:.1f} s, {st['bytes_in']} bytes in, "
             f"{st['bytes_out']} bytes out, {st['transmissions']} transmissions, "
             f"{c} collision{'s' if c != 1 else ''}, {st['noise']} noise bytes, "
-            f"{st['dropped']} dropped (slow reader), {st['lost']} lost (link down)")
+            f"{st['dropped']} dropped (slow reader), "
+            f"{st.get('not_open', 0)} not delivered (node not open), "
+            f"{st['lost']} lost (link down)")
+    n = st.get("raw_restored", 0)
+    if n:
+        line += (f"; raw mode restored {n} time{'s' if n != 1 else ''} (a program turned echo "
+                 f"or line editing on)")
+    return line
 
 
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")

@@ -65,12 +65,25 @@ class RunError(Exception):
     """A setup problem the user can fix (port, bus, arguments): one line."""
 
 
-def _events_printer(out: TextIO | None, robot: int) -> Callable[[RadioStation, object, int], None]:
-    """An observer turning the station's outputs into trace-like JSON lines."""
+def _events_printer(out: TextIO | None, robot: int,
+                    on_closed: Callable[[], None] | None = None
+                    ) -> Callable[[RadioStation, object, int], None]:
+    """An observer turning the station's outputs into trace-like JSON lines. When ``out``'s
+    reader has gone away (``| head -1``: BrokenPipeError), nothing more is written and
+    ``on_closed`` runs once (the runner's ``stop``: the process stops quietly)."""
+    closed = False
+
     def emit(ev: dict) -> None:
-        if out is not None:
+        nonlocal closed
+        if out is None or closed:
+            return
+        try:
             out.write(json.dumps(ev, separators=(",", ":")) + "\n")
             out.flush()
+        except BrokenPipeError:
+            closed = True
+            if on_closed is not None:
+                on_closed()
 
     def observe(st: RadioStation, a: object, now: int) -> None:
         t = type(a)
@@ -235,7 +248,7 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
     if not 1 <= robot <= 6:
         raise RunError(f"a child's ID is 1-6, got {robot}")
     cfg = realtime_config(config)
-    observer = _events_printer(events, robot)
+    observer = _events_printer(events, robot, on_closed=runner.stop)
     channel = bus = None
     if radio:
         station, channel = _radio_station(runner, robot, radio, txen, CHILD_BYTE_TICKS, cfg,
@@ -269,7 +282,7 @@ def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool =
     cfg = replace(realtime_config(config), standby=standby, pc=pc or (2 if standby else 1),
                   paired=standby or pc is not None)
     station, channel = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
-                                      _events_printer(events, 0))
+                                      _events_printer(events, 0, on_closed=runner.stop))
     _capture(runner, pcap, 0, channel, None, None)
     runner.sched.post(station.power_on)
     return station

@@ -8,6 +8,9 @@ whose traces must not change by accident (tests/test_trace_digests.py).
 A user mistake (bad option value, unreadable file, malformed input) prints one line starting
 ``rprs: error:`` and exits with status 2; it never shows a traceback. Ctrl-C ends a command
 with ``rprs: interrupted`` and status 130, SIGTERM with ``rprs: terminated`` and status 143.
+A standard output whose reader went away (``| head -1``) ends a command quietly, status 0; a
+bench process (``child``, ``father``) first stops as cleanly as on Ctrl-C and gives its closing
+line on stderr (``common.run_until_stopped``).
 """
 from __future__ import annotations
 

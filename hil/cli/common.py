@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from typing import Sequence
 
 
 class UserError(Exception):
@@ -215,11 +216,36 @@ def realtime_options(p: argparse.ArgumentParser) -> None:
                    help="print MAC events as JSON lines on stdout")
 
 
-def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary) -> int:
+def can_notes(command: str, spec: str | None) -> list[str]:
+    """What is worth saying of ``--can SPEC`` though it is no mistake: python-can's
+    ``virtual`` bus lives inside one process, so no other process (the robot's other half,
+    candump, cansend) ever sees its frames; a user would wait for them."""
+    if not spec or spec.partition(":")[0] != "virtual":
+        return []
+    other = "rprs submodules" if command == "child" else "rprs child"
+    return [f"rprs {command}: note: {spec} is python-can's in-process bus: no other process "
+            f"({other}, candump, cansend) can reach it; to share a bus between processes use "
+            f"rprs_unix:DIR or socketcan:vcan0"]
+
+
+def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary,
+                      notes: Sequence[str] = ()) -> int:
     """Run a bench process to its end; exit status 1 if it went on through troubles (each
     said in its own line as it happened: ``Runner.warn``) or stopped by itself (its radio
-    port went away), else 0."""
-    runner.run(a.duration, ready=lambda: print(describe, file=sys.stderr, flush=True))
+    port went away), else 0. Standard output closed by its reader (``| head -1``) stops the
+    process as every rprs command stops then, quietly and with status 0, but as cleanly as
+    Ctrl-C does: the runner has closed its ports, and the summary still goes to stderr (the
+    ``--events`` printer stops the runner itself; this catches any other writer). ``notes``:
+    lines said right after the ``describe`` line (which stays the first: scripts wait for
+    it)."""
+    def ready() -> None:
+        print(describe, file=sys.stderr, flush=True)
+        for line in notes:
+            print(line, file=sys.stderr, flush=True)
+    try:
+        runner.run(a.duration, ready=ready)
+    except BrokenPipeError:
+        pass                      # Runner.run closed everything on its way out
     print(summary(), file=sys.stderr, flush=True)
     if stopped_by_itself(runner):
         return 1

@@ -8,9 +8,9 @@ import sys
 from firmware_model.timing import TICK_HZ
 
 from ..bench.orders import REPORT_WITHIN_S
-from .common import (UserError, digit, distinct_outputs, mac_config, mac_options, port_name,
-                     positive, realtime_options, run_until_stopped, stopped_by_itself,
-                     txen_option)
+from .common import (UserError, can_notes, digit, distinct_outputs, mac_config, mac_options,
+                     port_name, positive, realtime_options, run_until_stopped,
+                     stopped_by_itself, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
     from ..bench.runner import Runner, RunError, build_child
@@ -29,18 +29,28 @@ def cmd_child(a: argparse.Namespace) -> int:
         ([f"CAN {a.can}"] if a.can else ["no CAN side (no --can): orders are answered "
                                           "fail(42)"])
     return run_until_stopped(runner, a, "running " + ", ".join(parts) + "; Ctrl-C stops",
-                lambda: child_summary(station, child))
+                lambda: child_summary(station, child, radio=bool(a.radio)),
+                notes=can_notes("child", a.can))
 
 
-def child_summary(station, child) -> str:
-    """The closing line of ``rprs child``: the radio's, and the CAN frames the firmware
-    ignored as malformed (no node's frame: a wrong length, a remote frame, an unknown id)."""
+def child_summary(station, child, radio: bool = True) -> str:
+    """The closing line of ``rprs child``: with a radio, the radio's, and the CAN frames the
+    firmware ignored as malformed (no node's frame: a wrong length, a remote frame, an unknown
+    id); without one (``radio`` False: a CAN-only child), only its CAN side: the frames it
+    sent and received, and the malformed ones."""
     from ..bench.runner import summary_line
-    line = summary_line(station)
     bad = getattr(getattr(child, "dispatcher", None), "bad_frames", 0)
-    if bad:
-        line += (f"; CAN: {bad} malformed frame{'s' if bad > 1 else ''} ignored (wrong length, "
+    malformed = (f"{bad} malformed frame{'s' if bad > 1 else ''} ignored (wrong length, "
                  f"remote or unknown id)")
+    if not radio:
+        bus = getattr(getattr(getattr(child, "can", None), "xcvr", None), "bus", None)
+        counts = [f"{bus.sent} frame{'s' if bus.sent != 1 else ''} sent",
+                  f"{bus.received} received"] if bus is not None else []
+        return (f"robot {station.id}: CAN only (no radio); CAN: "
+                + ", ".join(counts + ([malformed] if bad else [])))
+    line = summary_line(station)
+    if bad:
+        line += f"; CAN: {malformed}"
     return line
 
 
@@ -86,7 +96,7 @@ def cmd_submodules(a: argparse.Namespace) -> int:
         runner.run(0)
         raise UserError(str(exc)) from None
     return run_until_stopped(runner, a, f"running joints 1-4, wheel and paw on CAN {a.can}; Ctrl-C stops",
-                lambda: submodules_summary(nodes))
+                lambda: submodules_summary(nodes), notes=can_notes("submodules", a.can))
 
 
 def submodules_summary(nodes: dict) -> str:
@@ -199,7 +209,8 @@ def add(sub) -> None:
     ch.add_argument("--radio", type=port_name, metavar="PORT",
                     help="serial port or pyserial URL")
     ch.add_argument("--can", metavar="INTERFACE:CHANNEL",
-                    help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can")
+                    help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can (both "
+                    "shared with other processes); virtual:NAME stays inside this process")
     ch.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
     ch.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
     txen_option(ch)
@@ -209,7 +220,8 @@ def add(sub) -> None:
     sm = sub.add_parser("submodules", help="run a child's joint/wheel/paw submodules on a CAN "
                         "bus in real time")
     sm.add_argument("--can", metavar="INTERFACE:CHANNEL", required=True,
-                    help="the child's python-can bus, e.g. socketcan:vcan0")
+                    help="the child's python-can bus, e.g. socketcan:vcan0, "
+                    "rprs_unix:/tmp/rprs-can; virtual:NAME stays inside this process")
     sm.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
     sm.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
     realtime_options(sm)
