@@ -245,6 +245,8 @@ def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
         client.close()
     rows = store.rows()
     odd = [r for r in rows if r["seed"] % 2]
+    unexpected = [r["error"] for r in rows if r["status"] != "ok" and not r["seed"] % 2]
+    assert not unexpected, "\n\n".join(unexpected)      # a run that should not have crashed
     assert out.ran == 4 and out.crashed == len(odd) > 0
     assert all(r["status"] == "crashed" and "deliberately broken run" in r["error"] and
                "Traceback" in r["error"] for r in odd)
