@@ -274,9 +274,9 @@ by its stuff bit at once, as :func:`stuff` does)."""
 
 @lru_cache(maxsize=None)
 def _stuff_table(width: int) -> tuple[tuple[bytes, int], ...]:
-    """Built at first use (a few ms). For every state and every ``width``-bit chunk (MSB first), at ``state << width |
+    """For every state and every ``width``-bit chunk (MSB first), at ``state << width |
     chunk``: the chunk stuffed as :func:`stuff` would go on from that state (bits as bytes
-    0/1), and the state after it."""
+    0/1), and the state after it. Built at first use (a few ms)."""
     table = []
     for state in range(_START + 1):
         last, run = (-1, 0) if state == _START else divmod(state, 5)
