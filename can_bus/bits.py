@@ -23,7 +23,6 @@ built the same way (6 flag bits, 6..12 superposed, 8 delimiter bits).
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Iterable, Sequence
@@ -258,11 +257,7 @@ def _crc15_byte_table() -> tuple[int, ...]:
 
 
 _CRC15_BYTE = _crc15_byte_table()
-_RUN_OF_FIVE = re.compile("00000|11111")
-_FOUR = {"0": "0000", "1": "1111"}
-_FLIP = {"0": "1", "1": "0"}
-_TO_BITS = bytes.maketrans(b"01", b"\x00\x01")
-_TRAILER = "1" * TRAILER_BITS    # CRC delimiter, ACK slot (recessive as sent), ACK delimiter, EOF
+_TRAILER = b"\x01" * TRAILER_BITS  # CRC delimiter, ACK slot (recessive as sent), ACK delimiter, EOF
 
 
 @lru_cache(maxsize=1024)
@@ -271,36 +266,65 @@ def _header_crc(header: int) -> int:
     return crc15(_int_bits(header, 19))
 
 
-def _stuff_text(bits: str) -> str:
-    """``stuff`` on a string of '0'/'1': frames have few stuff bits, so the string is searched
-    for runs of five instead of walked bit by bit."""
-    m = _RUN_OF_FIVE.search(bits)
-    if m is None:
-        return bits
-    out = []
-    pos = 0
-    while m is not None:
-        end = m.end()
-        out.append(bits[pos:end])
-        stuff_bit = _FLIP[bits[end - 1]]
-        # the stuff bit is the first of the next run: four more equal bits make five
-        while bits.startswith(_FOUR[stuff_bit], end):
-            out.append(stuff_bit)
-            out.append(bits[end:end + 4])
-            end += 4
-            stuff_bit = _FLIP[stuff_bit]
-        out.append(stuff_bit)
-        pos = end
-        m = _RUN_OF_FIVE.search(bits, pos)
-    out.append(bits[pos:])
-    return "".join(out)
+_START = 10
+"""Stuffing state before the first bit; states 0-9 are ``last * 5 + run - 1``: the last bit
+sent and how many equal bits end the output (1-4, stuff bits counted; a fifth is followed
+by its stuff bit at once, as :func:`stuff` does)."""
+
+
+@lru_cache(maxsize=None)
+def _stuff_table(width: int) -> tuple[tuple[bytes, int], ...]:
+    """For every state and every ``width``-bit chunk (MSB first), at ``state << width |
+    chunk``: the chunk stuffed as :func:`stuff` would go on from that state (bits as bytes
+    0/1), and the state after it. Built at first use (a few ms)."""
+    table = []
+    for state in range(_START + 1):
+        last, run = (-1, 0) if state == _START else divmod(state, 5)
+        run += state != _START
+        for chunk in range(1 << width):
+            out = bytearray()
+            b_last, b_run = last, run
+            for i in range(width - 1, -1, -1):
+                b = chunk >> i & 1
+                out.append(b)
+                if b == b_last:
+                    b_run += 1
+                else:
+                    b_last, b_run = b, 1
+                if b_run == 5:
+                    b_last ^= 1
+                    out.append(b_last)
+                    b_run = 1
+            table.append((bytes(out), b_last * 5 + b_run - 1))
+    return tuple(table)
+
+
+def _stuff_int(value: int, nbits: int) -> bytes:
+    """``stuff`` of the ``nbits``-bit big-endian ``value``, as bytes 0/1 (the same bits, tested
+    against it), a byte at a time by table lookups instead of bit by bit: a frame's SOF..CRC
+    field is 34 + 8 x DLC bits, so its first 2 bits go through the 2-bit table, then whole
+    bytes."""
+    head = nbits & 7
+    shift = nbits - head
+    state = _START
+    parts = []
+    if head:
+        part, state = _stuff_table(head)[state << head | value >> shift]
+        parts.append(part)
+    table = _stuff_table(8)
+    while shift:
+        shift -= 8
+        part, state = table[state << 8 | (value >> shift) & 0xFF]
+        parts.append(part)
+    return b"".join(parts)
 
 
 @lru_cache(maxsize=4096)
 def _wire(can_id: int, data: bytes, rtr: bool, dlc: int) -> tuple[int, ...]:
     """``stuff(frame_bits(...))`` and the 10 trailer bits, as a tuple. A status frame whose data
-    changes misses the cache, so this is computed from integers and strings (the same bits as
-    the bit-by-bit functions above, tested against them) rather than lists of bits."""
+    changes misses the cache (nearly every frame of a moving joint does), so this is computed
+    from integers, a byte at a time (the same bits as the bit-by-bit functions above, tested
+    against them) rather than lists of bits."""
     header = can_id << 7 | (rtr << 6) | dlc      # SOF 0, ID, RTR, IDE 0, r0 0, DLC
     crc = _header_crc(header)
     table = _CRC15_BYTE
@@ -308,8 +332,7 @@ def _wire(can_id: int, data: bytes, rtr: bool, dlc: int) -> tuple[int, ...]:
         crc = ((crc << 8) & 0x7FFF) ^ table[((crc >> 7) ^ byte) & 0xFF]
     n = 8 * len(data)
     value = ((header << n | int.from_bytes(data, "big")) << 15) | crc
-    text = _stuff_text(format(value, f"0{34 + n}b")) + _TRAILER
-    return tuple(text.encode("ascii").translate(_TO_BITS))
+    return tuple(_stuff_int(value, 34 + n) + _TRAILER)
 
 
 def wire_bits(can_id: int, data: bytes = b"", rtr: bool = False, dlc: int | None = None) -> list[int]:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import stat
 import tempfile
 import threading
 import time
@@ -186,3 +187,19 @@ def _nothing_outlives_its_module(request):
         time.sleep(0.05)
     assert not left, f"threads still running after {request.node.nodeid}: {left}"
     assert not procs, f"processes still running after {request.node.nodeid}: {procs}"
+
+
+@pytest.fixture
+def full_device(tmp_path: Path) -> Path:
+    """A character device on which every write fails for want of space (ENOSPC), like
+    /dev/full: a node of its own in ``tmp_path`` when the tests run as root, so that code
+    under test that replaces or removes what it writes to cannot destroy the system's (as
+    root, an output once renamed a file over /dev/null and pyarrow deleted /dev/full); else
+    /dev/full itself, which a user cannot replace."""
+    if os.geteuid() == 0:
+        node = tmp_path / "full"
+        os.mknod(node, 0o666 | stat.S_IFCHR, os.makedev(1, 7))
+        return node
+    if not Path("/dev/full").is_char_device():
+        pytest.skip("no /dev/full on this system, and not root to make a node like it")
+    return Path("/dev/full")

@@ -436,14 +436,13 @@ def test_a_child_with_a_radio_and_a_can_side_keeps_its_radio_line():
         runner.run(0)
 
 
-@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full on this system")
-def test_a_can_log_that_fills_the_disk_is_one_line_and_the_bus_goes_on(tmp_path):
+def test_a_can_log_that_fills_the_disk_is_one_line_and_the_bus_goes_on(tmp_path, full_device):
     """``--can-log`` on a full disk: the write that failed ended ``rprs submodules`` in a
     traceback (OSError: No space left on device), and a log whose last flush failed at close
     was lost without a word, exit status 0, the bus left open. The failure is now one line, the
     log ends there, and frames are still received and the bus closed."""
     log = tmp_path / "full.log"
-    log.symlink_to("/dev/full")
+    log.symlink_to(full_device)
     channel = "rprs-full-disk"
     sched = RealTimeScheduler()
     lines = []
@@ -482,13 +481,13 @@ def test_the_hint_for_a_missing_interface_fits_linux_names():
     assert "at most 15 characters" in hint and "ip link add" not in hint
 
 
-def test_a_bench_process_that_went_on_through_troubles_exits_1(tmp_path, capsys):
+def test_a_bench_process_that_went_on_through_troubles_exits_1(tmp_path, capsys, full_device):
     """``rprs submodules`` whose CAN log could not be written ran on and said so, but ended
     with exit status 0: a script running the bench could not tell. It now ends with 1 and
     says why; a run without trouble still ends with 0."""
     from hil.cli import main
     log = tmp_path / "full.log"
-    log.symlink_to("/dev/full")
+    log.symlink_to(full_device)
     assert main(["submodules", "--can", "virtual:rprs-trouble", "--can-log", str(log),
                  "--duration", "0.5"]) == 1
     err = capsys.readouterr().err.splitlines()

@@ -12,7 +12,7 @@ from can_bus.bits import (
     OVERLOAD_FRAME_BITS,
     BitTiming,
     StuffError,
-    _stuff_text,
+    _stuff_int,
     _wire,
     crc15,
     frame_bits,
@@ -199,10 +199,12 @@ runs_st = st.lists(st.tuples(st.integers(0, 1), st.integers(1, 12)), max_size=30
 
 @settings(max_examples=300)
 @given(st.one_of(bits_st, runs_st))
-def test_stuffing_a_string_is_stuffing_bit_by_bit(bits):
-    # the frame path stuffs text (few stuff bits, so it searches for runs); long equal runs
-    # and runs of four right after a stuff bit are where the two could part
-    assert _stuff_text(b2s(bits)) == b2s(stuff(bits))
+def test_stuffing_by_byte_tables_is_stuffing_bit_by_bit(bits):
+    # the frame path stuffs a byte at a time from tables whose states carry the run across
+    # chunks; long equal runs, runs of four right after a stuff bit and runs that straddle a
+    # chunk's edge are where the two could part
+    value = int("".join(map(str, bits)) or "0", 2)
+    assert list(_stuff_int(value, len(bits))) == stuff(bits)
 
 
 wire_args_st = st.one_of(

@@ -7,7 +7,8 @@ that sees the error sends 6 dominant bits from the next bit; a transmitter detec
 error at its first recessive bit read dominant; every other receiver a stuff error at the
 sixth equal bit in a row (or a form error at a dominant CRC delimiter) and sends its own flag;
 the flags end at the last one, then 8 delimiter bits and 3 of intermission. Wire bits come
-from can_bus.bits, which tests/test_can_bits.py checks against can-utils.
+from can_bus.bits, which tests/test_can_bits.py checks bit by bit against the standard's rules and
+tests/test_frame_length_canbusload.py against can-utils' canbusload (exact stuffing).
 """
 from __future__ import annotations
 

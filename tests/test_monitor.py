@@ -578,3 +578,25 @@ def test_the_monitor_reports_the_cpu_budget_of_what_it_ran(tmp_path):
     assert want["cpu_report"]["1"]["handlers"] and want["duration_ticks"] == 2 * TICK_HZ
     assert got == want
     assert pcap.stat().st_size > 1000
+
+
+def test_an_output_that_fills_the_disk_ends_the_monitor_in_one_line(tmp_path, full_device):
+    """``rprs monitor --trace FILE`` on a full disk: the run's OSError was caught by the
+    terminal UI, which printed a page of traceback, and the outputs were closed as if the run
+    had gone well. It now ends the view and says which output, in one line, and leaves none."""
+    import pty
+    import subprocess
+    master, slave = pty.openpty()
+    pcap = tmp_path / "m.pcapng"
+    p = subprocess.Popen(_monitor_cmd("--robots", "0,1,2", "--speed", "4096", "--duration",
+                                      "600", "--trace", str(full_device), "--pcap", str(pcap)),
+                         stdin=slave, stdout=subprocess.PIPE, stderr=slave,
+                         start_new_session=True)
+    os.close(slave)
+    _, screen = _once_drawn(p, master, b"No space left on device", lambda: None)
+    assert p.returncode == 2
+    assert b"Traceback" not in screen and b"locals" not in screen
+    tail = screen[screen.rfind(b"\x1b[?1049l"):]          # after the screen was restored
+    assert f"rprs: error: cannot write trace {full_device}: No space left on device".encode() \
+        in tail, bytes(tail[-300:])
+    assert not pcap.exists() and not list(tmp_path.glob("*.partial"))

@@ -92,3 +92,14 @@ def test_the_docs_say_what_the_model_does():
     for text in (row, table):
         assert re.search(r"\bslow\b", text) and "0 <= E < 0.2" in text, text
         assert "fast" not in text.replace("fast (E < 0)", ""), text
+
+
+def test_two_skews_for_one_robot_are_refused_one_each_is_fine(capsys):
+    """``--fault skew:2:0.02 --fault skew:2:0.05`` ran without a word, the last one winning."""
+    from hil.cli import main
+    assert main(["sim", "--robots", "0,1,2", "--duration", "1", "--fault", "skew:2:0.02",
+                 "--fault", "skew:2:0.05", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "skew:2:0.02 and skew:2:0.05" in err, err
+    assert main(["sim", "--robots", "0,1,2", "--duration", "1", "--fault", "skew:2:0.02",
+                 "--fault", "skew:1:0.05", "--no-progress"]) == 0

@@ -45,3 +45,11 @@ def test_head_against_itself_gives_the_same_accounting_and_leaves_no_worktree(ca
             and not line.startswith("|---")]
     assert len(rows) == 2 and all(len(r.split("|")[2].split("/")) == 1 for r in rows), rows
     assert _worktrees() == before
+
+
+def test_the_readme_soak_with_both_checksums_is_measured_as_the_tree_runs_it(capsys):
+    assert bench.main(["--base", "HEAD", "--hours", "0.05", "--runs", "1",
+                       "--checksum", "both"]) == 0
+    out = capsys.readouterr().out
+    assert "--checksum both" in out
+    assert "accounting the same in every run" in out

@@ -7,7 +7,7 @@ import sys
 from ..sim.world import ConfigError
 from .common import UserError, distinct_outputs, port_name, positive
 from .sim import (add_sim_options, close_capture, close_writers, open_capture, open_writers,
-                  print_summary_and_report, sim_config)
+                  print_summary_and_report, sim_config, write_failed)
 
 
 def _need_a_terminal(instead: str) -> None:
@@ -66,6 +66,8 @@ def cmd_monitor(a: argparse.Namespace) -> int:
                                       on_event=vcd.write if vcd is not None else None,
                                       capture=None if capture is None else capture.f)
         ok = True
+    except OSError as exc:               # an output filled the disk: one line, none left
+        raise write_failed(exc, trace=a.trace, VCD=a.vcd, capture=a.pcap) from None
     finally:
         try:
             close_writers(trace, vcd, ok)

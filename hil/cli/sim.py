@@ -196,6 +196,14 @@ def _outputs(**paths: str | None) -> str:
     return ", ".join(f"{what} {p}" for what, p in paths.items() if p)
 
 
+def write_failed(exc: OSError, **paths: str | None) -> UserError:
+    """The one line for an output that could not be written during a run (a full disk):
+    the output whose path ``exc`` names (``OutputFile``), else all of them."""
+    failed = [f"{what} {p}" for what, p in paths.items() if p and p == exc.filename]
+    which = failed[0] if failed else f"an output ({_outputs(**paths)})"
+    return UserError(f"cannot write {which}: {exc.strerror or exc}")
+
+
 def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
               vcd_path: str | None = None, on_event=None,
               pcap_path: str | None = None) -> tuple[World, float]:
@@ -241,10 +249,8 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         if pcap_file is not None:
             pcap_file.discard()
         if isinstance(exc, OSError):     # a write of an output failed: the disk is full...
-            outputs = {"trace": trace_path, "VCD": vcd_path, "capture": pcap_path}
-            failed = [f"{what} {p}" for what, p in outputs.items() if p and p == exc.filename]
-            which = failed[0] if failed else f"an output ({_outputs(**outputs)})"
-            raise UserError(f"cannot write {which}: {exc.strerror or exc}") from None
+            raise write_failed(exc, trace=trace_path, VCD=vcd_path, capture=pcap_path) \
+                from None
         raise
     close_writers(trace, vcd, ok=True)
     return world, wall

@@ -137,7 +137,13 @@ class SimConfig:
                               "MAC")
         if self.father_standby and 0 not in self.robots:
             raise ConfigError("a standby father PC needs the father (ID 0) in the ring")
+        skews: dict[int | None, Fault] = {}
         for f in self.faults:
+            if f.kind == "skew":
+                first = skews.setdefault(f.robot, f)
+                if first is not f:
+                    raise ConfigError(f"faults {first.spec()} and {f.spec()}: a robot has one "
+                                      f"clock, give it one skew")
             if f.robot is not None and f.robot not in self.robots:
                 raise ConfigError(f"fault {f.spec()} names robot {f.robot}, which is not in the "
                                   f"ring {list(self.robots)}")

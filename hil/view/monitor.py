@@ -357,6 +357,9 @@ class SimMonitorApp(MonitorApp):
         self._seen: set[tuple] = set()
         self._wall = self.clock()
         self._rate_log: deque[tuple[float, int]] = deque(maxlen=int(rate * 2) + 1)
+        self.write_error: OSError | None = None
+        """What stopped the run when one of its outputs could not be written (a full disk):
+        :func:`run_monitor_sim` raises it once the terminal is restored."""
         for st in self.world.stations.values():
             st.observer = self._chain(st.observer)
 
@@ -437,8 +440,13 @@ class SimMonitorApp(MonitorApp):
             return
         target = min(w.end_tick, w.now + int(min(dt, 1.0) * self.speed * TICK_HZ))
         deadline = now + BUDGET_S
-        while w.now < target and clock() < deadline:
-            w.run(min(target, w.now + CHUNK_TICKS))
+        try:
+            while w.now < target and clock() < deadline:
+                w.run(min(target, w.now + CHUNK_TICKS))
+        except OSError as exc:           # an output (trace, waveform, capture) cannot be written
+            self.write_error = exc
+            self.paused = True
+            self.exit(return_code=2)
         # Time the simulator could not keep up with is dropped, not owed.
         self._rate_log.append((clock(), w.now))
 
@@ -810,9 +818,12 @@ def run_monitor_sim(config: SimConfig, speed: float = 1.0, trace: Any = None,
                     capture: BinaryIO | None = None) -> tuple[int, World]:
     """``rprs monitor [sim options] [--speed X]``: run the TUI on a simulated world until q.
     The world stops at ``config.duration`` (the header then says FINISHED). Returns the exit
-    status and the world as it was when the view closed."""
+    status and the world as it was when the view closed. An output that could not be written
+    during the run ends the view, and its OSError is raised once the terminal is back."""
     app = SimMonitorApp(config, speed=speed, trace=trace, on_event=on_event, capture=capture)
     app.run()
+    if app.write_error is not None:
+        raise app.write_error
     return app.return_code or 0, app.world
 
 
