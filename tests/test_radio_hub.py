@@ -1103,21 +1103,7 @@ def test_every_documented_link_dir_can_be_made_on_a_fresh_machine():
     hub makes only the last directory)``. Every ``--link-dir DIR`` in a command of the docs
     names a directory whose parent exists anywhere (``/tmp``) or that an earlier command of
     the same page makes (``mkdir -p``)."""
-    import re
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    pages = [os.path.join(root, "README.md")] + [
-        os.path.join(root, "docs", n) for n in sorted(os.listdir(os.path.join(root, "docs")))
-        if n.endswith(".md")]
-    seen = 0
-    for page in pages:
-        made = {"/tmp"}
-        for line in open(page, encoding="utf-8"):
-            for d in re.findall(r"mkdir -p (/\S+)", line):
-                while d not in ("/", ""):
-                    made.add(d.rstrip("/"))
-                    d = os.path.dirname(d.rstrip("/"))
-            for d in re.findall(r"--link-dir (/[^\s`]+)", line):
-                seen += 1
-                parent = os.path.dirname(d.rstrip("/"))
-                assert parent in made, f"{os.path.basename(page)}: {line.strip()}"
+    from doc_commands import dirs_without_parent
+    seen, bad = dirs_without_parent(r"--link-dir (/[^\s`]+)")
+    assert not bad, bad
     assert seen >= 4

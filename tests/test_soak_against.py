@@ -35,6 +35,8 @@ def test_a_commit_that_does_not_exist_is_a_clear_error(capsys):
 
 
 def test_head_against_itself_gives_the_same_accounting_and_leaves_no_worktree(capsys):
+    # one test for both runs: two tests that each add a worktree, on two xdist workers at
+    # once, saw each other's in the list (a worktree being added is listed "locked")
     before = _worktrees()
     assert bench.main(["--base", "HEAD", "--hours", "0.05", "--runs", "1"]) == 0
     out = capsys.readouterr().out
@@ -45,11 +47,10 @@ def test_head_against_itself_gives_the_same_accounting_and_leaves_no_worktree(ca
             and not line.startswith("|---")]
     assert len(rows) == 2 and all(len(r.split("|")[2].split("/")) == 1 for r in rows), rows
     assert _worktrees() == before
-
-
-def test_the_readme_soak_with_both_checksums_is_measured_as_the_tree_runs_it(capsys):
+    # the README's soak, both checksums, as each tree runs it
     assert bench.main(["--base", "HEAD", "--hours", "0.05", "--runs", "1",
                        "--checksum", "both"]) == 0
     out = capsys.readouterr().out
-    assert "--checksum both" in out
+    assert "| rprs soak --hours 0.05 --seed 11 --checksum both" in out
     assert "accounting the same in every run" in out
+    assert _worktrees() == before

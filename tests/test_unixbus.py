@@ -284,19 +284,9 @@ def test_every_documented_rprs_unix_directory_can_be_made_on_a_fresh_machine():
     """The bus makes only its last directory: every ``rprs_unix:DIR`` in a command of the
     docs names a directory whose parent exists anywhere (``/tmp``) or that an earlier command
     of the same page makes (``mkdir -p``), as for the hub's ``--link-dir``."""
-    import re
-    pages = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
-    seen = 0
-    for page in pages:
-        made = {"/tmp"}
-        for line in page.read_text(encoding="utf-8").splitlines():
-            for d in re.findall(r"mkdir -p (/\S+)", line):
-                while d not in ("/", ""):
-                    made.add(d.rstrip("/"))
-                    d = os.path.dirname(d.rstrip("/"))
-            for d in re.findall(r"rprs_unix:(/[^\s`]+)", line):
-                seen += 1
-                assert os.path.dirname(d.rstrip("/")) in made, f"{page.name}: {line.strip()}"
+    from doc_commands import dirs_without_parent
+    seen, bad = dirs_without_parent(r"rprs_unix:(/[^\s`]+)")
+    assert not bad, bad
     assert seen >= 4
 
 
