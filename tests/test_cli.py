@@ -765,3 +765,15 @@ def test_a_run_shorter_than_one_tick_is_refused(capsys):
     code, _, _ = rprs(capsys, "sim", "--robots", "1,2", "--duration", "0.0000001",
                       "--no-progress")                   # 1.6 ticks: runs
     assert code == 0
+
+
+@pytest.mark.parametrize("command", [["submodules", "--can", "virtual:rprs-ev"],
+                                     ["father", "--radio", "loop://"]])
+def test_events_is_an_option_of_the_child_only(capsys, command):
+    """``rprs submodules --events`` and ``rprs father --events`` were accepted and printed
+    nothing: the submodules have no MAC, and the father prints its station's events with
+    --json. Only ``rprs child`` takes it now; the others refuse it in one line."""
+    from hil.cli import main
+    assert main([*command, "--events", "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "unrecognized arguments: --events" in err and "Traceback" not in err, err

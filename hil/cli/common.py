@@ -209,11 +209,14 @@ def txen_option(p: argparse.ArgumentParser) -> None:
                    "and self-switching modules)")
 
 
-def realtime_options(p: argparse.ArgumentParser) -> None:
+def realtime_options(p: argparse.ArgumentParser, events: bool = False) -> None:
+    """``--duration``, and ``--events`` where the command has MAC events to print (the child;
+    the father prints its station's with ``--json``, the submodules have no MAC)."""
     p.add_argument("--duration", type=positive, metavar="SECONDS",
                    help="stop after this long (default: until Ctrl-C or SIGTERM)")
-    p.add_argument("--events", action="store_true",
-                   help="print MAC events as JSON lines on stdout")
+    if events:
+        p.add_argument("--events", action="store_true",
+                       help="print MAC events as JSON lines on stdout")
 
 
 def can_notes(command: str, spec: str | None) -> list[str]:

@@ -215,7 +215,7 @@ def add(sub) -> None:
     ch.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
     txen_option(ch)
     mac_options(ch)
-    realtime_options(ch)
+    realtime_options(ch, events=True)
     ch.set_defaults(func=cmd_child)
     sm = sub.add_parser("submodules", help="run a child's joint/wheel/paw submodules on a CAN "
                         "bus in real time")
