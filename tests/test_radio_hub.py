@@ -590,9 +590,7 @@ def test_cli_hub_whose_air_thread_fails_exits_by_itself_in_one_line():
     finally:
         if fd >= 0:
             os.close(fd)
-        if p.poll() is None:
-            p.kill()
-            p.wait()
+        _kill(p)
     assert p.returncode == 2, err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith("rprs: error: the radio hub stopped: its air thread failed with "
@@ -713,6 +711,22 @@ def test_the_latest_drop_and_fault_are_accepted_and_the_hub_runs(hubs):
     assert read_n(fd0, 3, 5.0)[0] == b"abc"
 
 
+def _kill(p: subprocess.Popen) -> None:
+    if p.poll() is None:
+        p.kill()
+        p.wait()
+
+
+def _stopped_with_summary(p: subprocess.Popen, sig: int) -> str:
+    """Send ``sig`` to the hub process ``p``: it must end with status 0 and its summary last
+    on stdout, which is returned."""
+    p.send_signal(sig)
+    out, err = p.communicate(timeout=10)
+    assert p.returncode == 0, err
+    assert out.strip().splitlines()[-1].startswith("radio-hub: ")
+    return out
+
+
 def test_cli_prints_paths_and_summary_on_signal(tmp_path):
     code = ("import sys; from hil.bench.radio_hub import run_hub_cli; "
             f"sys.exit(run_hub_cli(2, link_dir={str(tmp_path / 'r')!r}))")
@@ -732,14 +746,9 @@ def test_cli_prints_paths_and_summary_on_signal(tmp_path):
         finally:
             os.close(fd)
             os.close(fd1)
-        p.send_signal(signal.SIGTERM)
-        out, err = p.communicate(timeout=10)
+        out = _stopped_with_summary(p, signal.SIGTERM)
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    assert p.returncode == 0, err
-    assert out.strip().splitlines()[-1].startswith("radio-hub: ")
+        _kill(p)
     assert "4 bytes in" in out
     assert not (tmp_path / "r").exists()
 
@@ -757,14 +766,9 @@ def test_a_hub_whose_terminal_closes_removes_its_links(tmp_path):
         assert p.stdout.readline().startswith("node 0: /dev/")
         assert p.stdout.readline().startswith("node 1: /dev/")
         assert (tmp_path / "air" / "node1").is_symlink()
-        p.send_signal(signal.SIGHUP)
-        out, err = p.communicate(timeout=10)
+        _stopped_with_summary(p, signal.SIGHUP)
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    assert p.returncode == 0, err
-    assert out.strip().splitlines()[-1].startswith("radio-hub: ")
+        _kill(p)
     assert not (tmp_path / "air").exists()
 
 
@@ -1071,9 +1075,7 @@ def test_live_capture_through_a_pipe_into_tshark():
         assert shark.returncode == 0, err
     finally:
         for p in (hub, shark):
-            if p.poll() is None:
-                p.kill()
-                p.wait()
+            _kill(p)
     assert "radio-hub: " in hub.stderr.read().decode()
 
 
