@@ -112,6 +112,11 @@ def open_bus(spec: str, bitrate: int | None = None, **kwargs: Any) -> can.BusABC
             raise CanOpenError(f"cannot open CAN bus {spec}: {why}; {hint}")
     if interface == "virtual":
         kwargs.setdefault("receive_own_messages", False)
+    if interface == "socketcan":
+        # CAN FD frames too: a classic-only socket never sees them (the kernel hands CAN FD
+        # frames only to sockets that asked), so they were missing from the log that holds
+        # what candump shows, and from the count of frames no node takes
+        kwargs.setdefault("fd", True)
     if bitrate is not None and interface not in ("virtual", "socketcan", "udp_multicast"):
         kwargs["bitrate"] = bitrate
     held, log = _HeldLog(), logging.getLogger("can")
@@ -168,11 +173,97 @@ class _HeldLog(logging.Handler):
             logging.getLogger(r.name).handle(r)
 
 
+CANFD_FDF = 0x04
+"""The CAN FD frame flag (linux/can.h, kernel 6.2 on): set on every CAN FD frame SocketCAN
+hands over, so ``candump -L`` writes a CAN FD frame with ``##5`` where python-can wrote ``##1``."""
+
+
+class CandumpLogWriter(can.CanutilsLogWriter):
+    """python-can's candump ``.log`` writer, but with every frame written as ``candump -L``
+    writes it: a remote frame keeps its DLC (``101#R6``; python-can's writer wrote ``101#R``,
+    and a remote frame asks for that many bytes), and a CAN FD frame carries the FDF flag in
+    its flags as SocketCAN's do (``101##5...``)."""
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if not msg.is_error_frame and (msg.is_remote_frame and msg.dlc or msg.is_fd):
+            wrote: list[str] = []
+            file, self.file = self.file, _Collect(wrote)
+            try:
+                super().on_message_received(msg)
+            finally:
+                self.file = file
+            line = "".join(wrote)
+            head, sep, rest = line.partition("#")
+            if msg.is_remote_frame:
+                rest = f"R{msg.dlc:X}" + rest[1:]
+            else:                                 # "#<flags><data> R": flags one hex digit
+                rest = f"#{int(rest[1], 16) | CANFD_FDF:X}" + rest[2:]
+            self.file.write(head + sep + rest)
+            return
+        super().on_message_received(msg)
+
+
+class _Collect:
+    """A file that keeps what is written to it (``CandumpLogWriter``)."""
+
+    def __init__(self, into: list[str]) -> None:
+        self.write = into.append
+
+
+def open_log(path: str) -> can.io.MessageWriter:
+    """A python-can log writer for ``path``, chosen by its extension; a ``.log`` is written as
+    ``candump -L`` writes (``CandumpLogWriter``)."""
+    if path.lower().endswith(".log"):
+        return CandumpLogWriter(path)
+    return can.Logger(path)
+
+
+def kernel_drops(bus: can.BusABC) -> int | None:
+    """Frames the kernel dropped for ``bus``'s SocketCAN socket because its receive queue was
+    full (the socket's drop count, ``SO_MEMINFO``), or None where that cannot be read (not
+    SocketCAN, or a kernel before 4.6)."""
+    import socket
+    import struct
+    sock = getattr(bus, "socket", None)
+    if not isinstance(sock, socket.socket):
+        return None
+    try:
+        info = sock.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, 4 * SK_MEMINFO_VARS)
+    except OSError:
+        return None
+    if len(info) < 4 * (SK_MEMINFO_DROPS + 1):
+        return None
+    return struct.unpack_from("I", info, 4 * SK_MEMINFO_DROPS)[0]
+
+
+SO_MEMINFO = 55
+"""linux/socket.h: a socket's memory figures, u32[SK_MEMINFO_VARS] (linux/sock_diag.h)."""
+SK_MEMINFO_VARS = 9
+SK_MEMINFO_DROPS = 8
+
+
+GONE_ERRNOS = frozenset({errno.ENODEV, errno.ENXIO})
+"""What SocketCAN answers once the interface under a socket is removed (``ip link del vcan0``,
+a USB adapter unplugged): ENODEV from the first receive, ENXIO from every send after. The
+socket is unbound for good: a new interface of the same name is another interface."""
+
+
+def _errno(exc: BaseException) -> int | None:
+    code = getattr(exc, "error_code", None)
+    if code is None and isinstance(exc, OSError):
+        code = exc.errno
+    if code is None and isinstance(exc.__cause__, OSError):
+        code = exc.__cause__.errno
+    return code
+
+
 class PythonCanBus:
     """Local CAN nodes on a python-can bus (real time)."""
 
     RETRY_S = 0.1
     """Seconds the reader waits after a receive error before it reads again."""
+    DROPS_EVERY_S = 0.25
+    """How often the reader looks at the kernel's drop count (SocketCAN)."""
 
     def __init__(self, sched: Any, bus: can.BusABC, timing: BitTiming | None = None,
                  log: str | None = None, channel: str | None = None,
@@ -198,11 +289,21 @@ class PythonCanBus:
         frames, CAN FD): logged, handed to no node."""
         self.send_errors = 0
         self.receive_errors = 0
+        self.lost = 0
+        """Frames the kernel dropped before this process read them (SocketCAN: a receive
+        queue that overflowed under a flood); each is missing from the nodes and the log."""
         self.on_error = on_error
+        self.on_lost: Callable[[str], None] | None = None
+        """Called once, in the scheduler's thread, with why the interface is gone for good
+        (removed: ``GONE_ERRNOS``); reading and sending stop then. None: said through
+        ``on_error`` instead."""
+        self.gone: str | None = None
         self._send_failing = False
         self.trace = None          # callable(frame, start, end, node) like CanBus.trace
         self.log = log
-        self._writer = can.Logger(log) if log else None
+        self._writer = open_log(log) if log else None
+        self._drops0 = kernel_drops(bus)
+        self._drops_seen = self._drops0
         self._closing = threading.Event()
         self._reader = threading.Thread(target=self._read, name=f"can-reader {channel or ''}",
                                         daemon=True)
@@ -276,10 +377,15 @@ class PythonCanBus:
         msg = frame.to_message(timestamp=time.time())
         msg.is_rx = False
         msg.channel = self.channel
+        if self.gone is not None:
+            return
         try:
             self.bus.send(msg, timeout=0.1)
         except can.CanError as exc:
             self.send_errors += 1
+            if _errno(exc) in GONE_ERRNOS:
+                self._interface_gone(exc)
+                return
             if not self._send_failing:
                 self._send_failing = True
                 self._report(f"sending failed, retrying every 1 ms: {exc}")
@@ -315,17 +421,58 @@ class PythonCanBus:
     def _read(self) -> None:
         """The reader thread: every frame to ``_from_thread``; an error (SocketCAN's ENETDOWN
         when the interface goes down) is reported and reading goes on."""
+        next_look = time.monotonic() + self.DROPS_EVERY_S
         while not self._closing.is_set():
+            if self._drops0 is not None and time.monotonic() >= next_look:
+                next_look = time.monotonic() + self.DROPS_EVERY_S
+                self._look_for_drops()
             try:
                 msg = self.bus.recv(0.05)
             except Exception as exc:  # noqa: BLE001 - any driver's error: report, read on
                 if self._closing.is_set():
+                    return
+                if _errno(exc) in GONE_ERRNOS:      # removed: nothing will ever come
+                    self.sched.post(self._interface_gone, exc)
                     return
                 self.sched.post(self._receive_failed, exc)
                 self._closing.wait(self.RETRY_S)
                 continue
             if msg is not None:
                 self._from_thread(msg)
+
+    def _look_for_drops(self) -> None:
+        """The kernel's drop count went up since last looked: those frames are lost (the
+        reader thread, or ``close``)."""
+        drops = kernel_drops(self.bus)
+        if drops is None or self._drops_seen is None or drops <= self._drops_seen:
+            return
+        new, self._drops_seen = drops - self._drops_seen, drops
+        if self._closing.is_set():
+            self._lost_frames(new)
+        else:
+            self.sched.post(self._lost_frames, new)
+
+    def _lost_frames(self, n: int) -> None:
+        first = self.lost == 0
+        self.lost += n
+        if first:
+            self._report(f"{n} frame{'s' if n > 1 else ''} lost: this process read them too "
+                         f"slowly and the kernel's receive queue overflowed (a flood?); all "
+                         f"lost frames are counted in the closing line")
+
+    def _interface_gone(self, exc: Exception) -> None:
+        """The interface was removed: say so once; ``on_lost`` ends the process."""
+        if self.gone is not None:
+            return
+        why = f"{exc}".removeprefix("Error receiving: ").removeprefix("Failed to transmit: ")
+        why = why.split(" [Error Code")[0]
+        self.gone = (f"the CAN interface {self.channel or self.bus.channel_info} went away "
+                     f"({why}): removed (ip link del, an adapter unplugged); start again once "
+                     f"it is back")
+        if self.on_lost is not None:
+            self.on_lost(self.gone)
+        else:
+            self._report(self.gone)
 
     def _receive_failed(self, exc: Exception) -> None:
         self.receive_errors += 1
@@ -394,6 +541,8 @@ class PythonCanBus:
     def close(self) -> None:
         self._closing.set()
         self._reader.join()
+        if self._drops0 is not None:
+            self._look_for_drops()               # the last ones, counted (``lost``)
         try:
             if self._writer is not None:
                 self._end_log()

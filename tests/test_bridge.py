@@ -495,3 +495,152 @@ def test_a_bench_process_that_went_on_through_troubles_exits_1(tmp_path, capsys,
     assert err[-1] == "rprs: 1 trouble during the run (above): exit status 1"
     assert main(["submodules", "--can", "virtual:rprs-fine", "--can-log",
                  str(tmp_path / "fine.log"), "--duration", "0.5"]) == 0
+
+
+def test_a_can_log_writes_remote_and_can_fd_frames_as_candump_does(tmp_path):
+    """``cansend vcan0 101#R6`` (a remote frame asking for 6 bytes) was logged ``101#R``, its
+    DLC lost, where ``candump -L`` writes ``101#R6``; a CAN FD frame ``101##1...`` was logged
+    ``##1`` where candump, on a kernel that flags CAN FD frames (6.2 on), writes ``##5``. The
+    .log now holds what candump's does, and python-can reads it back the same."""
+    channel = f"rprs-{os.getpid()}-remote"
+    sched = RealTimeScheduler()
+    log = tmp_path / "all.log"
+    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel)
+    tx = can.Bus(interface="virtual", channel=channel)
+    try:
+        tx.send(can.Message(arbitration_id=0x101, is_remote_frame=True, dlc=6,
+                            is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x010, is_remote_frame=True, dlc=0,
+                            is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x101, is_fd=True, bitrate_switch=True,
+                            data=bytes.fromhex("204E00000500"), is_extended_id=False))
+        _run_until(_runner_of(sched), lambda: bus.received + bus.not_ours == 3)
+    finally:
+        tx.shutdown()
+        bus.close()
+    frames = [line.split()[2] for line in log.read_text().splitlines()]
+    assert frames == ["101#R6", "010#R", "101##5204E00000500"]
+    back = list(can.LogReader(str(log)))
+    assert [(m.is_remote_frame, m.dlc) for m in back[:2]] == [(True, 6), (True, 0)]
+    assert back[2].is_fd and back[2].bitrate_switch
+
+
+def _runner_of(sched):
+    """A bench ``Runner`` around an existing scheduler (``_run_until`` drives a runner)."""
+    from hil.bench.runner import Runner
+    runner = Runner()
+    runner.sched = sched
+    return runner
+
+
+def test_the_closing_lines_count_frames_no_node_takes(can_channel):
+    """An extended-id or CAN FD frame for one of the DBC's ids (``cansend vcan0
+    00000101#...``, ``101##1...``) reaches no node of ours: it was logged, and the closing
+    lines of ``rprs child`` and ``rprs submodules`` did not say a word of it. They now count
+    them."""
+    from hil.bench.runner import Runner, build_child, build_submodules
+    from hil.cli.robots import child_summary, submodules_summary
+    runner = Runner()
+    station, child = build_child(runner, 1, None, can_channel)
+    nodes = build_submodules(runner, can_channel)
+    tx = open_bus(can_channel)
+    try:
+        tx.send(can.Message(arbitration_id=0x101, is_extended_id=True,
+                            data=bytes.fromhex("204E00000500")))
+        _run_until(runner, lambda: child.can.xcvr.bus.not_ours == 1 and
+                   nodes["JOINT1"].bus.not_ours == 1)
+    finally:
+        tx.shutdown()
+    assert child_summary(station, child, radio=False).endswith(
+        ", 1 frame not CAN 2.0A ignored (extended id, CAN FD or error frame)")
+    assert submodules_summary(nodes).endswith(
+        "; CAN: 1 frame not CAN 2.0A ignored (extended id, CAN FD or error frame)")
+    assert nodes["JOINT1"].refused == 0 and nodes["JOINT1"].bad_frames == 0
+
+
+@pytest.mark.vcan
+def test_can_fd_frames_on_vcan0_are_logged_and_counted(vcan_channel, tmp_path):
+    """python-can's SocketCAN bus was opened for classic frames only, and the kernel hands
+    CAN FD frames only to sockets that ask: ``cansend vcan0 101##1...`` never reached the
+    process, its log (said to hold what candump shows) nor its count of frames no node takes.
+    The bus is now opened for CAN FD too."""
+    sched = RealTimeScheduler()
+    log = tmp_path / "fd.log"
+    bus = PythonCanBus(sched, open_bus(f"socketcan:{vcan_channel}"), log=str(log),
+                       channel=vcan_channel)
+    tx = can.Bus(interface="socketcan", channel=vcan_channel, fd=True)
+    try:
+        tx.send(can.Message(arbitration_id=0x101, is_fd=True, bitrate_switch=True,
+                            data=bytes(12), is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x181, data=bytes(6), is_extended_id=False))
+        _run_until(_runner_of(sched), lambda: bus.received == 1 and bus.not_ours == 1)
+    finally:
+        tx.shutdown()
+        bus.close()
+    assert bus.not_ours == 1 and bus.received == 1
+    assert [line.split()[2] for line in log.read_text().splitlines()] == \
+        ["101##5" + "00" * 12, "181#000000000000"]
+
+
+@pytest.mark.vcan
+def test_frames_the_kernel_drops_in_a_flood_are_counted_and_said(vcan_channel):
+    """``cangen vcan0 -g 0`` floods faster than a Python process reads: the kernel dropped
+    what overflowed the socket's receive queue, and ``rprs child``/``rprs submodules`` said
+    nothing; their closing lines counted only what they read. The drops (the socket's
+    SO_MEMINFO count) are now said in one line when first seen and counted in ``lost``:
+    what was read and what was lost add up to what was sent."""
+    import shutil
+    if not shutil.which("cangen"):
+        pytest.skip("cangen not installed (Debian package can-utils)")
+    sched = RealTimeScheduler()
+    lines = []
+    bus = PythonCanBus(sched, open_bus(f"socketcan:{vcan_channel}"), channel=vcan_channel,
+                       on_error=lines.append)
+    n = 5000
+    try:
+        subprocess.run(["cangen", vcan_channel, "-g", "0", "-n", str(n), "-I", "7FF", "-L", "8"],
+                       check=True, timeout=120)
+        _run_until(_runner_of(sched), lambda: bus.received + bus.lost == n)
+    finally:
+        bus.close()
+    assert bus.lost > 0, "no drop: the flood was read whole, nothing tested"
+    assert bus.received + bus.lost == n
+    assert len(lines) == 1 and lines[0].startswith(f"CAN bus {vcan_channel}: ")
+    assert "frames lost: this process read them too slowly" in lines[0]
+
+
+def _restore_vcan(channel: str) -> None:
+    """``channel`` back as scripts/vcan-vm.sh makes it (CAN FD MTU, up)."""
+    subprocess.run(["ip", "link", "add", "dev", channel, "type", "vcan"], capture_output=True)
+    subprocess.run(["ip", "link", "set", channel, "mtu", "72"], check=True)
+    subprocess.run(["ip", "link", "set", "up", channel], check=True)
+
+
+@pytest.mark.vcan
+@pytest.mark.parametrize("command", [["submodules"], ["child", "--id", "1"]])
+def test_a_can_interface_removed_under_a_bench_process_ends_it(vcan_channel, command):
+    """``ip link del vcan0`` (or a USB adapter unplugged) under ``rprs submodules``: the socket
+    is unbound for good, yet the process ran on deaf, retrying its sends every 1 ms for ever
+    (ENXIO), even once a new vcan0 was there. It now ends as a lost radio port ends a robot:
+    its closing line, then one line saying the interface went away, exit status 1."""
+    if os.environ.get("RPRS_VCAN") != "1":
+        pytest.skip("removes the interface: only in scripts/vcan-vm.sh's VM")
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", *command, "--can",
+                          f"socketcan:{vcan_channel}"], stderr=subprocess.PIPE, text=True)
+    try:
+        first = p.stderr.readline()
+        assert first.startswith("running "), first
+        time.sleep(0.3)
+        subprocess.run(["ip", "link", "del", vcan_channel], check=True)
+        time.sleep(0.5)
+        _restore_vcan(vcan_channel)            # a new vcan0: still another interface
+        rc = p.wait(timeout=60)
+        err = p.stderr.read().splitlines()
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        _restore_vcan(vcan_channel)
+    assert rc == 1, err
+    assert err[-1].startswith(f"rprs: error: the CAN interface {vcan_channel} went away ("), err
+    assert "Traceback" not in "\n".join(err)

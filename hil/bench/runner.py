@@ -215,6 +215,7 @@ def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
         # NotImplementedError: python-can's .mf4 writer without asammdf
         raw.shutdown()                 # else python-can warns at exit, a second line
         raise RunError(f"cannot write CAN log {log}: {exc}") from None
+    bus.on_lost = runner.fail        # the interface removed: it cannot go on (status 1)
     runner.on_close(bus.close)
     return bus
 

@@ -42,16 +42,33 @@ def child_summary(station, child, radio: bool = True) -> str:
     bad = getattr(getattr(child, "dispatcher", None), "bad_frames", 0)
     malformed = (f"{bad} malformed frame{'s' if bad > 1 else ''} ignored (wrong length, "
                  f"remote or unknown id)")
+    bus = getattr(getattr(getattr(child, "can", None), "xcvr", None), "bus", None)
+    troubles = ([malformed] if bad else []) + bus_notes(bus)
     if not radio:
-        bus = getattr(getattr(getattr(child, "can", None), "xcvr", None), "bus", None)
         counts = [f"{bus.sent} frame{'s' if bus.sent != 1 else ''} sent",
                   f"{bus.received} received"] if bus is not None else []
         return (f"robot {station.id}: CAN only (no radio); CAN: "
-                + ", ".join(counts + ([malformed] if bad else [])))
+                + ", ".join(counts + troubles))
     line = summary_line(station)
-    if bad:
-        line += f"; CAN: {malformed}"
+    if troubles:
+        line += "; CAN: " + ", ".join(troubles)
     return line
+
+
+def bus_notes(bus) -> list[str]:
+    """What a bench process's CAN bus (``can_bus.bridge.PythonCanBus``) heard and handed to
+    no node, for its closing line: frames the kernel dropped before they were read (a flood),
+    and frames that are not CAN 2.0A (an extended id, CAN FD: no node of ours takes them)."""
+    notes = []
+    lost = getattr(bus, "lost", 0)
+    if lost:
+        notes.append(f"{lost} frame{'s' if lost > 1 else ''} lost (the receive queue "
+                     f"overflowed)")
+    other = getattr(bus, "not_ours", 0)
+    if other:
+        notes.append(f"{other} frame{'s' if other > 1 else ''} not CAN 2.0A ignored "
+                     f"(extended id, CAN FD or error frame)")
+    return notes
 
 
 def _submit_order(station, dst: int, commands: list, console) -> None:
@@ -110,6 +127,9 @@ def submodules_summary(nodes: dict) -> str:
     bad = [f"{k} {n.bad_frames}" for k, n in nodes.items() if n.bad_frames]
     if bad:
         line += "; malformed commands ignored (wrong length or remote): " + ", ".join(bad)
+    notes = bus_notes(next(iter(nodes.values())).bus) if nodes else []
+    if notes:
+        line += "; CAN: " + ", ".join(notes)
     return line
 
 
