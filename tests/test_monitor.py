@@ -600,3 +600,158 @@ def test_an_output_that_fills_the_disk_ends_the_monitor_in_one_line(tmp_path, fu
     assert f"rprs: error: cannot write trace {full_device}: No space left on device".encode() \
         in tail, bytes(tail[-300:])
     assert not pcap.exists() and not list(tmp_path.glob("*.partial"))
+
+
+class _Terminal:
+    """``rprs monitor`` on a pty of ``cols`` x ``rows`` that is its controlling terminal (as a
+    terminal window's or tmux's is), stdout to a pipe; ``screen`` collects what it drew."""
+
+    def __init__(self, tmp_path, *args, cols=100, rows=30, ctty=True):
+        import fcntl
+        import pty
+        import struct
+        import subprocess
+        import termios
+        import threading
+        self.master, slave = pty.openpty()
+        self.resize(cols, rows, fd=slave)
+
+        def controlling():                  # after setsid: the pty becomes the session's tty
+            fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+        self.p = subprocess.Popen(_monitor_cmd(*args), stdin=slave, stdout=subprocess.PIPE,
+                                  stderr=slave, start_new_session=True,
+                                  preexec_fn=controlling if ctty else None)
+        os.close(slave)
+        self.screen = bytearray()
+        self._struct = struct
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self):
+        while True:
+            try:
+                chunk = os.read(self.master, 65536)
+            except OSError:
+                return
+            if not chunk:
+                return
+            self.screen.extend(chunk)
+
+    def resize(self, cols, rows, fd=None):
+        import fcntl
+        import struct
+        import termios
+        fcntl.ioctl(self.master if fd is None else fd, termios.TIOCSWINSZ,
+                    struct.pack("HHHH", rows, cols, 0, 0))
+
+    def wait_for(self, text: bytes, since: int = 0, timeout: float = 120,
+                 plain: bool = False) -> int:
+        """Wait until ``text`` is drawn after offset ``since``; its offset. ``plain``: in
+        the drawing without its SGR escapes (colours, which may split a border)."""
+        import re
+
+        def find():
+            screen = bytes(self.screen)
+            if plain:
+                screen = screen[:since] + re.sub(rb"\x1b\[[0-9;]*m", b"", screen[since:])
+            return screen.find(text, since), len(self.screen)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and self.p.poll() is None:
+            at, end = find()
+            if at >= 0:
+                return end if plain else at
+            time.sleep(0.05)
+        at, end = find()
+        assert at >= 0, (text, bytes(self.screen[-400:]))
+        return end if plain else at
+
+    def close(self):
+        if self.p.poll() is None:
+            self.p.kill()
+            self.p.wait()
+        try:
+            os.close(self.master)
+        except OSError:
+            pass
+        self.reader.join(timeout=10)
+
+
+def _top_border(cols: int) -> bytes:
+    return ("╭" + "─" * (cols - 2) + "╮").encode()
+
+
+def test_the_view_takes_the_size_of_its_terminal_with_stdout_in_a_file(tmp_path):
+    """``rprs monitor --json > summary.json`` (docs/monitor.md) drew an 80x24 view in the
+    corner of a 100x30 terminal, and kept it through every resize: textual sized the view by
+    stdout, a file, and fell back to 80x24. It is now sized by the terminal it draws on, and
+    follows it (a tiny one too, and back)."""
+    import signal
+    term = _Terminal(tmp_path, "--robots", "0,1", "--json", cols=100, rows=30)
+    try:
+        at = term.wait_for(_top_border(100), plain=True)
+        for cols, rows in ((20, 5), (90, 30)):
+            term.resize(cols, rows)
+            term.p.send_signal(signal.SIGWINCH)   # what the kernel sends the foreground group
+            at = term.wait_for(_top_border(cols), since=at, plain=True)
+        term.p.send_signal(signal.SIGTERM)
+        out, _ = term.p.communicate(timeout=60)
+    finally:
+        term.close()
+    assert term.p.returncode == 0 and b'"robots"' in out
+    assert b"Traceback" not in term.screen
+
+
+def test_closing_the_terminal_ends_the_monitor_with_its_outputs_complete(tmp_path):
+    """Closing the terminal under ``rprs monitor --trace ... --pcap ... --json`` (``tmux
+    kill-session``, run from a shell): the view's writes to the dead terminal failed at once
+    (EIO), textual's writer thread died of the first, its queue filled, and the view blocked
+    for ever on its next write, so the SIGHUP that came when the shell ended never quit it: a
+    process left running, the trace and capture ``.partial``, no summary. Writes to a terminal
+    that has gone are now dropped, and the SIGHUP ends it as ``q`` does: status 0, every
+    output complete. (Here the terminal is not the monitor's controlling terminal, so the
+    hangup reaches it when the test says, as the shell's exit passes it on.)"""
+    import signal
+    trace, pcap = tmp_path / "t.jsonl", tmp_path / "t.pcapng"
+    term = _Terminal(tmp_path, "--robots", "0,1,2", "--load", "1", "--trace", str(trace),
+                     "--pcap", str(pcap), "--json", ctty=False)
+    try:
+        term.wait_for(b"occupations")
+        os.close(term.master)                 # the terminal goes: every write fails (EIO)
+        time.sleep(4)                         # 40 refreshes: more than textual's queue holds
+        term.p.send_signal(signal.SIGHUP)     # the hangup, passed on as the shell ends
+        out, _ = term.p.communicate(timeout=60)
+    finally:
+        term.close()
+    assert term.p.returncode == 0
+    assert b'"robots"' in out                 # the --json summary, on stdout
+    assert trace.exists() and pcap.exists() and not list(tmp_path.glob("*.partial"))
+    assert trace.read_text().endswith("\n")
+
+
+def test_ctrl_z_suspends_the_monitor_and_it_comes_back(tmp_path):
+    """Ctrl-Z reached the view as a key it ignored (the terminal is raw), so a shell's Ctrl-Z
+    and ``fg`` did nothing. It now suspends the process, the terminal restored; on SIGCONT
+    (``fg``) the view is drawn again and ``q`` still quits with the trace whole."""
+    import signal
+    trace = tmp_path / "t.jsonl"
+    term = _Terminal(tmp_path, "--robots", "0,1", "--trace", str(trace))
+
+    def state():
+        with open(f"/proc/{term.p.pid}/stat") as f:
+            return f.read().rpartition(")")[2].split()[0]
+    try:
+        at = term.wait_for(b"occupations")
+        os.write(term.master, b"\x1a")                     # Ctrl-Z
+        deadline = time.monotonic() + 60
+        while state() != "T" and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert state() == "T"
+        left = term.wait_for(b"\x1b[?1049l", since=at)     # the normal screen back
+        term.p.send_signal(signal.SIGCONT)                 # fg
+        term.wait_for(b"occupations", since=left)
+        os.write(term.master, b"q")
+        term.p.communicate(timeout=60)
+    finally:
+        term.close()
+    assert term.p.returncode == 0
+    assert trace.exists() and not (tmp_path / "t.jsonl.partial").exists()

@@ -164,7 +164,16 @@ class MonitorApp(App):
 
     TITLE = "RPRS monitor"
     BINDINGS = [Binding("q", "quit", "quit"),
-                Binding("space", "pause", "pause/run")]
+                Binding("space", "pause", "pause/run"),
+                # textual binds no key to its suspend: Ctrl-Z was a key the view ignored (the
+                # terminal is raw), so a shell's Ctrl-Z / fg did nothing
+                Binding("ctrl+z", "suspend_process", "suspend", show=False)]
+
+    def get_driver_class(self):
+        """textual's driver, sized by the terminal drawn on and quiet once it closed
+        (hil/view/terminal.py)."""
+        from .terminal import driver_for
+        return driver_for(super().get_driver_class())
 
     def __init__(self, robots: Iterable[int], rate: float = RATE_HZ) -> None:
         super().__init__()
