@@ -755,3 +755,29 @@ def test_ctrl_z_suspends_the_monitor_and_it_comes_back(tmp_path):
         term.close()
     assert term.p.returncode == 0
     assert trace.exists() and not (tmp_path / "t.jsonl.partial").exists()
+
+
+def test_a_quit_signal_while_the_view_starts_or_ends_does_not_kill_it():
+    """SIGTERM or SIGHUP in the moment between ``rprs monitor`` opening its outputs and the
+    view taking the signals (or between the view going and the outputs being closed) killed
+    the process, its trace and capture left ``.partial`` (a terminal closed, or ``timeout``,
+    just as it started). ``rprs monitor`` now holds them from the start: one that came before
+    the view was up quits it as soon as it is, as ``q`` does."""
+    import signal
+    from hil.view.monitor import quit_signals
+    app = sim(robots=(0, 1))
+    quits = []
+    exit_ = app.exit
+    app.exit = lambda *a, **k: (quits.append(app.view_ready), exit_(*a, **k))[1]
+    with quit_signals:
+        os.kill(os.getpid(), signal.SIGTERM)          # held: this process goes on
+        assert quit_signals.seen
+
+        async def go():
+            async with app.run_test(size=SIZE) as pilot:
+                await pilot.pause()
+                assert quits and all(quits)           # quit by itself, once the view was up
+        run(go())
+        assert app.return_code == 0 and not app.view_ready
+        os.kill(os.getpid(), signal.SIGHUP)           # after the view: held still
+    assert signal.getsignal(signal.SIGTERM) is not quit_signals.note

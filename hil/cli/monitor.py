@@ -30,6 +30,12 @@ def speed(text: str) -> float:
 
 
 def cmd_monitor(a: argparse.Namespace) -> int:
+    from ..view.monitor import quit_signals
+    with quit_signals:      # SIGTERM/SIGHUP before the view is up or after it: as q (docs)
+        return _monitor(a)
+
+
+def _monitor(a: argparse.Namespace) -> int:
     from ..view.monitor import run_monitor_radio, run_monitor_sim
     from ..bench.serial_radio import PortError
     if a.radio is not None:

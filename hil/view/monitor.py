@@ -80,6 +80,50 @@ CHUNK_TICKS = s_to_ticks(0.02)
 """Simulated time run between two looks at the wall-clock budget."""
 QUIT_SIGNALS = ("SIGTERM", "SIGHUP")
 """Signals that quit the view as ``q`` does."""
+
+
+class HeldQuitSignals:
+    """``QUIT_SIGNALS`` held while the view is not up to take them: from when ``rprs monitor``
+    opens its outputs until it has closed them. One that comes before the view is mounted
+    quits the view as soon as it is (``seen``); one that comes after the view is gone is
+    noted and changes nothing: the outputs are being finished anyway. (Such a signal used to
+    kill the process between the two, its trace and capture left ``.partial``.)"""
+
+    def __init__(self) -> None:
+        self.seen = False
+        self.active = False
+        self._old: dict[int, Any] = {}
+
+    def note(self, *_: Any) -> None:
+        self.seen = True
+
+    def arm(self) -> None:
+        """Take the signals (again: ``loop.remove_signal_handler`` leaves them at default)."""
+        import signal
+        for sig in (getattr(signal, n, None) for n in QUIT_SIGNALS):
+            if sig is None:
+                continue
+            try:
+                old = signal.signal(sig, self.note)
+            except ValueError:          # not the main thread
+                return
+            self._old.setdefault(sig, old)
+
+    def __enter__(self) -> "HeldQuitSignals":
+        self.seen, self.active = False, True
+        self.arm()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        import signal
+        self.active = False
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        self._old.clear()
+
+
+quit_signals = HeldQuitSignals()
+"""The one ``rprs monitor`` holds (hil/cli/monitor.py) and the view takes over."""
 TYPE_NAMES = {0: "help", 1: "invite", 2: "instr", 3: "info", 4: "failure", 5: "boot"}
 
 
@@ -222,6 +266,8 @@ class MonitorApp(App):
         # On the view, not on the app: textual stops it before it removes any of the widgets.
         self.refresh_timer = view.set_interval(1 / self.rate, self.tick, name="monitor refresh")
         self._quit_on_signals(True)
+        if quit_signals.active and quit_signals.seen:   # it came while the view started
+            self.exit()
 
     def _quit_on_signals(self, on: bool) -> None:
         """SIGTERM and SIGHUP quit like ``q``: the terminal restored, the trace and summary
@@ -246,6 +292,8 @@ class MonitorApp(App):
         self._widgets = {}
         self.refresh_timer = None
         self._quit_on_signals(False)
+        if quit_signals.active:          # until the outputs are closed (hil/cli/monitor.py)
+            quit_signals.arm()
 
     @property
     def view_ready(self) -> bool:
