@@ -781,3 +781,31 @@ def test_a_quit_signal_while_the_view_starts_or_ends_does_not_kill_it():
         assert app.return_code == 0 and not app.view_ready
         os.kill(os.getpid(), signal.SIGHUP)           # after the view: held still
     assert signal.getsignal(signal.SIGTERM) is not quit_signals.note
+
+
+def test_a_radio_port_lost_under_the_monitor_ends_it_with_status_1(tmp_path):
+    """``rprs monitor --radio PORT`` whose port went away (the hub stopped, a USB radio
+    pulled) said PORT LOST, but quitting then ended with status 0, as if all had gone well,
+    while ``rprs bench`` listeners and robots end with 1 there. It now ends with one line
+    saying so, after the terminal is back, and status 1."""
+    pytest.importorskip("serial")
+    from hil.bench.radio_hub import RadioHub
+    hub = RadioHub(2).start()
+    term = None
+    try:
+        term = _Terminal(tmp_path, "--radio", hub.paths[0])
+        at = term.wait_for(b"occupations")
+        hub.close()
+        term.wait_for(b"PORT LOST", since=at)
+        os.write(term.master, b"q")
+        term.p.communicate(timeout=60)
+        term.reader.join(timeout=10)          # all it drew: the pty ends with the process
+        restored = term.wait_for(b"\x1b[?1049l", since=at)
+        line = term.wait_for(f"rprs: error: the radio port {hub.paths[0]} went away (".encode(),
+                             since=restored, timeout=10)
+    finally:
+        hub.close()
+        if term is not None:
+            term.close()
+    assert term.p.returncode == 1 and line > restored
+    assert b"Traceback" not in term.screen

@@ -886,12 +886,20 @@ def run_monitor_sim(config: SimConfig, speed: float = 1.0, trace: Any = None,
 
 def run_monitor_radio(port: str) -> int:
     """``rprs monitor --radio PORT``: the TUI on a listening serial port until q.
-    Raises :class:`hil.bench.serial_radio.PortError` (one line) when the port cannot be opened."""
+    Raises :class:`hil.bench.serial_radio.PortError` (one line) when the port cannot be opened.
+    A port that went away while listening (PORT LOST) ends it, once the terminal is back,
+    with one line ``rprs: error: the radio port PORT went away (...)`` and status 1, as a
+    ``rprs bench`` listener's does (it used to end with 0, as if all had gone well)."""
+    import sys
     app = RadioMonitorApp(port)
     try:
         app.run()
     finally:
         app.close()
+    if app.lost:
+        print(f"rprs: error: the radio port {port} went away ({app.sniffer.error}); the view "
+              f"showed what was heard until then", file=sys.stderr, flush=True)
+        return 1
     return app.return_code or 0
 
 
