@@ -16,6 +16,7 @@ candump shows.
 """
 from __future__ import annotations
 
+import collections
 import errno
 import logging
 import threading
@@ -242,6 +243,17 @@ SK_MEMINFO_VARS = 9
 SK_MEMINFO_DROPS = 8
 
 
+def _echoes_own_frames(bus: can.BusABC) -> bool:
+    """Whether ``bus`` hands this process back the frames it sends: python-can's
+    ``udp_multicast`` does (multicast loopback, which the other processes on the machine need;
+    python-can cannot turn it off for one socket: ``receive_own_messages`` is refused)."""
+    try:
+        from can.interfaces.udp_multicast import UdpMulticastBus
+    except ImportError:
+        return False
+    return isinstance(bus, UdpMulticastBus)
+
+
 GONE_ERRNOS = frozenset({errno.ENODEV, errno.ENXIO})
 """What SocketCAN answers once the interface under a socket is removed (``ip link del vcan0``,
 a USB adapter unplugged): ENODEV from the first receive, ENXIO from every send after. The
@@ -298,6 +310,14 @@ class PythonCanBus:
         (removed: ``GONE_ERRNOS``); reading and sending stop then. None: said through
         ``on_error`` instead."""
         self.gone: str | None = None
+        self._sent_ids: set[int] = set()
+        self._echoes: collections.deque | None = (collections.deque()
+                                                  if _echoes_own_frames(bus) else None)
+        """Own frames sent and not yet heard back, on a bus that hands a process its own
+        frames (``udp_multicast``: multicast loopback); None on the others."""
+        self.clashes: set[int] = set()
+        """Identifiers this process sends that another node sent too (data frames): two
+        nodes of one kind on the bus, e.g. a second ``rprs child`` on it. Said once each."""
         self._send_failing = False
         self.trace = None          # callable(frame, start, end, node) like CanBus.trace
         self.log = log
@@ -393,6 +413,10 @@ class PythonCanBus:
             return
         self._send_failing = False
         self.sent += 1
+        if not frame.rtr:
+            self._sent_ids.add(frame.id)
+        if self._echoes is not None:
+            self._echoes.append(frame)
         end = now + frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
             * self.timing.ticks_per_bit
         if self._writer is not None:
@@ -496,10 +520,19 @@ class PythonCanBus:
 
     def _deliver(self, msg: can.Message) -> None:
         frame = CanFrame.from_message(msg)
+        if self._echoes and frame == self._echoes[0]:
+            self._echoes.popleft()          # our own frame back (in order): sent, not heard
+            return
         end = self.sched.now
         start = end - frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
             * self.timing.ticks_per_bit
         self.received += 1
+        if not frame.rtr and frame.id in self._sent_ids and frame.id not in self.clashes:
+            self.clashes.add(frame.id)
+            self._report(f"another node sends {frame.id:03X}, which this process sends too: "
+                         f"two nodes of one kind share the bus (a second rprs child or rprs "
+                         f"submodules on it?); their commands and reports mix, and on a real "
+                         f"bus their frames would collide")
         if self._writer is not None:
             self._log_received(msg)
         if self.trace is not None:

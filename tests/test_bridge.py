@@ -644,3 +644,82 @@ def test_a_can_interface_removed_under_a_bench_process_ends_it(vcan_channel, com
     assert rc == 1, err
     assert err[-1].startswith(f"rprs: error: the CAN interface {vcan_channel} went away ("), err
     assert "Traceback" not in "\n".join(err)
+
+
+def test_a_second_node_sending_our_ids_is_said_once(can_channel):
+    """Two ``rprs child`` on one bus (or two ``rprs submodules``) both sent JOINT1_CMD with
+    seq 1 and both took the joint's done; nothing said that two central modules shared the
+    bus. A data frame with an id this process sends, sent by another node, is now said in one
+    line (once per id) and makes a trouble (status 1); a remote frame asking for it is not."""
+    channel = parse_spec(can_channel)[1]
+    sched = RealTimeScheduler()
+    lines = []
+    bus = PythonCanBus(sched, open_bus(can_channel), channel=channel, on_error=lines.append)
+    other = open_bus(can_channel)
+    done = []
+
+    class Sender:
+        def on_tx_done(self, f, end):
+            done.append(f.id)
+
+    def then_the_other():                 # once ours is out: a request, then two of its own
+        if done != [0x101]:
+            return False
+        if not hasattr(then_the_other, "sent"):
+            then_the_other.sent = True
+            other.send(can.Message(arbitration_id=0x101, is_remote_frame=True, dlc=6,
+                                   is_extended_id=False))
+            for _ in range(2):
+                other.send(can.Message(arbitration_id=0x101, is_extended_id=False,
+                                       data=bytes.fromhex("30F858020100")))
+        return bus.received == 3
+    try:
+        bus.request(Sender(), dbc.encode("JOINT1_CMD", angle=20, speed=0, seq=1, mode=0))
+        _run_until(_runner_of(sched), then_the_other)
+    finally:
+        other.shutdown()
+        bus.close()
+    assert bus.clashes == {0x101}
+    assert lines == [f"CAN bus {channel}: another node sends 101, which this process sends "
+                     f"too: two nodes of one kind share the bus (a second rprs child or rprs "
+                     f"submodules on it?); their commands and reports mix, and on a real bus "
+                     f"their frames would collide"]
+
+
+def test_own_frames_coming_back_on_udp_multicast_are_not_heard(tmp_path):
+    """python-can's udp_multicast (README: one way processes share a bus) hands a process
+    back every frame it sends (multicast loopback): ``rprs child --can udp_multicast:...``
+    counted its own commands as received, logged each twice (T, then R), and handed them to
+    its nodes a second time. Its own frames coming back are now dropped; another process's
+    are heard, a data frame with one of our ids said as a second node."""
+    port = 43113 + os.getpid() % 1000 + 1        # a group of our own: no other test's frames
+    sched = RealTimeScheduler()
+    log = tmp_path / "udp.log"
+    lines = []
+    bus = PythonCanBus(sched, open_bus("udp_multicast:224.0.0.1", port=port), log=str(log),
+                       channel="224.0.0.1", on_error=lines.append)
+    other = open_bus("udp_multicast:224.0.0.1", port=port)
+    done = []
+
+    class Sender:
+        def on_tx_done(self, f, end):
+            done.append(f.id)
+
+    def then_the_other():
+        if len(done) < 2:
+            return False
+        if not hasattr(then_the_other, "sent"):
+            then_the_other.sent = True
+            other.send(can.Message(arbitration_id=0x181, data=bytes(6), is_extended_id=False))
+        return bus.received >= 1
+    try:
+        bus.request(Sender(), dbc.encode("JOINT1_CMD", angle=20, speed=0, seq=1, mode=0))
+        bus.request(Sender(), dbc.encode("ESTOP", reason=1))
+        _run_until(_runner_of(sched), then_the_other)   # echoes come back before its frame
+    finally:
+        other.shutdown()
+        bus.close()
+    assert bus.sent == 2 and bus.received == 1 and not lines and not bus.clashes
+    frames = [(line.split()[2], line.split()[3]) for line in log.read_text().splitlines()]
+    assert sorted(frames) == sorted([("101#D00700000100", "T"), ("010#01", "T"),
+                                     ("181#000000000000", "R")]), frames
