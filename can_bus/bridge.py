@@ -243,6 +243,11 @@ SK_MEMINFO_VARS = 9
 SK_MEMINFO_DROPS = 8
 
 
+SHARED_IDS = frozenset({0x010})
+"""Identifiers any node may send besides this process without a clash: ESTOP (an operator's
+``cansend vcan0 010#01`` as much as the child's)."""
+
+
 def _echoes_own_frames(bus: can.BusABC) -> bool:
     """Whether ``bus`` hands this process back the frames it sends: python-can's
     ``udp_multicast`` does (multicast loopback, which the other processes on the machine need;
@@ -527,7 +532,8 @@ class PythonCanBus:
         start = end - frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
             * self.timing.ticks_per_bit
         self.received += 1
-        if not frame.rtr and frame.id in self._sent_ids and frame.id not in self.clashes:
+        if not frame.rtr and frame.id in self._sent_ids and frame.id not in self.clashes \
+                and frame.id not in SHARED_IDS:
             self.clashes.add(frame.id)
             self._report(f"another node sends {frame.id:03X}, which this process sends too: "
                          f"two nodes of one kind share the bus (a second rprs child or rprs "
