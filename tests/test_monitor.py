@@ -809,3 +809,18 @@ def test_a_radio_port_lost_under_the_monitor_ends_it_with_status_1(tmp_path):
             term.close()
     assert term.p.returncode == 1 and line > restored
     assert b"Traceback" not in term.screen
+
+
+@pytest.mark.parametrize("port,why", [("/tmp", "Is a directory"),
+                                      ("/dev/null", "not a serial port (it takes no serial "
+                                                    "settings)")])
+def test_a_radio_port_that_is_no_serial_port_is_one_plain_line(port, why):
+    """``rprs monitor --radio /tmp`` said ``cannot open serial port /tmp: [Errno 21] could not
+    open port /tmp: [Errno 21] Is a directory: '/tmp'``, and ``--radio /dev/null`` ``Could not
+    configure port: (25, 'Inappropriate ioctl for device')``: pyserial's words twice over.
+    The line now says why, once."""
+    pytest.importorskip("serial")
+    from hil.bench.serial_radio import PortError, open_port
+    with pytest.raises(PortError) as e:
+        open_port(port)
+    assert str(e.value) == f"cannot open serial port {port}: {why}"

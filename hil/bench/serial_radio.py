@@ -42,6 +42,11 @@ def open_port(spec: str, baud: int = 9600) -> serial.SerialBase:
         msg = str(exc)
         if "busy" in msg.lower() or "lock" in msg.lower():
             raise PortError(f"serial port {spec} is busy (another program has it open)") from None
+        code = getattr(exc, "errno", None)
+        if code:                  # pyserial's "[Errno 21] could not open port X: [Errno 21] ..."
+            msg = os.strerror(code)
+        elif "Could not configure port" in msg:       # a file or device, but no terminal
+            msg = "not a serial port (it takes no serial settings)"
         raise PortError(f"cannot open serial port {spec}: {msg.splitlines()[0]}") from None
     except (ValueError, OSError) as exc:
         raise PortError(f"cannot open serial port {spec}: {exc}") from None
