@@ -725,3 +725,44 @@ def test_own_frames_coming_back_on_udp_multicast_are_not_heard(tmp_path):
     frames = [(line.split()[2], line.split()[3]) for line in log.read_text().splitlines()]
     assert sorted(frames) == sorted([("101#D00700000100", "T"), ("010#01", "T"),
                                      ("181#000000000000", "R")]), frames
+
+
+def test_closing_the_terminal_stops_a_bench_process_cleanly(tmp_path):
+    """``rprs submodules --can-log FILE`` (or ``rprs child``, ``rprs father``) in a terminal
+    that was closed (its window, ``tmux kill-session``): SIGHUP killed it, its CAN log (and
+    --pcap) cut off where their buffers were, often empty. It now stops as on Ctrl-C: the log
+    closed whole."""
+    import fcntl
+    import pty
+    import select
+    import termios
+    master, slave = pty.openpty()
+    log = tmp_path / "sub.log"
+
+    def controlling():                       # after setsid: the pty is the session's tty
+        fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "submodules", "--can",
+                          f"virtual:rprs-hup-{os.getpid()}", "--can-log", str(log)],
+                         stdin=slave, stdout=slave, stderr=slave, start_new_session=True,
+                         preexec_fn=controlling)
+    os.close(slave)
+    said = bytearray()
+    try:                         # read here, not in a thread: a read blocked in another
+        deadline = time.monotonic() + 60          # thread would hold the pty open
+        while b"running joints" not in said and time.monotonic() < deadline:
+            if select.select([master], [], [], 0.1)[0]:
+                said.extend(os.read(master, 4096))
+        assert b"running joints" in said, bytes(said)
+        time.sleep(1.0)                      # 60 status frames: in the log's buffer
+        os.close(master)                     # the terminal closes: SIGHUP
+        master = None
+        p.wait(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        if master is not None:
+            os.close(master)
+    assert p.returncode == 0, p.returncode       # -1: killed by SIGHUP
+    lines = log.read_text().splitlines()
+    assert len(lines) >= 30 and all(line.endswith(" T") for line in lines), lines[-3:]

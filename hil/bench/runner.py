@@ -115,6 +115,11 @@ def _events_printer(out: TextIO | None, robot: int,
     return observe
 
 
+_STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
+                      if hasattr(signal, n))
+"""What stops a bench process cleanly: Ctrl-C, SIGTERM, and its terminal closed."""
+
+
 class Runner:
     """One real-time process: a scheduler, the things it owns, and clean shutdown."""
 
@@ -158,7 +163,9 @@ class Runner:
         when it is seen stops the process cleanly)."""
         old = {}
         if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            # SIGHUP: the terminal it ran in closed; it used to kill the process, its --pcap
+            # and --can-log cut off where their buffers were
+            for sig in _STOP_SIGNALS:
                 old[sig] = signal.signal(sig, self.stop)
         try:
             if ready is not None:

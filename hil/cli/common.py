@@ -249,22 +249,31 @@ def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary,
         runner.run(a.duration, ready=ready)
     except BrokenPipeError:
         pass                      # Runner.run closed everything on its way out
-    print(summary(), file=sys.stderr, flush=True)
+    _say(summary())
     if stopped_by_itself(runner):
         return 1
     n = getattr(runner, "troubles", 0)
     if n:
-        print(f"rprs: {n} trouble{'s' if n > 1 else ''} during the run (above): exit status 1",
-              file=sys.stderr, flush=True)
+        _say(f"rprs: {n} trouble{'s' if n > 1 else ''} during the run (above): exit status 1")
         return 1
     return 0
+
+
+def _say(line: str) -> None:
+    """A closing line on stderr; none if the terminal it was has gone (closed: SIGHUP
+    stopped the process, and a write there fails with EIO): nobody is left to read it, and
+    the stop was clean."""
+    try:
+        print(line, file=sys.stderr, flush=True)
+    except OSError:
+        pass
 
 
 def stopped_by_itself(runner) -> int:
     """1 and one line ``rprs: error: ...`` if ``runner`` stopped by itself, else 0."""
     if getattr(runner, "failure", None) is None:
         return 0
-    print(f"rprs: error: {runner.failure}", file=sys.stderr, flush=True)
+    _say(f"rprs: error: {runner.failure}")
     return 1
 
 

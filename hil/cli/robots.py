@@ -89,7 +89,8 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
                               daemon=True)
     # the firmware's thread cannot take signals: SIGTERM (and a SIGINT sent from outside)
     # stop it from here, and the view quits when it has stopped (FatherApp's ``ended``)
-    old = {sig: signal.signal(sig, runner.stop) for sig in (signal.SIGTERM, signal.SIGINT)}
+    from ..bench.runner import _STOP_SIGNALS     # SIGHUP too: its terminal closed
+    old = {sig: signal.signal(sig, runner.stop) for sig in _STOP_SIGNALS}
     worker.start()
     try:
         app.run()
@@ -99,7 +100,8 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
         for sig, handler in old.items():
             signal.signal(sig, handler)
     from ..bench.runner import summary_line
-    print(summary_line(station), file=sys.stderr, flush=True)
+    from .common import _say
+    _say(summary_line(station))                   # not if the terminal has gone (SIGHUP)
     return stopped_by_itself(runner)
 
 

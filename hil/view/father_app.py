@@ -65,6 +65,13 @@ class FatherApp(App):
     """
     BINDINGS = [Binding("ctrl+q", "quit", "quit")]
 
+    def get_driver_class(self):
+        """textual's driver, quiet once the terminal has closed (hil/view/terminal.py): the
+        SIGHUP then stops the firmware and the view quits, where a write to the dead
+        terminal could block it for ever."""
+        from .terminal import driver_for
+        return driver_for(super().get_driver_class())
+
     def __init__(self, submit: Callable[[str], str | None], status: Callable[[], str],
                  history_file: str | None = None, rate: float = 5.0,
                  ended: Callable[[], bool] | None = None) -> None:
