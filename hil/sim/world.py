@@ -159,6 +159,8 @@ class SimConfig:
         if isinstance(self.load, str):
             if self.load not in ("idle", "saturate"):
                 raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
+        elif isinstance(self.load, bool) or not isinstance(self.load, (int, float)):
+            raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
         elif not self.load > 0:
             raise ConfigError(f"load rate must be positive messages/s, got {self.load}")
         for r, t in self.power_on.items():
