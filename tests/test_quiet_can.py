@@ -18,7 +18,7 @@ from firmware_model.cycle_costs import DEFAULT_COSTS
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import FrameType
-from firmware_model.radio.mac import Deliver
+from firmware_model.radio.mac import Deliver, MacConfig
 from hil.sim.faults import parse_fault
 from hil.sim.quiet_can import PERIOD
 from hil.sim.state_walk import (Unwalkable, advance, latest_moved, on_orbit, period_delta,
@@ -259,6 +259,16 @@ SCENARIOS = {
                            load="saturate"),
     "no father": SimConfig(robots=(1, 2, 3), duration=15, can=True, seed=5, load=0.3),
     "cruising wheels": SimConfig(robots=(0, 1, 2, 3), duration=20, can=True, seed=9),
+    # news the child only notes (one more call of its main loop, a counter) reaching it
+    # between the two snapshots of a probe: the sleep took the one call for a period's
+    # growth and added it for every period it skipped (a random hunt found it)
+    "news while awake": SimConfig(robots=(0, 3, 4), duration=40, can=True, seed=248942,
+                                  load=0.2, load_until=30, mac=MacConfig(checksum=False)),
+    # a wheel cruising at 3 mm/s: its odometer (whole mm) stays the same for three periods,
+    # so two snapshots a period apart may not see it change; the dispatcher's record of it
+    # kept a value 10 s old when the domain woke without a replay (a random hunt found it)
+    "slow wheel": SimConfig(robots=(0, 3, 4), duration=60, can=True, seed=3, load=0.2,
+                            load_until=50, mac=MacConfig(checksum=False)),
 }
 
 

@@ -380,9 +380,11 @@ class World:
             and bus.trace is world_trace and bus.error_trace is None
             and not child.dispatcher.jobs
             and all(n.state != STATE_MOVING or n.cruising for n in nodes.values()))
+        quiet.drifting = lambda: any(n.cruising for n in nodes.values())
         app = st.app
 
         def app_awake(d, now: int) -> None:
+            quiet.touched()
             if quiet.asleep and child.notes_only(d):
                 quiet.noted += 1             # news only noted: the CAN side sleeps on
             elif quiet.asleep and child.refuses_only(d):
@@ -542,6 +544,7 @@ class World:
         q = self.quiet.get(f.robot)
         if q is not None:
             q.wake()
+            q.touched()
         if k in AIR_KINDS:
             apply_air_fault(self.air, self.radios.__getitem__, f, phase, self.cfg.ber,
                             self.cfg.noise)
