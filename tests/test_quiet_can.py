@@ -512,3 +512,22 @@ def test_random_rings_with_faults_asleep_and_cut_are_the_frame_by_frame_run(seed
         assert _state(fast) == _state(slow), f"different at tick {t}"
     assert _summary(fast) == _summary(slow)
     assert sum(q.periods_skipped for q in fast.quiet.values()) > 0
+
+
+def _sleep_hunt():
+    import importlib.util
+    import pathlib
+    path = pathlib.Path(__file__).parent.parent / "scripts" / "sleep_hunt.py"
+    spec = importlib.util.spec_from_file_location("sleep_hunt", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_worlds_run_alike_with_the_fast_paths_or_without(seed):
+    """A few seeds of scripts/sleep_hunt.py (random rings, faults, loads, byte errors, run
+    segments; ``python scripts/sleep_hunt.py --runs N`` draws more)."""
+    hunt = _sleep_hunt()
+    cfg, cuts = hunt.random_world(seed, durations=(30,))
+    assert hunt.same_run(cfg, cuts), (cfg, cuts)
