@@ -31,8 +31,10 @@ TICK_HZ = 16_000_000
 
 
 def random_world(seed: int, durations: tuple[int, ...] = (30, 60, 90, 150)
-                 ) -> tuple[SimConfig, list[tuple[int, bool]]]:
-    """A random world and the segments to cut its fast run into: (tick, wake the CAN sides)."""
+                 ) -> tuple[SimConfig, list[tuple[int, bool]], bool]:
+    """A random world, the segments to cut its fast run into (tick, wake the CAN sides), and
+    whether both runs record their events (a trace: the ring's leaps write the events of the
+    cycles they leap over, and the CAN sides stay awake)."""
     rng = random.Random(seed)
     robots = tuple(sorted(rng.sample(range(7), rng.randint(2, 7))))
     duration = rng.choice(durations)
@@ -48,7 +50,7 @@ def random_world(seed: int, durations: tuple[int, ...] = (30, 60, 90, 150)
                     ber=rng.choice([0, 0, 1e-4, 1e-3]),
                     mac=MacConfig(checksum=rng.random() < 0.7))
     cuts = sorted(rng.uniform(0, duration) for _ in range(rng.randint(0, 3)))
-    return cfg, [(round(c * TICK_HZ), rng.random() < 0.5) for c in cuts]
+    return cfg, [(round(c * TICK_HZ), rng.random() < 0.5) for c in cuts], rng.random() < 0.3
 
 
 def state(w: World) -> list:
@@ -64,15 +66,20 @@ def summary(w: World) -> str:
     return json.dumps(w.summary(), sort_keys=True, default=str)
 
 
-def same_run(cfg: SimConfig, cuts: list[tuple[int, bool]]) -> bool:
-    """Does the fast run, cut at ``cuts``, end exactly where the frame-by-frame run does?"""
-    slow = World(replace(cfg, can_sleep=False, ring_sleep=False))
+def same_run(cfg: SimConfig, cuts: list[tuple[int, bool]], traced: bool = False) -> bool:
+    """Does the fast run, cut at ``cuts``, end exactly where the frame-by-frame run does (and,
+    ``traced``, write the same events)?"""
+    slow_events: list[dict] = []
+    fast_events: list[dict] = []
+    slow = World(replace(cfg, can_sleep=False, ring_sleep=False),
+                 on_event=slow_events.append if traced else None)
     slow.run()
-    fast = World(cfg)
+    fast = World(cfg, on_event=fast_events.append if traced else None)
     for tick, wake in cuts:
         fast.run(until=tick, wake_can=wake)
     fast.run()
-    return summary(fast) == summary(slow) and state(fast) == state(slow)
+    return (summary(fast) == summary(slow) and state(fast) == state(slow)
+            and fast_events == slow_events)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -82,12 +89,12 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     bad = 0
     for seed in range(a.seed, a.seed + a.runs):
-        cfg, cuts = random_world(seed)
+        cfg, cuts, traced = random_world(seed)
         t = time.perf_counter()
-        ok = same_run(cfg, cuts)
+        ok = same_run(cfg, cuts, traced)
         bad += not ok
         print(f"seed {seed}: {'same run' if ok else 'DIFFERENT'} ({time.perf_counter() - t:.1f} s)"
-              + ("" if ok else f"\n  {cfg!r}\n  cuts {cuts}"), flush=True)
+              + ("" if ok else f"\n  {cfg!r}\n  cuts {cuts}, traced {traced}"), flush=True)
     print(f"{a.runs} worlds, {bad} different")
     return 1 if bad else 0
 

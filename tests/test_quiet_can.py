@@ -529,5 +529,5 @@ def test_random_worlds_run_alike_with_the_fast_paths_or_without(seed):
     """A few seeds of scripts/sleep_hunt.py (random rings, faults, loads, byte errors, run
     segments; ``python scripts/sleep_hunt.py --runs N`` draws more)."""
     hunt = _sleep_hunt()
-    cfg, cuts = hunt.random_world(seed, durations=(30,))
-    assert hunt.same_run(cfg, cuts), (cfg, cuts)
+    cfg, cuts, traced = hunt.random_world(seed, durations=(30,))
+    assert hunt.same_run(cfg, cuts, traced), (cfg, cuts, traced)
