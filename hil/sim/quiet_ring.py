@@ -32,6 +32,13 @@ of the whole radio side:
   state is its orbit and the tick it fell asleep at, and when something wakes it, it moves on
   by the periods that passed whatever the ring did meanwhile; so its parts are left out of the
   snapshot (``boundary``), and a leap leaves them as they are.
+* A robot whose radio is dead (a ``fail`` fault, or not powered on yet) hears nothing, is
+  heard by nobody and touches nothing of the air's, but its MAC keeps a cycle of its own (it
+  claims the silent channel and sends its heartbeats to nobody). Its station is left out of
+  the snapshot like a sleeping CAN side, and at a leap its events run on a scheduler of their
+  own across the cycles leapt over, frame by frame (``RadioStation.use_scheduler``): the ring
+  reports nothing meanwhile, so whatever the deaf station reports keeps its place. With a
+  trace, a deaf station's events keep the ring from leaping (they would be written twice).
 * A trace and an event callback get the events of the cycles leapt over, and a capture
   (hil/sim/pcap.py) their packets: those of the period before the leap, their ticks
   (:data:`TICK_KEYS`) moved on by one period, k times. The probe checks that rule on the run
@@ -55,12 +62,14 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any
 
-from firmware_model.mcu.scheduler import Event
+from firmware_model.mcu.scheduler import Event, Scheduler
 from firmware_model.radio.mac import PC2_CHECK_EVERY
 
 from .state_walk import Unwalkable, advance, period_steps, snapshot, writable
 
 if TYPE_CHECKING:
+    from firmware_model.station import RadioStation
+
     from .air import Transmission
     from .world import World
 
@@ -190,13 +199,20 @@ class QuietRing:
         if len(events) != len(sched):          # another owner's events (a domain): not ours
             self._last = None
             return
+        deaf = self.world.deaf_stations()
+        clocked = {id(p) for st in deaf for p in st.clocked_parts()}
+        carried = False
+        if clocked:                            # theirs run on alone, carried across a leap
+            ring = [e for e in events if id(getattr(e.fn, "__self__", None)) not in clocked]
+            carried, events = len(ring) < len(events), ring
         self.probes += 1
         try:
             # the trace writer and the capture are outside: what they were given is
             # checked below, event by event and packet by packet
             sinks = [x for x in (self.world.trace, self.world.pcap) if x is not None]
-            snap = snapshot([self.world, events], [sched, self, *sinks, *self.boundary],
-                            rng_state=True)
+            walls = [part for st in deaf for part in _own_parts(st)]
+            snap = snapshot([self.world, events],
+                            [sched, self, *sinks, *self.boundary, *walls], rng_state=True)
         except Unwalkable:                     # an iterator somewhere: its state is hidden
             self.enabled = False
             return
@@ -230,12 +246,17 @@ class QuietRing:
             return
         w = self.world
         traced = w.trace is not None or w.on_event is not None or w.pcap is not None
-        if traced and not (rec_from == at and before[0] == at - period and
-                           _shifted(before[1], period) == recorded):
-            return                             # the events do not repeat (yet): no leap
+        if traced and (carried or not (rec_from == at and before[0] == at - period and
+                                    _shifted(before[1], period) == recorded)):
+            # the events do not repeat (yet), or a deaf station's would be written twice
+            # (replayed with the ring's, and by its own run across the leap): no leap
+            return
         taken = sched.take(None)
         advance(moved, k)
-        sched.skip_to(now + k * period)
+        target = now + k * period
+        if carried:
+            taken = _carry(deaf, clocked, taken, now, target, sched)
+        sched.skip_to(target)
         sched.put_back(taken)
         if traced:
             for j in range(1, k + 1):
@@ -245,6 +266,36 @@ class QuietRing:
         self.leaps += 1
         self.ticks_skipped += k * period
         self._last = None
+
+
+def _own_parts(st: "RadioStation") -> list[Any]:
+    """A station and everything of its own (its radio too): a deaf station keeps a cycle of
+    its own, which the ring's snapshot leaves out (a closed box, like a sleeping CAN side)."""
+    return [st, st.uart, st.uart.line, st.txen, st.mac, st.deframer, *st.clocked_parts()]
+
+
+def _carry(deaf: list["RadioStation"], clocked: set[int], taken: list[Event], start: int,
+           end: int, world: Scheduler) -> list[Event]:
+    """Run the deaf stations' events (among ``taken``, the world's events out of its heap)
+    from ``start`` up to tick ``end`` on a scheduler of their own, as the frame-by-frame run
+    does meanwhile: they hear nothing, are heard by nobody and touch nothing of the air's, and
+    the ring whose cycles are leapt over reports nothing, so whatever a deaf station reports
+    keeps its place. Returns ``taken`` with their events as they are at ``end``; ``world``:
+    the scheduler they go back to."""
+    mine = [e for e in taken if id(getattr(e.fn, "__self__", None)) in clocked]
+    if not mine:
+        return taken
+    ids = {id(e) for e in mine}
+    private = Scheduler(start)
+    private.put_back(mine)
+    for st in deaf:
+        st.use_scheduler(private)
+    try:
+        private.run_until(end)
+    finally:
+        for st in deaf:
+            st.use_scheduler(world)
+    return [e for e in taken if id(e) not in ids] + private.take(None)
 
 
 def _shifted(events: list[tuple], by: int) -> list[tuple]:

@@ -749,6 +749,16 @@ class World:
         return (self.air.on_transmission, self.air.on_collision,
                 *(st.observer for st in stations))
 
+    def deaf_stations(self) -> list[RadioStation]:
+        """Stations whose radio is dead now (a ``fail`` fault, or not powered on yet): they
+        neither hear nor are heard, and touch nothing of the air's (hil/sim/air.py), so each
+        runs on alone (hil/sim/quiet_ring.py carries them across the ring's leaps)."""
+        out = [st for r, st in self.stations.items() if not self.radios[r].alive]
+        sb = self.standby_station
+        if sb is not None and not self.radios[STANDBY].alive:
+            out.append(sb)
+        return out
+
     def station_of(self, robot: int) -> RadioStation:
         """The station that speaks for ``robot`` now (for the father: its active PC)."""
         st = self.stations[robot]
