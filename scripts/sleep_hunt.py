@@ -6,7 +6,7 @@ off, on random rings, faults, loads, byte errors and run segments.
 
 Each run draws a world from its seed (robots, duration, CAN sides, the standby father, the
 soak's random faults at a random spacing, a load that may stop half-way, byte errors, the
-checksum), runs it once with every frame run and once with the fast paths, the second cut into
+checksum, perhaps a robot gone for good), runs it once with every frame run and once with the fast paths, the second cut into
 0-3 ``World.run`` segments that wake the CAN sides or not, and compares the summaries and the
 whole state (every part, every pending event, the random generators). A difference prints the
 world and makes the exit status 1. Two inexact sleeps were found this way (docs/performance.md,
@@ -23,6 +23,7 @@ import time
 from dataclasses import replace
 
 from firmware_model.radio.mac import MacConfig
+from hil.sim.faults import Fault
 from hil.sim.soak import random_faults
 from hil.sim.state_walk import portable, snapshot
 from hil.sim.world import SimConfig, World
@@ -42,6 +43,8 @@ def random_world(seed: int, durations: tuple[int, ...] = (30, 60, 90, 150)
     standby = 0 in robots and rng.random() < 0.3
     faults = random_faults(rng, robots, duration / 3600 + 0.04, can, standby,
                            mean_gap_s=rng.choice([10, 20, 40]))
+    if rng.random() < 0.3:                 # a robot gone for good (the soak's come back)
+        faults.append(Fault("fail", rng.choice(robots), round(rng.uniform(1, duration), 3)))
     load = rng.choice(["idle", "idle", 0.2, 0.5, 1])
     cfg = SimConfig(robots=robots, duration=duration, seed=rng.randrange(10 ** 6), can=can,
                     load=load, load_until=None if load == "idle" else
