@@ -388,3 +388,25 @@ def test_the_period_holds_whole_rounds_of_pc2_checks():
     assert World(SimConfig(robots=(0, 1), father_standby=True)).quiet_ring.every == 28
     assert World(SimConfig(robots=(0, 1))).quiet_ring.every == 4
     assert isinstance(World(SimConfig(robots=(1, 2))).quiet_ring, QuietRing)
+
+
+@pytest.mark.parametrize("cfg", [
+    SimConfig(robots=(0, 1, 2, 3), duration=300, seed=22, faults=F("fail:3@5")),
+    SimConfig(robots=(0, 1, 2), duration=300, seed=23, can=True, faults=F("fail:0@5")),
+    SimConfig(robots=(0, 1, 2, 3), duration=300, seed=24, father_standby=True,
+              faults=F("fail:0@8")),
+], ids=["a child", "the father, CAN sides", "PC1 beside its standby"])
+def test_a_robot_gone_for_good_leaps_over_its_own_cycles(cfg):
+    """A deaf robot's MAC claims the silent channel and keeps a cycle of its own: carried
+    across the ring's leaps, it leaps over its own cycles too, and both worlds are the
+    frame-by-frame run at every stop."""
+    plain, leaping = _twins(cfg)
+    for s in (4.9, 30.0, 222.2, 300):
+        for w in (plain, leaping):
+            w.run(until=s_to_ticks(s))
+        assert _state(leaping) == _state(plain), f"the worlds differ at {s} s"
+    assert json.dumps(leaping.summary(), sort_keys=True) == \
+        json.dumps(plain.summary(), sort_keys=True)
+    ring = leaping.quiet_ring
+    assert ring.ticks_skipped > 0.9 * leaping.now
+    assert ring.alone_ticks_skipped > 0.8 * leaping.now

@@ -37,8 +37,10 @@ of the whole radio side:
   claims the silent channel and sends its heartbeats to nobody). Its station is left out of
   the snapshot like a sleeping CAN side, and at a leap its events run on a scheduler of their
   own across the cycles leapt over, frame by frame (``RadioStation.use_scheduler``): the ring
-  reports nothing meanwhile, so whatever the deaf station reports keeps its place. With a
-  trace, a deaf station's events keep the ring from leaping (they would be written twice).
+  reports nothing meanwhile, so whatever the deaf station reports keeps its place. A lone
+  deaf station leaps over its own cycles there, the same way (snapshots after its frames,
+  compared over the last few dozen: :func:`_run_alone`). With a trace, a deaf station's
+  events keep the ring from leaping (they would be written twice).
 * A trace and an event callback get the events of the cycles leapt over, and a capture
   (hil/sim/pcap.py) their packets: those of the period before the leap, their ticks
   (:data:`TICK_KEYS`) moved on by one period, k times. The probe checks that rule on the run
@@ -60,6 +62,7 @@ and stops between, and on random rings.
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import TYPE_CHECKING, Any
 
 from firmware_model.mcu.scheduler import Event, Scheduler
@@ -103,6 +106,9 @@ machine clock / 2 (firmware_model/mcu/reload_timer.py), so a deadline's rounding
 the tick's parity."""
 
 _BACKOFF_MAX = 64
+_ALONE_HISTORY = 4 * 7 * 3
+"""Frames of a deaf station a snapshot is compared back over: its cycle is ``poll_every`` (4)
+times the rounds of the ring it believes in (up to 7 turns each), and its polling position."""
 _ANCHOR_LOST = 3 * 7
 """Transmissions of others after which a silent anchor is replaced."""
 
@@ -129,6 +135,9 @@ class QuietRing:
         self.leaps = 0
         self.ticks_skipped = 0
         """Simulated ticks the ring did not run frame by frame (docs/performance.md)."""
+        self.alone_ticks_skipped = 0
+        """Of the deaf stations carried across the ring's leaps, the ticks a lone one leapt
+        over on its own (module docstring)."""
         self._count = 0
         self._others = 0                       # transmissions since the anchor's last
         self._last: Any = None
@@ -255,7 +264,7 @@ class QuietRing:
         advance(moved, k)
         target = now + k * period
         if carried:
-            taken = _carry(deaf, clocked, taken, now, target, sched)
+            taken = _carry(self, deaf, clocked, taken, now, target)
         sched.skip_to(target)
         sched.put_back(taken)
         if traced:
@@ -274,28 +283,89 @@ def _own_parts(st: "RadioStation") -> list[Any]:
     return [st, st.uart, st.uart.line, st.txen, st.mac, st.deframer, *st.clocked_parts()]
 
 
-def _carry(deaf: list["RadioStation"], clocked: set[int], taken: list[Event], start: int,
-           end: int, world: Scheduler) -> list[Event]:
+def _carry(ring: QuietRing, deaf: list["RadioStation"], clocked: set[int],
+           taken: list[Event], start: int, end: int) -> list[Event]:
     """Run the deaf stations' events (among ``taken``, the world's events out of its heap)
     from ``start`` up to tick ``end`` on a scheduler of their own, as the frame-by-frame run
     does meanwhile: they hear nothing, are heard by nobody and touch nothing of the air's, and
     the ring whose cycles are leapt over reports nothing, so whatever a deaf station reports
-    keeps its place. Returns ``taken`` with their events as they are at ``end``; ``world``:
-    the scheduler they go back to."""
+    keeps its place. A lone deaf station with events leaps over the cycles of its own it only
+    repeats (:func:`_run_alone`). Returns ``taken`` with their events as they are at
+    ``end``."""
+    world = ring.world
     mine = [e for e in taken if id(getattr(e.fn, "__self__", None)) in clocked]
     if not mine:
         return taken
     ids = {id(e) for e in mine}
     private = Scheduler(start)
     private.put_back(mine)
+    owners = [st for st in deaf if any(id(p) in {id(getattr(e.fn, "__self__", None))
+                                                  for e in mine} for p in st.clocked_parts())]
     for st in deaf:
         st.use_scheduler(private)
     try:
+        if len(owners) == 1:
+            ring.alone_ticks_skipped += _run_alone(owners[0], private, end, ring)
         private.run_until(end)
     finally:
         for st in deaf:
-            st.use_scheduler(world)
+            st.use_scheduler(world.sched)
     return [e for e in taken if id(e) not in ids] + private.take(None)
+
+
+def _run_alone(st: "RadioStation", private: Scheduler, end: int, ring: QuietRing) -> int:
+    """Run a lone deaf station on ``private`` toward tick ``end``, leaping over its own
+    cycles. After every frame it sends (to nobody), a snapshot of the station and its pending
+    events is compared with those after each of its last :data:`_ALONE_HISTORY` frames (its
+    cycle is whole rounds of the ring it still believes in: 1-7 turns, and its polling every
+    ``poll_every`` of them); one that differs from an earlier one only by ticks moved on by
+    the time between them and by counters, with nothing reported to the world meanwhile
+    (``World.activity``; counters as the ring's, ``turns`` modulo 7 beside a standby PC), and
+    it moves on by whole cycles, every moved event staying before
+    ``end`` and before any event the cycle does not move. Stops short of ``end`` (the caller
+    runs the rest). Returns the ticks it leapt over."""
+    skipped = 0
+    world = ring.world
+    walls = [private, world.sched, world.air, world]
+    sent = st.mac.frames_sent
+    history: deque = deque(maxlen=_ALONE_HISTORY)
+    while True:
+        t = private.next_time()
+        if t is None or t > end:
+            return skipped
+        private.step()
+        if st.mac.frames_sent == sent:
+            continue
+        sent = st.mac.frames_sent
+        now = private.now
+        activity = world.activity()
+        events = private.pending(None)
+        try:
+            snap = snapshot([_own_parts(st), events], walls, rng_state=True)
+        except Unwalkable:
+            return skipped
+        for last, last_at, last_activity in reversed(history):
+            period = now - last_at
+            if last_activity != activity or period % GRAIN:
+                continue
+            steps = period_steps(last, snap, period, ring.counters, ring.modular)
+            if steps is None:
+                continue
+            moved = writable(snap, steps)
+            stepped = {id(h) for h, key, _ in moved if key == "when" and type(h) is Event}
+            horizon = min([e.when for e in events if id(e) not in stepped] + [end + 1])
+            reach = max([e.when for e in events if id(e) in stepped] + [now])
+            k = (horizon - 1 - reach) // period
+            if k >= 1:
+                taken = private.take(None)
+                advance(moved, k)
+                private.skip_to(now + k * period)
+                private.put_back(taken)
+                history.clear()
+                skipped += k * period
+                break
+        else:
+            history.append((snap, now, activity))
 
 
 def _shifted(events: list[tuple], by: int) -> list[tuple]:
