@@ -299,8 +299,8 @@ def _carry(ring: QuietRing, deaf: list["RadioStation"], clocked: set[int],
     ids = {id(e) for e in mine}
     private = Scheduler(start)
     private.put_back(mine)
-    owners = [st for st in deaf if any(id(p) in {id(getattr(e.fn, "__self__", None))
-                                                  for e in mine} for p in st.clocked_parts())]
+    selves = {id(getattr(e.fn, "__self__", None)) for e in mine}
+    owners = [st for st in deaf if any(id(p) in selves for p in st.clocked_parts())]
     for st in deaf:
         st.use_scheduler(private)
     try:
