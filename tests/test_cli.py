@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import subprocess
 import sys
 import time
@@ -471,7 +472,7 @@ def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
     """``rprs child --events | head -1``: the write after head exited raised BrokenPipeError
     out of the firmware's scheduler, and the process ended at once with status 0 and no
     closing line, as if it had never run. A closed stdout now stops a robot as rprs stops
-    every command whose reader went away (hil/cli/__init__.py: status 0, no error): quietly,
+    every command whose reader went away (hil/cli/__init__.py: status 1, no error): quietly,
     but cleanly, its ports closed and its closing line on stderr, as on Ctrl-C."""
     orders = "--no-input" not in command and "--events" not in command
     p = subprocess.Popen([sys.executable, "-m", "hil.cli", *command, "--radio", "loop://",
@@ -495,11 +496,57 @@ def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
         if p.stdin is not None:
             p.stdin.close()
     assert time.monotonic() - t_closed < 20, "it ran on to its --duration"
-    assert code == 0, err
+    assert code == 1, err                         # as every rprs command (test below)
     assert "Traceback" not in err and "Exception ignored" not in err and "Broken" not in err
     lines = err.strip().splitlines()
     assert lines[0].startswith(("running child 1", "father (ID 0")), err
     assert lines[-1].startswith(("robot 1: member", "robot 0: member")), err
+
+
+FRAME_HEX = "0f0a053231303532303030396d6f766578283130291719"
+
+
+@pytest.mark.parametrize("command", [
+    ["sim", "--robots", "1,2", "--duration", "2"],
+    ["sim", "--robots", "1,2", "--duration", "2", "--json"],
+    ["sim", "--robots", "1,2", "--duration", "1", "--cpu-report"],
+    ["decode", FRAME_HEX],
+    ["encode", "--src", "1", "--dst", "2", "movex(10)"],
+    ["--help"],
+    ["sim", "--help"],
+    ["--version"],
+], ids=["sim", "sim --json", "sim --cpu-report", "decode", "encode", "--help", "sim --help",
+        "--version"])
+def test_a_closed_stdout_ends_every_command_alike(command):
+    """``rprs ... | head -1``: each command ended its own way when its reader had gone:
+    ``rprs sim``'s table with status 1 (rich's own handling), ``--json`` and ``decode`` with 0
+    (main's), ``--help`` with 0 (argparse swallowed the error). Every one now ends as the
+    Python docs recommend for SIGPIPE: stdout pointed at /dev/null, status 1, nothing on
+    stderr. The pipe's reading end is closed before the command starts, so that every
+    command meets the closed pipe at its first write, whatever its output's length."""
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        p = subprocess.run([sys.executable, "-m", "hil.cli", *command], stdout=w,
+                           stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(w)
+    assert (p.returncode, p.stderr) == (1, "")
+
+
+def test_a_long_output_piped_to_head_ends_quietly(tmp_path):
+    """Through a real ``| head -1``: ``rprs decode --stream`` of 4000 frames writes far more
+    than a pipe holds, so it meets head's exit: head's one line, then status 1 and nothing
+    on stderr (it was 0 and "4000 frame(s) decoded"... on a stdout nobody read)."""
+    src = tmp_path / "frames.hex"
+    src.write_text((FRAME_HEX + "\n") * 4000)
+    p = subprocess.run(["bash", "-c", f"{sys.executable} -m hil.cli decode --stream --hex "
+                        f"< {src} 2>{tmp_path / 'err'} | head -1; "
+                        "echo status ${PIPESTATUS[0]}"],
+                       capture_output=True, text=True, timeout=120)
+    lines = p.stdout.splitlines()
+    assert json.loads(lines[0])["offset"] == 0 and lines[1:] == ["status 1"], p.stdout
+    assert (tmp_path / "err").read_text() == ""
 
 
 @pytest.mark.parametrize("command", [["child", "--id", "1"], ["submodules"]])

@@ -5,7 +5,7 @@ import argparse
 import sys
 
 from ..sim.world import ConfigError
-from .common import UserError, distinct_outputs, port_name, positive
+from .common import UserError, distinct_outputs, port_name, positive, stdout_console
 from .sim import (add_sim_options, close_capture, close_writers, open_capture, open_writers,
                   print_summary_and_report, sim_config, write_failed)
 
@@ -77,7 +77,7 @@ def cmd_monitor(a: argparse.Namespace) -> int:
         print_summary_and_report(world, 0.0, a, cfg)
     elif a.cpu_report:
         from ..view.cpu_report import print_cpu_report
-        print_cpu_report(world, cfg.cpu)
+        print_cpu_report(world, cfg.cpu, console=stdout_console)
     return code
 
 

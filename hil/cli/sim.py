@@ -11,7 +11,7 @@ from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import OutputFile, TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
-from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console
+from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console, stdout_console
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                     progress: bool = True) -> None:
@@ -294,9 +294,8 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
         print(json.dumps(s, indent=1))
         return
     from rich import box
-    from rich.console import Console
     from rich.table import Table
-    con = Console()
+    con = stdout_console()
     con.print(f"[bold]RPRS ring, {sim_s:g} s simulated, seed {world.cfg.seed}[/bold]")
     t = Table(box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 1), collapse_padding=True)
     for col in ("robot", "mode", "sent", "recv", "pending", "missed", "submitted", "delivered",
@@ -372,7 +371,7 @@ def print_summary_and_report(world: World, wall: float, a: argparse.Namespace,
     print_summary(world, wall, a.json, membership=membership, extra=extra)
     if report and not a.json:
         from ..view.cpu_report import print_cpu_report
-        print_cpu_report(world, cfg.cpu)
+        print_cpu_report(world, cfg.cpu, console=stdout_console)
 
 
 def add(sub) -> None:
