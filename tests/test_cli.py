@@ -4,6 +4,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -461,6 +462,19 @@ def test_a_can_only_child_closes_with_its_can_side_not_radio_fields(capsys):
     last = err.strip().splitlines()[-1]
     assert last == "robot 1: CAN only (no radio); CAN: 0 frames sent, 0 received", err
     assert "ring" not in err and "heard" not in err
+
+
+def test_a_child_with_a_radio_and_a_can_side_closes_with_both(capsys):
+    """``rprs child --radio ... --can ...``: its closing line was the radio's alone, with no
+    CAN frame counts (a CAN-only child gives them); it now gives both sides."""
+    code, out, err = rprs(capsys, "child", "--id", "1", "--team", "1", "--radio", "loop://",
+                          "--can", "virtual:cli-both", "--duration", "0.3")
+    assert code == 0, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("robot 1: ") and "frames sent" in last, err
+    radio, sep, can_side = last.partition("; CAN: ")
+    assert sep and "CAN only" not in radio, err
+    assert re.fullmatch(r"\d+ frames? sent, \d+ received", can_side), err
 
 
 @pytest.mark.parametrize("command", [
