@@ -680,6 +680,29 @@ def test_a_full_disk_under_the_capture_is_one_line(capsys, full_device):
     assert full_device.is_char_device()
 
 
+@pytest.mark.parametrize("failing,kept", [("--trace", "--pcap"), ("--pcap", "--trace")])
+def test_an_output_that_cannot_be_finished_leaves_the_other_whole(tmp_path, capsys, full_device,
+                                                                  failing, kept):
+    """A run so short that its trace (or capture) is written only when it is finished, on a
+    full disk: the one that failed is one line and status 2; the other, complete, is kept, as
+    the same run without the failing output writes it. ``rprs sim`` kept a capture when its
+    trace failed, but removed its trace when its capture failed (the capture was put in place
+    inside the run's clean-up, the trace after it), and ``rprs monitor`` kept both
+    (tests/test_monitor.py: the same test); both now keep every complete output."""
+    run = ["sim", "--robots", "1,2", "--duration", "0.2"]
+    name = {"--trace": "t.jsonl", "--pcap": "p.pcapng"}
+    whole = tmp_path / "whole" / name[kept]
+    whole.parent.mkdir()
+    assert rprs(capsys, *run, kept, str(whole))[0] == 0
+    out = tmp_path / name[kept]
+    code, _, err = rprs(capsys, *run, kept, str(out), failing, str(full_device))
+    what = {"--trace": "trace", "--pcap": "capture"}[failing]
+    assert code == 2 and err == f"rprs: error: cannot write {what} {full_device}: No space " \
+        f"left on device\n", err
+    assert out.read_bytes() == whole.read_bytes()
+    assert not list(tmp_path.glob("*.partial")) and full_device.is_char_device()
+
+
 @pytest.mark.parametrize("failing", ["--trace", "--vcd", "--pcap"])
 def test_a_write_error_mid_run_names_the_output_that_failed(tmp_path, capsys, monkeypatch,
                                                             failing):

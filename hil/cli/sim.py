@@ -209,7 +209,8 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
               pcap_path: str | None = None) -> tuple[World, float]:
     """Run the world to its end, with its trace, waveform and capture files; ``on_event``
     gets every event too. An output that cannot be written during the run (a full disk) is a
-    UserError naming that output, and no output is left."""
+    UserError naming that output, and no output is left; one that cannot be finished at the
+    end, a UserError too, and the others are kept (:func:`close_outputs`)."""
     distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
     try:
@@ -242,18 +243,35 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         else:
             world.run()
         wall = time.perf_counter() - t0
-        if pcap_file is not None:
-            pcap_file.commit()
     except BaseException as exc:
-        close_writers(trace, vcd, ok=False)
-        if pcap_file is not None:
-            pcap_file.discard()
+        close_outputs(trace, vcd, pcap_file, pcap_path, ok=False)
         if isinstance(exc, OSError):     # a write of an output failed: the disk is full...
             raise write_failed(exc, trace=trace_path, VCD=vcd_path, capture=pcap_path) \
                 from None
         raise
-    close_writers(trace, vcd, ok=True)
+    close_outputs(trace, vcd, pcap_file, pcap_path, ok=True)
     return world, wall
+
+
+def close_outputs(trace, vcd, capture: OutputFile | None, capture_path: str | None,
+                  ok: bool) -> None:
+    """The end of a run's outputs (``rprs sim`` and ``rprs monitor`` alike): if the run went
+    to its end (``ok``), each is finished and put in place, and one that cannot be finished
+    (the disk filled at its last bytes) is a UserError naming it (the first, if more), while
+    the others, whole, are kept: a full disk under the trace leaves the capture and the
+    waveform, one under the capture leaves the trace. Not ``ok`` (the run failed or was
+    interrupted, an output could not be written during it): none is left."""
+    error = None
+    try:
+        close_writers(trace, vcd, ok)
+    except UserError as exc:
+        error = exc
+    try:
+        close_capture(capture, capture_path, ok)
+    except UserError as exc:
+        error = error or exc
+    if error is not None:
+        raise error
 
 
 def open_capture(path: str | None) -> OutputFile | None:
