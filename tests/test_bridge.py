@@ -420,18 +420,28 @@ def test_malformed_frames_to_the_child_are_counted_in_its_summary(can_channel):
         "ignored (wrong length, remote or unknown id)")
 
 
-def test_a_child_with_a_radio_and_a_can_side_keeps_its_radio_line():
-    """With a radio the closing line is the radio's, and the CAN side adds only what went
-    wrong on it (test_malformed_frames_to_the_child_are_counted_in_its_summary)."""
+def test_a_child_with_a_radio_and_a_can_side_gives_both_sides():
+    """With a radio the closing line is the radio's, then the CAN side's as a CAN-only
+    child gives it (its frame counts; test_malformed_frames_to_the_child_are_counted_in_its_
+    summary). It gave only the malformed count, so a child with both sides closed without a
+    word of the CAN frames it sent and received."""
     from hil.bench.runner import Runner, build_child
     from hil.cli.robots import child_summary
     runner = Runner()
     station, child = build_child(runner, 1, "loop://", "virtual:rprs-radio-and-can")
     try:
-        assert child_summary(station, child) == summary_line(station)
+        assert child_summary(station, child) == summary_line(station) + \
+            "; CAN: 0 frames sent, 0 received"
         child.dispatcher.bad_frames = 2
         assert child_summary(station, child) == summary_line(station) + (
-            "; CAN: 2 malformed frames ignored (wrong length, remote or unknown id)")
+            "; CAN: 0 frames sent, 0 received, 2 malformed frames ignored (wrong length, "
+            "remote or unknown id)")
+    finally:
+        runner.run(0)
+    runner = Runner()
+    station, child = build_child(runner, 1, "loop://", None)      # no CAN side: no CAN part
+    try:
+        assert child_summary(station, child) == summary_line(station)
     finally:
         runner.run(0)
 

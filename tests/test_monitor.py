@@ -600,3 +600,40 @@ def test_an_output_that_fills_the_disk_ends_the_monitor_in_one_line(tmp_path, fu
     assert f"rprs: error: cannot write trace {full_device}: No space left on device".encode() \
         in tail, bytes(tail[-300:])
     assert not pcap.exists() and not list(tmp_path.glob("*.partial"))
+
+
+@pytest.mark.parametrize("failing,kept", [("--trace", "--pcap"), ("--pcap", "--trace")])
+def test_an_output_that_cannot_be_finished_leaves_the_other_whole(tmp_path, full_device,
+                                                                  failing, kept):
+    """As ``rprs sim`` (tests/test_cli.py, the same test): a run so short that its trace (or
+    capture) is written only when it is finished, on a full disk, quit with ``q`` once
+    FINISHED: one line naming the output that failed, status 2, and the other output kept,
+    whole, as ``rprs sim`` writes it for the same run (the code's comment said a trace that
+    cannot be finished leaves no capture; it left it, and ``rprs sim`` removed a trace whose
+    capture failed: both now keep every complete output)."""
+    import pty
+    import subprocess
+    import sys
+    run = ["--robots", "1,2", "--duration", "0.2"]
+    name = {"--trace": "t.jsonl", "--pcap": "p.pcapng"}
+    whole = tmp_path / "whole" / name[kept]
+    whole.parent.mkdir()
+    subprocess.run([sys.executable, "-m", "hil.cli", "sim", *run, kept, str(whole)],
+                   check=True, capture_output=True, timeout=120)
+    out = tmp_path / name[kept]
+    master, slave = pty.openpty()
+    p = subprocess.Popen(_monitor_cmd(*run, "--speed", "64", kept, str(out), failing,
+                                      str(full_device)),
+                         stdin=slave, stdout=subprocess.PIPE, stderr=slave,
+                         start_new_session=True,
+                         # 80 columns cut the header's "FINISHED" short
+                         env=dict(os.environ, COLUMNS="200", LINES="50"))
+    os.close(slave)
+    _, screen = _once_drawn(p, master, b"FINISHED", lambda: os.write(master, b"q"))
+    assert p.returncode == 2
+    tail = screen[screen.rfind(b"\x1b[?1049l"):]          # after the screen was restored
+    what = {"--trace": "trace", "--pcap": "capture"}[failing]
+    assert f"rprs: error: cannot write {what} {full_device}: No space left on device".encode() \
+        in tail, bytes(tail[-300:])
+    assert out.read_bytes() == whole.read_bytes()
+    assert not list(tmp_path.glob("*.partial")) and full_device.is_char_device()
