@@ -7,7 +7,6 @@ and at every step of runs cut at awkward ticks (on a status frame's SOF, on its 
 """
 from __future__ import annotations
 
-import json
 import random
 from dataclasses import replace
 
@@ -22,7 +21,7 @@ from firmware_model.radio.mac import Deliver, MacConfig
 from hil.sim.faults import parse_fault
 from hil.sim.quiet_can import PERIOD
 from hil.sim.state_walk import (Unwalkable, advance, latest_moved, on_orbit, period_delta,
-                                period_steps, portable, snapshot)
+                                period_steps, snapshot)
 from hil.sim.world import SimConfig, World
 
 
@@ -212,15 +211,20 @@ def test_a_random_generator_is_state_a_snapshot_cannot_see():
 
 # -- the world, sleeping or not --------------------------------------------------------------
 
-def _state(w: World) -> list:
-    parts = [part for _, q in sorted(w.quiet.items()) for part in q.roots]
-    stations = [w.stations[r] for r in sorted(w.stations)]
-    boundary = [w.sched, *w.quiet.values(), *(q.clock for q in w.quiet.values())]
-    return portable(snapshot([*parts, stations, w.air], boundary, rng_state=True))
+def _sleep_hunt():
+    import importlib.util
+    import pathlib
+    path = pathlib.Path(__file__).parent.parent / "scripts" / "sleep_hunt.py"
+    spec = importlib.util.spec_from_file_location("sleep_hunt", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
-def _summary(w: World) -> str:
-    return json.dumps(w.summary(), sort_keys=True, default=str)
+HUNT = _sleep_hunt()
+"""scripts/sleep_hunt.py: its whole-world state and summary are what these tests compare."""
+_state = HUNT.state
+_summary = HUNT.summary
 
 
 def _pair(cfg: SimConfig) -> tuple[World, World]:
@@ -514,20 +518,9 @@ def test_random_rings_with_faults_asleep_and_cut_are_the_frame_by_frame_run(seed
     assert sum(q.periods_skipped for q in fast.quiet.values()) > 0
 
 
-def _sleep_hunt():
-    import importlib.util
-    import pathlib
-    path = pathlib.Path(__file__).parent.parent / "scripts" / "sleep_hunt.py"
-    spec = importlib.util.spec_from_file_location("sleep_hunt", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 @pytest.mark.parametrize("seed", range(4))
 def test_random_worlds_run_alike_with_the_fast_paths_or_without(seed):
     """A few seeds of scripts/sleep_hunt.py (random rings, faults, loads, byte errors, run
     segments; ``python scripts/sleep_hunt.py --runs N`` draws more)."""
-    hunt = _sleep_hunt()
-    cfg, cuts, traced = hunt.random_world(seed, durations=(30,))
-    assert hunt.same_run(cfg, cuts, traced), (cfg, cuts, traced)
+    cfg, cuts, traced = HUNT.random_world(seed, durations=(30,))
+    assert HUNT.same_run(cfg, cuts, traced), (cfg, cuts, traced)
