@@ -13,6 +13,8 @@ def spawn(*args: str, stdout=subprocess.DEVNULL) -> subprocess.Popen:
 
 
 def stop(procs) -> None:
+    """Terminate ``procs``, kill any still running after 5 s, and reap them all (a Popen
+    collected before its process was reaped warns: ResourceWarning, still running)."""
     for p in procs:
         if p.poll() is None:
             p.terminate()
@@ -21,6 +23,7 @@ def stop(procs) -> None:
             p.wait(timeout=5)
         except subprocess.TimeoutExpired:
             p.kill()
+            p.wait(timeout=10)
 
 
 def wait_for(pred, timeout: float) -> bool:

@@ -194,8 +194,12 @@ def test_a_killed_campaign_resumes_losing_nothing_and_repeating_nothing(tmp_path
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
     cmd = [sys.executable, "-m", "hil.cli", "campaign", "run", str(spec), "--db", str(db),
            "--workers", "2", "--allow-dirty", "--no-progress"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                         start_new_session=True, preexec_fn=_nice)
+    # its output to a file, not pipes: nobody reads them while it runs, and pipes left open
+    # warned (ResourceWarning: unclosed file <_io.BufferedReader>) when the Popen was collected
+    log = tmp_path / "killed.log"
+    with open(log, "wb") as out:
+        p = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env,
+                             start_new_session=True, preexec_fn=_nice)
     try:
         deadline = time.monotonic() + 240
         n = 0
@@ -209,12 +213,13 @@ def test_a_killed_campaign_resumes_losing_nothing_and_repeating_nothing(tmp_path
                 if n >= 4:
                     break
             time.sleep(0.2)
-        assert p.poll() is None and 4 <= n < 24, (n, p.poll())
+        assert p.poll() is None and 4 <= n < 24, (n, p.poll(), log.read_text()[-2000:])
         os.killpg(p.pid, signal.SIGKILL)            # the campaign and its workers
         p.wait(timeout=30)
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
     before = _rows(db)
     assert 4 <= len(before) < 24
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300,
@@ -333,6 +338,7 @@ def test_the_progress_bar_shows_runs_per_second_and_time_left_on_a_terminal(spec
                          preexec_fn=_nice, env=dict(os.environ, COLUMNS="120", TERM="xterm"))
     os.close(slave)
     seen = bytearray()
+    stdout = b""
     try:
         while True:
             try:
@@ -343,16 +349,19 @@ def test_the_progress_bar_shows_runs_per_second_and_time_left_on_a_terminal(spec
                 break
             seen += chunk
         assert p.wait(timeout=300) == 0
+        stdout = p.stdout.read()
     finally:
         if p.poll() is None:
             p.kill()
+            p.wait(timeout=30)
+        p.stdout.close()                         # else: ResourceWarning, unclosed file
         os.close(master)
     text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", seen.decode(errors="replace"))
     assert "campaign t" in text
     assert re.search(r"\b[1-4]/4\b", text), text[-500:]             # M of N runs
     assert re.search(r"\d+\.\d runs/s", text), text[-500:]
     assert re.search(r"\d:\d\d:\d\d|-:--:--", text), text[-500:]     # rich's time remaining
-    assert b"4 runs planned" in p.stdout.read()
+    assert b"4 runs planned" in stdout
 
 
 @pytest.mark.parametrize("fmt", ["--csv", "--parquet"])

@@ -1118,7 +1118,11 @@ def test_live_capture_through_a_pipe_into_tshark():
     finally:
         for p in (hub, shark):
             _kill(p)
-    assert "radio-hub: " in hub.stderr.read().decode()
+        with hub.stderr:                  # closed, or the pipe warns when hub is collected
+            err = hub.stderr.read().decode()
+        for f in (shark.stdout, shark.stderr):
+            f.close()                     # communicate() closed them, unless it never ran
+    assert "radio-hub: " in err
 
 
 def test_a_capture_that_cannot_be_written_is_one_line(tmp_path):
