@@ -242,12 +242,13 @@ def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
     from dask.distributed import Client
     spec = load_spec(spec_file, check=check_args)
     store = Store(tmp_path / "c.sqlite")
-    client = Client(processes=False, n_workers=1, threads_per_worker=2,
-                    dashboard_address=None)
+    cluster = engine.local_cluster(1, processes=False, threads_per_worker=2)
+    client = Client(cluster)
     try:
         out = run_campaign(spec, store, client=client, measure=_crash_on_odd_seeds)
     finally:
         client.close()
+        cluster.close()
     rows = store.rows()
     odd = [r for r in rows if r["seed"] % 2]
     unexpected = [r["error"] for r in rows if r["status"] != "ok" and not r["seed"] % 2]
@@ -260,6 +261,28 @@ def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
     cmds = [f["command"] for p in points for f in p["failing"] if f["broke"] == ["crashed"]]
     assert sorted(cmds) == sorted(f"rprs sim {' '.join(r['args'])} --seed {r['seed']}"
                                   for r in odd)
+
+
+def test_the_local_cluster_takes_no_fixed_port(recwarn):
+    """With port 8787 taken (another campaign's cluster, a dashboard), the embedded cluster
+    warned "Port 8787 is already in use" and left the socket of its failed bind open (a
+    ResourceWarning that failed the broken-run test under -W error). Its HTTP server now
+    listens on a free loopback port."""
+    from dask.distributed import Client
+    held = socket.socket()
+    try:
+        held.bind(("0.0.0.0", 8787))
+        held.listen()
+    except OSError:
+        pass                                   # taken already: the same test
+    try:
+        with engine.local_cluster(1, processes=False) as cluster, Client(cluster) as client:
+            assert client.submit(sum, [1, 2]).result(timeout=30) == 3
+            port = cluster.scheduler.http_server.port
+    finally:
+        held.close()
+    assert port != 8787
+    assert not [w for w in recwarn if "8787" in str(w.message)], [str(w.message) for w in recwarn]
 
 
 def test_results_of_another_commit_or_a_dirty_tree_are_not_mixed(spec_file, tmp_path,
