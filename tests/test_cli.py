@@ -494,6 +494,8 @@ def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
             p.wait()
         if p.stdin is not None:
             p.stdin.close()
+        p.stdout.close()
+        p.stderr.close()
     assert time.monotonic() - t_closed < 20, "it ran on to its --duration"
     assert code == 0, err
     assert "Traceback" not in err and "Exception ignored" not in err and "Broken" not in err
