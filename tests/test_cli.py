@@ -509,6 +509,8 @@ def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
             p.wait()
         if p.stdin is not None:
             p.stdin.close()
+        p.stdout.close()
+        p.stderr.close()
     assert time.monotonic() - t_closed < 20, "it ran on to its --duration"
     assert code == 1, err                         # as every rprs command (test below)
     assert "Traceback" not in err and "Exception ignored" not in err and "Broken" not in err

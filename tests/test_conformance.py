@@ -49,6 +49,8 @@ def _stop(*procs) -> None:
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
+        p.stdout.close()                        # nobody reads them after the stop, and a
+        p.stderr.close()                        # pipe left open warns when p is collected
 
 
 @pytest.fixture

@@ -179,7 +179,8 @@ def test_timer_pause_speed_and_quit(tmp_path):
             await pilot.press("space")
             assert not app.paused
             svg = app.save_screenshot("monitor.svg", path=str(tmp_path))
-            assert "robot" in open(svg, encoding="utf-8").read()
+            with open(svg, encoding="utf-8") as fh:
+                assert "robot" in fh.read()
             await pilot.press("q")
             await pilot.pause()
         assert app.return_code == 0
