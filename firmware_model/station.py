@@ -59,6 +59,20 @@ class RadioStation:
         uart.on_rx = self._on_rx
         uart.on_tx_done = self._on_tx_done
 
+    def clocked_parts(self) -> tuple:
+        """The parts that schedule events of their own (UART0, the two timer channels, the
+        CPU model if any): every event of the station is a bound method of one of them."""
+        parts = (self.uart, self.timer, self.stall_timer)
+        return parts if self.cpu is None else parts + (self.cpu,)
+
+    def use_scheduler(self, sched: Scheduler) -> None:
+        """Schedule on ``sched`` from now on, the station and each of its clocked parts: a
+        simulator runs a station whose radio is dead on a scheduler of its own for a while
+        (hil/sim/quiet_ring.py: it cannot hear or be heard, so it runs on alone)."""
+        self.sched = sched
+        for part in self.clocked_parts():
+            part.sched = sched
+
     def run_on(self, cpu, costs) -> None:
         """Run the handlers on a CPU model (mcu/cpu.py) with bodies from ``costs``
         (cycle_costs.py): UART0 reception and transmission a byte at a time, the End's

@@ -12,15 +12,31 @@ def spawn(*args: str, stdout=subprocess.DEVNULL) -> subprocess.Popen:
                             stdout=stdout, stderr=subprocess.PIPE, text=True)
 
 
-def stop(procs) -> None:
+def stop(procs) -> list[str]:
+    """Terminate ``procs``, kill any still running after 5 s, and reap them all; returns what
+    was left unread on each one's stderr pipe ("" without one) and closes its stdin and stderr.
+    A Popen collected before its process was reaped, or with a pipe open, warns
+    (ResourceWarning). Its stdout is left to whoever reads it (a reader thread closes it at
+    its end)."""
+    procs = list(procs)
     for p in procs:
         if p.poll() is None:
             p.terminate()
+    rest = []
     for p in procs:
         try:
             p.wait(timeout=5)
         except subprocess.TimeoutExpired:
             p.kill()
+            p.wait(timeout=10)
+        if p.stdin is not None:
+            p.stdin.close()
+        err = ""
+        if p.stderr is not None and not p.stderr.closed:     # (stopped twice: closed)
+            with p.stderr:
+                err = p.stderr.read()
+        rest.append(err)
+    return rest
 
 
 def wait_for(pred, timeout: float) -> bool:

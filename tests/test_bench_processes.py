@@ -174,8 +174,7 @@ def test_sigusr1_prints_every_threads_stack_and_the_process_goes_on(hub):
         time.sleep(0.5)
         assert p.poll() is None                       # still running
     finally:
-        stop([p])
-    err = p.stderr.read()
+        err = stop([p])[0]
     assert "Current thread" in err or "Thread 0x" in err, err
     assert "File " in err and "run" in err, err
 
@@ -192,8 +191,7 @@ def test_child_stops_cleanly_on_sigterm(hub):
             p.terminate()                         # at once: no time to settle in
             assert p.wait(timeout=10) == 0
         finally:
-            stop([p])
-        err = p.stderr.read()
+            err = stop([p])[0]
         assert "robot 1:" in err and "Traceback" not in err
 
 
@@ -224,8 +222,9 @@ def _lines_of(proc, into: list) -> None:
     import threading
 
     def read() -> None:
-        for line in proc.stdout:
-            into.append(line.rstrip("\n"))
+        with proc.stdout:                     # closed at its end: nobody else reads it
+            for line in proc.stdout:
+                into.append(line.rstrip("\n"))
     threading.Thread(target=read, daemon=True).start()
 
 
@@ -289,8 +288,8 @@ def _stacks(procs) -> list:
         if p.poll() is None:
             p.send_signal(signal.SIGUSR1)
     time.sleep(0.5)
-    stop(procs)
-    return [(p.args[3], p.returncode, p.stderr.read()[-3000:]) for p in procs]
+    errs = stop(procs)
+    return [(p.args[3], p.returncode, e[-3000:]) for p, e in zip(procs, errs)]
 
 
 def _pcap(path):

@@ -178,7 +178,8 @@ def test_frames_no_node_takes_are_logged_and_counted(can_channel, tmp_path):
 @pytest.mark.vcan
 def test_a_can_log_agrees_with_candump(vcan_channel, tmp_path):
     """On SocketCAN, candump (can-utils, an independent reader of the same bus) and the
-    child's --can-log hold the same frames, each within 20 ms of candump's kernel stamp."""
+    child's --can-log hold the same frames, each within 20 ms of candump's kernel stamp; and
+    cantools decodes candump's log with can_bus/rprs.dbc."""
     import collections
     import shutil
     import time
@@ -204,6 +205,15 @@ def test_a_can_log_agrees_with_candump(vcan_channel, tmp_path):
     assert {f: len(v) for f, v in logged.items()} == {f: len(v) for f, v in dumped.items()}
     worst = max(abs(a - b) for f in logged for a, b in zip(sorted(logged[f]), dumped[f]))
     assert worst < 0.02, worst
+    # README and docs/can.md: "a candump log of our traffic decodes with python -m cantools
+    # decode can_bus/rprs.dbc < candump.log": candump's own log, not one we wrote
+    r = subprocess.run([sys.executable, "-m", "cantools", "decode", str(dbc.dbc_path())],
+                       input=out, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    lines = out.splitlines()
+    assert r.stdout.count(" ::\n") == len(lines) > 10 and "Unknown" not in r.stdout, r.stdout
+    cmd1 = r.stdout.partition("JOINT1_CMD(")[2].partition(")")[0]
+    assert "angle: 6" in cmd1, r.stdout                # the order the exchange sent
 
 
 class _FailingBus(can.BusABC):
@@ -420,18 +430,28 @@ def test_malformed_frames_to_the_child_are_counted_in_its_summary(can_channel):
         "ignored (wrong length, remote or unknown id)")
 
 
-def test_a_child_with_a_radio_and_a_can_side_keeps_its_radio_line():
-    """With a radio the closing line is the radio's, and the CAN side adds only what went
-    wrong on it (test_malformed_frames_to_the_child_are_counted_in_its_summary)."""
+def test_a_child_with_a_radio_and_a_can_side_gives_both_sides():
+    """With a radio the closing line is the radio's, then the CAN side's as a CAN-only
+    child gives it (its frame counts; test_malformed_frames_to_the_child_are_counted_in_its_
+    summary). It gave only the malformed count, so a child with both sides closed without a
+    word of the CAN frames it sent and received."""
     from hil.bench.runner import Runner, build_child
     from hil.cli.robots import child_summary
     runner = Runner()
     station, child = build_child(runner, 1, "loop://", "virtual:rprs-radio-and-can")
     try:
-        assert child_summary(station, child) == summary_line(station)
+        assert child_summary(station, child) == summary_line(station) + \
+            "; CAN: 0 frames sent, 0 received"
         child.dispatcher.bad_frames = 2
         assert child_summary(station, child) == summary_line(station) + (
-            "; CAN: 2 malformed frames ignored (wrong length, remote or unknown id)")
+            "; CAN: 0 frames sent, 0 received, 2 malformed frames ignored (wrong length, "
+            "remote or unknown id)")
+    finally:
+        runner.run(0)
+    runner = Runner()
+    station, child = build_child(runner, 1, "loop://", None)      # no CAN side: no CAN part
+    try:
+        assert child_summary(station, child) == summary_line(station)
     finally:
         runner.run(0)
 

@@ -194,8 +194,12 @@ def test_a_killed_campaign_resumes_losing_nothing_and_repeating_nothing(tmp_path
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
     cmd = [sys.executable, "-m", "hil.cli", "campaign", "run", str(spec), "--db", str(db),
            "--workers", "2", "--allow-dirty", "--no-progress"]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                         start_new_session=True, preexec_fn=_nice)
+    # its output to a file, not pipes: nobody reads them while it runs, and pipes left open
+    # warned (ResourceWarning: unclosed file <_io.BufferedReader>) when the Popen was collected
+    log = tmp_path / "killed.log"
+    with open(log, "wb") as out:
+        p = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env,
+                             start_new_session=True, preexec_fn=_nice)
     try:
         deadline = time.monotonic() + 240
         n = 0
@@ -209,12 +213,13 @@ def test_a_killed_campaign_resumes_losing_nothing_and_repeating_nothing(tmp_path
                 if n >= 4:
                     break
             time.sleep(0.2)
-        assert p.poll() is None and 4 <= n < 24, (n, p.poll())
+        assert p.poll() is None and 4 <= n < 24, (n, p.poll(), log.read_text()[-2000:])
         os.killpg(p.pid, signal.SIGKILL)            # the campaign and its workers
         p.wait(timeout=30)
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
     before = _rows(db)
     assert 4 <= len(before) < 24
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300,
@@ -237,12 +242,13 @@ def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
     from dask.distributed import Client
     spec = load_spec(spec_file, check=check_args)
     store = Store(tmp_path / "c.sqlite")
-    client = Client(processes=False, n_workers=1, threads_per_worker=2,
-                    dashboard_address=None)
+    cluster = engine.local_cluster(1, processes=False, threads_per_worker=2)
+    client = Client(cluster)
     try:
         out = run_campaign(spec, store, client=client, measure=_crash_on_odd_seeds)
     finally:
         client.close()
+        cluster.close()
     rows = store.rows()
     odd = [r for r in rows if r["seed"] % 2]
     unexpected = [r["error"] for r in rows if r["status"] != "ok" and not r["seed"] % 2]
@@ -255,6 +261,28 @@ def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
     cmds = [f["command"] for p in points for f in p["failing"] if f["broke"] == ["crashed"]]
     assert sorted(cmds) == sorted(f"rprs sim {' '.join(r['args'])} --seed {r['seed']}"
                                   for r in odd)
+
+
+def test_the_local_cluster_takes_no_fixed_port(recwarn):
+    """With port 8787 taken (another campaign's cluster, a dashboard), the embedded cluster
+    warned "Port 8787 is already in use" and left the socket of its failed bind open (a
+    ResourceWarning that failed the broken-run test under -W error). Its HTTP server now
+    listens on a free loopback port."""
+    from dask.distributed import Client
+    held = socket.socket()
+    try:
+        held.bind(("0.0.0.0", 8787))
+        held.listen()
+    except OSError:
+        pass                                   # taken already: the same test
+    try:
+        with engine.local_cluster(1, processes=False) as cluster, Client(cluster) as client:
+            assert client.submit(sum, [1, 2]).result(timeout=30) == 3
+            port = cluster.scheduler.http_server.port
+    finally:
+        held.close()
+    assert port != 8787
+    assert not [w for w in recwarn if "8787" in str(w.message)], [str(w.message) for w in recwarn]
 
 
 def test_results_of_another_commit_or_a_dirty_tree_are_not_mixed(spec_file, tmp_path,
@@ -333,6 +361,7 @@ def test_the_progress_bar_shows_runs_per_second_and_time_left_on_a_terminal(spec
                          preexec_fn=_nice, env=dict(os.environ, COLUMNS="120", TERM="xterm"))
     os.close(slave)
     seen = bytearray()
+    stdout = b""
     try:
         while True:
             try:
@@ -343,16 +372,19 @@ def test_the_progress_bar_shows_runs_per_second_and_time_left_on_a_terminal(spec
                 break
             seen += chunk
         assert p.wait(timeout=300) == 0
+        stdout = p.stdout.read()
     finally:
         if p.poll() is None:
             p.kill()
+            p.wait(timeout=30)
+        p.stdout.close()                         # else: ResourceWarning, unclosed file
         os.close(master)
     text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", seen.decode(errors="replace"))
     assert "campaign t" in text
     assert re.search(r"\b[1-4]/4\b", text), text[-500:]             # M of N runs
     assert re.search(r"\d+\.\d runs/s", text), text[-500:]
     assert re.search(r"\d:\d\d:\d\d|-:--:--", text), text[-500:]     # rich's time remaining
-    assert b"4 runs planned" in p.stdout.read()
+    assert b"4 runs planned" in stdout
 
 
 @pytest.mark.parametrize("fmt", ["--csv", "--parquet"])

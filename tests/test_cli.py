@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import io
 import json
+import os
+import re
 import subprocess
 import sys
 import time
@@ -462,6 +464,19 @@ def test_a_can_only_child_closes_with_its_can_side_not_radio_fields(capsys):
     assert "ring" not in err and "heard" not in err
 
 
+def test_a_child_with_a_radio_and_a_can_side_closes_with_both(capsys):
+    """``rprs child --radio ... --can ...``: its closing line was the radio's alone, with no
+    CAN frame counts (a CAN-only child gives them); it now gives both sides."""
+    code, out, err = rprs(capsys, "child", "--id", "1", "--team", "1", "--radio", "loop://",
+                          "--can", "virtual:cli-both", "--duration", "0.3")
+    assert code == 0, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("robot 1: ") and "frames sent" in last, err
+    radio, sep, can_side = last.partition("; CAN: ")
+    assert sep and "CAN only" not in radio, err
+    assert re.fullmatch(r"\d+ frames? sent, \d+ received", can_side), err
+
+
 @pytest.mark.parametrize("command", [
     ["child", "--id", "1", "--team", "1", "--events"],
     ["father", "--team", "0", "--json", "--no-input"],
@@ -471,7 +486,7 @@ def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
     """``rprs child --events | head -1``: the write after head exited raised BrokenPipeError
     out of the firmware's scheduler, and the process ended at once with status 0 and no
     closing line, as if it had never run. A closed stdout now stops a robot as rprs stops
-    every command whose reader went away (hil/cli/__init__.py: status 0, no error): quietly,
+    every command whose reader went away (hil/cli/__init__.py: status 1, no error): quietly,
     but cleanly, its ports closed and its closing line on stderr, as on Ctrl-C."""
     orders = "--no-input" not in command and "--events" not in command
     p = subprocess.Popen([sys.executable, "-m", "hil.cli", *command, "--radio", "loop://",
@@ -494,12 +509,60 @@ def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
             p.wait()
         if p.stdin is not None:
             p.stdin.close()
+        p.stdout.close()
+        p.stderr.close()
     assert time.monotonic() - t_closed < 20, "it ran on to its --duration"
-    assert code == 0, err
+    assert code == 1, err                         # as every rprs command (test below)
     assert "Traceback" not in err and "Exception ignored" not in err and "Broken" not in err
     lines = err.strip().splitlines()
     assert lines[0].startswith(("running child 1", "father (ID 0")), err
     assert lines[-1].startswith(("robot 1: member", "robot 0: member")), err
+
+
+FRAME_HEX = "0f0a053231303532303030396d6f766578283130291719"
+
+
+@pytest.mark.parametrize("command", [
+    ["sim", "--robots", "1,2", "--duration", "2"],
+    ["sim", "--robots", "1,2", "--duration", "2", "--json"],
+    ["sim", "--robots", "1,2", "--duration", "1", "--cpu-report"],
+    ["decode", FRAME_HEX],
+    ["encode", "--src", "1", "--dst", "2", "movex(10)"],
+    ["--help"],
+    ["sim", "--help"],
+    ["--version"],
+], ids=["sim", "sim --json", "sim --cpu-report", "decode", "encode", "--help", "sim --help",
+        "--version"])
+def test_a_closed_stdout_ends_every_command_alike(command):
+    """``rprs ... | head -1``: each command ended its own way when its reader had gone:
+    ``rprs sim``'s table with status 1 (rich's own handling), ``--json`` and ``decode`` with 0
+    (main's), ``--help`` with 0 (argparse swallowed the error). Every one now ends as the
+    Python docs recommend for SIGPIPE: stdout pointed at /dev/null, status 1, nothing on
+    stderr. The pipe's reading end is closed before the command starts, so that every
+    command meets the closed pipe at its first write, whatever its output's length."""
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        p = subprocess.run([sys.executable, "-m", "hil.cli", *command], stdout=w,
+                           stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(w)
+    assert (p.returncode, p.stderr) == (1, "")
+
+
+def test_a_long_output_piped_to_head_ends_quietly(tmp_path):
+    """Through a real ``| head -1``: ``rprs decode --stream`` of 4000 frames writes far more
+    than a pipe holds, so it meets head's exit: head's one line, then status 1 and nothing
+    on stderr (it was 0 and "4000 frame(s) decoded"... on a stdout nobody read)."""
+    src = tmp_path / "frames.hex"
+    src.write_text((FRAME_HEX + "\n") * 4000)
+    p = subprocess.run(["bash", "-c", f"{sys.executable} -m hil.cli decode --stream --hex "
+                        f"< {src} 2>{tmp_path / 'err'} | head -1; "
+                        "echo status ${PIPESTATUS[0]}"],
+                       capture_output=True, text=True, timeout=120)
+    lines = p.stdout.splitlines()
+    assert json.loads(lines[0])["offset"] == 0 and lines[1:] == ["status 1"], p.stdout
+    assert (tmp_path / "err").read_text() == ""
 
 
 @pytest.mark.parametrize("command", [["child", "--id", "1"], ["submodules"]])
@@ -617,6 +680,29 @@ def test_a_full_disk_under_the_capture_is_one_line(capsys, full_device):
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
     assert err.startswith(f"rprs: error: cannot write capture {full_device}: No space left")
     assert full_device.is_char_device()
+
+
+@pytest.mark.parametrize("failing,kept", [("--trace", "--pcap"), ("--pcap", "--trace")])
+def test_an_output_that_cannot_be_finished_leaves_the_other_whole(tmp_path, capsys, full_device,
+                                                                  failing, kept):
+    """A run so short that its trace (or capture) is written only when it is finished, on a
+    full disk: the one that failed is one line and status 2; the other, complete, is kept, as
+    the same run without the failing output writes it. ``rprs sim`` kept a capture when its
+    trace failed, but removed its trace when its capture failed (the capture was put in place
+    inside the run's clean-up, the trace after it), and ``rprs monitor`` kept both
+    (tests/test_monitor.py: the same test); both now keep every complete output."""
+    run = ["sim", "--robots", "1,2", "--duration", "0.2"]
+    name = {"--trace": "t.jsonl", "--pcap": "p.pcapng"}
+    whole = tmp_path / "whole" / name[kept]
+    whole.parent.mkdir()
+    assert rprs(capsys, *run, kept, str(whole))[0] == 0
+    out = tmp_path / name[kept]
+    code, _, err = rprs(capsys, *run, kept, str(out), failing, str(full_device))
+    what = {"--trace": "trace", "--pcap": "capture"}[failing]
+    assert code == 2 and err == f"rprs: error: cannot write {what} {full_device}: No space " \
+        f"left on device\n", err
+    assert out.read_bytes() == whole.read_bytes()
+    assert not list(tmp_path.glob("*.partial")) and full_device.is_char_device()
 
 
 @pytest.mark.parametrize("failing", ["--trace", "--vcd", "--pcap"])

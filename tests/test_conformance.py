@@ -4,6 +4,7 @@ exactly the timing clauses; a robot that knows only the paper fails the protocol
 when checked as an rprs robot."""
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -48,6 +49,8 @@ def _stop(*procs) -> None:
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
+        p.stdout.close()                        # nobody reads them after the stop, and a
+        p.stderr.close()                        # pipe left open warns when p is collected
 
 
 @pytest.fixture
@@ -272,3 +275,64 @@ def test_a_run_that_stops_before_the_robot_sent_anything_leaves_clause_15_not_ap
         th.join(timeout=5)
     assert [c.verdict for c in t.report.checks] == ["n/a"], t.report.checks
     assert t.report.checks[0].figure.endswith("the run stopped before the robot sent a frame")
+
+
+def _documented_commands() -> list[list[str]]:
+    """The first ``sh`` block of docs/conformance.md up to its first blank line (the run on
+    the hub; the board's line follows): each command's words, without ``&`` and comments."""
+    import shlex
+    text = (ROOT / "docs" / "conformance.md").read_text(encoding="utf-8")
+    block = text.split("```sh\n", 1)[1].split("```", 1)[0].split("\n\n", 1)[0]
+    cmds = [shlex.split(line, comments=True) for line in block.splitlines() if line.strip()]
+    return [c[:-1] if c[-1] == "&" else c for c in cmds]
+
+
+def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
+    """docs/conformance.md ran the child with ``--can virtual:r1`` and no submodules: the
+    child said its bus could not be reached from other processes, and answered our status()
+    with ``fail(30)status()`` (no submodule heard), which clauses 47, 48 and 45 count as an
+    answer. The page's commands, run as written (their /tmp paths moved into tmp_path, one
+    after another as a user types them, each started once the one before is up; the child
+    also prints its events, to show its replies), now pass every clause, and the child's
+    CAN side hears its submodules and answers status() with their status."""
+    why = _ptys_available()
+    if why:
+        pytest.skip(why)
+    cmds = [[str(tmp_path) + w[4:] if w.startswith("/tmp/") else w for w in c]
+            for c in _documented_commands()]
+    assert [c[:2] for c in cmds] == [["rprs", "radio-hub"], ["rprs", "child"],
+                                     ["rprs", "submodules"], ["rprs", "conformance"]], cmds
+    assert not any(w.startswith("virtual:") for c in cmds for w in c), cmds
+    procs: dict[str, subprocess.Popen] = {}
+    try:
+        for c in cmds[:-1]:
+            args = c[1:] + (["--events"] if c[1] == "child" else [])
+            p = subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=tmp_path,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            procs[c[1]] = p
+            if c[1] == "radio-hub":
+                air = Path(c[c.index("--link-dir") + 1])
+                end = time.monotonic() + 15
+                while time.monotonic() < end and not (air / "node1").exists():
+                    time.sleep(0.05)
+                assert (air / "node1").exists(), \
+                    p.stderr.read() if p.poll() is not None else "the hub made no ptys"
+            else:
+                first = p.stderr.readline()
+                assert first.startswith("running "), first + p.stderr.read()
+        run = subprocess.run([sys.executable, "-m", "hil.cli", *cmds[-1][1:]], cwd=tmp_path,
+                             capture_output=True, text=True, timeout=120)
+    finally:
+        _stop(*reversed(procs.values()))
+    assert run.returncode == 0, run.stdout + run.stderr
+    cases = _cases(tmp_path / "verdicts.xml")
+    clauses = {c.split()[1] for c, _ in cases}
+    assert {"47", "48", "45"} <= clauses and all(cases.values()), cases
+    child = procs["child"]
+    err = child.stderr.read()
+    assert "note:" not in err, err
+    can_side = err.strip().splitlines()[-1].partition("; CAN: ")[2]
+    assert int(can_side.split(" received")[0].rpartition(" ")[2]) > 0, err  # it heard them
+    events = [json.loads(x) for x in child.stdout.read().splitlines()]
+    replies = [e for e in events if e["ev"] == "submit" and e["dst"] == 0]
+    assert len(replies) == 2 and all(e["type"] != 4 for e in replies), replies   # no fail(30)

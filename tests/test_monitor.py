@@ -179,7 +179,8 @@ def test_timer_pause_speed_and_quit(tmp_path):
             await pilot.press("space")
             assert not app.paused
             svg = app.save_screenshot("monitor.svg", path=str(tmp_path))
-            assert "robot" in open(svg, encoding="utf-8").read()
+            with open(svg, encoding="utf-8") as fh:
+                assert "robot" in fh.read()
             await pilot.press("q")
             await pilot.pause()
         assert app.return_code == 0
@@ -418,6 +419,20 @@ def _monitor_cmd(*args):
     return [sys.executable, "-m", "hil.cli", "monitor", *args]
 
 
+def _monitor_in_pty(*args, wide: bool = False):
+    """``rprs monitor ARGS`` with a pty for its terminal (stdin and stderr) and stdout a pipe:
+    (the process, the pty's master). ``wide``: 200 columns (stdout is a pipe, so the size
+    comes from the environment, and 80 columns cut the header's "FINISHED" short)."""
+    import pty
+    import subprocess
+    master, slave = pty.openpty()
+    env = dict(os.environ, COLUMNS="200", LINES="50") if wide else None
+    p = subprocess.Popen(_monitor_cmd(*args), stdin=slave, stdout=subprocess.PIPE,
+                         stderr=slave, start_new_session=True, env=env)
+    os.close(slave)
+    return p, master
+
+
 def test_the_monitor_without_a_terminal_is_one_line(tmp_path):
     """``rprs monitor < /dev/null 2> log`` drew the screen's escape codes into the log and,
     with no ``q`` to read, never ended, even after ``--duration``. Without a terminal on stdin
@@ -438,14 +453,9 @@ def test_sigterm_and_sighup_quit_the_monitor_like_q(tmp_path, signame):
     """SIGTERM (``kill``, ``timeout``) or SIGHUP (the terminal closed) killed the monitor in
     the terminal's alternate screen, with the keyboard still raw, the trace left as
     ``.partial`` and no ``--json`` summary. They now quit as ``q`` does."""
-    import pty
     import signal
-    import subprocess
-    master, slave = pty.openpty()
     trace = tmp_path / "t.jsonl"
-    p = subprocess.Popen(_monitor_cmd("--robots", "0,1", "--trace", str(trace), "--json"),
-                         stdin=slave, stdout=subprocess.PIPE, stderr=slave, start_new_session=True)
-    os.close(slave)
+    p, master = _monitor_in_pty("--robots", "0,1", "--trace", str(trace), "--json")
     out, screen = _once_drawn(p, master, b"occupations",
                               lambda: p.send_signal(getattr(signal, signame)))
     assert p.returncode == 0
@@ -554,19 +564,11 @@ def test_the_monitor_reports_the_cpu_budget_of_what_it_ran(tmp_path):
     """``rprs monitor --cpu estimated --cpu-report --json``: the report of the world up to
     where the view was closed, inside the summary, as ``rprs sim`` gives it."""
     import json
-    import pty
     import subprocess
-    master, slave = pty.openpty()
     pcap = tmp_path / "m.pcapng"
-    p = subprocess.Popen(_monitor_cmd("--robots", "0,1", "--can", "--cpu", "estimated",
-                                      "--cpu-report", "--json", "--duration", "2", "--speed",
-                                      "64", "--pcap", str(pcap)),
-                         stdin=slave, stdout=subprocess.PIPE, stderr=slave,
-                         start_new_session=True,
-                         # stdout is a pipe, so the size comes from these (80 columns cut
-                         # the header's "FINISHED" short)
-                         env=dict(os.environ, COLUMNS="200", LINES="50"))
-    os.close(slave)
+    p, master = _monitor_in_pty("--robots", "0,1", "--can", "--cpu", "estimated",
+                                "--cpu-report", "--json", "--duration", "2", "--speed", "64",
+                                "--pcap", str(pcap), wide=True)
     out, _ = _once_drawn(p, master, b"FINISHED", lambda: os.write(master, b"q"))
     assert p.returncode == 0
     sim = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1", "--can",
@@ -584,15 +586,9 @@ def test_an_output_that_fills_the_disk_ends_the_monitor_in_one_line(tmp_path, fu
     """``rprs monitor --trace FILE`` on a full disk: the run's OSError was caught by the
     terminal UI, which printed a page of traceback, and the outputs were closed as if the run
     had gone well. It now ends the view and says which output, in one line, and leaves none."""
-    import pty
-    import subprocess
-    master, slave = pty.openpty()
     pcap = tmp_path / "m.pcapng"
-    p = subprocess.Popen(_monitor_cmd("--robots", "0,1,2", "--speed", "4096", "--duration",
-                                      "600", "--trace", str(full_device), "--pcap", str(pcap)),
-                         stdin=slave, stdout=subprocess.PIPE, stderr=slave,
-                         start_new_session=True)
-    os.close(slave)
+    p, master = _monitor_in_pty("--robots", "0,1,2", "--speed", "4096", "--duration", "600",
+                                "--trace", str(full_device), "--pcap", str(pcap))
     _, screen = _once_drawn(p, master, b"No space left on device", lambda: None)
     assert p.returncode == 2
     assert b"Traceback" not in screen and b"locals" not in screen
@@ -600,6 +596,36 @@ def test_an_output_that_fills_the_disk_ends_the_monitor_in_one_line(tmp_path, fu
     assert f"rprs: error: cannot write trace {full_device}: No space left on device".encode() \
         in tail, bytes(tail[-300:])
     assert not pcap.exists() and not list(tmp_path.glob("*.partial"))
+
+
+@pytest.mark.parametrize("failing,kept", [("--trace", "--pcap"), ("--pcap", "--trace")])
+def test_an_output_that_cannot_be_finished_leaves_the_other_whole(tmp_path, full_device,
+                                                                  failing, kept):
+    """As ``rprs sim`` (tests/test_cli.py, the same test): a run so short that its trace (or
+    capture) is written only when it is finished, on a full disk, quit with ``q`` once
+    FINISHED: one line naming the output that failed, status 2, and the other output kept,
+    whole, as ``rprs sim`` writes it for the same run (the code's comment said a trace that
+    cannot be finished leaves no capture; it left it, and ``rprs sim`` removed a trace whose
+    capture failed: both now keep every complete output)."""
+    import subprocess
+    import sys
+    run = ["--robots", "1,2", "--duration", "0.2"]
+    name = {"--trace": "t.jsonl", "--pcap": "p.pcapng"}
+    whole = tmp_path / "whole" / name[kept]
+    whole.parent.mkdir()
+    subprocess.run([sys.executable, "-m", "hil.cli", "sim", *run, kept, str(whole)],
+                   check=True, capture_output=True, timeout=120)
+    out = tmp_path / name[kept]
+    p, master = _monitor_in_pty(*run, "--speed", "64", kept, str(out), failing,
+                                str(full_device), wide=True)
+    _, screen = _once_drawn(p, master, b"FINISHED", lambda: os.write(master, b"q"))
+    assert p.returncode == 2
+    tail = screen[screen.rfind(b"\x1b[?1049l"):]          # after the screen was restored
+    what = {"--trace": "trace", "--pcap": "capture"}[failing]
+    assert f"rprs: error: cannot write {what} {full_device}: No space left on device".encode() \
+        in tail, bytes(tail[-300:])
+    assert out.read_bytes() == whole.read_bytes()
+    assert not list(tmp_path.glob("*.partial")) and full_device.is_char_device()
 
 
 class _Terminal:

@@ -190,11 +190,12 @@ class Child:
         threading.Thread(target=self._read, daemon=True).start()
 
     def _read(self) -> None:
-        for line in self.proc.stdout:
-            try:
-                self.lines.append(json.loads(line))
-            except ValueError:
-                pass
+        with self.proc.stdout:                   # the reader closes it, at the end
+            for line in self.proc.stdout:
+                try:
+                    self.lines.append(json.loads(line))
+                except ValueError:
+                    pass
 
     def find(self, **kw) -> list[dict]:
         return [e for e in list(self.lines) if all(e.get(k) == v for k, v in kw.items())]
@@ -207,6 +208,7 @@ class Child:
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait()
+        self.proc.stderr.close()                 # else: ResourceWarning when collected
 
 
 @pytest.fixture
@@ -226,6 +228,7 @@ def hub(tmp_path):
     yield air
     proc.terminate()
     proc.wait(timeout=5)
+    proc.stderr.close()
 
 
 def test_the_paper_robot_imports_nothing_from_the_project():

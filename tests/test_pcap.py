@@ -39,7 +39,9 @@ def run(tmp_path_factory):
 
 def _packets(path):
     ifaces, out = {}, []
-    for b in pcapng.FileScanner(open(path, "rb")):
+    with open(path, "rb") as fh:
+        blocks = list(pcapng.FileScanner(fh))
+    for b in blocks:
         name = type(b).__name__
         if name == "InterfaceDescription":
             ifaces[len(ifaces)] = (b.link_type, b.options["if_name"])

@@ -359,6 +359,48 @@ def test_slave_is_raw_no_echo_no_translation(hubs):
     assert read_for(fd0, 0.1) == b""
 
 
+SOCAT = shutil.which("socat")
+
+
+@pytest.mark.skipif(SOCAT is None, reason="socat not installed (Debian package socat)")
+def test_socat_a_client_nobody_here_wrote_sends_and_receives_frames_on_the_hub(hubs):
+    """docs/guarantees.md says findings were made with socat on the hub: socat, which sets its
+    own line (``rawer``), is a node like any other. A frame (Header 0F 0A 05, End 17 19) and
+    the bytes a cooked line would eat go from socat on node 0 to a plain reader on node 1, and
+    a frame written on node 1 comes out of socat's stdout on node 0 unchanged."""
+    hub = hubs(2).start()
+    payload = FRAME + b"\x0a\x0d\x03\x11\x13\x04\x1a\x7f\x00\xff"
+    fd1 = open_node(hubs, hub.paths[1])
+    sock = subprocess.Popen([SOCAT, "-b", "65536", "-", f"OPEN:{hub.paths[0]},rawer"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    try:
+        time.sleep(0.3)                           # socat has opened and set up its node
+        sock.stdin.write(payload)
+        sock.stdin.flush()
+        assert read_n(fd1, len(payload), 5.0)[0] == payload
+        os.write(fd1, FRAME)                      # and back: socat prints what its node hears
+        got = bytearray()
+        end = time.monotonic() + 5.0
+        while len(got) < len(FRAME) and time.monotonic() < end:
+            r, _, _ = select.select([sock.stdout], [], [], end - time.monotonic())
+            if r:
+                got += os.read(sock.stdout.fileno(), 65536)
+        assert bytes(got) == FRAME                # not its own bytes echoed, not translated
+        assert read_for(fd1, 0.2) == b""          # nothing more came to node 1
+    finally:
+        sock.stdin.close()
+        try:
+            sock.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            sock.kill()
+            sock.wait(timeout=5)
+        err = sock.stderr.read()
+        sock.stdout.close()
+        sock.stderr.close()
+    assert sock.returncode == 0, err
+
+
 def _cooked(fd: int) -> None:
     """What ``stty sane`` does to a terminal, done by an outside client on its node: echo,
     line editing, signals, CR/LF translation and XON/XOFF on."""
@@ -1076,7 +1118,11 @@ def test_live_capture_through_a_pipe_into_tshark():
     finally:
         for p in (hub, shark):
             _kill(p)
-    assert "radio-hub: " in hub.stderr.read().decode()
+        with hub.stderr:                  # closed, or the pipe warns when hub is collected
+            err = hub.stderr.read().decode()
+        for f in (shark.stdout, shark.stderr):
+            f.close()                     # communicate() closed them, unless it never ran
+    assert "radio-hub: " in err
 
 
 def test_a_capture_that_cannot_be_written_is_one_line(tmp_path):

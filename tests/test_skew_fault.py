@@ -103,3 +103,11 @@ def test_two_skews_for_one_robot_are_refused_one_each_is_fine(capsys):
     assert err.count("\n") == 1 and "skew:2:0.02 and skew:2:0.05" in err, err
     assert main(["sim", "--robots", "0,1,2", "--duration", "1", "--fault", "skew:2:0.02",
                  "--fault", "skew:1:0.05", "--no-progress"]) == 0
+
+
+@pytest.mark.parametrize("load", [None, True, [1], 0, -1.0, "busy"])
+def test_a_config_with_a_load_that_is_no_rate_is_refused_in_words(load):
+    """Through the Python API too (a campaign's grid, a script): a ConfigError naming the
+    value, never a TypeError from comparing it."""
+    with pytest.raises(ConfigError, match="load"):
+        World(SimConfig(robots=(0, 1), duration=1.0, load=load))

@@ -15,9 +15,12 @@ bench = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(bench)
 
 
-def _worktrees() -> str:
-    return subprocess.run(["git", "-C", str(ROOT), "worktree", "list"], check=True,
-                          capture_output=True, text=True).stdout
+def _worktrees() -> set[str]:
+    """The worktrees' paths: not their commits, which others working in the same repository
+    move on (a commit on main during the run once failed the comparison)."""
+    out = subprocess.run(["git", "-C", str(ROOT), "worktree", "list", "--porcelain"],
+                         check=True, capture_output=True, text=True).stdout
+    return {line.split(" ", 1)[1] for line in out.splitlines() if line.startswith("worktree ")}
 
 
 def test_the_accounting_leaves_out_wall_times_only():

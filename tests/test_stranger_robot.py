@@ -625,9 +625,9 @@ def _ptys_available() -> str | None:
     return None
 
 
-def _spawn(*args: str) -> subprocess.Popen:
+def _spawn(*args: str, stdout=subprocess.PIPE) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=stdout, stderr=subprocess.PIPE, text=True)
 
 
 class Events:
@@ -639,11 +639,12 @@ class Events:
         self._t.start()
 
     def _read(self, proc: subprocess.Popen) -> None:
-        for line in proc.stdout:
-            try:
-                self.lines.append(json.loads(line))
-            except ValueError:
-                pass
+        with proc.stdout:                        # the reader closes it, at the end
+            for line in proc.stdout:
+                try:
+                    self.lines.append(json.loads(line))
+                except ValueError:
+                    pass
 
     def find(self, **kw) -> list[dict]:
         return [e for e in list(self.lines) if all(e.get(k) == v for k, v in kw.items())]
@@ -668,6 +669,7 @@ def _stop(procs) -> None:
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
+        p.stderr.close()                         # stdout: its reader closes it (Events)
 
 
 def test_the_robot_imports_nothing_from_the_project():
@@ -682,7 +684,8 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
     if why:
         pytest.skip(why)
     air = tmp_path / "air"
-    hub = _spawn("radio-hub", "--nodes", "3", "--link-dir", str(air), "--seed", "1")
+    hub = _spawn("radio-hub", "--nodes", "3", "--link-dir", str(air), "--seed", "1",
+                 stdout=subprocess.DEVNULL)      # nobody reads it
     procs = [hub]
     robot = None
     try:

@@ -234,7 +234,7 @@ def test_standby_wakes_only_after_3_us_of_dominant_bus():
     xa.on_wake = lambda t: wakes.append(t)
     xa.standby()
     b.configure_tx(0, 0x500)
-    assert wire_bits(0x500, b"\x01")[:6] == [0, 1, 0, 1, 0, 0]    # (checked independently)
+    assert wire_bits(0x500, b"\x01")[:6] == [0, 1, 0, 1, 0, 0]    # by hand: SOF, 0x500 = 101 0...
     sched.run_until(10_000)
     b.transmit(0, b"\x01")                                      # SOF at 10 000
     sched.run_until(20_000)

@@ -42,7 +42,11 @@ _H0, _H1, _H2 = HEADER
 _E0, _E1 = 0x17, 0x19
 
 _WHOLE: dict[int, dict[bytes, Frame]] = {}
-"""Per Length limit: byte strings known to be exactly one good frame (the fast path's cache)."""
+"""Per Length limit: byte strings known to be exactly one good frame (the fast path's cache).
+Shared by every deframer of the process, so no deframer holds it in a field: the simulator's
+snapshots (hil/sim/state_walk.py) walk a world's fields, and walked this cache too, while the
+world of another thread (a Dask worker's second thread in a campaign) added to it: "dictionary
+changed size during iteration"."""
 _WHOLE_MAX = 8192
 
 
@@ -111,7 +115,6 @@ class Deframer:
         "_g_count",
         "_g_first",
         "_g_last",
-        "_whole",
     )
 
     def __init__(self, max_content: int = MAX_CONTENT, byte_ticks: int = CHILD_BYTE_TICKS) -> None:
@@ -120,7 +123,7 @@ class Deframer:
         self.max_content = max_content
         self.byte_ticks = byte_ticks
         self._limits = length_limits(max_content)
-        self._whole = _WHOLE.setdefault(max_content, {})
+        _WHOLE.setdefault(max_content, {})
         self.reset()
 
     def reset(self) -> None:
@@ -285,7 +288,7 @@ class Deframer:
         the bytes). Same outcome as a :meth:`feed` that reports one :class:`FrameReceived`."""
         if self._pos or self._g_count:
             return None
-        frame = self._whole.get(data)
+        frame = _WHOLE[self.max_content].get(data)
         if frame is not None:
             self.last_tick = end
         return frame
@@ -358,7 +361,7 @@ class Deframer:
         self._emit_garbage(out)
         if clean and len(out) == 1 and not self._pos and type(out[0]) is FrameReceived \
                 and out[0].first == t0 and out[0].end == self.last_tick:
-            whole = self._whole
+            whole = _WHOLE[self.max_content]
             if len(whole) >= _WHOLE_MAX:
                 whole.clear()
             whole[data] = out[0].frame

@@ -132,6 +132,9 @@ class Runner:
         is 1 if there were any."""
         self.failure: str | None = None   # why the run stopped by itself (a lost port)
         self.finished = threading.Event()  # run() has returned
+        self.stdout_closed = False
+        """Standard output's reader went away (``--events | head -1``): the run stopped for
+        it (:meth:`stdout_gone`), and the command ends as every rprs command then ends."""
 
     def warn(self, line: str) -> None:
         """A trouble the process goes on through (a CAN interface taken down, a CAN log that
@@ -149,6 +152,12 @@ class Runner:
     def stop(self, *_: Any) -> None:
         self._stopping.set()
         self.sched.stop()
+
+    def stdout_gone(self) -> None:
+        """Standard output's reader has gone away: stop (hil/cli/common.py says how the
+        command then ends)."""
+        self.stdout_closed = True
+        self.stop()
 
     def fail(self, why: str) -> None:
         """Stop because the run cannot go on (one line, kept in ``failure``)."""
@@ -256,7 +265,7 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
     if not 1 <= robot <= 6:
         raise RunError(f"a child's ID is 1-6, got {robot}")
     cfg = realtime_config(config)
-    observer = _events_printer(events, robot, on_closed=runner.stop)
+    observer = _events_printer(events, robot, on_closed=runner.stdout_gone)
     channel = bus = None
     if radio:
         station, channel = _radio_station(runner, robot, radio, txen, CHILD_BYTE_TICKS, cfg,
@@ -290,7 +299,7 @@ def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool =
     cfg = replace(realtime_config(config), standby=standby, pc=pc or (2 if standby else 1),
                   paired=standby or pc is not None)
     station, channel = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
-                                      _events_printer(events, 0, on_closed=runner.stop))
+                                      _events_printer(events, 0, on_closed=runner.stdout_gone))
     _capture(runner, pcap, 0, channel, None, None)
     runner.sched.post(station.power_on)
     return station

@@ -85,6 +85,18 @@ def chunked(items: list, workers: int, chunk: int = 0) -> list[list]:
     return [items[i:i + n] for i in range(0, len(items), n)]
 
 
+def local_cluster(workers: int, processes: bool = True, threads_per_worker: int = 1) -> Any:
+    """The embedded ``LocalCluster``: no dashboard, and its scheduler's HTTP server (health and
+    metrics only) on a free loopback port. ``dashboard_address=None`` alone still put that
+    server on 0.0.0.0:8787, so a second cluster on the machine (two campaigns, or the tests'
+    beside each other) found it taken: "Port 8787 is already in use" and a socket left open
+    (ResourceWarning) by the failed bind."""
+    from dask.distributed import LocalCluster
+    return LocalCluster(n_workers=workers, threads_per_worker=threads_per_worker,
+                        processes=processes, dashboard_address=None,
+                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"}, silence_logs=40)
+
+
 def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
                  workers: int | None = None, allow_dirty: bool = False,
                  measure: Callable[[Any], dict] = metrics_of,
@@ -111,13 +123,11 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
     own = client is None
     cluster = None
     if own:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
         if scheduler:
             client = Client(scheduler, timeout="30s")
         else:
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1,
-                                   threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=40)
+            cluster = local_cluster(workers or os.cpu_count() or 1)
             client = Client(cluster)
     try:
         from dask.distributed import as_completed

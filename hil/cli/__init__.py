@@ -8,9 +8,11 @@ whose traces must not change by accident (tests/test_trace_digests.py).
 A user mistake (bad option value, unreadable file, malformed input) prints one line starting
 ``rprs: error:`` and exits with status 2; it never shows a traceback. Ctrl-C ends a command
 with ``rprs: interrupted`` and status 130, SIGTERM with ``rprs: terminated`` and status 143.
-A standard output whose reader went away (``| head -1``) ends a command quietly, status 0; a
-bench process (``child``, ``father``) first stops as cleanly as on Ctrl-C and gives its closing
-line on stderr (``common.run_until_stopped``).
+A standard output whose reader went away (``| head -1``) ends every command alike, as the
+Python docs recommend for SIGPIPE: no traceback, nothing more on stderr, stdout pointed at
+/dev/null, status 1 (``common.stdout_gone``, called here only); a bench process (``child``,
+``father``) first stops as cleanly as on Ctrl-C and gives its closing line on stderr
+(``common.run_until_stopped``).
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ import io
 import sys
 from typing import Sequence
 
-from .common import Parser, Terminated, UserError
+from .common import Parser, Terminated, UserError, stdout_gone
 
 __all__ = ["build_parser", "main", "UserError"]
 
@@ -104,11 +106,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     old_term = _terminate_on_sigterm()
     try:
-        return _main(argv)
+        code = _main(argv)
+    except SystemExit as exc:      # argparse's --help and --version; rich's own broken pipe
+        if not _stdout_flushed():
+            raise SystemExit(1) from None
+        raise
     finally:
         if old_term is not None:
             import signal
             signal.signal(signal.SIGTERM, old_term)
+    return code if _stdout_flushed() else 1
+
+
+def _stdout_flushed() -> bool:
+    """Flush stdout now, so that a reader gone away is seen here and not in the interpreter's
+    flush at exit ("Exception ignored ... BrokenPipeError" on stderr, status 120); False
+    (stdout now at /dev/null) if it had gone."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        stdout_gone()
+        return False
+    except (AttributeError, ValueError, OSError):  # no stdout, or closed: nothing to flush
+        pass
+    return True
 
 
 def _main(argv: list[str]) -> int:
@@ -134,5 +155,5 @@ def _main(argv: list[str]) -> int:
         print("rprs: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
-        return 0
+        return stdout_gone()
 

@@ -17,9 +17,43 @@ class Terminated(KeyboardInterrupt):
     files discarded, one line, exit status 143 (128 + SIGTERM)."""
 
 
+def stdout_gone() -> int:
+    """A standard output whose reader has gone away (``rprs ... | head -1``): what the Python
+    docs recommend for SIGPIPE (library/signal, "Note on SIGPIPE"): point the stdout file
+    descriptor at /dev/null, so that what is still in its buffer is dropped without a second
+    BrokenPipeError at exit ("Exception ignored ..."), and end with status 1. Every rprs
+    command ends so (hil/cli/__init__.py: ``main``, the only caller); nothing is said on
+    stderr. Returns the exit status."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, ValueError, OSError):   # not a real file (a test's capture)
+        return 1
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, fd)
+    finally:
+        os.close(devnull)
+    return 1
+
+
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, status 2, no usage dump
         raise UserError(f"{message} (see '{self.prog} --help')")
+
+    def _print_message(self, message, file=None) -> None:
+        """argparse's, but a stdout closed by its reader (``rprs --help | head -1``) ends the
+        command as it ends any other (argparse swallowed the error, and the exit said 0)."""
+        if not message:
+            return
+        file = file or sys.stderr
+        try:
+            file.write(message)
+            file.flush()
+        except BrokenPipeError:
+            if file is sys.stdout:
+                raise
+        except (AttributeError, OSError):
+            pass
 
 
 def output_file(path: str, what: str) -> str:
@@ -236,27 +270,30 @@ def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary,
     """Run a bench process to its end; exit status 1 if it went on through troubles (each
     said in its own line as it happened: ``Runner.warn``) or stopped by itself (its radio
     port went away), else 0. Standard output closed by its reader (``| head -1``) stops the
-    process as every rprs command stops then, quietly and with status 0, but as cleanly as
-    Ctrl-C does: the runner has closed its ports, and the summary still goes to stderr (the
-    ``--events`` printer stops the runner itself; this catches any other writer). ``notes``:
+    process as cleanly as Ctrl-C does: the runner has closed its ports, and the summary still
+    goes to stderr (the ``--events`` printer stops the runner itself and says so in
+    ``runner.stdout_closed``; this catches any other writer); then BrokenPipeError goes on to
+    ``main``, which ends every rprs command so (status 1, nothing more said). ``notes``:
     lines said right after the ``describe`` line (which stays the first: scripts wait for
     it)."""
     def ready() -> None:
         print(describe, file=sys.stderr, flush=True)
         for line in notes:
             print(line, file=sys.stderr, flush=True)
+    closed = False
     try:
         runner.run(a.duration, ready=ready)
     except BrokenPipeError:
-        pass                      # Runner.run closed everything on its way out
+        closed = True             # Runner.run closed everything on its way out
     _say(summary())
-    if stopped_by_itself(runner):
-        return 1
+    code = stopped_by_itself(runner)
     n = getattr(runner, "troubles", 0)
-    if n:
+    if n and not code:
         _say(f"rprs: {n} trouble{'s' if n > 1 else ''} during the run (above): exit status 1")
-        return 1
-    return 0
+        code = 1
+    if closed or getattr(runner, "stdout_closed", False):
+        raise BrokenPipeError("standard output closed by its reader")
+    return code
 
 
 def _say(line: str) -> None:
@@ -297,6 +334,18 @@ def progress_bars(total: float, labels: list[str]):
     tasks = [bar.add_task(label, total=total) for label in labels]
     bar.start()
     return [(lambda x, t=t: bar.update(t, completed=x)) for t in tasks], bar.stop
+
+
+def stdout_console(**kw):
+    """A rich console on stdout whose reader going away ends the command as any other write
+    to a closed stdout does (``main``: ``stdout_gone``), not by rich's own SystemExit."""
+    from rich.console import Console
+
+    class StdoutConsole(Console):
+        def on_broken_pipe(self) -> None:
+            self.quiet = True
+            raise BrokenPipeError("standard output closed by its reader")
+    return StdoutConsole(**kw)
 
 
 def stderr_console():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import UserError, digit, output_file, port_name, positive
+from .common import UserError, digit, output_file, port_name, positive, stdout_console
 
 
 VERDICT_STYLE = {"pass": "[green]pass[/green]", "FAIL": "[red]FAIL[/red]", "n/a": "[dim]n/a[/dim]"}
@@ -33,7 +33,6 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     except OSError as exc:
         rep, error = t.report, f"the port failed: {exc}"
     from rich import box
-    from rich.console import Console
     from rich.table import Table
     table = Table(box=box.SIMPLE_HEAD, title=f"robot {a.id} against docs/protocol.md "
                   f"(profile {a.profile})")
@@ -41,7 +40,7 @@ def cmd_conformance(a: argparse.Namespace) -> int:
         table.add_column(col)
     for c in rep.checks:
         table.add_row(c.clause, c.name, VERDICT_STYLE[c.verdict], c.figure)
-    Console().print(table)
+    stdout_console().print(table)
     if error:
         print(f"rprs conformance: stopped: {error}")
     if a.junit:

@@ -5,8 +5,8 @@ import argparse
 import sys
 
 from ..sim.world import ConfigError
-from .common import UserError, distinct_outputs, port_name, positive
-from .sim import (add_sim_options, close_capture, close_writers, open_capture, open_writers,
+from .common import UserError, distinct_outputs, port_name, positive, stdout_console
+from .sim import (add_sim_options, close_outputs, close_writers, open_capture, open_writers,
                   print_summary_and_report, sim_config, write_failed)
 
 
@@ -74,16 +74,13 @@ def _monitor(a: argparse.Namespace) -> int:
         ok = True
     except OSError as exc:               # an output filled the disk: one line, none left
         raise write_failed(exc, trace=a.trace, VCD=a.vcd, capture=a.pcap) from None
-    finally:
-        try:
-            close_writers(trace, vcd, ok)
-        finally:                         # a trace that cannot be finished leaves no capture
-            close_capture(capture, a.pcap, ok)
+    finally:                             # as rprs sim: a complete output is kept
+        close_outputs(trace, vcd, capture, a.pcap, ok)
     if a.json:                           # the world up to where the view was closed
         print_summary_and_report(world, 0.0, a, cfg)
     elif a.cpu_report:
         from ..view.cpu_report import print_cpu_report
-        print_cpu_report(world, cfg.cpu)
+        print_cpu_report(world, cfg.cpu, console=stdout_console)
     return code
 
 

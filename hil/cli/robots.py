@@ -34,25 +34,20 @@ def cmd_child(a: argparse.Namespace) -> int:
 
 
 def child_summary(station, child, radio: bool = True) -> str:
-    """The closing line of ``rprs child``: with a radio, the radio's, and the CAN frames the
-    firmware ignored as malformed (no node's frame: a wrong length, a remote frame, an unknown
-    id); without one (``radio`` False: a CAN-only child), only its CAN side: the frames it
-    sent and received, and the malformed ones."""
+    """The closing line of ``rprs child``: with a radio, the radio's; then its CAN side's, if
+    it has one: the frames it sent and received, and the CAN frames the firmware ignored as
+    malformed (no node's frame: a wrong length, a remote frame, an unknown id). A CAN-only
+    child (``radio`` False) has no radio fields to give."""
     from ..bench.runner import summary_line
     bad = getattr(getattr(child, "dispatcher", None), "bad_frames", 0)
     malformed = (f"{bad} malformed frame{'s' if bad > 1 else ''} ignored (wrong length, "
                  f"remote or unknown id)")
     bus = getattr(getattr(getattr(child, "can", None), "xcvr", None), "bus", None)
-    troubles = ([malformed] if bad else []) + bus_notes(bus)
-    if not radio:
-        counts = [f"{bus.sent} frame{'s' if bus.sent != 1 else ''} sent",
-                  f"{bus.received} received"] if bus is not None else []
-        return (f"robot {station.id}: CAN only (no radio); CAN: "
-                + ", ".join(counts + troubles))
-    line = summary_line(station)
-    if troubles:
-        line += "; CAN: " + ", ".join(troubles)
-    return line
+    counts = [f"{bus.sent} frame{'s' if bus.sent != 1 else ''} sent",
+              f"{bus.received} received"] if bus is not None else []
+    can_side = ", ".join(counts + ([malformed] if bad else []) + bus_notes(bus))
+    line = summary_line(station) if radio else f"robot {station.id}: CAN only (no radio)"
+    return line + (f"; CAN: {can_side}" if can_side else "")
 
 
 def bus_notes(bus) -> list[str]:

@@ -11,7 +11,7 @@ from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import OutputFile, TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
-from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console
+from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console, stdout_console
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                     progress: bool = True) -> None:
@@ -209,7 +209,8 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
               pcap_path: str | None = None) -> tuple[World, float]:
     """Run the world to its end, with its trace, waveform and capture files; ``on_event``
     gets every event too. An output that cannot be written during the run (a full disk) is a
-    UserError naming that output, and no output is left."""
+    UserError naming that output, and no output is left; one that cannot be finished at the
+    end, a UserError too, and the others are kept (:func:`close_outputs`)."""
     distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
     try:
@@ -242,18 +243,35 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         else:
             world.run()
         wall = time.perf_counter() - t0
-        if pcap_file is not None:
-            pcap_file.commit()
     except BaseException as exc:
-        close_writers(trace, vcd, ok=False)
-        if pcap_file is not None:
-            pcap_file.discard()
+        close_outputs(trace, vcd, pcap_file, pcap_path, ok=False)
         if isinstance(exc, OSError):     # a write of an output failed: the disk is full...
             raise write_failed(exc, trace=trace_path, VCD=vcd_path, capture=pcap_path) \
                 from None
         raise
-    close_writers(trace, vcd, ok=True)
+    close_outputs(trace, vcd, pcap_file, pcap_path, ok=True)
     return world, wall
+
+
+def close_outputs(trace, vcd, capture: OutputFile | None, capture_path: str | None,
+                  ok: bool) -> None:
+    """The end of a run's outputs (``rprs sim`` and ``rprs monitor`` alike): if the run went
+    to its end (``ok``), each is finished and put in place, and one that cannot be finished
+    (the disk filled at its last bytes) is a UserError naming it (the first, if more), while
+    the others, whole, are kept: a full disk under the trace leaves the capture and the
+    waveform, one under the capture leaves the trace. Not ``ok`` (the run failed or was
+    interrupted, an output could not be written during it): none is left."""
+    error = None
+    try:
+        close_writers(trace, vcd, ok)
+    except UserError as exc:
+        error = exc
+    try:
+        close_capture(capture, capture_path, ok)
+    except UserError as exc:
+        error = error or exc
+    if error is not None:
+        raise error
 
 
 def open_capture(path: str | None) -> OutputFile | None:
@@ -294,9 +312,8 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
         print(json.dumps(s, indent=1))
         return
     from rich import box
-    from rich.console import Console
     from rich.table import Table
-    con = Console()
+    con = stdout_console()
     con.print(f"[bold]RPRS ring, {sim_s:g} s simulated, seed {world.cfg.seed}[/bold]")
     t = Table(box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 1), collapse_padding=True)
     for col in ("robot", "mode", "sent", "recv", "pending", "missed", "submitted", "delivered",
@@ -372,7 +389,7 @@ def print_summary_and_report(world: World, wall: float, a: argparse.Namespace,
     print_summary(world, wall, a.json, membership=membership, extra=extra)
     if report and not a.json:
         from ..view.cpu_report import print_cpu_report
-        print_cpu_report(world, cfg.cpu)
+        print_cpu_report(world, cfg.cpu, console=stdout_console)
 
 
 def add(sub) -> None:

@@ -313,13 +313,21 @@ class Air:
         return start if 0 <= k < rx.n and start <= now else None
 
     def deafen(self, radio: Ptr2000, now: int) -> None:
-        """``radio`` stops hearing at ``now`` (TXEN raised or radio dead)."""
+        """``radio`` stops hearing at ``now`` (TXEN raised or radio dead). A dead radio heard
+        nothing since it died (``kill`` deafened it): nothing to do, and nothing of the air's
+        is touched, so a station whose radio is dead runs on its own (hil/sim/quiet_ring.py)."""
+        if not radio.alive:
+            return
         self.sync(radio, now)
         radio.rx = None
         self._noise_gen[radio.idx] += 1
 
     def rx_restart(self, radio: Ptr2000, when: int) -> None:
-        """``radio`` hears the air again from tick ``when`` (TXEN lowered)."""
+        """``radio`` hears the air again from tick ``when`` (TXEN lowered). Not a dead radio:
+        it hears nothing until ``revive``, which starts its listening itself (a join scheduled
+        now would find it deaf and do nothing)."""
+        if not radio.alive:
+            return
         self._idle_from(radio, when)
         self.sched.at(when, self._join, radio, when)
 

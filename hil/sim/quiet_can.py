@@ -20,8 +20,8 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
   the whole periods that passed (ticks and counters, in one step) and runs the last partial
   period's events on a private scheduler up to the tick now (its events run first at a tick),
   then its events go back into the world's scheduler. If a latest status changed from one
-  period to the next, the last whole period runs on the private scheduler too, and rewrites
-  it as the skipped periods would have.
+  period to the next, or may change later (a cruising wheel), the last whole period runs on
+  the private scheduler too, and rewrites it as the skipped periods would have.
 * News (a reply, a ``done()`` or ``fail()`` notice) reaching a child that has nothing under
   way is only noted, in the dispatcher's log (``ChildFirmware.notes_only``): it reads nothing a
   period changes and changes nothing a period moves, so it does not wake the domain. Nor does
@@ -79,10 +79,10 @@ LATEST: tuple[type, ...] = (NodeView,)
 """Types holding only the latest of something each period rewrites before anything in a
 sleeping domain reads it: the dispatcher's record of a submodule's last status frame (each
 status frame sets all of it; with no job running, only the radio side reads it, and a
-message wakes the domain first). A cruising wheel's odometer changes it every period: such a
-domain sleeps all the same, and at its wake runs its last whole period frame by frame, which
-writes the values the skipped periods would have left (hil/sim/state_walk.py, free
-positions)."""
+message wakes the domain first). A cruising wheel's odometer changes it every period, or every
+few periods at a low speed: such a domain sleeps all the same, and at every wake runs its last
+whole period frame by frame, which writes the values the skipped periods would have left
+(hil/sim/state_walk.py, free positions; :attr:`QuietCan.drifting`)."""
 
 
 class DomainClock:
@@ -131,6 +131,12 @@ class QuietCan:
         self.roots: list[Any] = []
         self.boundary: list[Any] = []
         self.may_sleep: Callable[[], bool] = lambda: True
+        self.drifting: Callable[[], bool] = lambda: False
+        """True while a part's latest values may change without two snapshots a period
+        apart showing it: a wheel cruising at 3 mm/s reports the same odometer (whole mm) for
+        three periods, then the next. Every wake then runs the last whole period frame by
+        frame (found by a random hunt, 2026-11-26: the dispatcher's record of such a wheel
+        kept the odometer of the period the domain fell asleep in)."""
         self.enabled = True
         self.asleep = False
         self.periods_skipped = 0
@@ -162,6 +168,15 @@ class QuietCan:
     def start(self, phase: int) -> None:
         """Probe every period from tick ``phase`` on (a tick the status grid is idle at)."""
         self.clock.at(phase, self._probe)
+
+    def touched(self) -> None:
+        """Something from outside the domain reached it while it is awake (a message handed
+        to the child, a fault): the snapshot taken before proves nothing about a period. A
+        message the child only notes adds one to its main loop's handler calls, a counter, and
+        two snapshots that straddle it would say the counter grows by one a period: a sleep
+        would then add one for every period it skipped (found by a random hunt, 2026-11-26)."""
+        if not self.asleep:
+            self._last = None
 
     def disable(self) -> None:
         """Never sleep again (something now watches every frame: a capture)."""
@@ -226,7 +241,7 @@ class QuietCan:
             self.one_shots += 1
             return
         self._misses = 0
-        self._replay = replay
+        self._replay = replay or self.drifting()
         self._events = self.world.take(self)
         self._moved = moved
         self._orbit, self._steps = snap, steps

@@ -32,6 +32,15 @@ of the whole radio side:
   state is its orbit and the tick it fell asleep at, and when something wakes it, it moves on
   by the periods that passed whatever the ring did meanwhile; so its parts are left out of the
   snapshot (``boundary``), and a leap leaves them as they are.
+* A robot whose radio is dead (a ``fail`` fault, or not powered on yet) hears nothing, is
+  heard by nobody and touches nothing of the air's, but its MAC keeps a cycle of its own (it
+  claims the silent channel and sends its heartbeats to nobody). Its station is left out of
+  the snapshot like a sleeping CAN side, and at a leap its events run on a scheduler of their
+  own across the cycles leapt over, frame by frame (``RadioStation.use_scheduler``): the ring
+  reports nothing meanwhile, so whatever the deaf station reports keeps its place. A lone
+  deaf station leaps over its own cycles there, the same way (snapshots after its frames,
+  compared over the last few dozen: :func:`_run_alone`). With a trace, a deaf station's
+  events keep the ring from leaping (they would be written twice).
 * A trace and an event callback get the events of the cycles leapt over, and a capture
   (hil/sim/pcap.py) their packets: those of the period before the leap, their ticks
   (:data:`TICK_KEYS`) moved on by one period, k times. The probe checks that rule on the run
@@ -53,14 +62,17 @@ and stops between, and on random rings.
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import TYPE_CHECKING, Any
 
-from firmware_model.mcu.scheduler import Event
+from firmware_model.mcu.scheduler import Event, Scheduler
 from firmware_model.radio.mac import PC2_CHECK_EVERY
 
 from .state_walk import Unwalkable, advance, period_steps, snapshot, writable
 
 if TYPE_CHECKING:
+    from firmware_model.station import RadioStation
+
     from .air import Transmission
     from .world import World
 
@@ -94,6 +106,9 @@ machine clock / 2 (firmware_model/mcu/reload_timer.py), so a deadline's rounding
 the tick's parity."""
 
 _BACKOFF_MAX = 64
+_ALONE_HISTORY = 4 * 7 * 3
+"""Frames of a deaf station a snapshot is compared back over: its cycle is ``poll_every`` (4)
+times the rounds of the ring it believes in (up to 7 turns each), and its polling position."""
 _ANCHOR_LOST = 3 * 7
 """Transmissions of others after which a silent anchor is replaced."""
 
@@ -120,6 +135,9 @@ class QuietRing:
         self.leaps = 0
         self.ticks_skipped = 0
         """Simulated ticks the ring did not run frame by frame (docs/performance.md)."""
+        self.alone_ticks_skipped = 0
+        """Of the deaf stations carried across the ring's leaps, the ticks a lone one leapt
+        over on its own (module docstring)."""
         self._count = 0
         self._others = 0                       # transmissions since the anchor's last
         self._last: Any = None
@@ -190,13 +208,20 @@ class QuietRing:
         if len(events) != len(sched):          # another owner's events (a domain): not ours
             self._last = None
             return
+        deaf = self.world.deaf_stations()
+        clocked = {id(p) for st in deaf for p in st.clocked_parts()}
+        carried = False
+        if clocked:                            # theirs run on alone, carried across a leap
+            ring = [e for e in events if id(getattr(e.fn, "__self__", None)) not in clocked]
+            carried, events = len(ring) < len(events), ring
         self.probes += 1
         try:
             # the trace writer and the capture are outside: what they were given is
             # checked below, event by event and packet by packet
             sinks = [x for x in (self.world.trace, self.world.pcap) if x is not None]
-            snap = snapshot([self.world, events], [sched, self, *sinks, *self.boundary],
-                            rng_state=True)
+            walls = [part for st in deaf for part in _own_parts(st)]
+            snap = snapshot([self.world, events],
+                            [sched, self, *sinks, *self.boundary, *walls], rng_state=True)
         except Unwalkable:                     # an iterator somewhere: its state is hidden
             self.enabled = False
             return
@@ -230,12 +255,17 @@ class QuietRing:
             return
         w = self.world
         traced = w.trace is not None or w.on_event is not None or w.pcap is not None
-        if traced and not (rec_from == at and before[0] == at - period and
-                           _shifted(before[1], period) == recorded):
-            return                             # the events do not repeat (yet): no leap
+        if traced and (carried or not (rec_from == at and before[0] == at - period and
+                                    _shifted(before[1], period) == recorded)):
+            # the events do not repeat (yet), or a deaf station's would be written twice
+            # (replayed with the ring's, and by its own run across the leap): no leap
+            return
         taken = sched.take(None)
         advance(moved, k)
-        sched.skip_to(now + k * period)
+        target = now + k * period
+        if carried:
+            taken = _carry(self, deaf, clocked, taken, now, target)
+        sched.skip_to(target)
         sched.put_back(taken)
         if traced:
             for j in range(1, k + 1):
@@ -245,6 +275,97 @@ class QuietRing:
         self.leaps += 1
         self.ticks_skipped += k * period
         self._last = None
+
+
+def _own_parts(st: "RadioStation") -> list[Any]:
+    """A station and everything of its own (its radio too): a deaf station keeps a cycle of
+    its own, which the ring's snapshot leaves out (a closed box, like a sleeping CAN side)."""
+    return [st, st.uart, st.uart.line, st.txen, st.mac, st.deframer, *st.clocked_parts()]
+
+
+def _carry(ring: QuietRing, deaf: list["RadioStation"], clocked: set[int],
+           taken: list[Event], start: int, end: int) -> list[Event]:
+    """Run the deaf stations' events (among ``taken``, the world's events out of its heap)
+    from ``start`` up to tick ``end`` on a scheduler of their own, as the frame-by-frame run
+    does meanwhile: they hear nothing, are heard by nobody and touch nothing of the air's, and
+    the ring whose cycles are leapt over reports nothing, so whatever a deaf station reports
+    keeps its place. A lone deaf station with events leaps over the cycles of its own it only
+    repeats (:func:`_run_alone`). Returns ``taken`` with their events as they are at
+    ``end``."""
+    world = ring.world
+    mine = [e for e in taken if id(getattr(e.fn, "__self__", None)) in clocked]
+    if not mine:
+        return taken
+    ids = {id(e) for e in mine}
+    private = Scheduler(start)
+    private.put_back(mine)
+    selves = {id(getattr(e.fn, "__self__", None)) for e in mine}
+    owners = [st for st in deaf if any(id(p) in selves for p in st.clocked_parts())]
+    for st in deaf:
+        st.use_scheduler(private)
+    try:
+        if len(owners) == 1:
+            ring.alone_ticks_skipped += _run_alone(owners[0], private, end, ring)
+        private.run_until(end)
+    finally:
+        for st in deaf:
+            st.use_scheduler(world.sched)
+    return [e for e in taken if id(e) not in ids] + private.take(None)
+
+
+def _run_alone(st: "RadioStation", private: Scheduler, end: int, ring: QuietRing) -> int:
+    """Run a lone deaf station on ``private`` toward tick ``end``, leaping over its own
+    cycles. After every frame it sends (to nobody), a snapshot of the station and its pending
+    events is compared with those after each of its last :data:`_ALONE_HISTORY` frames (its
+    cycle is whole rounds of the ring it still believes in: 1-7 turns, and its polling every
+    ``poll_every`` of them); one that differs from an earlier one only by ticks moved on by
+    the time between them and by counters, with nothing reported to the world meanwhile
+    (``World.activity``; counters as the ring's, ``turns`` modulo 7 beside a standby PC), and
+    it moves on by whole cycles, every moved event staying before
+    ``end`` and before any event the cycle does not move. Stops short of ``end`` (the caller
+    runs the rest). Returns the ticks it leapt over."""
+    skipped = 0
+    world = ring.world
+    walls = [private, world.sched, world.air, world]
+    sent = st.mac.frames_sent
+    history: deque = deque(maxlen=_ALONE_HISTORY)
+    while True:
+        t = private.next_time()
+        if t is None or t > end:
+            return skipped
+        private.step()
+        if st.mac.frames_sent == sent:
+            continue
+        sent = st.mac.frames_sent
+        now = private.now
+        activity = world.activity()
+        events = private.pending(None)
+        try:
+            snap = snapshot([_own_parts(st), events], walls, rng_state=True)
+        except Unwalkable:
+            return skipped
+        for last, last_at, last_activity in reversed(history):
+            period = now - last_at
+            if last_activity != activity or period % GRAIN:
+                continue
+            steps = period_steps(last, snap, period, ring.counters, ring.modular)
+            if steps is None:
+                continue
+            moved = writable(snap, steps)
+            stepped = {id(h) for h, key, _ in moved if key == "when" and type(h) is Event}
+            horizon = min([e.when for e in events if id(e) not in stepped] + [end + 1])
+            reach = max([e.when for e in events if id(e) in stepped] + [now])
+            k = (horizon - 1 - reach) // period
+            if k >= 1:
+                taken = private.take(None)
+                advance(moved, k)
+                private.skip_to(now + k * period)
+                private.put_back(taken)
+                history.clear()
+                skipped += k * period
+                break
+        else:
+            history.append((snap, now, activity))
 
 
 def _shifted(events: list[tuple], by: int) -> list[tuple]:

@@ -159,6 +159,8 @@ class SimConfig:
         if isinstance(self.load, str):
             if self.load not in ("idle", "saturate"):
                 raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
+        elif isinstance(self.load, bool) or not isinstance(self.load, (int, float)):
+            raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
         elif not self.load > 0:
             raise ConfigError(f"load rate must be positive messages/s, got {self.load}")
         for r, t in self.power_on.items():
@@ -378,9 +380,11 @@ class World:
             and bus.trace is world_trace and bus.error_trace is None
             and not child.dispatcher.jobs
             and all(n.state != STATE_MOVING or n.cruising for n in nodes.values()))
+        quiet.drifting = lambda: any(n.cruising for n in nodes.values())
         app = st.app
 
         def app_awake(d, now: int) -> None:
+            quiet.touched()
             if quiet.asleep and child.notes_only(d):
                 quiet.noted += 1             # news only noted: the CAN side sleeps on
             elif quiet.asleep and child.refuses_only(d):
@@ -540,6 +544,7 @@ class World:
         q = self.quiet.get(f.robot)
         if q is not None:
             q.wake()
+            q.touched()
         if k in AIR_KINDS:
             apply_air_fault(self.air, self.radios.__getitem__, f, phase, self.cfg.ber,
                             self.cfg.noise)
@@ -743,6 +748,16 @@ class World:
         stations = [*self.stations.values(), *([sb] if sb is not None else [])]
         return (self.air.on_transmission, self.air.on_collision,
                 *(st.observer for st in stations))
+
+    def deaf_stations(self) -> list[RadioStation]:
+        """Stations whose radio is dead now (a ``fail`` fault, or not powered on yet): they
+        neither hear nor are heard, and touch nothing of the air's (hil/sim/air.py), so each
+        runs on alone (hil/sim/quiet_ring.py carries them across the ring's leaps)."""
+        out = [st for r, st in self.stations.items() if not self.radios[r].alive]
+        sb = self.standby_station
+        if sb is not None and not self.radios[STANDBY].alive:
+            out.append(sb)
+        return out
 
     def station_of(self, robot: int) -> RadioStation:
         """The station that speaks for ``robot`` now (for the father: its active PC)."""

@@ -51,13 +51,14 @@ def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int) -> dict:
     return {"load": round(cpu.busy / span, 6) if span else 0.0, "handlers": rows}
 
 
-def print_cpu_report(world, costs) -> dict:
-    """Print every child's budget (rich tables); returns the same as data."""
+def print_cpu_report(world, costs, console=None) -> dict:
+    """Print every child's budget (rich tables) on ``console`` (a rich Console class; rich's
+    own by default); returns the same as data."""
     from rich import box
     from rich.console import Console
     from rich.table import Table
-    con = Console()
-    con = Console(width=max(con.width, 100))    # the table's width; wraps on narrower
+    make = console or Console
+    con = make(width=max(make().width, 100))    # the table's width; wraps on narrower
     span = world.sched.now
     out = {}
     for r, cpu in sorted(world.cpus.items()):

@@ -1,0 +1,106 @@
+"""Random hunt for a fast path that is not the frame-by-frame run: sleeping CAN sides
+(hil/sim/quiet_can.py) and ring leaps (hil/sim/quiet_ring.py) against the same world with both
+off, on random rings, faults, loads, byte errors and run segments.
+
+    python scripts/sleep_hunt.py [--seed 0] [--runs 100]
+
+Each run draws a world from its seed (robots, duration, CAN sides, the standby father, the
+soak's random faults at a random spacing, a load that may stop half-way, byte errors, the
+checksum, perhaps a robot gone for good), runs it once with every frame run and once with the fast paths, the second cut into
+0-3 ``World.run`` segments that wake the CAN sides or not, and compares the summaries and the
+whole state (every part, every pending event, the random generators). A difference prints the
+world and makes the exit status 1. Two inexact sleeps were found this way (docs/performance.md,
+"Session 24"); tests/test_quiet_can.py keeps both as named scenarios and runs a few seeds of
+this hunt.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import sys
+import time
+from dataclasses import replace
+
+from firmware_model.radio.mac import MacConfig
+from hil.sim.faults import Fault
+from hil.sim.soak import random_faults
+from hil.sim.state_walk import portable, snapshot
+from hil.sim.world import SimConfig, World
+
+TICK_HZ = 16_000_000
+
+
+def random_world(seed: int, durations: tuple[int, ...] = (30, 60, 90, 150)
+                 ) -> tuple[SimConfig, list[tuple[int, bool]], bool]:
+    """A random world, the segments to cut its fast run into (tick, wake the CAN sides), and
+    whether both runs record their events (a trace: the ring's leaps write the events of the
+    cycles they leap over, and the CAN sides stay awake)."""
+    rng = random.Random(seed)
+    robots = tuple(sorted(rng.sample(range(7), rng.randint(2, 7))))
+    duration = rng.choice(durations)
+    can = rng.random() < 0.8
+    standby = 0 in robots and rng.random() < 0.3
+    faults = random_faults(rng, robots, duration / 3600 + 0.04, can, standby,
+                           mean_gap_s=rng.choice([10, 20, 40]))
+    if rng.random() < 0.3:                 # a robot gone for good (the soak's come back)
+        faults.append(Fault("fail", rng.choice(robots), round(rng.uniform(1, duration), 3)))
+    load = rng.choice(["idle", "idle", 0.2, 0.5, 1])
+    cfg = SimConfig(robots=robots, duration=duration, seed=rng.randrange(10 ** 6), can=can,
+                    load=load, load_until=None if load == "idle" else
+                    rng.choice([None, duration / 2]), father_standby=standby,
+                    faults=tuple(f for f in faults if f.at < duration),
+                    ber=rng.choice([0, 0, 1e-4, 1e-3]),
+                    mac=MacConfig(checksum=rng.random() < 0.7))
+    cuts = sorted(rng.uniform(0, duration) for _ in range(rng.randint(0, 3)))
+    return cfg, [(round(c * TICK_HZ), rng.random() < 0.5) for c in cuts], rng.random() < 0.3
+
+
+def state(w: World) -> list:
+    """The whole world as a comparable list (CAN sides woken first)."""
+    w.wake_can()
+    parts = [p for _, q in sorted(w.quiet.items()) for p in q.roots]
+    stations = [w.stations[r] for r in sorted(w.stations)]
+    boundary = [w.sched, *w.quiet.values(), *(q.clock for q in w.quiet.values())]
+    return portable(snapshot([*parts, stations, w.air], boundary, rng_state=True))
+
+
+def summary(w: World) -> str:
+    return json.dumps(w.summary(), sort_keys=True, default=str)
+
+
+def same_run(cfg: SimConfig, cuts: list[tuple[int, bool]], traced: bool = False) -> bool:
+    """Does the fast run, cut at ``cuts``, end exactly where the frame-by-frame run does (and,
+    ``traced``, write the same events)?"""
+    slow_events: list[dict] = []
+    fast_events: list[dict] = []
+    slow = World(replace(cfg, can_sleep=False, ring_sleep=False),
+                 on_event=slow_events.append if traced else None)
+    slow.run()
+    fast = World(cfg, on_event=fast_events.append if traced else None)
+    for tick, wake in cuts:
+        fast.run(until=tick, wake_can=wake)
+    fast.run()
+    return (summary(fast) == summary(slow) and state(fast) == state(slow)
+            and fast_events == slow_events)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=0, help="first world's seed (default 0)")
+    ap.add_argument("--runs", type=int, default=100, help="worlds to draw (default 100)")
+    a = ap.parse_args(argv)
+    bad = 0
+    for seed in range(a.seed, a.seed + a.runs):
+        cfg, cuts, traced = random_world(seed)
+        t = time.perf_counter()
+        ok = same_run(cfg, cuts, traced)
+        bad += not ok
+        print(f"seed {seed}: {'same run' if ok else 'DIFFERENT'} ({time.perf_counter() - t:.1f} s)"
+              + ("" if ok else f"\n  {cfg!r}\n  cuts {cuts}, traced {traced}"), flush=True)
+    print(f"{a.runs} worlds, {bad} different")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
