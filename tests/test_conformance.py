@@ -39,18 +39,23 @@ def _spawn(*args: str) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _stop(*procs) -> None:
+def _stop(*procs) -> list[tuple[str, str]]:
+    """Stop ``procs``; what each still had on stdout and stderr, in order (its pipes are
+    closed after: one left open warns when the process is collected)."""
     for p in procs:
         if p.poll() is None:
             p.terminate()
+    rest = []
     for p in procs:
         try:
             p.wait(timeout=5)
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
-        p.stdout.close()                        # nobody reads them after the stop, and a
-        p.stderr.close()                        # pipe left open warns when p is collected
+        rest.append((p.stdout.read(), p.stderr.read()))
+        p.stdout.close()
+        p.stderr.close()
+    return rest
 
 
 @pytest.fixture
@@ -304,6 +309,7 @@ def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
                                      ["rprs", "submodules"], ["rprs", "conformance"]], cmds
     assert not any(w.startswith("virtual:") for c in cmds for w in c), cmds
     procs: dict[str, subprocess.Popen] = {}
+    left: list[tuple[str, str]] = []
     try:
         for c in cmds[:-1]:
             args = c[1:] + (["--events"] if c[1] == "child" else [])
@@ -323,16 +329,15 @@ def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
         run = subprocess.run([sys.executable, "-m", "hil.cli", *cmds[-1][1:]], cwd=tmp_path,
                              capture_output=True, text=True, timeout=120)
     finally:
-        _stop(*reversed(procs.values()))
+        left = _stop(*reversed(procs.values()))
     assert run.returncode == 0, run.stdout + run.stderr
     cases = _cases(tmp_path / "verdicts.xml")
     clauses = {c.split()[1] for c, _ in cases}
     assert {"47", "48", "45"} <= clauses and all(cases.values()), cases
-    child = procs["child"]
-    err = child.stderr.read()
+    out, err = left[list(reversed(procs)).index("child")]
     assert "note:" not in err, err
     can_side = err.strip().splitlines()[-1].partition("; CAN: ")[2]
     assert int(can_side.split(" received")[0].rpartition(" ")[2]) > 0, err  # it heard them
-    events = [json.loads(x) for x in child.stdout.read().splitlines()]
+    events = [json.loads(x) for x in out.splitlines()]
     replies = [e for e in events if e["ev"] == "submit" and e["dst"] == 0]
     assert len(replies) == 2 and all(e["type"] != 4 for e in replies), replies   # no fail(30)
