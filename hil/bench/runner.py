@@ -115,7 +115,7 @@ def _events_printer(out: TextIO | None, robot: int,
     return observe
 
 
-_STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
+STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
                       if hasattr(signal, n))
 """What stops a bench process cleanly: Ctrl-C, SIGTERM, and its terminal closed."""
 
@@ -174,7 +174,7 @@ class Runner:
         if threading.current_thread() is threading.main_thread():
             # SIGHUP: the terminal it ran in closed; it used to kill the process, its --pcap
             # and --can-log cut off where their buffers were
-            for sig in _STOP_SIGNALS:
+            for sig in STOP_SIGNALS:
                 old[sig] = signal.signal(sig, self.stop)
         try:
             if ready is not None:

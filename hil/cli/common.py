@@ -285,18 +285,19 @@ def run_until_stopped(runner, a: argparse.Namespace, describe: str, summary,
         runner.run(a.duration, ready=ready)
     except BrokenPipeError:
         closed = True             # Runner.run closed everything on its way out
-    _say(summary())
+    say_closing(summary())
     code = stopped_by_itself(runner)
     n = getattr(runner, "troubles", 0)
     if n and not code:
-        _say(f"rprs: {n} trouble{'s' if n > 1 else ''} during the run (above): exit status 1")
+        say_closing(f"rprs: {n} trouble{'s' if n > 1 else ''} during the run (above): "
+                    "exit status 1")
         code = 1
     if closed or getattr(runner, "stdout_closed", False):
         raise BrokenPipeError("standard output closed by its reader")
     return code
 
 
-def _say(line: str) -> None:
+def say_closing(line: str) -> None:
     """A closing line on stderr; none if the terminal it was has gone (closed: SIGHUP
     stopped the process, and a write there fails with EIO): nobody is left to read it, and
     the stop was clean."""
@@ -310,7 +311,7 @@ def stopped_by_itself(runner) -> int:
     """1 and one line ``rprs: error: ...`` if ``runner`` stopped by itself, else 0."""
     if getattr(runner, "failure", None) is None:
         return 0
-    _say(f"rprs: error: {runner.failure}")
+    say_closing(f"rprs: error: {runner.failure}")
     return 1
 
 

@@ -84,8 +84,8 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
                               daemon=True)
     # the firmware's thread cannot take signals: SIGTERM (and a SIGINT sent from outside)
     # stop it from here, and the view quits when it has stopped (FatherApp's ``ended``)
-    from ..bench.runner import _STOP_SIGNALS     # SIGHUP too: its terminal closed
-    old = {sig: signal.signal(sig, runner.stop) for sig in _STOP_SIGNALS}
+    from ..bench.runner import STOP_SIGNALS      # SIGHUP too: its terminal closed
+    old = {sig: signal.signal(sig, runner.stop) for sig in STOP_SIGNALS}
     worker.start()
     try:
         app.run()
@@ -95,8 +95,8 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
         for sig, handler in old.items():
             signal.signal(sig, handler)
     from ..bench.runner import summary_line
-    from .common import _say
-    _say(summary_line(station))                   # not if the terminal has gone (SIGHUP)
+    from .common import say_closing
+    say_closing(summary_line(station))         # not if the terminal has gone (SIGHUP)
     return stopped_by_itself(runner)
 
 
