@@ -16,7 +16,8 @@ from xml.etree import ElementTree as ET
 import pytest
 
 from firmware_model.radio.frame import BROADCAST, Frame
-from hil.bench.conformance import MS, TTRANS, Check, ConformanceError, Heard, Report, Tester
+from firmware_model.radio.deframer import Deframer
+from hil.bench.conformance import BYTE, MS, TTRANS, Check, ConformanceError, Heard, Report, Tester
 
 from test_paper_profile import PaperRobot
 import test_paper_profile
@@ -120,6 +121,78 @@ def _tester_answered_with(frame: Frame) -> Tester:
     t.send = lambda f, at: 100 * MS
     t.wait_frame = lambda after, timeout, src=None: answers.pop(0) if answers else None
     return t
+
+
+class _Wire:
+    """A port that gives what was put in ``rx`` and keeps what the tester wrote."""
+
+    def __init__(self) -> None:
+        self.rx, self.tx = b"", []
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self.rx)
+
+    def read(self, n: int) -> bytes:
+        out, self.rx = self.rx[:n], self.rx[n:]
+        return out
+
+    def write(self, data: bytes) -> None:
+        self.tx.append(data)
+
+
+def _tester_on(wire: _Wire, clock: list[int], profile: str = "paper") -> Tester:
+    t = Tester.__new__(Tester)
+    t.robot, t.me, t.profile, t.tol = 1, 0, profile, 15 * MS
+    t.report, t.progress, t.acks, t.num, t.last_end = Report(1, profile), lambda s: None, [], 0, 0
+    t.rx_bytes = t.bad = t.collided = t.garbage = 0
+    t.on_air, t.heard, t.first_failure, t._mark = [], [], None, (0, 0, 0)
+    t.port, t.deframer, t.now = wire, Deframer(byte_ticks=BYTE), lambda: clock[0]
+    return t
+
+
+def test_a_frame_we_stepped_on_is_a_collision_not_the_robots_bad_frame():
+    """Clause 15 judges the robot's frames: one whose Header began before our frame and that
+    broke while ours was on air (we stepped on it: the air gives both of us garbage) is
+    counted apart; one that broke in silence, or that began after ours (the robot spoke
+    while we were on air), counts."""
+    wire, clock = _Wire(), [0]
+    t = _tester_on(wire, clock)
+    good = Frame(dst=BROADCAST, src=1, num=0, type=3, content=b"").encode()
+    broken = good[:7] + b"\x9d" + good[8:]               # Type byte hit: 0x9d, as a collision
+
+    def hear(data: bytes, at: int) -> None:
+        clock[0], wire.rx = at, data
+        t._poll_rx()
+    ours = Frame(dst=BROADCAST, src=0, num=0, type=3, content=b"").encode()
+    hear(broken[:5], 100 * MS)                             # its Header is on air ...
+    t._write(ours)                                         # ... when ours begins
+    hear(broken[5:], clock[0] + 9 * BYTE)
+    assert (t.bad, t.collided) == (0, 1)
+    hear(broken, clock[0] + 200 * MS)                      # long after our End: its own
+    assert (t.bad, t.collided) == (1, 1)
+    assert "0x9d" in t.first_failure
+    clock[0] += 200 * MS
+    t._write(ours)                                         # ours first, then its frame
+    hear(broken, clock[0] + 20 * BYTE)                     # its Header 7 bytes after ours began
+    assert (t.bad, t.collided) == (2, 1)
+    t.check("15", "x", t.bad == 0, "", time.monotonic())
+    assert t.report.checks[-1].verdict == "FAIL"
+
+
+def test_the_paper_start_listens_first_and_follows_the_robots_frame():
+    """A robot alone in the static ring takes its turns every Tmax + Ttrans: our first frame
+    goes Ttrans after the End of the one we hear, not at once (where it may land on one)."""
+    wire, clock = _Wire(), [0]
+    t = _tester_on(wire, clock)
+    alone = Heard(Frame(dst=BROADCAST, src=1, num=0, type=3, content=b""), 300 * MS, 315 * MS)
+    joins = Heard(alone.frame, 360 * MS, 375 * MS)
+    answers = [alone, joins]
+    sent = []
+    t.wait_frame = lambda after, timeout, src=None: answers.pop(0) if answers else None
+    t.send = lambda f, at: sent.append(at) or at + 14 * BYTE
+    assert t._start() is joins
+    assert sent == [alone.end + TTRANS]
 
 
 @pytest.mark.parametrize("type_,num,verdict", [(6, 1, "n/a"), (5, 0, "pass"), (5, 3, "FAIL"),

@@ -8,7 +8,9 @@ it, a forger. It invites the robot (profile ``rprs``) or starts the static ring 
 ===========  ================================================================================
 clause        what is checked, and the figure reported
 ===========  ================================================================================
-15, 6-13      every frame from the robot is a good frame (bytes heard, frames, failures)
+15, 6-13      every frame from the robot is a good frame (bytes heard, frames, failures);
+              a frame of the robot's that we stepped on (it broke while our frame, begun
+              after its Header, was on air) is counted apart and not held against it
 34, 29, 36    it answers an invitation with BOOT ('5', Number '00') or JOIN ('6') at
               E + Ttrans, and stops announcing once acknowledged (rprs); 29 is n/a (not
               applicable, JUnit "skipped") when the answer is not a BOOT frame
@@ -145,8 +147,10 @@ class Tester:
         self.deframer = Deframer(byte_ticks=BYTE)
         self.t0 = time.monotonic_ns()
         self.heard: list[Heard] = []
-        self.bad = 0                      # failed frames and garbage bytes heard
-        self.garbage = 0
+        self.bad = 0                      # failed frames heard (not in our own air time)
+        self.collided = 0                 # failed frames that overlapped one of ours
+        self.garbage = 0                  # bytes that formed no frame
+        self.on_air: list[tuple[int, int]] = []   # our transmissions (first bit, End), ticks
         self.rx_bytes = 0
         self.num = 0
         self.last_end = 0                 # our own last End (estimated)
@@ -173,9 +177,28 @@ class Tester:
             elif isinstance(ev, Garbage):
                 self.garbage += ev.count
             elif isinstance(ev, FrameFailed):
+                if self._ours_overlap(ev.first, ev.at):
+                    self.collided += 1
+                    continue
                 self.bad += 1
                 if self.first_failure is None:
                     self.first_failure = str(ev.error)
+
+    def _ours_overlap(self, first: int, at: int) -> bool:
+        """A frame of the robot's whose Header began (tick ``first``) before one of our
+        transmissions and that broke (tick ``at``) while it was on air, or within the
+        tolerance after its End: we stepped on it (a collision we caused), so it says
+        nothing of the robot's frames. A frame that began after ours began is judged: the
+        robot spoke while we were on air. Both are stamps of this PC, late by its latency."""
+        return any(first < s <= at <= e + self.tol for s, e in self.on_air[-4:])
+
+    def _write(self, data: bytes) -> int:
+        """Put ``data`` on the port now; the tick its End leaves the air."""
+        start = self.now()
+        self.port.write(data)
+        self.last_end = start + len(data) * BYTE
+        self.on_air.append((start, self.last_end))
+        return self.last_end
 
     def wait_frame(self, after: int, timeout_ticks: int, src: int | None = None) -> Heard | None:
         """The first frame (from ``src``) whose End arrived after tick ``after``."""
@@ -206,10 +229,7 @@ class Tester:
         while self.now() < at:
             self._poll_rx()
             time.sleep(0.0002)
-        data = frame.encode()
-        self.port.write(data)
-        self.last_end = self.now() + len(data) * BYTE
-        return self.last_end
+        return self._write(frame.encode())
 
     def frame(self, content: bytes = b"", dst: int = BROADCAST, type_: int = 3,
               num: int | None = None, src: int | None = None) -> Frame:
@@ -254,8 +274,10 @@ class Tester:
             why = f"; the first failed at {self.first_failure}" if self.first_failure else ""
             t0 = time.monotonic()
             # a run that stopped before any frame, good or failed, has nothing to judge
+            ours = (f", {self.collided} broken in a collision with ours (not judged)"
+                    if self.collided else "")
             self.check("15", "every frame from the robot is a good frame", self.bad == 0 and
-                       frames, f"{len(frames)} good frames, {self.bad} failed frames, "
+                       frames, f"{len(frames)} good frames, {self.bad} failed frames{ours}, "
                        f"{self.garbage} garbage bytes{why}" + (
                            ": the run stopped before the robot sent a frame"
                            if stopped and not frames and not self.bad else ""), t0,
@@ -280,7 +302,13 @@ class Tester:
         t0 = time.monotonic()
         if self.profile == "paper":
             # A static ring {me, robot}: we take our turns; the robot must join the rotation.
-            end = self.send(self.frame(), self.now())
+            # Listen before we talk: a robot alone in the ring already takes its turns (one
+            # every Tmax + Ttrans), so our first frame follows one of its Ends by Ttrans, as
+            # our turn would, instead of landing on its frame (and then, both timing out
+            # from that collision, on its next one too). We listen for two of its cycles:
+            # the first frame may begin just before we do and end after one cycle would.
+            h = self.wait_frame(-1, 2 * (TMAX + TTRANS + self.tol), self.robot)
+            end = self.send(self.frame(), h.end + TTRANS if h is not None else self.now())
             h = None
             for _ in range(40):
                 h = self.wait_frame(end, TMAX + TTRANS + 2 * self.tol, self.robot)
@@ -475,9 +503,7 @@ class Tester:
             while self.now() < at:
                 self._poll_rx()
                 time.sleep(0.0002)
-            self.port.write(data)
-            end = self.now() + len(data) * BYTE
-            self.last_end = end
+            end = self._write(data)
             nxt = self.wait_frame(end, 2 * TMAX + 8 * TSLOT, self.robot)
             if nxt is None:
                 self.check("41", "a frame that breaks is not acted on and closes the turn",
