@@ -20,6 +20,7 @@ from firmware_model.radio.frame import (
     Frame,
     FrameType,
     field_at,
+    frame_codec,
     parse_frame,
     parse_frame_cached,
 )
@@ -79,6 +80,28 @@ def test_round_trip(frame):
     assert data[8:12] == b"%04d" % frame.length
     assert parse_frame(data, max_content=9999) == frame
     assert FRAME_FORMAT.build(FRAME_FORMAT.parse(data)) == data
+
+
+@SETTINGS
+@given(frames)
+def test_the_compiled_codec_is_the_declaration(frame):
+    """What encode and parse_frame run (construct's compiled FRAME_FORMAT) gives the bytes and
+    the fields the declaration gives, and refuses what it refuses."""
+    fields = dict(dst=frame.dst, src=frame.src, num=frame.num, type=frame.type,
+                  content=frame.content)
+    data = FRAME_FORMAT.build(fields)
+    assert frame_codec().build(fields) == data == frame.encode()
+    assert frame_codec().parse(data) == FRAME_FORMAT.parse(data)
+
+
+@pytest.mark.parametrize("bad", [dict(dst=10, src=1, num=5, type=2, content=b""),
+                                 dict(dst=1, src=7, num=5, type=2, content=b""),
+                                 dict(dst=1, src=1, num=5, type=2, content=b"\x00")])
+def test_the_compiled_codec_refuses_what_the_declaration_refuses(bad):
+    for codec in (FRAME_FORMAT, frame_codec()):
+        with pytest.raises(Exception) as ei:
+            codec.build(bad)
+        assert "ValidationError" in type(ei.value).__name__
 
 
 def _err(data: bytes, **kw) -> FrameError:
