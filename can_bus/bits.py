@@ -345,9 +345,40 @@ def wire_bits(can_id: int, data: bytes = b"", rtr: bool = False, dlc: int | None
     return list(_wire(can_id, data, rtr, _check(can_id, data, rtr, dlc)))
 
 
+@lru_cache(maxsize=None)
+def _stuff_len_table(width: int) -> tuple[int, ...]:
+    """:func:`_stuff_table` as lengths: at the same index, the stuffed chunk's length << 4 |
+    the state after it (states are 0-10)."""
+    return tuple(len(part) << 4 | state for part, state in _stuff_table(width))
+
+
+@lru_cache(maxsize=1024)
+def _header_run(header: int) -> tuple[int, int, int]:
+    """(CRC-15 register, stuffed length, stuffing state) after the 19 header bits."""
+    n, state = 0, _START
+    for width, chunk in ((3, header >> 16), (8, header >> 8 & 0xFF), (8, header & 0xFF)):
+        e = _stuff_len_table(width)[state << width | chunk]
+        n += e >> 4
+        state = e & 15
+    return _header_crc(header), n, state
+
+
 @lru_cache(maxsize=8192)
 def _length(can_id: int, data: bytes, rtr: bool, dlc: int) -> int:
-    return len(_wire(can_id, data, rtr, dlc))
+    """``len(_wire(...))`` without building the bits (the bus needs only the length of a
+    frame nothing goes wrong in, and a moving joint's status frames are new nearly every
+    time): the same CRC, and the stuffed lengths of the header, each data byte and the CRC
+    from the tables (tested against :func:`_wire`)."""
+    crc, n, state = _header_run(can_id << 7 | (rtr << 6) | dlc)
+    table = _CRC15_BYTE
+    lens = _stuff_len_table(8)
+    for byte in data:
+        crc = ((crc << 8) & 0x7FFF) ^ table[((crc >> 7) ^ byte) & 0xFF]
+        e = lens[state << 8 | byte]
+        n += e >> 4
+        state = e & 15
+    e = _stuff_len_table(7)[state << 7 | crc >> 8]
+    return n + (e >> 4) + (lens[(e & 15) << 8 | crc & 0xFF] >> 4) + TRAILER_BITS
 
 
 def frame_length_bits(

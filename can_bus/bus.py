@@ -139,6 +139,7 @@ from can_bus.bits import (
     TRAILER_BITS,
     BitTiming,
     _check,
+    _length,
     _wire,
 )
 from can_bus.clock import Cancellable as Event, Clock as Scheduler
@@ -157,6 +158,7 @@ ERROR_FRAME_TOTAL_BITS = ERROR_FLAG_BITS + ERROR_DELIMITER_BITS + IFS_BITS
 """17: bus time from the start of a (superposed) error flag to the next possible SOF."""
 
 _REC_AFTER_PASSIVE_RX = 127
+_NO_DEAF: frozenset[int] = frozenset()  # no node lost the frame to its own local error
 _ELEVEN = BUS_IDLE_RECESSIVE_BITS
 _RECOVERY = BUS_OFF_RECOVERY_SEQUENCES
 
@@ -346,7 +348,10 @@ class CanBus:
         self._inject: dict[int | None, list[int | None]] = {}
         self._local: dict[int, list[int | None]] = {}      # node id -> bits, one per frame
         self._noisy: dict[int, int | None] = {}            # node id -> bit, every frame
-        self._cur_deaf: set[int] = set()     # passive nodes that flagged a local error
+        self._cur_deaf: set[int] | frozenset[int] = _NO_DEAF  # passive nodes that flagged a local error
+        self._watch = False
+        """Some node may be bus-off or in suspend transmission: the idle time's start and end
+        must look at every node (False: none is, and none needs to)."""
         self._holders: set[int] = set()
         self._hold: _Hold | None = None
 
@@ -416,7 +421,10 @@ class CanBus:
     def request(self, node: Any, frame: CanFrame | can.Message | None = None) -> None:
         """Ask to transmit. Nodes with ``pending()`` just wake the bus (``frame`` is ignored,
         the bus sends what ``pending()`` returns); others have ``frame`` queued by priority."""
-        ns = self._ns(node)
+        try:
+            ns = self._by_id[id(node)]
+        except KeyError:
+            ns = self._ns(node)         # raises the error
         ns.asked = True
         if ns.pending_fn is None:
             if frame is None:
@@ -541,6 +549,7 @@ class CanBus:
             new = BUS_OFF
             ns.occ = 0
             ns.suspend_until = 0
+            self._watch = True
             # a controller that recovers on request (the MB90F549's: when HALT is cleared)
             # does not count until start_recovery(); others count at once (CAN 2.0)
             ns.counting = not getattr(ns.node, "recovers_on_request", False)
@@ -570,9 +579,13 @@ class CanBus:
 
     def _start_segment(self, now: int) -> None:
         """A dominant bit (SOF or a stuck bus) starts at ``now`` after an idle period."""
+        if not self._watch:
+            return                  # nobody counts recessive bits or waits
         run = self._trailing + (now - self._idle_since) // self.tpb
+        off = False                 # after this, no node's suspend_until is past now
         for ns in self._nodes:
             if ns.state is BUS_OFF:
+                off = True
                 if not ns.counting:
                     continue
                 if ns.recover_ev is not None:
@@ -587,6 +600,7 @@ class CanBus:
                     self._recover(ns, now)
             elif ns.suspend_until > now:
                 ns.suspend_until = 0
+        self._watch = off
 
     def _arbitrate(self) -> None:
         self._arb_ev = None
@@ -623,19 +637,25 @@ class CanBus:
 
         if len(cands) == 1:
             winners = cands
+            frame = cands[0][0]
+            tx = [cands[0][1]]
         else:
             best = min(cands, key=_prio)[0]
             bid, brtr = best.id, best.rtr
             winners = [c for c in cands if c[0].id == bid and c[0].rtr == brtr]
-        frame = winners[0][0]
-        tx = [ns for _, ns in winners]
+            frame = winners[0][0]
+            tx = [ns for _, ns in winners]
         for ns in tx:
             ns.entry = ns.queue[0] if ns.pending_fn is None else None
 
         self._start_segment(now)
         if len(tx) == 1:
             t0 = tx[0]
-            rx = [ns for ns in self._nodes if ns is not t0 and ns.state is not BUS_OFF]
+            if self._watch:
+                rx = [ns for ns in self._nodes if ns is not t0 and ns.state is not BUS_OFF]
+            else:                       # no node is bus-off
+                rx = self._nodes.copy()
+                rx.remove(t0)
         else:
             rx = [ns for ns in self._nodes if ns.state is not BUS_OFF and ns not in tx]
         self._phase = _FRAME
@@ -643,13 +663,15 @@ class CanBus:
         self._cur_start = now
         self._cur_tx = tx
         self._cur_rx = rx
-        wire, nstuffed, _ = _frame_info(frame)
+        nwire = _length(frame.id, frame.data, frame.rtr, frame.dlc)  # SOF..EOF bits
+        nstuffed = nwire - TRAILER_BITS
         tpb = self.tpb
 
         # Earliest error in this frame, if any: (bit index, kind).
         err: tuple[int, str] | None = None
         for f, _ in winners[1:]:
             if f != frame:
+                wire = _frame_info(frame)[0]
                 w2 = _frame_info(f)[0]
                 k = next((i for i, (a, b) in enumerate(zip(wire, w2)) if a != b), min(len(wire), len(w2)) - 1)
                 if err is None or k < err[0]:
@@ -685,9 +707,9 @@ class CanBus:
                     err = (nstuffed + 1, "ack")  # every ACK comes back after the sample point
                     self._cur_late = True
 
-        self._cur_deaf = set()
         if self._local or self._noisy:
-            local = self._local_errors(rx, wire, nstuffed, err)
+            self._cur_deaf = set()
+            local = self._local_errors(rx, _frame_info(frame)[0], nstuffed, err)
             if local is not None:
                 b = local[0]
                 self._busy_until = now + (local[3] + 12) * tpb
@@ -696,17 +718,20 @@ class CanBus:
                     if ns.on_lost is not None and ns not in tx:
                         ns.on_lost(f)
                 return
+        else:
+            self._cur_deaf = _NO_DEAF
 
         if err is None:
-            self._busy_until = now + (len(wire) + IFS_BITS) * tpb
-            self._seg_ev = self.sched.at(now + len(wire) * tpb, self._frame_done)
+            self._busy_until = now + (nwire + IFS_BITS) * tpb
+            self._seg_ev = self.sched.at(now + nwire * tpb, self._frame_done)
         else:
             self._busy_until = now + (err[0] + 1 + ERROR_FRAME_TOTAL_BITS) * tpb
             self._seg_ev = self.sched.at(now + (err[0] + 1) * tpb, self._frame_error, err[1])
 
-        for f, ns in cands:
-            if ns.on_lost is not None and ns not in tx:
-                ns.on_lost(f)
+        if len(cands) > 1:              # a lone candidate won
+            for f, ns in cands:
+                if ns.on_lost is not None and ns not in tx:
+                    ns.on_lost(f)
 
     def _frame_done(self) -> None:
         now = self.sched.now
@@ -722,6 +747,7 @@ class CanBus:
                 self._update(ns, now)
             if ns.state is PASSIVE:
                 ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
+                self._watch = True
             if ns.entry is not None:
                 try:
                     ns.queue.remove(ns.entry)
@@ -742,26 +768,26 @@ class CanBus:
     def _rx_count(self, rx: list[_Node], deaf: set[int], now: int) -> None:
         """Receivers' REC after a frame they took (ISO 11898-1 rule 8)."""
         for ns in rx:
-            if ns.state is BUS_OFF:
-                continue
-            if deaf and id(ns) in deaf:       # its passive error flag: no frame, REC + 1
-                ns.rec += 1
+            if deaf and id(ns) in deaf and ns.state is not BUS_OFF:
+                ns.rec += 1                   # its passive error flag: no frame, REC + 1
                 self._update(ns, now)
                 continue
             r = ns.rec
-            if r > 127:
-                ns.rec = _REC_AFTER_PASSIVE_RX
-                self._update(ns, now)
-            elif r > 0:
-                ns.rec = r - 1
+            if r and ns.state is not BUS_OFF:     # nothing to do with a REC of 0
+                if r > 127:
+                    ns.rec = _REC_AFTER_PASSIVE_RX
+                    self._update(ns, now)
+                else:
+                    ns.rec = r - 1
 
     @staticmethod
     def _rx_deliver(frame: CanFrame, start: int, now: int, rx: list[_Node],
                     deaf: set[int]) -> None:
         fid = frame.id
         for ns in rx:
-            if ns.on_frame is not None and ns.attached and ns.state is not BUS_OFF and \
-                    not (deaf and id(ns) in deaf) and (ns.rx_ids is None or fid in ns.rx_ids):
+            ids = ns.rx_ids                   # first: most nodes ignore most frames
+            if (ids is None or fid in ids) and ns.on_frame is not None and ns.attached and \
+                    ns.state is not BUS_OFF and not (deaf and id(ns) in deaf):
                 ns.on_frame(frame, start, now)
 
     def _late_ack_received(self, frame: CanFrame, start: int, tx: _Node,
@@ -802,6 +828,7 @@ class CanBus:
                 all_passive = False
             if ns.state is PASSIVE:
                 ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
+                self._watch = True
             ns.entry = None
         for ns in rx:
             if ns.state is BUS_OFF:
@@ -890,6 +917,7 @@ class CanBus:
             self._update(ns, now)
             if ns.state is PASSIVE:
                 ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
+                self._watch = True
             ns.entry = None
         for ns in self._cur_rx:
             if ns.state is BUS_OFF:
@@ -917,6 +945,13 @@ class CanBus:
         self._trailing = trailing
         self._cur_tx = self._cur_rx = []
         self._cur_frame = None
+        if self._watch:
+            self._count_idle(now, trailing)
+        self._arbitrate()
+
+    def _count_idle(self, now: int, trailing: int) -> None:
+        """The bus fell idle at ``now`` after ``trailing`` recessive bits: each bus-off node
+        that counts recovers when its 128 x 11 recessive bits are complete."""
         tpb = self.tpb
         for ns in self._nodes:
             if ns.state is BUS_OFF and ns.counting:
@@ -929,7 +964,6 @@ class CanBus:
                     if ns.recover_ev is not None:
                         ns.recover_ev.cancel()
                     ns.recover_ev = self.sched.at(t, self._recover_event, ns)
-        self._arbitrate()
 
     # ------------------------------------------------------------------ stuck dominant
     def _hold_start(self) -> None:
@@ -1062,6 +1096,7 @@ class CanBus:
         for ns in h.tx:
             if ns.state is PASSIVE:
                 ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
+                self._watch = True
         self._hold = None
         self._phase = _TAIL
         self._busy_until = idle_at
