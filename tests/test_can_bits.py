@@ -12,6 +12,7 @@ from can_bus.bits import (
     OVERLOAD_FRAME_BITS,
     BitTiming,
     StuffError,
+    _length,
     _stuff_int,
     _wire,
     crc15,
@@ -224,6 +225,13 @@ def test_wire_from_integers_is_the_bit_by_bit_wire(args):
     can_id, data, rtr, dlc = args
     expected = tuple(stuff(frame_bits(can_id, data, rtr, dlc))) + (1,) * 10
     assert _wire.__wrapped__(can_id, data, rtr, dlc) == expected
+
+
+@settings(max_examples=300)
+@given(wire_args_st)
+def test_length_counted_from_tables_is_the_wire_length(args):
+    # the bus takes a frame's length from _length, which never builds the bits
+    assert _length.__wrapped__(*args) == len(_wire.__wrapped__(*args))
 
 
 # ---------------------------------------------------------------- validation
