@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import signal
 import stat
 import tempfile
 import threading
@@ -50,6 +51,13 @@ def _lock_base(config) -> Path:
 
 
 def pytest_configure(config):
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        # Started as a background job of a shell without job control (``pytest &`` in a
+        # script, some CI runners), this process ignores SIGINT, and every program a test
+        # starts would inherit that: Python then installs no Ctrl-C handler, and a test that
+        # stops ``rprs soak`` with SIGINT saw it run to the end and exit 0 (a helper's run,
+        # 2026-11-26). Tests play a terminal's foreground job: Ctrl-C is delivered.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     if not getattr(config, "workerinput", None) and \
             getattr(config.option, "testrunuid", "unset") is None:
         # xdist would draw the uid in its node manager, out of the controller's reach; drawn
