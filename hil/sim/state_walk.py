@@ -30,8 +30,10 @@ period frame by frame when it wakes (hil/sim/quiet_can.py).
 from __future__ import annotations
 
 import dataclasses
+import operator
 import random
 import types
+from types import MethodType
 from enum import Enum
 from typing import Any, Iterable
 
@@ -94,32 +96,36 @@ def _write(holder: Any, key: Any, value: Any) -> None:
         setattr(holder, key, value)
 
 
-_SLOTS: dict[type, list[str]] = {}
-
-
-def _slot_names(cls: type) -> list[str]:
-    names = _SLOTS.get(cls)
-    if names is None:
-        names = _SLOTS[cls] = _all_slots(cls)
-    return names
-
-
-def _all_slots(cls: type) -> list[str]:
+def _all_slots(cls: type) -> tuple[str, ...]:
     names: list[str] = []
     for c in reversed(cls.__mro__):
         s = c.__dict__.get("__slots__", ())
         names.extend((s,) if isinstance(s, str) else s)
-    return [n for n in names if n not in ("__dict__", "__weakref__")]
+    return tuple(n for n in names if n not in ("__dict__", "__weakref__"))
 
 
-_INT, _VALUE, _FN, _TUPLE, _LIST, _DICT, _FROZEN, _RNG, _ITER, _OBJ, _FOREIGN, _BYTES = (
-    "int", "value", "fn", "tuple", "list", "dict", "frozen", "rng", "iterator", "object",
-    "foreign", "bytearray")
-_PLAIN = frozenset({float, str, bool, bytes, type(None)})
-"""Value types taken as they are without asking :func:`_kind` (the commonest leaves)."""
+_INT, _VALUE, _FN, _TUPLE, _LIST, _DICT, _RNG, _ITER, _OBJ, _FOREIGN, _BYTES = (
+    "int", "value", "fn", "tuple", "list", "dict", "rng", "iterator", "object", "foreign",
+    "bytearray")
 _ABSENT = object()
-_KINDS: dict[type, str] = {}
-"""How :func:`snapshot` takes a value of each type (decided once per type)."""
+_NO_RECORDS: frozenset[str] = frozenset()
+_KINDS: dict[type, str] = {int: _INT, float: _VALUE, str: _VALUE, bool: _VALUE, bytes: _VALUE,
+                           type(None): _VALUE}
+"""How :func:`snapshot` takes a value of each type (decided once per type, :func:`_kind`)."""
+_FIELDS: dict[type, tuple[bool, tuple[str, ...], Any]] = {}
+"""How :func:`snapshot` reads the fields of an object of each of this project's types
+(:func:`_fields_plan`, decided once per type)."""
+
+
+def _fields_plan(t: type) -> tuple[bool, tuple[str, ...], Any]:
+    """(may have a ``__dict__``, slot names in walk order, a getter of all slots at once or
+    None). An object of a type that has slots only has no ``__dict__``: asking for it would
+    cost an AttributeError per object."""
+    plain = t.__getattribute__ is object.__getattribute__ and not hasattr(t, "__getattr__")
+    has_dict = not plain or any("__dict__" in vars(c) for c in t.__mro__)
+    slots = _all_slots(t)
+    getter = operator.attrgetter(*slots) if len(slots) > 1 else None
+    return has_dict, slots, getter
 
 
 def _kind(t: type) -> str:
@@ -138,13 +144,14 @@ def _kind(t: type) -> str:
     elif issubclass(t, dict):
         k = _DICT
     elif dataclasses.is_dataclass(t) and t.__dataclass_params__.frozen:
-        k = _FROZEN
+        k = _VALUE                # a frozen dataclass is a value: equal ones are the same
     elif issubclass(t, random.Random):
         k = _RNG
     elif hasattr(t, "__next__"):
         k = _ITER
     elif t.__module__.split(".")[0] in _OURS:
         k = _OBJ
+        _FIELDS[t] = _fields_plan(t)
     else:
         k = _FOREIGN
     _KINDS[t] = k
@@ -165,97 +172,103 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
     stop = {id(b) for b in boundary}
     keep: list[Any] = []            # objects whose ids the shape holds (Snapshot.alive)
     free: list[range] = []
-
     append = shape.append
+    hold = keep.append
+    kinds = _KINDS
+    plans = _FIELDS
 
-    # Ints and plain values, most of the leaves, are taken in the loop below without a call
-    # of visit (the same entries visit would make: a snapshot costs about a period's frames).
-    def items_of(pairs: Iterable[tuple[Any, Any]], holder: Any, name: str, by_key: bool,
-                 recs: frozenset[str] = frozenset()) -> None:
+    # A snapshot costs about a period's frames, so the walk is written for speed: the kind
+    # of every type and the fields of every class are decided once (_kind, _fields_plan),
+    # and one loop takes every value; only a container seen for the first time costs a call.
+    def items(pairs: Iterable[tuple[Any, Any]], holder: Any, name: str, by_key: bool,
+              recs: frozenset[str]) -> None:
+        """The values of ``pairs``, each ``holder[key]`` (or the attribute ``key``)."""
         for k, v in pairs:
-            tv = type(v)
-            n = k if by_key and isinstance(k, str) else name
-            if tv is int:
-                ints[len(shape)] = (holder, k, n)
+            t = type(v)
+            try:
+                kind = kinds[t]
+            except KeyError:
+                kind = _kind(t)
+            if kind is _INT:
+                ints[len(shape)] = (holder, k, k if by_key and isinstance(k, str) else name)
                 append(v)
-            elif tv in _PLAIN:
+            elif kind is _VALUE:
                 append(v)
-            elif tv is list and k in recs:
+            elif kind is _FN:
+                if t is MethodType:
+                    self_ = v.__self__
+                    fn = v.__func__
+                else:
+                    self_ = getattr(v, "__self__", None)
+                    fn = getattr(v, "__func__", v)
+                hold(fn)
+                hold(self_)
+                append(("fn", id(fn), id(self_), getattr(v, "__qualname__", t.__name__)))
+            elif kind is _TUPLE:        # walked wherever reached (module docstring)
+                append(("tuple", len(v)))
+                if v:
+                    items(enumerate(v), None if holder is None else InTuple(holder, k),
+                          k if by_key and isinstance(k, str) else name, False, _NO_RECORDS)
+            elif recs and t is list and k in recs:
                 append(("record", len(v)))
             else:
-                visit(v, holder, k, n)
+                i = id(v)
+                if i in stop:
+                    append(("boundary", i, None, t.__name__))
+                    continue
+                first = seen.get(i)
+                if first is not None:
+                    append(("ref", first))
+                    continue
+                seen[i] = len(shape)
+                hold(v)
+                n = k if by_key and isinstance(k, str) else name
+                if kind is _OBJ:
+                    fields(v, t)
+                elif kind is _LIST:
+                    append(("list", len(v)))
+                    if v:
+                        items(enumerate(v), v, n, False, _NO_RECORDS)
+                elif kind is _DICT:
+                    append(("dict", tuple(v)))
+                    if v:
+                        items(v.items(), v, n, True, _NO_RECORDS)
+                else:
+                    other(v, t, kind, i, n)
 
-    def fields_of(x: Any, t: type) -> None:
-        d = getattr(x, "__dict__", None)
-        if d is not None:
-            items_of(d.items(), x, "", True, records)
-        slots = _slot_names(t)
+    def fields(x: Any, t: type) -> None:
+        """An object of this project's type ``t``: its attributes, then its slots."""
+        append(("obj", t))
+        start = len(shape)
+        has_dict, slots, getter = plans[t]
+        if has_dict:
+            d = getattr(x, "__dict__", None)
+            if d is not None:
+                items(d.items(), x, "", True, records)
         if slots:
-            items_of([(k, v) for k in slots if (v := getattr(x, k, _ABSENT)) is not _ABSENT],
-                     x, "", True)
+            if getter is not None:
+                try:
+                    pairs = zip(slots, getter(x))
+                except AttributeError:          # a slot not set
+                    getter = None
+            if getter is None:
+                pairs = [(k, v) for k in slots if (v := getattr(x, k, _ABSENT)) is not _ABSENT]
+            items(pairs, x, "", True, _NO_RECORDS)
+        if t in latest:
+            free.append(range(start, len(shape)))
 
-    def visit(x: Any, holder: Any, key: Any, name: str) -> None:
-        t = type(x)
-        kind = _KINDS.get(t)
-        if kind is None:
-            kind = _kind(t)
-        if kind is _INT:
-            ints[len(shape)] = (holder, key, name)
-            shape.append(x)
-            return
-        if kind is _VALUE:
-            shape.append(x)
-            return
-        if kind is _FN:
-            self_ = getattr(x, "__self__", None)
-            fn = getattr(x, "__func__", x)
-            keep.append(fn)
-            keep.append(self_)
-            shape.append(("fn", id(fn), id(self_),
-                          getattr(x, "__qualname__", t.__name__)))
-            return
-        if kind is _FROZEN:           # a value: equal ones are the same, shared or not
-            shape.append(x)
-            return
-        if kind is _TUPLE:            # walked wherever reached (module docstring)
-            shape.append(("tuple", len(x)))
-            items_of(enumerate(x), None if holder is None else InTuple(holder, key), name,
-                     False)
-            return
-        i = id(x)
-        if i in stop:
-            shape.append(("boundary", i, None, t.__name__))
-            return
-        if i in seen:
-            shape.append(("ref", seen[i]))
-            return
-        seen[i] = len(shape)
-        keep.append(x)
-        if kind is _OBJ:
-            shape.append(("obj", t))
-            if t in latest:
-                start = len(shape)
-                fields_of(x, t)
-                free.append(range(start, len(shape)))
-                return
-            fields_of(x, t)
-        elif kind is _LIST:
-            shape.append(("list", len(x)))
-            items_of(enumerate(x), x, name, False)
-        elif kind is _DICT:
-            shape.append(("dict", tuple(x)))
-            items_of(x.items(), x, name, True)
-        elif kind is _BYTES:
-            shape.append(("bytearray", bytes(x)))
+    def other(x: Any, t: type, kind: str, i: int, name: str) -> None:
+        """A value of none of the common kinds (``i``: its id)."""
+        if kind is _BYTES:
+            append(("bytearray", bytes(x)))
         elif kind is _RNG and rng_state:
-            shape.append(("rng", x.getstate()))
+            append(("rng", x.getstate()))
         elif kind is _RNG or kind is _ITER or hasattr(x, "__next__"):
             raise Unwalkable(f"{name}: a {t.__name__} keeps state a snapshot cannot see")
         else:
-            shape.append(("id", i, None, t.__name__))
+            append(("id", i, None, t.__name__))
 
-    for root in roots:
-        visit(root, None, None, "root")
+    items([(None, root) for root in roots], None, "root", False, _NO_RECORDS)
     return Snapshot(shape, ints, keep, frozenset(p for r in free for p in r))
 
 
