@@ -33,8 +33,8 @@ import dataclasses
 import operator
 import random
 import types
-from types import MethodType
 from enum import Enum
+from types import MethodType
 from typing import Any, Iterable
 
 __all__ = ["InTuple", "Snapshot", "Unwalkable", "snapshot", "period_delta", "period_steps", "on_orbit",
