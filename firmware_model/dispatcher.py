@@ -183,16 +183,19 @@ class Dispatcher:
         except dbc.DbcError:
             self.bad_frames += 1
             return
-        if name.endswith("_STATUS"):
-            n = _node_of(name)
-            v = self.nodes[n]
+        role = _ROLES.get(name)
+        if role is None:
+            pass
+        elif role[0] == _STATUS:
+            v = self.nodes[role[1]]
             v.last_seen = now
             v.state = int(sig["state"])
             v.seq = int(sig["seq"])
-            v.value = float(sig.get("angle", sig.get("speed", sig.get("opening", 0.0))))
+            key = role[2]
+            v.value = float(sig[key]) if key is not None else 0.0
             v.extra = sig
-        elif name.startswith("EVENT"):
-            n = int(name[5:])
+        else:
+            n = role[1]
             self.nodes[n].last_seen = now
             kind, seq, code = int(sig["kind"]), int(sig["seq"]), int(sig["code"])
             for job in list(self.jobs):
@@ -453,16 +456,47 @@ class Dispatcher:
         self._radio.append((dst, (cmd("fail", code), c), int(FrameType.FAILURE)))
 
     def _update_deadline(self) -> None:
-        ticks = [j.deadline for j in self.jobs]
+        if not self.jobs:                # the usual case between orders: nothing to time
+            self.deadline = None
+            return
+        nodes = self.nodes
+        best = None                      # the earliest job deadline or silence limit (tick)
         for j in self.jobs:
+            t = j.deadline
+            if best is None or t < best:
+                best = t
+            started = j.started
             for n in j.waiting:
-                seen = self.nodes[n].last_seen
+                seen = nodes[n].last_seen
                 if seen is not None:
-                    ticks.append(max(seen, j.started) + SILENCE)
-        self.deadline = min(ticks) if ticks else None
+                    t = (seen if seen > started else started) + SILENCE
+                    if t < best:
+                        best = t
+        self.deadline = best
 
 
 def _node_of(name: str) -> int:
     if name.startswith("JOINT"):
         return int(name[5])
     return WHEEL if name.startswith("WHEEL") else PAW
+
+
+_STATUS, _EVENT = 0, 1
+
+
+def _roles() -> dict[str, tuple[int, int, str | None]]:
+    """Frame name -> (_STATUS, node, the signal NodeView.value takes or None) or (_EVENT,
+    node, None), for the status and event frames of rprs.dbc (what on_can reads of a name)."""
+    out: dict[str, tuple[int, int, str | None]] = {}
+    for m in dbc.load().messages:
+        name = m.name
+        signals = {s.name for s in m.signals}
+        if name.endswith("_STATUS"):
+            key = next((k for k in ("angle", "speed", "opening") if k in signals), None)
+            out[name] = (_STATUS, _node_of(name), key)
+        elif name.startswith("EVENT"):
+            out[name] = (_EVENT, int(name[5:]), None)
+    return out
+
+
+_ROLES = _roles()
