@@ -52,6 +52,8 @@ TX_BUFFERS = {0x010: 0, 0x101: 1, 0x102: 2, 0x103: 3, 0x104: 4, 0x105: 5, 0x106:
 RX_EVENT = (8, 9)
 RX_STATUS = (10, 11)
 
+_ACTIVE = ErrorState.ACTIVE
+
 RESTART_DELAY = TICK_HZ // 10      # 100 ms after bus-off before clearing HALT
 BLOCKED = TICK_HZ // 20            # 50 ms with nothing received while passive/bus-off
 RETRY = TICK_HZ                    # leave standby and try the bus again every 1 s
@@ -143,8 +145,8 @@ class CanDriver:
         if not self._read:
             return
         frame = self._read.pop(0)
-        self.last_rx = self.sched.now
-        self.on_frame(frame, self.sched.now)
+        self.last_rx = now = self.sched.now
+        self.on_frame(frame, now)
 
     # -- supervision ------------------------------------------------------------------------
 
@@ -163,7 +165,7 @@ class CanDriver:
         retry = self._retry_at
         if retry is not None and (best is None or retry < best):
             best = retry
-        if not self.isolated and self.can.error_state is not ErrorState.ACTIVE:
+        if not self.isolated and self.can.error_state is not _ACTIVE:
             blocked = (self.last_rx or 0) + BLOCKED
             if best is None or blocked < best:
                 best = blocked
@@ -332,21 +334,25 @@ class ChildFirmware:
 
     def _pump(self, cause: int | None = None) -> None:
         d = self.dispatcher
-        frames = d.take_can()
-        if frames and cause is not None and self.latency_from is None:
-            self.latency_from = (cause, frames[0].id, bytes(frames[0].data))
-        for f in frames:
-            self.can.send(f)
-        for dst, commands, type_ in d.take_radio():
-            try:
-                self.station.submit(dst, commands, type_)
-            except QueueFull:
-                break  # the rest would be refused as well: the queue drains only in turns
-            except ValueError:
-                pass  # refused (destination not valid): nothing else to do here
-        ticks = [t for t in (d.deadline, self.can.deadline()) if t is not None]
-        if ticks:
-            self.timer.arm_at(min(ticks))
+        if d.has_output():               # (most received frames produce none)
+            frames = d.take_can()
+            if frames and cause is not None and self.latency_from is None:
+                self.latency_from = (cause, frames[0].id, bytes(frames[0].data))
+            for f in frames:
+                self.can.send(f)
+            for dst, commands, type_ in d.take_radio():
+                try:
+                    self.station.submit(dst, commands, type_)
+                except QueueFull:
+                    break  # the rest would be refused as well: the queue drains only in turns
+                except ValueError:
+                    pass  # refused (destination not valid): nothing else to do here
+        when = d.deadline                # the earlier of the two deadlines (ticks), if any
+        can = self.can.deadline()
+        if when is None or (can is not None and can < when):
+            when = can
+        if when is not None:
+            self.timer.arm_at(when)
         else:
             self.timer.stop()
 

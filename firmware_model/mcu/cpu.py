@@ -135,13 +135,16 @@ class Cpu:
         cycles. ``enter()`` runs when the handler starts, ``fn(*args)`` when its body ends."""
         if vector.level == MAIN_LEVEL:
             return                      # ICR level 7: the request is never accepted
-        now = self.sched.now
         if self.ideal:
-            self._stats(vector.name, vector.level).calls += 1
+            s = self.stats.get(vector.name)
+            if s is None:
+                s = self._stats(vector.name, vector.level)
+            s.calls += 1
             if enter is not None:
                 enter()
             fn(*args)
             return
+        now = self.sched.now
         self._seq += 1
         self._pending.append((vector.level, vector.number, self._seq, now, vector, body,
                               enter, fn, args))
