@@ -43,7 +43,7 @@ Rs pin (pin 8) modes
   stuck dominant with no frame in flight, at the tick the error flag starts (6 bit times after
   the bus went dominant: the bus model gives no earlier hook). The SOF is seen through ``pending()``, which the bus does not call for a
   node it counts bus-off: such a node wakes only on a stuck bus. Mode changes take effect at
-  the next arbitration; a frame of this node already on the bus completes. A mode change that
+  the next arbitration; a frame of this node already on the bus completes.
 
   Simplification: in standby the node stays attached to the bus, so the bus still counts it
   as a receiver (its REC follows the traffic). It does not acknowledge (``acknowledges``). The controller's error state
