@@ -196,7 +196,8 @@ def reference_snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
 
     for root in roots:
         visit(root, None, None, "root")
-    return Snapshot(shape, ints, keep, frozenset(p for r in free for p in r))
+    spots = [part for spot in ints.values() for part in spot]
+    return Snapshot(shape, list(ints), spots, keep, frozenset(p for r in free for p in r))
 
 
 # -- the comparison --------------------------------------------------------------------------

@@ -29,6 +29,7 @@ period frame by frame when it wakes (hil/sim/quiet_can.py).
 """
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import operator
 import random
@@ -53,17 +54,41 @@ class Unwalkable(Exception):
 @dataclasses.dataclass
 class Snapshot:
     """``shape``: every position's kind and value (ints included), in walk order;
-    ``ints``: position in shape -> (holder, key, name) of every int a period may move on
-    (holder an :class:`InTuple` inside a tuple; None inside a tuple that is a root: it cannot
-    be written); ``alive``: every object whose
-    identity the shape records, kept alive with the snapshot so that no other object can take
-    its id while the snapshot may still be compared; ``free``: the positions inside objects of
-    a ``latest`` type (module docstring)."""
+    ``int_pos``: the positions of the ints in ``shape``, ascending; ``int_spots``: for each of
+    them, three entries in a row, the (holder, key, name) of that int (holder an
+    :class:`InTuple` inside a tuple; None inside a tuple that is a root: it cannot be written;
+    :meth:`spot`, :attr:`ints`); ``alive``: every object whose identity the shape records,
+    kept alive with the snapshot so that no other object can take its id while the snapshot
+    may still be compared; ``free``: the positions inside objects of a ``latest`` type
+    (module docstring).
+
+    A snapshot makes no container object of its own per int and shares its markers (the
+    ``("obj", type)``, ``("ref", position)`` ... tuples) with earlier snapshots: a probe keeps
+    one or two snapshots for a period or a whole sleep, and a thousand tuples each were the
+    most of what Python's cyclic garbage collector found to walk in a soak
+    (docs/performance.md, session 26)."""
 
     shape: list
-    ints: dict[int, tuple[Any, Any, str]]
+    int_pos: list[int]
+    int_spots: list
     alive: list = dataclasses.field(default_factory=list, repr=False)
     free: frozenset[int] = frozenset()
+
+    def spot(self, pos: int) -> tuple[Any, Any, str] | None:
+        """(holder, key, name) of the int at ``pos`` in ``shape``, or None if no int is there."""
+        ip = self.int_pos
+        j = bisect.bisect_left(ip, pos)
+        if j == len(ip) or ip[j] != pos:
+            return None
+        sp = self.int_spots
+        return sp[3 * j], sp[3 * j + 1], sp[3 * j + 2]
+
+    @property
+    def ints(self) -> dict[int, tuple[Any, Any, str]]:
+        """Position in ``shape`` -> (holder, key, name) of every int, in walk order."""
+        sp = self.int_spots
+        return {pos: (sp[3 * j], sp[3 * j + 1], sp[3 * j + 2])
+                for j, pos in enumerate(self.int_pos)}
 
 
 class InTuple:
@@ -112,20 +137,24 @@ _NO_RECORDS: frozenset[str] = frozenset()
 _KINDS: dict[type, str] = {int: _INT, float: _VALUE, str: _VALUE, bool: _VALUE, bytes: _VALUE,
                            type(None): _VALUE}
 """How :func:`snapshot` takes a value of each type (decided once per type, :func:`_kind`)."""
-_FIELDS: dict[type, tuple[bool, tuple[str, ...], Any]] = {}
+_FIELDS: dict[type, tuple[tuple, bool, tuple[str, ...], Any]] = {}
 """How :func:`snapshot` reads the fields of an object of each of this project's types
 (:func:`_fields_plan`, decided once per type)."""
+_MARKS: dict[tuple, tuple] = {}
+"""Every marker tuple a snapshot has held, each by itself: snapshots share them rather than
+keep equal copies (:class:`Snapshot`). Emptied when it reaches :data:`_MARKS_MAX`."""
+_MARKS_MAX = 65_536
 
 
-def _fields_plan(t: type) -> tuple[bool, tuple[str, ...], Any]:
-    """(may have a ``__dict__``, slot names in walk order, a getter of all slots at once or
-    None). An object of a type that has slots only has no ``__dict__``: asking for it would
-    cost an AttributeError per object."""
+def _fields_plan(t: type) -> tuple[tuple, bool, tuple[str, ...], Any]:
+    """(its marker ``("obj", t)``, may have a ``__dict__``, slot names in walk order, a getter
+    of all slots at once or None). An object of a type that has slots only has no
+    ``__dict__``: asking for it would cost an AttributeError per object."""
     plain = t.__getattribute__ is object.__getattribute__ and not hasattr(t, "__getattr__")
     has_dict = not plain or any("__dict__" in vars(c) for c in t.__mro__)
     slots = _all_slots(t)
     getter = operator.attrgetter(*slots) if len(slots) > 1 else None
-    return has_dict, slots, getter
+    return ("obj", t), has_dict, slots, getter
 
 
 def _kind(t: type) -> str:
@@ -167,15 +196,22 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
     long run's log does not make every snapshot longer (a part whose log grew is still not
     periodic). ``latest``: the types whose fields are free positions (module docstring)."""
     shape: list = []
-    ints: dict[int, tuple[Any, Any, str]] = {}
+    int_pos: list[int] = []
+    spots: list = []
     seen: dict[int, int] = {}
     stop = {id(b) for b in boundary}
     keep: list[Any] = []            # objects whose ids the shape holds (Snapshot.alive)
     free: list[range] = []
     append = shape.append
     hold = keep.append
+    at_int = int_pos.append
+    spot = spots.append
     kinds = _KINDS
     plans = _FIELDS
+    marks = _MARKS
+    if len(marks) >= _MARKS_MAX:
+        marks.clear()
+    mark = marks.setdefault       # mark(m, m): the one marker equal to m
 
     # A snapshot costs about a period's frames, so the walk is written for speed: the kind
     # of every type and the fields of every class are decided once (_kind, _fields_plan),
@@ -190,7 +226,10 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             except KeyError:
                 kind = _kind(t)
             if kind is _INT:
-                ints[len(shape)] = (holder, k, k if by_key and isinstance(k, str) else name)
+                at_int(len(shape))
+                spot(holder)
+                spot(k)
+                spot(k if by_key and isinstance(k, str) else name)
                 append(v)
             elif kind is _VALUE:
                 append(v)
@@ -203,22 +242,27 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
                     fn = getattr(v, "__func__", v)
                 hold(fn)
                 hold(self_)
-                append(("fn", id(fn), id(self_), getattr(v, "__qualname__", t.__name__)))
+                m = ("fn", id(fn), id(self_), getattr(v, "__qualname__", t.__name__))
+                append(mark(m, m))
             elif kind is _TUPLE:        # walked wherever reached (module docstring)
-                append(("tuple", len(v)))
+                m = ("tuple", len(v))
+                append(mark(m, m))
                 if v:
                     items(enumerate(v), None if holder is None else InTuple(holder, k),
                           k if by_key and isinstance(k, str) else name, False, _NO_RECORDS)
             elif recs and t is list and k in recs:
-                append(("record", len(v)))
+                m = ("record", len(v))
+                append(mark(m, m))
             else:
                 i = id(v)
                 if i in stop:
-                    append(("boundary", i, None, t.__name__))
+                    m = ("boundary", i, None, t.__name__)
+                    append(mark(m, m))
                     continue
                 first = seen.get(i)
                 if first is not None:
-                    append(("ref", first))
+                    m = ("ref", first)
+                    append(mark(m, m))
                     continue
                 seen[i] = len(shape)
                 hold(v)
@@ -226,7 +270,8 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
                 if kind is _OBJ:
                     fields(v, t)
                 elif kind is _LIST:
-                    append(("list", len(v)))
+                    m = ("list", len(v))
+                    append(mark(m, m))
                     if v:
                         items(enumerate(v), v, n, False, _NO_RECORDS)
                 elif kind is _DICT:
@@ -238,9 +283,9 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
 
     def fields(x: Any, t: type) -> None:
         """An object of this project's type ``t``: its attributes, then its slots."""
-        append(("obj", t))
+        obj, has_dict, slots, getter = plans[t]
+        append(obj)
         start = len(shape)
-        has_dict, slots, getter = plans[t]
         if has_dict:
             d = getattr(x, "__dict__", None)
             if d is not None:
@@ -266,10 +311,18 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
         elif kind is _RNG or kind is _ITER or hasattr(x, "__next__"):
             raise Unwalkable(f"{name}: a {t.__name__} keeps state a snapshot cannot see")
         else:
-            append(("id", i, None, t.__name__))
+            m = ("id", i, None, t.__name__)
+            append(mark(m, m))
 
-    items([(None, root) for root in roots], None, "root", False, _NO_RECORDS)
-    return Snapshot(shape, ints, keep, frozenset(p for r in free for p in r))
+    try:
+        items([(None, root) for root in roots], None, "root", False, _NO_RECORDS)
+    finally:
+        # items and fields call each other through their closures' cells: a reference
+        # cycle that would hold the whole walk (shape, ints, the objects kept alive) until
+        # the cyclic garbage collector ran. Emptying the cells frees it all by reference
+        # counting when the snapshot is dropped.
+        items = fields = other = None  # type: ignore[assignment]
+    return Snapshot(shape, int_pos, spots, keep, frozenset(p for r in free for p in r))
 
 
 def period_delta(before: Snapshot, after: Snapshot, period: int,
@@ -294,12 +347,12 @@ def period_steps(before: Snapshot, after: Snapshot, period: int,
     if len(a) != len(b) or before.free != after.free:
         return None
     free = after.free
-    int_at = after.ints
+    int_at = after.spot
     steps: dict[int, int] = {}
     for pos, (x, y) in enumerate(zip(a, b)):
         if x == y and type(x) is type(y):
             continue
-        spot = int_at.get(pos)
+        spot = int_at(pos) if type(y) is int else None
         if spot is None or type(x) is not int or type(y) is not int:
             if pos in free:
                 continue
@@ -330,10 +383,10 @@ def on_orbit(orbit: Snapshot, steps: dict[int, int], periods: int, now: Snapshot
     if len(a) != len(b) or periods < 1 or orbit.free != now.free:
         return False
     free = now.free
-    ints = now.ints
+    int_at = now.spot
 
     def counter(pos: int) -> bool:
-        spot = ints.get(pos)
+        spot = int_at(pos)
         return spot is not None and spot[0] is not None and spot[2] in counters
 
     for pos, (x, y) in enumerate(zip(a, b)):
@@ -375,8 +428,11 @@ def latest_moved(before: Snapshot, after: Snapshot, steps: dict[int, int],
 
 def writable(snap: Snapshot, steps: dict[int, int]) -> list[tuple[Any, Any, int]]:
     """(holder, key, delta) of every position in ``steps``, in ``snap``'s objects."""
-    ints = snap.ints
-    return [(ints[pos][0], ints[pos][1], d) for pos, d in sorted(steps.items())]
+    out = []
+    for pos, d in sorted(steps.items()):
+        holder, key, _ = snap.spot(pos)   # type: ignore[misc]  (steps are ints' positions)
+        out.append((holder, key, d))
+    return out
 
 
 def advance(moved: list[tuple[Any, Any, int]], periods: int) -> None:
