@@ -50,6 +50,20 @@ def of(events, kind):
 # ------------------------------------------------------------------ examples
 
 
+def test_a_frame_built_here_is_known_before_any_deframer_parsed_it():
+    """``known_frame`` takes bytes a sender of this process built (frame.built_frame) as one
+    good frame, as ``feed`` would report it; a Length above the limit is left to ``feed``."""
+    f = Frame(dst=4, src=2, num=77, type=2, content=b"built(%d)" % BT)
+    data = f.encode()
+    d = Deframer(max_content=1000)
+    assert d.known_frame(data, 500) == f and d.last_tick == 500
+    end = 100 + 10 * (len(data) - 1)
+    assert Deframer(max_content=1000).feed(data, 100, 10) == [FrameReceived(f, 100, end)]
+    small = Deframer(max_content=len(f.content) - 1)
+    assert small.known_frame(data, 500) is None and small.last_tick is None
+    assert of(small.feed(data, 0, 1), FrameFailed)
+
+
 def test_single_frame_ticks():
     data = PAPER.encode()
     for feed in (lambda d: d.feed(data, 1000, BT), lambda d: per_byte(d, data, 1000, BT)):

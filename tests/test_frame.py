@@ -19,6 +19,7 @@ from firmware_model.radio.frame import (
     ROBOT_IDS,
     Frame,
     FrameType,
+    built_frame,
     field_at,
     frame_codec,
     parse_frame,
@@ -231,6 +232,36 @@ def test_parse_frame_cached():
     assert a == PAPER and parse_frame_cached(PAPER_BYTES) is a
     with pytest.raises(FrameError):
         parse_frame_cached(PAPER_BYTES[:-1])
+
+
+@SETTINGS
+@given(frames, st.integers(0, 100))
+def test_built_frame_is_what_parsing_gives(frame, max_content):
+    """Bytes built in this process are known without parsing: the frame given back is equal to
+    what parse_frame gives, plain ints and bytes, and only if its Length fits ``max_content``."""
+    data = frame.encode()
+    got = built_frame(data, max_content)
+    if frame.length <= max_content:
+        assert got == parse_frame(data, max_content) == frame
+        assert parse_frame_cached(data, max_content) == frame
+        assert all(type(v) is int for v in (got.dst, got.src, got.num, got.type))
+        assert type(got.content) is bytes
+    else:
+        assert got is None
+        with pytest.raises(FrameError):
+            parse_frame_cached(data, max_content)
+    assert built_frame(data + b"x", 9999) is None and built_frame(data[:-1], 9999) is None
+
+
+def test_built_frame_never_gives_an_enum_type_and_stays_bounded():
+    import firmware_model.radio.frame as frame_module
+    data = Frame(dst=7, src=6, num=98, type=FrameType.JOIN, content=b"enum(1)").encode()
+    got = built_frame(data)
+    assert got is None or type(got.type) is int
+    assert parse_frame_cached(data) == Frame(7, 6, 98, 6, b"enum(1)")
+    for i in range(frame_module._BUILT_MAX + 10):
+        Frame(dst=1, src=2, num=3, type=2, content=b"n(%d)" % i).encode()
+    assert len(frame_module._BUILT) <= frame_module._BUILT_MAX
 
 
 def test_error_pickles_and_compares():

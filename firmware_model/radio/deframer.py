@@ -30,6 +30,7 @@ from firmware_model.radio.frame import (
     MAX_CONTENT,
     MAX_LENGTH_FIELD,
     Frame,
+    built_frame,
     frame_byte_error,
     length_limits,
     parse_frame_cached,
@@ -288,9 +289,17 @@ class Deframer:
         the bytes). Same outcome as a :meth:`feed` that reports one :class:`FrameReceived`."""
         if self._pos or self._g_count:
             return None
-        frame = _WHOLE[self.max_content].get(data)
-        if frame is not None:
-            self.last_tick = end
+        whole = _WHOLE[self.max_content]
+        frame = whole.get(data)
+        if frame is None:
+            # Bytes a sender of this process built are one good frame if their Length fits.
+            frame = built_frame(data, self.max_content)
+            if frame is None:
+                return None
+            if len(whole) >= _WHOLE_MAX:
+                whole.clear()
+            whole[data] = frame
+        self.last_tick = end
         return frame
 
     def feed(self, data: bytes, t0: int, dt: int) -> list[DeframerEvent]:

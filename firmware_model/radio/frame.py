@@ -50,6 +50,7 @@ __all__ = [
     "PrintableAscii",
     "parse_frame",
     "parse_frame_cached",
+    "built_frame",
     "field_at",
     "frame_byte_error",
     "length_limits",
@@ -244,9 +245,35 @@ class Frame:
 
 @functools.lru_cache(maxsize=4096)
 def _encode_cached(frame: Frame) -> bytes:
-    return frame_codec().build(
+    data = frame_codec().build(
         dict(dst=frame.dst, src=frame.src, num=frame.num, type=frame.type, content=frame.content)
     )
+    if type(frame.dst) is int and type(frame.src) is int and type(frame.num) is int \
+            and type(frame.type) is int and type(frame.content) is bytes:
+        # Plain ints and bytes, as parse_frame gives them (an IntEnum Type is not
+        # registered: its parse would be a plain int, equal but not the same object).
+        if len(_BUILT) >= _BUILT_MAX:
+            _BUILT.clear()
+        _BUILT[data] = frame
+    return data
+
+
+_BUILT: dict[bytes, Frame] = {}
+"""Bytes built by :meth:`Frame.encode` -> the frame they encode (the last few thousand): a
+receiver of a new frame takes it here instead of parsing the bytes back (:func:`built_frame`).
+Module-level, never a field, like the deframer's cache (snapshots walk fields only)."""
+_BUILT_MAX = 4096
+
+
+def built_frame(data: bytes, max_content: int = MAX_CONTENT) -> Frame | None:
+    """The frame whose :meth:`Frame.encode` gave exactly ``data``, if still remembered and its
+    Length is at most ``max_content`` (bytes): then ``parse_frame(data, max_content)`` would
+    return a frame equal to it, field for field, and this returns it without parsing. Else
+    None (parse the bytes)."""
+    frame = _BUILT.get(data)
+    if frame is not None and len(frame.content) <= max_content:
+        return frame
+    return None
 
 
 # --------------------------------------------------------------------------------------------
@@ -390,10 +417,18 @@ def parse_frame(data: bytes, max_content: int = MAX_CONTENT) -> Frame:
     return Frame(dst=c.dst, src=c.src, num=c.num, type=c.type, content=c.content)
 
 
-@functools.lru_cache(maxsize=4096)
 def parse_frame_cached(data: bytes, max_content: int = MAX_CONTENT) -> Frame:
-    """:func:`parse_frame`, memoised: the simulator hands the same heartbeat bytes to many receivers.
+    """:func:`parse_frame`, memoised: the simulator hands the same heartbeat bytes to many
+    receivers, and bytes a sender built in this process are known already (:func:`built_frame`).
 
     Only successful parses are cached; errors are raised afresh every time.
     """
+    frame = _BUILT.get(data)
+    if frame is not None and len(frame.content) <= max_content:
+        return frame
+    return _parse_frame_lru(data, max_content)
+
+
+@functools.lru_cache(maxsize=4096)
+def _parse_frame_lru(data: bytes, max_content: int) -> Frame:
     return parse_frame(data, max_content)
