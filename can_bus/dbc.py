@@ -115,7 +115,8 @@ def load() -> Database:
 class _Msg:
     """Cached per-frame data: the cantools Message and the signal ranges."""
 
-    __slots__ = ("msg", "name", "id", "length", "signals", "ranges", "tolerant", "raw_ranges", "units")
+    __slots__ = ("msg", "name", "id", "length", "signals", "ranges", "tolerant", "raw_ranges",
+                 "units", "raw_bounds", "tolerant_bounds")
 
     def __init__(self, msg: Message) -> None:
         self.msg = msg
@@ -141,6 +142,9 @@ class _Msg:
             self.tolerant[s.name] = (lo - tol, hi + tol)
             self.raw_ranges[s.name] = (rlo, rhi)    # what the wire can carry
             self.units[s.name] = s.unit or ""
+        # (signal, lo, hi) of every signal, for the common case of _check_signals
+        self.raw_bounds = tuple((k, lo, hi) for k, (lo, hi) in self.raw_ranges.items())
+        self.tolerant_bounds = tuple((k, lo, hi) for k, (lo, hi) in self.tolerant.items())
 
 
 @lru_cache(maxsize=1)
@@ -194,6 +198,23 @@ def signal_range(name: str, signal: str, raw: bool = False) -> tuple[float, floa
 
 
 def _check_signals(e: _Msg, signals: dict[str, Any], raw: bool) -> dict[str, Any]:
+    """``signals`` checked against frame ``e`` (choice names replaced by their numbers), or
+    :class:`DbcError`. The common case first: every signal there and no other, each an ``int``
+    (raw) or an ``int`` or ``float`` (physical) inside its range: that is all the checks below
+    would find, so it passes as it is; anything else takes the checks below, which name it."""
+    bounds = e.raw_bounds if raw else e.tolerant_bounds
+    if len(signals) == len(bounds):
+        for sig, lo, hi in bounds:
+            value = signals.get(sig)
+            t = type(value)
+            if not (t is int or (t is float and not raw)) or not lo <= value <= hi:
+                break
+        else:
+            return signals
+    return _check_signals_one_by_one(e, signals, raw)
+
+
+def _check_signals_one_by_one(e: _Msg, signals: dict[str, Any], raw: bool) -> dict[str, Any]:
     if signals.keys() != e.signals:
         missing = e.signals - signals.keys()
         extra = signals.keys() - e.signals
@@ -264,8 +285,10 @@ def _encode_uncached(name: str, signals: dict[str, Any], raw: bool) -> CanFrame:
     signals = _check_signals(e, signals, raw)
     try:
         # raw values were checked against their bit width only (a frame any CAN tool can
-        # send); physical ones against the DBC's [min|max], as cantools' strict mode does
-        data = e.msg.encode(signals, scaling=not raw, strict=not raw)
+        # send); physical ones against the DBC's [min|max] with cantools' strict tolerance
+        # (|scale| * 1e-6), every signal and none else, choice names already numbers: all that
+        # cantools' strict mode would check again (tests/test_dbc.py holds it to that)
+        data = e.msg.encode(signals, scaling=not raw, strict=False)
     except (cantools.database.EncodeError, KeyError, ValueError, OverflowError) as exc:
         raise DbcError(f"{name}: cannot encode {signals!r}: {exc}") from exc
     return CanFrame(e.id, data)
