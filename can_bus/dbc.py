@@ -9,7 +9,9 @@ Two flavours:
 * :func:`encode` / :func:`decode` use physical values (``angle`` in degrees, ``speed`` in
   deg/s, ...), as the DBC scales them; ``mode="hold"`` style choice names are accepted.
 * :func:`encode_raw` / :func:`decode_raw` use the raw integers on the wire (``angle`` in
-  0.01 deg, joint ``speed`` in 0.1 deg/s): what the submodule models use for exact arithmetic.
+  0.01 deg, joint ``speed`` in 0.1 deg/s): what the submodule models use for exact arithmetic;
+  :func:`encode_raw_values` is the same with the values in a tuple (:func:`signal_names`
+  order), cheaper for a status frame sent again and again.
 
 Every problem is a :class:`DbcError` naming the frame: unknown name or identifier, wrong data
 length, remote frame, missing or unknown signal, and a value outside its range: for
@@ -37,6 +39,8 @@ __all__ = [
     "message",
     "encode",
     "encode_raw",
+    "encode_raw_values",
+    "signal_names",
     "decode",
     "decode_raw",
     "frame_id",
@@ -115,8 +119,8 @@ def load() -> Database:
 class _Msg:
     """Cached per-frame data: the cantools Message and the signal ranges."""
 
-    __slots__ = ("msg", "name", "id", "length", "signals", "ranges", "tolerant", "raw_ranges",
-                 "units", "raw_bounds", "tolerant_bounds")
+    __slots__ = ("msg", "name", "id", "length", "signals", "order", "ranges", "tolerant",
+                 "raw_ranges", "units", "raw_bounds", "tolerant_bounds")
 
     def __init__(self, msg: Message) -> None:
         self.msg = msg
@@ -124,6 +128,7 @@ class _Msg:
         self.id = msg.frame_id
         self.length = msg.length
         self.signals = frozenset(s.name for s in msg.signals)
+        self.order = tuple(s.name for s in msg.signals)
         self.ranges: dict[str, tuple[float, float]] = {}
         self.tolerant: dict[str, tuple[float, float]] = {}
         self.raw_ranges: dict[str, tuple[int, int]] = {}
@@ -186,6 +191,12 @@ def frame_name(can_id: int) -> str:
 def dlc(name: str) -> int:
     """Data length of a frame name."""
     return _by_name(name).length
+
+
+def signal_names(name: str) -> tuple[str, ...]:
+    """The signals of a frame name, in rprs.dbc's order (the order :func:`encode_raw_values`
+    takes their values in)."""
+    return _by_name(name).order
 
 
 def signal_range(name: str, signal: str, raw: bool = False) -> tuple[float, float]:
@@ -308,6 +319,35 @@ def encode_raw(name: str, **signals: int) -> CanFrame:
     signal's bits can carry: any frame a CAN tool could put on the bus, an out-of-limit
     command included (the submodules refuse those)."""
     return _encode(name, signals, True)
+
+
+_BY_VALUES: dict[tuple[str, tuple[int, ...]], CanFrame] = {}
+
+
+def encode_raw_values(name: str, values: tuple[int, ...]) -> CanFrame:
+    """``encode_raw(name, **dict(zip(signal_names(name), values)))``, with its checks and
+    errors, for callers that send the same values again and again (a submodule's status): the
+    values come as a tuple in :func:`signal_names` order and the frame is remembered by them
+    alone, no keyword dict and no key of their types, the ``int`` type being asked of each
+    value instead (``True`` and ``1.0`` equal ``1`` and are refused by :func:`encode_raw`)."""
+    try:
+        hit = _BY_VALUES.get((name, values))
+    except TypeError:               # an unhashable value: the checks below report it
+        hit = None
+    if hit is not None:
+        for v in values:
+            if type(v) is not int:
+                break
+        else:
+            return hit
+    order = _by_name(name).order
+    if len(values) != len(order):
+        raise DbcError(f"{name}: {len(values)} value(s) for the signals {', '.join(order)}")
+    frame = _encode_uncached(name, dict(zip(order, values)), True)
+    if len(_BY_VALUES) >= _CACHE_MAX:
+        _BY_VALUES.clear()
+    _BY_VALUES[(name, tuple(values))] = frame
+    return frame
 
 
 def _lookup(frame: FrameLike) -> tuple[_Msg, bytes]:

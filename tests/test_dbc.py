@@ -368,3 +368,33 @@ def test_raw_checks_keep_what_the_bits_carry(case, first):
     verdict, frame = _outcome(lambda: dbc.encode_raw(name, **signals))
     if verdict == "ok":
         assert dbc.decode_raw(frame) == (name, signals)
+
+
+@settings(max_examples=1000, deadline=None)
+@given(case=_signals(), again=st.sampled_from([None, 1, True, 1.0]))
+def test_encode_raw_values_is_encode_raw(case, again):
+    """encode_raw_values(name, values in signal_names order) gives encode_raw's frame or its
+    error, also for values equal to remembered ones but of another type (True, 1.0)."""
+    name, signals = case
+    order = dbc.signal_names(name)
+    assert order == tuple(s.name for s in dbc.message(name).signals)
+    if signals.keys() != set(order):
+        return
+    values = tuple(signals[k] for k in order)
+    want = _outcome(lambda: dbc.encode_raw(name, **signals))
+    for _ in range(2):                                  # the second one remembered
+        assert _outcome(dbc.encode_raw_values, name, values) == want
+    if again is not None:
+        # the first signal's value 1 remembered; then the same with True or 1.0
+        ones = (1,) + values[1:]
+        _outcome(dbc.encode_raw_values, name, ones)
+        other = (again,) + values[1:]
+        assert _outcome(dbc.encode_raw_values, name, other) == \
+            _outcome(lambda: dbc.encode_raw(name, **dict(zip(order, other))))
+
+
+def test_encode_raw_values_wants_every_signal():
+    with pytest.raises(dbc.DbcError, match="3 value.*angle, speed, state, seq"):
+        dbc.encode_raw_values("JOINT1_STATUS", (0, 0, 0))
+    with pytest.raises(dbc.DbcError, match="unknown frame name"):
+        dbc.encode_raw_values("JOINT9_STATUS", (0, 0, 0, 0))
