@@ -9,7 +9,9 @@ Two flavours:
 * :func:`encode` / :func:`decode` use physical values (``angle`` in degrees, ``speed`` in
   deg/s, ...), as the DBC scales them; ``mode="hold"`` style choice names are accepted.
 * :func:`encode_raw` / :func:`decode_raw` use the raw integers on the wire (``angle`` in
-  0.01 deg, joint ``speed`` in 0.1 deg/s): what the submodule models use for exact arithmetic.
+  0.01 deg, joint ``speed`` in 0.1 deg/s): what the submodule models use for exact arithmetic;
+  :func:`encode_raw_values` is the same with the values in a tuple (:func:`signal_names`
+  order), cheaper for a status frame sent again and again.
 
 Every problem is a :class:`DbcError` naming the frame: unknown name or identifier, wrong data
 length, remote frame, missing or unknown signal, and a value outside its range: for
@@ -37,6 +39,8 @@ __all__ = [
     "message",
     "encode",
     "encode_raw",
+    "encode_raw_values",
+    "signal_names",
     "decode",
     "decode_raw",
     "frame_id",
@@ -115,7 +119,8 @@ def load() -> Database:
 class _Msg:
     """Cached per-frame data: the cantools Message and the signal ranges."""
 
-    __slots__ = ("msg", "name", "id", "length", "signals", "ranges", "tolerant", "raw_ranges", "units")
+    __slots__ = ("msg", "name", "id", "length", "signals", "order", "ranges", "tolerant",
+                 "raw_ranges", "units", "raw_bounds", "tolerant_bounds")
 
     def __init__(self, msg: Message) -> None:
         self.msg = msg
@@ -123,6 +128,7 @@ class _Msg:
         self.id = msg.frame_id
         self.length = msg.length
         self.signals = frozenset(s.name for s in msg.signals)
+        self.order = tuple(s.name for s in msg.signals)
         self.ranges: dict[str, tuple[float, float]] = {}
         self.tolerant: dict[str, tuple[float, float]] = {}
         self.raw_ranges: dict[str, tuple[int, int]] = {}
@@ -141,6 +147,9 @@ class _Msg:
             self.tolerant[s.name] = (lo - tol, hi + tol)
             self.raw_ranges[s.name] = (rlo, rhi)    # what the wire can carry
             self.units[s.name] = s.unit or ""
+        # (signal, lo, hi) of every signal, for the common case of _check_signals
+        self.raw_bounds = tuple((k, lo, hi) for k, (lo, hi) in self.raw_ranges.items())
+        self.tolerant_bounds = tuple((k, lo, hi) for k, (lo, hi) in self.tolerant.items())
 
 
 @lru_cache(maxsize=1)
@@ -184,6 +193,12 @@ def dlc(name: str) -> int:
     return _by_name(name).length
 
 
+def signal_names(name: str) -> tuple[str, ...]:
+    """The signals of a frame name, in rprs.dbc's order (the order :func:`encode_raw_values`
+    takes their values in)."""
+    return _by_name(name).order
+
+
 def signal_range(name: str, signal: str, raw: bool = False) -> tuple[float, float]:
     """Allowed (min, max) of a signal: physical, the DBC's [min|max] (a joint's limits, a
     rated speed); or raw, the integers its bits can carry on the wire."""
@@ -194,6 +209,23 @@ def signal_range(name: str, signal: str, raw: bool = False) -> tuple[float, floa
 
 
 def _check_signals(e: _Msg, signals: dict[str, Any], raw: bool) -> dict[str, Any]:
+    """``signals`` checked against frame ``e`` (choice names replaced by their numbers), or
+    :class:`DbcError`. The common case first: every signal there and no other, each an ``int``
+    (raw) or an ``int`` or ``float`` (physical) inside its range: that is all the checks below
+    would find, so it passes as it is; anything else takes the checks below, which name it."""
+    bounds = e.raw_bounds if raw else e.tolerant_bounds
+    if len(signals) == len(bounds):
+        for sig, lo, hi in bounds:
+            value = signals.get(sig)
+            t = type(value)
+            if not (t is int or (t is float and not raw)) or not lo <= value <= hi:
+                break
+        else:
+            return signals
+    return _check_signals_one_by_one(e, signals, raw)
+
+
+def _check_signals_one_by_one(e: _Msg, signals: dict[str, Any], raw: bool) -> dict[str, Any]:
     if signals.keys() != e.signals:
         missing = e.signals - signals.keys()
         extra = signals.keys() - e.signals
@@ -264,8 +296,10 @@ def _encode_uncached(name: str, signals: dict[str, Any], raw: bool) -> CanFrame:
     signals = _check_signals(e, signals, raw)
     try:
         # raw values were checked against their bit width only (a frame any CAN tool can
-        # send); physical ones against the DBC's [min|max], as cantools' strict mode does
-        data = e.msg.encode(signals, scaling=not raw, strict=not raw)
+        # send); physical ones against the DBC's [min|max] with cantools' strict tolerance
+        # (|scale| * 1e-6), every signal and none else, choice names already numbers: all that
+        # cantools' strict mode would check again (tests/test_dbc.py holds it to that)
+        data = e.msg.encode(signals, scaling=not raw, strict=False)
     except (cantools.database.EncodeError, KeyError, ValueError, OverflowError) as exc:
         raise DbcError(f"{name}: cannot encode {signals!r}: {exc}") from exc
     return CanFrame(e.id, data)
@@ -285,6 +319,35 @@ def encode_raw(name: str, **signals: int) -> CanFrame:
     signal's bits can carry: any frame a CAN tool could put on the bus, an out-of-limit
     command included (the submodules refuse those)."""
     return _encode(name, signals, True)
+
+
+_BY_VALUES: dict[tuple[str, tuple[int, ...]], CanFrame] = {}
+
+
+def encode_raw_values(name: str, values: tuple[int, ...]) -> CanFrame:
+    """``encode_raw(name, **dict(zip(signal_names(name), values)))``, with its checks and
+    errors, for callers that send the same values again and again (a submodule's status): the
+    values come as a tuple in :func:`signal_names` order and the frame is remembered by them
+    alone, no keyword dict and no key of their types, the ``int`` type being asked of each
+    value instead (``True`` and ``1.0`` equal ``1`` and are refused by :func:`encode_raw`)."""
+    try:
+        hit = _BY_VALUES.get((name, values))
+    except TypeError:               # an unhashable value: the checks below report it
+        hit = None
+    if hit is not None:
+        for v in values:
+            if type(v) is not int:
+                break
+        else:
+            return hit
+    order = _by_name(name).order
+    if len(values) != len(order):
+        raise DbcError(f"{name}: {len(values)} value(s) for the signals {', '.join(order)}")
+    frame = _encode_uncached(name, dict(zip(order, values)), True)
+    if len(_BY_VALUES) >= _CACHE_MAX:
+        _BY_VALUES.clear()
+    _BY_VALUES[(name, tuple(values))] = frame
+    return frame
 
 
 def _lookup(frame: FrameLike) -> tuple[_Msg, bytes]:

@@ -170,6 +170,9 @@ class _Submodule:
         self.name = dbc.NODE_NAMES[number]
         self.cmd_id = dbc.frame_id(dbc.cmd_name(number))
         self.status_name = dbc.status_name(number)
+        if dbc.signal_names(self.status_name) != self.STATUS_SIGNALS:
+            raise ValueError(f"{type(self).__name__}.STATUS_SIGNALS {self.STATUS_SIGNALS} are "
+                             f"not the signals of {self.status_name} in rprs.dbc's order")
         self.event_name = dbc.event_name(number)
         self._estop_id = dbc.frame_id(dbc.ESTOP)
         self._estop_dlc = dbc.dlc(dbc.ESTOP)
@@ -264,7 +267,7 @@ class _Submodule:
         self._status_ev = self.sched.at(self.sched.now + STATUS_PERIOD_TICKS, self._status_tick)
         if self._silent:
             return
-        frame = dbc.encode_raw(self.status_name, **self.status_signals())
+        frame = dbc.encode_raw_values(self.status_name, self.status_values())
         old = self._status_entry
         if old is not None:
             try:
@@ -275,9 +278,16 @@ class _Submodule:
                 heapq.heapify(self._queue)
         self._status_entry = self._push(frame)
 
+    STATUS_SIGNALS: tuple[str, ...] = ()
+    """The status frame's signals in rprs.dbc's order, the order of :meth:`status_values`."""
+
+    def status_values(self) -> tuple[int, ...]:
+        """Raw values of the node's status frame now, in :attr:`STATUS_SIGNALS` order."""
+        raise NotImplementedError
+
     def status_signals(self) -> dict[str, int]:
         """Raw signal values of the node's status frame, now."""
-        raise NotImplementedError
+        return dict(zip(self.STATUS_SIGNALS, self.status_values()))
 
     @property
     def cruising(self) -> bool:
@@ -543,8 +553,10 @@ class JointNode(_AxisNode):
     def target_cdeg(self) -> int | None:
         return self._target
 
-    def status_signals(self) -> dict[str, int]:
-        return dict(angle=self._position(), speed=self.speed_ddps, state=self.state, seq=self.seq)
+    STATUS_SIGNALS = ("angle", "speed", "state", "seq")
+
+    def status_values(self) -> tuple[int, ...]:
+        return self._position(), self.speed_ddps, self.state, self.seq
 
     # ------------------------------------------------------------ commands
     def _command(self, v: dict[str, int]) -> None:
@@ -615,9 +627,10 @@ class PawNode(_AxisNode):
     def opening_pct(self) -> float:
         return self._position() * 100 / PAW_FULL
 
-    def status_signals(self) -> dict[str, int]:
-        return dict(opening=self._position() * 100 // PAW_FULL, grip=self.grip,
-                    state=self.state, seq=self.seq)
+    STATUS_SIGNALS = ("opening", "grip", "state", "seq")
+
+    def status_values(self) -> tuple[int, ...]:
+        return self._position() * 100 // PAW_FULL, self.grip, self.state, self.seq
 
     def place_object(self, present: bool = True, size_pct: float | None = None) -> None:
         """Put an object between the fingers (or take it away). Taking it away while gripped
@@ -748,8 +761,10 @@ class WheelNode(_Submodule):
     def odometer_mm(self) -> int:
         return _trunc_div(self.x_nm, 1_000_000)
 
-    def status_signals(self) -> dict[str, int]:
-        return dict(speed=self.speed_mm_s, odometer=self.odometer_mm, state=self.state, seq=self.seq)
+    STATUS_SIGNALS = ("speed", "odometer", "state", "seq")
+
+    def status_values(self) -> tuple[int, ...]:
+        return self.speed_mm_s, self.odometer_mm, self.state, self.seq
 
     # ------------------------------------------------------------ commands
     def _command(self, v: dict[str, int]) -> None:

@@ -278,3 +278,123 @@ def test_a_remembered_encoding_does_not_accept_what_encoding_refuses(bad):
         dbc.encode_raw("WHEEL_CMD", speed=bad, distance=0, seq=1)
     with pytest.raises(dbc.DbcError, match="must be a number"):
         dbc.encode("WHEEL_CMD", speed=True, distance=0, seq=1)
+
+
+def _value(signal) -> st.SearchStrategy:
+    """Any value a caller might give one signal: numbers on and around both ends of its
+    physical and raw ranges (cantools' tolerance |scale| * 1e-6 included), its choice names and
+    a bogus one, and things that are not numbers."""
+    lo, hi = signal.minimum, signal.maximum
+    tol = abs(signal.scale) * 1e-6
+    raw_bits = 1 << (signal.length - 1 if signal.is_signed else signal.length)
+    rlo, rhi = (-raw_bits, raw_bits - 1) if signal.is_signed else (0, raw_bits - 1)
+    edges = [lo, hi, lo - tol, hi + tol, rlo, rhi, rlo - 1, rhi + 1]
+    near = [e + d for e in edges for d in (-tol / 2, tol / 2, -2 * tol, 2 * tol, -1e-12, 1e-12)]
+    near += [math.nextafter(e, s) for e in (lo - tol, hi + tol) for s in (-math.inf, math.inf)]
+    return st.one_of(
+        st.integers(rlo - 3, rhi + 3),
+        st.floats(lo - 1, hi + 1),
+        st.sampled_from(edges + near + [int(lo), int(hi)]),
+        st.sampled_from([True, False, math.nan, math.inf, -math.inf, "bogus", None, [1], b"1"]),
+        st.sampled_from([str(v) for v in (signal.choices or {}).values()] or [0]),
+    )
+
+
+@st.composite
+def _signals(draw, name: str | None = None):
+    """(frame name, a dict of values for its signals, now and then one missing or one more)."""
+    name = name or draw(st.sampled_from(sorted(EXPECTED)))
+    m = dbc.message(name)
+    out = {s.name: draw(_value(s)) for s in m.signals}
+    odd = draw(st.integers(0, 9))
+    if odd == 0:
+        out.pop(draw(st.sampled_from(sorted(out))))
+    elif odd == 1:
+        out["bogus"] = 0
+    return name, out
+
+
+def _outcome(fn, *args):
+    try:
+        return "ok", fn(*args)
+    except dbc.DbcError as exc:
+        return "error", str(exc)
+
+
+@settings(max_examples=1000, deadline=None)
+@given(case=_signals(), raw=st.booleans())
+def test_the_quick_check_says_what_the_one_by_one_check_says(case, raw):
+    """_check_signals' common case (every signal an int or float in range) gives what the
+    signal-by-signal checks give, value for value and error for error."""
+    name, signals = case
+    e = dbc._by_name(name)
+    quick = _outcome(dbc._check_signals, e, signals, raw)
+    full = _outcome(dbc._check_signals_one_by_one, e, signals, raw)
+    assert quick == full
+    if quick[0] == "ok":
+        assert all(type(a) is type(b) for a, b in zip(quick[1].values(), full[1].values()))
+
+
+@settings(max_examples=1000, deadline=None)
+@given(case=_signals())
+def test_our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode(case):
+    """encode() calls cantools with strict=False: whatever our checks let through, cantools'
+    strict mode (every signal and none else, choice names, [min|max] with |scale| * 1e-6)
+    lets through too, and encodes the same bytes either way."""
+    name, signals = case
+    e = dbc._by_name(name)
+    verdict, checked = _outcome(dbc._check_signals, e, signals, False)
+    if verdict != "ok":
+        return
+    e.msg.assert_signals_encodable(checked, scaling=True)       # raises if cantools refuses
+    try:
+        strict = e.msg.encode(checked, scaling=True, strict=True)
+    except (cantools.database.EncodeError, ValueError, OverflowError) as exc:
+        with pytest.raises(type(exc)):
+            e.msg.encode(checked, scaling=True, strict=False)
+        with pytest.raises(dbc.DbcError, match="cannot encode"):
+            dbc.encode(name, **signals)
+    else:
+        assert e.msg.encode(checked, scaling=True, strict=False) == strict
+        assert dbc.encode(name, **signals).data == strict
+
+
+@settings(max_examples=1000, deadline=None)
+@given(case=_signals(), first=st.booleans())
+def test_raw_checks_keep_what_the_bits_carry(case, first):
+    """A raw value our checks let through is on the wire as given (cantools, strict=False,
+    never wraps it)."""
+    name, signals = case
+    verdict, frame = _outcome(lambda: dbc.encode_raw(name, **signals))
+    if verdict == "ok":
+        assert dbc.decode_raw(frame) == (name, signals)
+
+
+@settings(max_examples=1000, deadline=None)
+@given(case=_signals(), again=st.sampled_from([None, 1, True, 1.0]))
+def test_encode_raw_values_is_encode_raw(case, again):
+    """encode_raw_values(name, values in signal_names order) gives encode_raw's frame or its
+    error, also for values equal to remembered ones but of another type (True, 1.0)."""
+    name, signals = case
+    order = dbc.signal_names(name)
+    assert order == tuple(s.name for s in dbc.message(name).signals)
+    if signals.keys() != set(order):
+        return
+    values = tuple(signals[k] for k in order)
+    want = _outcome(lambda: dbc.encode_raw(name, **signals))
+    for _ in range(2):                                  # the second one remembered
+        assert _outcome(dbc.encode_raw_values, name, values) == want
+    if again is not None:
+        # the first signal's value 1 remembered; then the same with True or 1.0
+        ones = (1,) + values[1:]
+        _outcome(dbc.encode_raw_values, name, ones)
+        other = (again,) + values[1:]
+        assert _outcome(dbc.encode_raw_values, name, other) == \
+            _outcome(lambda: dbc.encode_raw(name, **dict(zip(order, other))))
+
+
+def test_encode_raw_values_wants_every_signal():
+    with pytest.raises(dbc.DbcError, match="3 value.*angle, speed, state, seq"):
+        dbc.encode_raw_values("JOINT1_STATUS", (0, 0, 0))
+    with pytest.raises(dbc.DbcError, match="unknown frame name"):
+        dbc.encode_raw_values("JOINT9_STATUS", (0, 0, 0, 0))

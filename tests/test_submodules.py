@@ -541,3 +541,32 @@ def test_a_cruising_wheel_schedules_no_steps(env):
     assert w.x_nm == x + 100_000 * 1000
     env.run(end + 1201 * MS)
     assert w.x_nm == x + 100_000 * 1001
+
+
+def test_status_values_are_the_status_frame_in_dbc_order(env):
+    """Each node's status_values() are its status frame's signals in rprs.dbc's order
+    (encode_raw_values takes them so), and status_signals() names them."""
+    env.send("JOINT2_CMD", angle=50, speed=30, seq=7, mode=0)
+    env.send("WHEEL_CMD", speed=-120, distance=0, seq=3)
+    env.send("PAW_CMD", action=0, force=50, seq=9)
+    env.run(env.sched.now + 3 * TICK_HZ)      # every move done; the wheel cruising
+    for node in env.nodes.values():
+        assert node.STATUS_SIGNALS == dbc.signal_names(node.status_name)
+        values = node.status_values()
+        assert all(type(v) is int for v in values)
+        assert node.status_signals() == dict(zip(node.STATUS_SIGNALS, values))
+        assert dbc.encode_raw_values(node.status_name, values) == \
+            dbc.encode_raw(node.status_name, **node.status_signals())
+        # what went on the bus last is what the node reports now (the wheel rolls on)
+        start, last = env.status(node.number)[-1]
+        if node.number != dbc.WHEEL_NUMBER:
+            assert tuple(last[k] for k in node.STATUS_SIGNALS) == values
+
+
+def test_a_node_whose_status_order_is_not_the_dbcs_is_refused():
+    class Backwards(PawNode):
+        STATUS_SIGNALS = ("seq", "state", "grip", "opening")
+
+    sched = Scheduler()
+    with pytest.raises(ValueError, match="STATUS_SIGNALS.*PAW_STATUS"):
+        Backwards(sched, CanBus(sched))
