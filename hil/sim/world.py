@@ -37,6 +37,7 @@ from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to_ticks
 
 from .air import Air, Transmission
+from .collector import fewer_collections
 from .faults import (
     AIR_KINDS, CAN_KINDS, KINDS, Fault, FaultError, apply_air_fault, check_skew,
     schedule as schedule_fault,
@@ -472,7 +473,8 @@ class World:
         if ring is not None:
             ring.start_run(end)
         try:
-            self.sched.run_until(end)
+            with fewer_collections():
+                self.sched.run_until(end)
         finally:
             if ring is not None:
                 ring.end_run()
