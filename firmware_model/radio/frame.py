@@ -423,10 +423,8 @@ def parse_frame_cached(data: bytes, max_content: int = MAX_CONTENT) -> Frame:
 
     Only successful parses are cached; errors are raised afresh every time.
     """
-    frame = _BUILT.get(data)
-    if frame is not None and len(frame.content) <= max_content:
-        return frame
-    return _parse_frame_lru(data, max_content)
+    frame = built_frame(data, max_content)
+    return frame if frame is not None else _parse_frame_lru(data, max_content)
 
 
 @functools.lru_cache(maxsize=4096)
