@@ -239,7 +239,9 @@ class MacConfig:
     """Poll window (10 ms): an invited robot's header must be heard by E + twin.
     It starts at E + Ttrans, so its 3 header bytes end by E + 80000 + 3 x 16667 = E + 130001."""
     tslot: int = 320_000
-    """ID stagger (20 ms) for claims and lone pauses: at least twice (Ttrans + 4 bytes)."""
+    """ID stagger (20 ms) for claims, lone pauses and rule R-stagger: at least twice (Ttrans +
+    4 bytes), and small enough that robot 6's stagger, 6 x tslot + Ttrans + 4 bytes, ends
+    before Tmax (docs/protocol.md §7.6; tests/test_margin_bounds.py)."""
     team: frozenset[int] = frozenset(range(7))
     """The robots that may ever join: only these are invited."""
     poll_every: int = 4
