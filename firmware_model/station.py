@@ -134,18 +134,19 @@ class RadioStation:
                     self.observer(self, ev, now)
                 self._apply(mac.on_corrupt(ev.first, ev.src, exp, now), ev)
                 self._promise = exp if exp is not None and exp > now else None
-        stall = d.last_tick + self._stall + 1 if d.last_tick is not None else None
-        if d.in_frame or (self._promise is not None and stall < self._promise):
+        if d.in_frame or self._promise is not None:
             # A frame is coming in (or the rest of one that failed, its turn to close at the
             # End it promised): if its bytes stop it is over one stall gap after the last, and
             # its turn closes then (clause 41; rule R-stagger follows), not at the MAC's next
             # deadline (which may be E + Tmax) nor at the promised End. Its own timer channel,
             # so that the MAC's timer runs the same whether bytes come one by one or in bursts.
-            self.stall_timer.arm_at(stall + (stall & 1))   # on the timer's machine clock / 2
-        else:
-            self._promise = None
-            if self.stall_timer.expiry is not None:
-                self.stall_timer.stop()
+            stall = d.last_tick + self._stall + 1
+            if d.in_frame or stall < self._promise:
+                self.stall_timer.arm_at(stall + (stall & 1))   # the timer's clock / 2
+                return
+            self._promise = None       # the promised End comes first
+        if self.stall_timer.expiry is not None:
+            self.stall_timer.stop()
 
     def _on_timer(self, now: int) -> None:
         self.uart.sync(now)

@@ -508,6 +508,7 @@ class RotationalMac:
         phase = self.phase
         if phase == SWITCH or phase == SEND:
             return _NOTHING            # deaf while switching or sending (only raw input gets here)
+        self._promised = None          # a good frame: the turn is whoever sends it
         if self._paper:
             return self._paper_frame(frame, first, end, now)
         self._heard_since_tx = True
@@ -801,6 +802,7 @@ class RotationalMac:
         out: list = []
         if self.deadline is None or now < self.deadline:
             return out
+        self._promised = None          # the phase on_corrupt left is over
         if self.mode == LISTEN:
             self._deadline_listen(now, rx_busy, out)
             return out
