@@ -54,6 +54,9 @@ class RadioStation:
         self.frames_heard = 0
         self.frames_failed = 0
         self._stall = max(cfg.stall_gap, 2 * uart.byte_ticks)
+        self._promise: int | None = None
+        """The End a failed frame's Length promised, while its turn is to close there: if its
+        bytes stop for the stall gap before it, the frame is over then (clause 41)."""
         self.cpu = None
         self._frame_cycles = 0
         uart.on_rx = self._on_rx
@@ -105,6 +108,7 @@ class RadioStation:
         end = t0 + (len(data) - 1) * dt
         frame = d.known_frame(data, end)
         if frame is not None:
+            self._promise = None
             self.frames_heard += 1
             if self._frame_cycles:
                 self.cpu.extend(self._frame_cycles)
@@ -113,6 +117,7 @@ class RadioStation:
         evs = d.feed(data, t0, dt)
         for ev in evs:
             if type(ev) is FrameReceived:
+                self._promise = None
                 self.frames_heard += 1
                 if self._frame_cycles:
                     self.cpu.extend(self._frame_cycles)
@@ -128,14 +133,19 @@ class RadioStation:
                 if self.observer is not None:
                     self.observer(self, ev, now)
                 self._apply(mac.on_corrupt(ev.first, ev.src, exp, now), ev)
-        if d.in_frame:
-            # A frame is coming in: if its bytes stop it is abandoned one stall gap after the
-            # last, so that its turn closes at the End its Length promised (rule R-stagger),
-            # not at the MAC's next deadline (which may be E + Tmax). Its own timer channel,
+                self._promise = exp if exp is not None and exp > now else None
+        if d.in_frame or self._promise is not None:
+            # A frame is coming in (or the rest of one that failed, its turn to close at the
+            # End it promised): if its bytes stop it is over one stall gap after the last, and
+            # its turn closes then (clause 41; rule R-stagger follows), not at the MAC's next
+            # deadline (which may be E + Tmax) nor at the promised End. Its own timer channel,
             # so that the MAC's timer runs the same whether bytes come one by one or in bursts.
             stall = d.last_tick + self._stall + 1
-            self.stall_timer.arm_at(stall + (stall & 1))   # on the timer's machine clock / 2
-        elif self.stall_timer.expiry is not None:
+            if d.in_frame or stall < self._promise:
+                self.stall_timer.arm_at(stall + (stall & 1))   # the timer's clock / 2
+                return
+            self._promise = None       # the promised End comes first
+        if self.stall_timer.expiry is not None:
             self.stall_timer.stop()
 
     def _on_timer(self, now: int) -> None:
@@ -146,10 +156,7 @@ class RadioStation:
             if d.last_tick is not None and now - d.last_tick <= self._stall:
                 busy = True
             else:
-                ev = d.abort(now)
-                if ev is not None:
-                    self.frames_failed += 1
-                    self._apply(self.mac.on_corrupt(ev.first, ev.src, ev.expected_end, now), ev)
+                self._abandon(now)
         hs = d.header_since
         if hs is not None and (d.last_tick is None or now - d.last_tick > self._stall):
             hs = None          # a partial Header whose next byte never came is no Header
@@ -159,11 +166,26 @@ class RadioStation:
     def _on_stall(self, now: int) -> None:
         self.uart.sync(now)
         d = self.deframer
-        if d.in_frame and d.last_tick is not None and now - d.last_tick > self._stall:
-            ev = d.abort(now)
-            if ev is not None:
-                self.frames_failed += 1
-                self._apply(self.mac.on_corrupt(ev.first, ev.src, ev.expected_end, now), ev)
+        if d.last_tick is None or now - d.last_tick <= self._stall:
+            return
+        if d.in_frame:
+            self._abandon(now)
+        elif self._promise is not None:
+            promise, self._promise = self._promise, None
+            if now < promise:           # a failed frame's bytes stopped before its End
+                self._apply(self.mac.on_frame_over(now))
+
+    def _abandon(self, now: int) -> None:
+        """The frame coming in stalled: its bytes stopped for the stall gap. It is over now,
+        whatever its Length promised (clause 41): closing its turn at the promised End would
+        let a cut-off Header (12 bytes promising 562) hold every member for 594 ms. Every
+        member hears the bytes stop alike, so they all close the turn at the stall."""
+        self._promise = None
+        ev = self.deframer.abort(now)
+        if ev is not None:
+            self.frames_failed += 1
+            end = None if ev.expected_end is None else min(ev.expected_end, now)
+            self._apply(self.mac.on_corrupt(ev.first, ev.src, end, now), ev)
 
     def _on_tx_done(self, end: int) -> None:
         self._apply(self.mac.on_tx_done(end))

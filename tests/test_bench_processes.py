@@ -376,3 +376,155 @@ def test_a_can_log_and_a_capture_in_one_file_are_refused_before_the_run(tmp_path
     assert r.stderr.splitlines() == [f"rprs: error: --can-log and --pcap name the same file "
                                      f"{out}: give each its own"]
     assert not out.exists()
+
+
+class _Air:
+    """A capture sink for the hub (``RadioHub.capture``): every packet on the hub's air as
+    (node or "foreign", start, end, collided), in the air's own ticks, so that a late thread of
+    the test process cannot move what is measured."""
+
+    tsresol = 9
+    epoch_units = 0
+
+    def __init__(self, hub):
+        self.hub = hub
+        self.packets: list[tuple[object, int, int, bool]] = []
+
+    def follow(self, clock):
+        pass
+
+    def radio(self, key, tick, data, comment=None):
+        start = tick - len(data) * self.hub.byte_ticks
+        self.packets.append((key, start, tick, bool(comment and "collided" in comment)))
+
+
+def test_a_healthy_robot_6_keeps_its_turn_after_bursts_on_the_hub():
+    """Issue 40 at the bench: children 1, 2 and 6 on the hub, a 4 ms burst every 0.73 s. A
+    burst that breaks a frame closes its turn uncertainly, and the next owner waits id x Tslot
+    (R-stagger): robot 6 waits 6 Tslot. With the real-time Tslot of 100 ms its Header began
+    after the others' closure + Tmax: they counted it missing (9-11 times in 28 s) and took
+    the turn at closure + Tmax + Ttrans. Judged on the hub's own air clock: once the ring has
+    formed, no silence on the air lasts Tmax (600 ms; robot 6's stagger now leaves one of
+    about 510 ms: 20 ms quiet gap + 6 x 80 ms + Ttrans + the processes' latency), robot 6 did
+    take turns after its stagger, and nobody is dropped."""
+    from hil.sim.faults import parse_fault
+    first = 9.0                                  # the ring forms within ~5 s of the start
+    bursts = [parse_fault(f"burst@{first + 0.73 * k:.2f}:0.004") for k in range(20)]
+    hub = RadioHub(nodes=3, seed=1, faults=bursts)
+    air = _Air(hub)
+    hub.capture(air)
+    hub.start()
+    logs = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
+                              "--radio", hub.paths[i], "--team", "1,2,6", "--events"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for i, r in enumerate((1, 2, 6))]
+    lines: list[list[dict]] = [[], [], []]
+
+    def read(p, out):
+        with p.stdout:
+            for line in p.stdout:
+                out.append(json.loads(line))
+    import threading
+    for p, out in zip(logs, lines):
+        threading.Thread(target=read, args=(p, out), daemon=True).start()
+    try:
+        time.sleep(first + 0.73 * len(bursts) + 1.0)
+        alive = [p.poll() is None for p in logs]
+    finally:
+        errs = stop(logs)
+        hub.stop()
+        hub.close()
+    assert alive == [True] * 3, errs
+    tb = 16_000_000
+    names = {0: 1, 1: 2, 2: 6, "foreign": "burst"}
+    packets = sorted(air.packets, key=lambda p: p[1])
+    before = [names[k] for k, s, e, c in packets if e < first * tb and not c]
+    assert before[-6:] in ([1, 2, 6] * 2, [2, 6, 1] * 2, [6, 1, 2] * 2), \
+        f"the ring had not formed when the bursts began: {before[-12:]}"
+    after = [p for p in packets if p[2] >= first * tb]
+    hits = [p for p in after if p[0] != "foreign" and p[3]]
+    assert len(hits) >= 5                               # bursts did break frames
+    gaps = [((b[1] - a[2]) / 16_000, names[a[0]], names[b[0]])
+            for a, b in zip(after, after[1:])]
+    long = [g for g in gaps if g[0] >= 600.0]
+    assert long == [], (long, [[e for e in ls if e["ev"] == "miss"] for ls in lines])
+    staggered = [g for g in gaps if g[2] == 6 and g[0] > 5 * 80]
+    assert staggered, sorted(gaps)[-5:]                # robot 6 did wait out its 6 Tslot
+    assert [e for ls in lines for e in ls if e["ev"] == "disable"] == []
+
+
+CUT_OFF = bytes.fromhex("0f0a05373230303330353632")
+"""A Header whose Length promises 562 bytes, then nothing (issue 40, finding 5)."""
+
+
+class _Answerer(_Air):
+    """The capture sink of ``_Air`` that also answers the next ``left`` invitations of robot 5
+    on the hub's air with ``CUT_OFF``, Ttrans after the inviting frame ends (in air ticks),
+    once armed; ``sent`` holds the air tick at which each went on air."""
+
+    def __init__(self, hub, left):
+        super().__init__(hub)
+        self.armed = False
+        self.left = left
+        self.sent: list[int] = []
+
+    def radio(self, key, tick, data, comment=None):
+        super().radio(key, tick, data, comment)
+        if self.armed and self.left and key != "foreign" and comment is None and \
+                b"poll(5," in data:
+            self.left -= 1
+            self.hub.sched.at(tick + 80_000, self._answer)
+
+    def _answer(self):
+        self.sent.append(self.hub.sched.now)
+        self.hub.air.inject(CUT_OFF)
+
+
+def test_a_cut_off_header_answering_invitations_costs_its_bytes_on_the_hub():
+    """Issue 40, finding 5, at the bench: children 1, 3 and 4 (team 1, 3, 4, 5: robot 4 invites
+    the absent 5), and a transmitter on the hub's air answering 8 invitations with a Header
+    that promises 562 bytes and stops after 12. The turn used to close at the promised End:
+    about 690 ms of silence each time (594 ms + R-stagger). Now the bytes stop, the frame is over
+    one stall gap later and the next owner (robot 1) begins after its R-stagger: judged on the
+    hub's air clock, the next good frame starts within 400 ms of each answer's start (20 ms
+    stall gap + 80 ms Tslot + Ttrans + the processes' latency), and nobody is missed or
+    dropped."""
+    hub = RadioHub(nodes=3, seed=1)
+    air = _Answerer(hub, left=8)
+    hub.capture(air)
+    hub.start()
+    kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
+                              "--radio", hub.paths[i], "--team", "1,3,4,5", "--events"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for i, r in enumerate((1, 3, 4))]
+    lines: list[list[dict]] = [[], [], []]
+
+    def read(p, out):
+        with p.stdout:
+            for line in p.stdout:
+                out.append(json.loads(line))
+    import threading
+    for p, out in zip(kids, lines):
+        threading.Thread(target=read, args=(p, out), daemon=True).start()
+
+    def formed():
+        srcs = [k for k, s, e, c in list(air.packets)[-6:] if not c]
+        return srcs in ([0, 1, 2] * 2, [1, 2, 0] * 2, [2, 0, 1] * 2)
+    try:
+        assert wait_for(formed, 40.0), "the ring 1, 3, 4 did not form"
+        air.armed = True
+        assert wait_for(lambda: len(air.sent) == 8, 30.0), air.sent
+        time.sleep(1.5)
+        alive = [p.poll() is None for p in kids]
+    finally:
+        errs = stop(kids)
+        hub.stop()
+        hub.close()
+    assert alive == [True] * 3, errs
+    packets = sorted(air.packets, key=lambda p: p[1])
+    for t in air.sent:
+        nxt = min(s for k, s, e, c in packets if k != "foreign" and s > t and not c)
+        assert (nxt - t) / 16_000 < 400.0, [((s - t) / 16_000, k, c) for k, s, e, c in packets
+                                            if t - 16_000_000 < s < t + 16_000_000]
+    events = [e for ls in lines for e in ls if e["ev"] in ("miss", "disable")]
+    assert [e for e in events if e["robot"] != 5] == [], events

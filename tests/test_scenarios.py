@@ -40,10 +40,12 @@ import pytest
 
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import Frame
+from firmware_model.radio.mac import MacConfig
 from firmware_model.station import build_station
 from firmware_model.timing import (
     CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, protocol_max_content, s_to_ticks,
 )
+from hil.sim.faults import parse_fault
 from hil.sim.world import SimConfig, World
 from test_promises import content_of
 
@@ -242,14 +244,53 @@ def test_the_successor_vanishes_mid_message_nothing_is_delivered_and_it_is_dropp
     assert {r: w.ring_views()[r] for r in (1, 3, 4)} == {r: (1, 3, 4) for r in (1, 3, 4)}
 
 
-def test_the_successor_vanishes_mid_message_the_turn_closes_at_the_promised_end():
-    """docs/mac.md, corrupted frames: a frame that fails after a valid Header closes the turn
-    at the end its Length promised; the turn closed on a failed frame, so rule R-stagger makes
-    the next owner (R3) wait 3 x Tslot more: TXEN at promised End + 3 Tslot, to the reload
-    timer's resolution (it counts machine clock / 2, so a delay armed at an odd tick ends one
-    tick late, as on the MCU; the dead sender's last bytes reach R3 at the odd tick it died)."""
+def test_the_successor_vanishes_mid_message_the_turn_closes_at_the_stall():
+    """docs/protocol.md clause 41: a frame whose bytes stop (no byte for the stall gap) closes
+    its turn then, not at the End its Length promised (2.4 s later here); the turn closed on a
+    failed frame, so rule R-stagger makes the next owner (R3) wait 3 x Tslot more: TXEN at
+    (R2's death, where its last bytes reach R3) + the stall gap + 3 Tslot, to the reload timer's
+    resolution (it counts machine clock / 2, so a delay armed at an odd tick ends a tick late,
+    as on the MCU)."""
     w, evs, e1, promised, m = _vanish_mid_message()
-    assert txen_on(evs, 3, e1)[0] - (promised + 3 * TSLOT) in (0, 1)
+    died = e1 + TTRANS_TICKS + 100 * B + 1
+    stall = MacConfig().stall_gap
+    assert txen_on(evs, 3, e1)[0] - (died + stall + 3 * TSLOT) in (1, 2, 3)
+    assert txen_on(evs, 3, e1)[0] < promised
+
+
+CUT_OFF = bytes.fromhex("0f0a05373230303330353632")
+"""Issue 40, finding 5: a Header whose Length promises 562 bytes, then nothing (12 bytes)."""
+
+
+@pytest.mark.parametrize("data", [CUT_OFF, CUT_OFF + b"\x01"],
+                         ids=["stalled after its Length", "a bad Content byte, then silence"])
+def test_a_cut_off_header_in_an_invitation_window_costs_its_bytes_not_its_promise(data):
+    """Issue 40, finding 5: a foreign transmitter answers R4's invitation of the absent R5 with
+    a Header that promises 562 bytes and stops after 12 (or breaks the frame with a 13th byte
+    that is no Content, then stops). Closing the turn at the promised End held every member for
+    594 ms (sent in every window for 37 s, it cut good frames by 67 %). The bytes stop: one
+    stall gap after the last, every member takes the frame to be over and its turn closes there
+    (clause 41); it closed uncertainly, so the next owner, R1 (the invited R5's successor),
+    waits 1 x Tslot (R-stagger, clause 44) and begins: within the stall gap + R-stagger of the
+    last byte, not at the promised End. Nobody is missed or dropped."""
+    cfg = dict(robots=(1, 3, 4, 5), duration=6.0, faults=(parse_fault("fail:5@0"),))
+    _, pevs = world(until=s_to_ticks(4.5), **cfg)
+    polls = [f for f in frames(pevs, s_to_ticks(4.0), src=4) if f["kind"] == "control"]
+    at = polls[0]["end"] + TTRANS_TICKS              # the invited robot's slot
+    foreign = parse_fault(f"foreign@{at / 16e6!r}:x{data.hex()}")
+    w, evs = world(**{**cfg, "faults": cfg["faults"] + (foreign,)})
+    inter = events(evs, "interference")
+    assert [(e["start"], e["bytes"]) for e in inter] == [(at, len(data))]
+    last = at + len(data) * FOREIGN_B
+    promised = at + (14 + 562) * B
+    nxt = min(t for r in (1, 3, 4) for t in txen_on(evs, r, at))
+    assert txen_on(evs, 1, at)[0] == nxt             # R1 takes the turn ...
+    stall = MacConfig().stall_gap
+    assert nxt - (last + stall + TSLOT) in (1, 2, 3)  # ... at the stall + 1 x Tslot
+    assert nxt < promised - s_to_ticks(0.5)
+    assert events(evs, "miss", at) == [] and events(evs, "disable", at) == []
+    assert collisions(evs, at, robots_only=True) == []
+    assert all(v == (1, 3, 4) for r, v in w.ring_views().items() if r != 5)
 
 
 # -- the owner returns during a takeover -------------------------------------------------------

@@ -239,7 +239,9 @@ class MacConfig:
     """Poll window (10 ms): an invited robot's header must be heard by E + twin.
     It starts at E + Ttrans, so its 3 header bytes end by E + 80000 + 3 x 16667 = E + 130001."""
     tslot: int = 320_000
-    """ID stagger (20 ms) for claims and lone pauses: at least twice (Ttrans + 4 bytes)."""
+    """ID stagger (20 ms) for claims, lone pauses and rule R-stagger: at least twice (Ttrans +
+    4 bytes), and small enough that robot 6's stagger, 6 x tslot + Ttrans + 4 bytes, ends
+    before Tmax (docs/protocol.md §7.6; tests/test_margin_bounds.py)."""
     team: frozenset[int] = frozenset(range(7))
     """The robots that may ever join: only these are invited."""
     poll_every: int = 4
@@ -380,6 +382,9 @@ class RotationalMac:
         self._quiet_limit = 0
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
         self._hold_ref: int | None = None   # HOLD after an uncertain closure: its reference
+        self._promised: tuple[int, str, int | None] | None = None
+        """A failed frame's turn closes at the End its Length promised: (that End, and the
+        phase and deadline on_corrupt left), until the frame is over sooner (on_frame_over)."""
         self._booting = False             # powered on and not yet acknowledged by the ring
         self._announcing: int | None = None  # BOOT or JOIN: sent, awaiting acknowledgements
         self._ann_num = 0                 # the Number our BOOT/JOIN frames carry
@@ -503,6 +508,7 @@ class RotationalMac:
         phase = self.phase
         if phase == SWITCH or phase == SEND:
             return _NOTHING            # deaf while switching or sending (only raw input gets here)
+        self._promised = None          # a good frame: the turn is whoever sends it
         if self._paper:
             return self._paper_frame(frame, first, end, now)
         self._heard_since_tx = True
@@ -745,7 +751,30 @@ class RotationalMac:
             return out
         self._quiet_miss = False
         self._next_turn(after, max(expected_end, now), now, out, uncertain=True)
+        self._promised = (expected_end, self.phase, self.deadline) if expected_end > now and \
+            self.phase in (WAIT, HOLD) else None
         return out
+
+    def on_frame_over(self, now: int) -> list:
+        """The frame that failed after its Length (``on_corrupt`` with the End it promised) is
+        over sooner: its bytes stopped for the stall gap before that End (the sender died, or a
+        Header cut off on purpose: 12 bytes that promise 562). Its turn closes now instead
+        (docs/protocol.md clause 41), uncertain as before: the next owner's R-stagger runs from
+        now (clause 44). Nothing changes if anything else moved the MAC on meanwhile."""
+        promised, self._promised = self._promised, None
+        if promised is None or self.mode != MEMBER:
+            return _NOTHING
+        end, phase, deadline = promised
+        if now >= end or self.phase != phase or self.deadline != deadline:
+            return _NOTHING
+        if phase == WAIT and self.turn_start == end:
+            self.turn_start = now
+            self.deadline = now + self.cfg.tmax
+        elif phase == HOLD:
+            self.deadline = deadline - (end - now)
+            if self._hold_ref == end:
+                self._hold_ref = now
+        return _NOTHING
 
     def on_garbage(self, first: int, last: int, now: int) -> list:
         """Bytes that form no frame were heard. In the owner's slot they are probably its frame
@@ -773,6 +802,7 @@ class RotationalMac:
         out: list = []
         if self.deadline is None or now < self.deadline:
             return out
+        self._promised = None          # the phase on_corrupt left is over
         if self.mode == LISTEN:
             self._deadline_listen(now, rx_busy, out)
             return out

@@ -74,7 +74,7 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WAIT", "failed frame", "QUIET", "the frame broke before its Length: wait for quiet",
        "designed"),
     _T("WAIT", "failed frame", "WAIT", "the frame broke after its Length: the turn closes at "
-       "its promised end", "designed"),
+       "its promised end, or when its bytes stop sooner (stall gap)", "designed"),
     _T("WAIT", "failed frame", "HOLD", "... and ours is next: id x Tslot after it (R-stagger)",
        "designed"),
     _T("WAIT", "deadline", "WAIT", "a Header had begun by E + Tmax: look again a byte later; "

@@ -41,14 +41,17 @@ from .serial_radio import PortError, SerialChannel, open_port
 
 REALTIME_MARGINS = {
     "twin": 50 * TICK_HZ // 1000,
-    "tslot": 100 * TICK_HZ // 1000,
+    "tslot": 80 * TICK_HZ // 1000,
     "quiet_gap": 20 * TICK_HZ // 1000,
     "stall_gap": 20 * TICK_HZ // 1000,
     "standby_watch": 30 * TICK_HZ // 1000,
 }
 """MAC margins for robots on PCs (docs/bench.md): bytes reach a PC program milliseconds late
 (USB-serial latency, pty and scheduler), so the invitation window, the ID stagger and the
-quiet/stall gaps are widened. Every robot of one ring must use the same values; a flashed
+quiet/stall gaps are widened. Tslot only to 80 ms: robot 6's R-stagger Header (6 x Tslot +
+Ttrans + 4 bytes after an uncertain closure) must be heard before the others' closure + Tmax
+with a PC's latency to spare (docs/protocol.md §7.6; at 100 ms a healthy robot 6 was counted
+missing after every burst). Every robot of one ring must use the same values; a flashed
 MB90F549 on a bench with PCs is built with them too (the simulator keeps the MCU-exact
 defaults)."""
 
