@@ -133,7 +133,7 @@ def test_no_healthy_robot_is_counted_missing_with_real_time_margins_and_bursts()
     (6 x Tslot) must still put its Header on the air before the others' closure + Tmax. With
     Tslot 100 ms robot 6 was counted missing 12 times by each of the others (and robot 1 12
     times by robot 2, which then took 6's late frame for one out of turn:
-    ``python benchmarks/issue40.py stagger --tslot-ms 100``); now nobody is, and no two robots
+    ``python benchmarks/stagger_and_cutoff.py stagger --tslot-ms 100``); now nobody is, and no two robots
     ever collide."""
     from hil.sim.faults import parse_fault
     from hil.sim.world import SimConfig, World

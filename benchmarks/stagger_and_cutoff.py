@@ -1,9 +1,9 @@
-"""The two findings of issue 40 in the simulator, as figures (docs/guarantees.md).
+"""Two bench findings in the simulator, as figures (docs/guarantees.md): robot 6's R-stagger after bursts, and a cut-off Header in every invitation window.
 
-    python benchmarks/issue40.py stagger [--tslot-ms 80]
+    python benchmarks/stagger_and_cutoff.py stagger [--tslot-ms 80]
         children 1, 2, 6 with the real-time margins (Tslot as given), a 4 ms burst every
         0.73 s for 28 s: the misses each robot counted, drops, robot-robot collisions
-    python benchmarks/issue40.py cutoff [--seconds 37]
+    python benchmarks/stagger_and_cutoff.py cutoff [--seconds 37]
         ring 1, 3, 4 (robot 5 absent), every invitation of 5 answered by a Header that
         promises 562 bytes and stops after 12: good frames against the same run without it,
         with the exact and the real-time margins
