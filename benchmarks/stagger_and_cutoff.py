@@ -1,4 +1,5 @@
-"""Two bench findings in the simulator, as figures (docs/guarantees.md): robot 6's R-stagger after bursts, and a cut-off Header in every invitation window.
+"""Two bench findings in the simulator, as figures (docs/guarantees.md): robot 6's R-stagger
+after bursts, and a cut-off Header in every invitation window.
 
     python benchmarks/stagger_and_cutoff.py stagger [--tslot-ms 80]
         children 1, 2, 6 with the real-time margins (Tslot as given), a 4 ms burst every
