@@ -133,3 +133,21 @@ def test_every_order_ends_once_and_only_done_replied_or_sent_only_succeed():
     book.submitted(Message(src=0, dst=1, num=2, type=2, commands=(cmd("status"),),
                            content=b"", submitted=400), 400)
     assert book.counts()["open"] == 1
+
+
+def test_a_father_that_stands_by_says_new_orders_are_refused_and_what_becomes_of_held_ones():
+    """A father PC that stands by (it heard the other PC) tells the person at once: new orders
+    are refused there, and those it holds go out only if it takes over, else expire."""
+    import io
+    from types import SimpleNamespace
+
+    from firmware_model.radio.mac import MacConfig, ModeChange
+    from hil.view.father import FatherConsole
+    out = io.StringIO()
+    mac = SimpleNamespace(ring=(0, 1), standby=True, pending=2, cfg=MacConfig())
+    FatherConsole(out, "human").ring(SimpleNamespace(mac=mac),
+                                     ModeChange("member", "another PC is active as ID 0: "
+                                                "standing by"), 16_000_000)
+    line = out.getvalue()
+    assert "new orders are refused until this PC takes over" in line, line
+    assert "2 held here go out if it does, else fail (expired) 60 s after each" in line, line

@@ -79,6 +79,11 @@ class FatherConsole:
             self._line(now, f"ring: {_who(a.robot)} dropped after three missed turns")
         elif t is ModeChange:
             ring = " ".join(_who(r) for r in st.mac.ring)
-            note = "; standing by: new orders are refused until this PC takes over" \
-                if getattr(st.mac, "standby", False) else ""
+            note = ""
+            if getattr(st.mac, "standby", False):
+                note = "; standing by: new orders are refused until this PC takes over"
+                held = st.mac.pending
+                if held:
+                    note += (f"; {held} held here go out if it does, else fail (expired) "
+                             f"{st.mac.cfg.max_age // TICK_HZ} s after each was given")
             self._line(now, f"father: {a.mode} ({a.reason}); ring [{ring}]{note}")
