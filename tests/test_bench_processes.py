@@ -376,6 +376,8 @@ def test_an_order_typed_into_a_standby_father_is_refused_at_once(hub, mode):
         assert len(refused) == 1 and why in refused[0], lines
         assert not [x for x in lines if "queued" in x]
     assert "refused 1, open 0)" in err, err
+    assert err.startswith("father (ID 0, standby PC) on ") and \
+        "orders given here are refused until it takes over" in err.splitlines()[0], err
 
 
 def _stacks(procs) -> list:

@@ -189,16 +189,17 @@ def cmd_father(a: argparse.Namespace) -> int:
             ring_view(st, act, now)
         console.ring(st, act, now)
     station.observer = chain(observe, book)
-    role = "standby PC: orders given here are refused until it takes over" if a.standby \
-        else "PC"
+    role = "standby PC" if a.standby else "PC"
+    how = ("orders given here are refused until it takes over" if a.standby else
+           "type orders like '2 movex(10)' or '1 act(1,0)' (DST COMMANDS)")
     if app is not None:
         return _father_app(a, app, runner, station, book, console)
     if not a.no_input:
         feed_orders(runner, station, book, sys.stdin, on_eof=eof)
     elif a.exit_when_done:
         runner.sched.post(maybe_exit)
-    code = run_until_stopped(runner, a, f"father (ID 0, {role}) on {a.radio}; type orders like "
-                             f"'2 movex(10)' or '1 act(1,0)' (DST COMMANDS), Ctrl-C stops",
+    code = run_until_stopped(runner, a, f"father (ID 0, {role}) on {a.radio}; {how}; "
+                             f"Ctrl-C stops",
                              lambda: summary_line(station) + "\n" + book.closing_line())
     if a.exit_when_done and not code and not book.all_succeeded():
         from .common import say_closing
