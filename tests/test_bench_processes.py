@@ -255,9 +255,14 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
         time.sleep(0.5)                                   # R1 hears its submodules' status
         father.stdin.write("1 joint(1,20)\n1 status()\n1 moveto(900,0,0)\n1 joint(1,20)\n")
         father.stdin.close()
-        assert father.wait(timeout=40) == 0, father.stderr.read()
+        # one order failed and one ended unreported: not every order succeeded, status 1
+        assert father.wait(timeout=40) == 1, father.stderr.read()
+        err = father.stderr.read()
     finally:
         stop([father, *kids])
+    assert "orders: 4 (done 1, replied 1, sent-only 0, failed 1, unreported 1, refused 0, " \
+        "open 0)" in err, err
+    assert "bad frames 0" in err, err          # the closing line counts frames, not orders
     if mode == "json":
         evs = [json.loads(x) for x in lines]               # every line is JSON
         ends = {e["order"]: e for e in evs if e["ev"] == "order" and e["id"] < 4 and
@@ -279,6 +284,100 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
                  "#4 -> R1 joint(1,20): unreported after", "no report within 3 s"):
         assert want in text, (want, lines)
     assert len(lines) < 30, lines
+
+
+def _order_ends(lines: list[str]) -> dict[int, list[dict]]:
+    """Each order's final records (``--json``), by order id."""
+    from hil.bench.orders import TERMINAL
+    ends: dict[int, list[dict]] = {}
+    for x in lines:
+        e = json.loads(x)
+        if e["ev"] == "order" and e["state"] in TERMINAL:
+            ends.setdefault(e["id"], []).append(e)
+    return ends
+
+
+def test_piped_orders_wait_for_room_and_each_line_ends_once_with_an_honest_status(hub):
+    """Issue 40, finding 2: 40 piped orders to a child with no CAN side gave 32 order records;
+    the other 8 were refused ("queue full") on stderr only, and the exit status was 0 although
+    every order failed. Piped input now waits for room in the queue (back pressure), every
+    line gets a record with one final state (a bad line too: refused, and why), the exit
+    status with --exit-when-done is 1 unless every order succeeded, and a closing line counts
+    each final state."""
+    kid = spawn("child", "--id", "1", "--radio", hub.paths[1], "--team", "0,1")
+    orders = "1 status()\n" * 40 + "bogus line\n"
+    try:
+        father = subprocess.run(
+            [sys.executable, "-m", "hil.cli", "father", "--radio", hub.paths[0], "--team",
+             "0,1", "--json", "--exit-when-done"], input=orders, capture_output=True,
+            text=True, timeout=120)
+    finally:
+        stop([kid])
+    ends = _order_ends(father.stdout.splitlines())
+    assert sorted(ends) == list(range(1, 42)), sorted(ends)
+    assert all(len(v) == 1 for v in ends.values())           # one final state each
+    assert {ends[i][0]["state"] for i in range(1, 41)} == {"failed"}
+    assert all(ends[i][0]["reason"].startswith("fail(42)") for i in range(1, 41))
+    assert ends[41][0]["state"] == "refused" and ends[41][0]["dst"] is None
+    assert ends[41][0]["reason"].startswith("bad order: start with the destination")
+    assert "queue full" not in father.stdout + father.stderr
+    assert father.returncode == 1, father.stderr
+    assert "orders: 41 (done 0, replied 0, sent-only 0, failed 40, unreported 0, refused 1, "\
+        "open 0)" in father.stderr, father.stderr
+    # the same father exits 0 when every order succeeded (a broadcast ends sent-only)
+    kid = spawn("child", "--id", "1", "--radio", hub.paths[1], "--team", "0,1")
+    try:
+        ok = subprocess.run([sys.executable, "-m", "hil.cli", "father", "--radio",
+                             hub.paths[0], "--team", "0,1", "--quiet", "--exit-when-done"],
+                            input="7 stop()\n", capture_output=True, text=True, timeout=60)
+    finally:
+        stop([kid])
+    assert ok.returncode == 0, ok.stderr
+    assert "#1 -> all stop(): sent-only" in ok.stdout, ok.stdout
+    assert "orders: 1 (done 0, replied 0, sent-only 1, failed 0" in ok.stderr, ok.stderr
+
+
+@pytest.mark.parametrize("mode", ["human", "json"])
+def test_an_order_typed_into_a_standby_father_is_refused_at_once(hub, mode):
+    """Issue 40, finding 1: an order typed into a standby PC showed "queued" and then nothing,
+    for ever (and after 32 of them: "queue full"). The standby now refuses it at once and
+    says where orders go: "PC2 is standing by: the active PC is PC1"; it ends refused, and
+    the process's exit status says so."""
+    team = "0,1,2"
+    active = spawn("father", "--radio", hub.paths[0], "--team", team, "--no-input")
+    kids = [spawn("child", "--id", str(i), "--radio", hub.paths[i], "--team", team)
+            for i in (1, 2)]
+    standby = subprocess.Popen(
+        [sys.executable, "-m", "hil.cli", "father", "--radio", hub.paths[3], "--team", team,
+         "--standby", "--exit-when-done", *(["--json"] if mode == "json" else [])],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: list[str] = []
+    _lines_of(standby, lines)
+    try:
+        def standing_by() -> bool:
+            return any("standing by" in x for x in lines)
+        assert wait_for(standing_by, 40.0), lines[-5:]
+        standby.stdin.write("1 status()\n")
+        standby.stdin.flush()
+        assert wait_for(lambda: any("refused" in x for x in lines), 20.0), lines[-5:]
+        standby.stdin.close()
+        assert standby.wait(timeout=20) == 1
+        err = standby.stderr.read()
+    finally:
+        stop([standby, active, *kids])
+    why = "PC2 is standing by: the active PC is PC1; give orders there"
+    if mode == "json":
+        ends = _order_ends(lines)
+        assert list(ends) == [1] and ends[1][0]["state"] == "refused", ends
+        assert ends[1][0]["reason"].startswith(why) and ends[1][0]["seconds"] == 0
+        assert not [x for x in lines if '"state":"queued"' in x]
+    else:
+        refused = [x for x in lines if "#1 -> R1 status(): refused: " in x]
+        assert len(refused) == 1 and why in refused[0], lines
+        assert not [x for x in lines if "queued" in x]
+    assert "refused 1, open 0)" in err, err
+    assert err.startswith("father (ID 0, standby PC) on ") and \
+        "orders given here are refused until it takes over" in err.splitlines()[0], err
 
 
 def _stacks(procs) -> list:

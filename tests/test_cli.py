@@ -454,7 +454,7 @@ def test_a_can_log_format_python_can_cannot_write_here_is_one_line(tmp_path, cap
 
 def test_a_can_only_child_closes_with_its_can_side_not_radio_fields(capsys):
     """``rprs child --can ...`` without ``--radio``: its closing line was the radio's, "robot
-    1: listen, ring [], frames sent 0, heard 0, failed 0, pending 0", for a station that
+    1: listen, ring [], frames sent 0, heard 0, bad frames 0, pending 0", for a station that
     never had a radio. It now gives what the child has: its CAN side."""
     code, out, err = rprs(capsys, "child", "--id", "1", "--can", "virtual:cli-can-only",
                           "--duration", "0.3")
@@ -516,6 +516,9 @@ def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
     assert "Traceback" not in err and "Exception ignored" not in err and "Broken" not in err
     lines = err.strip().splitlines()
     assert lines[0].startswith(("running child 1", "father (ID 0")), err
+    if command[0] == "father":                   # the station's line, then the orders'
+        assert lines[-1].startswith("orders: "), err
+        lines.pop()
     assert lines[-1].startswith(("robot 1: member", "robot 0: member")), err
 
 

@@ -76,10 +76,51 @@ def test_the_view_quits_once_the_firmware_has_stopped_by_itself(tmp_path):
     asyncio.run(go())
 
 
-def test_sigterm_stops_the_live_father_cleanly(tmp_path):
+def test_ctrl_c_quits_the_view_even_from_the_order_line(tmp_path):
+    """Ctrl-C in the live view only showed "Press ctrl+q to quit" (textual's own binding; the
+    order line took it for copy), although the README says Ctrl-C stops rprs father. It now
+    quits, with the order line focused and text in it."""
+    app = FatherApp(lambda line: None, lambda: "head", str(tmp_path / "h"), rate=10.0)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.press(*"1 stat")
+            await pilot.press("ctrl+c")
+            for _ in range(50):
+                await pilot.pause(0.1)
+                if not app.is_running:
+                    break
+            assert not app.is_running
+    asyncio.run(go())
+
+
+def test_the_header_gives_the_turn_only_of_a_member_and_says_a_standby_refuses_orders():
+    """The header said "turn: R5" for a robot not in the ring (a stranger's frame, or the ring
+    seen while listening). It gives the turn only while the father is a member, and only a
+    member's; a standby PC says that orders given there are refused."""
+    from types import SimpleNamespace
+
+    from hil.bench.orders import OrderBook
+    from hil.cli.robots import father_head
+    book = OrderBook()
+    mac = SimpleNamespace(mode="member", ring=(0, 1, 2), owner=5, standby=False)
+    assert "turn: -;" in father_head(mac, "AIR/node0", book)
+    mac.owner = 2
+    assert "ring [father 0 R1 R2]; turn: R2;" in father_head(mac, "AIR/node0", book)
+    listening = SimpleNamespace(mode="listen", ring=(), owner=1, standby=False)
+    assert "turn: -;" in father_head(listening, "AIR/node0", book)
+    mac.standby = True
+    assert "member (standing by: new orders are refused until this PC takes over)" in \
+        father_head(mac, "AIR/node0", book)
+
+
+@pytest.mark.parametrize("how", ["SIGTERM", "ctrl-c"])
+def test_sigterm_or_ctrl_c_stops_the_live_father_cleanly(tmp_path, how):
     """SIGTERM to 'rprs father' at a terminal once killed it outright (the firmware's thread
     cannot take the signal): "Terminated", status 143, no summary line, the terminal left in
-    the view's modes. Now the view quits and the summary comes, status 0 (docs/bench.md)."""
+    the view's modes. Now the view quits and the summary comes, status 0 (docs/bench.md).
+    Ctrl-C typed at that terminal (a byte 0x03 to the view, raw mode: no signal) only said
+    "Press ctrl+q"; it now stops it as cleanly."""
     import os
     import select
     import signal
@@ -109,7 +150,10 @@ def test_sigterm_stops_the_live_father_cleanly(tmp_path):
     try:
         drain(lambda: b"DST COMMANDS" in seen or proc.poll() is not None, 60)
         assert b"DST COMMANDS" in seen, seen[-500:]
-        proc.send_signal(signal.SIGTERM)
+        if how == "SIGTERM":
+            proc.send_signal(signal.SIGTERM)
+        else:
+            os.write(term_m, b"\x03")
         drain(lambda: proc.poll() is not None, 60)
         proc.wait(timeout=10)
         drain(lambda: False, 0.5)
@@ -121,3 +165,4 @@ def test_sigterm_stops_the_live_father_cleanly(tmp_path):
             os.close(fd)
     assert proc.returncode == 0, seen[-500:]
     assert b"robot 0: " in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]
+    assert b"orders: 0 (" in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]

@@ -114,3 +114,40 @@ def test_an_order_the_robot_never_reports_on_ends_unreported():
     late = Deliver(1, 0, 5, int(FrameType.BROADCAST_INFO), (cmd("done"), cmd("movex", 0)))
     book.observe(late, acked + 70 * TICK_HZ)            # too late: the order has ended
     assert seen[-1][:2] == (1, "unreported")
+
+
+def test_every_order_ends_once_and_only_done_replied_or_sent_only_succeed():
+    """The closing line counts each final state, and ``--exit-when-done`` exits 0 only when
+    every order succeeded: an order refused before it reached the MAC (a bad line, a standby
+    PC) is a record of its own that ends ``refused``, and fails the run like ``failed``."""
+    book, msg, seen = _book()
+    book.observe(Outcome(msg, True, ""), 100)
+    book.observe(Deliver(1, 0, 5, int(FrameType.BROADCAST_INFO),
+                         (cmd("done"), cmd("joint", 1, 20))), 200)
+    assert book.all_succeeded()
+    bad = book.refused("bogus", None, "bad order: start with the destination ID", 300)
+    assert bad.finished and bad.id == 2 and seen[-1] == (2, "refused", 300)
+    assert not book.all_succeeded()
+    assert book.closing_line() == ("orders: 2 (done 1, replied 0, sent-only 0, failed 0, "
+                                   "unreported 0, refused 1, open 0)")
+    book.submitted(Message(src=0, dst=1, num=2, type=2, commands=(cmd("status"),),
+                           content=b"", submitted=400), 400)
+    assert book.counts()["open"] == 1
+
+
+def test_a_father_that_stands_by_says_new_orders_are_refused_and_what_becomes_of_held_ones():
+    """A father PC that stands by (it heard the other PC) tells the person at once: new orders
+    are refused there, and those it holds go out only if it takes over, else expire."""
+    import io
+    from types import SimpleNamespace
+
+    from firmware_model.radio.mac import MacConfig, ModeChange
+    from hil.view.father import FatherConsole
+    out = io.StringIO()
+    mac = SimpleNamespace(ring=(0, 1), standby=True, pending=2, cfg=MacConfig())
+    FatherConsole(out, "human").ring(SimpleNamespace(mac=mac),
+                                     ModeChange("member", "another PC is active as ID 0: "
+                                                "standing by"), 16_000_000)
+    line = out.getvalue()
+    assert "new orders are refused until this PC takes over" in line, line
+    assert "2 held here go out if it does, else fail (expired) 60 s after each" in line, line

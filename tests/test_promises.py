@@ -9,7 +9,9 @@ import pytest
 
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import Frame, FrameType
-from firmware_model.radio.mac import Deliver, Duplicate, MacConfig, ModeChange, RotationalMac
+from firmware_model.radio.mac import (
+    Deliver, Duplicate, MacConfig, ModeChange, Outcome, RotationalMac, StandingBy, Transmit,
+)
 from firmware_model.timing import (
     CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, protocol_max_content, s_to_ticks,
 )
@@ -349,6 +351,53 @@ def test_two_father_pcs_in_listen_never_answer_the_same_invitation():
     later = t + 4 * TMAX_TICKS
     lone.on_frame(invite, later, later + 1000, later + 1000)
     assert lone.mode == "member" and not lone.standby
+
+
+def _live_idle_ring(mac, start, until):
+    """Heartbeats of ID 0 (the other, active PC), R1 and R2 in turn, one idle turn (14 bytes +
+    Ttrans) apart, as a live ring sends them to ``mac`` from ``start`` to ``until``; the MAC's
+    own deadlines run when they come before a frame's End. Returns every action."""
+    out, t, i = [], start, 0
+    turn = 14 * CHILD_BYTE_TICKS + TTRANS_TICKS
+    while t < until:
+        end = t + turn
+        while mac.deadline is not None and mac.deadline < end:
+            out += mac.on_timer(mac.deadline, rx_busy=mac.deadline > end - 14 * CHILD_BYTE_TICKS)
+        src = (0, 1, 2)[i % 3]
+        out += mac.on_frame(Frame(dst=7, src=src, num=0, type=3, content=b""),
+                            end - 13 * CHILD_BYTE_TICKS, end, end)
+        t, i = end, i + 1
+    return out
+
+
+def test_a_standby_pc_refuses_a_new_message_at_once_and_names_the_active_pc():
+    """An order typed into a standby PC showed ``queued`` and then nothing, for ever (issue
+    40): a standby sends nothing, and only its own deadlines, which a live ring never lets
+    pass, expired its queue. A standby now refuses a new message at once (clause 50)."""
+    mac = RotationalMac(0, MacConfig(team=frozenset((0, 1, 2)), pc=2, paired=True))
+    mac.power_on(0)
+    _live_idle_ring(mac, TMAX_TICKS, 2 * TMAX_TICKS)
+    assert mac.mode == "member" and mac.standby
+    with pytest.raises(StandingBy, match="PC2 is standing by: the active PC is PC1"):
+        mac.submit(1, [cmd("status")], mac.deadline)
+    assert mac.pending == 0
+
+
+def test_what_a_pc_held_when_it_stood_by_expires_within_max_age_on_a_live_ring():
+    """A father PC listening with a message queued (restarted while the other PC is active, or
+    stalled) hears the active PC and stands by: the message stayed queued for ever on a live
+    ring. It now ends ``failed`` (expired) within ``max_age`` of its submission, as in
+    LISTEN: every message at every station ends (docs/guarantees.md)."""
+    cfg = MacConfig(team=frozenset((0, 1, 2)), pc=2, paired=True)
+    mac = RotationalMac(0, cfg)
+    mac.power_on(0)
+    msg = mac.submit(1, [cmd("status")], 0)
+    out = _live_idle_ring(mac, TMAX_TICKS, cfg.max_age + 2 * TMAX_TICKS)
+    assert mac.standby and mac.mode == "member"
+    ends = [a for a in out if type(a) is Outcome]
+    assert [(a.message, a.delivered) for a in ends] == [(msg, False)]
+    assert msg.reason.startswith("expired") and mac.pending == 0
+    assert not any(type(a) is Transmit for a in out)        # a standby sends nothing
 
 
 def test_a_father_pc1_that_took_over_ends_its_probation_and_delivers():

@@ -99,6 +99,12 @@ class QueueFull(SubmitError):
     needs a turn of the ring, so not before the caller's next event)."""
 
 
+class StandingBy(SubmitError):
+    """A father PC standing by refuses new messages at once (docs/protocol.md clause 50): the
+    active PC sends ID 0's frames, and a message held here would go out only if this PC took
+    over, at an hour nobody chose."""
+
+
 # ---------------------------------------------------------------------------------------------
 # Actions (for the driver) and observations (for traces, tests and the application)
 
@@ -495,6 +501,11 @@ class RotationalMac:
                 f"than one turn allows ({self.max_content + FRAME_OVERHEAD} bytes fit in Tmax"
                 f"{', checksum included' if limit < self.max_content else ''}); "
                 f"split the message")
+        if self.standby:
+            pc = self.cfg.pc
+            other = f"PC{3 - pc}" if self.cfg.paired else "another father PC on ID 0"
+            raise StandingBy(f"PC{pc} is standing by: the active PC is {other}; give orders "
+                             f"there, or here once this PC has taken over")
         if self.pending >= self.cfg.max_queue:
             raise QueueFull(f"queue full ({self.cfg.max_queue} messages pending)")
         msg = Message(self.id, dst, self._next_num, int(type), commands, content, now)
@@ -511,6 +522,13 @@ class RotationalMac:
         self._promised = None          # a good frame: the turn is whoever sends it
         if self._paper:
             return self._paper_frame(frame, first, end, now)
+        if self.standby and (self._queue or self._inflight is not None):
+            # A standby takes no turns and a live ring never lets its deadlines pass: what it
+            # held when it stood by expires on the frames it hears, as in LISTEN (clause 50).
+            ended: list = []
+            self._expire(now, ended)
+            if ended:
+                return ended + list(self.on_frame(frame, first, end, now))
         self._heard_since_tx = True
         if src == self.owner and phase == WAIT and frame.type == 3 and src != self.id and (
                 not frame.content if not self._hb_len

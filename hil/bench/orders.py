@@ -8,8 +8,10 @@ attempts, or the robot's ``fail(code)`` with that order), or ``unreported`` (ack
 no report :data:`REPORT_WITHIN_S` later: :meth:`OrderBook.expire`). An order of ``act(n,0)`` ends when the
 robot broadcasts ``act(n,1)``; ``stop()``, which the robot carries out at once and reports on
 no further, ends with its acknowledgement; a broadcast (destination 7), and every order in the
-paper profile (nothing is acknowledged there), ends ``sent``. A message of several commands
-(``1 joint(1,20)joint(2,30)``) is followed command by command, as the robot reports each on
+paper profile (nothing is acknowledged there), ends ``sent-only``. An order that never reached
+the MAC ends ``refused`` at once, with the reason: a bad order line, a full queue at a terminal
+(piped input waits for room instead), or a father PC standing by (docs/protocol.md clause 50).
+A message of several commands (``1 joint(1,20)joint(2,30)``) is followed command by command, as the robot reports each on
 its own (docs/dispatcher.md): it ends when every one has, ``failed`` at the first failure.
 Times are seconds since the order was queued (the station's clock). The robot's answer proves
 the order arrived: an answer that comes before the acknowledgement (a lost ack on a lossy
@@ -35,7 +37,13 @@ FAIL_REASONS = {
 """The child's failure codes (docs/dispatcher.md); 10+n, 20+n, 30+n name submodule n."""
 
 NODE_NAMES = {1: "joint 1", 2: "joint 2", 3: "joint 3", 4: "joint 4", 5: "wheel", 6: "paw"}
-TERMINAL = frozenset({"done", "replied", "failed", "sent-only", "unreported"})
+TERMINAL = frozenset({"done", "replied", "failed", "sent-only", "unreported", "refused"})
+FINAL_STATES = ("done", "replied", "sent-only", "failed", "unreported", "refused")
+"""The final states in the order the closing line counts them."""
+SUCCEEDED = frozenset({"done", "replied", "sent-only"})
+"""What counts as success (``rprs father --exit-when-done`` exits 0 only if every order ended
+so): the robot reported it done, or replied; ``sent-only`` where nothing can acknowledge it (a
+broadcast, the paper profile)."""
 REPORT_WITHIN_S = 60.0
 """Seconds after its acknowledgement by which an order is reported on, or never will be: the
 child reports every job it runs done or failed within twice its planned time + 1 s (at most
@@ -85,9 +93,9 @@ class Order:
     """One order of the father: ``#id -> dst commands`` and where it stands."""
 
     id: int
-    dst: int
+    dst: int | None                   # None: a line that named no destination
     text: str
-    message: Message
+    message: Message | None           # None: refused before it reached the MAC
     queued: int                       # tick
     state: str = "queued"
     reason: str = ""
@@ -118,6 +126,33 @@ class OrderBook:
 
     def open_orders(self) -> list[Order]:
         return [o for o in self.orders if not o.finished]
+
+    def refused(self, text: str, dst: int | None, reason: str, now: int) -> Order:
+        """An order line that never reached the MAC: a record that ends ``refused`` at once."""
+        o = Order(len(self.orders) + 1, dst, text, None, now)
+        self.orders.append(o)
+        self._set(o, "refused", now, reason)
+        return o
+
+    def counts(self) -> dict[str, int]:
+        """How many orders are in each final state, and ``open`` those not ended yet."""
+        out = dict.fromkeys(FINAL_STATES, 0)
+        for o in self.orders:
+            if o.finished:
+                out[o.state] += 1
+        out["open"] = len(self.orders) - sum(out.values())
+        return out
+
+    def all_succeeded(self) -> bool:
+        """Every order ended in success (:data:`SUCCEEDED`); True with no orders at all."""
+        return all(o.state in SUCCEEDED for o in self.orders)
+
+    def closing_line(self) -> str:
+        """``orders: 40 (done 0, replied 0, sent-only 0, failed 40, unreported 0, refused 0,
+        open 0)``."""
+        c = self.counts()
+        return f"orders: {len(self.orders)} (" + ", ".join(f"{k} {v}" for k, v in c.items()) \
+            + ")"
 
     def submitted(self, msg: Message, now: int) -> Order:
         o = Order(len(self.orders) + 1, msg.dst, "".join(c.text() for c in msg.commands), msg,

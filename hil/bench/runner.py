@@ -366,31 +366,58 @@ def _typed_lines(prompt: str = "order> "):
                 pass
 
 
-def feed_orders(runner: Runner, station: RadioStation, stream: TextIO,
-                err: TextIO = sys.stderr, on_eof: Callable[[], None] | None = None
-                ) -> threading.Thread:
-    """Read ``DST COMMANDS`` lines from ``stream`` (at a terminal: with line editing and
-    history) and submit them from the station; ``on_eof`` runs in the runner's thread when
-    the input ends."""
-    def submit(dst: int, commands: list) -> None:
+RETRY_TICKS = 50 * TICK_HZ // 1000
+"""How often an order from piped input that found the queue full is offered again."""
+
+
+def take_order(runner: Runner, station: RadioStation, book: Any, line: str, patient: bool,
+               done: threading.Event | None = None) -> None:
+    """In the runner's thread: submit the order ``line`` (``DST COMMANDS``), or give it a record
+    in ``book`` (hil/bench/orders.py) that ends ``refused`` with the reason: a bad line, a
+    refusal by the MAC (a standby PC, a message too long). A full queue refuses it too unless
+    ``patient`` (input that is not a terminal: a script's orders wait for room, back pressure);
+    then it is offered again every :data:`RETRY_TICKS`. ``done`` is set once the line is
+    submitted or refused."""
+    from firmware_model.radio.mac import QueueFull
+    text = line.strip()
+    now = runner.sched.now
+    try:
+        dst, commands = parse_order(text)
+    except ValueError as exc:
+        book.refused(text, None, f"bad order: {exc}", now)
+    else:
         try:
             station.submit(dst, commands)
+        except QueueFull as exc:
+            if patient and not runner._stopping.is_set():
+                runner.sched.after(RETRY_TICKS, take_order, runner, station, book, line,
+                                   patient, done)
+                return
+            book.refused("".join(c.text() for c in commands), dst, str(exc), now)
         except SubmitError as exc:
-            err.write(f"refused: {exc}\n")
-            err.flush()
+            book.refused("".join(c.text() for c in commands), dst, str(exc), now)
+    if done is not None:
+        done.set()
 
+
+def feed_orders(runner: Runner, station: RadioStation, book: Any, stream: TextIO,
+                on_eof: Callable[[], None] | None = None) -> threading.Thread:
+    """Read ``DST COMMANDS`` lines from ``stream`` (at a terminal: with line editing and
+    history) and hand each to :func:`take_order` in the runner's thread, one at a time: the
+    next line is read once this one is submitted or refused, so input that is not a terminal
+    waits while the queue is full. Blank lines and ``#`` comments are skipped. ``on_eof`` runs
+    in the runner's thread when the input ends."""
     def loop() -> None:
-        lines = _typed_lines() if stream.isatty() else stream
+        tty = stream.isatty()
+        lines = _typed_lines() if tty else stream
         for line in lines:
             if not line.strip() or line.lstrip().startswith("#"):
                 continue
-            try:
-                dst, commands = parse_order(line)
-            except ValueError as exc:
-                err.write(f"bad order: {exc}\n")
-                err.flush()
-                continue
-            runner.sched.post(submit, dst, commands)
+            done = threading.Event()
+            runner.sched.post(take_order, runner, station, book, line, not tty, done)
+            while not done.wait(0.2):
+                if runner.finished.is_set():
+                    return
         if on_eof is not None:
             runner.sched.post(on_eof)
 
@@ -402,7 +429,7 @@ def feed_orders(runner: Runner, station: RadioStation, stream: TextIO,
 def summary_line(station: RadioStation) -> str:
     m = station.mac
     return (f"robot {station.id}: {m.mode}, ring {list(m.ring)}, frames sent {m.frames_sent}, "
-            f"heard {station.frames_heard}, failed {station.frames_failed}, "
+            f"heard {station.frames_heard}, bad frames {station.frames_failed}, "
             f"pending {m.pending}")
 
 

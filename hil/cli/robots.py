@@ -66,15 +66,6 @@ def bus_notes(bus) -> list[str]:
     return notes
 
 
-def _submit_order(station, dst: int, commands: list, console) -> None:
-    """Queue a typed order (the runner's thread); a refusal becomes a line of the story."""
-    from firmware_model.radio.mac import SubmitError
-    try:
-        station.submit(dst, commands)
-    except SubmitError as exc:
-        console.out.write(f"refused: {exc}\n")
-
-
 def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> int:
     """The father's live console (hil/view/father_app.py): the firmware in a thread, the
     view in this one; quitting the view stops the firmware, and SIGTERM stops both cleanly."""
@@ -97,6 +88,7 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
     from ..bench.runner import summary_line
     from .common import say_closing
     say_closing(summary_line(station))         # not if the terminal has gone (SIGHUP)
+    say_closing(book.closing_line())
     return stopped_by_itself(runner)
 
 
@@ -132,7 +124,8 @@ def submodules_summary(nodes: dict) -> str:
 
 def cmd_father(a: argparse.Namespace) -> int:
     from ..bench.orders import OrderBook, chain
-    from ..bench.runner import Runner, RunError, build_father, feed_orders, summary_line
+    from ..bench.runner import (Runner, RunError, build_father, feed_orders, summary_line,
+                                take_order)
     from ..view.father import FatherConsole
     if a.json and a.quiet:
         raise UserError("--json and --quiet: choose one")
@@ -184,17 +177,11 @@ def cmd_father(a: argparse.Namespace) -> int:
             dst, commands = parse_order(line)
         except ValueError as exc:
             return str(exc)
-        runner.sched.post(_submit_order, station, dst, commands, console)
+        runner.sched.post(take_order, runner, station, book, line, False)
         return None
 
     def head() -> str:                            # the app's header
-        m = station.mac
-        ring = " ".join("father 0" if r == 0 else f"R{r}" for r in m.ring)
-        owner = "-" if m.owner is None else "father 0" if m.owner == 0 else f"R{m.owner}"
-        return (f"father (ID 0) on {a.radio}: {m.mode}; ring [{ring}]; turn: {owner}; "
-                f"orders open: {len(book.open_orders())} of {len(book.orders)}\n"
-                f"type DST COMMANDS (1 joint(2,60), 1 status()); up/down: history; "
-                f"ctrl+q quits")
+        return father_head(station.mac, a.radio, book)
     ring_view = station.observer
 
     def observe(st, act, now: int) -> None:
@@ -203,15 +190,42 @@ def cmd_father(a: argparse.Namespace) -> int:
         console.ring(st, act, now)
     station.observer = chain(observe, book)
     role = "standby PC" if a.standby else "PC"
+    how = ("orders given here are refused until it takes over" if a.standby else
+           "type orders like '2 movex(10)' or '1 act(1,0)' (DST COMMANDS)")
     if app is not None:
         return _father_app(a, app, runner, station, book, console)
     if not a.no_input:
-        feed_orders(runner, station, sys.stdin, on_eof=eof)
+        feed_orders(runner, station, book, sys.stdin, on_eof=eof)
     elif a.exit_when_done:
         runner.sched.post(maybe_exit)
-    return run_until_stopped(runner, a, f"father (ID 0, {role}) on {a.radio}; type orders like "
-                f"'2 movex(10)' or '1 act(1,0)' (DST COMMANDS), Ctrl-C stops",
-                lambda: summary_line(station))
+    code = run_until_stopped(runner, a, f"father (ID 0, {role}) on {a.radio}; {how}; "
+                             f"Ctrl-C stops",
+                             lambda: summary_line(station) + "\n" + book.closing_line())
+    if a.exit_when_done and not code and not book.all_succeeded():
+        from .common import say_closing
+        say_closing("rprs: not every order succeeded (done, replied, or sent-only for a "
+                    "broadcast or the paper profile): exit status 1")
+        code = 1
+    return code
+
+
+def father_head(mac, radio: str, book) -> str:
+    """The live view's header: the father's mode, the ring it sees, whose turn it is (only as
+    a member, and only a member's turn: a frame from outside the ring owns nothing), and its
+    orders; a standby says so, and that orders are refused there."""
+    ring = " ".join("father 0" if r == 0 else f"R{r}" for r in mac.ring)
+    owner = mac.owner
+    if mac.mode != "member" or owner is None or owner not in mac.ring:
+        turn = "-"
+    else:
+        turn = "father 0" if owner == 0 else f"R{owner}"
+    mode = mac.mode
+    if getattr(mac, "standby", False):
+        mode += " (standing by: new orders are refused until this PC takes over)"
+    return (f"father (ID 0) on {radio}: {mode}; ring [{ring}]; turn: {turn}; "
+            f"orders open: {len(book.open_orders())} of {len(book.orders)}\n"
+            f"type DST COMMANDS (1 joint(2,60), 1 status()); up/down: history; "
+            f"ctrl+q or ctrl+c quits")
 
 
 PCAP_HELP = ("write a pcapng capture here: what this process's serial port sent and heard and "
@@ -258,7 +272,11 @@ def add(sub) -> None:
     fa.add_argument("--quiet", action="store_true", help="only each order's end (done, "
                     "replied, failed) and errors")
     fa.add_argument("--exit-when-done", action="store_true", help="exit once the input has "
-                    "ended and every order has ended (for scripts)")
+                    "ended and every order has ended (for scripts); exit status 0 only if "
+                    "every order succeeded: done or replied, or sent-only for a broadcast or "
+                    "in the paper profile (failed, unreported and refused are not), else 1. "
+                    "Piped orders wait for room in the queue; each line gets one record and "
+                    "one final state")
     fa.add_argument("--report-within", type=positive, default=REPORT_WITHIN_S, metavar="S",
                     help="an acknowledged order with no report S seconds later ends "
                     "'unreported': the child reports nothing for a move to where the arm "

@@ -44,9 +44,14 @@ class FatherConsole:
             return
         if self.mode == "quiet" and not o.finished:
             return
+        if o.dst is None:                      # a line that named no destination
+            self._line(now, f"#{o.id} {o.text!r}: {o.state}: {o.reason}")
+            return
         head = f"#{o.id} -> {_who(o.dst)} {o.text}: {o.state}"
         took = f"{o.seconds(now):.2f} s"
-        if o.state == "queued":
+        if o.state == "refused":
+            tail = f": {o.reason}"
+        elif o.state == "queued":
             tail = ""
         elif o.state == "sent":
             tail = f" (Number {o.message.num:02d})"
@@ -74,4 +79,11 @@ class FatherConsole:
             self._line(now, f"ring: {_who(a.robot)} dropped after three missed turns")
         elif t is ModeChange:
             ring = " ".join(_who(r) for r in st.mac.ring)
-            self._line(now, f"father: {a.mode} ({a.reason}); ring [{ring}]")
+            note = ""
+            if getattr(st.mac, "standby", False):
+                note = "; standing by: new orders are refused until this PC takes over"
+                held = st.mac.pending
+                if held:
+                    note += (f"; {held} held here go out if it does, else fail (expired) "
+                             f"{st.mac.cfg.max_age // TICK_HZ} s after each was given")
+            self._line(now, f"father: {a.mode} ({a.reason}); ring [{ring}]{note}")

@@ -1,7 +1,8 @@
 """``rprs father`` at a terminal: a live view of the ring and of the orders (textual).
 
-* a header, refreshed 5 times a second: the father's mode, the ring as it sees it, who owns
-  the turn (the robot on air, else the last sender), and its orders still open;
+* a header, refreshed 5 times a second: the father's mode (a standby PC says it refuses new
+  orders), the ring as it sees it, whose turn it is (a member's, only while the father is a
+  member), and its orders still open;
 * the story below it: one line for each change of an order's state and of the ring (the same
   lines as the plain console, hil/view/father.py), replies decoded;
 * an order line at the bottom (``DST COMMANDS``), with the usual editing keys and a history:
@@ -9,7 +10,8 @@
   same file as the plain console's readline history).
 
 The firmware runs in the runner's thread; the app only reads what it shows and hands typed
-orders to ``submit`` (which the caller makes thread-safe). Ctrl-C or ``ctrl+q`` quits.
+orders to ``submit`` (which the caller makes thread-safe). Ctrl-C or ``ctrl+q`` quits, and
+``rprs father`` then stops the firmware and prints its closing lines.
 """
 from __future__ import annotations
 
@@ -63,7 +65,11 @@ class FatherApp(App):
     #log { height: 1fr; }
     OrderInput { dock: bottom; }
     """
-    BINDINGS = [Binding("ctrl+q", "quit", "quit")]
+    BINDINGS = [Binding("ctrl+q", "quit", "quit"),
+                # Ctrl-C stops it, as it stops every rprs process (textual's own ctrl+c only
+                # said "Press ctrl+q", and the order line's took it for copy): a priority
+                # binding comes before both. super+c still copies.
+                Binding("ctrl+c", "quit", "quit", show=False, priority=True)]
 
     def get_driver_class(self):
         """textual's driver, quiet once the terminal has closed (hil/view/terminal.py): the
