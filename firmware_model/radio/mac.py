@@ -381,6 +381,7 @@ class RotationalMac:
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
         self._hold_ref: int | None = None   # HOLD after an uncertain closure: its reference
         self._booting = False             # powered on and not yet acknowledged by the ring
+        self._lone_boot = False           # our BOOT went out as a lone claimer: nobody acked it
         self._announcing: int | None = None  # BOOT or JOIN: sent, awaiting acknowledgements
         self._ann_num = 0                 # the Number our BOOT/JOIN frames carry
         self._ann_awaiting: set[int] = set()   # members yet to acknowledge it
@@ -443,6 +444,7 @@ class RotationalMac:
             return self._paper_power_on(now)
         self.mode = LISTEN
         self._booting = True
+        self._lone_boot = False
         self._announcing = None
         self._last_num = 0                 # the BOOT frame is Number '00' ...
         self._next_num = 1                 # ... and messages start at '01'
@@ -1160,6 +1162,14 @@ class RotationalMac:
         self.ring = tuple(sorted(set(self.ring) | {robot}))
         self.ever_member.add(robot)
         self.misses[robot] = 0
+        if self._lone_boot:
+            # A lone claimer whose ring grows: the robots it admits heard its frames and
+            # answered them; its former Numbers are not in their memory unless one of them
+            # was cut off from the ring it had left (docs/guarantees.md, "Stalls and restarts
+            # at the bench"). Its BOOT is done: a later answer is JOIN (else the members would
+            # forget its Numbers and take a retransmission for a new message).
+            self._lone_boot = False
+            self._booting = False
         out.append(Join(robot, again))
 
     def _refuse_in_slot(self, src: int, num: int, reason: str, end: int, now: int,
@@ -1395,7 +1405,8 @@ class RotationalMac:
         """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
         if self._paper:
             return self._paper_build(now, out)
-        if self._answering or (self._booting and self._announcing is None):
+        if self._answering or (self._booting and self._announcing is None and
+                               not self._lone_boot):
             # The answer to an invitation, or a lone claimer's first frame: nothing else in it.
             # A BOOT frame is Number '00'; a JOIN frame takes the next Number, so that its
             # acknowledgement cannot be mistaken for a message's (docs/protocol.md §4.4,
@@ -1409,7 +1420,15 @@ class RotationalMac:
                 self._next_num = (num + 1) % 100
             self._announcing, self._ann_num, self._ann_turns = kind, num, 1
             self._ann_awaiting = set(self.ring) - {self.id}
-            if not self._ann_awaiting:
+            if not self._ann_awaiting and kind == FrameType.BOOT:
+                # A lone claimer's BOOT: nobody acknowledged it, so nobody forgot our old
+                # Numbers. It stays unacknowledged (clause 34): the answer to the invitation
+                # that brings us into a ring is BOOT, not JOIN, or a member that remembers
+                # our last Number from before the restart takes our message with that Number
+                # for a duplicate (found on the bench: a father restarted on a live ring).
+                self._announcing = None
+                self._lone_boot = True
+            elif not self._ann_awaiting:
                 self._announced()
             frame = self._frame(BROADCAST, num, kind, b"")
             return frame, frame.encode()
