@@ -735,6 +735,8 @@ class RotationalMac:
         self._tell_view = True
         after = src if src is not None and src != self.id and (
             src in self.ring or src == self.owner) else self.owner
+        if after is None:
+            return out                 # resynchronising (``resync``): wait for a good frame
         if expected_end is None:
             # The Length was never read: the frame is over when no byte has come for
             # ``quiet_gap`` ticks, and at the latest Tmax after its header began.
@@ -754,7 +756,7 @@ class RotationalMac:
         with a corrupted Header: if the channel then falls quiet the turn closes (no miss);
         if it never does (idle noise), the owner misses at E + Tmax as usual."""
         self._noise_since_tx = True
-        if self.mode == MEMBER and self.phase == WAIT and \
+        if self.mode == MEMBER and self.phase == WAIT and self.owner is not None and \
                 last > self.turn_start + self.cfg.ttrans:
             self._tell_view = True
             self.phase = QUIET
@@ -781,6 +783,31 @@ class RotationalMac:
         if self.standby and (self._queue or self._inflight is not None):
             self._expire(now, out)
         DEADLINE_HANDLERS[self.phase](self, now, rx_busy, last_rx, rx_began, out)
+        return out
+
+    def resync(self, now: int) -> list:
+        """Our station was not running for longer than the margins allow (docs/protocol.md
+        clause 5; a bench process stopped or starved): every deadline it had is stale and
+        what it heard meanwhile is gone. It must not act on that view (a turn taken on it
+        collides): in LISTEN the claim wait starts again from now; a member lowers TXEN if it
+        had raised it, keeps its ring and listens, the owner unknown, until it hears a good
+        frame, which gives the next turn as any frame does; heard nothing for Tclaim, it goes
+        back to LISTEN (docs/guarantees.md, "Stalls and restarts at the bench")."""
+        out: list = []
+        if self.mode == LISTEN:
+            self.deadline = now + self._claim_ticks()
+            return out
+        if self.phase == SEND:             # the frame is out: the station resyncs after it
+            return out
+        if self.phase == SWITCH:
+            out.append(TX_OFF)             # a turn taken on a stale view is not sent
+        self.phase = WAIT
+        self.owner = None
+        self.poller = None
+        self._hold_ref = None
+        self._quiet_miss = False
+        self.turn_start = now
+        self.deadline = now + self._claim_ticks()
         return out
 
     def _deadline_listen(self, now: int, rx_busy: bool, out: list) -> None:
@@ -889,9 +916,15 @@ class RotationalMac:
                        rx_began: int | None, out: list) -> None:
         """WAIT: the owner's Header has not begun by E + Tmax: a miss, the next robot's turn
         (paper §IV.C); the third miss in a row drops it (paper §IV.C)."""
+        o = self.owner
+        if o is None:                  # resynchronising after a stall (``resync``)
+            if rx_busy:
+                self.deadline = now + 2 * self.cfg.byte_ticks
+                return
+            self._to_listen(out, now, "heard no ring since this station stalled")
+            return
         if self._header_coming(now, rx_busy, rx_began, self.turn_start + self.cfg.tmax):
             return
-        o = self.owner
         n = self.misses.get(o, 0) + 1
         self.misses[o] = n
         out.append(Miss(o))
@@ -959,6 +992,8 @@ class RotationalMac:
         invitation) after the turn began, within TAKEOVER_TOLERANCE: returns the skipped
         robots, to be counted as missed as our own timer would have (rule 3 of docs/mac.md,
         clause 39); None when it is no takeover (the frame is out of turn)."""
+        if self.owner is None:
+            return []                  # resynchronising (``resync``): any member's frame
         cfg = self.cfg
         elapsed = first - cfg.byte_ticks - self.turn_start
         slack = 1.0 - TAKEOVER_TOLERANCE

@@ -8,6 +8,7 @@ from typing import TextIO
 
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver, Disable, Join, ModeChange
+from firmware_model.station import Stalled
 from firmware_model.timing import TICK_HZ
 
 from ..bench.orders import Order, describe_reply
@@ -75,3 +76,7 @@ class FatherConsole:
         elif t is ModeChange:
             ring = " ".join(_who(r) for r in st.mac.ring)
             self._line(now, f"father: {a.mode} ({a.reason}); ring [{ring}]")
+        elif t is Stalled:
+            self._line(now, f"father: stalled {a.late / TICK_HZ:.2f} s (the process did not "
+                            f"run); what it heard meanwhile is dropped, listening for the "
+                            f"ring again")
