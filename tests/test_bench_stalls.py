@@ -75,40 +75,45 @@ def _reader(stream, into: list[str]) -> threading.Thread:
     return t
 
 
-def test_a_child_stopped_for_a_second_sends_nothing_stale_when_it_continues(recorded_hub):
-    """SIGSTOP R2 for 1 s, then SIGCONT, twice: it used to send what its overdue timers
-    queued (once two frames back to back in one burst) and a collision followed in 5 of 7
-    stalls. Now it says it stalled, sends one frame a transmission and causes no collision,
-    and takes its turns again."""
+@pytest.mark.parametrize("stopped", [2, 0], ids=["child", "father"])
+def test_a_process_stopped_for_a_second_sends_nothing_stale_when_it_continues(
+        recorded_hub, stopped):
+    """SIGSTOP R2 (or the father) for 1 s, then SIGCONT, twice: it used to send what its
+    overdue timers queued (once two frames back to back in one burst) and a collision
+    followed in 5 of 7 stalls. Now it says it stalled, sends one frame a transmission and
+    causes no collision, and takes its turns again."""
     hub, rec = recorded_hub
-    team = "1,2,3"
+    ids = (1, 2, 3) if stopped else (0, 1, 2)
+    team = ",".join(map(str, ids))
     lines: list[str] = []
-    kids = {i: spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", team,
-                     *(["--events"] if i == 2 else []),
-                     stdout=subprocess.PIPE if i == 2 else subprocess.DEVNULL)
-            for i in (1, 2, 3)}
-    reader = _reader(kids[2].stdout, lines)
+    procs = {}
+    for node, i in enumerate(ids):
+        args = ("father", "--no-input", "--json") if i == 0 else \
+            ("child", "--id", str(i), *(["--events"] if i == stopped else []))
+        procs[i] = spawn(*args, "--radio", hub.paths[node], "--team", team,
+                         stdout=subprocess.PIPE if i == stopped else subprocess.DEVNULL)
+    reader = _reader(procs[stopped].stdout, lines)
     sniffer = bench.Sniffer(hub.paths[5]).start()
     try:
-        assert wait_for(lambda: ring_is(sniffer, [1, 2, 3]), 40.0)
+        assert wait_for(lambda: ring_is(sniffer, list(ids)), 40.0)
         collisions_before = hub.stats()["collisions"]
         n_before = len(rec.snapshot())
         for _ in range(2):
-            kids[2].send_signal(signal.SIGSTOP)
+            procs[stopped].send_signal(signal.SIGSTOP)
             time.sleep(1.0)
-            kids[2].send_signal(signal.SIGCONT)
+            procs[stopped].send_signal(signal.SIGCONT)
             t_cont = sniffer.tick() / 16e6
             # it takes its turns again (within the three misses the others allow, or after
             # being invited back if a busy machine made it miss a third)
-            assert wait_for(lambda: heard(sniffer, 2, t_cont) >= 3, 15.0)
+            assert wait_for(lambda: heard(sniffer, stopped, t_cont) >= 3, 15.0)
         time.sleep(0.5)
         collisions = hub.stats()["collisions"] - collisions_before
         packets = rec.snapshot()[n_before:]
     finally:
         sniffer.stop()
-        errs = stop(kids.values())
+        errs = dict(zip(procs, stop(procs.values())))
         reader.join(timeout=5)
-    mine = [p for p in packets if p[0] == 1]                 # node 1 is R2's radio
+    mine = [p for p in packets if p[0] == ids.index(stopped)]     # its node's transmissions
     assert mine
     # one frame a transmission (clause 22): never two back to back in one burst
     assert all(p[2].count(HEADER) == 1 for p in mine), [p[2] for p in mine
@@ -119,7 +124,8 @@ def test_a_child_stopped_for_a_second_sends_nothing_stale_when_it_continues(reco
     # now and then too: those are stalls as well, and told as such)
     stalls = [e for e in _events(lines) if e.get("ev") == "stall"]
     assert len([e for e in stalls if e["late"] > 0.8 * 16e6]) == 2, stalls
-    assert errs[1].count("stalled: it did not run for") == len(stalls), errs[1]
+    assert errs[stopped].count(f"robot {stopped} stalled: it did not run for") == len(stalls), \
+        errs[stopped]
 
 
 def _father(port: str, *args: str) -> subprocess.Popen:
