@@ -9,7 +9,7 @@ interrupt at tick t reads any state (``on_timer`` first brings the UART up to da
 """
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, NamedTuple
 
 from .mcu.gpio import OutputPin
 from .mcu.ptr2000 import Ptr2000
@@ -17,9 +17,15 @@ from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
 from .mcu.uart import Uart
 from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
-from .radio.mac import Deliver, MacConfig, RotationalMac, Transmit, TxEnable
+from .radio.mac import SEND, Deliver, MacConfig, RotationalMac, Transmit, TxEnable
 
 Observer = Callable[["RadioStation", object, int], None]
+
+
+class Stalled(NamedTuple):
+    """The station ran ``late`` ticks late (its interrupts were not taken for that long) and
+    resynchronised (``RadioStation.resync``): told to the observer."""
+    late: int
 
 
 class RadioStation:
@@ -57,6 +63,7 @@ class RadioStation:
         self._promise: int | None = None
         """The End a failed frame's Length promised, while its turn is to close there: if its
         bytes stop for the stall gap before it, the frame is over then (clause 41)."""
+        self._resync_after_tx = False
         self.cpu = None
         self._frame_cycles = 0
         uart.on_rx = self._on_rx
@@ -189,6 +196,27 @@ class RadioStation:
 
     def _on_tx_done(self, end: int) -> None:
         self._apply(self.mac.on_tx_done(end))
+        if self._resync_after_tx:
+            self._resync_after_tx = False
+            self._apply(self.mac.resync(self.sched.now))
+
+    def resync(self, late: int) -> None:
+        """The firmware's interrupts were not taken for ``late`` ticks, more than the margins
+        allow (a bench process stopped or starved; on an MCU, interrupts held off): what it
+        knew of the air is stale. A frame half received is dropped (its bytes came before the
+        gap), and the MAC listens again before it takes a turn (``RotationalMac.resync``); a
+        frame being sent ends first (its bytes are out). Whoever feeds the UART drops what was
+        heard during the gap."""
+        now = self.sched.now
+        self.deframer.reset()
+        if self.stall_timer.expiry is not None:
+            self.stall_timer.stop()
+        if self.observer is not None:
+            self.observer(self, Stalled(late), now)
+        if self.uart.busy_until > now or self.mac.phase == SEND:
+            self._resync_after_tx = True
+            return
+        self._apply(self.mac.resync(now))
 
     # -- the application side --------------------------------------------------------------
 

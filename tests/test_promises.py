@@ -10,12 +10,13 @@ import pytest
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import Frame, FrameType
 from firmware_model.radio.mac import (
-    Deliver, Duplicate, MacConfig, ModeChange, Outcome, RotationalMac, StandingBy, Transmit,
+    MEMBER, Deliver, Duplicate, MacConfig, ModeChange, Outcome, RotationalMac, StandingBy,
+    Transmit,
 )
 from firmware_model.timing import (
     CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, protocol_max_content, s_to_ticks,
 )
-from hil.sim.faults import Fault
+from hil.sim.faults import Fault, parse_fault
 from hil.sim.world import SimConfig, World
 
 B = PC_BYTE_TICKS          # a foreign transmitter's byte time (9600 baud)
@@ -242,6 +243,43 @@ def test_a_boot_frame_is_repeated_until_every_member_acknowledges_it():
     sent = mac.on_timer(mac.deadline)
     frames = [a.frame for a in sent if type(a).__name__ == "Transmit"]
     assert frames[0].type == FrameType.INSTRUCTION and frames[0].num == 1
+
+
+# -- finding 5, again: a restart whose lone BOOT nobody heard --------------------------------
+
+def test_a_restart_whose_lone_boot_nobody_heard_answers_its_invitation_with_boot():
+    """R3 sends R1 two messages (Numbers 01, 02) and restarts while its radio is dead: it
+    claims the silent channel alone, and its BOOT reaches nobody. Back on the air it hears the
+    ring, goes back to LISTEN and is invited. It answered with JOIN (Number 01), so R1 kept
+    its old Numbers and took R3's next message, Number 02, for a duplicate: acknowledged,
+    never delivered (found on the bench: a father restarted on a live ring, its order ended
+    unreported). Its BOOT was never acknowledged, so it answers with BOOT (clause 34)."""
+    evs: list[dict] = []
+    cfg = SimConfig(robots=(1, 2, 3), duration=30.0, seed=1,
+                    faults=(parse_fault("fail:3@6"), parse_fault("recover:3@10")))
+    w = World(cfg, on_event=evs.append)
+    w.run(s_to_ticks(4.0))
+    old = [w.submit(3, 1, [cmd("movex", 10)]), w.submit(3, 1, [cmd("movex", 11)])]
+    w.run(s_to_ticks(6.2))
+    assert [m.state for m in old] == ["delivered", "delivered"] and old[1].num == 2
+    st3 = w.stations[3]
+    st3.mac = RotationalMac(3, st3.mac.cfg)            # R3 restarts, its radio still dead
+    st3.deframer.reset()
+    st3.power_on()
+    w.run(s_to_ticks(20.0))
+    mac3 = st3.mac
+    assert mac3.mode == MEMBER and 1 in mac3.ring and mac3.pending == 0
+    claims = [e for e in evs if e["ev"] == "mode" and e["robot"] == 3 and e["t"] > s_to_ticks(6.2)]
+    assert "claimed the silent channel" in claims[0]["reason"]        # the lone claim
+    after = w.submit(3, 1, [cmd("movex", 20)])
+    w.run(s_to_ticks(25.0))
+    assert after.state == "delivered", after
+    got = [e for e in evs if e["ev"] == "deliver" and e["src"] == 3 and e["to"] == 1]
+    assert len(got) == 3
+    assert not [e for e in evs if e["ev"] == "duplicate" and e["src"] == 3]
+    answers = [e for e in evs if e["ev"] == "frame" and e["src"] == 3 and
+               e["start"] > s_to_ticks(10.0) and e["type"] in (FrameType.BOOT, FrameType.JOIN)]
+    assert answers and answers[0]["type"] == FrameType.BOOT
 
 
 # -- finding 7: what a heartbeat is ----------------------------------------------------------

@@ -392,6 +392,7 @@ class RotationalMac:
         """A failed frame's turn closes at the End its Length promised: (that End, and the
         phase and deadline on_corrupt left), until the frame is over sooner (on_frame_over)."""
         self._booting = False             # powered on and not yet acknowledged by the ring
+        self._lone_boot = False           # our BOOT went out as a lone claimer: nobody acked it
         self._announcing: int | None = None  # BOOT or JOIN: sent, awaiting acknowledgements
         self._ann_num = 0                 # the Number our BOOT/JOIN frames carry
         self._ann_awaiting: set[int] = set()   # members yet to acknowledge it
@@ -454,6 +455,7 @@ class RotationalMac:
             return self._paper_power_on(now)
         self.mode = LISTEN
         self._booting = True
+        self._lone_boot = False
         self._announcing = None
         self._last_num = 0                 # the BOOT frame is Number '00' ...
         self._next_num = 1                 # ... and messages start at '01'
@@ -757,6 +759,8 @@ class RotationalMac:
         self._tell_view = True
         after = src if src is not None and src != self.id and (
             src in self.ring or src == self.owner) else self.owner
+        if after is None:
+            return out                 # resynchronising (``resync``): wait for a good frame
         if expected_end is None:
             # The Length was never read: the frame is over when no byte has come for
             # ``quiet_gap`` ticks, and at the latest Tmax after its header began.
@@ -799,7 +803,7 @@ class RotationalMac:
         with a corrupted Header: if the channel then falls quiet the turn closes (no miss);
         if it never does (idle noise), the owner misses at E + Tmax as usual."""
         self._noise_since_tx = True
-        if self.mode == MEMBER and self.phase == WAIT and \
+        if self.mode == MEMBER and self.phase == WAIT and self.owner is not None and \
                 last > self.turn_start + self.cfg.ttrans:
             self._tell_view = True
             self.phase = QUIET
@@ -827,6 +831,31 @@ class RotationalMac:
         if self.standby and (self._queue or self._inflight is not None):
             self._expire(now, out)
         DEADLINE_HANDLERS[self.phase](self, now, rx_busy, last_rx, rx_began, out)
+        return out
+
+    def resync(self, now: int) -> list:
+        """Our station was not running for longer than the margins allow (docs/protocol.md
+        clause 5; a bench process stopped or starved): every deadline it had is stale and
+        what it heard meanwhile is gone. It must not act on that view (a turn taken on it
+        collides): in LISTEN the claim wait starts again from now; a member lowers TXEN if it
+        had raised it, keeps its ring and listens, the owner unknown, until it hears a good
+        frame, which gives the next turn as any frame does; heard nothing for Tclaim, it goes
+        back to LISTEN (docs/guarantees.md, "Stalls and restarts at the bench")."""
+        out: list = []
+        if self.mode == LISTEN:
+            self.deadline = now + self._claim_ticks()
+            return out
+        if self.phase == SEND:             # the frame is out: the station resyncs after it
+            return out
+        if self.phase == SWITCH:
+            out.append(TX_OFF)             # a turn taken on a stale view is not sent
+        self.phase = WAIT
+        self.owner = None
+        self.poller = None
+        self._hold_ref = None
+        self._quiet_miss = False
+        self.turn_start = now
+        self.deadline = now + self._claim_ticks()
         return out
 
     def _deadline_listen(self, now: int, rx_busy: bool, out: list) -> None:
@@ -935,9 +964,15 @@ class RotationalMac:
                        rx_began: int | None, out: list) -> None:
         """WAIT: the owner's Header has not begun by E + Tmax: a miss, the next robot's turn
         (paper §IV.C); the third miss in a row drops it (paper §IV.C)."""
+        o = self.owner
+        if o is None:                  # resynchronising after a stall (``resync``)
+            if rx_busy:
+                self.deadline = now + 2 * self.cfg.byte_ticks
+                return
+            self._to_listen(out, now, "heard no ring since this station stalled")
+            return
         if self._header_coming(now, rx_busy, rx_began, self.turn_start + self.cfg.tmax):
             return
-        o = self.owner
         n = self.misses.get(o, 0) + 1
         self.misses[o] = n
         out.append(Miss(o))
@@ -1005,6 +1040,8 @@ class RotationalMac:
         invitation) after the turn began, within TAKEOVER_TOLERANCE: returns the skipped
         robots, to be counted as missed as our own timer would have (rule 3 of docs/mac.md,
         clause 39); None when it is no takeover (the frame is out of turn)."""
+        if self.owner is None:
+            return []                  # resynchronising (``resync``): any member's frame
         cfg = self.cfg
         elapsed = first - cfg.byte_ticks - self.turn_start
         slack = 1.0 - TAKEOVER_TOLERANCE
@@ -1208,6 +1245,14 @@ class RotationalMac:
         self.ring = tuple(sorted(set(self.ring) | {robot}))
         self.ever_member.add(robot)
         self.misses[robot] = 0
+        if self._lone_boot:
+            # A lone claimer whose ring grows: the robots it admits heard its frames and
+            # answered them; its former Numbers are not in their memory unless one of them
+            # was cut off from the ring it had left (docs/guarantees.md, "Stalls and restarts
+            # at the bench"). Its BOOT is done: a later answer is JOIN (else the members would
+            # forget its Numbers and take a retransmission for a new message).
+            self._lone_boot = False
+            self._booting = False
         out.append(Join(robot, again))
 
     def _refuse_in_slot(self, src: int, num: int, reason: str, end: int, now: int,
@@ -1443,7 +1488,8 @@ class RotationalMac:
         """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
         if self._paper:
             return self._paper_build(now, out)
-        if self._answering or (self._booting and self._announcing is None):
+        if self._answering or (self._booting and self._announcing is None and
+                               not self._lone_boot):
             # The answer to an invitation, or a lone claimer's first frame: nothing else in it.
             # A BOOT frame is Number '00'; a JOIN frame takes the next Number, so that its
             # acknowledgement cannot be mistaken for a message's (docs/protocol.md §4.4,
@@ -1457,7 +1503,15 @@ class RotationalMac:
                 self._next_num = (num + 1) % 100
             self._announcing, self._ann_num, self._ann_turns = kind, num, 1
             self._ann_awaiting = set(self.ring) - {self.id}
-            if not self._ann_awaiting:
+            if not self._ann_awaiting and kind == FrameType.BOOT:
+                # A lone claimer's BOOT: nobody acknowledged it, so nobody forgot our old
+                # Numbers. It stays unacknowledged (clause 34): the answer to the invitation
+                # that brings us into a ring is BOOT, not JOIN, or a member that remembers
+                # our last Number from before the restart takes our message with that Number
+                # for a duplicate (found on the bench: a father restarted on a live ring).
+                self._announcing = None
+                self._lone_boot = True
+            elif not self._ann_awaiting:
                 self._announced()
             frame = self._frame(BROADCAST, num, kind, b"")
             return frame, frame.encode()

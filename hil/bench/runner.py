@@ -32,7 +32,7 @@ from firmware_model.radio.mac import (
     UNACKNOWLEDGED, Deliver, Disable, Join, MacConfig, Message, Miss, ModeChange, Outcome,
     SubmitError, Transmit,
 )
-from firmware_model.station import RadioStation, build_station
+from firmware_model.station import RadioStation, Stalled, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
 
 from ..sim.realtime import RealTimeScheduler
@@ -115,6 +115,8 @@ def _events_printer(out: TextIO | None, robot: int,
         elif t is Message:
             emit({"t": now, "ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
                   "type": a.type, "len": len(a.content)})
+        elif t is Stalled:
+            emit({"t": now, "ev": "stall", "robot": robot, "late": a.late})
     return observe
 
 
@@ -143,6 +145,11 @@ class Runner:
         """A trouble the process goes on through (a CAN interface taken down, a CAN log that
         could not be written): one line now, and exit status 1 at the end."""
         self.troubles += 1
+        print(f"rprs: {line}", file=sys.stderr, flush=True)
+
+    def note(self, line: str) -> None:
+        """Something a bench user should know that is no trouble (a stall the process
+        recovered from): one line on stderr; the exit status stays 0."""
         print(f"rprs: {line}", file=sys.stderr, flush=True)
 
     def on_close(self, fn: Callable[[], None], last: bool = False) -> None:
@@ -215,9 +222,29 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
     channel.on_lost = lambda why: runner.fail(f"the radio port {port_spec} went away ({why})")
     channel.on_error = runner.warn       # a frame that could not be written: lost, said
     channel.start()
+    # Nothing that waited in the port, or that the reader read before the station runs, is
+    # heard: the station powers on listening to the air from then on.
+    runner.sched.on_start(channel.flush)
+    runner.sched.on_start(station.power_on)
+
+    def stalled(late: int, now: int) -> None:
+        channel.flush()                  # what came during the stall describes the past
+        station.resync(late)
+        runner.note(f"robot {robot} stalled: it did not run for {late / TICK_HZ:.2f} s "
+                    f"(more than the margins allow); what it heard meanwhile is dropped and "
+                    f"it listens for the ring again before it transmits")
+    runner.sched.watch_stalls(stall_threshold(config), stalled)
     runner.on_close(channel.close)
     runner.on_close(lambda: station.txen.set(False, runner.sched.now))
     return station, channel
+
+
+def stall_threshold(config: MacConfig) -> int:
+    """How late a bench station may wake before it resynchronises (ticks): Tslot of its
+    margin set (docs/protocol.md clause 5; 80 ms in the real-time set). A station later than
+    that may take a turn another has taken meanwhile: the ID stagger, which keeps two members
+    that both think the turn is theirs apart, is one Tslot per ID."""
+    return config.tslot
 
 
 def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
@@ -283,8 +310,6 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
     else:
         child = RadioOnlyChild(station)      # answers orders fail(42): no CAN side
     _capture(runner, pcap, robot, channel, bus, can)
-    if radio:
-        runner.sched.post(station.power_on)
     return station, child
 
 
@@ -304,7 +329,6 @@ def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool =
     station, channel = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
                                       _events_printer(events, 0, on_closed=runner.stdout_gone))
     _capture(runner, pcap, 0, channel, None, None)
-    runner.sched.post(station.power_on)
     return station
 
 

@@ -8,6 +8,11 @@ listening (TXEN low for at least Ttrans). With a real radio module, TXEN can be 
 USB-serial adapter's RTS or DTR line (``txen="rts"|"dtr"``); ``"none"`` is for modules that
 switch themselves (and for the pty hub, which has no modem lines). The firmware waits Ttrans
 after raising TXEN before its first byte, as on the MB90F549.
+
+Only bytes heard while the station listens count: ``flush()`` (when the process starts running,
+and after a stall) drops what waited in the port and whatever the reader had read before, so a
+station never acts on bytes from before it listened (docs/guarantees.md, "Stalls and restarts
+at the bench").
 """
 from __future__ import annotations
 
@@ -78,6 +83,8 @@ class SerialChannel:
         self.bytes_out = 0
         self.bytes_in = 0
         self.bytes_deaf = 0          # heard while the radio model was switching or sending
+        self.bytes_stale = 0         # read before the last flush(): dropped, never heard
+        self._gen = 0                # flush() count: what the reader read before is stale
         self.errors: list[str] = []
         self.write_errors = 0        # frames (or parts) that could not be written: lost
         self.on_error: Any = None    # called with one line at the first failure of a run
@@ -96,6 +103,13 @@ class SerialChannel:
 
     def start(self) -> None:
         self._reader.start()
+
+    def flush(self) -> None:
+        """Drop what waited in the port and what the reader has read so far (the scheduler's
+        thread: at start, after a stall). A read begun before this is dropped whole, and the
+        reader empties the port before its next read (itself: a flush from this thread while
+        it reads makes a pty read return nothing, which pyserial takes for a lost port)."""
+        self._gen += 1
 
     def close(self) -> None:
         self._stop.set()
@@ -162,7 +176,15 @@ class SerialChannel:
 
     def _read_loop(self) -> None:
         port = self.port
+        flushed = self._gen
         while not self._stop.is_set():
+            gen = self._gen
+            if gen != flushed:
+                flushed = gen
+                try:
+                    port.reset_input_buffer()     # what waited there came before flush()
+                except Exception:   # noqa: BLE001 - termios.error too: the read says it
+                    pass
             try:
                 data = port.read(max(1, port.in_waiting))
             except (serial.SerialException, OSError, TypeError) as exc:
@@ -171,9 +193,12 @@ class SerialChannel:
                     self.sched.post(self._lost, str(exc))
                 return
             if data:
-                self.sched.post(self._arrived, data)
+                self.sched.post(self._arrived, data, gen)
 
-    def _arrived(self, data: bytes) -> None:
+    def _arrived(self, data: bytes, gen: int | None = None) -> None:
+        if gen is not None and gen != self._gen:
+            self.bytes_stale += len(data)       # read before the last flush()
+            return
         radio = self.radio
         self.bytes_in += len(data)
         if radio is None:

@@ -6,6 +6,15 @@ reaches its tick and sees ``now`` equal to that tick, so the firmware's relative
 exact even when the operating system wakes us late (the lateness is measured: ``max_late``).
 Other threads (python-can readers, serial readers) hand work in with ``post``; it runs in the
 scheduler's thread with ``now`` set to the wall-clock tick of its arrival.
+
+A process that did not run for a while (SIGSTOP and SIGCONT, a machine that gave it no CPU, a
+handler blocked in a write) must not replay its past: with ``watch_stalls(ticks, fn)``, once
+the loop notices that it (or a due event) is more than ``ticks`` late, it sets ``now`` to the
+wall clock, calls ``fn(late, now)`` before anything else runs (the bench's stations drop what
+they heard meanwhile and listen for the ring again), and runs the overdue events at that
+``now``, as a late interrupt sees the time it runs at, not the time it was due. A heartbeat
+thread tells a stopped process from an idle one. Functions given to ``on_start`` run first
+of all when running starts, at tick 0, before anything posted.
 """
 from __future__ import annotations
 
@@ -30,7 +39,9 @@ _MAX_WAIT_TICKS = round(MAX_WAIT_S * TICK_HZ)
 class RealTimeScheduler(Scheduler):
     """Runs events at their wall-clock tick; ``post`` is the thread-safe way in."""
 
-    __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started", "epoch_ns")
+    __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started", "epoch_ns",
+                 "_at_start", "stall_ticks", "stalls", "_on_stall", "_beat", "_stalled",
+                 "_beater", "_settled")
 
     def __init__(self) -> None:
         super().__init__(0)
@@ -43,6 +54,62 @@ class RealTimeScheduler(Scheduler):
         self._stop = threading.Event()
         self.max_late = 0
         self.late_events = 0
+        self._at_start: list[Callable[[], None]] = []
+        self.stall_ticks: int | None = None
+        """A stall longer than this (ticks) is handled (``watch_stalls``); None: not watched."""
+        self.stalls: list[tuple[int, int]] = []
+        """(tick it was noticed at, how late the process was) for every stall handled."""
+        self._on_stall: list[Callable[[int, int], None]] = []
+        self._beat = 0                  # the heartbeat thread's last wall tick
+        self._stalled = 0               # a gap the heartbeat saw in itself, not yet handled
+        self._beater: threading.Thread | None = None
+        self._settled = 0               # the tick the last stall was handled at
+
+    def on_start(self, fn: Callable[[], None]) -> None:
+        """Run ``fn()`` in the scheduler's thread when running starts, before anything posted
+        (a serial port is flushed then, and a station powered on: bytes that came before it
+        listened are not heard)."""
+        if self._started:
+            self.post(fn)
+        else:
+            self._at_start.append(fn)
+
+    def watch_stalls(self, ticks: int, fn: Callable[[int, int], None]) -> None:
+        """Call ``fn(late, now)`` in the scheduler's thread whenever the process turns out to
+        have not run for more than ``ticks`` (the smallest threshold given is used)."""
+        self.stall_ticks = ticks if self.stall_ticks is None else min(ticks, self.stall_ticks)
+        self._on_stall.append(fn)
+
+    def _heartbeat(self) -> None:
+        """Beats every quarter of the threshold; a beat that came more than the threshold
+        after the last means the whole process was stopped (SIGSTOP) or starved of CPU."""
+        period = self.stall_ticks / 4 / TICK_HZ
+        prev = self.wall()
+        while not self._stop.wait(period):
+            w = self.wall()
+            if w - prev > self.stall_ticks and prev >= self._settled:
+                # (set before the beat, so the loop sees one or the other; a gap that began
+                # before the last stall was handled is that stall, seen again)
+                self._stalled = w - prev
+            prev = w
+            self._beat = w
+
+    def _check_stall(self, wall: int, due: int | None = None) -> None:
+        """Handle a stall if the heartbeat saw one, it has not beaten for too long, or the
+        event due at ``due`` is too late (an event due before the last stall was handled
+        is not late again)."""
+        late = max(self._stalled, wall - max(self._beat, self._settled),
+                   0 if due is None else wall - max(due, self._settled))
+        if late <= self.stall_ticks:
+            return
+        self._stalled = 0
+        self._beat = wall
+        self._settled = wall
+        if wall > self.now:
+            self.now = wall
+        self.stalls.append((self.now, late))
+        for fn in self._on_stall:
+            fn(late, self.now)
 
     def wall(self) -> int:
         """The wall-clock tick now (since the scheduler started)."""
@@ -84,17 +151,33 @@ class RealTimeScheduler(Scheduler):
             since_0 = self.now * 1_000_000_000 // _NS_PER_TICK_NUM
             self._t0 = time.monotonic_ns() - since_0
             self.epoch_ns = time.time_ns() - since_0
+            if self.stall_ticks is not None:
+                self._beat = self.wall()
+                self._beater = threading.Thread(target=self._heartbeat, name="heartbeat",
+                                                daemon=True)
+                self._beater.start()
+            for fn in self._at_start:
+                fn()
+            self._at_start.clear()
         heap = self._heap
         inbox = self._inbox
+        watch = self.stall_ticks is not None
         while not self._stop.is_set():
             wall = self.wall()
             if end is not None and wall >= end:
                 break
-            # due events first, in tick order, each seeing its own tick
+            if watch:
+                self._check_stall(wall, heap[0][0] if heap else None)
+            # due events first, in tick order, each seeing its own tick (after a stall: the
+            # tick it was noticed at, as a late interrupt sees the time it runs at)
             while heap and heap[0][0] <= wall:
                 when, _, ev = heapq.heappop(heap)
                 if ev.cancelled:
                     continue
+                if watch:
+                    w = self.wall()             # (``wall`` is stale if a handler blocked)
+                    if w - max(when, self._settled) > self.stall_ticks:
+                        self._check_stall(w, when)
                 if when > self.now:
                     self.now = when
                 late = wall - when
@@ -119,6 +202,8 @@ class RealTimeScheduler(Scheduler):
             while item is not None:
                 fn, args = item
                 w = self.wall()
+                if watch:
+                    self._check_stall(w)
                 if w > self.now:
                     self.now = w
                 fn(*args)

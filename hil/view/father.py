@@ -8,6 +8,7 @@ from typing import TextIO
 
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver, Disable, Join, ModeChange
+from firmware_model.station import Stalled
 from firmware_model.timing import TICK_HZ
 
 from ..bench.orders import Order, describe_reply
@@ -87,3 +88,7 @@ class FatherConsole:
                     note += (f"; {held} held here go out if it does, else fail (expired) "
                              f"{st.mac.cfg.max_age // TICK_HZ} s after each was given")
             self._line(now, f"father: {a.mode} ({a.reason}); ring [{ring}]{note}")
+        elif t is Stalled:
+            self._line(now, f"father: stalled {a.late / TICK_HZ:.2f} s (the process did not "
+                            f"run); what it heard meanwhile is dropped, listening for the "
+                            f"ring again")

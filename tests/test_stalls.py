@@ -1,0 +1,177 @@
+"""A station woken far past its deadlines does not transmit on a stale view, and a station
+that restarted is never taken for its former self: the real-time scheduler's stall watch,
+the station's and the MAC's resynchronisation, and the start of a bench station
+(docs/guarantees.md, "Stalls and restarts at the bench")."""
+from __future__ import annotations
+
+import time
+
+from firmware_model.radio.frame import Frame
+from firmware_model.radio.mac import (
+    LISTEN, MEMBER, SEND, WAIT, MacConfig, Miss, ModeChange, Refused, RotationalMac, Transmit,
+    TxEnable,
+)
+from firmware_model.station import Stalled, build_station
+from firmware_model.timing import TICK_HZ
+from hil.bench.runner import REALTIME_MARGINS, realtime_config, stall_threshold
+from hil.sim.realtime import RealTimeScheduler
+
+MS = TICK_HZ // 1000
+
+
+# -- the scheduler ---------------------------------------------------------------------------
+
+def test_an_event_run_after_a_stall_sees_the_time_it_runs_at_and_the_stall_is_told_first():
+    """The scheduler's thread is held 1 s (a handler blocked; SIGSTOP holds every thread the
+    same way) with a 200 ms threshold: the stall is handled before the overdue events, which
+    then see the tick they run at, not their stale ones. (Due in the same pass as the blocked
+    handler or in the next, and a busy machine may add stalls of its own before.)"""
+    s = RealTimeScheduler()
+    seen: list[tuple[str, int, int]] = []
+    s.watch_stalls(200 * MS, lambda late, now: seen.append(("stall", late, now)))
+    s.at(10 * MS, lambda: time.sleep(1.0))
+    s.at(10 * MS, lambda: seen.append(("event", 10 * MS, s.now)))     # the same pass
+    s.at(30 * MS, lambda: seen.append(("event", 30 * MS, s.now)))
+    s.run_for(1.3)
+    big = [i for i, (k, late, _) in enumerate(seen) if k == "stall" and late > 800 * MS]
+    assert len(big) == 1, seen
+    _, late, at = seen[big[0]]
+    assert at > 1000 * MS
+    events = [(i, now) for i, (k, _, now) in enumerate(seen) if k == "event"]
+    assert len(events) == 2 and all(i > big[0] and now >= at for i, now in events), seen
+    assert [late for _, late in s.stalls] == [late for k, late, _ in seen if k == "stall"]
+
+
+def test_without_a_stall_watch_an_overdue_event_keeps_its_own_tick():
+    """The simulator's real-time mode and the radio hub do not watch: unchanged."""
+    s = RealTimeScheduler()
+    seen: list[int] = []
+    s.at(10 * MS, lambda: time.sleep(0.2))
+    s.at(20 * MS, lambda: seen.append(s.now))
+    s.run_for(0.3)
+    assert seen == [20 * MS] and s.stalls == []
+
+
+def test_a_late_wake_within_the_threshold_is_no_stall():
+    s = RealTimeScheduler()
+    calls: list[int] = []
+    s.watch_stalls(2 * TICK_HZ, lambda late, now: calls.append(late))
+    s.at(10 * MS, lambda: time.sleep(0.3))
+    s.at(20 * MS, lambda: None)
+    s.run_for(0.5)
+    assert calls == []
+
+
+def test_on_start_runs_before_anything_posted_earlier():
+    s = RealTimeScheduler()
+    order: list[str] = []
+    s.post(order.append, "posted")
+    s.on_start(lambda: order.append("start"))
+    s.post(s.stop)
+    s.run_for(1.0)
+    assert order == ["start", "posted"]
+
+
+def test_the_bench_stall_threshold_is_tslot_of_the_margin_set():
+    assert stall_threshold(realtime_config()) == REALTIME_MARGINS["tslot"] == 100 * MS
+    assert stall_threshold(MacConfig()) == MacConfig().tslot
+
+
+# -- the MAC ---------------------------------------------------------------------------------
+
+TEAM = frozenset({1, 2, 3})
+
+
+def member_2(tx_end: int = 2_000_000) -> RotationalMac:
+    """R2 invited by R1 into ring {1, 2, 3}; its answer sent; waiting for R3's turn."""
+    mac = RotationalMac(2, MacConfig(team=TEAM))
+    mac.power_on(0)
+    mac.on_frame(Frame(dst=7, src=1, num=0, type=3, content=b"poll(2,10)"), 0, 1000, 1000)
+    mac.on_timer(mac.deadline)
+    mac.on_tx_done(tx_end)
+    assert mac.mode == MEMBER and mac.phase == WAIT and mac.owner == 3
+    return mac
+
+
+def test_a_member_resyncing_takes_no_turn_until_it_hears_the_ring():
+    mac = member_2()
+    late = mac.deadline + 10 * TICK_HZ                     # far past R3's deadline
+    assert mac.resync(late) == []
+    assert mac.phase == WAIT and mac.owner is None
+    # a frame from R3 (not the owner it had): not refused, no miss, and the turn goes on
+    t = late + 5 * MS
+    out = mac.on_frame(Frame(dst=7, src=3, num=0, type=3, content=b""), t, t + 1000, t + 1000)
+    assert not [a for a in out if type(a) in (Refused, Miss)], out
+    assert mac.owner == 1 and mac.phase == WAIT
+    # then R1's frame gives R2 its turn
+    t += 20 * MS
+    out = mac.on_frame(Frame(dst=7, src=1, num=0, type=3, content=b""), t, t + 1000, t + 1000)
+    assert any(type(a) is TxEnable and a.on for a in out)
+
+
+def test_a_member_resyncing_that_hears_nobody_goes_back_to_listen():
+    mac = member_2()
+    now = mac.deadline + 5 * TICK_HZ
+    mac.resync(now)
+    assert mac.deadline == now + MacConfig(team=TEAM).claim_ticks(2)
+    out = mac.on_timer(mac.deadline)
+    assert mac.mode == LISTEN
+    assert [a.reason for a in out if type(a) is ModeChange] == [
+        "heard no ring since this station stalled"]
+    assert not [a for a in out if type(a) in (Transmit, Miss)]
+
+
+def test_a_turn_begun_on_a_stale_view_is_not_sent():
+    mac = member_2()
+    t = 3_000_000
+    out = mac.on_frame(Frame(dst=7, src=1, num=0, type=3, content=b""), t, t + 1000, t + 1000)
+    assert any(type(a) is TxEnable and a.on for a in out)      # TXEN up: our turn
+    out = mac.resync(mac.deadline + TICK_HZ)
+    assert [a.on for a in out if type(a) is TxEnable] == [False]
+    assert mac.phase == WAIT and mac.owner is None
+
+
+def test_a_listening_station_resyncing_waits_a_whole_claim_again():
+    mac = RotationalMac(2, MacConfig(team=TEAM))
+    mac.power_on(0)
+    now = mac.deadline + TICK_HZ                # it would claim at once on its stale deadline
+    assert mac.resync(now) == []
+    assert mac.mode == LISTEN and mac.deadline == now + MacConfig(team=TEAM).claim_ticks(2)
+
+
+# -- the station -----------------------------------------------------------------------------
+
+def test_the_station_drops_a_frame_half_received_and_resyncs_after_its_own_frame():
+    from firmware_model.mcu.scheduler import Scheduler
+    sched = Scheduler()
+    seen: list[object] = []
+    st, radio = build_station(2, sched, config=MacConfig(team=TEAM),
+                              observer=lambda s, a, now: seen.append(a))
+    st.power_on()
+    poll = Frame(dst=7, src=1, num=0, type=3, content=b"poll(2,10)").encode()
+    st.uart.receive(poll, 0, st.uart.byte_ticks)
+    while st.mac.phase != SEND:                        # TXEN up, Ttrans, the BOOT goes out
+        assert sched.step()
+    assert st.mac.phase == SEND
+    st.resync(TICK_HZ)                                 # stalled while sending: after it
+    assert st.mac.phase == SEND and [a for a in seen if type(a) is Stalled]
+    sched.run_until(st.uart.busy_until + 1)
+    assert st.mac.phase == WAIT and st.mac.owner is None
+    # half a frame, then a stall: it is dropped, not completed by the next bytes
+    t = sched.now + 10 * MS
+    hb = Frame(dst=7, src=3, num=0, type=3, content=b"").encode()
+    st.uart.receive(hb[:6], t, st.uart.byte_ticks)
+    assert st.deframer.in_frame
+    st.resync(TICK_HZ)
+    assert not st.deframer.in_frame and st.stall_timer.expiry is None
+
+
+def test_the_father_console_tells_a_stall_in_one_line():
+    import io
+
+    from hil.view.father import FatherConsole
+    out = io.StringIO()
+    FatherConsole(out, "human").ring(None, Stalled(16_320_000), 3 * TICK_HZ)
+    assert out.getvalue() == ("    3.00 s  father: stalled 1.02 s (the process did not run); "
+                              "what it heard meanwhile is dropped, listening for the ring "
+                              "again\n")
