@@ -73,7 +73,7 @@ def test_on_start_runs_before_anything_posted_earlier():
 
 
 def test_the_bench_stall_threshold_is_tslot_of_the_margin_set():
-    assert stall_threshold(realtime_config()) == REALTIME_MARGINS["tslot"] == 100 * MS
+    assert stall_threshold(realtime_config()) == REALTIME_MARGINS["tslot"] == 80 * MS
     assert stall_threshold(MacConfig()) == MacConfig().tslot
 
 
