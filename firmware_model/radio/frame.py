@@ -240,29 +240,46 @@ class Frame:
 
     def encode(self) -> bytes:
         """The frame's bytes on the wire, built by ``FRAME_FORMAT`` (cached per frame)."""
-        return _encode_cached(self)
+        data = _ENCODED.get(self)
+        return data if data is not None else _encode_new(self)
 
 
-@functools.lru_cache(maxsize=4096)
-def _encode_cached(frame: Frame) -> bytes:
-    data = frame_codec().build(
-        dict(dst=frame.dst, src=frame.src, num=frame.num, type=frame.type, content=frame.content)
-    )
+def _encode_new(frame: Frame) -> bytes:
+    """:meth:`Frame.encode` for a frame not in the current generation of the cache: taken
+    from the one before if it is there, else built; then remembered both ways."""
+    global _ENCODED, _BUILT, _OLDER
+    data = _OLDER.get(frame)
+    if data is None:
+        data = frame_codec().build(dict(dst=frame.dst, src=frame.src, num=frame.num,
+                                        type=frame.type, content=frame.content))
+    if len(_ENCODED) >= _CACHE_MAX:
+        # A new generation: the last one is kept for a frame sent again (taken back above
+        # without building), the one before it is dropped.
+        _OLDER, _ENCODED, _BUILT = _ENCODED, {}, {}
+    _ENCODED[frame] = data
     if type(frame.dst) is int and type(frame.src) is int and type(frame.num) is int \
             and type(frame.type) is int and type(frame.content) is bytes:
-        # Plain ints and bytes, as parse_frame gives them (an IntEnum Type is not
-        # registered: its parse would be a plain int, equal but not the same object).
-        if len(_BUILT) >= _BUILT_MAX:
-            _BUILT.clear()
         _BUILT[data] = frame
+    else:
+        # An IntEnum Type (the MAC's FrameType.BROADCAST_INFO, ...): a receiver is given the
+        # frame parse_frame would give, plain ints and bytes, equal to this one.
+        _BUILT[data] = Frame(int(frame.dst), int(frame.src), int(frame.num), int(frame.type),
+                             bytes(frame.content))
     return data
 
 
+_ENCODED: dict[Frame, bytes] = {}
+"""Frames encoded in this generation -> their bytes (what :meth:`Frame.encode` looks up)."""
 _BUILT: dict[bytes, Frame] = {}
-"""Bytes built by :meth:`Frame.encode` -> the frame they encode (the last few thousand): a
-receiver of a new frame takes it here instead of parsing the bytes back (:func:`built_frame`).
-Module-level, never a field, like the deframer's cache (snapshots walk fields only)."""
-_BUILT_MAX = 4096
+"""The same generation the other way: bytes -> the frame they encode, with plain int and bytes
+fields: a receiver of a new frame takes it here instead of parsing the bytes back
+(:func:`built_frame`). Filled and emptied together with ``_ENCODED``, so every frame encoded in
+this generation is found here: a frame sent again and again always is. Module-level, never a
+field, like the deframer's cache (snapshots walk fields only)."""
+_OLDER: dict[Frame, bytes] = {}
+"""The generation before: a frame from it encoded again comes back without being built."""
+_CACHE_MAX = 4096
+"""Frames in one generation (at most twice this many remembered)."""
 
 
 def built_frame(data: bytes, max_content: int = MAX_CONTENT) -> Frame | None:
