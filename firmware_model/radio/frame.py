@@ -247,25 +247,28 @@ class Frame:
 def _encode_new(frame: Frame) -> bytes:
     """:meth:`Frame.encode` for a frame not in the current generation of the cache: taken
     from the one before if it is there, else built; then remembered both ways."""
-    global _ENCODED, _BUILT, _OLDER
     data = _OLDER.get(frame)
     if data is None:
         data = frame_codec().build(dict(dst=frame.dst, src=frame.src, num=frame.num,
                                         type=frame.type, content=frame.content))
-    if len(_ENCODED) >= _CACHE_MAX:
-        # A new generation: the last one is kept for a frame sent again (taken back above
-        # without building), the one before it is dropped.
-        _OLDER, _ENCODED, _BUILT = _ENCODED, {}, {}
-    _ENCODED[frame] = data
-    if type(frame.dst) is int and type(frame.src) is int and type(frame.num) is int \
-            and type(frame.type) is int and type(frame.content) is bytes:
-        _BUILT[data] = frame
-    else:
+    if type(frame.dst) is not int or type(frame.src) is not int or type(frame.num) is not int \
+            or type(frame.type) is not int or type(frame.content) is not bytes:
         # An IntEnum Type (the MAC's FrameType.BROADCAST_INFO, ...): a receiver is given the
         # frame parse_frame would give, plain ints and bytes, equal to this one.
-        _BUILT[data] = Frame(int(frame.dst), int(frame.src), int(frame.num), int(frame.type),
-                             bytes(frame.content))
+        frame = Frame(int(frame.dst), int(frame.src), int(frame.num), int(frame.type),
+                      bytes(frame.content))
+    _remember(frame, data)
     return data
+
+
+def _remember(frame: Frame, data: bytes) -> None:
+    """Put ``frame`` (plain ints and bytes) and its bytes in the current generation, both
+    ways; a full generation becomes the older one and the one before it is dropped."""
+    global _ENCODED, _BUILT, _OLDER, _OLDER_BUILT
+    if len(_ENCODED) >= _CACHE_MAX:
+        _OLDER, _OLDER_BUILT, _ENCODED, _BUILT = _ENCODED, _BUILT, {}, {}
+    _ENCODED[frame] = data
+    _BUILT[data] = frame
 
 
 _ENCODED: dict[Frame, bytes] = {}
@@ -274,10 +277,13 @@ _BUILT: dict[bytes, Frame] = {}
 """The same generation the other way: bytes -> the frame they encode, with plain int and bytes
 fields: a receiver of a new frame takes it here instead of parsing the bytes back
 (:func:`built_frame`). Filled and emptied together with ``_ENCODED``, so every frame encoded in
-this generation is found here: a frame sent again and again always is. Module-level, never a
-field, like the deframer's cache (snapshots walk fields only)."""
+this generation is found here. Module-level, never a field, like the deframer's cache
+(snapshots walk fields only)."""
 _OLDER: dict[Frame, bytes] = {}
-"""The generation before: a frame from it encoded again comes back without being built."""
+_OLDER_BUILT: dict[bytes, Frame] = {}
+"""The generation before, both ways: a frame from it encoded again, or its bytes looked up
+again (a sender that keeps its heartbeat's bytes sends them without a new encode), comes
+back into the current generation. So a frame sent again and again stays found."""
 _CACHE_MAX = 4096
 """Frames in one generation (at most twice this many remembered)."""
 
@@ -288,9 +294,12 @@ def built_frame(data: bytes, max_content: int = MAX_CONTENT) -> Frame | None:
     return a frame equal to it, field for field, and this returns it without parsing. Else
     None (parse the bytes)."""
     frame = _BUILT.get(data)
-    if frame is not None and len(frame.content) <= max_content:
-        return frame
-    return None
+    if frame is None:
+        frame = _OLDER_BUILT.get(data)
+        if frame is None:
+            return None
+        _remember(frame, data)
+    return frame if len(frame.content) <= max_content else None
 
 
 # --------------------------------------------------------------------------------------------
