@@ -14,6 +14,10 @@ to the caller, so the bound is generous. Prints Markdown tables (docs/performanc
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    from _project import require_project    # benchmarks/ is sys.path[0] here
+    require_project()
+
 import argparse
 import os
 import shutil

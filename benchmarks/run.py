@@ -7,6 +7,10 @@ realtime_fidelity.py, checksum_effect.py.
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    from _project import require_project    # benchmarks/ is sys.path[0] here
+    require_project()
+
 import argparse
 import os
 import subprocess

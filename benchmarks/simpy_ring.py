@@ -15,6 +15,10 @@ Needs ``simpy`` (``pip install -e '.[bench]'``).
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without SimPy says so in one line
+    from _project import require_project    # benchmarks/ is sys.path[0] here
+    require_project(("simpy",), extra="bench")
+
 import argparse
 import time
 

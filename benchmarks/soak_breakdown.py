@@ -27,6 +27,10 @@ about twice as slow as a plain one; the shares are what counts.
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    from _project import require_project    # benchmarks/ is sys.path[0] here
+    require_project()
+
 import argparse
 import heapq
 import os

@@ -22,7 +22,8 @@ REALTIME_MODULES = frozenset({
 })
 """Modules whose tests run on the wall clock: processes on the pty hub, CAN buses between
 processes, the timers of a live UI."""
-REALTIME_TESTS = frozenset({"tests/test_action_sequence.py::test_in_real_time"})
+REALTIME_TESTS = frozenset({"tests/test_action_sequence.py::test_in_real_time",
+                            "tests/test_readme_commands.py::test_the_readme_monitor_command_runs_in_a_terminal"})
 
 
 TIMING_MODULES = frozenset({

@@ -866,3 +866,74 @@ def test_events_is_an_option_of_the_child_only(capsys, command):
     assert main([*command, "--events", "--duration", "0.1"]) == 2
     err = capsys.readouterr().err
     assert "unrecognized arguments: --events" in err and "Traceback" not in err, err
+
+
+def _latency_lines(out: str) -> list[str]:
+    lines = out.splitlines()
+    i = next(i for i, x in enumerate(lines) if x.startswith("dispatcher latency"))
+    return lines[i:i + 2]
+
+
+def test_the_ring_demos_zero_latency_says_it_is_the_ideal_cpus(capsys):
+    """``rprs demo ring`` printed a median dispatcher latency of 0 us, unexplained: with the
+    ideal CPU (the default) the firmware takes no time and only the wait for a free CAN bus
+    is left. The line now says so; with ``--cpu estimated`` the figure is the firmware's
+    and no such note is printed."""
+    code, out, _ = rprs(capsys, "demo", "ring", "--duration", "6", "--no-progress")
+    assert code == 0
+    head, note = _latency_lines(out)
+    assert " median 0 us," in head
+    assert "the ideal CPU, --cpu ideal: the firmware takes no time" in note
+    assert "only the wait for a free CAN bus" in note
+    code, out, _ = rprs(capsys, "sim", "--robots", "0,1,2", "--duration", "6", "--load", "1",
+                        "--can", "--cpu", "estimated")
+    assert code == 0
+    head, after = _latency_lines(out)
+    median = float(head.split(" median ", 1)[1].split(" us", 1)[0])
+    assert median > 0 and "ideal CPU" not in out
+
+
+def test_output_to_a_pipe_is_neither_wrapped_nor_coloured():
+    """Rich wrapped at 80 columns when stdout was not a terminal: ``rprs sim | grep
+    "duplicate deliveries 0"`` found nothing. Into a pipe, no line is wrapped and nothing is
+    coloured, even with FORCE_COLOR set; the CPU report's tables included."""
+    env = dict(os.environ, FORCE_COLOR="1")
+    env.pop("COLUMNS", None)
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1,2",
+                        "--duration", "6", "--load", "2", "--can", "--cpu", "estimated",
+                        "--cpu-report"], capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stderr[-500:]
+    assert "\x1b[" not in r.stdout
+    lines = r.stdout.splitlines()
+    assert any(x.startswith("messages: submitted") and "duplicate deliveries 0" in x
+               for x in lines)
+    assert any(x.startswith("dispatcher latency") and x.rstrip().endswith(" us")
+               for x in lines)
+    budget = [x for x in lines if x.startswith("R1 CPU budget")]
+    assert len(budget) == 1 and "gaps in frames sent" in budget[0]
+
+
+def test_output_to_a_terminal_is_still_rich():
+    """The no-wrap, no-colour console is for pipes and files only: on a terminal the summary
+    keeps rich's bold title."""
+    import pty
+    master, slave = pty.openpty()
+    env = dict(os.environ, COLUMNS="100")
+    env.pop("NO_COLOR", None)
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1",
+                          "--duration", "2"], stdout=slave, stderr=subprocess.PIPE,
+                         stdin=subprocess.DEVNULL, env=env)
+    os.close(slave)
+    out = bytearray()
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:
+            break
+        if not chunk:
+            break
+        out.extend(chunk)
+    p.wait(timeout=120)
+    os.close(master)
+    assert p.returncode == 0
+    assert b"\x1b[1mRPRS ring" in out, bytes(out[:300])

@@ -254,16 +254,39 @@ def test_built_frame_is_what_parsing_gives(frame, max_content):
 
 
 def test_built_frame_never_gives_an_enum_type_and_stays_bounded():
+    """A frame built with a FrameType member is found as parse_frame gives it (plain ints),
+    and the cache stays bounded."""
     import firmware_model.radio.frame as frame_module
     data = Frame(dst=7, src=6, num=98, type=FrameType.JOIN, content=b"enum(1)").encode()
     got = built_frame(data)
-    assert got is None or type(got.type) is int
+    assert got == Frame(7, 6, 98, 6, b"enum(1)") and type(got.type) is int
     assert parse_frame_cached(data) == Frame(7, 6, 98, 6, b"enum(1)")
-    for i in range(frame_module._BUILT_MAX + 10):
+    for i in range(2 * frame_module._CACHE_MAX + 10):
         Frame(dst=1, src=2, num=3, type=2, content=b"n(%d)" % i).encode()
-    assert len(frame_module._BUILT) <= frame_module._BUILT_MAX
+    assert len(frame_module._BUILT) <= frame_module._CACHE_MAX
+    assert len(frame_module._ENCODED) <= frame_module._CACHE_MAX
+    assert len(frame_module._OLDER) <= frame_module._CACHE_MAX
 
 
+def test_a_frame_sent_again_and_again_stays_found():
+    """A frame encoded between thousands of others (a heartbeat among new messages) is found
+    by its bytes every time it has just been encoded, whatever filled the cache before, and
+    bytes kept and sent again without a new encode stay found while they are looked up: the
+    flake of test_built_frame_is_what_parsing_gives, which failed when other tests had left
+    the byte cache nearly full and a frame it had already encoded came again."""
+    hot = Frame(dst=7, src=3, num=41, type=3, content=b"")
+    sent_with_enum = Frame(dst=7, src=4, num=41, type=FrameType.BROADCAST_INFO, content=b"")
+    kept = Frame(dst=7, src=5, num=12, type=3, content=b"")
+    kept_bytes = kept.encode()        # a sender that keeps its heartbeat's bytes (the MAC)
+    lost = []
+    for i in range(12_000):           # three times the cache's generation of 4,096 frames
+        Frame(dst=1, src=2, num=i % 100, type=2, content=b"m(%d)" % i).encode()
+        for f in (hot, sent_with_enum):
+            if built_frame(f.encode()) != f:
+                lost.append((i, f))
+        if i % 1000 == 999 and built_frame(kept_bytes) != kept:
+            lost.append((i, kept))
+    assert lost == []
 def test_error_pickles_and_compares():
     err = _err(_put(PAPER_BYTES, 4, ord("9")))
     again = pickle.loads(pickle.dumps(err))

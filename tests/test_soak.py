@@ -2,6 +2,7 @@
 and traffic, then the guarantees of docs/guarantees.md."""
 from __future__ import annotations
 
+import json
 import random
 
 import pytest
@@ -203,3 +204,52 @@ def test_a_soak_that_breaks_a_promise_fails_with_the_checksum_off_too(monkeypatc
     monkeypatch.setattr(soak, "run_soak", corrupted)
     assert main(["soak", "--hours", "0.05", "--seed", "2", "--no-can", "--checksum",
                  mode]) == (0 if mode == "off" else 1)
+
+
+def _fake_result(checksum: bool, duplicates: int = 0, pending: int = 0):
+    """A soak's result without running one: the counts ``report`` and the exit status read."""
+    from hil.sim.soak import SoakResult
+    summary = {"occupations": 100, "collisions": 0, "robots": {1: {"missed": 0,
+               "refused_frames": 0}}, "membership_changes": [], "submitted": 10,
+               "delivered": 10 - pending, "failed": 0, "pending": pending,
+               "duplicate_deliveries": duplicates, "wrong_robot_deliveries": 0,
+               "corrupt_deliveries": 0}
+    return SoakResult(hours=0.05, seed=1, checksum=checksum, faults={"ber": 1},
+                      summary=summary, reform_s=[0.1])
+
+
+@pytest.mark.parametrize("duplicates_on, duplicates_off, pending_off, status", [
+    (0, 1, 0, 0),       # checksum off delivers twice: expected, not a broken promise
+    (1, 0, 0, 1),       # checksum on delivers twice: a broken promise
+    (0, 1, 2, 1),       # checksum off leaves messages pending: promised with or without
+])
+def test_the_soak_says_which_no_is_a_broken_promise(monkeypatch, capsys, duplicates_on,
+                                                    duplicates_off, pending_off, status):
+    """``rprs soak --checksum both`` printed a bold **NO** for "nothing delivered twice"
+    without the checksum and exited 0, saying nowhere that this no is expected there. A no
+    that no promise covers now says so, a broken promise alone is a bold **NO**, a last row
+    says whether every promise held, and the exit status follows that row only."""
+    import hil.sim.soak as soak
+    results = [_fake_result(True, duplicates_on), _fake_result(False, duplicates_off,
+                                                               pending_off)]
+    monkeypatch.setattr(soak, "run_soaks", lambda *a, **kw: results)
+    assert main(["soak", "--hours", "0.05", "--checksum", "both", "--no-can"]) == status
+    out = capsys.readouterr().out
+    twice = next(x for x in out.splitlines() if x.startswith("| **nothing delivered twice**"))
+    on, off = twice.split("|")[2:4]
+    assert on.strip() == ("**NO**" if duplicates_on else "yes")
+    assert off.strip() == ("no (not promised without the checksum)" if duplicates_off
+                           else "yes")
+    kept = next(x for x in out.splitlines() if x.startswith("| **every promise kept**"))
+    assert [c.strip() for c in kept.split("|")[2:4]] == \
+        ["**NO**" if duplicates_on else "yes", "**NO**" if pending_off else "yes"]
+    assert out.count("**NO**") == (duplicates_on + bool(pending_off)) * 2 + 1  # + the note
+    assert "a no there is expected and leaves the exit status 0" in out
+
+    monkeypatch.setattr(soak, "run_soaks", lambda *a, **kw: results)
+    assert main(["soak", "--hours", "0.05", "--checksum", "both", "--no-can", "--json"]) \
+        == status
+    runs = json.loads(capsys.readouterr().out)
+    assert [r["kept"] for r in runs] == [not duplicates_on, not pending_off]
+    assert runs[1]["promised"]["nothing delivered twice"] is False
+    assert runs[0]["promised"]["nothing delivered twice"] is True

@@ -240,29 +240,52 @@ class Frame:
 
     def encode(self) -> bytes:
         """The frame's bytes on the wire, built by ``FRAME_FORMAT`` (cached per frame)."""
-        return _encode_cached(self)
+        data = _ENCODED.get(self)
+        return data if data is not None else _encode_new(self)
 
 
-@functools.lru_cache(maxsize=4096)
-def _encode_cached(frame: Frame) -> bytes:
-    data = frame_codec().build(
-        dict(dst=frame.dst, src=frame.src, num=frame.num, type=frame.type, content=frame.content)
-    )
-    if type(frame.dst) is int and type(frame.src) is int and type(frame.num) is int \
-            and type(frame.type) is int and type(frame.content) is bytes:
-        # Plain ints and bytes, as parse_frame gives them (an IntEnum Type is not
-        # registered: its parse would be a plain int, equal but not the same object).
-        if len(_BUILT) >= _BUILT_MAX:
-            _BUILT.clear()
-        _BUILT[data] = frame
+def _encode_new(frame: Frame) -> bytes:
+    """:meth:`Frame.encode` for a frame not in the current generation of the cache: taken
+    from the one before if it is there, else built; then remembered both ways."""
+    data = _OLDER.get(frame)
+    if data is None:
+        data = frame_codec().build(dict(dst=frame.dst, src=frame.src, num=frame.num,
+                                        type=frame.type, content=frame.content))
+    if type(frame.dst) is not int or type(frame.src) is not int or type(frame.num) is not int \
+            or type(frame.type) is not int or type(frame.content) is not bytes:
+        # An IntEnum Type (the MAC's FrameType.BROADCAST_INFO, ...): a receiver is given the
+        # frame parse_frame would give, plain ints and bytes, equal to this one.
+        frame = Frame(int(frame.dst), int(frame.src), int(frame.num), int(frame.type),
+                      bytes(frame.content))
+    _remember(frame, data)
     return data
 
 
+def _remember(frame: Frame, data: bytes) -> None:
+    """Put ``frame`` (plain ints and bytes) and its bytes in the current generation, both
+    ways; a full generation becomes the older one and the one before it is dropped."""
+    global _ENCODED, _BUILT, _OLDER, _OLDER_BUILT
+    if len(_ENCODED) >= _CACHE_MAX:
+        _OLDER, _OLDER_BUILT, _ENCODED, _BUILT = _ENCODED, _BUILT, {}, {}
+    _ENCODED[frame] = data
+    _BUILT[data] = frame
+
+
+_ENCODED: dict[Frame, bytes] = {}
+"""Frames encoded in this generation -> their bytes (what :meth:`Frame.encode` looks up)."""
 _BUILT: dict[bytes, Frame] = {}
-"""Bytes built by :meth:`Frame.encode` -> the frame they encode (the last few thousand): a
-receiver of a new frame takes it here instead of parsing the bytes back (:func:`built_frame`).
-Module-level, never a field, like the deframer's cache (snapshots walk fields only)."""
-_BUILT_MAX = 4096
+"""The same generation the other way: bytes -> the frame they encode, with plain int and bytes
+fields: a receiver of a new frame takes it here instead of parsing the bytes back
+(:func:`built_frame`). Filled and emptied together with ``_ENCODED``, so every frame encoded in
+this generation is found here. Module-level, never a field, like the deframer's cache
+(snapshots walk fields only)."""
+_OLDER: dict[Frame, bytes] = {}
+_OLDER_BUILT: dict[bytes, Frame] = {}
+"""The generation before, both ways: a frame from it encoded again, or its bytes looked up
+again (a sender that keeps its heartbeat's bytes sends them without a new encode), comes
+back into the current generation. So a frame sent again and again stays found."""
+_CACHE_MAX = 4096
+"""Frames in one generation (at most twice this many remembered)."""
 
 
 def built_frame(data: bytes, max_content: int = MAX_CONTENT) -> Frame | None:
@@ -271,9 +294,12 @@ def built_frame(data: bytes, max_content: int = MAX_CONTENT) -> Frame | None:
     return a frame equal to it, field for field, and this returns it without parsing. Else
     None (parse the bytes)."""
     frame = _BUILT.get(data)
-    if frame is not None and len(frame.content) <= max_content:
-        return frame
-    return None
+    if frame is None:
+        frame = _OLDER_BUILT.get(data)
+        if frame is None:
+            return None
+        _remember(frame, data)
+    return frame if len(frame.content) <= max_content else None
 
 
 # --------------------------------------------------------------------------------------------

@@ -337,15 +337,28 @@ def progress_bars(total: float, labels: list[str]):
     return [(lambda x, t=t: bar.update(t, completed=x)) for t in tasks], bar.stop
 
 
+NOT_A_TERMINAL_WIDTH = 100_000
+"""Columns of a rich console on a stdout that is not a terminal: no line is wrapped (a table
+is as wide as its cells)."""
+
+
 def stdout_console(**kw):
     """A rich console on stdout whose reader going away ends the command as any other write
-    to a closed stdout does (``main``: ``stdout_gone``), not by rich's own SystemExit."""
+    to a closed stdout does (``main``: ``stdout_gone``), not by rich's own SystemExit.
+
+    On a stdout that is not a terminal (a pipe, a file) nothing is wrapped and nothing is
+    coloured, whatever ``COLUMNS`` or ``FORCE_COLOR`` say: ``rprs sim | grep "duplicate
+    deliveries 1"`` finds its line (rich wrapped at 80 columns there)."""
     from rich.console import Console
 
     class StdoutConsole(Console):
         def on_broken_pipe(self) -> None:
             self.quiet = True
             raise BrokenPipeError("standard output closed by its reader")
+    out = sys.stdout
+    if not (hasattr(out, "isatty") and out.isatty()):
+        kw.update(width=NOT_A_TERMINAL_WIDTH, soft_wrap=True, color_system=None,
+                  force_terminal=False)
     return StdoutConsole(**kw)
 
 

@@ -349,6 +349,10 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
         con.print(f"dispatcher latency, radio End to the first CAN frame's SOF, over "
                   f"{d['count']} orders: min {d['min']:g} us, median {d['median']:g} us, "
                   f"max {d['max']:g} us")
+        if "cpu_load" not in s:
+            # --cpu ideal: the handlers and the main loop run in zero time (docs/cpu.md)
+            con.print("  (the ideal CPU, --cpu ideal: the firmware takes no time, so this is "
+                      "only the wait for a free CAN bus; --cpu estimated adds its cycles)")
     con.print(f"messages: submitted {s['submitted']}, delivered {s['delivered']}, "
               f"failed {s['failed']}, {unacked}pending {s['pending']}, "
               f"duplicate deliveries {s['duplicate_deliveries']}")

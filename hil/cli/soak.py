@@ -31,6 +31,9 @@ def cmd_soak(a: argparse.Namespace) -> int:
         close()
     if a.json:
         print(json.dumps([{"checksum": r.checksum, "invariants": r.invariants,
+                           "promised": {k: r.checksum or k not in r.CHECKSUM_ONLY
+                                        for k in r.invariants},
+                           "kept": r.kept,
                            "summary": {k: v for k, v in r.summary.items()
                                        if k not in ("membership_changes",)},
                            "faults": r.faults, "reform_s_max": max(r.reform_s, default=None),
