@@ -573,8 +573,12 @@ class World:
         if t is ModeChange:
             ev = {"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason}
         elif t is Deliver:
+            intact = any(
+                self.messages[c - 1].dst == a.dst and self.messages[c - 1].type == a.type and
+                self.messages[c - 1].commands == a.commands
+                for c in self._by_key.get((a.src, a.num), ()))
             ev = {"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num, "type": a.type,
-                  "to": r, "intact": True}
+                  "to": r, "intact": intact}
         elif t is Join:
             ev = {"ev": "rejoin" if a.again else "join", "robot": a.robot, "by": r}
         elif t is Disable:
