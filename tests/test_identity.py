@@ -236,3 +236,86 @@ def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going(hub)
     order = [f.src for f in frames]
     good = sum(1 for a, b in zip(order, order[1:]) if b == a % 3 + 1)
     assert good >= 0.98 * (len(order) - 1)
+
+
+# -- the MAC's rule for its own ID, event by event -----------------------------------------
+
+def _member(robot: int, ring=(1, 2, 3, 4), **cfg) -> M.RotationalMac:
+    m = M.RotationalMac(robot, M.MacConfig(team=frozenset(ring), **cfg))
+    m.power_on(0)
+    m.mode, m.ring, m.misses = M.MEMBER, tuple(ring), {r: 0 for r in ring}
+    m._booting = False
+    return m
+
+
+def _hb(src: int, content: bytes = b"") -> Frame:
+    return Frame(dst=7, src=src, num=0, type=3, content=content)
+
+
+def test_a_member_yields_at_the_second_frame_with_its_own_id_and_says_so_once():
+    """One frame with our own ID is refused and changes nothing else (a forger's): the second
+    within Tclaim is a twin: said once, and the member goes back to LISTEN. More frames in the
+    same episode say nothing more; after a silence longer than Tclaim it is a new episode."""
+    m = _member(2)
+    m.owner, m.phase, t = 1, M.WAIT, 10_000_000
+    first = m.on_frame(_hb(2), t - 200_000, t, t)
+    assert m.mode == M.MEMBER and not [a for a in first if type(a) is M.DuplicateId]
+    t += 1_000_000
+    second = m.on_frame(_hb(2), t - 200_000, t, t)
+    assert [a for a in second if type(a) is M.DuplicateId] == [M.DuplicateId(2, True)]
+    assert m.mode == M.LISTEN
+    assert any(type(a) is M.ModeChange and "our ID 2" in a.reason for a in second)
+    for _ in range(5):
+        t += 1_000_000
+        assert not [a for a in m.on_frame(_hb(2), t - 200_000, t, t)
+                    if type(a) is M.DuplicateId]
+    t += m._claim_ticks() + 1
+    m.on_frame(_hb(2), t - 200_000, t, t)
+    t += 1_000_000
+    assert [a for a in m.on_frame(_hb(2), t - 200_000, t, t) if type(a) is M.DuplicateId]
+
+
+def test_a_listener_answers_no_invitation_while_its_id_is_heard():
+    """In LISTEN, a poll naming us is left alone while our ID was heard less than Tclaim ago
+    (the twin that holds it is the member), and answered once that is over."""
+    m = M.RotationalMac(2, M.MacConfig(team=frozenset({1, 2, 3})))
+    m.power_on(0)
+    poll = _hb(1, b"poll(2,10)")
+    t = 10_000_000
+    m.on_frame(_hb(2), t - 200_000, t, t)
+    t += 1_000_000
+    m.on_frame(poll, t - 200_000, t, t)
+    assert m.mode == M.LISTEN
+    t += m._claim_ticks() + 1
+    m.on_frame(poll, t - 200_000, t, t)
+    assert m.mode == M.MEMBER
+
+
+def test_an_unpaired_father_takes_another_id_0_for_a_twin_and_a_pc_pair_does_not():
+    """A father that is no PC pair has no other PC: another ID 0 in LISTEN used to make it
+    stand by for it (two rings' fathers each took the other for its partner). It now says so
+    and stays out; a PC of a pair still stands by (clause 50)."""
+    lone = M.RotationalMac(0, M.MacConfig(team=frozenset({0, 1, 2})))
+    lone.power_on(0)
+    t, said = 10_000_000, []
+    for _ in range(2):
+        said += lone.on_frame(_hb(0), t - 200_000, t, t)
+        t += 1_000_000
+    assert lone.mode == M.LISTEN and not lone.standby
+    assert [a for a in said if type(a) is M.DuplicateId] == [M.DuplicateId(0, True)]
+    pc1 = M.RotationalMac(0, M.MacConfig(team=frozenset({0, 1, 2}), paired=True))
+    pc1.power_on(0)
+    out = pc1.on_frame(_hb(0), 9_800_000, 10_000_000, 10_000_000)
+    assert pc1.standby and not [a for a in out if type(a) is M.DuplicateId]
+
+
+def test_a_foreign_robot_heard_once_is_not_yet_said_and_a_forged_source_never():
+    """Clause 38.1 is said when a robot outside the team is heard again (a cycle of its ring),
+    with every such robot heard meanwhile; a Source that is no robot ID is never a ring."""
+    m = M.RotationalMac(4, M.MacConfig(team=frozenset({4, 5})))
+    m.power_on(0)
+    t, said = 10_000_000, []
+    for src in (0, 1, 2, 0, 1, 2):
+        said += [a for a in m.on_frame(_hb(src), t - 200_000, t, t) if type(a) is M.ForeignRing]
+        t += 300_000
+    assert said == [M.ForeignRing((0, 1, 2), False)]
