@@ -8,6 +8,7 @@ its team says so. In the simulator (seeded, tick-exact) and with real processes 
 from __future__ import annotations
 
 import threading
+import time
 
 import pytest
 
@@ -319,3 +320,44 @@ def test_a_foreign_robot_heard_once_is_not_yet_said_and_a_forged_source_never():
         said += [a for a in m.on_frame(_hb(src), t - 200_000, t, t) if type(a) is M.ForeignRing]
         t += 300_000
     assert said == [M.ForeignRing((0, 1, 2), False)]
+
+
+def test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring(hub):
+    """Issue 40, finding 6, as found: R2's process stops (SIGSTOP) while a twin ``--id 2``
+    starts on a spare node; the ring drops R2 and invites the twin in; then R2 resumes
+    (SIGCONT) believing it is a member. One of the two prints its duplicate-ID line and
+    yields; the ring goes on 1, 2, 3 in order (no pair of frames from 2 in one turn, no
+    collisions every cycle: before, 1 run in 5 stayed in lock-step, 51 collisions in 24 s)."""
+    import signal
+    kids = {i: spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", "1,2,3")
+            for i in (1, 2, 3)}
+    sniffer = bench.Sniffer(hub.paths[5]).start()
+    twin = None
+    errs: dict[str, list[str]] = {"original": [], "twin": []}
+    try:
+        assert wait_for(lambda: ring_is(sniffer, [1, 2, 3]), 40.0)
+        _lines(kids[2], errs["original"])
+        kids[2].send_signal(signal.SIGSTOP)
+        t_stop = sniffer.tick() / 16e6
+        twin = spawn("child", "--id", "2", "--radio", hub.paths[3], "--team", "1,2,3")
+        _lines(twin, errs["twin"])
+        # the ring drops the stopped R2 (3 misses) and invites the twin in its place
+        assert wait_for(lambda: heard(sniffer, 2, t_stop + 2.0) >= 5, 30.0)
+        kids[2].send_signal(signal.SIGCONT)
+        said = lambda: [k for k, v in errs.items() if any("has ID 2" in ln for ln in v)]  # noqa
+        assert wait_for(lambda: said(), 20.0), errs
+        t_said = sniffer.tick() / 16e6
+        time.sleep(1.0)
+        bad_before = sniffer.result.failed + sniffer.result.garbage
+        assert wait_for(lambda: ring_is(sniffer, [1, 2, 3]) and
+                        all(heard(sniffer, r, t_said + 1.0) >= 15 for r in (1, 2, 3)), 30.0)
+        frames = [f for f in sniffer.snapshot() if f.start >= (t_said + 1.0) * 16e6]
+        bad = sniffer.result.failed + sniffer.result.garbage - bad_before
+    finally:
+        sniffer.stop()
+        stop(list(kids.values()) + ([twin] if twin else []))
+    assert len(said()) == 1, errs          # one of the two yields, the other keeps the ID
+    order = [f.src for f in frames]
+    good = sum(1 for a, b in zip(order, order[1:]) if b == a % 3 + 1)
+    assert good >= 0.95 * (len(order) - 1), order
+    assert bad <= 3, bad                   # lock-step twins: a failed frame every cycle
