@@ -361,3 +361,31 @@ def test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring(
     good = sum(1 for a, b in zip(order, order[1:]) if b == a % 3 + 1)
     assert good >= 0.95 * (len(order) - 1), order
     assert bad <= 3, bad                   # lock-step twins: a failed frame every cycle
+
+
+def test_rprs_sim_extra_robots_say_what_they_heard_in_the_summary_and_the_trace(tmp_path, capsys):
+    """``rprs sim --extra``: a twin powered on beside R2 and a robot of another team; the
+    summary says who heard what, and the trace holds the events."""
+    from hil.cli import main
+    trace = tmp_path / "t.jsonl"
+    assert main(["sim", "--robots", "1,2,3", "--duration", "8", "--extra", "2@4",
+                 "--extra", "5@3:5,6", "--trace", str(trace)]) == 0
+    out = capsys.readouterr().out
+    assert "R2 (--extra 1): another robot has ID 2: it yields" in out
+    assert "R5 (--extra 2): robots 1,2,3 outside its team hold the channel" in out
+    import json
+    evs = [json.loads(ln) for ln in trace.read_text().splitlines()]
+    assert [(e["robot"], e["extra"]) for e in evs if e["ev"] == "duplicate_id"] == [(2, 1)]
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--extra", "5@1"], "extra robot 5 is no twin of a robot of the ring [1, 2, 3]"),
+    (["--extra", "5@1:4,6"], "robot 5 is not in its own team 4,6"),
+    (["--extra", "5@1:5,9"], "team in '5@1:5,9'"),
+    (["--extra", "2@20"], "--extra 2@20: the run ends at 10 s"),
+])
+def test_rprs_sim_extra_mistakes_are_one_line(args, needle, capsys):
+    from hil.cli import main
+    assert main(["sim", "--robots", "1,2,3", *args]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and len(err.strip().splitlines()) == 1, err

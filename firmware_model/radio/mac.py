@@ -452,8 +452,8 @@ class RotationalMac:
         not a twin (clause 38.2)."""
         self._foreign: dict[int, int] = {}   # robot outside the team -> End last heard
         self._foreign_said: tuple[int, ...] = ()
-        self._fail_run: tuple[int, int, int] | None = None   # (member, failed turns, _good)
-        self._good = 0                    # good frames accepted (clause 41a's "in between")
+        self._fail_run: tuple[int, int] | None = None   # (member, its failed turns in a row)
+        self._good_since_fail = False     # a good frame accepted since (clause 41a)
 
     # -- queries ---------------------------------------------------------------------------
 
@@ -566,9 +566,10 @@ class RotationalMac:
                 self._booting_peers.discard(src)
             self.misses[src] = 0
             self._silent = 0
-            self._good += 1
-            if self._fail_run is not None and self._fail_run[0] == src:
-                self._fail_run = None
+            if self._fail_run is not None:
+                self._good_since_fail = True
+                if self._fail_run[0] == src:
+                    self._fail_run = None
             ring = self.ring
             i = bisect_right(ring, src)
             nxt = ring[i] if i < len(ring) else ring[0]
@@ -694,9 +695,10 @@ class RotationalMac:
         self._last_heard = (src, end)
         self.misses[src] = 0
         self._silent = 0
-        self._good += 1
-        if self._fail_run is not None and self._fail_run[0] == src:
-            self._fail_run = None
+        if self._fail_run is not None:
+            self._good_since_fail = True
+            if self._fail_run[0] == src:
+                self._fail_run = None
         if frame.type == FrameType.BOOT or frame.type == FrameType.JOIN:
             self._acks.append((src, frame.num))     # every BOOT/JOIN frame is acknowledged
             if frame.type == FrameType.BOOT and src not in self._booting_peers:
@@ -1319,16 +1321,17 @@ class RotationalMac:
             return
         run = self._fail_run
         if run is not None and run[0] == robot:
-            if run[2] == self._good:
+            if not self._good_since_fail:
                 return                         # nothing good heard since: a jam, not its slot
             n = run[1] + 1
         else:
             n = 1
+        self._good_since_fail = False
         if n >= FAILING_SLOT_LIMIT:
             self._fail_run = None
             self._drop(robot, out)
         else:
-            self._fail_run = (robot, n, self._good)
+            self._fail_run = (robot, n)
 
     def _refuse_outsider(self, src: int, num: int, end: int, now: int, out: list) -> None:
         """A frame from a team robot that is not in our ring and answers no invitation."""

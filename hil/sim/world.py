@@ -181,6 +181,9 @@ class SimConfig:
                 raise ConfigError(f"bad power-on time {t} for extra robot {r}")
             if team is not None and (not team or any(not 0 <= i <= 6 for i in team)):
                 raise ConfigError(f"extra robot {r}'s team {list(team)} must be IDs 0-6")
+            if team is None and r not in self.robots:
+                raise ConfigError(f"extra robot {r} is no twin of a robot of the ring "
+                                  f"{list(self.robots)}: give its team ({r}@{t:g}:TEAM)")
         if self.extra and self.mac_kind != "rotational":
             raise ConfigError("extra robots need the rotational MAC")
 
@@ -331,6 +334,8 @@ class World:
             self.radios[STANDBY] = radio
             self.stations_extra = {STANDBY: st}
             self.sched.at(s_to_ticks(config.power_on.get(0, 0.0)), self._power_on_standby)
+        self.identity: list[dict] = []
+        """Every duplicate_id and foreign_ring said, by any robot (the summary lists them)."""
         self.extra_stations: dict[int, RadioStation] = {}
         """The ``extra`` robots by ``EXTRA + k`` (k from 1), their radios in ``radios``."""
         self._extra_of: dict[int, int] = {}
@@ -587,9 +592,11 @@ class World:
             ev = {"ev": "refused", "src": a.src, "num": a.num, "to": r, "reason": a.reason}
         elif t is DuplicateId:
             ev = {"ev": "duplicate_id", "robot": r, "yielding": a.yielding}
+            self.identity.append({"t": self.sched.now, **ev, "extra": k})
         elif t is ForeignRing:
             ev = {"ev": "foreign_ring", "robot": r, "robots": list(a.robots),
                   "member": a.member}
+            self.identity.append({"t": self.sched.now, **ev, "extra": k})
         else:
             return
         self._emit({**ev, "extra": k})
@@ -777,8 +784,12 @@ class World:
             emit({"ev": "refused", "src": a.src, "num": a.num, "to": r,
                   "reason": a.reason})
         elif t is DuplicateId:
+            self.identity.append({"t": now, "ev": "duplicate_id", "robot": r,
+                                  "yielding": a.yielding})
             emit({"ev": "duplicate_id", "robot": r, "yielding": a.yielding})
         elif t is ForeignRing:
+            self.identity.append({"t": now, "ev": "foreign_ring", "robot": r,
+                                  "robots": list(a.robots), "member": a.member})
             emit({"ev": "foreign_ring", "robot": r, "robots": list(a.robots),
                   "member": a.member})
         elif t is FrameFailed:
@@ -958,6 +969,7 @@ class World:
                 "failed": total("failed"), "unacknowledged": total("unacknowledged"),
                 "pending": total("pending"),
                 "can_frames": self.can_frames,
+                **({"identity": self.identity} if self.identity else {}),
                 **({"cpu_load": {r: round(c.load(), 6) for r, c in sorted(self.cpus.items())},
                     "cpu_overruns": {r: self.stations[r].uart.overruns
                                      for r in sorted(self.cpus)},
