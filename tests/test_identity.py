@@ -7,6 +7,8 @@ its team says so. In the simulator (seeded, tick-exact) and with real processes 
 """
 from __future__ import annotations
 
+import json
+import subprocess
 import threading
 import time
 
@@ -191,6 +193,11 @@ def _lines(proc, into: list) -> threading.Thread:
     return t
 
 
+def _all_lines(stream, into: list) -> None:
+    with stream:
+        into.extend(stream)
+
+
 @pytest.fixture
 def hub():
     h = RadioHub(nodes=6, seed=1).start()
@@ -208,13 +215,18 @@ def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going(hub)
     sniffer = bench.Sniffer(hub.paths[5]).start()
     extra = []
     twin_err: list[str] = []
+    twin_events: list[str] = []
     stranger_err: list[str] = []
     try:
         assert wait_for(lambda: ring_is(sniffer, [1, 2, 3]), 40.0)
-        twin = spawn("child", "--id", "2", "--radio", hub.paths[3], "--team", "1,2,3")
+        twin = spawn("child", "--id", "2", "--radio", hub.paths[3], "--team", "1,2,3",
+                     "--events", stdout=subprocess.PIPE)
         stranger = spawn("child", "--id", "5", "--radio", hub.paths[4], "--team", "4,5")
         extra = [twin, stranger]
         _lines(twin, twin_err)
+        reader = threading.Thread(target=_all_lines, args=(twin.stdout, twin_events),
+                                  daemon=True)
+        reader.start()
         _lines(stranger, stranger_err)
         t0 = sniffer.tick() / 16e6
         assert wait_for(lambda: any("has ID 2" in ln for ln in twin_err), 20.0), twin_err
@@ -230,6 +242,9 @@ def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going(hub)
     dup = [ln for ln in twin_err if "has ID 2" in ln]
     assert dup == ["rprs: robot 2: another robot on the air has ID 2: this one yields "
                    "(listens, answers no invitation while it is heard)\n"]
+    reader.join(10.0)
+    said = [json.loads(ln) for ln in twin_events if '"duplicate_id"' in ln]
+    assert [(e["robot"], e["yielding"]) for e in said] == [(2, True)], twin_events[-5:]
     foreign = [ln for ln in stranger_err if "outside the team" in ln]
     assert len(foreign) == 1 and "robot(s) 1,2,3 outside the team" in foreign[0], foreign
     assert not [f for f in frames if f.src == 5]
