@@ -91,8 +91,8 @@ heard good in between, after which every member drops it (docs/protocol.md claus
 robots with one ID that send in lock-step, or a transmitter that only garbles."""
 LET_PASS_MAX = 3
 """A robot whose BOOT or JOIN was never acknowledged (or that was left out before it was) lets
-0 to this many invitations pass (a seeded draw) before it answers one: twins that answer together collide every time
-(docs/protocol.md clause 38.2)."""
+0 to this many invitations pass (a seeded draw) before it answers one: twins that answer
+together collide every time (docs/protocol.md clause 38.2)."""
 
 # Phases while MEMBER.
 WAIT = "wait"        # waiting for the header of ``owner`` until ``deadline``
@@ -317,9 +317,9 @@ class MacConfig:
     with ``crc(NNNNN)`` and frames received without a good one are refused."""
     seed: int = 0
     """Seeds the MAC's one random choice: how many invitations a robot whose JOIN was never
-    acknowledged lets pass (LET_PASS_MAX; docs/protocol.md clause 38.2). Two robots with one ID must not
-    share it, or they answer together for ever: the simulator and the bench processes pass
-    their own."""
+    acknowledged lets pass (LET_PASS_MAX; docs/protocol.md clause 38.2). Two robots with one
+    ID must not share it, or they answer together for ever: the simulator and the bench
+    processes pass their own."""
     profile: str = "rprs"
     """``rprs`` (the whole of docs/protocol.md) or ``paper``: only the paper's rules, to share a
     ring with robots that implement only the paper (docs/protocol.md §9, the paper profile)."""
