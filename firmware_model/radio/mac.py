@@ -1257,7 +1257,7 @@ class RotationalMac:
         sent in, as any frame refused there does, so we stay in step with those who heard it.
 
         Heard in ``TWIN_FRAMES`` frames each less than Tclaim after the previous one, another
-        robot has our ID (a PC pair's other PC never gets here): said once (``DuplicateId``),
+        robot has our ID: said once an episode (``DuplicateId``),
         and a member yields: back to LISTEN, where it answers no invitation while our ID is
         heard, so the robot that holds the ID keeps it and nothing is done twice. (The other
         PC of a father's pair is no twin: clause 50 settles which PC is active.)"""
@@ -1441,6 +1441,7 @@ class RotationalMac:
         self._announcing = None           # a BOOT not acknowledged is sent again
         self._passed_invite = False
         self._check_turns = 0             # back only invited (no PC is ID 0) or as a standby
+        self._fail_run = None             # clause 41a counts again from our next ring
         self.deadline = now + self._claim_ticks()
         out.append(ModeChange(LISTEN, reason))
 
