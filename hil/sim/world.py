@@ -258,8 +258,7 @@ class World:
         self.air.on_transmission = self._on_transmission
         self.air.on_collision = self._on_collision
         base = config.mac or MacConfig()
-        base = replace(base, team=frozenset(config.robots),
-                       seed=base.seed + config.seed)   # the MAC's draws vary with the run's
+        base = replace(base, team=frozenset(config.robots))
         if config.noise:     # a radio that outputs noise without a carrier is never quiet
             base = replace(base, quiet_channel=False)
         self.mac_config = base
