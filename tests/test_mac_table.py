@@ -1,9 +1,9 @@
 """The MAC's transition table (firmware_model/radio/mac_table.py) against the MAC itself.
 
 Every transition the MAC makes in a set of simulated runs (a loaded ring, collisions, bursts,
-deaths and recoveries, byte errors with idle noise, father failover, staggered power-on) must be
-a row of the table, and every row must be taken at least once: the table is neither wrong nor
-padded. docs/mac.md must hold the diagram and table generated from it."""
+deaths and recoveries, byte errors with idle noise, father failover, staggered power-on,
+twins) must be a row of the table, and every row must be taken at least once: the table is
+neither wrong nor padded. docs/mac.md must hold the diagram and table generated from it."""
 from __future__ import annotations
 
 from collections import Counter
@@ -24,6 +24,8 @@ RUNS = [
     dict(robots=(0, 1, 2), duration=20, seed=2, father_standby=True, load=1.0,
          faults=(parse_fault("fail:0@6"), parse_fault("recover:0@10"))),
     dict(robots=(1, 2, 3, 4, 5), duration=20, seed=6, power_on={3: 1.5, 1: 0.7}, ber=0.001),
+    # twins of R2 powered on together: they answer together until a seeded draw parts them
+    dict(robots=(1, 2, 3), duration=20, seed=1, extra=((2, 0.0, None),)),
 ]
 HOOKS = {"on_frame": "frame", "on_corrupt": "failed frame", "on_garbage": "garbage",
          "on_timer": "deadline", "on_tx_done": "tx done", "power_on": "power on",

@@ -41,6 +41,12 @@ RUNS = {
     "paper": SimConfig(robots=(1, 2, 3), duration=3.0, seed=1, load=2.0,
                        mac=MacConfig(profile="paper")),
     "aloha": SimConfig(robots=(1, 2, 3), duration=3.0, seed=1, load=2.0, mac_kind="aloha"),
+    # robots outside the ring (extra): twins of R2 at power-on and of R3 later (duplicate_id),
+    # a robot of another team that hears the ring, and a ring that hears another team's
+    # lone claimer (foreign_ring)
+    "identity": SimConfig(robots=(1, 2, 3), duration=8.0, seed=1, load=1.0,
+                          extra=((2, 0.0, None), (5, 1.0, (5, 6)), (3, 5.0, None))),
+    "foreign": SimConfig(robots=(2, 3), duration=3.0, seed=1, extra=((6, 0.0, (6,)),)),
 }
 
 
@@ -84,14 +90,15 @@ def test_every_event_kind_written_is_in_the_table_and_no_other(written):
 
 
 def test_every_key_written_is_in_the_table_in_its_order(written):
-    """``pc`` (the standby PC's events) may end any event whose row does not list it: the
-    text under the table says so."""
+    """``pc`` (the standby PC's events) and ``extra`` (an extra robot's) may end any event
+    whose row does not list it: the text under the table says so."""
     doc = table()
     for kind, key_sets in written.items():
         if kind == "meta":
             continue
-        if "pc" not in doc[kind]:
-            key_sets = [ks[:-1] if ks and ks[-1] == "pc" else ks for ks in key_sets]
+        for tag in ("pc", "extra"):
+            if tag not in doc[kind]:
+                key_sets = [ks[:-1] if ks and ks[-1] == tag else ks for ks in key_sets]
         for keys in key_sets:
             assert set(keys) <= set(doc[kind]), (kind, keys, doc[kind])
             assert list(keys) == [k for k in doc[kind] if k in keys], (kind, keys, doc[kind])
@@ -126,3 +133,10 @@ def test_the_standby_pcs_events_carry_pc_2_and_the_text_says_so(events):
     assert tagged and all(e["pc"] == 2 for e in tagged)
     assert {"frame", "txen", "mode"} <= {e["ev"] for e in tagged}
     assert 'carry `"pc": 2`' in DOC.read_text(encoding="utf-8")
+
+
+def test_an_extra_robots_events_carry_extra_and_the_text_says_so(events):
+    tagged = [e for e in events if "extra" in e]
+    assert {"power", "frame", "mode", "duplicate_id", "foreign_ring"} <= {e["ev"] for e in tagged}
+    assert all(e["extra"] >= 1 for e in tagged)
+    assert 'carry `"extra": k`' in DOC.read_text(encoding="utf-8")

@@ -44,6 +44,7 @@ transition table, is mac_table.py.
 """
 from __future__ import annotations
 
+import random
 from bisect import bisect_right
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -79,6 +80,19 @@ listened on the same one of the two, the one PC1 does not send in, so they never
 TAKEOVER_TOLERANCE = 0.05
 """Clock difference (fraction of Tmax) between robots within which a takeover heard before
 our own timer expires is still taken as one (a fast clock's Tmax ends first)."""
+
+TWIN_FRAMES = 2
+"""Frames with our own ID that we did not send, each heard less than Tclaim(id) after the
+previous one, that say another robot has our ID (docs/protocol.md clause 38.2): one forged
+frame is never enough."""
+FAILING_SLOT_LIMIT = 8
+"""Turns of one member in a row that end in a failed frame while the other members' frames are
+heard good in between, after which every member drops it (docs/protocol.md clause 41a): two
+robots with one ID that send in lock-step, or a transmitter that only garbles."""
+LET_PASS_MAX = 3
+"""A robot whose BOOT or JOIN was never acknowledged (or that was left out before it was) lets
+0 to this many invitations pass (a seeded draw) before it answers one: twins that answer
+together collide every time (docs/protocol.md clause 38.2)."""
 
 # Phases while MEMBER.
 WAIT = "wait"        # waiting for the header of ``owner`` until ``deadline``
@@ -198,6 +212,26 @@ class Refused:
 
 
 @dataclass(frozen=True, slots=True)
+class DuplicateId:
+    """Another robot sends with our own ID ``robot`` (docs/protocol.md clause 38.2): said once
+    an episode (until our ID has not been heard for Tclaim). ``yielding``: we leave the ring to
+    it (back to LISTEN, or staying there) and answer no invitation while our ID is heard."""
+
+    robot: int
+    yielding: bool
+
+
+@dataclass(frozen=True, slots=True)
+class ForeignRing:
+    """Good frames from robots outside our team are on the air (docs/protocol.md clause 38.1):
+    ``robots``, those heard within the last 8 Tmax, said again when the set changes. A robot in
+    LISTEN that hears them cannot claim the channel and is never invited by them."""
+
+    robots: tuple[int, ...]
+    member: bool
+
+
+@dataclass(frozen=True, slots=True)
 class BadChecksum:
     """A frame refused because its checksum was missing or wrong (checksum extension on)."""
 
@@ -289,6 +323,11 @@ class MacConfig:
     checksum: bool = False
     """Opt-in integrity extension (firmware_model.radio.integrity): every frame sent ends
     with ``crc(NNNNN)`` and frames received without a good one are refused."""
+    seed: int = 0
+    """Seeds the MAC's one random choice: how many invitations a robot whose JOIN was never
+    acknowledged lets pass (LET_PASS_MAX; docs/protocol.md clause 38.2). Two robots with one
+    ID must not share it, or they answer together for ever: the simulator and the bench
+    processes pass their own."""
     profile: str = "rprs"
     """``rprs`` (the whole of docs/protocol.md) or ``paper``: only the paper's rules, to share a
     ring with robots that implement only the paper (docs/protocol.md §9, the paper profile)."""
@@ -416,6 +455,17 @@ class RotationalMac:
         self._tx_end = 0                  # End of our own last frame
         self._noise_since_tx = False      # garbage or a failed frame heard since our frame
         self._rejected = 0                # paper profile: our frames not heard, in a row
+        self._own_heard: tuple[int, int] | None = None   # (frames, last End) with our own ID
+        self._twin_said = False           # DuplicateId said in this episode
+        self._let_pass = 0                # invitations to let pass before answering one
+        self._rng = random.Random(f"{cfg.seed}:{robot_id}")
+        self._pair = cfg.paired or cfg.standby or cfg.pc > 1
+        """One of the father's two PCs: another ID 0 on the air is the other PC (clause 50),
+        not a twin (clause 38.2)."""
+        self._foreign: dict[int, int] = {}   # robot outside the team -> End last heard
+        self._foreign_said: tuple[int, ...] = ()
+        self._fail_run: tuple[int, int] | None = None   # (member, its failed turns in a row)
+        self._good_since_fail = False     # a good frame accepted since (clause 41a)
 
     # -- queries ---------------------------------------------------------------------------
 
@@ -542,6 +592,10 @@ class RotationalMac:
                 self._booting_peers.discard(src)
             self.misses[src] = 0
             self._silent = 0
+            if self._fail_run is not None:
+                self._good_since_fail = True
+                if self._fail_run[0] == src:
+                    self._fail_run = None
             ring = self.ring
             i = bisect_right(ring, src)
             nxt = ring[i] if i < len(ring) else ring[0]
@@ -557,12 +611,14 @@ class RotationalMac:
         out: list = []
         if src == self.id:
             # Our own ID from the air (we are deaf while sending): another PC is ID 0, or a
-            # robot with our ID, or a forger. Refused; it still sets the timing.
-            if self.id != 0:
+            # robot with our ID, or a forger. Refused; it still sets the timing. A father that
+            # is no PC pair has no other PC: another ID 0 is a twin, as for a child.
+            if self.id != 0 or not self._pair:
                 self._own_id_heard(frame.num, end, now, out)
                 return out
             return self._active_frame(frame, end, now, out)
         if src not in self.cfg.team:
+            self._foreign_heard(src, end, out)
             out.append(Refused(src, frame.num, f"robot {src} is not in the team"))
             out.extend(self.on_corrupt(first, None, end, now))
             return out
@@ -597,7 +653,8 @@ class RotationalMac:
                 if p.args[1] == 1 << src:
                     continue           # a lone claimer's mask says nothing about our ring
                 if not (p.args[1] >> self.id & 1):
-                    self._to_listen(out, now, f"left out of robot {src}'s ring (its poll mask)")
+                    self._to_listen(out, now, f"left out of robot {src}'s ring (its poll mask)",
+                            let_pass=self._unheard_answer())
                     break
             else:
                 for c in mac_cmds:
@@ -611,6 +668,12 @@ class RotationalMac:
                 self._expire(now, out)
             for p in polls:
                 if p.args[0] == self.id:
+                    if self._own_heard is not None and \
+                            end - self._own_heard[1] <= self._claim_ticks():
+                        break              # our ID is on the air: the invitation is not ours
+                    if self._let_pass:
+                        self._let_pass -= 1    # left out, maybe a twin: let this one pass
+                        break
                     if self.id == 0 and self.cfg.pc > 1 and not self._passed_invite:
                         # The father's PC2 lets the first invitation of ID 0 pass: PC1 may
                         # be listening too and answer it, and two PCs answering together
@@ -658,6 +721,10 @@ class RotationalMac:
         self._last_heard = (src, end)
         self.misses[src] = 0
         self._silent = 0
+        if self._fail_run is not None:
+            self._good_since_fail = True
+            if self._fail_run[0] == src:
+                self._fail_run = None
         if frame.type == FrameType.BOOT or frame.type == FrameType.JOIN:
             self._acks.append((src, frame.num))     # every BOOT/JOIN frame is acknowledged
             if frame.type == FrameType.BOOT and src not in self._booting_peers:
@@ -705,6 +772,7 @@ class RotationalMac:
             self._own_id_heard(frame.num, end, now, out)
             return out
         if src not in self.cfg.team:
+            self._foreign_heard(src, end, out)
             out.append(Refused(src, frame.num, f"robot {src} is not in the team"))
             out.extend(self.on_corrupt(first, None, end, now))
             return out
@@ -772,6 +840,7 @@ class RotationalMac:
             self.deadline = min(now + self.cfg.quiet_gap, max(self._quiet_limit, now))
             return out
         self._quiet_miss = False
+        self._slot_failed(after, out)
         self._next_turn(after, max(expected_end, now), now, out, uncertain=True)
         self._promised = (expected_end, self.phase, self.deadline) if expected_end > now and \
             self.phase in (WAIT, HOLD) else None
@@ -937,6 +1006,7 @@ class RotationalMac:
             return
         if quiet or now >= self._quiet_limit:
             self._quiet_miss = False
+            self._slot_failed(self.owner, out)
             self._next_turn(self.owner, now, now, out, uncertain=True)  # the frame is over
         else:
             self.deadline = min(last_rx + gap, self._quiet_limit)
@@ -1014,7 +1084,8 @@ class RotationalMac:
             # Back to LISTEN, to be invited again.
             missing = ",".join(str(r) for r in sorted(self._ann_awaiting))
             self._to_listen(out, now, f"robot(s) {missing} never acknowledged our "
-                            f"{'BOOT' if self._announcing == FrameType.BOOT else 'JOIN'}")
+                            f"{'BOOT' if self._announcing == FrameType.BOOT else 'JOIN'}",
+                            let_pass=True)
             return out
         if self._sent_poll is not None:
             self._window(self._sent_poll, self.id, now, now)
@@ -1276,7 +1347,24 @@ class RotationalMac:
     def _own_id_heard(self, num: int, end: int, now: int, out: list) -> None:
         """A frame with our own Source that we did not send (clause 38.2): refused. In LISTEN
         the channel is busy (the claim wait restarts); as a member it closes the slot it was
-        sent in, as any frame refused there does, so we stay in step with those who heard it."""
+        sent in, as any frame refused there does, so we stay in step with those who heard it.
+
+        Heard in ``TWIN_FRAMES`` frames each less than Tclaim after the previous one, another
+        robot has our ID: said once an episode (``DuplicateId``),
+        and a member yields: back to LISTEN, where it answers no invitation while our ID is
+        heard, so the robot that holds the ID keeps it and nothing is done twice. (The other
+        PC of a father's pair is no twin: clause 50 settles which PC is active.)"""
+        n = 0 if self.id == 0 and self._pair else self._twin_frame(end)
+        twin = n >= TWIN_FRAMES
+        yielding = twin and not self._paper
+        if twin and not self._twin_said:
+            self._twin_said = True
+            out.append(DuplicateId(self.id, yielding))
+        if yielding and self.mode == MEMBER:
+            out.append(Refused(self.id, num, "our own robot ID from the air"))
+            self._to_listen(out, now, f"another robot sends with our ID {self.id}: yielding "
+                            f"the ring to it")
+            return
         if self.mode == LISTEN:
             out.append(Refused(self.id, num, "our own robot ID from the air"))
             self.deadline = now + self._claim_ticks()
@@ -1285,6 +1373,58 @@ class RotationalMac:
             self._refuse_in_slot(self.id, num, "our own robot ID from the air", end, now, out)
         else:
             out.append(Refused(self.id, num, "our own robot ID from the air"))
+
+    def _twin_frame(self, end: int) -> int:
+        """Count a frame with our own ID that we did not send: how many this episode (frames
+        each less than Tclaim(id) after the previous one; a longer silence starts again)."""
+        n, last = self._own_heard or (0, end)
+        if end - last > self._claim_ticks():
+            n = 0
+            self._twin_said = False
+        n += 1
+        self._own_heard = (n, end)
+        return n
+
+    def _foreign_heard(self, src: int, end: int, out: list) -> None:
+        """A good frame from robot ``src`` outside our team (clause 38.1): say which robots
+        outside the team hold the channel, once, and again when that set changes. The set is
+        those heard within the longest cycle a ring can make (8 Tmax), taken when a robot is
+        heard again (its ring has gone round once since)."""
+        if not 0 <= src <= 6:
+            return                             # no robot ID: a forger's, or noise
+        horizon = end - 8 * self.cfg.tmax
+        again = self._foreign.get(src, horizon - 1) >= horizon
+        self._foreign[src] = end
+        if not again:
+            return
+        robots = tuple(sorted(r for r, t in self._foreign.items() if t >= horizon))
+        if robots != self._foreign_said:
+            self._foreign_said = robots
+            out.append(ForeignRing(robots, self.mode == MEMBER))
+
+    def _slot_failed(self, robot: int | None, out: list) -> None:
+        """Clause 41a: ``robot``'s turn closed on a failed frame (or garbage). Its turns
+        failing ``FAILING_SLOT_LIMIT`` times in a row, with good frames heard in between and
+        no other member's turn failing, is no noise: two robots with its ID send in lock-step
+        (each deaf to the other), or its transmitter garbles. It is dropped, and the ring mask
+        that follows tells it so. Only in a ring of three or more (in a ring of two nobody
+        else's frames tell a failing slot from a bad channel)."""
+        if robot is None or robot == self.id or robot not in self.ring or len(self.ring) < 3 \
+                or self._paper:
+            return
+        run = self._fail_run
+        if run is not None and run[0] == robot:
+            if not self._good_since_fail:
+                return                         # nothing good heard since: a jam, not its slot
+            n = run[1] + 1
+        else:
+            n = 1
+        self._good_since_fail = False
+        if n >= FAILING_SLOT_LIMIT:
+            self._fail_run = None
+            self._drop(robot, out)
+        else:
+            self._fail_run = (robot, n)
 
     def _refuse_outsider(self, src: int, num: int, end: int, now: int, out: list) -> None:
         """A frame from a team robot that is not in our ring and answers no invitation."""
@@ -1314,7 +1454,8 @@ class RotationalMac:
         other again (found by the stateful hunt): one clean frame with a mask repairs that."""
         view = _unmask(mask)
         if self.id not in view:
-            self._to_listen(out, now, f"left out of robot {src}'s ring (its ring mask)")
+            self._to_listen(out, now, f"left out of robot {src}'s ring (its ring mask)",
+                            let_pass=self._unheard_answer())
             return
         for r in sorted(view - set(self.ring)):
             if r in self.cfg.team:
@@ -1370,7 +1511,19 @@ class RotationalMac:
         self._announcing = None
         self._booting = False
 
-    def _to_listen(self, out: list, now: int, reason: str) -> None:
+    def _unheard_answer(self) -> bool:
+        """Our BOOT/JOIN is out and no member has acknowledged it: nobody may have heard it
+        (a twin's answer collided with ours, clause 38.2)."""
+        return self._announcing is not None and \
+            self._ann_awaiting >= set(self.ring) - {self.id}
+
+    def _to_listen(self, out: list, now: int, reason: str, let_pass: bool = False) -> None:
+        """Back to LISTEN. ``let_pass``: our BOOT/JOIN was never acknowledged (or we were left
+        out before anyone acknowledged it): we may be one of two robots with one ID that
+        answered an invitation together (their answers collide) and would again: let a seeded
+        0-LET_PASS_MAX invitations pass first (clause 38.2)."""
+        if let_pass and not self._paper:
+            self._let_pass = self._rng.randint(0, LET_PASS_MAX)
         self.mode = LISTEN
         self.ring = ()
         self.phase = WAIT
@@ -1381,6 +1534,7 @@ class RotationalMac:
         self._announcing = None           # a BOOT not acknowledged is sent again
         self._passed_invite = False
         self._check_turns = 0             # back only invited (no PC is ID 0) or as a standby
+        self._fail_run = None             # clause 41a counts again from our next ring
         self.deadline = now + self._claim_ticks()
         out.append(ModeChange(LISTEN, reason))
 

@@ -84,8 +84,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WAIT", "deadline", "HOLD", "the owner missed right after our own frame, nothing "
        "heard since: id x Tslot more (R-stagger)", "designed"),
     _T("WAIT", "deadline", "LISTEN", "nobody heard for a whole round", "designed"),
-    _T("WAIT", "frame", "LISTEN", "left out: a member's poll or ring mask lacks us (R-view)",
-       "designed"),
+    _T("WAIT", "frame", "LISTEN", "left out: a member's poll or ring mask lacks us (R-view); "
+       "or our own ID a second time (a twin: yield, clause 38.2)", "designed"),
     _T("WAIT", "steal", "SWITCH", "fault injection: we wrongly take the turn", "fault"),
     # -- an invitation's window -----------------------------------------------------------
     _T("WINDOW", "frame", "WAIT", "the invited robot answered: the turn passes on",
@@ -119,7 +119,10 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("HOLD", "failed frame", "HOLD", "a frame abandoned while we wait to begin: no change",
        "designed"),
     _T("HOLD", "frame", "WAIT", "someone else sent first: resynchronise on it", "paper §IV.C"),
-    _T("HOLD", "frame", "LISTEN", "heard another robot while alone", "designed"),
+    _T("HOLD", "frame", "SWITCH", "a frame from the robot before us came first (a late "
+       "twin's): resynchronise, and ours is the next turn", "paper §IV.C"),
+    _T("HOLD", "frame", "LISTEN", "heard another robot while alone; or our own ID a second "
+       "time (a twin: yield, clause 38.2)", "designed"),
     _T("HOLD", "deadline", "HOLD", "a frame is coming in, or a jam not yet quiet for "
        "id x Tslot (R-stagger)", "designed"),
     _T("HOLD", "deadline", "SWITCH", "our turn: raise TXEN", "paper §IV.C"),

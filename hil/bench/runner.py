@@ -29,8 +29,8 @@ from firmware_model.mcu.can_controller import CanController
 from firmware_model.radio.content import parse_content
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.mac import (
-    UNACKNOWLEDGED, Deliver, Disable, Join, MacConfig, Message, Miss, ModeChange, Outcome,
-    SubmitError, Transmit,
+    UNACKNOWLEDGED, Deliver, Disable, DuplicateId, ForeignRing, Join, MacConfig, Message, Miss,
+    ModeChange, Outcome, SubmitError, Transmit,
 )
 from firmware_model.station import RadioStation, Stalled, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
@@ -57,11 +57,30 @@ defaults)."""
 
 
 def realtime_config(config: MacConfig | None = None) -> MacConfig:
-    """``config`` with the real-time margins (fields left at their defaults only)."""
+    """``config`` with the real-time margins (fields left at their defaults only), and, if
+    its ``seed`` is the default, one of this process's own: two processes started with one
+    ID must not draw alike (docs/protocol.md clause 38.2)."""
     cfg = config or MacConfig()
     base = MacConfig()
     changes = {k: v for k, v in REALTIME_MARGINS.items() if getattr(cfg, k) == getattr(base, k)}
+    if cfg.seed == base.seed:
+        changes["seed"] = int.from_bytes(os.urandom(4), "big")
     return replace(cfg, **changes)
+
+
+def identity_line(robot: int, a: object) -> str | None:
+    """The one line a bench process prints on stderr when its ID is on the air from another
+    robot, or robots outside its team hold the channel (docs/protocol.md clause 38)."""
+    if type(a) is DuplicateId:
+        return (f"robot {robot}: another robot on the air has ID {a.robot}: "
+                + ("this one yields (listens, answers no invitation while it is heard)"
+                   if a.yielding else "both send"))
+    if type(a) is ForeignRing:
+        who = ",".join(str(r) for r in a.robots)
+        return (f"robot {robot}: robot(s) {who} outside the team hold the channel"
+                + ("" if a.member else ": this one cannot claim it and is never invited "
+                   "(check --team)"))
+    return None
 
 
 class RunError(Exception):
@@ -69,11 +88,13 @@ class RunError(Exception):
 
 
 def _events_printer(out: TextIO | None, robot: int,
-                    on_closed: Callable[[], None] | None = None
+                    on_closed: Callable[[], None] | None = None,
+                    err: TextIO | None = None
                     ) -> Callable[[RadioStation, object, int], None]:
     """An observer turning the station's outputs into trace-like JSON lines. When ``out``'s
     reader has gone away (``| head -1``: BrokenPipeError), nothing more is written and
-    ``on_closed`` runs once (the runner's ``stop``: the process stops quietly)."""
+    ``on_closed`` runs once (the runner's ``stop``: the process stops quietly). A duplicate
+    ID or a foreign ring is also said in one line on ``err`` (stderr), with --events or not."""
     closed = False
 
     def emit(ev: dict) -> None:
@@ -117,6 +138,18 @@ def _events_printer(out: TextIO | None, robot: int,
                   "type": a.type, "len": len(a.content)})
         elif t is Stalled:
             emit({"t": now, "ev": "stall", "robot": robot, "late": a.late})
+        elif t is DuplicateId or t is ForeignRing:
+            line = identity_line(robot, a)
+            try:
+                (err or sys.stderr).write(f"rprs: {line}\n")
+                (err or sys.stderr).flush()
+            except (BrokenPipeError, ValueError):
+                pass
+            if t is DuplicateId:
+                emit({"t": now, "ev": "duplicate_id", "robot": robot, "yielding": a.yielding})
+            else:
+                emit({"t": now, "ev": "foreign_ring", "robot": robot, "robots": list(a.robots),
+                      "member": a.member})
     return observe
 
 

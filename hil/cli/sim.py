@@ -29,6 +29,11 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                    metavar="ID@SECONDS", help="the robot's radio comes back (repeatable)")
     p.add_argument("--power", type=id_at, action="append", default=[], metavar="ID@SECONDS",
                    help="power the robot on at that time (default: all at 0)")
+    p.add_argument("--extra", type=extra_robot, action="append", default=[],
+                   metavar="ID@SECONDS[:TEAM]",
+                   help="another robot on the same air, outside the ring, powered on then: a "
+                        "twin (an ID of --robots), or with :TEAM a robot of another team "
+                        "(4@0:4,5); repeatable (docs/protocol.md clause 38)")
     p.add_argument("--ber", type=probability, default=0.0, metavar="P",
                    help="probability that a received byte is corrupted")
     p.add_argument("--noise", action="store_true", help="radios hear random bytes when idle")
@@ -82,12 +87,29 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def extra_robot(text: str) -> tuple[int, float, tuple[int, ...] | None]:
+    """``ID@SECONDS[:TEAM]`` for ``--extra``: a twin of a ring robot, or one of another team."""
+    at, sep, team = text.partition(":")
+    r, t = id_at(at)
+    if not sep:
+        return r, t, None
+    try:
+        ids = robot_list(team)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"team in {text!r}: {exc}") from None
+    if r not in ids:
+        raise argparse.ArgumentTypeError(f"robot {r} is not in its own team {team} in "
+                                         f"{text!r}")
+    return r, t, tuple(ids)
+
+
 def sim_config(a: argparse.Namespace) -> SimConfig:
     if a.profile == "paper" and a.father_standby:
         raise UserError("--profile paper has no standby PC (--father-standby is this "
                         "project's extension)")
     late = [f"--{opt} {r}@{t:g}" for opt, times in (("fail", a.fail), ("recover", a.recover),
-                                                    ("power", a.power))
+                                                    ("power", a.power),
+                                                    ("extra", [x[:2] for x in a.extra]))
             for r, t in times if t >= a.duration]
     late += [f"--fault {f.spec()}" for f in a.fault if f.at >= a.duration]
     if late:    # it would never happen, and the run would say nothing of it
@@ -108,6 +130,7 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                                                                  -1 if f.robot is None
                                                                  else f.robot))),
                      ber=a.ber, noise=a.noise, load=a.load, power_on=dict(a.power),
+                     extra=tuple(a.extra),
                      can=getattr(a, "can", True),
                      mac=checked_mac_config(checksum=a.checksum, profile=a.profile),
                      father_standby=a.father_standby,
@@ -353,6 +376,17 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
             # --cpu ideal: the handlers and the main loop run in zero time (docs/cpu.md)
             con.print("  (the ideal CPU, --cpu ideal: the firmware takes no time, so this is "
                       "only the wait for a free CAN bus; --cpu estimated adds its cycles)")
+    for e in s.get("identity", ()):
+        who = f"R{e['robot']}" if e["robot"] else "father 0"
+        if e.get("extra"):
+            who += f" (--extra {e['extra']})"
+        if e["ev"] == "duplicate_id":
+            said = (f"another robot has ID {e['robot']}"
+                    + (": it yields" if e["yielding"] else ""))
+        else:
+            said = (f"robots {','.join(map(str, e['robots']))} outside its team hold the "
+                    f"channel")
+        con.print(f"{ticks_to_s(e['t']):.3f}s {who}: {said}")
     con.print(f"messages: submitted {s['submitted']}, delivered {s['delivered']}, "
               f"failed {s['failed']}, {unacked}pending {s['pending']}, "
               f"duplicate deliveries {s['duplicate_deliveries']}")

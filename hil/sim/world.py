@@ -29,8 +29,8 @@ from firmware_model.sequence import ACTION_NAMES
 from firmware_model.radio.content import Command, cmd, frame_kind
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
-    BadContent, Deliver, Disable, Duplicate, Join, MacConfig, Message, Miss, ModeChange,
-    UNACKNOWLEDGED, Outcome, Refused, SubmitError, Transmit, TxEnable,
+    BadContent, Deliver, Disable, Duplicate, DuplicateId, ForeignRing, Join, MacConfig, Message,
+    Miss, ModeChange, UNACKNOWLEDGED, Outcome, Refused, SubmitError, Transmit, TxEnable,
 )
 from firmware_model.radio.deframer import FrameFailed
 from firmware_model.station import RadioStation, build_station
@@ -59,6 +59,8 @@ class ConfigError(ValueError):
 FAULT_KINDS = KINDS
 STANDBY = 100
 """Key of the father's standby PC (PC2, also ID 0 on the air) in ``World.radios``."""
+EXTRA = 200
+"""``World.radios`` holds the k-th of ``SimConfig.extra`` at EXTRA + k."""
 
 
 @dataclass
@@ -101,6 +103,11 @@ class SimConfig:
     (aloha, slotted, csma; firmware_model/radio/peer_macs.py)."""
     peer: object | None = None
     """PeerConfig for the peer MACs."""
+    extra: tuple[tuple[int, float, tuple[int, ...] | None], ...] = ()
+    """More robots on the same air, outside ``robots``: (ID, power-on seconds, team or None for
+    the run's). An ID of ``robots`` again is a twin (two robots with one ID, docs/protocol.md
+    clause 38.2); another team is a co-channel ring (clause 38.1). Their events carry
+    ``"extra": k`` (1 for the first) in the trace; they get no load."""
     cpu: object | None = None
     """A cycle-cost table (firmware_model.cycle_costs.CycleCosts): every child's firmware runs
     on the MB90F549 CPU model, its handlers taking the time the table gives. None: the ideal
@@ -167,6 +174,18 @@ class SimConfig:
         for r, t in self.power_on.items():
             if r not in self.robots or t < 0:
                 raise ConfigError(f"bad power-on time {t} for robot {r}")
+        for r, t, team in self.extra:
+            if not isinstance(r, int) or not 0 <= r <= 6:
+                raise ConfigError(f"extra robot ID {r!r} is not 0-6")
+            if not t >= 0:
+                raise ConfigError(f"bad power-on time {t} for extra robot {r}")
+            if team is not None and (not team or any(not 0 <= i <= 6 for i in team)):
+                raise ConfigError(f"extra robot {r}'s team {list(team)} must be IDs 0-6")
+            if team is None and r not in self.robots:
+                raise ConfigError(f"extra robot {r} is no twin of a robot of the ring "
+                                  f"{list(self.robots)}: give its team ({r}@{t:g}:TEAM)")
+        if self.extra and self.mac_kind != "rotational":
+            raise ConfigError("extra robots need the rotational MAC")
 
 
 @dataclass
@@ -315,6 +334,26 @@ class World:
             self.radios[STANDBY] = radio
             self.stations_extra = {STANDBY: st}
             self.sched.at(s_to_ticks(config.power_on.get(0, 0.0)), self._power_on_standby)
+        self.identity: list[dict] = []
+        """Every duplicate_id and foreign_ring said, by any robot (the summary lists them)."""
+        self.extra_stations: dict[int, RadioStation] = {}
+        """The ``extra`` robots by ``EXTRA + k`` (k from 1), their radios in ``radios``."""
+        self._extra_of: dict[int, int] = {}
+        self._extra_radio: dict[int, int] = {}
+        for k, (r, t, team) in enumerate(config.extra, 1):
+            bt = PC_BYTE_TICKS if r == 0 else CHILD_BYTE_TICKS
+            cfg = replace(base, byte_ticks=bt, seed=base.seed + k,
+                          **({"team": frozenset(team)} if team is not None else {}))
+            st, radio = build_station(r, self.sched, byte_ticks=bt, config=cfg,
+                                      observer=self._observe)
+            st.report_io = trace is not None or on_event is not None
+            self.air.attach(radio)
+            radio.alive = False
+            self.extra_stations[EXTRA + k] = st
+            self._extra_of[id(st)] = k
+            self._extra_radio[id(radio)] = k
+            self.radios[EXTRA + k] = radio
+            self.sched.at(s_to_ticks(t), self._power_on_extra, k)
         self._cpu_busy: dict[int, int] = {}
         if self.cpus:
             self.sched.at(TICK_HZ, self._cpu_second, 0)
@@ -329,7 +368,7 @@ class World:
         # sides that a trace keeps awake (QuietCan.may_sleep): it could never leap there.
         watched = trace is not None or on_event is not None
         if config.ring_sleep and config.mac_kind == "rotational" and not config.realtime \
-                and config.cpu is None and not (watched and self.quiet):
+                and config.cpu is None and not (watched and self.quiet) and not config.extra:
             ring = self.quiet_ring = QuietRing(self, min(config.robots), base.poll_every,
                                                config.father_standby)
             for q in self.quiet.values():
@@ -525,6 +564,43 @@ class World:
         elif not isinstance(load, str):
             self._schedule_arrival(r)
 
+    def _power_on_extra(self, k: int) -> None:
+        self.air.revive(self.radios[EXTRA + k], self.sched.now)
+        self._emit({"ev": "power", "robot": self.extra_stations[EXTRA + k].id, "extra": k})
+        self.extra_stations[EXTRA + k].power_on()
+
+    def _observe_extra(self, st: RadioStation, k: int, a: object) -> None:
+        """An event of an ``extra`` robot: traced with ``"extra": k``, counted nowhere (the
+        run's statistics are the ring's)."""
+        t = type(a)
+        r = st.id
+        self.observed += 1
+        if t is ModeChange:
+            ev = {"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason}
+        elif t is Deliver:
+            intact = any(
+                self.messages[c - 1].dst == a.dst and self.messages[c - 1].type == a.type and
+                self.messages[c - 1].commands == a.commands
+                for c in self._by_key.get((a.src, a.num), ()))
+            ev = {"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num, "type": a.type,
+                  "to": r, "intact": intact}
+        elif t is Join:
+            ev = {"ev": "rejoin" if a.again else "join", "robot": a.robot, "by": r}
+        elif t is Disable:
+            ev = {"ev": "disable", "robot": a.robot, "by": r}
+        elif t is Refused:
+            ev = {"ev": "refused", "src": a.src, "num": a.num, "to": r, "reason": a.reason}
+        elif t is DuplicateId:
+            ev = {"ev": "duplicate_id", "robot": r, "yielding": a.yielding}
+            self.identity.append({"t": self.sched.now, **ev, "extra": k})
+        elif t is ForeignRing:
+            ev = {"ev": "foreign_ring", "robot": r, "robots": list(a.robots),
+                  "member": a.member}
+            self.identity.append({"t": self.sched.now, **ev, "extra": k})
+        else:
+            return
+        self._emit({**ev, "extra": k})
+
     def _power_on_standby(self) -> None:
         self.air.revive(self.radios[STANDBY], self.sched.now)
         self._emit({"ev": "power", "robot": 0, "pc": 2})
@@ -616,6 +692,10 @@ class World:
                   (tx.end - tx.t0) // tx.bt, collided=tx.collided, aborted=tx.aborted)
         if tx.radio is self.radios.get(STANDBY):
             ev["pc"] = 2
+        elif self._extra_of and tx.radio.robot in self.cfg.robots:
+            k = self._extra_radio.get(id(tx.radio))
+            if k is not None:
+                ev["extra"] = k          # a twin's frame: the same src as a robot of the ring
         self._emit(ev)
 
     def _on_collision(self, t0: int, robots: list[int]) -> None:
@@ -635,6 +715,12 @@ class World:
     def _observe(self, st: RadioStation, a: object, now: int) -> None:
         r = st.id
         emit = self._emit
+        if self._extra_of:
+            k = self._extra_of.get(id(st))
+            if k is not None:
+                if type(a) is not Transmit and type(a) is not TxEnable:
+                    self._observe_extra(st, k, a)
+                return
         if st is self.standby_station:
             if type(a) is ModeChange:
                 self.observed += 1
@@ -697,6 +783,15 @@ class World:
             self.stats[r].refused_frames += 1
             emit({"ev": "refused", "src": a.src, "num": a.num, "to": r,
                   "reason": a.reason})
+        elif t is DuplicateId:
+            self.identity.append({"t": now, "ev": "duplicate_id", "robot": r,
+                                  "yielding": a.yielding})
+            emit({"ev": "duplicate_id", "robot": r, "yielding": a.yielding})
+        elif t is ForeignRing:
+            self.identity.append({"t": now, "ev": "foreign_ring", "robot": r,
+                                  "robots": list(a.robots), "member": a.member})
+            emit({"ev": "foreign_ring", "robot": r, "robots": list(a.robots),
+                  "member": a.member})
         elif t is FrameFailed:
             self.stats[r].bad_frames += 1
             if self.trace is not None or self.on_event is not None:
@@ -874,6 +969,7 @@ class World:
                 "failed": total("failed"), "unacknowledged": total("unacknowledged"),
                 "pending": total("pending"),
                 "can_frames": self.can_frames,
+                **({"identity": self.identity} if self.identity else {}),
                 **({"cpu_load": {r: round(c.load(), 6) for r, c in sorted(self.cpus.items())},
                     "cpu_overruns": {r: self.stations[r].uart.overruns
                                      for r in sorted(self.cpus)},
