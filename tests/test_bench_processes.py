@@ -528,3 +528,73 @@ def test_a_cut_off_header_answering_invitations_costs_its_bytes_on_the_hub():
                                             if t - 16_000_000 < s < t + 16_000_000]
     events = [e for ls in lines for e in ls if e["ev"] in ("miss", "disable")]
     assert [e for e in events if e["robot"] != 5] == [], events
+
+
+class _EndBurster(_Air):
+    """The capture sink of ``_Air`` that, once armed, puts a 4 ms burst (``burst@T:0.004``'s
+    bytes) on the hub's air the instant a robot's clean frame ends there, in the air's own
+    thread and ticks, ``left`` times at least ``every`` ticks apart; ``at`` holds those ticks."""
+
+    def __init__(self, hub, left, every):
+        super().__init__(hub)
+        self.armed = False
+        self.left = left
+        self.every = every
+        self.at: list[int] = []
+
+    def radio(self, key, tick, data, comment=None):
+        super().radio(key, tick, data, comment)
+        if self.armed and self.left and key != "foreign" and comment is None and \
+                (not self.at or tick >= self.at[-1] + self.every):
+            self.left -= 1
+            self.at.append(tick)
+            self.hub.air.burst(0.004)
+
+
+def test_no_healthy_robot_is_counted_missing_after_a_burst_at_a_frame_end_on_the_hub():
+    """Issue 40 at the bench: a 4 ms burst that begins as a robot's frame ends on air. Its sender
+    dated its End earlier (its bytes reach the air late), so its radio model listened again
+    while the burst was still on air: the hub, which made no node deaf, gave it the burst,
+    which it took for its successor's broken frame (clause 42); it then refused the
+    successor's good frame as out of turn and counted the next robot missing (clause 39). A
+    PTR2000 is deaf until Ttrans after its last byte left: the hub now deafens a node so on
+    the air's clock, and the burst (shorter than Ttrans) reaches only the others, for whom it
+    comes before the successor could have begun (no garbage in its slot). Children 1, 2 and 6,
+    twenty such bursts: no child counts anyone missing once the ring has formed, and nobody is
+    dropped."""
+    hub = RadioHub(nodes=3, seed=1)
+    air = _EndBurster(hub, left=20, every=16_000_000 * 2 // 5)
+    hub.capture(air)
+    hub.start()
+    kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
+                              "--radio", hub.paths[i], "--team", "1,2,6", "--events"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for i, r in enumerate((1, 2, 6))]
+    lines: list[list[tuple[bool, dict]]] = [[], [], []]
+
+    def read(p, out):
+        with p.stdout:
+            for line in p.stdout:
+                out.append((air.armed, json.loads(line)))
+    import threading
+    for p, out in zip(kids, lines):
+        threading.Thread(target=read, args=(p, out), daemon=True).start()
+
+    def formed():
+        srcs = [k for k, s, e, c in list(air.packets)[-6:] if not c]
+        return srcs in ([0, 1, 2] * 2, [1, 2, 0] * 2, [2, 0, 1] * 2)
+    try:
+        assert wait_for(formed, 40.0), "the ring 1, 2, 6 did not form"
+        air.armed = True
+        assert wait_for(lambda: len(air.at) == 20, 30.0), air.at
+        time.sleep(1.5)
+        alive = [p.poll() is None for p in kids]
+    finally:
+        errs = stop(kids)
+        hub.stop()
+        hub.close()
+    assert alive == [True] * 3, errs
+    bursts = [s for k, s, e, c in air.packets if k == "foreign"]
+    assert bursts == air.at                      # each burst began as a frame ended on air
+    events = [e for ls in lines for armed, e in ls if armed and e["ev"] in ("miss", "disable")]
+    assert events == [], events

@@ -150,3 +150,30 @@ def test_no_healthy_robot_is_counted_missing_with_real_time_margins_and_bursts()
     assert [e for e in evs if e["ev"] == "disable"] == []
     assert [e for e in evs if e["ev"] == "collision" and -1 not in e["robots"]] == []
     assert all(v == (1, 2, 6) for v in w.ring_views().values())
+
+
+def test_no_robot_is_counted_missing_when_a_burst_begins_as_a_frame_ends():
+    """What the pty hub's test of issue 40 (a burst at a frame's end) must match: a 4 ms burst
+    begins on the air the tick a robot's frame ends there, 40 times. The sender's radio is deaf
+    until Ttrans after its last byte, longer than the burst, so it hears none of it; the others
+    hear it before the successor could have begun (clause 42 leaves such garbage alone), and
+    the successor's Header comes after it. Nobody is counted missing, nobody is dropped."""
+    from hil.sim.world import SimConfig, World
+    team = frozenset((1, 2, 6))
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2, 6), duration=22.0, seed=1, ring_sleep=False,
+                        mac=realtime_config(MacConfig(team=team))), on_event=evs.append)
+    at: list[int] = []
+    seen = w.air.on_transmission
+
+    def burst_at_frame_end(tx):
+        seen(tx)
+        if tx.radio.robot in team and not tx.collided and tx.end >= 4 * TICK_HZ and \
+                len(at) < 40 and (not at or tx.end >= at[-1] + 2 * TICK_HZ // 5):
+            at.append(tx.end)
+            w.air.burst(0.004)
+    w.air.on_transmission = burst_at_frame_end
+    w.run()
+    assert len(at) == 40 and w.air.bursts == 40
+    assert [e for e in evs if e["ev"] in ("miss", "disable")] == []
+    assert [e for e in evs if e["ev"] == "collision"] == []    # the burst hit no frame
