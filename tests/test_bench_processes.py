@@ -627,3 +627,85 @@ def test_a_cut_off_header_answering_invitations_costs_its_bytes_on_the_hub():
                                             if t - 16_000_000 < s < t + 16_000_000]
     events = [e for ls in lines for e in ls if e["ev"] in ("miss", "disable")]
     assert [e for e in events if e["robot"] != 5] == [], events
+
+
+BURST_TICKS = 100_002
+"""``burst@T:0.006``: 6 bytes at 16667 ticks."""
+BEFORE_END = 21_002
+"""Ticks (1.3 ms) before a frame's end on air at which ``_TailHub`` begins its burst: the burst
+breaks the frame's last bytes and ends 79,000 ticks after the frame, 1,000 ticks (62.5 us)
+before the sender's Ttrans (80,000 ticks) is over."""
+
+
+class _TailHub(RadioHub):
+    """A hub that, once armed, puts a 6 ms burst on its air over the end of a robot's frame
+    (from ``BEFORE_END`` ticks before it ends), ``left`` times at least ``every`` ticks apart,
+    in the air's own thread and ticks; ``at`` holds the ends of the frames it broke."""
+
+    def __init__(self, *args, left, every, **kw):
+        super().__init__(*args, **kw)
+        self.armed = False
+        self.left = left
+        self.every = every
+        self.at: list[int] = []
+
+    def _send(self, i):
+        super()._send(i)
+        end = self._tx_end[i]
+        if self.armed and self.left and not self._pending[i] and \
+                (not self.at or end >= self.at[-1] + self.every):
+            self.left -= 1
+            self.at.append(end)
+            self.sched.at(end - BEFORE_END, self.air.burst, 0.006)
+
+
+def test_no_healthy_robot_is_counted_missing_after_a_burst_over_a_frame_end_on_the_hub():
+    """Issue 40 at the bench: a 6 ms burst over a robot's last 1.3 ms on air that goes on for
+    4.94 ms after, just less than Ttrans. Its sender dated its End earlier than the air (its
+    bytes reach the air late), so its radio model listened again while the collision was still
+    on air: the hub, which made no node deaf, gave it the garbage, which it took for its
+    successor's broken frame (clause 42); the successor, whose turn followed a broken frame,
+    began after its R-stagger, and the sender refused its good frame as out of turn and
+    counted the next robot missing (clause 39). A PTR2000 is deaf until Ttrans after its last
+    byte left: the hub now deafens a node so on the air's clock, and the garbage reaches only
+    the others. Children 1, 2 and 6, twenty such bursts: no child counts anyone missing once
+    the ring has formed, and nobody is dropped (the simulator's prediction:
+    tests/test_margin_bounds.py)."""
+    hub = _TailHub(nodes=3, seed=1, left=20, every=16_000_000 * 2 // 5)
+    air = _Air(hub)
+    hub.capture(air)
+    hub.start()
+    kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
+                              "--radio", hub.paths[i], "--team", "1,2,6", "--events"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for i, r in enumerate((1, 2, 6))]
+    lines: list[list[tuple[bool, dict]]] = [[], [], []]
+
+    def read(p, out):
+        with p.stdout:
+            for line in p.stdout:
+                out.append((hub.armed, json.loads(line)))
+    import threading
+    for p, out in zip(kids, lines):
+        threading.Thread(target=read, args=(p, out), daemon=True).start()
+
+    def formed():
+        srcs = [k for k, s, e, c in list(air.packets)[-6:] if not c]
+        return srcs in ([0, 1, 2] * 2, [1, 2, 0] * 2, [2, 0, 1] * 2)
+    try:
+        assert wait_for(formed, 40.0), "the ring 1, 2, 6 did not form"
+        hub.armed = True
+        assert wait_for(lambda: len(hub.at) == 20, 30.0), hub.at
+        time.sleep(1.5)
+        alive = [p.poll() is None for p in kids]
+    finally:
+        errs = stop(kids)
+        hub.stop()
+        hub.close()
+    assert alive == [True] * 3, errs
+    bursts = [(s, e) for k, s, e, c in air.packets if k == "foreign"]
+    assert bursts == [(t - BEFORE_END, t - BEFORE_END + BURST_TICKS) for t in hub.at]
+    broken = {e for k, s, e, c in air.packets if k != "foreign" and c}
+    assert broken == set(hub.at)                 # each broke the end of the frame it aimed at
+    events = [e for ls in lines for armed, e in ls if armed and e["ev"] in ("miss", "disable")]
+    assert events == [], events

@@ -150,3 +150,33 @@ def test_no_healthy_robot_is_counted_missing_with_real_time_margins_and_bursts()
     assert [e for e in evs if e["ev"] == "disable"] == []
     assert [e for e in evs if e["ev"] == "collision" and -1 not in e["robots"]] == []
     assert all(v == (1, 2, 6) for v in w.ring_views().values())
+
+
+def test_no_robot_is_counted_missing_after_a_burst_over_a_frame_end():
+    """What the pty hub's test of issue 40 (tests/test_bench_processes.py, a burst over a
+    frame's end) must match: a 6 ms burst from 1.3 ms before a robot's frame ends on the air
+    to 62.5 us before that robot's Ttrans is over, 40 times. The sender's radio is deaf until
+    Ttrans after its last byte, so it hears none of the garbage; the others hear the frame
+    broken, close its turn uncertainly and let the successor begin after its R-stagger.
+    Nobody is counted missing, nobody is dropped."""
+    from hil.sim.world import SimConfig, World
+    team = frozenset((1, 2, 6))
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2, 6), duration=22.0, seed=1, ring_sleep=False,
+                        mac=realtime_config(MacConfig(team=team))), on_event=evs.append)
+    at: list[int] = []
+    transmit = w.air.transmit
+
+    def burst_over_the_end(radio, data, t0, bt):
+        transmit(radio, data, t0, bt)
+        end = t0 + len(data) * bt
+        if radio.robot in team and t0 >= 4 * TICK_HZ and len(at) < 40 and \
+                (not at or end >= at[-1] + 2 * TICK_HZ // 5):
+            at.append(end)
+            w.sched.at(end - 21_002, w.air.burst, 0.006)     # 6 B: to end + 79,000 ticks
+    w.air.transmit = burst_over_the_end
+    w.run()
+    assert len(at) == 40 and w.air.bursts == 40
+    hits = [e for e in evs if e["ev"] == "collision"]
+    assert len(hits) == 40 and all(-1 in e["robots"] for e in hits)   # each broke its frame
+    assert [e for e in evs if e["ev"] in ("miss", "disable")] == []

@@ -204,11 +204,64 @@ def test_two_nodes_at_once_collide_into_garbage(hubs):
     # random bytes, not either frame, while both were on air
     both = got[lead + 3:n - 3] if lead else got[3:-3]
     assert len(both) >= 140 and _clean_run(both, 0x41) <= 4 and _clean_run(both, 0x61) <= 4
-    # the transmitters are not deaf in the hub: they hear garbage too, never their own bytes
+    # a transmitter never hears its own bytes (it is deaf while they are on air)
     assert a[-100:] not in read_for(fds[0], 0.05)
     st = hub.stats()
     assert st["collisions"] == 1
     assert st["per_node"][2]["bytes_out"] == len(got)
+
+
+class _Bursts:
+    """A capture sink (``RadioHub.capture``): every burst on the hub's air as (node or
+    "foreign", first tick, end tick), in the air's own ticks."""
+
+    tsresol = 9
+    epoch_units = 0
+
+    def __init__(self, byte_ticks: int) -> None:
+        self.bt = byte_ticks
+        self.packets: list[tuple[object, int, int]] = []
+
+    def follow(self, clock):
+        pass
+
+    def radio(self, key, tick, data, comment=None):
+        self.packets.append((key, tick - len(data) * self.bt, tick))
+
+
+def test_a_transmitter_is_deaf_on_the_air_clock_until_ttrans_after_its_burst(hubs):
+    """A PTR2000 hears nothing while TXEN is high and for Ttrans after it falls. A pty has no
+    TXEN line, so the hub deafens a node while its burst is on air and for Ttrans (80,000
+    ticks) after the burst ends there, on the air's own clock: a bench process, whose bytes
+    reach the air late and which dates its own End earlier, never hears the garbage of a
+    collision with its own frame (issue 40: it took it for its successor's broken frame).
+    Node 0 sends 400 bytes; a foreign transmitter collides with them and goes on after them.
+    Node 0 hears the garbage only from its burst's end + Ttrans to the end of the collision,
+    to the byte; node 1, listening throughout, hears the collision from its start."""
+    from firmware_model.timing import TTRANS_TICKS
+    from hil.sim.faults import parse_fault
+    hub = hubs(2, seed=3, faults=[parse_fault("foreign@0.25:400")])
+    bursts = _Bursts(hub.byte_ticks)
+    hub.capture(bursts)
+    fds = [open_node(hubs, p) for p in hub.paths]
+    mine = bytes(0x41 + i % 26 for i in range(400))
+    os.write(fds[0], mine)
+    deadline = time.monotonic() + 10.0
+    while _waiting(hub.masters[0]) < len(mine):  # one read, one burst, once the hub runs
+        assert time.monotonic() < deadline, "the written bytes never reached the hub's pty"
+        time.sleep(0.01)
+    hub.start()
+    got0 = read_for(fds[0], 2.0)
+    got1 = read_for(fds[1], 0.2)
+    bt = hub.byte_ticks
+    (_, s0, e0), = [p for p in bursts.packets if p[0] == 0]
+    (_, fs, fe), = [p for p in bursts.packets if p[0] == "foreign"]
+    assert s0 < fs < e0 - 50 * bt and fe > e0 + TTRANS_TICKS + 50 * bt, \
+        f"the hub put node 0's bytes on air too late to collide as planned: {bursts.packets}"
+    assert _clean_run(got0, 0x41) <= 4            # never its own bytes (random: a few)
+    assert len(got0) == (fe - e0 - TTRANS_TICKS) // bt     # deaf until e0 + Ttrans
+    assert len(got1) >= (fe - s0) // bt - 2       # node 1 heard it all, garbage from fs
+    assert hub.stats()["collisions"] == 1
 
 
 def test_ber_corrupts_bytes_seeded(hubs):
@@ -749,6 +802,7 @@ def test_the_latest_drop_and_fault_are_accepted_and_the_hub_runs(hubs):
     fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
     os.write(fd0, b"xyz")
     assert read_n(fd1, 3, 5.0)[0] == b"xyz"
+    time.sleep(0.02)            # node 0's radio hears again Ttrans (5 ms) after its burst ends
     os.write(fd1, b"abc")
     assert read_n(fd0, 3, 5.0)[0] == b"abc"
 

@@ -12,15 +12,19 @@ random streams are exactly the simulator's:
   back to back (it is not a collision with itself);
 * every other node whose link is up receives each byte at the tick its stop bit ends (it is
   written to that node's pty master then); a node never hears its own bytes;
-* two nodes on air at once: every node (the transmitters too) hears garbage until the air is
+* a node is deaf while its own bytes are on air and for Ttrans (5 ms) after its burst ends on
+  the air's timeline, as a PTR2000 is while TXEN is high and while it switches back: it never
+  hears the garbage of a collision with its own frame, however late its process dated its End;
+* two nodes on air at once: every node that is listening hears garbage until the air is
   clear; ``ber``: each byte corrupted with that probability per receiver; ``noise``: random
   bytes at the byte rate to every listening node while nothing reaches it;
 * ``drops``: (node, start_s, end_s) windows, in seconds after ``start()``, during which the
   node's link is down: its writes vanish (counted as ``lost``), it hears nothing, and a burst it
   had on air stops where it was.
 
-The hub models no radio switching time and no deafness: every robot process runs its own
-PTR2000 model (TXEN, Ttrans) and ignores what it could not have heard.
+A pty has no TXEN line, so the hub takes a node's radio to switch to transmit when its bytes
+go on air and back when they end: each robot process still runs its own PTR2000 model (TXEN,
+Ttrans) on its own clock and ignores what that model could not have heard.
 
 Threads: a reader thread ``poll``s the masters and ``post``s (node, bytes) into the
 scheduler, whose thread owns all air state. An exception in either thread stops the whole hub
@@ -52,7 +56,8 @@ import threading
 import time
 from typing import Any, Iterable, Sequence
 
-from firmware_model.timing import BITS_PER_BYTE_8N1, TICK_HZ, s_to_ticks
+from firmware_model.mcu.ptr2000 import NEVER
+from firmware_model.timing import BITS_PER_BYTE_8N1, TICK_HZ, TTRANS_TICKS, s_to_ticks
 
 from ..sim.air import Air
 from ..sim.realtime import RealTimeScheduler
@@ -218,7 +223,8 @@ class _Uart:
 
 class _Node:
     """The radio-side interface hil.sim.air.Air drives (see firmware_model.mcu.ptr2000.Ptr2000):
-    always listening while the link is up, no TXEN and no Ttrans."""
+    listening while the link is up, except while its own burst is on air and for Ttrans after
+    it ends (``rx_from``; the hub switches it, a pty having no TXEN line)."""
 
     __slots__ = ("hub", "robot", "idx", "alive", "rx_from", "rx", "noise_from", "uart",
                  "channel", "down")
@@ -243,21 +249,11 @@ class _Node:
 
 
 class _HubAir(Air):
-    """The simulator's Air, with one difference that only matters without transmitter
-    deafness: in a collision the node that started the later burst hears garbage like every
-    other node (the simulator skips it because a PTR2000 transmitting is deaf anyway)."""
+    """The simulator's Air, counting the noise bytes it hands out (``in_noise``)."""
 
     def __init__(self, *args: Any, **kw: Any) -> None:
         super().__init__(*args, **kw)
         self.in_noise = False
-
-    def _collide(self, tx, overlapping, t0):  # type: ignore[override]
-        sender = tx.radio
-        tx.radio = _Stand(sender.robot)     # Air._collide skips only ``r is tx.radio``
-        try:
-            super()._collide(tx, overlapping, t0)
-        finally:
-            tx.radio = sender
 
     def _noise_upto(self, r, t):  # type: ignore[override]
         self.in_noise = True
@@ -265,13 +261,6 @@ class _HubAir(Air):
             super()._noise_upto(r, t)
         finally:
             self.in_noise = False
-
-
-class _Stand:
-    __slots__ = ("robot",)
-
-    def __init__(self, robot: int) -> None:
-        self.robot = robot
 
 
 class RadioHub:
@@ -318,6 +307,7 @@ class RadioHub:
         self._pending = [bytearray() for _ in range(nodes)]
         self._tx_end = [0] * nodes
         self._tx_event: list[Any] = [None] * nodes
+        self._rx_event: list[Any] = [None] * nodes   # per node: its burst's end (radio to RX)
         self._threads: list[threading.Thread] = []
         self._stopping = threading.Event()
         self._started = False
@@ -648,11 +638,30 @@ class RadioHub:
         del pend[:MAX_BURST]
         now = self.sched.now
         t0 = max(now, self._tx_end[i])
-        self.air.transmit(self._radios[i], chunk, t0, self.byte_ticks)
+        r = self._radios[i]
+        if r.rx_from != NEVER:
+            # Its radio switches to transmit: deaf from now until Ttrans after the burst ends
+            # on air (the process's own End comes earlier: its bytes reach the air late).
+            self.air.deafen(r, t0)
+            r.rx_from = NEVER
+        if self._rx_event[i] is not None:
+            self._rx_event[i].cancel()
+            self._rx_event[i] = None
+        self.air.transmit(r, chunk, t0, self.byte_ticks)
         self._tx_end[i] = t0 + len(chunk) * self.byte_ticks
         self._consumed(i, len(chunk))
         if pend:
             self._tx_event[i] = self.sched.at(self._tx_end[i], self._send, i)
+        else:
+            self._rx_event[i] = self.sched.at(self._tx_end[i], self._rx_back, i)
+
+    def _rx_back(self, i: int) -> None:
+        """Node ``i``'s burst ended on air and nothing follows it back to back: its radio
+        switches back and hears the air again Ttrans later."""
+        self._rx_event[i] = None
+        r = self._radios[i]
+        r.rx_from = self.sched.now + TTRANS_TICKS
+        self.air.rx_restart(r, r.rx_from)
 
     def _consumed(self, i: int, n: int) -> None:
         with self._lock:
@@ -767,6 +776,10 @@ class RadioHub:
             if self._tx_event[i] is not None:
                 self._tx_event[i].cancel()
                 self._tx_event[i] = None
+            if self._rx_event[i] is not None:
+                self._rx_event[i].cancel()
+                self._rx_event[i] = None
+            r.rx_from = 0                # sends nothing now: hears as soon as its link is up
             self._tx_end[i] = min(self._tx_end[i], self.sched.now)
 
     def _link_up(self, i: int) -> None:
