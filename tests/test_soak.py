@@ -12,10 +12,24 @@ from hil.sim.faults import parse_fault
 from hil.sim.soak import random_faults, run_soak
 
 
+@pytest.mark.slow
 def test_short_soak_keeps_every_guarantee():
     r = run_soak(0.25, seed=3, checksum=True)
     assert sum(r.faults.values()) >= 10
     assert r.summary["submitted"] > 500
+    failed = {k: v for k, v in r.invariants.items() if not v}
+    assert not failed, (failed, r.summary["pending"], r.reform_s, r.not_reformed)
+
+
+def test_a_three_minute_soak_with_dense_faults_keeps_every_guarantee():
+    """The fast tier's sample of the soak above (slow tier): a fifth of its length, with
+    faults about every 5 s instead of every 60 s, so it meets about as many."""
+    schedule = random_faults(random.Random(3), (0, 1, 2, 3, 4), 0.05, True, True,
+                             mean_gap_s=5.0)
+    r = run_soak(0.05, seed=3, checksum=True, faults=schedule)
+    assert sum(r.faults.values()) >= 10, r.faults
+    assert len(r.faults) >= 5, r.faults                  # of several kinds
+    assert r.summary["submitted"] > 400
     failed = {k: v for k, v in r.invariants.items() if not v}
     assert not failed, (failed, r.summary["pending"], r.reform_s, r.not_reformed)
 
