@@ -27,10 +27,11 @@ REALTIME_TESTS = frozenset({"tests/test_action_sequence.py::test_in_real_time"})
 
 TIMING_MODULES = frozenset({
     "test_bench_processes", "test_conformance", "test_differential", "test_stranger_robot",
-    "test_paper_profile",
+    "test_paper_profile", "test_child_acceptance",
 })
-"""Wall-clock tests that judge timing (turn hand-overs to a few ms, gaps, misses): they run
-with the CPU to themselves (``_cpu_to_itself``)."""
+"""Wall-clock tests that judge timing (turn hand-overs to a few ms, gaps, misses), and the
+acceptance tests whose bench father keeps a ring with a child process: they run with the CPU
+to themselves (``_cpu_to_itself``)."""
 
 
 def is_realtime(nodeid: str) -> bool:
@@ -153,6 +154,37 @@ def _vcan_or_skip() -> str:
             pytest.fail(f"RPRS_VCAN=1 but {why}")
         pytest.skip(f"{why}; run scripts/vcan-vm.sh for real SocketCAN")
     return channel
+
+
+_LATENCY = pytest.StashKey()
+
+
+@pytest.fixture(autouse=True)
+def _host_latency(request):
+    """A wall-clock test runs beside a probe of the host's scheduling latency
+    (tests/hostload.py); if it fails, its report has a section that says how late the host
+    woke a sleeping process meanwhile: the product late, or the host busy."""
+    if not is_realtime(request.node.nodeid):
+        yield
+        return
+    from hostload import SchedulingLatency
+    probe = SchedulingLatency().__enter__()
+    request.node.stash[_LATENCY] = probe
+    try:
+        yield
+    finally:
+        probe.__exit__(None, None, None)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    probe = item.stash.get(_LATENCY, None)
+    if probe is None or call.when != "call":
+        return
+    rep = outcome.get_result()
+    if rep.failed:
+        rep.sections.append(("host scheduling latency", str(probe.stop())))
 
 
 @pytest.fixture

@@ -1,7 +1,7 @@
 """The suite's own arrangement: the fast tier the README's command runs, the slow and timing
 tiers CI runs after it (pyproject.toml's markers and addopts, .ci/run), an honest summary for
-the SocketCAN tests that ran in the VM, and the programs CI installs for the tests that need
-them."""
+the SocketCAN tests that ran in the VM, the programs CI installs for the tests that need them,
+and the host-latency probe of the wall-clock tests (tests/hostload.py)."""
 from __future__ import annotations
 
 import os
@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from hostload import SchedulingLatency, summarise
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -26,7 +28,8 @@ def _pytest(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
 
 # ---------------------------------------------------------------- tiers
 SLOW_FILES = ("tests/test_fault_matrix.py", "tests/test_lockstep_search.py",
-              "tests/test_soak.py", "tests/test_conformance.py")
+              "tests/test_soak.py", "tests/test_soak_against.py", "tests/test_fuzz.py",
+              "tests/test_instructions.py", "tests/test_conformance.py")
 
 _TIER_DUMP = """
 import pytest
@@ -126,3 +129,38 @@ def test_ci_runs_the_slow_and_timing_tiers_as_a_step_where_no_test_is_no_failure
         assert (r.returncode == 0) == ok, (status, r.stdout, r.stderr)
         assert "ci: step 'slow and timing tiers'" in r.stdout
         assert "args: -m slow or timing" in r.stdout, r.stdout
+
+
+# ---------------------------------------------------------------- the latency probe
+def test_latency_summary_percentiles():
+    lat = summarise([float(x) for x in range(1, 101)] + [-0.5])
+    assert (lat.samples, lat.median_ms, lat.p90_ms, lat.p99_ms, lat.max_ms) == \
+        (101, 50.0, 90.0, 99.0, 100.0)
+    assert "median 50.00 ms" in str(lat) and "worst 100.0 ms" in str(lat)
+    assert summarise([]).samples == 0
+
+
+def test_the_probe_measures_while_the_test_runs():
+    import time
+    with SchedulingLatency() as probe:
+        time.sleep(1.0)
+    lat = probe.result
+    assert lat is not None and 0 < lat.samples <= 510, lat     # 2 ms sleeps in 1 s at most
+    assert 0 <= lat.median_ms <= lat.p90_ms <= lat.p99_ms <= lat.max_ms
+
+
+def test_a_failing_wall_clock_test_reports_the_host_latency_beside_its_failure(tmp_path):
+    """tests/conftest.py runs the probe beside every wall-clock test and puts what it measured
+    in the report of one that fails; a test that passes, or one in tick time, has none."""
+    for name in ("test_monitor.py", "test_frame.py"):       # wall clock / tick time
+        (tmp_path / name).write_text("def test_fails():\n    assert 1 == 2\n\n"
+                                     "def test_passes():\n    pass\n")
+    path = os.pathsep.join(filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))
+    r = subprocess.run([sys.executable, "-m", "pytest", "-p", "conftest", "-p", "no:randomly",
+                        "-p", "no:cacheprovider", "-q", "-n", "0", "test_monitor.py",
+                        "test_frame.py"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=300, env={**os.environ, "PYTHONPATH": path})
+    assert "2 failed, 2 passed" in r.stdout, r.stdout + r.stderr
+    sections = re.findall(r"-+ host scheduling latency -+\n(.*)", r.stdout)
+    assert len(sections) == 1, r.stdout               # test_monitor.py's failure only
+    assert re.match(r"host scheduling latency over \d+ wake-ups: median", sections[0]), sections
