@@ -34,7 +34,8 @@ def test_a_three_minute_soak_with_dense_faults_keeps_every_guarantee():
     assert not failed, (failed, r.summary["pending"], r.reform_s, r.not_reformed)
 
 
-@pytest.mark.parametrize("faults", [False, True], ids=["traffic", "CAN faults"])
+@pytest.mark.parametrize("faults", [pytest.param(False, marks=pytest.mark.slow), True],
+                         ids=["traffic", "CAN faults"])
 def test_a_soak_is_the_same_run_whether_its_can_sides_sleep_or_not(faults):
     """Sleeping CAN sides (hil/sim/quiet_can.py: idle, and with cruising wheels) across the
     soak's steps, which do not wake them: the same accounting, faults and re-formations; with
@@ -95,9 +96,9 @@ def _stepwise(w, faults) -> tuple[list[float], int]:
 
 
 @pytest.mark.parametrize("spec", [
-    ("fail:2@12", "recover:2@20.1"),
+    pytest.param(("fail:2@12", "recover:2@20.1"), marks=pytest.mark.slow),
     ("fail:0@7.3", "recover:0@9", "ber@30-31:0.01", "steal:1@44.4"),
-    (),
+    pytest.param((), marks=pytest.mark.slow),
 ])
 def test_reformations_timed_in_long_steps_are_the_same(spec):
     """The re-formation timer runs the world in one go between the fault ends it must see
