@@ -271,6 +271,7 @@ def test_a_robot_that_hands_over_late_fails_the_timing_clauses(air, monkeypatch)
     assert {"15", "21", "41", "47"} <= passed, verdicts
 
 
+@pytest.mark.timing
 def test_a_paper_only_robot_fails_the_protocols_clauses(air):
     """Checked as an rprs robot, a robot that knows only the paper does not answer the
     invitation with BOOT or JOIN (clause 34); it acknowledges nothing (47, 48) and takes the
