@@ -28,10 +28,11 @@ REALTIME_TESTS = frozenset({"tests/test_action_sequence.py::test_in_real_time",
 
 TIMING_MODULES = frozenset({
     "test_bench_processes", "test_conformance", "test_differential", "test_stranger_robot",
-    "test_paper_profile",
+    "test_paper_profile", "test_child_acceptance",
 })
-"""Wall-clock tests that judge timing (turn hand-overs to a few ms, gaps, misses): they run
-with the CPU to themselves (``_cpu_to_itself``)."""
+"""Wall-clock tests that judge timing (turn hand-overs to a few ms, gaps, misses), and the
+acceptance tests whose bench father keeps a ring with a child process: they run with the CPU
+to themselves (``_cpu_to_itself``)."""
 
 
 def is_realtime(nodeid: str) -> bool:
@@ -79,10 +80,41 @@ def pytest_unconfigure(config):
             Path(f"{base}{suffix}").unlink(missing_ok=True)
 
 
+DEFAULT_TIERS = "not slow and not timing"
+"""The ``-m`` of pyproject.toml's addopts: the fast tier, the README's test command."""
+
+VCAN_IN_VM = "RPRS_VCAN_RAN_IN_VM"
+"""Set to 1 by .ci/run once scripts/vcan-vm.sh ran the SocketCAN tests (``-m vcan``) inside
+its VM and they passed: the host's run, which has no vcan0, then deselects them and says
+where they ran, instead of listing them as skipped."""
+
+
+def _vcan_ran_in_vm() -> bool:
+    return os.environ.get(VCAN_IN_VM) == "1" and os.environ.get("RPRS_VCAN") != "1"
+
+
 def pytest_collection_modifyitems(config, items):
     for item in items:
         if is_realtime(item.nodeid):
             item.add_marker(pytest.mark.realtime)
+    if _vcan_ran_in_vm():
+        ran = [i for i in items if i.get_closest_marker("vcan")]
+        if ran:
+            items[:] = [i for i in items if not i.get_closest_marker("vcan")]
+            config.hook.pytest_deselected(items=ran)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    if getattr(config, "workerinput", None):
+        return
+    if _vcan_ran_in_vm():
+        terminalreporter.write_line(
+            f"SocketCAN tests (marked vcan) deselected here: {VCAN_IN_VM}=1 says they ran and "
+            "passed inside the user-mode Linux VM (scripts/vcan-vm.sh) before this run")
+    if config.option.markexpr == DEFAULT_TIERS:
+        terminalreporter.write_line(
+            "the fast tier: the slow and timing tiers were deselected; "
+            "`pytest -m \"slow or timing\"` runs them (CI does, in a step of its own)")
 
 
 def pytest_xdist_make_scheduler(config, log):
@@ -125,6 +157,37 @@ def _vcan_or_skip() -> str:
     return channel
 
 
+_LATENCY = pytest.StashKey()
+
+
+@pytest.fixture(autouse=True)
+def _host_latency(request):
+    """A wall-clock test runs beside a probe of the host's scheduling latency
+    (tests/hostload.py); if it fails, its report has a section that says how late the host
+    woke a sleeping process meanwhile: the product late, or the host busy."""
+    if not is_realtime(request.node.nodeid):
+        yield
+        return
+    from hostload import SchedulingLatency
+    probe = SchedulingLatency().__enter__()
+    request.node.stash[_LATENCY] = probe
+    try:
+        yield
+    finally:
+        probe.__exit__(None, None, None)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    probe = item.stash.get(_LATENCY, None)
+    if probe is None or call.when != "call":
+        return
+    rep = outcome.get_result()
+    if rep.failed:
+        rep.sections.append(("host scheduling latency", str(probe.stop())))
+
+
 @pytest.fixture
 def vcan_channel() -> str:
     """A SocketCAN vcan interface name, e.g. ``vcan0`` (see ``_vcan_or_skip``)."""
@@ -135,12 +198,13 @@ def vcan_channel() -> str:
 def _cpu_to_itself(request):
     """A test that judges wall-clock timing runs alone: on a 2-core machine the simulator's
     tests on the other xdist worker took a core from the robot processes, and hand-overs then
-    came 70 ms late now and then. Such a test takes a run-wide lock exclusively, every other
+    came 70 ms late now and then. Such a test (a module of ``TIMING_MODULES``, or a test
+    marked ``timing``) takes a run-wide lock exclusively, every other
     test shares it; a turnstile lock first keeps a waiting timing test from being starved by
     a stream of others (a fair readers-writer lock on flock)."""
     base = _lock_base(request.config)
     module = request.node.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
-    exclusive = module in TIMING_MODULES
+    exclusive = module in TIMING_MODULES or request.node.get_closest_marker("timing") is not None
     with open(f"{base}.turnstile", "a+") as gate, open(f"{base}.cpu", "a+") as cpu:
         fcntl.flock(gate, fcntl.LOCK_EX)
         try:

@@ -19,6 +19,7 @@ from firmware_model.radio.frame import BROADCAST, Frame
 from firmware_model.radio.deframer import Deframer
 from hil.bench.conformance import BYTE, MS, TTRANS, Check, ConformanceError, Heard, Report, Tester
 
+from hostload import SchedulingLatency
 from test_paper_profile import PaperRobot
 import test_paper_profile
 
@@ -270,6 +271,7 @@ def test_a_robot_that_hands_over_late_fails_the_timing_clauses(air, monkeypatch)
     assert {"15", "21", "41", "47"} <= passed, verdicts
 
 
+@pytest.mark.timing
 def test_a_paper_only_robot_fails_the_protocols_clauses(air):
     """Checked as an rprs robot, a robot that knows only the paper does not answer the
     invitation with BOOT or JOIN (clause 34); it acknowledges nothing (47, 48) and takes the
@@ -365,14 +367,19 @@ def _documented_commands() -> list[list[str]]:
     return [c[:-1] if c[-1] == "&" else c for c in cmds]
 
 
-def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
-    """docs/conformance.md ran the child with ``--can virtual:r1`` and no submodules: the
-    child said its bus could not be reached from other processes, and answered our status()
-    with ``fail(30)status()`` (no submodule heard), which clauses 47, 48 and 45 count as an
-    answer. The page's commands, run as written (their /tmp paths moved into tmp_path, one
-    after another as a user types them, each started once the one before is up; the child
-    also prints its events, to show its replies), now pass every clause, and the child's
-    CAN side hears its submodules and answers status() with their status."""
+LOADED_TOLERANCE_MS = 100.0
+"""The conformance run's ``--tolerance-ms`` in the fast tier: a busy 2-core machine (load
+4-14) once stamped the child's hand-overs 72 ms late at the 90th percentile, the host's
+scheduling latency, not the child's. The page's tolerance (15 ms) is judged in the timing
+tier, on an idle machine."""
+
+
+def _documented_run(tmp_path, tolerance_ms: float | None):
+    """docs/conformance.md's commands, run as written (their /tmp paths moved into tmp_path,
+    one after another as a user types them, each started once the one before is up; the child
+    also prints its events, to show its replies; ``tolerance_ms`` given to the conformance
+    command if not None). Returns (the conformance run, the child's stdout and stderr, the
+    host's scheduling latency while it ran)."""
     why = _ptys_available()
     if why:
         pytest.skip(why)
@@ -381,6 +388,7 @@ def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
     assert [c[:2] for c in cmds] == [["rprs", "radio-hub"], ["rprs", "child"],
                                      ["rprs", "submodules"], ["rprs", "conformance"]], cmds
     assert not any(w.startswith("virtual:") for c in cmds for w in c), cmds
+    extra = [] if tolerance_ms is None else ["--tolerance-ms", str(tolerance_ms)]
     procs: dict[str, subprocess.Popen] = {}
     left: list[tuple[str, str]] = []
     try:
@@ -399,18 +407,42 @@ def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
             else:
                 first = p.stderr.readline()
                 assert first.startswith("running "), first + p.stderr.read()
-        run = subprocess.run([sys.executable, "-m", "hil.cli", *cmds[-1][1:]], cwd=tmp_path,
-                             capture_output=True, text=True, timeout=120)
+        with SchedulingLatency() as probe:
+            run = subprocess.run([sys.executable, "-m", "hil.cli", *cmds[-1][1:], *extra],
+                                 cwd=tmp_path, capture_output=True, text=True, timeout=120)
     finally:
         left = _stop(*reversed(procs.values()))
-    assert run.returncode == 0, run.stdout + run.stderr
+    out, err = left[list(reversed(procs)).index("child")]
+    return run, out, err, probe.result
+
+
+def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
+    """docs/conformance.md ran the child with ``--can virtual:r1`` and no submodules: the
+    child said its bus could not be reached from other processes, and answered our status()
+    with ``fail(30)status()`` (no submodule heard), which clauses 47, 48 and 45 count as an
+    answer. The page's commands now pass every clause, and the child's CAN side hears its
+    submodules and answers status() with their status. Here the conformance command allows
+    a busy host's latency (``LOADED_TOLERANCE_MS``); the failure message says how late the
+    host woke processes while it ran."""
+    run, out, err, lat = _documented_run(tmp_path, LOADED_TOLERANCE_MS)
+    assert run.returncode == 0, f"{lat}\n" + run.stdout + run.stderr
     cases = _cases(tmp_path / "verdicts.xml")
     clauses = {c.split()[1] for c, _ in cases}
-    assert {"47", "48", "45"} <= clauses and all(cases.values()), cases
-    out, err = left[list(reversed(procs)).index("child")]
+    assert {"47", "48", "45"} <= clauses and all(cases.values()), (str(lat), cases)
     assert "note:" not in err, err
     can_side = err.strip().splitlines()[-1].partition("; CAN: ")[2]
     assert int(can_side.split(" received")[0].rpartition(" ")[2]) > 0, err  # it heard them
     events = [json.loads(x) for x in out.splitlines()]
     replies = [e for e in events if e["ev"] == "submit" and e["dst"] == 0]
     assert len(replies) == 2 and all(e["type"] != 4 for e in replies), replies   # no fail(30)
+
+
+@pytest.mark.timing
+def test_the_documented_conformance_run_as_written_passes_on_an_idle_machine(tmp_path):
+    """The page's commands exactly as written, the conformance command's own tolerance
+    (15 ms) included: every clause passes. Timing tier: it holds when the host wakes the
+    child and the tester within a few ms (the message gives the latency measured)."""
+    run, _, _, lat = _documented_run(tmp_path, None)
+    assert run.returncode == 0, f"{lat}\n" + run.stdout + run.stderr
+    cases = _cases(tmp_path / "verdicts.xml")
+    assert cases and all(cases.values()), (str(lat), cases)

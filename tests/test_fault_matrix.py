@@ -35,6 +35,8 @@ FAULTS = {
 }
 
 CASES = [(a,) for a in FAULTS] + list(itertools.combinations(FAULTS, 2))
+"""Every fault alone (the fast tier) and every pair (the slow tier: 78 runs, minutes of CPU;
+``pytest -m slow``)."""
 
 
 def run(names):
@@ -54,7 +56,8 @@ def run(names):
     return w, evs, reformed
 
 
-@pytest.mark.parametrize("names", CASES, ids=[" + ".join(c) for c in CASES])
+@pytest.mark.parametrize("names", [pytest.param(c, marks=pytest.mark.slow) if len(c) > 1 else c
+                                   for c in CASES], ids=[" + ".join(c) for c in CASES])
 def test_fault_matrix(names):
     w, evs, reformed = run(names)
     s = w.summary()

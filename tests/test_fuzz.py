@@ -98,7 +98,8 @@ def test_content_token_lists(tokens):
 
 
 @BUDGET
-@pytest.mark.parametrize("checksum", [False, True], ids=["plain", "checksum"])
+@pytest.mark.parametrize("checksum", [pytest.param(False, marks=pytest.mark.slow), True],
+                         ids=["plain", "checksum"])
 @given(data=st.data())
 def test_station_never_raises_keeps_deadline_and_delivers_only_received_frames(checksum, data):
     # raw=True: half the plans let bytes reach the UART while the station transmits too
@@ -150,7 +151,8 @@ ATHERIS_RUNS = {"fuzz_deframer.py": 20000, "fuzz_content.py": 20000, "fuzz_stati
 @pytest.mark.skipif(not HAVE_ATHERIS, reason="atheris not installed (wheels for CPython "
                     "3.11-3.13 on x86-64 Linux; elsewhere pip install -e .[fuzz] builds it "
                     "with clang)")
-@pytest.mark.parametrize("target", sorted(ATHERIS_RUNS))
+@pytest.mark.parametrize("target", [pytest.param(t, marks=pytest.mark.slow)
+                                    if t == "fuzz_station.py" else t for t in sorted(ATHERIS_RUNS)])
 def test_atheris_target_runs_clean(target, tmp_path):
     env = dict(os.environ)
     env.pop("RPRS_FUZZ_RAW", None)

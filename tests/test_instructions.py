@@ -50,6 +50,7 @@ def test_bad_arguments_are_clear_errors(argv, message, capsys):
     assert message in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None,
                     reason="valgrind is not installed (Debian package valgrind)")
 def test_only_the_run_is_counted(monkeypatch):

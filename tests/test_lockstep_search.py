@@ -15,7 +15,14 @@ the heartbeat-long burst and the jam longer than Tmax."""
 LARGE_RING_LENGTHS = (14, 600)
 
 
-@pytest.mark.parametrize("robots", RINGS, ids=lambda r: ",".join(map(str, r)))
+FAST_RINGS = {(1, 2), (0, 1)}
+"""The rings of two the fast tier searches (a few seconds each); the larger rings, up to half
+a minute each, are the slow tier (``pytest -m slow``)."""
+
+
+@pytest.mark.parametrize("robots", [r if r in FAST_RINGS else
+                                    pytest.param(r, marks=pytest.mark.slow) for r in RINGS],
+                         ids=lambda r: ",".join(map(str, r)))
 def test_no_lock_step_after_a_foreign_burst_at_any_offset(robots):
     lengths = LENGTHS if len(robots) <= 3 else LARGE_RING_LENGTHS
     verdicts = search(robots, lengths)

@@ -13,6 +13,7 @@ from hil.sim.faults import parse_fault
 from hil.sim.soak import random_faults, run_soak
 
 
+@pytest.mark.slow
 def test_short_soak_keeps_every_guarantee():
     r = run_soak(0.25, seed=3, checksum=True)
     assert sum(r.faults.values()) >= 10
@@ -21,7 +22,21 @@ def test_short_soak_keeps_every_guarantee():
     assert not failed, (failed, r.summary["pending"], r.reform_s, r.not_reformed)
 
 
-@pytest.mark.parametrize("faults", [False, True], ids=["traffic", "CAN faults"])
+def test_a_three_minute_soak_with_dense_faults_keeps_every_guarantee():
+    """The fast tier's sample of the soak above (slow tier): a fifth of its length, with
+    faults about every 5 s instead of every 60 s, so it meets about as many."""
+    schedule = random_faults(random.Random(3), (0, 1, 2, 3, 4), 0.05, True, True,
+                             mean_gap_s=5.0)
+    r = run_soak(0.05, seed=3, checksum=True, faults=schedule)
+    assert sum(r.faults.values()) >= 10, r.faults
+    assert len(r.faults) >= 5, r.faults                  # of several kinds
+    assert r.summary["submitted"] > 400
+    failed = {k: v for k, v in r.invariants.items() if not v}
+    assert not failed, (failed, r.summary["pending"], r.reform_s, r.not_reformed)
+
+
+@pytest.mark.parametrize("faults", [pytest.param(False, marks=pytest.mark.slow), True],
+                         ids=["traffic", "CAN faults"])
 def test_a_soak_is_the_same_run_whether_its_can_sides_sleep_or_not(faults):
     """Sleeping CAN sides (hil/sim/quiet_can.py: idle, and with cruising wheels) across the
     soak's steps, which do not wake them: the same accounting, faults and re-formations; with
@@ -82,9 +97,9 @@ def _stepwise(w, faults) -> tuple[list[float], int]:
 
 
 @pytest.mark.parametrize("spec", [
-    ("fail:2@12", "recover:2@20.1"),
+    pytest.param(("fail:2@12", "recover:2@20.1"), marks=pytest.mark.slow),
     ("fail:0@7.3", "recover:0@9", "ber@30-31:0.01", "steal:1@44.4"),
-    (),
+    pytest.param((), marks=pytest.mark.slow),
 ])
 def test_reformations_timed_in_long_steps_are_the_same(spec):
     """The re-formation timer runs the world in one go between the fault ends it must see

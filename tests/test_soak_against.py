@@ -37,6 +37,7 @@ def test_a_commit_that_does_not_exist_is_a_clear_error(capsys):
     assert "is not a commit" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_head_against_itself_gives_the_same_accounting_and_leaves_no_worktree(capsys):
     # one test for both runs: two tests that each add a worktree, on two xdist workers at
     # once, saw each other's in the list (a worktree being added is listed "locked")
