@@ -1,0 +1,293 @@
+"""The authenticated profile (docs/protocol.md §4.11, clauses 52-54; issue 42): the tag, the
+freshness window, the key file, the spec's worked examples, and the two attacks of issue 42
+in the simulator (a forged frame in an invitation window, an exact replay from a capture of
+the same run), refused by every robot and never acted on."""
+from __future__ import annotations
+
+import hashlib
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from firmware_model.radio import auth
+from firmware_model.radio.auth import (AUTH_TEXT_LEN, KeyFileError, RingKey, check, load_key,
+                                       seal)
+from firmware_model.radio.content import frame_kind
+from firmware_model.cycle_costs import DEFAULT_COSTS
+from firmware_model.radio.frame import Frame, parse_frame
+from firmware_model.radio.mac import MacConfig, Refused, RotationalMac, Deliver
+from firmware_model.timing import s_to_ticks
+from hil.sim.world import SimConfig, World
+
+ROOT = Path(__file__).resolve().parent.parent
+KEY = RingKey(bytes(range(16)))
+
+
+def rfc2104_tag(key: bytes, msg: bytes) -> bytes:
+    """HMAC-SHA256 built from hashlib alone, as RFC 2104 writes it, truncated to 4 bytes: an
+    independent check of what auth.RingKey.tag computes with the hmac module."""
+    k = key.ljust(64, b"\0")
+    inner = hashlib.sha256(bytes(b ^ 0x36 for b in k) + msg).digest()
+    return hashlib.sha256(bytes(b ^ 0x5C for b in k) + inner).hexdigest()[:8].encode()
+
+
+# -- the tag -----------------------------------------------------------------------------
+
+def test_the_tag_is_truncated_hmac_sha256_over_destination_to_the_freshness():
+    f = seal(KEY, 1, 4, 1, 2, b"status()", 0x2A)
+    data = f.encode()
+    assert f.content.startswith(b"status()auth(0000002a,")
+    assert len(f.content) == len(b"status()") + AUTH_TEXT_LEN
+    covered = data[3:data.index(b"auth(") + len(b"auth(0000002a,")]
+    assert covered == b"140120031status()auth(0000002a,"
+    assert f.content[-9:-1] == rfc2104_tag(KEY.key, covered)
+    assert check(KEY, f) == 0x2A
+
+
+def test_every_covered_byte_and_the_tag_are_protected():
+    f = seal(KEY, 1, 4, 1, 2, b"joint(1,33)", 7)
+    data = f.encode()
+    for i in range(3, len(data) - 2):        # Destination .. the tag's ")"
+        for repl in {0x30, 0x31, 0x61, 0x66}:
+            if data[i] == repl:
+                continue
+            changed = data[:i] + bytes([repl]) + data[i + 1:]
+            try:
+                g = parse_frame(changed)
+            except ValueError:               # no longer a frame at all: nothing to accept
+                continue
+            assert check(KEY, g) is None, f"byte {i} changed and the tag still matched"
+    assert check(RingKey(bytes(16)), f) is None            # another key
+    assert check(KEY, Frame(dst=1, src=4, num=1, type=2, content=b"joint(1,33)")) is None
+
+
+def test_an_auth_frame_is_a_control_frame_or_a_message_by_what_it_carries():
+    assert frame_kind(3, seal(KEY, 7, 1, 0, 3, b"", 0).content) == "control"
+    assert frame_kind(2, seal(KEY, 1, 4, 1, 2, b"status()", 0).content) == "message"
+    assert frame_kind(3, seal(KEY, 7, 1, 0, 3, b"poll(4,2)", 0).content) == "control"
+
+
+# -- the freshness window (one MAC) ---------------------------------------------------------
+
+def _member(robot: int = 1) -> RotationalMac:
+    """Robot ``robot`` in a ring {0, 1, 2} waiting for the father's turn."""
+    m = RotationalMac(robot, MacConfig(auth=KEY, team=frozenset({0, 1, 2})))
+    m.power_on(0)
+    m.mode, m.ring = "member", (0, 1, 2)
+    m.misses = {0: 0, 1: 0, 2: 0}
+    m.phase, m.owner, m.turn_start, m.deadline = "wait", 0, 0, 9_600_000
+    return m
+
+
+def _hear(m: RotationalMac, frame: Frame, at: int) -> list:
+    m.phase, m.owner, m.turn_start, m.deadline = "wait", frame.src, at - 400_000, at + 9_600_000
+    end = at + len(frame.encode()) * 16_667
+    return m.on_frame(frame, at + 16_667, end, end)
+
+
+def test_freshness_must_rise_per_source_and_a_stale_or_equal_value_is_refused():
+    m = _member()
+    order = seal(KEY, 1, 0, 5, 2, b"joint(1,33)", 100)
+    out = _hear(m, order, 1_000_000)
+    assert [type(a) for a in out if type(a) in (Deliver, Refused)] == [Deliver]
+    for fresh, kind in ((100, "replayed"), (99, "replayed"), (101, None)):
+        newer = seal(KEY, 1, 0, 6 + fresh % 3, 2, b"joint(1,20)", fresh)
+        out = _hear(m, newer, 3_000_000 + fresh * 1_000_000)
+        refused = [a for a in out if type(a) is Refused]
+        if kind is None:
+            assert not refused and any(type(a) is Deliver for a in out)
+        else:
+            assert [r.kind for r in refused] == [kind], fresh
+            assert not any(type(a) is Deliver for a in out)
+    # another Source has its own counter: 5 from robot 2 is fresh though 0's is at 101
+    out = _hear(m, seal(KEY, 7, 2, 0, 3, b"", 5), 200_000_000)
+    assert not [a for a in out if type(a) is Refused]
+
+
+def test_a_forged_frame_is_refused_as_forged_and_closes_the_turn_like_a_failed_frame():
+    m = _member()
+    out = _hear(m, Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)"), 1_000_000)
+    assert [(type(a), getattr(a, "kind", None)) for a in out if type(a) is Refused] == \
+        [(Refused, "forged")]
+    assert not any(type(a) is Deliver for a in out)
+
+
+def test_each_frame_sent_carries_the_next_freshness_value():
+    m = RotationalMac(1, MacConfig(auth=KEY, team=frozenset({1, 2})))
+    m.auth_tx = 41
+    frames = [m._frame(7, 0, 3, b"") for _ in range(3)]
+    assert [check(KEY, f) for f in frames] == [41, 42, 43]
+    assert m.auth_tx == 44
+
+
+def test_the_clock_seeded_counter_starts_above_anything_sent_before_a_restart():
+    # A station sends at most one frame in 55 ms (18/s) < CLOCK_RATE (32/s).
+    t0 = auth.CLOCK_EPOCH + 1000.0
+    sent_by = auth.clock_freshness(t0) + int(18 * 600)           # 10 minutes later
+    assert auth.clock_freshness(t0 + 600) > sent_by
+
+
+# -- the key file -----------------------------------------------------------------------
+
+def test_the_key_file(tmp_path):
+    good = tmp_path / "ring.key"
+    good.write_text("# ring key, 2026-11\n\nkey = 000102030405060708090A0B0C0D0E0F\n")
+    assert load_key(good) == KEY
+    cases = {"key = 0001": "line 1", "key = 00\nkey = 01": "line 1",
+             "# nothing\n": "no 'key = ' line",
+             "key = 000102030405060708090a0b0c0d0e0f\nkey = 000102030405060708090a0b0c0d0e0f":
+             "2 'key = ' lines"}
+    for text, said in cases.items():
+        p = tmp_path / "bad.key"
+        p.write_text(text)
+        with pytest.raises(KeyFileError, match=re.escape(said)):
+            load_key(p)
+    with pytest.raises(KeyFileError, match="no such file"):
+        load_key(tmp_path / "missing.key")
+    with pytest.raises(KeyFileError, match="is a directory"):
+        load_key(tmp_path)
+    assert "00010203" not in repr(KEY)
+
+
+def test_a_bad_key_file_is_one_line_for_the_cli_user(tmp_path):
+    p = tmp_path / "bad.key"
+    p.write_text("key = xyz\n")
+    for cmd in (["sim", "--robots", "1,2", "--duration", "1"], ["child", "--id", "1"],
+                ["father", "--radio", "/dev/null"]):
+        r = subprocess.run([sys.executable, "-m", "hil.cli", *cmd, "--auth-key", str(p)],
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2, (cmd, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and "line 1" in lines[0] and "Traceback" not in r.stderr
+
+
+# -- the spec's worked examples -----------------------------------------------------------
+
+AUTH_FIELDS = re.compile(r'dst=(\d) src=(\d) num=(\d\d) type=(\d) content="([^"]*)" '
+                         r'fresh=([0-9a-f]{8})$')
+
+
+def test_the_specs_authenticated_examples_are_what_the_code_seals():
+    text = (ROOT / "docs" / "protocol.md").read_text()
+    key_line = re.search(r"```authframe\nkey +(\S+)\n", text)
+    assert key_line, "docs/protocol.md has no authframe example with its key"
+    key = RingKey(bytes.fromhex(key_line.group(1)))
+    blocks = re.findall(r"```authframe\n(.*?)```", text, re.S)
+    frames = [b for b in blocks if "fields" in b]
+    assert len(frames) >= 2
+    for block in frames:
+        fields = re.search(r"^fields +(.*)$", block, re.M).group(1)
+        hexline = re.search(r"^hex +(.*)$", block, re.M).group(1)
+        dst, src, num, typ, content, fresh = AUTH_FIELDS.match(fields).groups()
+        body = content.encode()[:-AUTH_TEXT_LEN]
+        built = seal(key, int(dst), int(src), int(num), int(typ), body, int(fresh, 16))
+        assert built.content == content.encode(), block
+        assert built.encode() == bytes.fromhex(hexline.replace(" ", "").replace("-", "")), block
+        assert check(key, built) == int(fresh, 16)
+        covered = re.search(r"^covered +(\S+)$", block, re.M).group(1)
+        assert built.encode()[3:3 + len(covered)] == covered.encode()
+        assert content.encode()[-9:-1] == rfc2104_tag(key.key, covered.encode())
+
+
+# -- the attacks of issue 42 in the simulator --------------------------------------------
+
+def _ring(auth_on: bool, evs: list, tap: list | None = None) -> World:
+    cfg = SimConfig(robots=(0, 1, 2, 3), duration=12, seed=1, power_on={3: 11.9},
+                    mac=MacConfig(auth=KEY if auth_on else None), can=True,
+                    ring_sleep=False, can_sleep=False)
+    w = World(cfg, on_event=evs.append)
+    if tap is not None:
+        heard = w.air.on_transmission
+
+        def on_tx(tx) -> None:               # a capture of the air, as a bystander records it
+            tap.append((tx.radio.robot, tx.data, tx.end))
+            heard(tx)
+        w.air.on_transmission = on_tx
+    return w
+
+
+def _next_poll_by(w: World, evs: list, robot: int, after: int, base_len: int) -> int:
+    """Run until ``robot`` ends a control frame longer than ``base_len`` (a poll: robot 3 is
+    not on yet) after tick ``after``; its End."""
+    while True:
+        w.run(w.now + s_to_ticks(0.01))
+        ends = [e["end"] for e in evs if e["ev"] == "frame" and e["src"] == robot and
+                e["kind"] == "control" and e["len"] > base_len and e["end"] > after]
+        if ends:
+            return ends[0]
+
+
+def _joint1_moves(evs: list) -> list:
+    return [e for e in evs if e["ev"] == "can" and e.get("bus") == 1 and e.get("id") == 0x101]
+
+
+def test_a_frame_forged_in_an_invitation_window_is_refused_by_every_robot():
+    """Issue 42: a frame with the father's Source sent 9.6 ms after a child's poll was taken
+    as a takeover by robot 1 and acted on (joint(1,33)). With the profile on every member
+    refuses it as forged, nothing moves, nobody is counted missing or leaves the ring."""
+    evs: list[dict] = []
+    w = _ring(True, evs)
+    w.run(s_to_ticks(9))
+    end = _next_poll_by(w, evs, 2, s_to_ticks(9), AUTH_TEXT_LEN)
+    moves = len(_joint1_moves(evs))
+    forged = Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode()
+    at = end + s_to_ticks(0.0096)
+    w.inject_bytes(forged, at)
+    w.run()
+    after = [e for e in evs if e.get("t", 0) > at]
+    refused = [e for e in after if e["ev"] == "refused"]
+    assert {e["to"] for e in refused} == {0, 1, 2}
+    assert all(e["reason"].startswith("forged") for e in refused)
+    assert not [e for e in after if e["ev"] in ("deliver", "miss", "disable", "mode")]
+    assert len(_joint1_moves(evs)) == moves
+    s = w.summary()["robots"]
+    assert all(s[r]["refused_frames"] == 1 and s[r]["ring"] == [0, 1, 2] for r in (0, 1, 2))
+
+
+def test_an_exact_replay_of_an_earlier_father_order_is_refused_by_every_robot():
+    """Issue 42: a recorded father order replayed after the father sent a newer one was
+    delivered again (the duplicate rule compares with the last Number only). Here the very
+    bytes the father sent, from a capture of the same run, go back on the air in an
+    invitation window: every member refuses them as replayed, robot 1 delivers nothing."""
+    evs: list[dict] = []
+    tap: list = []
+    w = _ring(True, evs, tap)
+    w.run(s_to_ticks(6))
+    w.submit(0, 1, [auth_cmd("joint", 1, 10)])
+    w.run(s_to_ticks(7.5))
+    w.submit(0, 1, [auth_cmd("joint", 1, 20)])
+    w.run(s_to_ticks(9))
+    delivered = [e for e in evs if e["ev"] == "deliver" and e["src"] == 0 and e["to"] == 1]
+    assert [e["num"] for e in delivered] == [1, 2]
+    first = next(data for robot, data, _ in tap if robot == 0 and b"joint(1,10)" in data)
+    end = _next_poll_by(w, evs, 2, w.now, AUTH_TEXT_LEN)
+    at = end + s_to_ticks(0.0096)
+    w.inject_bytes(first, at)
+    w.run()
+    after = [e for e in evs if e.get("t", 0) > at]
+    refused = [e for e in after if e["ev"] == "refused"]
+    assert {e["to"] for e in refused} == {0, 1, 2}
+    assert all(e["reason"].startswith("replayed") for e in refused)
+    assert not [e for e in after if e["ev"] in ("deliver", "duplicate", "miss", "mode")]
+
+
+def auth_cmd(name, *args):
+    from firmware_model.radio.content import cmd
+    return cmd(name, *args)
+
+
+def test_the_cpu_model_charges_the_tags():
+    """The CPU model charges one SHA-256 compression per 64-byte block of every frame heard
+    and sent (cycle_costs.sha256_block): a child's load with the profile is several times
+    its load without, and stays far below 1."""
+    loads = {}
+    for on in (False, True):
+        w = World(SimConfig(robots=(1, 2, 3), duration=6, seed=2, cpu=DEFAULT_COSTS,
+                            mac=MacConfig(auth=KEY if on else None)))
+        w.run()
+        loads[on] = w.cpus[1].load()
+    assert loads[True] > 5 * loads[False]
+    assert loads[True] < 0.5
