@@ -17,7 +17,7 @@ from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
 from .mcu.uart import Uart
 from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
-from .radio.mac import Deliver, MacConfig, RotationalMac, Transmit, TxEnable
+from .radio.mac import Deliver, MacConfig, Refused, RotationalMac, Transmit, TxEnable
 
 Observer = Callable[["RadioStation", object, int], None]
 
@@ -53,6 +53,9 @@ class RadioStation:
         self.garbage_bytes = 0
         self.frames_heard = 0
         self.frames_failed = 0
+        self.refused: dict[str, int] = {}
+        """Frames the MAC refused, by kind: ``forged`` and ``replayed`` (the authenticated
+        profile), ``ring`` (the ring's own rules, clauses 38-39)."""
         self._stall = max(cfg.stall_gap, 2 * uart.byte_ticks)
         self._promise: int | None = None
         """The End a failed frame's Length promised, while its turn is to close there: if its
@@ -253,6 +256,9 @@ class RadioStation:
             else:
                 if t is Deliver and self.app is not None:
                     self.app(a, now)
+                elif t is Refused:
+                    k = a.kind or "ring"
+                    self.refused[k] = self.refused.get(k, 0) + 1
                 if obs is not None:
                     obs(self, a, now)
 

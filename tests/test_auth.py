@@ -8,6 +8,7 @@ import hashlib
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -291,3 +292,119 @@ def test_the_cpu_model_charges_the_tags():
         loads[on] = w.cpus[1].load()
     assert loads[True] > 5 * loads[False]
     assert loads[True] < 0.5
+
+
+# -- the attacks on the pty hub, with real processes ----------------------------------------
+
+class _Attacker:
+    """A capture sink for the hub (``RadioHub.capture``) that is also a transmitter on its air:
+    it records every packet (node, End tick, bytes) and, once armed, puts ``payload`` on the
+    air 9.6 ms after the End of each of the next ``left`` invitations (a ``poll(`` frame), the
+    moment issue 42 found a forged frame taken as a takeover. Air ticks, so a late thread of
+    the test process cannot move when it sends."""
+
+    tsresol = 9
+    epoch_units = 0
+
+    def __init__(self, hub) -> None:
+        self.hub = hub
+        self.packets: list[tuple[object, int, bytes]] = []
+        self.payload = b""
+        self.left = 0
+        self.sent: list[int] = []
+
+    def follow(self, clock) -> None:
+        pass
+
+    def radio(self, key, tick, data, comment=None) -> None:
+        self.packets.append((key, tick, bytes(data)))
+        if self.left and key != "foreign" and comment is None and b"poll(" in data:
+            self.left -= 1
+            self.hub.sched.at(tick + s_to_ticks(0.0096), self._send, self.payload)
+
+    def _send(self, payload: bytes) -> None:
+        self.sent.append(self.hub.sched.now)
+        self.hub.air.inject(payload)
+
+
+def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_path):
+    """Issue 42 at the bench: the father and children 1 and 2 as processes with one key file,
+    team 0-3 so that invitations of the absent robot 3 open windows. A transmitter on the
+    hub's air sends (a) the forged father order joint(1,33) 9.6 ms after invitations, and
+    (b) the exact bytes of a father order from this run's capture, after the father sent a
+    newer one. Every process refuses each as forged or replayed (event lines, closing-line
+    counts), robot 1 delivers each genuine order once and never the forged one, and nobody
+    is counted missing."""
+    import json
+    import threading
+
+    from hil.bench.radio_hub import RadioHub
+    from processes import stop, wait_for
+
+    key = tmp_path / "ring.key"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
+    hub = RadioHub(nodes=4, seed=1)
+    air = _Attacker(hub)
+    hub.capture(air)
+    hub.start()
+    common = ["--team", "0,1,2,3", "--auth-key", str(key)]
+    father = subprocess.Popen([sys.executable, "-m", "hil.cli", "father", "--radio",
+                               hub.paths[0], "--json", *common],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+    kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
+                              "--radio", hub.paths[r], "--events", *common],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for r in (1, 2)]
+    procs = [father, *kids]
+    lines: list[list[dict]] = [[], [], []]
+
+    def read(p, out):
+        with p.stdout:
+            for line in p.stdout:
+                out.append(json.loads(line))
+    for p, out in zip(procs, lines):
+        threading.Thread(target=read, args=(p, out), daemon=True).start()
+
+    def delivered_to_1(content: str) -> list[dict]:
+        return [e for e in list(lines[1]) if e["ev"] == "deliver" and e["src"] == 0
+                and e["content"] == content]
+
+    def order(text: str) -> None:
+        father.stdin.write(text + "\n")
+        father.stdin.flush()
+
+    def refusals(kind: str) -> set:
+        return {e["to"] for ls in lines for e in list(ls)
+                if e["ev"] == "refused" and e.get("kind") == kind}
+    try:
+        def formed():
+            srcs = [k for k, t, d in list(air.packets)[-6:]]
+            return sorted(set(srcs)) == [0, 1, 2]
+        assert wait_for(formed, 40.0), "the ring 0, 1, 2 did not form"
+        order("1 joint(1,10)")
+        assert wait_for(lambda: delivered_to_1("joint(1,10)"), 20.0), lines[1][-5:]
+        order("1 joint(1,20)")
+        assert wait_for(lambda: delivered_to_1("joint(1,20)"), 20.0), lines[1][-5:]
+        old = next(d for k, t, d in air.packets if k == 0 and b"joint(1,10)" in d)
+        air.payload = Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode()
+        air.left = 3
+        assert wait_for(lambda: refusals("forged") == {0, 1, 2}, 20.0), air.sent
+        air.payload, air.left = old, 3
+        assert wait_for(lambda: refusals("replayed") == {0, 1, 2}, 20.0), air.sent
+        time.sleep(0.5)
+        alive = [p.poll() is None for p in procs]
+    finally:
+        father.stdin.close()
+        errs = stop(procs)
+        hub.stop()
+        hub.close()
+    assert alive == [True] * 3, errs
+    assert len(delivered_to_1("joint(1,10)")) == 1 and len(delivered_to_1("joint(1,20)")) == 1
+    assert not delivered_to_1("joint(1,33)")
+    for ls in lines:
+        assert not [e for e in ls if e["ev"] in ("miss", "disable")], ls[-10:]
+    for err in errs:
+        closing = [x for x in err.splitlines() if x.startswith("robot ")]
+        assert closing and re.search(r"refused \d+ \(forged [1-9]\d*, replayed [1-9]\d*\)",
+                                     closing[-1]), err
