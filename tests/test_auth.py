@@ -408,3 +408,39 @@ def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_
         closing = [x for x in err.splitlines() if x.startswith("robot ")]
         assert closing and re.search(r"refused \d+ \(forged [1-9]\d*, replayed [1-9]\d*\)",
                                      closing[-1]), err
+
+
+def test_conformance_checks_an_authenticated_childs_frames_and_refusals(tmp_path):
+    """``rprs conformance --auth-key`` against ``rprs child --auth-key`` on the hub: the
+    robot's frames carry right tags and rising freshness (clause 52), and a frame with a wrong
+    tag and a replay of the tester's earlier message are not acted on (clause 53), besides
+    every clause the tester checks without the profile."""
+    import xml.etree.ElementTree as ET
+
+    from processes import spawn, stop
+    key = tmp_path / "ring.key"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
+    links = tmp_path / "air"
+    hub = spawn("radio-hub", "--nodes", "2", "--link-dir", str(links), "--seed", "1")
+    child = None
+    try:
+        deadline = time.monotonic() + 20
+        while not (links / "node1").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        child = spawn("child", "--id", "1", "--radio", str(links / "node0"), "--team", "0,1",
+                      "--auth-key", str(key))
+        time.sleep(0.5)
+        junit = tmp_path / "verdicts.xml"
+        run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
+                              str(links / "node1"), "--id", "1", "--auth-key", str(key),
+                              "--junit", str(junit), "--quiet"], capture_output=True,
+                             text=True, timeout=120)
+    finally:
+        stop([p for p in (child, hub) if p is not None])
+    assert run.returncode == 0, run.stdout + run.stderr
+    cases = [(c.get("classname"), c.get("name"), c.find("failure") is None and
+              c.find("skipped") is None) for c in ET.parse(junit).getroot().iter("testcase")]
+    assert all(ok for _, _, ok in cases), cases
+    clauses = [c for c, _, _ in cases]
+    assert clauses.count("clause 53") == 2 and clauses.count("clause 52") == 1, cases
+    assert {"clause 38", "clause 41", "clause 47", "clause 48"} <= set(clauses)
