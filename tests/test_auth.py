@@ -333,8 +333,8 @@ def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_
     hub's air sends (a) the forged father order joint(1,33) 9.6 ms after invitations, and
     (b) the exact bytes of a father order from this run's capture, after the father sent a
     newer one. Every process refuses each as forged or replayed (event lines, closing-line
-    counts), robot 1 delivers each genuine order once and never the forged one, and nobody
-    is counted missing."""
+    counts), robot 1 delivers each genuine order once and never the forged one, and the ring
+    stays whole."""
     import json
     import threading
 
@@ -402,12 +402,15 @@ def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_
     assert alive == [True] * 3, errs
     assert len(delivered_to_1("joint(1,10)")) == 1 and len(delivered_to_1("joint(1,20)")) == 1
     assert not delivered_to_1("joint(1,33)")
+    # Nobody was dropped and every process ends in the whole ring. (A miss alone is not
+    # judged: on a loaded machine a process stalled past Tmax is rightly counted missing.)
     for ls in lines:
-        assert not [e for e in ls if e["ev"] in ("miss", "disable")], ls[-10:]
+        assert not [e for e in ls if e["ev"] == "disable"], ls[-10:]
     for err in errs:
         closing = [x for x in err.splitlines() if x.startswith("robot ")]
-        assert closing and re.search(r"refused \d+ \(forged [1-9]\d*, replayed [1-9]\d*\)",
-                                     closing[-1]), err
+        assert closing and "member, ring [0, 1, 2]" in closing[-1], err
+        assert re.search(r"refused \d+ \(forged [1-9]\d*, replayed [1-9]\d*\)",
+                         closing[-1]), err
 
 
 def test_conformance_checks_an_authenticated_childs_frames_and_refusals(tmp_path):
@@ -444,3 +447,26 @@ def test_conformance_checks_an_authenticated_childs_frames_and_refusals(tmp_path
     clauses = [c for c, _, _ in cases]
     assert clauses.count("clause 53") == 2 and clauses.count("clause 52") == 1, cases
     assert {"clause 38", "clause 41", "clause 47", "clause 48"} <= set(clauses)
+
+
+def test_without_the_profile_the_forged_frame_in_the_window_is_refused_and_reported():
+    """Clause 39 once took a frame from the poller's successor whose Header began 0.95 x Twin
+    after the invitation for a takeover: issue 42's forged father order 9.6 ms after robot 2's
+    poll moved robot 1's joint. The successor raises TXEN at E + Twin, so its Header begins at
+    E + Twin + Ttrans; now 0.95 x (Twin + Ttrans) = 14.25 ms is the floor, and the forged frame
+    is refused as out of turn (robots 1 and 2) or as robot 0's own ID, counted and traced."""
+    evs: list[dict] = []
+    w = _ring(False, evs)
+    w.run(s_to_ticks(9))
+    end = _next_poll_by(w, evs, 2, s_to_ticks(9), 0)
+    moves = len(_joint1_moves(evs))
+    forged = Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode()
+    at = end + s_to_ticks(0.0096)
+    w.inject_bytes(forged, at)
+    w.run()
+    after = [e for e in evs if e.get("t", 0) > at]
+    refused = {e["to"]: e["reason"] for e in after if e["ev"] == "refused"}
+    assert set(refused) == {0, 1, 2}, refused
+    assert refused[1].startswith("out of turn") and refused[2].startswith("out of turn")
+    assert not [e for e in after if e["ev"] == "deliver"]
+    assert len(_joint1_moves(evs)) == moves

@@ -1056,7 +1056,10 @@ class RotationalMac:
         elapsed = first - cfg.byte_ticks - self.turn_start
         slack = 1.0 - TAKEOVER_TOLERANCE
         if self.phase == WINDOW:
-            ok = src == self.succ(self.poller) and elapsed >= cfg.twin * slack
+            # The poller's successor raises TXEN at the window's end, E + Twin, so its Header
+            # begins at E + Twin + Ttrans by its clock (clause 39; 0.95 x Twin once let a
+            # forged frame 9.6 ms after a poll pass for it, issue 42).
+            ok = src == self.succ(self.poller) and elapsed >= (cfg.twin + cfg.ttrans) * slack
             return [] if ok else None
         skipped = []
         o = self.owner
