@@ -17,7 +17,7 @@ from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
 from .mcu.uart import Uart
 from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
-from .radio.mac import SEND, Deliver, MacConfig, RotationalMac, Transmit, TxEnable
+from .radio.mac import SEND, Deliver, MacConfig, Refused, RotationalMac, Transmit, TxEnable
 
 Observer = Callable[["RadioStation", object, int], None]
 
@@ -59,6 +59,9 @@ class RadioStation:
         self.garbage_bytes = 0
         self.frames_heard = 0
         self.frames_failed = 0
+        self.refused: dict[str, int] = {}
+        """Frames the MAC refused, by kind: ``forged`` and ``replayed`` (the authenticated
+        profile), ``ring`` (the ring's own rules, clauses 38-39)."""
         self._stall = max(cfg.stall_gap, 2 * uart.byte_ticks)
         self._promise: int | None = None
         """The End a failed frame's Length promised, while its turn is to close there: if its
@@ -66,6 +69,9 @@ class RadioStation:
         self._resync_after_tx = False
         self.cpu = None
         self._frame_cycles = 0
+        self._block_cycles = 0
+        """Authenticated profile on the CPU model: the cycles of one SHA-256 compression, run
+        for every frame heard and sent (auth.sha256_blocks)."""
         uart.on_rx = self._on_rx
         uart.on_tx_done = self._on_tx_done
 
@@ -90,12 +96,25 @@ class RadioStation:
         from .interrupts import RXWATCH, TMR0, TX_END, UART0_RX, UART0_TX
         self.cpu = cpu
         self._frame_cycles = costs.mac_frame.cycles
+        self._block_cycles = costs.sha256_block.cycles if self.mac.cfg.auth is not None else 0
         self.uart.attach_cpu(cpu, UART0_RX, costs.uart_rx_byte.cycles, UART0_TX,
                              costs.uart_tx_byte.cycles, TX_END, costs.uart_tx_done.cycles)
         timer_cycles = costs.mac_timer.cycles
         self.timer.on_expiry = lambda now: cpu.irq(TMR0, timer_cycles, self._on_timer_isr)
         self.stall_timer.on_expiry = lambda now: cpu.irq(RXWATCH, timer_cycles,
                                                          self._on_stall_isr)
+
+    def _hash(self, frame) -> None:
+        """The authenticated profile's tag of ``frame`` on the CPU model: its SHA-256 blocks
+        (the key's padded blocks are hashed once, at start-up), a main-loop task below every
+        interrupt, as the firmware runs it (a compression takes ms: in a handler it would
+        hold off UART0 and lose bytes). The model's MAC decides at the End regardless; the
+        report's latency of ``auth_tag`` says whether the tag is done in time (11 bytes,
+        11.4 ms after its covered bytes, docs/cpu.md)."""
+        if self._block_cycles:
+            from .radio.auth import covered_len, sha256_blocks
+            self.cpu.task("auth_tag", self._block_cycles *
+                          sha256_blocks(covered_len(len(frame.content))), _nothing)
 
     def _on_timer_isr(self) -> None:
         self._on_timer(self.sched.now)
@@ -119,6 +138,7 @@ class RadioStation:
             self.frames_heard += 1
             if self._frame_cycles:
                 self.cpu.extend(self._frame_cycles)
+                self._hash(frame)
             self._apply(mac.on_frame(frame, t0, end, now))
             return
         evs = d.feed(data, t0, dt)
@@ -128,6 +148,7 @@ class RadioStation:
                 self.frames_heard += 1
                 if self._frame_cycles:
                     self.cpu.extend(self._frame_cycles)
+                    self._hash(ev.frame)
                 self._apply(mac.on_frame(ev.frame, ev.first, ev.end, now), ev)
             elif type(ev) is Garbage:
                 self.garbage_bytes += ev.count
@@ -256,13 +277,22 @@ class RadioStation:
                     obs(self, a, now)
             elif t is Transmit:
                 self.uart.send(a.data)
+                if self._block_cycles:
+                    self._hash(a.frame)
                 if obs is not None and self.report_io:
                     obs(self, a, now)
             else:
                 if t is Deliver and self.app is not None:
                     self.app(a, now)
+                elif t is Refused:
+                    k = a.kind or "ring"
+                    self.refused[k] = self.refused.get(k, 0) + 1
                 if obs is not None:
                     obs(self, a, now)
+
+
+def _nothing() -> None:
+    pass
 
 
 def build_station(robot_id: int, sched: Scheduler, byte_ticks: int | None = None,

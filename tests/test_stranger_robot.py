@@ -402,7 +402,7 @@ class StrangerRobot:
         """Clause 39: a takeover seen with a slower clock?"""
         elapsed = f.began - self.turn_start
         if self.phase == "WINDOW":
-            return f.src == self.succ(self.poller) and elapsed >= 0.95 * TWIN
+            return f.src == self.succ(self.poller) and elapsed >= 0.95 * (TWIN + TTRANS)
         skipped, o = [], self.owner
         while o != f.src and len(skipped) <= len(self.ring):
             skipped.append(o)

@@ -446,6 +446,12 @@ def split_layers(commands: Iterable[Command]) -> tuple[tuple[Command, ...], tupl
     return tuple(mac), tuple(app)
 
 
+AUTH_TAIL = re.compile(rb"auth\([0-9a-f]{8},[0-9a-f]{8}\)\Z")
+"""``auth(freshness,tag)`` ending a Content (docs/protocol.md clause 52): not in the command
+table (its parameters are hex), checked and taken off by the MAC before the Content is
+parsed (firmware_model/radio/auth.py)."""
+AUTH_TAIL_LEN = 23
+
 FRAME_KINDS = ("heartbeat", "control", "message", "boot", "join", "unreadable")
 
 
@@ -455,7 +461,7 @@ def frame_kind(type_digit: int, content: bytes) -> str:
     * ``boot`` (Type '5') and ``join`` (Type '6'), the project's extensions;
     * ``message``: Content holds at least one application command;
     * ``heartbeat``: empty Content (the paper's idle frame, Type '3' to '7');
-    * ``control``: only MAC commands (``ack``, ``poll``, ``ring``, ``crc``): a heartbeat's place, with
+    * ``control``: only MAC commands (``ack``, ``poll``, ``ring``, ``crc``, ``auth``): a heartbeat's place, with
       something for the MAC to say;
     * ``unreadable``: Content that does not parse.
     """
@@ -465,6 +471,10 @@ def frame_kind(type_digit: int, content: bytes) -> str:
         return "join"
     if not content:
         return "heartbeat"
+    if AUTH_TAIL.search(content):       # the authenticated profile's last command (clause 52)
+        content = content[:-AUTH_TAIL_LEN]
+        if not content:
+            return "control"
     try:
         _, app = split_layers(parse_content(content))
     except ContentError:

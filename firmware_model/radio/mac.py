@@ -62,6 +62,7 @@ from ..timing import (
 from .content import Command, cmd, format_content, parse_content, split_layers
 from .errors import ContentError
 from .frame import BROADCAST, Frame, FrameType
+from . import auth as _auth
 from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
 
 LISTEN = "listen"
@@ -209,6 +210,9 @@ class Refused:
     src: int
     num: int
     reason: str
+    kind: str = ""
+    """``forged`` or ``replayed`` for a frame the authenticated profile refuses (clause 53);
+    empty for the ring's own refusals."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -328,6 +332,11 @@ class MacConfig:
     acknowledged lets pass (LET_PASS_MAX; docs/protocol.md clause 38.2). Two robots with one
     ID must not share it, or they answer together for ever: the simulator and the bench
     processes pass their own."""
+    auth: "_auth.RingKey | None" = None
+    """The opt-in authenticated profile (firmware_model.radio.auth, docs/protocol.md §4.11): the
+    ring key. Every frame sent ends with ``auth(freshness,tag)``; a frame received with a
+    missing or wrong tag, or a freshness not above the last accepted from its Source, is
+    refused and never acted on."""
     profile: str = "rprs"
     """``rprs`` (the whole of docs/protocol.md) or ``paper``: only the paper's rules, to share a
     ring with robots that implement only the paper (docs/protocol.md §9, the paper profile)."""
@@ -339,6 +348,12 @@ class MacConfig:
         if self.profile == "paper" and (self.checksum or self.standby):
             raise ValueError("the paper profile has no checksum extension and no standby PC "
                              "(both are this project's extensions)")
+        if self.profile == "paper" and self.auth is not None:
+            raise ValueError("the paper profile has no authenticated profile (this project's "
+                             "extension)")
+        if self.checksum and self.auth is not None:
+            raise ValueError("the authenticated profile's tag already detects every changed "
+                             "byte: use it or the checksum, not both")
 
     def claim_ticks(self, robot: int) -> int:
         """Silence after which a listening robot claims the channel (start-up).
@@ -452,6 +467,14 @@ class RotationalMac:
         self._hb_cache: dict[tuple, tuple[Frame, bytes]] = {}
         self._paper = cfg.profile == "paper"
         self._hb_len = CRC_TEXT_LEN if cfg.checksum else 0   # a heartbeat's Content (bytes)
+        self._key = cfg.auth                # the ring key (authenticated profile) or None
+        self._ext_len = _auth.AUTH_TEXT_LEN if cfg.auth is not None else self._hb_len
+        if cfg.auth is not None:
+            self._hb_len = -1               # no fast path: every frame's tag is checked
+        self.auth_tx = 0
+        """The freshness value of our next frame (authenticated profile): kept in flash across
+        reboots on a child; a PC seeds it from its clock (auth.clock_freshness)."""
+        self._auth_rx: dict[int, int] = {}  # Source -> freshness of the last frame accepted
         self._tx_end = 0                  # End of our own last frame
         self._noise_since_tx = False      # garbage or a failed frame heard since our frame
         self._rejected = 0                # paper profile: our frames not heard, in a row
@@ -545,13 +568,14 @@ class RotationalMac:
                type: int = FrameType.INSTRUCTION) -> Message:
         """Queue a message; raises SubmitError if it can never be sent in one turn."""
         commands, content = check_submission(self.id, dst, commands, type)
-        limit = self.max_content - (CRC_TEXT_LEN if self.cfg.checksum else 0)
+        limit = self.max_content - self._ext_len
         if len(content) > limit:
             raise SubmitError(
                 f"Content of {len(content)} bytes makes a "
                 f"{len(content) + FRAME_OVERHEAD + self.max_content - limit}-byte frame, longer "
                 f"than one turn allows ({self.max_content + FRAME_OVERHEAD} bytes fit in Tmax"
-                f"{', checksum included' if limit < self.max_content else ''}); "
+                f"{', checksum included' if self.cfg.checksum else ''}"
+                f"{', auth included' if self._key is not None else ''}); "
                 f"split the message")
         if self.standby:
             pc = self.cfg.pc
@@ -584,7 +608,7 @@ class RotationalMac:
         self._heard_since_tx = True
         if src == self.owner and phase == WAIT and frame.type == 3 and src != self.id and (
                 not frame.content if not self._hb_len
-                else len(frame.content) == CRC_TEXT_LEN and crc_ok(frame)):
+                else len(frame.content) == self._hb_len and crc_ok(frame)):
             # Fast path, the expected owner's heartbeat (empty Content, or only its checksum
             # when the extension is on): hand the turn on, as the general path below does.
             self._last_heard = (src, end)
@@ -609,6 +633,15 @@ class RotationalMac:
             self.deadline = end + self.cfg.tmax
             return _NOTHING
         out: list = []
+        if self._key is not None:
+            why = self._auth_refusal(frame)
+            if why is not None:
+                # Forged or replayed, whatever its Source: never acted on, and every member
+                # treats it alike, as a frame that failed (clause 53): the turn closes
+                # uncertainly (R-stagger), as after a burst.
+                out.append(Refused(src, frame.num, why[1], why[0]))
+                out.extend(self.on_corrupt(first, None, end, now))
+                return out
         if src == self.id:
             # Our own ID from the air (we are deaf while sending): another PC is ID 0, or a
             # robot with our ID, or a forger. Refused; it still sets the timing. A father that
@@ -629,6 +662,8 @@ class RotationalMac:
                 out.extend(self.on_corrupt(first, None, end, now))
                 return out
             content = strip_crc(content)
+        elif self._key is not None:
+            content = _auth.strip(content)    # checked above
         try:
             mac_cmds, app_cmds = _layers(content) if content else ((), ())
             bad = None
@@ -758,6 +793,18 @@ class RotationalMac:
         else:
             self._next_turn(src, end, now, out)
         return out
+
+    def _auth_refusal(self, frame: Frame) -> tuple[str, str] | None:
+        """Authenticated profile (clause 53): None for a genuine fresh frame (its freshness is
+        then remembered as its Source's last), else (kind, reason)."""
+        fresh = _auth.check(self._key, frame)
+        if fresh is None:
+            return "forged", "forged: no valid authentication tag"
+        last = self._auth_rx.get(frame.src)
+        if last is not None and fresh <= last:
+            return "replayed", f"replayed: freshness {fresh:08x} not above {last:08x}"
+        self._auth_rx[frame.src] = fresh
+        return None
 
     def _paper_frame(self, frame: Frame, first: int, end: int, now: int) -> list:
         """A good frame, in the paper profile (paper §IV.C-D): the owner is whoever sends (a
@@ -1117,7 +1164,10 @@ class RotationalMac:
         elapsed = first - cfg.byte_ticks - self.turn_start
         slack = 1.0 - TAKEOVER_TOLERANCE
         if self.phase == WINDOW:
-            ok = src == self.succ(self.poller) and elapsed >= cfg.twin * slack
+            # The poller's successor raises TXEN at the window's end, E + Twin, so its Header
+            # begins at E + Twin + Ttrans by its clock (clause 39; 0.95 x Twin once let a
+            # forged frame 9.6 ms after a poll pass for it, issue 42).
+            ok = src == self.succ(self.poller) and elapsed >= (cfg.twin + cfg.ttrans) * slack
             return [] if ok else None
         skipped = []
         o = self.owner
@@ -1142,6 +1192,12 @@ class RotationalMac:
         """A frame with ID 0 that we did not send: the active PC of the father's pair."""
         content = strip_crc(frame.content) if self.cfg.checksum and crc_ok(frame) \
             else frame.content
+        if self._key is not None:
+            # Genuine and fresh (checked in on_frame). The other PC of the pair sends as ID 0
+            # too: our counter goes on from its values, so that a takeover's frames are fresh
+            # to every member (clause 53).
+            self.auth_tx = max(self.auth_tx, self._auth_rx[0] + 1)
+            content = _auth.strip(content)
         try:
             mac_cmds, app_cmds = _layers(content) if content else ((), ())
         except ContentError:
@@ -1679,7 +1735,7 @@ class RotationalMac:
         else:
             msg = self._pick_message(now, out)
             poll_to = self._poll_target()
-        crc_room = CRC_TEXT_LEN if self.cfg.checksum else 0
+        crc_room = self._ext_len
         extra: list[Command] = []
         if poll_to is not None:
             extra.append(cmd("poll", poll_to, _mask(self.ring)))
@@ -1724,6 +1780,9 @@ class RotationalMac:
         kind = FrameType.BROADCAST_INFO
         if self._announcing is not None:
             kind, num = self._announcing, self._ann_num
+        if self._key is not None:           # every frame differs: its own freshness
+            frame = self._frame(BROADCAST, num, kind, content)
+            return frame, frame.encode()
         key = (num, content, kind)
         hit = self._hb_cache.get(key)
         if hit is None:
@@ -1750,6 +1809,11 @@ class RotationalMac:
         return frame, frame.encode()
 
     def _frame(self, dst: int, num: int, type: int, content: bytes) -> Frame:
+        if self._key is not None:
+            fresh = self.auth_tx
+            self.auth_tx = fresh + 1
+            self._auth_rx[self.id] = fresh     # a replay of our own frame is stale too
+            return _auth.seal(self._key, dst, self.id, num, int(type), content, fresh)
         if self.cfg.checksum:
             return seal(dst, self.id, num, int(type), content)
         return Frame(dst=dst, src=self.id, num=num, type=type, content=content)

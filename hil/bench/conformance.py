@@ -44,6 +44,8 @@ from dataclasses import dataclass, field
 from typing import Callable
 from xml.etree import ElementTree as ET
 
+from firmware_model.radio.auth import AUTH_TEXT_LEN, check as auth_check, clock_freshness
+from firmware_model.radio.auth import seal as auth_seal, strip as auth_strip
 from firmware_model.radio.content import parse_content
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from firmware_model.radio.errors import ContentError
@@ -128,10 +130,11 @@ class Tester:
     """The scripted station on ``port`` and the checks, run by :meth:`run`."""
 
     __test__ = False                  # not a pytest class
+    key = None                        # the ring key (the authenticated profile), or None
 
     def __init__(self, port: str, robot: int, profile: str = "rprs", tester: int | None = None,
                  tolerance_ms: float = 15.0, turns: int = 20,
-                 progress: Callable[[str], None] | None = None) -> None:
+                 progress: Callable[[str], None] | None = None, key=None) -> None:
         if not 0 <= robot <= 6:
             raise ValueError(f"robot ID must be 0-6, got {robot}")
         self.robot = robot
@@ -158,6 +161,13 @@ class Tester:
         self.report = Report(robot, profile)
         self._mark = (0, 0, 0)            # rx_bytes, bad, garbage when the last wait began
         self.first_failure: str | None = None   # why the first failed frame failed
+        self.key = key                    # the ring key: the authenticated profile (§4.11)
+        if key is not None and profile == "paper":
+            raise ValueError("the paper profile has no authenticated profile")
+        self.fresh = clock_freshness(time.time())   # our next freshness value
+        self.rx_fresh: int | None = None  # the robot's last freshness value
+        self.auth_bad: list[str] = []     # the robot's frames with a wrong tag or stale value
+        self.sent: list[bytes] = []       # every frame we sent, as sent
 
     # -- time, air -----------------------------------------------------------------------
 
@@ -173,7 +183,10 @@ class Tester:
         for ev in self.deframer.feed(data, t - (len(data) - 1) * BYTE, BYTE):
             if isinstance(ev, FrameReceived):
                 f = ev.frame
-                self.heard.append(Heard(f, ev.end - f.nbytes * BYTE, ev.end))
+                start = ev.end - f.nbytes * BYTE
+                if self.key is not None:
+                    f = self._authenticated(f)
+                self.heard.append(Heard(f, start, ev.end))
             elif isinstance(ev, Garbage):
                 self.garbage += ev.count
             elif isinstance(ev, FrameFailed):
@@ -183,6 +196,20 @@ class Tester:
                 self.bad += 1
                 if self.first_failure is None:
                     self.first_failure = str(ev.error)
+
+    def _authenticated(self, f: Frame) -> Frame:
+        """The robot's frame ``f`` with its ``auth(...)`` taken off, its tag and freshness
+        checked (clauses 52-53); a frame that fails keeps its Content (it reads as
+        unreadable) and is noted for clause 52's verdict."""
+        fresh = auth_check(self.key, f)
+        if fresh is None:
+            self.auth_bad.append(f"Number {f.num:02d}: no valid tag")
+            return f
+        if self.rx_fresh is not None and fresh <= self.rx_fresh:
+            self.auth_bad.append(f"Number {f.num:02d}: freshness {fresh:08x} after "
+                                 f"{self.rx_fresh:08x}")
+        self.rx_fresh = fresh
+        return Frame(dst=f.dst, src=f.src, num=f.num, type=f.type, content=auth_strip(f.content))
 
     def _ours_overlap(self, first: int, at: int) -> bool:
         """A frame of the robot's whose Header began (tick ``first``) before one of our
@@ -196,6 +223,8 @@ class Tester:
         """Put ``data`` on the port now; the tick its End leaves the air."""
         start = self.now()
         self.port.write(data)
+        if self.key is not None:
+            self.sent.append(data)
         self.last_end = start + len(data) * BYTE
         self.on_air.append((start, self.last_end))
         return self.last_end
@@ -233,8 +262,12 @@ class Tester:
 
     def frame(self, content: bytes = b"", dst: int = BROADCAST, type_: int = 3,
               num: int | None = None, src: int | None = None) -> Frame:
-        return Frame(dst=dst, src=self.me if src is None else src,
-                     num=self.num if num is None else num, type=type_, content=content)
+        src = self.me if src is None else src
+        num = self.num if num is None else num
+        if self.key is not None:
+            self.fresh += 1
+            return auth_seal(self.key, dst, src, num, type_, content, self.fresh - 1)
+        return Frame(dst=dst, src=src, num=num, type=type_, content=content)
 
     def _acks_content(self) -> bytes:
         if self.profile != "rprs":
@@ -265,6 +298,9 @@ class Tester:
             last = self._late(last)
             last = self._message(last)
             last = self._forged(last)
+            if self.key is not None:
+                last = self._forged_tag(last)
+                last = self._replayed(last)
             last = self._broken(last)
             self._silence(last)
             stopped = False
@@ -282,7 +318,57 @@ class Tester:
                            ": the run stopped before the robot sent a frame"
                            if stopped and not frames and not self.bad else ""), t0,
                        applicable=not (stopped and not frames and not self.bad))
+            if self.key is not None and frames:
+                self.check("52", "every frame from the robot has a right tag and a rising "
+                           "freshness value", not self.auth_bad,
+                           f"{len(frames)} frames, {len(self.auth_bad)} not: "
+                           f"{'; '.join(self.auth_bad[:3])}" if self.auth_bad else
+                           f"{len(frames)} frames, all right", t0)
         return self.report
+
+    def _refused(self, h: Heard, data: bytes, clause: str, name: str, num: int,
+                 t0: float) -> Heard:
+        """In our turn, ``data`` (status() for the robot with Number ``num``) instead of our
+        frame: the robot must act on nothing in it (no ack, no status reply) and go on with
+        the ring (clause 53: a failed frame, its turn closed uncertainly)."""
+        self._note_acks(h)
+        at = h.end + TTRANS
+        while self.now() < at:
+            self._poll_rx()
+            time.sleep(0.0002)
+        end = self._write(data)
+        nxt = self.wait_frame(end, 2 * TMAX + 8 * TSLOT, self.robot)
+        if nxt is None:
+            self.check(clause, name, False, "no frame from the robot after it", t0)
+            raise self._quiet(f"after {name}")
+        acted = []
+
+        def watch(x: Heard, i: int) -> None:
+            c = x.frame.content
+            if f"ack({self.me},{num})".encode() in c or (x.frame.dst == self.me and
+                                                        (b"joint(" in c or b"fail(" in c)):
+                acted.append(i)
+        watch(nxt, -1)
+        h = self._turns(nxt, 3, None, watch)
+        self.check(clause, name, not acted, f"its next frame {(nxt.start - end) / MS:.0f} ms "
+                   f"after; frames acting on it: {len(acted)}", t0)
+        return h
+
+    def _forged_tag(self, h: Heard) -> Heard:
+        """Our status() for the robot with a tag that is wrong by one digit."""
+        t0 = time.monotonic()
+        good = self.frame(b"status()", dst=self.robot, type_=2, num=43).encode()
+        i = len(good) - 4                          # the tag's last digit
+        data = good[:i] + (b"0" if good[i:i + 1] != b"0" else b"1") + good[i + 1:]
+        return self._refused(h, data, "53", "a frame with a wrong tag is not acted on", 43, t0)
+
+    def _replayed(self, h: Heard) -> Heard:
+        """The very bytes of our first status() for the robot, sent again."""
+        t0 = time.monotonic()
+        first = next(d for d in self.sent if b"status()auth(" in d and
+                     d[3] == 0x30 + self.robot)
+        return self._refused(h, first, "53", "a replay of our earlier message is not acted "
+                             "on", int(first[5:7]), t0)
 
     def _answer_turn(self, h: Heard, content: bytes = b"", **kw) -> int:
         """Our turn after the robot's frame ``h``: a frame Ttrans after its End."""
@@ -326,7 +412,10 @@ class Tester:
         for _ in range(400):               # a lone member inviting the robot (clause 31, 34)
             end = self.send(self.frame(b"poll(%d,%d)" % (self.robot, mask)),
                             max(self.now(), end + TWIN + self.me * TSLOT))
-            h = self.wait_frame(end, TWIN + self.tol, self.robot)
+            # (With the profile our poll and the robot's BOOT are 23 bytes longer each: wait
+            # from our End, as written, to the End of an answer that began within Twin.)
+            longer = max(0, end - self.now()) + AUTH_TEXT_LEN * BYTE if self.key else 0
+            h = self.wait_frame(end, TWIN + self.tol + longer, self.robot)
             if h is not None:
                 break
         else:

@@ -17,6 +17,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from dataclasses import replace
 from typing import Any, Callable, TextIO
 
@@ -30,8 +31,9 @@ from firmware_model.radio.content import parse_content
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.mac import (
     UNACKNOWLEDGED, Deliver, Disable, DuplicateId, ForeignRing, Join, MacConfig, Message, Miss,
-    ModeChange, Outcome, SubmitError, Transmit,
+    ModeChange, Outcome, Refused, SubmitError, Transmit,
 )
+from firmware_model.radio.auth import clock_freshness
 from firmware_model.station import RadioStation, Stalled, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
 
@@ -150,6 +152,9 @@ def _events_printer(out: TextIO | None, robot: int,
             else:
                 emit({"t": now, "ev": "foreign_ring", "robot": robot, "robots": list(a.robots),
                       "member": a.member})
+        elif t is Refused:
+            emit({"t": now, "ev": "refused", "src": a.src, "num": a.num, "to": robot,
+                  "reason": a.reason, **({"kind": a.kind} if a.kind else {})})
     return observe
 
 
@@ -246,6 +251,10 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
     station, radio = build_station(robot, runner.sched, byte_ticks=byte_ticks,
                                    config=replace(config, byte_ticks=byte_ticks),
                                    observer=observer)
+    if config.auth is not None:
+        # A bench process keeps nothing across restarts: its freshness counter starts from
+        # the clock, above every value it sent before (docs/protocol.md clause 52).
+        station.mac.auth_tx = clock_freshness(time.time())
     try:
         channel = SerialChannel(runner.sched, port, txen)
     except PortError as exc:
@@ -485,9 +494,12 @@ def feed_orders(runner: Runner, station: RadioStation, book: Any, stream: TextIO
 
 def summary_line(station: RadioStation) -> str:
     m = station.mac
+    r = station.refused
+    auth = f" (forged {r.get('forged', 0)}, replayed {r.get('replayed', 0)})" \
+        if m.cfg.auth is not None else ""
     return (f"robot {station.id}: {m.mode}, ring {list(m.ring)}, frames sent {m.frames_sent}, "
             f"heard {station.frames_heard}, bad frames {station.frames_failed}, "
-            f"pending {m.pending}")
+            f"refused {sum(r.values())}{auth}, pending {m.pending}")
 
 
 TICKS_PER_MS = TICK_HZ // 1000

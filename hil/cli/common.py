@@ -212,7 +212,27 @@ def checked_mac_config(**kw):
     try:
         return MacConfig(**kw)
     except ValueError as exc:
+        if kw.get("profile", "rprs") != "paper":
+            raise UserError(f"--auth-key: {exc}") from None
         raise UserError(f"--profile {kw.get('profile', 'rprs')}: {exc}") from None
+
+
+def auth_key(text: str):
+    """``--auth-key FILE``: the ring key (firmware_model.radio.auth), or one line saying what is
+    wrong with the file."""
+    from firmware_model.radio.auth import KeyFileError, load_key
+    try:
+        return load_key(text)
+    except KeyFileError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def auth_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--auth-key", type=auth_key, metavar="FILE", default=None,
+                   help="the opt-in authenticated profile with this ring key file (a line "
+                   "'key = ' and 32 hex digits; every robot must have the same): every frame "
+                   "carries a freshness value and a truncated HMAC-SHA256 tag, and forged or "
+                   "replayed frames are refused (docs/protocol.md §4.11)")
 
 
 def mac_options(p: argparse.ArgumentParser) -> None:
@@ -221,6 +241,7 @@ def mac_options(p: argparse.ArgumentParser) -> None:
                    "its ring sooner (claim after |team| x Tmax)")
     p.add_argument("--checksum", action="store_true",
                    help="the opt-in crc() integrity extension (every robot must agree)")
+    auth_option(p)
     p.add_argument("--idle-noise", action="store_true",
                    help="the radio outputs noise without a carrier (a bare PTR2000, or "
                    "'rprs radio-hub --noise'): the channel never falls quiet, so do not wait "
@@ -229,7 +250,8 @@ def mac_options(p: argparse.ArgumentParser) -> None:
 
 
 def mac_config(a: argparse.Namespace):
-    kw = {"checksum": a.checksum, "quiet_channel": not a.idle_noise, "profile": a.profile}
+    kw = {"checksum": a.checksum, "quiet_channel": not a.idle_noise, "profile": a.profile,
+          "auth": a.auth_key}
     if a.team:
         kw["team"] = frozenset(a.team)
     if getattr(a, "standby", False):

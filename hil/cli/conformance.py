@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import UserError, digit, output_file, port_name, positive, stdout_console
+from .common import UserError, auth_option, digit, output_file, port_name, positive, stdout_console
 
 
 VERDICT_STYLE = {"pass": "[green]pass[/green]", "FAIL": "[red]FAIL[/red]", "n/a": "[dim]n/a[/dim]"}
@@ -22,7 +22,8 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     quiet = a.quiet
     try:
         t = Tester(a.radio, a.id, a.profile, a.tester, a.tolerance_ms, a.turns,
-                   progress=None if quiet else lambda s: print(s, file=sys.stderr, flush=True))
+                   progress=None if quiet else lambda s: print(s, file=sys.stderr, flush=True),
+                   key=a.auth_key)
     except (PortError, ValueError) as exc:
         raise UserError(str(exc)) from None
     try:
@@ -68,6 +69,7 @@ def add(sub) -> None:
                    help="timing tolerance for a PC and its port (default 15)")
     p.add_argument("--turns", type=digit(3, 1000, "turns"), default=20,
                    help="hand-overs timed (default 20)")
+    auth_option(p)
     p.add_argument("--junit", metavar="FILE", help="write the verdicts as JUnit XML here")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=cmd_conformance)

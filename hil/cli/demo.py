@@ -7,7 +7,7 @@ from firmware_model.timing import TICK_HZ, ticks_to_s
 
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, SimConfig, World
-from .common import Parser, UserError, checked_mac_config, digit, positive, probability, profile_option
+from .common import Parser, UserError, auth_option, checked_mac_config, digit, positive, probability, profile_option
 from .sim import add_sim_options, cmd_sim
 
 STORY_EVENTS = frozenset({"mode", "join", "rejoin", "disable", "miss", "fault", "collision"})
@@ -110,7 +110,7 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
     limit = a.timeout
     cfg = SimConfig(robots=robots, duration=limit, seed=a.seed, ber=a.ber, noise=a.noise,
                     can=True, sequence=(order, cycles), realtime=a.realtime,
-                    mac=checked_mac_config(profile=a.profile))
+                    mac=checked_mac_config(profile=a.profile, auth=a.auth_key))
     try:
         cfg.validate()
     except ConfigError as exc:
@@ -187,6 +187,7 @@ def add_action_options(p: argparse.ArgumentParser) -> None:
                    help="give up after this much (simulated) time")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
     profile_option(p)
+    auth_option(p)
 
 
 def demo_default(a: argparse.Namespace) -> int:

@@ -11,7 +11,7 @@ from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import OutputFile, TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
-from .common import UserError, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console, stdout_console
+from .common import UserError, auth_option, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console, stdout_console
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                     progress: bool = True) -> None:
@@ -47,6 +47,7 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                    "stuck:2@3-6, silent:1.JOINT2@4-8, stall:1.JOINT1@5 (docs/guarantees.md)")
     p.add_argument("--checksum", action="store_true",
                    help="the opt-in crc() integrity extension on every robot")
+    auth_option(p)
     p.add_argument("--father-standby", action="store_true",
                    help="a second father PC as hot standby for ID 0")
     profile_option(p)
@@ -132,7 +133,8 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                      ber=a.ber, noise=a.noise, load=a.load, power_on=dict(a.power),
                      extra=tuple(a.extra),
                      can=getattr(a, "can", True),
-                     mac=checked_mac_config(checksum=a.checksum, profile=a.profile),
+                     mac=checked_mac_config(checksum=a.checksum, profile=a.profile,
+                                            auth=a.auth_key),
                      father_standby=a.father_standby,
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer,
                      can_sleep=not a.every_frame, ring_sleep=not a.every_frame)
@@ -147,6 +149,9 @@ def peer_mac_options(a: argparse.Namespace) -> None:
     mac = getattr(a, "mac", "rotational")
     if mac == "rotational":
         return
+    if a.auth_key is not None:
+        raise UserError(f"--auth-key: --mac {mac} has no authenticated profile (it is the "
+                        f"rotational MAC's)")
     steal = next((f for f in a.fault if f.kind == "steal"), None)
     if steal is not None:
         raise UserError(f"--fault {steal.spec()}: --mac {mac} has no turns to steal (steal "

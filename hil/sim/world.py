@@ -365,9 +365,11 @@ class World:
         # The radio side as a whole, moved on in whole cycles while it only repeats itself
         # (hil/sim/quiet_ring.py; the trace and the event callback get the events of the
         # cycles leapt over); none with the CPU model or on the wall's clock, nor with CAN
-        # sides that a trace keeps awake (QuietCan.may_sleep): it could never leap there.
+        # sides that a trace keeps awake (QuietCan.may_sleep): it could never leap there;
+        # nor with the authenticated profile, whose frames never repeat (a new freshness each).
         watched = trace is not None or on_event is not None
         if config.ring_sleep and config.mac_kind == "rotational" and not config.realtime \
+                and base.auth is None \
                 and config.cpu is None and not (watched and self.quiet) and not config.extra:
             ring = self.quiet_ring = QuietRing(self, min(config.robots), base.poll_every,
                                                config.father_standby)

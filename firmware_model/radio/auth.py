@@ -1,0 +1,160 @@
+"""The opt-in authenticated profile (docs/protocol.md §4.11, clauses 52-54; designed here, in
+the spirit of AUTOSAR SecOC for CAN).
+
+With the profile on, every frame a station sends ends its Content with
+``auth(FFFFFFFF,TTTTTTTT)``: FFFFFFFF the sender's freshness value (a per-sender counter, eight
+lowercase hex digits, one more for every frame it sends, kept across its reboots), TTTTTTTT
+the first 4 bytes of HMAC-SHA256 (RFC 2104, FIPS 180-4) under the ring's pre-shared key, in
+lowercase hex, over the frame's bytes from Destination up to and including the ``,`` after
+the freshness (so over Length, every Content byte before ``auth(`` and the freshness).
+Length counts the ``auth(...)`` command. A receiver refuses a frame whose tag is missing or
+wrong (*forged*) and one whose freshness is not greater than the last it accepted from that
+Source (*replayed*).
+
+The tag is the command's last 9 bytes before the End: a receiver that hashes the bytes as
+they come has the tag, the ``)`` and the End (11 bytes, 11.4 ms) to finish the last two
+SHA-256 blocks, and a sender knows every covered byte when it builds the frame.
+
+The PC side uses the standard library's ``hmac`` and ``hashlib``: no crypto is written here.
+"""
+from __future__ import annotations
+
+import hmac
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+from hashlib import sha256
+from pathlib import Path
+
+from .frame import CONTENT_OFFSET, Frame
+
+KEY_BYTES = 16
+"""A ring key is 128 bits."""
+FRESH_DIGITS = 8
+TAG_DIGITS = 8
+AUTH_TEXT_LEN = len(b"auth(") + FRESH_DIGITS + 1 + TAG_DIGITS + 1
+"""Bytes the command adds to Content: 23."""
+FRESH_MAX = 16 ** FRESH_DIGITS - 1
+_HEAD = 3                        # the tag covers from Destination, after the 3 Header bytes
+_TAIL = TAG_DIGITS + 1           # the tag and ")" are not covered
+_HEX = frozenset(b"0123456789abcdef")
+SHA256_BLOCK = 64
+
+CLOCK_EPOCH = 1_767_225_600
+"""2026-01-01 00:00 UTC: a station with no flash (a PC) seeds its freshness counter from its
+clock, ``CLOCK_RATE`` a second since this instant (clause 53)."""
+CLOCK_RATE = 32
+"""Freshness values a second of a clock-seeded counter: more than the frames any station can
+send in a second (a lone member, the fastest, sends one every 55 ms or more), so a restarted
+PC always starts above every value it sent before."""
+
+
+class KeyFileError(ValueError):
+    """A key file that cannot be used: one line saying which file and what is wrong."""
+
+
+@dataclass(frozen=True)
+class RingKey:
+    """The ring's pre-shared key (16 bytes) and the inner and outer HMAC states it gives."""
+
+    key: bytes
+
+    def __post_init__(self) -> None:
+        if len(self.key) != KEY_BYTES:
+            raise ValueError(f"a ring key is {KEY_BYTES} bytes, got {len(self.key)}")
+
+    def tag(self, covered: bytes) -> bytes:
+        """The 8 lowercase hex digits of the truncated HMAC-SHA256 of ``covered``."""
+        return hmac.new(self.key, covered, sha256).hexdigest()[:TAG_DIGITS].encode()
+
+    def __repr__(self) -> str:          # never print a key
+        return "RingKey(<16 bytes>)"
+
+
+_KEY_LINE = re.compile(r"^key\s*=\s*([0-9A-Fa-f]{32})$")
+
+
+def load_key(path: str | Path) -> RingKey:
+    """The ring key from a key file (clause 54): lines ``#`` comments or blank, and exactly one
+    line ``key = `` followed by 32 hex digits. Raises KeyFileError with one line."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="ascii")
+    except FileNotFoundError:
+        raise KeyFileError(f"key file {p}: no such file") from None
+    except IsADirectoryError:
+        raise KeyFileError(f"key file {p}: is a directory") from None
+    except UnicodeDecodeError:
+        raise KeyFileError(f"key file {p}: not ASCII text") from None
+    except OSError as exc:
+        raise KeyFileError(f"key file {p}: cannot read it ({exc.strerror or exc})") from None
+    keys = []
+    for n, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        m = _KEY_LINE.match(s)
+        if m is None:
+            raise KeyFileError(f"key file {p}, line {n}: expected 'key = ' and 32 hex digits "
+                               f"(a 128-bit key), or a # comment")
+        keys.append(bytes.fromhex(m.group(1)))
+    if len(keys) != 1:
+        raise KeyFileError(f"key file {p}: " + ("no 'key = ' line" if not keys else
+                                                f"{len(keys)} 'key = ' lines, one expected"))
+    return RingKey(keys[0])
+
+
+def clock_freshness(unix_time: float) -> int:
+    """The first freshness value of a station with no flash started at ``unix_time``."""
+    return max(0, min(FRESH_MAX, int((unix_time - CLOCK_EPOCH) * CLOCK_RATE)))
+
+
+def seal(key: RingKey, dst: int, src: int, num: int, type: int, body: bytes,
+         fresh: int) -> Frame:
+    """The frame carrying ``body`` followed by ``auth(fresh,tag)``."""
+    n = len(body) + AUTH_TEXT_LEN
+    covered = b"%d%d%02d%d%04d" % (dst, src, num, type, n) + body + b"auth(%08x," % fresh
+    return Frame(dst=dst, src=src, num=num, type=type,
+                 content=body + covered[-(FRESH_DIGITS + 6):] + key.tag(covered) + b")")
+
+
+@lru_cache(maxsize=1024)
+def _check(key: RingKey, frame: Frame) -> int | None:
+    c = frame.content
+    if len(c) < AUTH_TEXT_LEN or c[-1:] != b")":
+        return None
+    cmd = c[-AUTH_TEXT_LEN:]
+    if cmd[:5] != b"auth(" or cmd[5 + FRESH_DIGITS] != 0x2C:
+        return None
+    fresh, tag = cmd[5:5 + FRESH_DIGITS], cmd[6 + FRESH_DIGITS:-1]
+    if not (set(fresh) <= _HEX and set(tag) <= _HEX):
+        return None
+    data = frame.encode()
+    covered = data[_HEAD:CONTENT_OFFSET + len(c) - _TAIL]
+    if not hmac.compare_digest(key.tag(covered), tag):
+        return None
+    return int(fresh, 16)
+
+
+def check(key: RingKey, frame: Frame) -> int | None:
+    """The freshness value of ``frame`` if it ends with a well-formed ``auth(...)`` whose tag
+    is right under ``key``, else None (memoised: every receiver checks the same frame)."""
+    return _check(key, frame)
+
+
+def strip(content: bytes) -> bytes:
+    """Content without its trailing ``auth(...)`` command."""
+    return content[:-AUTH_TEXT_LEN]
+
+
+def sha256_blocks(covered_len: int) -> int:
+    """SHA-256 compressions a receiver or sender runs for a tag over ``covered_len`` bytes,
+    with the key's inner and outer padded blocks hashed once when the key is loaded: the
+    message after the inner pad (padding: 1 byte 0x80 and the 8-byte length), then the outer
+    hash of the 32-byte inner digest (one block)."""
+    return (covered_len + 9 + SHA256_BLOCK - 1) // SHA256_BLOCK + 1
+
+
+def covered_len(content_len: int) -> int:
+    """Bytes a tag covers in a frame of ``content_len`` Content bytes (auth included)."""
+    return CONTENT_OFFSET - _HEAD + content_len - _TAIL
