@@ -16,6 +16,10 @@ collisions. About 15-25 s of wall time a run.
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    from _project import require_project    # benchmarks/ is sys.path[0] here
+    require_project()
+
 import argparse
 import json
 import subprocess

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import random
 
 import pytest
 
@@ -26,6 +27,8 @@ def _value(v):
         return sorted(map(repr, v))
     if isinstance(v, (list, tuple)) or type(v).__name__ == "deque":
         return type(v).__name__, [_value(x) for x in v]
+    if isinstance(v, random.Random):               # the MAC's seeded draws (clause 38.2)
+        return "Random", v.getstate()
     return v
 
 

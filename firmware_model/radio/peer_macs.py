@@ -290,6 +290,11 @@ class PeerMac:
     def on_garbage(self, first: int, last: int, now: int) -> list:
         return []
 
+    def on_frame_over(self, now: int) -> list:
+        """A failed frame's bytes stopped before the End it promised: nothing to do (a peer MAC
+        keeps no turn that the promised End would close)."""
+        return []
+
     def on_timer(self, now: int, rx_busy: bool = False, last_rx: int | None = None,
                  rx_began: int | None = None) -> list:
         out: list = []

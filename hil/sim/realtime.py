@@ -41,7 +41,7 @@ class RealTimeScheduler(Scheduler):
 
     __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started", "epoch_ns",
                  "_at_start", "stall_ticks", "stalls", "_on_stall", "_beat", "_stalled",
-                 "_beater", "_settled")
+                 "_beater", "_beat_stop", "_settled")
 
     def __init__(self) -> None:
         super().__init__(0)
@@ -63,6 +63,7 @@ class RealTimeScheduler(Scheduler):
         self._beat = 0                  # the heartbeat thread's last wall tick
         self._stalled = 0               # a gap the heartbeat saw in itself, not yet handled
         self._beater: threading.Thread | None = None
+        self._beat_stop = threading.Event()   # ends the heartbeat when running ends
         self._settled = 0               # the tick the last stall was handled at
 
     def on_start(self, fn: Callable[[], None]) -> None:
@@ -85,7 +86,7 @@ class RealTimeScheduler(Scheduler):
         after the last means the whole process was stopped (SIGSTOP) or starved of CPU."""
         period = self.stall_ticks / 4 / TICK_HZ
         prev = self.wall()
-        while not self._stop.wait(period):
+        while not self._beat_stop.wait(period):
             w = self.wall()
             if w - prev > self.stall_ticks and prev >= self._settled:
                 # (set before the beat, so the loop sees one or the other; a gap that began
@@ -151,17 +152,28 @@ class RealTimeScheduler(Scheduler):
             since_0 = self.now * 1_000_000_000 // _NS_PER_TICK_NUM
             self._t0 = time.monotonic_ns() - since_0
             self.epoch_ns = time.time_ns() - since_0
-            if self.stall_ticks is not None:
-                self._beat = self.wall()
-                self._beater = threading.Thread(target=self._heartbeat, name="heartbeat",
-                                                daemon=True)
-                self._beater.start()
             for fn in self._at_start:
                 fn()
             self._at_start.clear()
+        watch = self.stall_ticks is not None
+        if watch:
+            # the heartbeat beats while running runs (a run in steps starts one each time)
+            self._beat = self.wall()
+            self._beat_stop.clear()
+            self._beater = threading.Thread(target=self._heartbeat, name="heartbeat",
+                                            daemon=True)
+            self._beater.start()
+        try:
+            self._loop(end, watch)
+        finally:
+            if self._beater is not None:
+                self._beat_stop.set()
+                self._beater.join(timeout=1.0)
+                self._beater = None
+
+    def _loop(self, end: int | None, watch: bool) -> None:
         heap = self._heap
         inbox = self._inbox
-        watch = self.stall_ticks is not None
         while not self._stop.is_set():
             wall = self.wall()
             if end is not None and wall >= end:
