@@ -255,3 +255,43 @@ def test_a_jams_tail_taken_for_the_next_owners_frame_costs_nobody_a_miss(tmp_pat
     assert [e for e in after if e["ev"] == "collision"]      # the burst broke a frame
     assert [e for e in after if e["ev"] in ("miss", "disable", "refused")] == []
     assert [e for e in after if e["ev"] == "deliver" and e["src"] == 1 and e["to"] == 0]
+
+
+def test_a_lone_members_invitation_answered_late_admits_the_answerer():
+    """Issue 40, the misses while the ring forms at the bench: robot 1, alone, invites robot 2;
+    robot 2's BOOT reaches the air 60 ms after the poll (a loaded PC: more than the real-time
+    Twin). Robot 1 had closed the window and, in its lone pause, took the BOOT for another
+    robot heard while alone: back to LISTEN (clause 31), while robot 2, a member of {1, 2},
+    counted robot 1 missing until it dropped it. A BOOT or JOIN from the robot it invited,
+    heard before its own next frame, is now the answer: both have the ring {1, 2}, nobody is
+    counted missing."""
+    from firmware_model.timing import TTRANS_TICKS
+    from hil.sim.world import SimConfig, World
+    team = frozenset((1, 2))
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(1, 2), duration=8.0, seed=1, ring_sleep=False,
+                        mac=realtime_config(MacConfig(team=team))), on_event=evs.append)
+    transmit = w.air.transmit
+    delayed: list[int] = []
+
+    def late_on_air(radio, data, t0, bt):
+        if radio.robot == 2 and not delayed:     # robot 2's answer reaches the air late
+            delayed.append(t0)
+            w.sched.at(t0 + 55 * MS, on_air_late, radio, bytes(data), bt, t0 + 55 * MS)
+            return
+        transmit(radio, data, t0, bt)
+
+    def on_air_late(radio, data, bt, late):
+        w.air.deafen(radio, late)                # deaf while its bytes are on the air
+        radio.rx_from = end = late + len(data) * bt + TTRANS_TICKS
+        w.air.inject(data, bt)
+        w.sched.at(end, w.air.rx_restart, radio, end)
+    w.air.transmit = late_on_air
+    w.run()
+    assert len(delayed) == 1
+    polls = [e for e in evs if e["ev"] == "frame" and e["src"] == 1 and e["end"] < delayed[0]]
+    assert delayed[0] - polls[-1]["end"] == TTRANS_TICKS   # robot 2 answered on time
+    assert [e for e in evs if e["ev"] in ("miss", "disable")] == []
+    assert [(e["robot"], e["mode"]) for e in evs if e["ev"] == "mode"] == \
+        [(1, "member"), (2, "member")]
+    assert w.ring_views() == {1: (1, 2), 2: (1, 2)}

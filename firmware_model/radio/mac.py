@@ -641,6 +641,12 @@ class RotationalMac:
 
         answering = self.phase == WINDOW and src == self.owner and \
             frame.type in (FrameType.BOOT, FrameType.JOIN)
+        if not answering and self.mode == MEMBER and self.lone and self.phase == HOLD and \
+                src == self._sent_poll and frame.type in (FrameType.BOOT, FrameType.JOIN):
+            # A lone member's invitation answered after its window, before its next frame:
+            # the answer of a PC that heard the poll late (clause 31). The answerer already
+            # counts us a member; going back to LISTEN would cost it our turns, as misses.
+            answering = True
         if self.mode == MEMBER and self.lone and not answering:
             self._to_listen(out, now, "heard another robot while alone")
         skipped = None
