@@ -19,6 +19,10 @@ what it sent and heard, when its process read it) and every child's events
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    from _project import require_project    # benchmarks/ is sys.path[0] here
+    require_project()
+
 import argparse
 import json
 import subprocess

@@ -11,6 +11,10 @@ after bursts, and a cut-off Header in every invitation window.
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    from _project import require_project    # benchmarks/ is sys.path[0] here
+    require_project()
+
 import argparse
 from collections import Counter
 from dataclasses import replace
