@@ -12,7 +12,10 @@ are healthy).
         formed (tests/test_bench_processes.py does the same)
 
 Prints the misses counted after the ring formed (robot, counted by), the drops and the hub's
-collisions. About 15-25 s of wall time a run.
+collisions. About 15-25 s of wall time a run. ``--record DIR`` keeps what explains a miss: the
+hub's capture (``hub.pcapng``, the air's clock), each child's ``--pcap`` (``child<ID>.pcapng``:
+what it sent and heard, when its process read it) and every child's events
+(``events.jsonl``, with the monotonic time they were read and when the ring formed).
 """
 from __future__ import annotations
 
@@ -63,15 +66,19 @@ class _Watch:
     tsresol = 9
     epoch_units = 0
 
-    def __init__(self) -> None:
+    def __init__(self, tee=None) -> None:
         self.clean: list[object] = []
+        self.tee = tee
 
     def follow(self, clock) -> None:
-        pass
+        if self.tee is not None:
+            self.tee.follow(clock)
 
     def radio(self, key, tick, data, comment=None) -> None:
         if not comment:
             self.clean.append(key)
+        if self.tee is not None:
+            self.tee.radio(key, tick, data, comment)
 
 
 class _AimingHub(RadioHub):
@@ -95,29 +102,40 @@ class _AimingHub(RadioHub):
             self.sched.at(end - BEFORE_END, self.air.burst, 0.006)
 
 
-def run(bursts: int, over_end: bool) -> None:
+def run(bursts: int, over_end: bool, record: str | None = None) -> None:
     first = 9.0
     if over_end:
         hub: RadioHub = _AimingHub(nodes=3, seed=1, left=bursts, every=16_000_000 * 2 // 5)
     else:
         hub = RadioHub(nodes=3, seed=1, faults=[parse_fault(f"burst@{first + 0.73 * k:.2f}:0.004")
                                                 for k in range(bursts)])
-    watch = _Watch()
+    tee = None
+    if record:
+        import os
+        from hil.sim.pcap import PcapWriter
+        os.makedirs(record, exist_ok=True)
+        tee = PcapWriter(open(os.path.join(record, "hub.pcapng"), "wb"),
+                         *hub.capture_interfaces(), tsresol=9)
+    watch = _Watch(tee)
     hub.capture(watch)
     hub.start()
     t0 = time.monotonic()
     kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
                               "--radio", hub.paths[i], "--team", ",".join(map(str, TEAM)),
-                              "--events"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                              "--events"]
+                             + (["--pcap", f"{record}/child{r}.pcapng"] if record else []),
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                              text=True) for i, r in enumerate(TEAM)]
     formed_at = [None]
     events: list[tuple[float, dict]] = []
 
-    def read(p) -> None:
+    def read(p, r) -> None:
         for line in p.stdout:
-            events.append((time.monotonic(), json.loads(line)))
-    for p in kids:
-        threading.Thread(target=read, args=(p,), daemon=True).start()
+            ev = json.loads(line)
+            ev.setdefault("at", r)
+            events.append((time.monotonic(), ev))
+    for p, r in zip(kids, TEAM):
+        threading.Thread(target=read, args=(p, r), daemon=True).start()
 
     def formed() -> bool:
         last = watch.clean[-6:]
@@ -136,6 +154,11 @@ def run(bursts: int, over_end: bool) -> None:
         stop(kids)
         hub.stop()
         hub.close()
+        if tee is not None:
+            tee.stream.close()
+            with open(f"{record}/events.jsonl", "w") as f:
+                for t, e in events:
+                    f.write(json.dumps({"mono": t, "formed": formed_at[0], **e}) + "\n")
     after = [e for t, e in events if t >= formed_at[0]]
     misses = Counter((e["robot"], e["by"]) for e in after if e["ev"] == "miss")
     what = "aimed over a frame's end" if over_end else "4 ms every 0.73 s"
@@ -151,10 +174,12 @@ def main() -> None:
     ap.add_argument("--bursts", type=int, default=20)
     ap.add_argument("--over-end", action="store_true",
                     help="aim each burst over the end of a robot's frame")
+    ap.add_argument("--record", metavar="DIR",
+                    help="write the hub's capture, each child's --pcap and all events there")
     a = ap.parse_args()
     if not 1 <= a.bursts <= 200:
         ap.error("--bursts must be from 1 to 200")
-    run(a.bursts, a.over_end)
+    run(a.bursts, a.over_end, a.record)
 
 
 if __name__ == "__main__":

@@ -712,3 +712,92 @@ def test_no_healthy_robot_is_counted_missing_after_a_burst_over_a_frame_end_on_t
     assert broken == set(hub.at)                 # each broke the end of the frame it aimed at
     events = [e for ls in lines for armed, e in ls if armed and e["ev"] in ("miss", "disable")]
     assert events == [], events
+
+
+LATE_BURST = 80_000 + 80_000
+"""Ticks after robot 6's frame ends on air at which ``_LateHub`` begins its 4 ms burst: Ttrans
+and 5 ms more, well after robot 1's turn began (and Ttrans) in every child's own clock."""
+LATE_BY = 480_000
+"""Ticks (30 ms, more than the real-time quiet gap) after that burst at which robot 1's bytes
+reach the air: a PC whose frame comes late."""
+
+
+class _LateHub(RadioHub):
+    """A hub that, once armed, puts a 4 ms burst in the hand-over from robot 6 (node 2) to robot
+    1 (node 0), ``LATE_BURST`` ticks after robot 6's frame ends, and holds robot 1's next bytes
+    until ``LATE_BY`` ticks after the burst (node 0 listens until they go on air, as the hub
+    does for any node): ``left`` times, at least ``every`` ticks apart; ``at`` holds the ends
+    of robot 6's frames."""
+
+    def __init__(self, *args, left, every, **kw):
+        super().__init__(*args, **kw)
+        self.armed = False
+        self.left = left
+        self.every = every
+        self.at: list[int] = []
+
+    def _send(self, i):
+        super()._send(i)
+        end = self._tx_end[i]
+        if i == 2 and self.armed and self.left and not self._pending[i] and \
+                (not self.at or end >= self.at[-1] + self.every):
+            self.left -= 1
+            self.at.append(end)
+            self.sched.at(end + LATE_BURST, self.air.burst, 0.004)
+            self._tx_end[0] = max(self._tx_end[0], end + LATE_BURST + 66_668 + LATE_BY)
+
+
+def test_a_late_header_after_a_burst_in_the_hand_over_costs_nobody_a_miss_on_the_hub():
+    """Issue 40 at the bench, the last false misses: a burst in the hand-over from robot 6 to
+    robot 1, after robot 1's turn began, is taken for robot 1's broken frame and its turn
+    closes at quiet (clause 42); robot 1's Header, late as a PC's can be, comes 30 ms after the
+    burst. Robot 6, waiting for robot 2's staggered turn, refused it as out of turn and counted
+    robot 2 missing (robot 2 itself followed it). Clause 42 now takes it for robot 1's frame.
+    Children 1, 2 and 6, ten such hand-overs: robot 6 never counts robot 2 missing (the
+    simulator's case: tests/test_margin_bounds.py)."""
+    hub = _LateHub(nodes=3, seed=1, left=10, every=16_000_000 * 2 // 5)
+    air = _Air(hub)
+    hub.capture(air)
+    hub.start()
+    kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
+                              "--radio", hub.paths[i], "--team", "1,2,6", "--events"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for i, r in enumerate((1, 2, 6))]
+    lines: list[list[tuple[bool, dict]]] = [[], [], []]
+
+    def read(p, out):
+        with p.stdout:
+            for line in p.stdout:
+                out.append((hub.armed, json.loads(line)))
+    import threading
+    for p, out in zip(kids, lines):
+        threading.Thread(target=read, args=(p, out), daemon=True).start()
+
+    def formed():
+        srcs = [k for k, s, e, c in list(air.packets)[-6:] if not c]
+        return srcs in ([0, 1, 2] * 2, [1, 2, 0] * 2, [2, 0, 1] * 2)
+    try:
+        assert wait_for(formed, 40.0), "the ring 1, 2, 6 did not form"
+        hub.armed = True
+        assert wait_for(lambda: len(hub.at) == 10, 30.0), hub.at
+        time.sleep(1.5)
+        alive = [p.poll() is None for p in kids]
+    finally:
+        errs = stop(kids)
+        hub.stop()
+        hub.close()
+    assert alive == [True] * 3, errs
+    # robot 6 took robot 1's late frame for robot 1's: it never counted robot 2 missing
+    # (before clause 42's rule, it did after nearly every one of these hand-overs). Other
+    # misses a loaded machine can cause (a frame split by more than the stall gap on its way
+    # through the ptys) are not this test's: docs/guarantees.md, "At the bench".
+    events = [e for armed, e in lines[2] if armed and e["ev"] in ("miss", "disable")
+              and e["robot"] == 2]
+    assert events == [], events
+    packets = list(air.packets)
+    bursts = [s for k, s, e, c in packets if k == "foreign"]
+    assert len(bursts) == 10 and all(b >= t + LATE_BURST for t, b in zip(hub.at, bursts))
+    # robot 1's frame came clean after each, at least 30 ms after the burst
+    late = [min(s for k, s, e, c in packets if k == 0 and not c and s >= b) - (b + 66_668)
+            for b in bursts]
+    assert all(d >= LATE_BY for d in late), late

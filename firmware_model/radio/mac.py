@@ -442,6 +442,9 @@ class RotationalMac:
         self._quiet_limit = 0
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
         self._hold_ref: int | None = None   # HOLD after an uncertain closure: its reference
+        self._garbled: tuple[int, int, int] | None = None
+        """(o, the tick o's turn closed, the owner then) after o's turn closed on garbage
+        (clause 42): until the next turn begins, a good frame from o is o's frame, late."""
         self._promised: tuple[int, str, int | None] | None = None
         """A failed frame's turn closes at the End its Length promised: (that End, and the
         phase and deadline on_corrupt left), until the frame is over sooner (on_frame_over)."""
@@ -673,14 +676,26 @@ class RotationalMac:
 
         answering = self.phase == WINDOW and src == self.owner and \
             frame.type in (FrameType.BOOT, FrameType.JOIN)
+        if not answering and self.mode == MEMBER and self.lone and self.phase == HOLD and \
+                src == self._sent_poll and frame.type in (FrameType.BOOT, FrameType.JOIN):
+            # A lone member's invitation answered after its window, before its next frame:
+            # the answer of a PC that heard the poll late (clause 31). The answerer already
+            # counts us a member; going back to LISTEN would cost it our turns, as misses.
+            answering = True
         if self.mode == MEMBER and self.lone and not answering:
             self._to_listen(out, now, "heard another robot while alone")
         skipped = None
         out_of_turn = False
         if self.mode == MEMBER and src in self.ring and self.phase in (WAIT, WINDOW) and \
                 self.owner is not None and src != self.owner and not answering:
-            skipped = self._takeover(src, first)
-            out_of_turn = skipped is None
+            if self.phase == WAIT and self._garbled == (src, self.turn_start, self.owner):
+                # The garbage we took for src's broken frame was not its frame: src's Header
+                # came late (a PC's), the next owner was still in its R-stagger wait and
+                # follows this frame too (clause 42). src's frame, not out of turn.
+                skipped = []
+            else:
+                skipped = self._takeover(src, first)
+                out_of_turn = skipped is None
         if self.mode == MEMBER and src in self.ring and not out_of_turn:
             # A frame accepted from a member (clauses 37, 51; not one refused out of turn):
             # its poll or ring mask says whether it still has us, and which ring it has.
@@ -1052,9 +1067,12 @@ class RotationalMac:
             self._deadline_wait(now, rx_busy, last_rx, None, out)
             return
         if quiet or now >= self._quiet_limit:
+            garbled = self.owner if self._quiet_miss else None
             self._quiet_miss = False
             self._slot_failed(self.owner, out)
             self._next_turn(self.owner, now, now, out, uncertain=True)  # the frame is over
+            if garbled is not None and self.phase == WAIT:
+                self._garbled = (garbled, self.turn_start, self.owner)
         else:
             self.deadline = min(last_rx + gap, self._quiet_limit)
 

@@ -120,7 +120,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "designed"),
     _T("HOLD", "frame", "WAIT", "someone else sent first: resynchronise on it", "paper §IV.C"),
     _T("HOLD", "frame", "SWITCH", "a frame from the robot before us came first (a late "
-       "twin's): resynchronise, and ours is the next turn", "paper §IV.C"),
+       "twin's; a lone member's invitation answered after its window, clause 31): "
+       "resynchronise, and ours is the next turn", "paper §IV.C"),
     _T("HOLD", "frame", "LISTEN", "heard another robot while alone; or our own ID a second "
        "time (a twin: yield, clause 38.2)", "designed"),
     _T("HOLD", "deadline", "HOLD", "a frame is coming in, or a jam not yet quiet for "
