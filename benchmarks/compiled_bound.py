@@ -68,8 +68,8 @@ NEEDED = {
     "saturated 7-robot ring, --can": ("CAN on / off >= 0.5", 0.5 / 0.43),
     "rprs soak --hours 0.1 --seed 11": ("4x the issue's main", 4 / 1.59),
 }
-"""The speed-up each target still needs, from the last measured figures (docs/performance.md,
-2026-11-25, session 18: radio only 12.8x the SimPy peer, saturated on/off 0.43 over 60 s
+"""The speed-up each target still needs, from the last measured figures (docs/performance.md:
+radio only 12.8x the SimPy peer, saturated on/off 0.43 over 60 s
 (0.49 over 600 s, 0.56 over 1200 s), soak 1.59x the issue's main); update them with the figures of
 ``speed_targets.py`` and ``soak_against.py``."""
 

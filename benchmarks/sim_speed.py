@@ -4,8 +4,8 @@
 
 Rings of 3, 4 and 7 robots (7 = the father and six children), idle, saturated and with byte
 errors, radio side alone and with every child's CAN side (``--can``). Each figure is the
-median of ``--runs`` runs, each in a process of its own (since 2026-11-25, session 18:
-benchmarks/fresh_process.py); the machine is shared, so compare ratios within a run. Prints a
+median of ``--runs`` runs, each in a process of its own (benchmarks/fresh_process.py says
+why); the machine is shared, so compare ratios within a run. Prints a
 Markdown table.
 """
 from __future__ import annotations

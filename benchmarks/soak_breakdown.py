@@ -22,7 +22,7 @@ It also records every joint job (``Dispatcher._drive_joints``: every move order)
 start to its done, in CAN periods (100 ms): a domain that slept through a job would pay two
 snapshots and a replayed period for each sleep, so only jobs much longer than that could gain.
 
-Figures and what they decided: docs/performance.md ("Session 24"). The instrumented run is
+Figures and what they decided: docs/performance.md (where the soak's time goes). The instrumented run is
 about twice as slow as a plain one; the shares are what counts.
 """
 from __future__ import annotations

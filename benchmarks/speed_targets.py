@@ -16,8 +16,8 @@ leap over the cycles an idle ring repeats): the same run to the tick, the cost o
 itself.
 
 Runs alternate between the compared models so that a noisy machine slows both alike; each
-figure is the median of ``--runs``. Each timed run is a process of its own (since 2026-11-25,
-session 18; benchmarks/fresh_process.py says why).
+figure is the median of ``--runs``. Each timed run is a process of its own
+(benchmarks/fresh_process.py says why).
 Prints Markdown tables (docs/performance.md).
 """
 from __future__ import annotations
@@ -40,7 +40,7 @@ from fresh_process import ENV, ROOT, timed  # noqa: E402  (benchmarks/ is on sys
 RING = (0, 1, 2, 3, 4, 5, 6)
 SHORT_WALL_S = 0.25
 """Timed runs shorter than this (wall s) are flagged under the table: a 60 s saturated ring
-lasts 0.04-0.16 s, and its on/off ratio read 0.43 one day and 0.27 another (session 19)."""
+lasts 0.04-0.16 s, and its on/off ratio has read anywhere from 0.27 to 0.43 between runs."""
 LOADS = {"idle": {}, "saturated": {"load": "saturate"}, "BER 1e-3": {"ber": 1e-3}}
 
 
