@@ -616,3 +616,35 @@ def test_out_of_turn_and_own_id_frames_are_counted_by_kind():
     s = w.summary()["robots"]
     assert s[0]["refused_by"] == {"own_id": 1}
     assert s[1]["refused_by"] == {"out_of_turn": 1} and s[2]["refused_by"] == {"out_of_turn": 1}
+
+
+# -- the father's PC pair with the profile ------------------------------------------------
+
+def test_a_standby_pcs_frames_are_fresh_to_every_member_after_it_takes_over():
+    """Clause 52: the father's second PC sends as Source 0 too, so after a takeover its
+    freshness must go on above PC1's. PC1 dies at 5 s with messages flowing; PC2 takes ID 0's
+    turn, and no member refuses one of its frames (no forged, no replayed), nobody misses or
+    drops robot 0, and its messages are delivered; PC1, back at 9 s, hears PC2 and stands by,
+    refusing none of PC2's frames either, its own counter above them for a takeover back."""
+    from hil.sim.faults import parse_fault
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(0, 1, 2), duration=14, seed=3, load=1.0, father_standby=True,
+                        mac=MacConfig(auth=KEY),
+                        faults=(parse_fault("fail:0@5"), parse_fault("recover:0@9"))),
+              on_event=evs.append)
+    w.run()
+    took = [e for e in evs if e["ev"] == "mode" and e.get("pc") == 2 and "took over" in
+            e["reason"]]
+    assert len(took) == 1, took
+    after = [e for e in evs if e.get("t", 0) > took[0]["t"]]
+    refused = [e for e in after if e["ev"] == "refused"]
+    # (PC1, back from a dead radio, first refuses robot 1 as a robot it dropped: clause 38.3)
+    assert not [e for e in refused if e["to"] != 0 or
+                e["reason"].startswith(("forged", "replayed"))], refused
+    assert not [e for e in evs if e["ev"] in ("miss", "disable") and e["robot"] == 0
+                and e["by"] != 0]
+    pc2_sent = [e for e in after if e["ev"] == "frame" and e["src"] == 0]
+    assert len(pc2_sent) > 50
+    assert [e for e in after if e["ev"] == "deliver" and e["src"] == 0]
+    assert w.stations[0].mac.standby and not w.standby_station.mac.standby
+    assert w.stations[0].mac.auth_tx > w.standby_station.mac._auth_rx[0]
