@@ -476,6 +476,37 @@ def test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_o
         assert closing and ", numbers behind 1," in closing[-1], err
 
 
+def test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart():
+    """Issue 42's forged father order 9.6 ms after an invitation, at the bench without the
+    profile: the children refuse it out of turn (clause 39) and the father as its own ID from
+    the air (clause 38.2); each says so in an event line of its kind and counts it in its
+    closing line, and robot 1 never acts on it."""
+    from processes import wait_for
+
+    bench = _HubRing(4, ["--team", "0,1,2,3"])
+    air, lines = bench.air, bench.lines
+
+    def kinds(i: int) -> set:
+        return {e.get("kind") for e in list(lines[i]) if e["ev"] == "refused"}
+    try:
+        def formed():
+            srcs = [k for k, t, d in list(air.packets)[-6:]]
+            return sorted(set(srcs)) == [0, 1, 2]
+        assert wait_for(formed, 40.0), "the ring 0, 1, 2 did not form"
+        air.payload = Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode()
+        air.left = 3
+        assert wait_for(lambda: "own_id" in kinds(0) and "out_of_turn" in kinds(1) and
+                        "out_of_turn" in kinds(2), 20.0), (air.sent, [kinds(i) for i in
+                                                                     range(3)])
+    finally:
+        errs = bench.stop()
+    assert not bench.delivered_to_1("joint(1,33)")
+    closing = [[x for x in err.splitlines() if x.startswith("robot ")][-1] for err in errs]
+    assert re.search(r"\(out of turn \d+, own ID [1-9]\d*\)", closing[0]), closing
+    for line in closing[1:]:
+        assert re.search(r"\(out of turn [1-9]\d*, own ID \d+\)", line), closing
+
+
 def test_conformance_checks_an_authenticated_childs_frames_and_refusals(tmp_path):
     """``rprs conformance --auth-key`` against ``rprs child --auth-key`` on the hub: the
     robot's frames carry right tags and rising freshness (clause 52), and a frame with a wrong
