@@ -374,3 +374,36 @@ def test_a_radio_that_dies_in_its_first_byte_leaves_an_empty_packet(tmp_path):
         out = subprocess.run(["tshark", "-r", str(path), "-Y", "frame.len == 0", "-T",
                               "fields", "-e", "frame.comment"], capture_output=True, text=True)
         assert out.stdout.strip() == "aborted: the sender's radio died", out.stderr
+
+
+@needs_tshark
+def test_tshark_decodes_the_authenticated_profiles_freshness_and_tag(tmp_path):
+    """docs/protocol.md clause 52: with --auth-key every frame ends with auth(FFFFFFFF,TTTTTTTT);
+    the dissector shows both as fields (rprs.auth.fresh, rprs.auth.tag), the values each
+    packet's bytes carry, and a forged frame's made-up ones too (it cannot check a tag: it has
+    no key)."""
+    from firmware_model.radio.auth import AUTH_TEXT_LEN
+    key = tmp_path / "ring.key"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
+    forged = b"\x0f\x0a\x05" + b"10522%04d" % 34 + b"joint(1,80)auth(0000beef,12345678)" + \
+        b"\x17\x19"
+    pcap = tmp_path / "auth.pcapng"
+    p = rprs("sim", "--robots", "0,1,2", "--duration", "3", "--seed", "4", "--load", "1",
+             "--auth-key", str(key), "--fault", f"foreign@2:x{forged.hex()}", "--no-progress",
+             "--pcap", str(pcap))
+    assert p.returncode == 0, p.stderr
+    want = []
+    for (_, name), _, data, _ in _packets(pcap)[1]:
+        if name.endswith(" radio") or name == "foreign transmitters":
+            c = parse_frame(data).content[-AUTH_TEXT_LEN:]
+            want.append((name, int(c[5:13], 16), int(c[14:22], 16)))
+    out = subprocess.run(
+        [TSHARK, "-X", f"lua_script:{plugin_path()}", "-r", str(pcap), "-Y", "rprs",
+         "-T", "fields", "-E", "separator=|", "-e", "frame.interface_name",
+         "-e", "rprs.auth.fresh", "-e", "rprs.auth.tag"],
+        capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    got = [(r[0], int(r[1], 16), int(r[2], 16))
+           for r in (x.split("|") for x in out.stdout.splitlines())]
+    assert len(got) == len(want) > 15 and got == want
+    assert ("foreign transmitters", 0xBEEF, 0x12345678) in got
