@@ -18,12 +18,27 @@ REALTIME_MODULES = frozenset({
     "test_bench_processes", "test_bridge", "test_conformance", "test_differential",
     "test_monitor", "test_paper_profile", "test_radio_hub", "test_stranger_robot",
     "test_unixbus", "test_socketcan_smoke", "test_child_acceptance", "test_father_app",
-    "test_lost_port",
+    "test_lost_port", "test_bench_stalls",
 })
 """Modules whose tests run on the wall clock: processes on the pty hub, CAN buses between
 processes, the timers of a live UI."""
-REALTIME_TESTS = frozenset({"tests/test_action_sequence.py::test_in_real_time",
-                            "tests/test_readme_commands.py::test_the_readme_monitor_command_runs_in_a_terminal"})
+
+TIMING_TESTS = frozenset({
+    "tests/test_auth.py::test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub",
+    "tests/test_auth.py::test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_on_the_hub",
+    "tests/test_auth.py::test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart",
+    "tests/test_auth.py::test_conformance_checks_an_authenticated_childs_frames_and_refusals",
+})
+"""Wall-clock tests outside ``TIMING_MODULES`` that judge timing too (a frame put on the hub's
+air at a chosen offset into a turn, the conformance kit's tolerances): they run with the CPU
+to themselves (``_cpu_to_itself``), in the fast tier."""
+
+REALTIME_TESTS = TIMING_TESTS | frozenset({
+    "tests/test_action_sequence.py::test_in_real_time",
+    "tests/test_readme_commands.py::test_the_readme_monitor_command_runs_in_a_terminal",
+    "tests/test_identity.py::test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going",
+    "tests/test_identity.py::test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring",
+})
 
 
 TIMING_MODULES = frozenset({
@@ -35,10 +50,16 @@ acceptance tests whose bench father keeps a ring with a child process: they run 
 to themselves (``_cpu_to_itself``)."""
 
 
-def is_realtime(nodeid: str) -> bool:
+def node_key(nodeid: str) -> str:
+    """``path::name`` of a node ID, without its parameters."""
     path, _, name = nodeid.partition("::")
+    return f"{path}::{name.partition('[')[0]}"
+
+
+def is_realtime(nodeid: str) -> bool:
+    path = nodeid.partition("::")[0]
     module = path.rpartition("/")[2].removesuffix(".py")
-    return module in REALTIME_MODULES or f"{path}::{name.partition('[')[0]}" in REALTIME_TESTS
+    return module in REALTIME_MODULES or node_key(nodeid) in REALTIME_TESTS
 
 
 def _lock_base(config) -> Path:
@@ -197,13 +218,14 @@ def vcan_channel() -> str:
 def _cpu_to_itself(request):
     """A test that judges wall-clock timing runs alone: on a 2-core machine the simulator's
     tests on the other xdist worker took a core from the robot processes, and hand-overs then
-    came 70 ms late now and then. Such a test (a module of ``TIMING_MODULES``, or a test
-    marked ``timing``) takes a run-wide lock exclusively, every other
+    came 70 ms late now and then. Such a test (a module of ``TIMING_MODULES``, one of
+    ``TIMING_TESTS``, or a test marked ``timing``) takes a run-wide lock exclusively, every other
     test shares it; a turnstile lock first keeps a waiting timing test from being starved by
     a stream of others (a fair readers-writer lock on flock)."""
     base = _lock_base(request.config)
     module = request.node.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
-    exclusive = module in TIMING_MODULES or request.node.get_closest_marker("timing") is not None
+    exclusive = module in TIMING_MODULES or node_key(request.node.nodeid) in TIMING_TESTS or \
+        request.node.get_closest_marker("timing") is not None
     with open(f"{base}.turnstile", "a+") as gate, open(f"{base}.cpu", "a+") as cpu:
         fcntl.flock(gate, fcntl.LOCK_EX)
         try:
