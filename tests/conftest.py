@@ -31,7 +31,7 @@ TIMING_TESTS = frozenset({
 })
 """Wall-clock tests outside ``TIMING_MODULES`` that judge timing too (a frame put on the hub's
 air at a chosen offset into a turn, the conformance kit's tolerances): they run with the CPU
-to themselves (``_cpu_to_itself``), in the fast tier."""
+to themselves (the CPU lock, ``pytest_runtest_protocol``), in the fast tier."""
 
 REALTIME_TESTS = TIMING_TESTS | frozenset({
     "tests/test_action_sequence.py::test_in_real_time",
@@ -47,7 +47,7 @@ TIMING_MODULES = frozenset({
 })
 """Wall-clock tests that judge timing (turn hand-overs to a few ms, gaps, misses), and the
 acceptance tests whose bench father keeps a ring with a child process: they run with the CPU
-to themselves (``_cpu_to_itself``)."""
+to themselves (the CPU lock, ``pytest_runtest_protocol``)."""
 
 
 def node_key(nodeid: str) -> str:
@@ -63,8 +63,9 @@ def is_realtime(nodeid: str) -> bool:
 
 
 def _lock_base(config) -> Path:
-    """Path stem of this test run's lock files (``_cpu_to_itself``): one pair per run, shared
-    by its xdist workers through the run's uid, removed when the run ends."""
+    """Path stem of this test run's lock files (the CPU lock, ``pytest_runtest_protocol``):
+    one pair per run, shared by its xdist workers through the run's uid, removed when the run
+    ends."""
     worker = getattr(config, "workerinput", None)
     if worker:
         uid = worker["testrunuid"]
@@ -94,6 +95,9 @@ def pytest_configure(config):
 
 
 def pytest_unconfigure(config):
+    lock = config.stash.get(_CPU_LOCK, None)
+    if lock is not None:
+        lock.close()
     if not getattr(config, "workerinput", None):
         base = _lock_base(config)
         for suffix in (".turnstile", ".cpu"):
@@ -214,28 +218,69 @@ def vcan_channel() -> str:
     return _vcan_or_skip()
 
 
-@pytest.fixture(autouse=True)
-def _cpu_to_itself(request):
-    """A test that judges wall-clock timing runs alone: on a 2-core machine the simulator's
-    tests on the other xdist worker took a core from the robot processes, and hand-overs then
-    came 70 ms late now and then. Such a test (a module of ``TIMING_MODULES``, one of
-    ``TIMING_TESTS``, or a test marked ``timing``) takes a run-wide lock exclusively, every other
-    test shares it; a turnstile lock first keeps a waiting timing test from being starved by
-    a stream of others (a fair readers-writer lock on flock)."""
-    base = _lock_base(request.config)
-    module = request.node.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
-    exclusive = module in TIMING_MODULES or node_key(request.node.nodeid) in TIMING_TESTS or \
-        request.node.get_closest_marker("timing") is not None
-    with open(f"{base}.turnstile", "a+") as gate, open(f"{base}.cpu", "a+") as cpu:
-        fcntl.flock(gate, fcntl.LOCK_EX)
+def _exclusive(item) -> bool:
+    """Whether ``item`` judges wall-clock timing and so runs with the CPU to itself: a test of
+    ``TIMING_MODULES``, one of ``TIMING_TESTS``, or one marked ``timing``."""
+    module = item.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
+    return module in TIMING_MODULES or node_key(item.nodeid) in TIMING_TESTS or \
+        item.get_closest_marker("timing") is not None
+
+
+class _CpuLock:
+    """This process's hold on the run's CPU lock (``pytest_runtest_protocol``): none, shared
+    or exclusive. The lock files are opened once, on first use."""
+
+    def __init__(self, config) -> None:
+        base = _lock_base(config)
+        self.gate = open(f"{base}.turnstile", "a+")
+        self.cpu = open(f"{base}.cpu", "a+")
+        self.held: int | None = None
+
+    def take(self, mode: int) -> None:
+        if self.held == mode:
+            return
+        self.release()
+        fcntl.flock(self.gate, fcntl.LOCK_EX)
         try:
-            fcntl.flock(cpu, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+            fcntl.flock(self.cpu, mode)
         finally:
-            fcntl.flock(gate, fcntl.LOCK_UN)
-        try:
-            yield
-        finally:
-            fcntl.flock(cpu, fcntl.LOCK_UN)
+            fcntl.flock(self.gate, fcntl.LOCK_UN)
+        self.held = mode
+
+    def release(self) -> None:
+        if self.held is not None:
+            fcntl.flock(self.cpu, fcntl.LOCK_UN)
+            self.held = None
+
+    def close(self) -> None:
+        self.release()
+        self.gate.close()
+        self.cpu.close()
+
+
+_CPU_LOCK = pytest.StashKey()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """The CPU lock: a test that judges wall-clock timing runs alone. On a 2-core machine
+    the simulator's tests on the other xdist worker took a core from the robot processes, and
+    hand-overs then came 70 ms late now and then. Such a test (``_exclusive``) takes a run-wide
+    lock exclusively, every other test shares it; a turnstile lock first keeps a waiting
+    timing test from being starved by a stream of others (a fair readers-writer lock on
+    flock). A test that shares the lock lets it go after its teardown, so that a timing test
+    waits for one test at most; a timing test followed by another keeps it, so that a run of
+    them (a module) waits once, not once a test, for the other worker's test in progress."""
+    lock = item.config.stash.get(_CPU_LOCK, None)
+    if lock is None:
+        lock = item.config.stash[_CPU_LOCK] = _CpuLock(item.config)
+    exclusive = _exclusive(item)
+    lock.take(fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+    try:
+        yield
+    finally:
+        if not (exclusive and nextitem is not None and _exclusive(nextitem)):
+            lock.release()
 
 
 def _child_processes() -> set[tuple[int, str]] | None:
