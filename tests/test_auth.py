@@ -679,3 +679,15 @@ def test_a_standby_pcs_frames_are_fresh_to_every_member_after_it_takes_over():
     assert [e for e in after if e["ev"] == "deliver" and e["src"] == 0]
     assert w.stations[0].mac.standby and not w.standby_station.mac.standby
     assert w.stations[0].mac.auth_tx > w.standby_station.mac._auth_rx[0]
+
+
+def test_rprs_sim_says_who_refused_what(capsys):
+    """``rprs sim``'s text summary names each robot's refused frames by kind (they were in
+    ``--json`` and the trace only): the issue's forged order 9.6 ms after robot 2's poll."""
+    from hil.cli import main
+    forged = "0f0a053130353032303031316a6f696e7428312c3333291719"
+    assert main(["sim", "--robots", "0,1,2,3", "--power", "3@9.9", "--duration", "10",
+                 "--seed", "1", "--every-frame", "--fault", f"foreign@7.478132:x{forged}"]) == 0
+    out = capsys.readouterr().out
+    assert "frames refused (docs/mac.md): father 0 1 (own ID 1); R1 1 (out of turn 1); " \
+        "R2 1 (out of turn 1)" in out, out
