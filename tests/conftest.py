@@ -92,6 +92,10 @@ def pytest_configure(config):
     )
     config.addinivalue_line(
         "markers", "realtime: runs on the wall clock (tests/conftest.py: is_realtime)")
+    config.addinivalue_line(
+        "markers", "shares_cpu: a wall-clock test of a TIMING_MODULES module that judges no "
+        "timing (orders end, lines said, files written): it shares the CPU with the simulator's "
+        "tests instead of running alone (tests/conftest.py: _exclusive)")
 
 
 def pytest_unconfigure(config):
@@ -220,7 +224,10 @@ def vcan_channel() -> str:
 
 def _exclusive(item) -> bool:
     """Whether ``item`` judges wall-clock timing and so runs with the CPU to itself: a test of
-    ``TIMING_MODULES``, one of ``TIMING_TESTS``, or one marked ``timing``."""
+    ``TIMING_MODULES`` (unless marked ``shares_cpu``), one of ``TIMING_TESTS``, or one marked
+    ``timing``."""
+    if item.get_closest_marker("shares_cpu") is not None:
+        return False
     module = item.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
     return module in TIMING_MODULES or node_key(item.nodeid) in TIMING_TESTS or \
         item.get_closest_marker("timing") is not None
