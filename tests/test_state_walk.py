@@ -26,7 +26,7 @@ from hil.sim.soak import random_faults
 from hil.sim.state_walk import InTuple, Snapshot, Unwalkable, snapshot
 from hil.sim.world import SimConfig, World
 
-# -- the reference: the walk before Session 25, one call of visit per value --------------------
+# -- the reference: the plain walk, one call of visit per value -------------------------------
 
 _OURS = ("can_bus", "firmware_model", "hil")
 _VALUE_TYPES = (bool, float, str, bytes, type(None), Enum, frozenset, set)
