@@ -850,3 +850,19 @@ def test_a_radio_port_that_is_no_serial_port_is_one_plain_line(port, why):
     with pytest.raises(PortError) as e:
         open_port(port)
     assert str(e.value) == f"cannot open serial port {port}: {why}"
+
+
+def test_ctrl_c_quits_the_monitor():
+    """Ctrl-C in the live monitor only showed "Press ctrl+q to quit" (textual's own binding),
+    although every other rprs process stops on it. It now quits."""
+    app = sim()
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.press("ctrl+c")
+            for _ in range(50):
+                await pilot.pause(0.1)
+                if not app.is_running:
+                    break
+            assert not app.is_running
+    run(go())
