@@ -144,6 +144,24 @@ def test_the_dissector_installs_where_asked(tmp_path):
 
 
 # ---------------------------------------------------------------- CAN payloads and crc()
+def test_the_dbc_table_command_helps_and_says_a_bad_plugin_in_one_line(tmp_path):
+    """``python -m hil.wireshark.dbc_table --help`` was a traceback (it took --help for the
+    plugin's path); it helps, and a missing plugin or one without the table is one line and
+    exit status 2, the file left as it was."""
+    import subprocess
+    import sys
+    cmd = [sys.executable, "-m", "hil.wireshark.dbc_table"]
+    r = subprocess.run([*cmd, "--help"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.startswith("usage:"), r.stdout + r.stderr
+    other = tmp_path / "other.lua"
+    other.write_text("-- no table here\n")
+    for path, why in ((tmp_path / "none.lua", "No such file"), (other, "no DBC table")):
+        r = subprocess.run([*cmd, str(path)], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and r.stdout == "", r.stdout
+        assert r.stderr.count("\n") == 1 and why in r.stderr and "Traceback" not in r.stderr
+    assert other.read_text() == "-- no table here\n"
+
+
 def test_the_plugin_carries_the_dbc_table_rprs_dbc_gives():
     # regenerate with: python -m hil.wireshark.dbc_table
     from hil.wireshark.dbc_table import lua_table, section
