@@ -23,6 +23,7 @@ from hil.bench.scripts import HeardFrame  # noqa: E402
 from hil.view.monitor import RadioMonitorApp, SimMonitorApp  # noqa: E402
 from hil.sim.world import SimConfig  # noqa: E402
 from textual.widgets import Static  # noqa: E402
+from pilots import stopped_within  # noqa: E402
 
 SIZE = (140, 40)
 
@@ -860,9 +861,5 @@ def test_ctrl_c_quits_the_monitor():
     async def go():
         async with app.run_test(size=SIZE) as pilot:
             await pilot.press("ctrl+c")
-            for _ in range(50):
-                await pilot.pause(0.1)
-                if not app.is_running:
-                    break
-            assert not app.is_running
+            assert await stopped_within(app, pilot)
     run(go())
