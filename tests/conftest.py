@@ -43,7 +43,7 @@ REALTIME_TESTS = TIMING_TESTS | frozenset({
 
 TIMING_MODULES = frozenset({
     "test_bench_processes", "test_conformance", "test_differential", "test_stranger_robot",
-    "test_paper_profile", "test_child_acceptance",
+    "test_paper_profile", "test_child_acceptance", "test_bench_stalls",
 })
 """Wall-clock tests that judge timing (turn hand-overs to a few ms, gaps, misses), and the
 acceptance tests whose bench father keeps a ring with a child process: they run with the CPU
