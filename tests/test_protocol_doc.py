@@ -382,3 +382,23 @@ if __name__ == "__main__":       # print the blocks docs/protocol.md §8 holds
     for block in examples():
         print(f"```frame\n{block}```\n")
     print(f"```transcript\n{transcript()}```")
+
+
+def test_clause_19a_names_the_order_types_and_the_failure_codes_the_child_uses():
+    """Clause 19a (orders and information) is normative: its order Types are the dispatcher's
+    REQUEST_TYPES, and its failure-code table holds exactly the codes the child answers with
+    (each constant of the dispatcher and the kinematics), no more."""
+    from firmware_model import dispatcher as d
+    from firmware_model import kinematics as k
+    text = doc()
+    start = text.index("**Clause 19a — Orders and information**")
+    clause = text[start:text.index("\n**Clause", start + 10)]
+    assert "only those of Type `'0'`, `'1'` or `'2'` are **orders**" in clause
+    assert d.REQUEST_TYPES == {0, 1, 2}
+    rows = re.findall(r"^\| (\d+)(\+n)? \| ", clause, flags=re.M)
+    table = {(int(c), bool(n)) for c, n in rows}
+    code = {(k.CODE_UNREACHABLE, False), (k.CODE_JOINT_LIMIT, False), (d.CODE_RANGE, False),
+            (d.CODE_FAULT, True), (d.CODE_REFUSED, True), (d.CODE_SILENT, True),
+            (d.CODE_SILENT, False), (d.CODE_BUS_OFF, False), (d.CODE_BLOCKED, False),
+            (d.CODE_NO_CAN, False)}
+    assert table == code and len(rows) == len(code)
