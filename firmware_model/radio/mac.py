@@ -451,6 +451,7 @@ class RotationalMac:
         self.misses: dict[int, int] = {}
         self.ever_member: set[int] = set()
         self._silent = 0                  # consecutive misses with no frame heard at all
+        self._unheard: set[int] = set()   # paper profile: static-ring robots not heard yet
         self._queue: list[Message] = []
         self._inflight: Message | None = None
         self._next_num = 0
@@ -572,6 +573,7 @@ class RotationalMac:
         self.ring = tuple(sorted(set(self.cfg.team) | {self.id}))
         self.misses = {r: 0 for r in self.ring}
         self.ever_member = set(self.ring)
+        self._unheard = set(self.ring) - {self.id}
         self._booting = False
         self._announcing = None
         self._silent = 0
@@ -644,6 +646,8 @@ class RotationalMac:
                 self._booting_peers.discard(src)
             self.misses[src] = 0
             self._silent = 0
+            if self._unheard:
+                self._unheard.discard(src)
             if self._fail_run is not None:
                 self._good_since_fail = True
                 if self._fail_run[0] == src:
@@ -814,6 +818,8 @@ class RotationalMac:
         self._last_heard = (src, end)
         self.misses[src] = 0
         self._silent = 0
+        if self._unheard:
+            self._unheard.discard(src)
         if self._fail_run is not None:
             self._good_since_fail = True
             if self._fail_run[0] == src:
@@ -909,6 +915,8 @@ class RotationalMac:
         self._last_heard = (src, end)
         self.misses[src] = 0
         self._silent = 0
+        if self._unheard:
+            self._unheard.discard(src)
         if frame.dst == self.id or frame.dst == BROADCAST:
             try:
                 app_cmds = _layers(frame.content)[1] if frame.content else ()
@@ -1157,7 +1165,11 @@ class RotationalMac:
         n = self.misses.get(o, 0) + 1
         self.misses[o] = n
         out.append(Miss(o))
-        self._silent += 1
+        if o not in self._unheard:
+            # the cut-off (clause 40) counts misses of robots heard since the static ring
+            # began (paper profile, docs/protocol.md §9.1): a team robot never heard is no
+            # evidence that our radio is cut off
+            self._silent += 1
         self._tell_view = True
         # An active father PC that missed two turns with nothing at all heard since its own
         # frame may have been deaf while its standby took ID 0's turn (clause 50): if its radio
