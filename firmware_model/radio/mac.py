@@ -54,6 +54,7 @@ from ..timing import (
     CHILD_BYTE_TICKS,
     FRAME_OVERHEAD,
     MISS_LIMIT,
+    PC_BYTE_TICKS,
     TMAX_TICKS,
     TTRANS_TICKS,
     max_content_bytes,
@@ -384,6 +385,40 @@ class MacConfig:
         one turn each: (|team|-1) x Tmax), plus one Tmax, staggered by ID so the lowest claims
         first."""
         return len(self.team) * self.tmax + robot * self.tslot
+
+    def silent_drop_ticks(self, ring: Iterable[int]) -> int:
+        """The longest time from a member's radio failing to its drop, in an idle ring of the
+        members ``ring`` (docs/protocol.md §7.3, each term with its clause there).
+
+        The worst failure cuts the robot's frame after its Header, before its Length: the
+        others abandon it one stall gap after its last byte and close its turn a quiet gap
+        later (clause 41; 2 ticks for the stall timer's resolution); the robot after it
+        waits its R-stagger (clause 44), at worst the highest ID's; then three rounds of the
+        others' turns, each frame with ``ring(mask)`` (clause 51), and three times Tmax
+        (clauses 24, 25). In a ring of two every miss follows the survivor's own frame, so
+        each adds its R-stagger. A team with IDs outside the ring adds each member's one
+        invitation in those turns (clauses 32, 33). B is a PC's byte, the slower."""
+        ring = tuple(sorted(set(ring)))
+        n = len(ring)
+        if n < 2:
+            raise ValueError(f"a silent robot is dropped by the others: give 2 or more "
+                             f"members, got {list(ring)}")
+        b, m = PC_BYTE_TICKS, self.miss_limit
+        cut = max(self.stall_gap, 2 * b) + self.quiet_gap + 2
+        if self.profile == "paper":    # no ring(mask), no R-stagger (§9.1): heartbeats
+            return cut + m * ((n - 1) * (self.ttrans + FRAME_OVERHEAD * b) + self.tmax)
+        sealed = (CRC_TEXT_LEN if self.checksum else 0) + \
+            (_auth.AUTH_TEXT_LEN if self.auth is not None else 0)
+        told = self.ttrans + (FRAME_OVERHEAD + len("ring(127)") + sealed) * b
+        stagger = max(ring) * self.tslot
+        # A member whose gap holds team IDs outside the ring invites one every poll_every of
+        # its turns: poll(k,127) is 2 bytes longer than ring(127), and a window of Twin follows
+        inviters = sum(1 for i, r in enumerate(ring) if any(
+            (r + d) % 7 in self.team for d in range(1, (ring[(i + 1) % n] - r) % 7)))
+        polls = min(inviters, n - 1) * -(-m // self.poll_every) * (self.twin + 2 * b)
+        if n == 2:
+            return cut + polls + m * (told + self.tmax + stagger)
+        return cut + polls + stagger + m * ((n - 1) * told + self.tmax)
 
 
 def check_submission(robot: int, dst: int, commands: Iterable[Command],
