@@ -348,7 +348,8 @@ class CanBus:
         self._inject: dict[int | None, list[int | None]] = {}
         self._local: dict[int, list[int | None]] = {}      # node id -> bits, one per frame
         self._noisy: dict[int, int | None] = {}            # node id -> bit, every frame
-        self._cur_deaf: set[int] | frozenset[int] = _NO_DEAF  # passive nodes that flagged a local error
+        # passive nodes that flagged a local error
+        self._cur_deaf: set[int] | frozenset[int] = _NO_DEAF
         self._watch = False
         """Some node may be bus-off or in suspend transmission: the idle time's start and end
         must look at every node (False: none is, and none needs to)."""
@@ -673,7 +674,8 @@ class CanBus:
             if f != frame:
                 wire = _frame_info(frame)[0]
                 w2 = _frame_info(f)[0]
-                k = next((i for i, (a, b) in enumerate(zip(wire, w2)) if a != b), min(len(wire), len(w2)) - 1)
+                k = next((i for i, (a, b) in enumerate(zip(wire, w2)) if a != b),
+                         min(len(wire), len(w2)) - 1)
                 if err is None or k < err[0]:
                     err = (k, "bit")
         if self._inject:
@@ -1044,12 +1046,13 @@ class CanBus:
                         ns.on_error(CanErrorEvent("bit", t, frame, True, ns.tec, ns.rec, ns.state))
                 for ns in h.rx:
                     if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
-                        ns.on_error(CanErrorEvent("stuff", t, frame, False, ns.tec, ns.rec, ns.state))
+                        ns.on_error(CanErrorEvent("stuff", t, frame, False, ns.tec, ns.rec,
+                                                  ns.state))
                 self.error_frames += 1
                 if self.error_trace is not None:
                     self.error_trace("bit" if h.tx else "stuff", frame,
-                                     self._cur_start if h.tx else t - ERROR_FLAG_BITS * tpb, t, None,
-                                     h.tx[0].node if h.tx else None)
+                                     self._cur_start if h.tx else t - ERROR_FLAG_BITS * tpb, t,
+                                     None, h.tx[0].node if h.tx else None)
             else:
                 if s >= 2:
                     self._count(h.tx, 8, 0, t)
@@ -1092,7 +1095,8 @@ class CanBus:
         if h.ev is not None:
             h.ev.cancel()
         tpb = self.tpb
-        idle_at = max(h.released, h.flag + ERROR_FLAG_BITS * tpb) + (ERROR_DELIMITER_BITS + IFS_BITS) * tpb
+        idle_at = (max(h.released, h.flag + ERROR_FLAG_BITS * tpb)
+                   + (ERROR_DELIMITER_BITS + IFS_BITS) * tpb)
         for ns in h.tx:
             if ns.state is PASSIVE:
                 ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb

@@ -353,7 +353,8 @@ def encode_raw_values(name: str, values: tuple[int, ...]) -> CanFrame:
 def _lookup(frame: FrameLike) -> tuple[_Msg, bytes]:
     if isinstance(frame, can.Message):
         if frame.is_extended_id:
-            raise DbcError(f"extended id {frame.arbitration_id:#x}: {DBC_FILE} has CAN 2.0A frames only")
+            raise DbcError(f"extended id {frame.arbitration_id:#x}: {DBC_FILE} has CAN 2.0A "
+                           "frames only")
         can_id, rtr, data = frame.arbitration_id, frame.is_remote_frame, bytes(frame.data or b"")
     elif isinstance(frame, CanFrame):
         can_id, rtr, data = frame.id, frame.rtr, frame.data

@@ -67,7 +67,8 @@ JOINT3     elbow                 -135 .. 135     90         45
 JOINT4     wrist (end link)      -120 .. 120     90         45
 =========  ====================  ==============  =========  =============
 
-Joints start at 0 deg (or ``initial_angles``), idle. WHEEL: max 300 mm/s, acceleration 500 mm/s^2, odometer 0.
+Joints start at 0 deg (or ``initial_angles``), idle. WHEEL: max 300 mm/s, acceleration 500 mm/s^2,
+odometer 0.
 PAW: full stroke 800 ms, starts fully open (100 %), object size 40 %, no object.
 
 Over 500 lines on purpose: the six submodules share one node base (queue, status, DBC coding);
@@ -843,14 +844,14 @@ class WheelNode(_Submodule):
             elif lo + brake(lo, a) > rem:
                 w = lo
             else:  # largest w in [lo, hi) with w + brake(w) <= rem
-                l, h = lo, hi
-                while h - l > 1:
-                    m = (l + h) // 2
+                fits, over = lo, hi
+                while over - fits > 1:
+                    m = (fits + over) // 2
                     if m + brake(m, a) <= rem:
-                        l = m
+                        fits = m
                     else:
-                        h = m
-                w = l
+                        over = m
+                w = fits
             if w >= rem:
                 self._x_nm += d * rem
                 self.v_ums = 0
@@ -921,7 +922,8 @@ class WheelNode(_Submodule):
 
 
 def make_submodules(sched: Scheduler, bus: CanBus,
-                    initial_angles: Sequence[float] = (0.0, 0.0, 0.0, 0.0)) -> dict[str, _Submodule]:
+                    initial_angles: Sequence[float] = (0.0, 0.0, 0.0, 0.0),
+                    ) -> dict[str, _Submodule]:
     """The six executive submodules with the default parameters (module docstring table),
     attached to ``bus``, keyed by DBC node name: JOINT1..JOINT4, WHEEL, PAW.
 

@@ -41,12 +41,14 @@ Rs pin (pin 8) modes
   first run of dominant bits that long (SOF and the ID's leading 0 bits; a single dominant
   bit at 500 kbit/s, 2 us, does not wake it); at an error flag, 3 us into the flag; for a bus
   stuck dominant with no frame in flight, at the tick the error flag starts (6 bit times after
-  the bus went dominant: the bus model gives no earlier hook). The SOF is seen through ``pending()``, which the bus does not call for a
+  the bus went dominant: the bus model gives no earlier hook). The SOF is seen through
+  ``pending()``, which the bus does not call for a
   node it counts bus-off: such a node wakes only on a stuck bus. Mode changes take effect at
   the next arbitration; a frame of this node already on the bus completes.
 
   Simplification: in standby the node stays attached to the bus, so the bus still counts it
-  as a receiver (its REC follows the traffic). It does not acknowledge (``acknowledges``). The controller's error state
+  as a receiver (its REC follows the traffic). It does not acknowledge (``acknowledges``). The
+  controller's error state
   (``on_state_change``) is still forwarded, as the controller mirrors the bus's counters.
 
 TXD / RXD

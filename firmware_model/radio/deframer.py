@@ -16,7 +16,8 @@ Garbage (bytes discarded while hunting, partial Headers included) is reported as
 :class:`Garbage` event per run of consecutive discarded bytes, emitted when a Header is
 confirmed (its 3rd byte accepted), by :meth:`Deframer.flush`, and at the end of every
 :meth:`Deframer.feed` call. :meth:`Deframer.feed_byte` does not flush, so
-``feed(data, t0, dt)`` returns exactly ``feed_byte(b_i, t0 + i*dt)`` for each byte, then ``flush()``.
+``feed(data, t0, dt)`` returns exactly ``feed_byte(b_i, t0 + i*dt)`` for each byte, then
+``flush()``.
 """
 from __future__ import annotations
 
@@ -53,7 +54,8 @@ _WHOLE_MAX = 8192
 
 @dataclass(frozen=True, slots=True)
 class FrameReceived:
-    """A good frame. ``first``: tick its first Header byte completed; ``end``: tick its last End byte completed."""
+    """A good frame. ``first``: tick its first Header byte completed; ``end``: tick its last End
+    byte completed."""
 
     frame: Frame
     first: int
@@ -62,7 +64,8 @@ class FrameReceived:
 
 @dataclass(frozen=True, slots=True)
 class Garbage:
-    """``count`` consecutive bytes discarded while hunting, the first completed at tick ``first``, the last at ``last``."""
+    """``count`` consecutive bytes discarded while hunting, the first completed at tick ``first``,
+    the last at ``last``."""
 
     count: int
     first: int
