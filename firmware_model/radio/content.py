@@ -182,7 +182,8 @@ def _normalise(spec: CommandSpec, p: Param, v: object) -> tuple[int | float | No
     if t is not float and isinstance(v, numbers.Integral):
         v = int(v)
     elif p.kind == "num" and (t is float or isinstance(v, numbers.Real)):
-        v = float(v)
+        # a float or a numbers.Real (which has __float__, unseen by mypy through the ABC)
+        v = float(v)  # type: ignore[arg-type]
         if not math.isfinite(v):
             return None, f"{spec.name} parameter {p.name} must be finite, got {v!r}"
         v = float(f"{v:.3f}") + 0.0  # wire resolution 0.001; '+ 0.0' turns -0.0 into 0.0
