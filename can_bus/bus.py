@@ -125,7 +125,7 @@ import heapq
 from dataclasses import dataclass
 from enum import Enum
 from functools import lru_cache
-from typing import Any, Callable
+from typing import AbstractSet, Any, Callable
 
 import can
 
@@ -330,7 +330,8 @@ class CanBus:
         self._ack_limited = False            # some pair of nodes exceeds the budget
         self._cur_late = False               # this frame's ACK error is a late ACK
         self.trace: Callable[[CanFrame, int, int, Any], None] | None = None
-        self.error_trace: Callable[[str, CanFrame | None, int, int, int, Any], None] | None = None
+        self.error_trace: Callable[[str, CanFrame | None, int, int, int | None, Any], None] | None \
+            = None
         self.frames_ok = 0
         self.error_frames = 0
         self._nodes: list[_Node] = []
@@ -739,6 +740,7 @@ class CanBus:
         now = self.sched.now
         tpb = self.tpb
         frame = self._cur_frame
+        assert frame is not None                  # the frame this segment carried
         idle_at = now + IFS_BITS * tpb
         self._phase = _TAIL
         self._busy_until = idle_at
@@ -767,7 +769,7 @@ class CanBus:
                 ns.on_tx_done(frame, now)
         self._rx_deliver(frame, self._cur_start, now, self._cur_rx, deaf)
 
-    def _rx_count(self, rx: list[_Node], deaf: set[int], now: int) -> None:
+    def _rx_count(self, rx: list[_Node], deaf: AbstractSet[int], now: int) -> None:
         """Receivers' REC after a frame they took (ISO 11898-1 rule 8)."""
         for ns in rx:
             if deaf and id(ns) in deaf and ns.state is not BUS_OFF:
@@ -784,7 +786,7 @@ class CanBus:
 
     @staticmethod
     def _rx_deliver(frame: CanFrame, start: int, now: int, rx: list[_Node],
-                    deaf: set[int]) -> None:
+                    deaf: AbstractSet[int]) -> None:
         fid = frame.id
         for ns in rx:
             ids = ns.rx_ids                   # first: most nodes ignore most frames
@@ -877,7 +879,8 @@ class CanBus:
             if err is not None and err[0] <= b:
                 continue                       # an error everyone sees comes first
             if ns.state is PASSIVE:
-                self._cur_deaf.add(key)
+                # _local_errors runs just after _cur_deaf = set(): a set of its own here
+                self._cur_deaf.add(key)  # type: ignore[union-attr]
                 continue
             if best is None or b < best[0]:
                 best = (b, ns)
@@ -1008,6 +1011,7 @@ class CanBus:
 
     def _hold_tick_time(self, step: int) -> int:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         if step == 0:
             return h.flag
         if step == 1:
@@ -1016,10 +1020,12 @@ class CanBus:
 
     def _can_change(self) -> bool:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         return any(ns.state is not BUS_OFF for ns in h.tx) or any(ns.state is ACTIVE for ns in h.rx)
 
     def _settle(self, upto: int) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         tpb = self.tpb
         limit = upto if h.released is None else min(upto, h.released)
         while True:
@@ -1068,6 +1074,7 @@ class CanBus:
 
     def _hold_schedule(self) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         if h.ev is not None:
             h.ev.cancel()
             h.ev = None
@@ -1083,6 +1090,7 @@ class CanBus:
 
     def _hold_tick(self) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         h.ev = None
         self._settle(self.sched.now)
         if h.released is not None:
@@ -1092,6 +1100,7 @@ class CanBus:
 
     def _hold_finish(self) -> None:
         h = self._hold
+        assert h is not None and h.released is not None     # held, then released
         if h.ev is not None:
             h.ev.cancel()
         tpb = self.tpb

@@ -77,7 +77,7 @@ the joint, wheel and paw physics are short.
 from __future__ import annotations
 
 import heapq
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from can_bus import dbc
 from can_bus.bus import CanBus, CanFrame
@@ -159,6 +159,12 @@ def _trunc_div(a: int, b: int) -> int:
 
 class _Submodule:
     """Queue, status timer, EVENTs, silence, ESTOP and fault bookkeeping shared by all nodes."""
+
+    # stall detection, kept by the nodes that detect stalls (joints and the wheel), which
+    # also define _stall_detected
+    _stall_ev: Event | None
+    _noprog_since: int | None
+    _stall_detected: Callable[[], None]
 
     def __init__(self, sched: Scheduler, bus: CanBus, number: int,
                  status_offset: int | None = None) -> None:
@@ -416,6 +422,7 @@ class _AxisNode(_Submodule):
     def _plan(self) -> None:
         """Plan the motion from the (frozen) current position toward ``_target``."""
         p, target = self._p0, self._target
+        assert target is not None                 # a move was commanded
         if p == target:
             self._cancel_stall()
             self._target = None

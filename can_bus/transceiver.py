@@ -70,7 +70,7 @@ from typing import Any, Callable, Protocol
 from can_bus import physical
 from can_bus.bits import wire_bits
 from can_bus.bus import CanErrorEvent, CanFrame, ErrorState, NodeStatus
-from can_bus.clock import Clock
+from can_bus.clock import Cancellable, Clock
 from can_bus.physical import HIGH_SPEED_MAX_OHMS, MAX_BITRATE, loop_delay_s, slew_rate
 
 __all__ = [
@@ -183,9 +183,9 @@ class Transceiver82C250:
         self._stuck = False
         self._held = False
         self._want_hold = False
-        self._hold_ev = None
+        self._hold_ev: Cancellable | None = None
         self._wake_armed = self._standby
-        self._sof_ev = None
+        self._sof_ev: Cancellable | None = None
         self.controller = None
         self._c_pending = self._c_frame = self._c_tx_done = None
         self._c_lost = self._c_error = self._c_state = None
