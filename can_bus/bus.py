@@ -125,7 +125,7 @@ import heapq
 from dataclasses import dataclass
 from enum import Enum
 from functools import lru_cache
-from typing import Any, Callable
+from typing import AbstractSet, Any, Callable
 
 import can
 
@@ -330,7 +330,8 @@ class CanBus:
         self._ack_limited = False            # some pair of nodes exceeds the budget
         self._cur_late = False               # this frame's ACK error is a late ACK
         self.trace: Callable[[CanFrame, int, int, Any], None] | None = None
-        self.error_trace: Callable[[str, CanFrame | None, int, int, int, Any], None] | None = None
+        self.error_trace: Callable[[str, CanFrame | None, int, int, int | None, Any], None] | None \
+            = None
         self.frames_ok = 0
         self.error_frames = 0
         self._nodes: list[_Node] = []
@@ -348,7 +349,8 @@ class CanBus:
         self._inject: dict[int | None, list[int | None]] = {}
         self._local: dict[int, list[int | None]] = {}      # node id -> bits, one per frame
         self._noisy: dict[int, int | None] = {}            # node id -> bit, every frame
-        self._cur_deaf: set[int] | frozenset[int] = _NO_DEAF  # passive nodes that flagged a local error
+        # passive nodes that flagged a local error
+        self._cur_deaf: set[int] | frozenset[int] = _NO_DEAF
         self._watch = False
         """Some node may be bus-off or in suspend transmission: the idle time's start and end
         must look at every node (False: none is, and none needs to)."""
@@ -673,7 +675,8 @@ class CanBus:
             if f != frame:
                 wire = _frame_info(frame)[0]
                 w2 = _frame_info(f)[0]
-                k = next((i for i, (a, b) in enumerate(zip(wire, w2)) if a != b), min(len(wire), len(w2)) - 1)
+                k = next((i for i, (a, b) in enumerate(zip(wire, w2)) if a != b),
+                         min(len(wire), len(w2)) - 1)
                 if err is None or k < err[0]:
                     err = (k, "bit")
         if self._inject:
@@ -737,6 +740,7 @@ class CanBus:
         now = self.sched.now
         tpb = self.tpb
         frame = self._cur_frame
+        assert frame is not None                  # the frame this segment carried
         idle_at = now + IFS_BITS * tpb
         self._phase = _TAIL
         self._busy_until = idle_at
@@ -765,7 +769,7 @@ class CanBus:
                 ns.on_tx_done(frame, now)
         self._rx_deliver(frame, self._cur_start, now, self._cur_rx, deaf)
 
-    def _rx_count(self, rx: list[_Node], deaf: set[int], now: int) -> None:
+    def _rx_count(self, rx: list[_Node], deaf: AbstractSet[int], now: int) -> None:
         """Receivers' REC after a frame they took (ISO 11898-1 rule 8)."""
         for ns in rx:
             if deaf and id(ns) in deaf and ns.state is not BUS_OFF:
@@ -782,7 +786,7 @@ class CanBus:
 
     @staticmethod
     def _rx_deliver(frame: CanFrame, start: int, now: int, rx: list[_Node],
-                    deaf: set[int]) -> None:
+                    deaf: AbstractSet[int]) -> None:
         fid = frame.id
         for ns in rx:
             ids = ns.rx_ids                   # first: most nodes ignore most frames
@@ -875,7 +879,8 @@ class CanBus:
             if err is not None and err[0] <= b:
                 continue                       # an error everyone sees comes first
             if ns.state is PASSIVE:
-                self._cur_deaf.add(key)
+                # _local_errors runs just after _cur_deaf = set(): a set of its own here
+                self._cur_deaf.add(key)  # type: ignore[union-attr]
                 continue
             if best is None or b < best[0]:
                 best = (b, ns)
@@ -1006,6 +1011,7 @@ class CanBus:
 
     def _hold_tick_time(self, step: int) -> int:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         if step == 0:
             return h.flag
         if step == 1:
@@ -1014,10 +1020,12 @@ class CanBus:
 
     def _can_change(self) -> bool:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         return any(ns.state is not BUS_OFF for ns in h.tx) or any(ns.state is ACTIVE for ns in h.rx)
 
     def _settle(self, upto: int) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         tpb = self.tpb
         limit = upto if h.released is None else min(upto, h.released)
         while True:
@@ -1044,12 +1052,13 @@ class CanBus:
                         ns.on_error(CanErrorEvent("bit", t, frame, True, ns.tec, ns.rec, ns.state))
                 for ns in h.rx:
                     if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
-                        ns.on_error(CanErrorEvent("stuff", t, frame, False, ns.tec, ns.rec, ns.state))
+                        ns.on_error(CanErrorEvent("stuff", t, frame, False, ns.tec, ns.rec,
+                                                  ns.state))
                 self.error_frames += 1
                 if self.error_trace is not None:
                     self.error_trace("bit" if h.tx else "stuff", frame,
-                                     self._cur_start if h.tx else t - ERROR_FLAG_BITS * tpb, t, None,
-                                     h.tx[0].node if h.tx else None)
+                                     self._cur_start if h.tx else t - ERROR_FLAG_BITS * tpb, t,
+                                     None, h.tx[0].node if h.tx else None)
             else:
                 if s >= 2:
                     self._count(h.tx, 8, 0, t)
@@ -1065,6 +1074,7 @@ class CanBus:
 
     def _hold_schedule(self) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         if h.ev is not None:
             h.ev.cancel()
             h.ev = None
@@ -1080,6 +1090,7 @@ class CanBus:
 
     def _hold_tick(self) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         h.ev = None
         self._settle(self.sched.now)
         if h.released is not None:
@@ -1089,10 +1100,12 @@ class CanBus:
 
     def _hold_finish(self) -> None:
         h = self._hold
+        assert h is not None and h.released is not None     # held, then released
         if h.ev is not None:
             h.ev.cancel()
         tpb = self.tpb
-        idle_at = max(h.released, h.flag + ERROR_FLAG_BITS * tpb) + (ERROR_DELIMITER_BITS + IFS_BITS) * tpb
+        idle_at = (max(h.released, h.flag + ERROR_FLAG_BITS * tpb)
+                   + (ERROR_DELIMITER_BITS + IFS_BITS) * tpb)
         for ns in h.tx:
             if ns.state is PASSIVE:
                 ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb

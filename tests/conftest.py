@@ -79,7 +79,8 @@ def pytest_configure(config):
         # Started as a background job of a shell without job control (``pytest &`` in a
         # script, some CI runners), this process ignores SIGINT, and every program a test
         # starts would inherit that: Python then installs no Ctrl-C handler, and a test that
-        # stops ``rprs soak`` with SIGINT saw it run to the end and exit 0. Tests play a terminal's foreground job: Ctrl-C is delivered.
+        # stops ``rprs soak`` with SIGINT saw it run to the end and exit 0. Tests play a terminal's
+        # foreground job: Ctrl-C is delivered.
         signal.signal(signal.SIGINT, signal.default_int_handler)
     if not getattr(config, "workerinput", None) and \
             getattr(config.option, "testrunuid", "unset") is None:

@@ -2,6 +2,8 @@
 §1-2)."""
 from __future__ import annotations
 
+import functools
+
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
@@ -39,7 +41,7 @@ class Net:
             pin.listeners.append(r.set_txen)
             self.logs.append([])
             self.calls.append([])
-            u.on_rx = (lambda i: lambda d, t0, dt: self._rx(i, d, t0, dt))(i)
+            u.on_rx = functools.partial(self._rx, i)
             self.air.attach(r)
             self.radios.append(r)
             self.uarts.append(u)

@@ -465,7 +465,8 @@ def test_each_bench_process_captures_its_own_port_and_bus(hub, tmp_path):
     assert set(ifaces.values()) == {"R0 radio, sent", "R0 radio, heard"}
     sent = [parse_frame(d) for i, _, d in fpk if i == "R0 radio, sent"]
     assert sent and all(f.src == 0 for f in sent)
-    assert any(f.dst == 1 and b"joint(1,20)" in f.content for f in sent), [(f.dst, f.content) for f in sent][-8:]
+    assert any(f.dst == 1 and b"joint(1,20)" in f.content for f in sent), \
+        [(f.dst, f.content) for f in sent][-8:]
     heard = b"".join(d for i, _, d in fpk if i == "R0 radio, heard")
     assert b"\x0f\x0a\x05" + b"0" + b"1" in heard or b"\x0f\x0a\x0571" in heard  # R1's frames
     _, cpk = _pcap(caps["child"])

@@ -105,7 +105,7 @@ def test_a_process_stopped_for_a_second_sends_nothing_stale_when_it_continues(
             t_cont = sniffer.tick() / 16e6
             # it takes its turns again (within the three misses the others allow, or after
             # being invited back if a busy machine made it miss a third)
-            assert wait_for(lambda: heard(sniffer, stopped, t_cont) >= 3, 15.0)
+            assert wait_for(lambda t=t_cont: heard(sniffer, stopped, t) >= 3, 15.0)
         time.sleep(0.5)
         collisions = hub.stats()["collisions"] - collisions_before
         packets = rec.snapshot()[n_before:]

@@ -115,7 +115,8 @@ def test_single_frame_exact_ticks():
 @given(
     st.integers(0, 0x7FF),
     st.binary(max_size=8),
-    st.sampled_from([BitTiming(), BitTiming.from_bitrate(125_000), BitTiming.from_bitrate(1_000_000)]),
+    st.sampled_from([BitTiming(), BitTiming.from_bitrate(125_000),
+                     BitTiming.from_bitrate(1_000_000)]),
 )
 def test_frame_takes_length_times_ticks_per_bit(can_id, data, timing):
     sched, bus, (a, b), log, _ = make(timing=timing)
@@ -385,7 +386,8 @@ def test_random_traffic_and_faults_keep_invariants(n_nodes, ops):
             bus.request(node, CanFrame(x * 4 + nodes.index(node), data))
             requested += 1
         elif op == "inject":
-            bus.inject_bit_error(node if x & 1 else None, count=x % 40, bit=None if x & 2 else x % 130)
+            bus.inject_bit_error(node if x & 1 else None, count=x % 40,
+                                 bit=None if x & 2 else x % 130)
         else:
             bus.hold_dominant(node, op == "hold")
         for m in nodes:
@@ -396,7 +398,8 @@ def test_random_traffic_and_faults_keep_invariants(n_nodes, ops):
     sched.run_until(t + 10**8)
     assert bus.idle
     assert sum(len(m.done) for m in nodes) == requested  # all sent once faults are gone
-    spans = sorted([(s_, e + 3 * TPB) for _, s_, e, _ in log] + [(e[2], e[4]) for e in errs if e[4] is not None])
+    spans = sorted([(s_, e + 3 * TPB) for _, s_, e, _ in log]
+                   + [(e[2], e[4]) for e in errs if e[4] is not None])
     assert all(q[0] >= p[1] for p, q in zip(spans, spans[1:]))  # nothing overlaps on the wire
 
 
@@ -423,8 +426,8 @@ def test_a_node_pending_after_request_is_asked_again_only_after_its_request():
     for cls, b_asked in ((CountingNode, 6), (AfterRequestNode, 1)):
         sched, bus, (a, b), log, _ = make(2, cls=cls)
         for k in range(3):
-            sched.at(k * 3000, lambda k=k: (a.q.append(CanFrame(0x100 + k, b"x")),
-                                            bus.request(a)))
+            sched.at(k * 3000, lambda k=k, a=a, bus=bus: (a.q.append(CanFrame(0x100 + k, b"x")),
+                                                          bus.request(a)))
         sched.run_until(10_000)
         assert [f.id for f, *_ in log] == [0x100, 0x101, 0x102]
         assert b.asked == b_asked, cls.__name__

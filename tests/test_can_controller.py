@@ -257,7 +257,7 @@ def test_acceptance_exact_masks_accept_all_and_priority():
     a.configure_tx(0, 0)
     expect = {0x181: 0, 0x0C3: 1, 0x0CF: 1, 0x0D3: 15, 0x605: 2, 0x606: 15, 0x180: 15}
     got = {}
-    for can_id, buf in expect.items():
+    for can_id in expect:
         a.configure_tx(0, can_id)
         a.transmit(0)
         r.run(r.sched.now + 200 * TPB)

@@ -10,7 +10,6 @@ import heapq
 import re
 from pathlib import Path
 
-import pytest
 
 from firmware_model.radio import integrity
 from firmware_model.radio.content import cmd, frame_kind

@@ -432,7 +432,7 @@ def test_socat_a_client_nobody_here_wrote_sends_and_receives_frames_on_the_hub(h
         sock.stdin.write(payload)
         sock.stdin.flush()
         assert read_n(fd1, len(payload), 5.0)[0] == payload
-        time.sleep(0.02)            # node 0 is deaf until Ttrans after its burst (docs/radio-hub.md)
+        time.sleep(0.02)    # node 0 is deaf until Ttrans after its burst (docs/radio-hub.md)
         os.write(fd1, FRAME)                      # and back: socat prints what its node hears
         got = bytearray()
         end = time.monotonic() + 5.0

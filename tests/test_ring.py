@@ -90,7 +90,7 @@ def test_paper_simulation_r1_dies_three_misses_then_dropped():
     disables = [e for e in after if e["ev"] == "disable"]
     assert {e["by"] for e in disables} == {2, 3, 4} and {e["robot"] for e in disables} == {1}
     t_drop = disables[0]["t"]
-    assert all(e.get("t", -1) == t_drop for e in disables)            # every member at the same tick
+    assert all(e.get("t", -1) == t_drop for e in disables)    # every member at the same tick
     for observer in (2, 3, 4):
         mine = [e.get("t", -1) for e in misses if e["by"] == observer and e.get("t", -1) <= t_drop]
         assert len(mine) == 3                                   # exactly three misses

@@ -39,7 +39,6 @@ from dataclasses import replace
 import pytest
 
 from firmware_model.radio.content import cmd
-from firmware_model.radio.frame import Frame
 from firmware_model.radio.mac import MacConfig
 from firmware_model.station import build_station
 from firmware_model.timing import (

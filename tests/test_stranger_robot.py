@@ -342,7 +342,7 @@ class StrangerRobot:
                 self.next_turn(f.src, f.end)
                 return
         self.misses[f.src] = 0
-        for k, mask in polls:                                       # clause 37
+        for _k, mask in polls:                                      # clause 37
             if mask != 1 << f.src and not mask >> self.id & 1:
                 self.to_listen(f"left out of {f.src}'s ring")
                 return self.on_frame_again(f)

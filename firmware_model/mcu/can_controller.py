@@ -283,7 +283,7 @@ class CanController:
             raise RuntimeError(f"{self.name}: buffer {buf} has a transmit request pending")
         rtr = bool(self._trtr & bit)
         frame = CanFrame(self._id[buf], b"" if rtr else bytes(data), rtr, dlc)
-        self._dlc[buf] = frame.dlc
+        self._dlc[buf] = frame.dlc  # type: ignore[assignment]  # an int after __post_init__
         if not rtr:
             self._dtr[buf] = frame.data + self._dtr[buf][len(frame.data):]
         self._txframe[buf] = frame
@@ -634,7 +634,7 @@ class CanController:
         self._rc = rc | bit
         self._rxframe[buf] = frame
         self._id[buf] = fid
-        self._dlc[buf] = frame.dlc
+        self._dlc[buf] = frame.dlc  # type: ignore[assignment]  # an int after __post_init__
         if frame.rtr:
             self._rrtr |= bit
         else:

@@ -48,7 +48,7 @@ import random
 from bisect import bisect_right
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Iterable
+from typing import Any, Iterable, Sequence
 
 from ..timing import (
     CHILD_BYTE_TICKS,
@@ -503,7 +503,7 @@ class RotationalMac:
         self._quiet_limit = 0
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
         self._hold_ref: int | None = None   # HOLD after an uncertain closure: its reference
-        self._garbled: tuple[int, int, int] | None = None
+        self._garbled: tuple[int, int, int | None] | None = None
         """(o, the tick o's turn closed, the owner then) after o's turn closed on garbage
         (clause 42): until the next turn begins, a good frame from o is o's frame, late."""
         self._promised: tuple[int, str, int | None] | None = None
@@ -525,7 +525,8 @@ class RotationalMac:
         self._watched = False
         self._check_turns = 0               # PC2 after a takeover: turns still to watch
         self._seen: dict[int, int] = {}      # LISTEN: source -> tick last heard
-        self._heard_disabled: dict[int, int] = {}   # disabled robot -> frames heard since
+        # disabled robot -> (frames heard since, the End of the last)
+        self._heard_disabled: dict[int, tuple[int, int]] = {}
         self.frames_sent = 0
         self.turns = 0
         self._hb_cache: dict[tuple, tuple[Frame, bytes]] = {}
@@ -654,7 +655,7 @@ class RotationalMac:
         self._queue.append(msg)
         return msg
 
-    def on_frame(self, frame: Frame, first: int, end: int, now: int) -> list:
+    def on_frame(self, frame: Frame, first: int, end: int, now: int) -> Sequence[Any]:
         """A valid frame was heard; its first header byte ended at ``first``, its End at ``end``."""
         src = frame.src
         phase = self.phase
@@ -691,9 +692,9 @@ class RotationalMac:
             i = bisect_right(ring, src)
             nxt = ring[i] if i < len(ring) else ring[0]
             if nxt == self.id:
-                out = []
-                self._my_turn(end, now, out)
-                return out
+                mine: list = []
+                self._my_turn(end, now, mine)
+                return mine
             self.phase = WAIT
             self.owner = nxt
             self.turn_start = end
@@ -748,7 +749,7 @@ class RotationalMac:
             answering = True
         if self.mode == MEMBER and self.lone and not answering:
             self._to_listen(out, now, "heard another robot while alone")
-        skipped = None
+        skipped: list[int] | None = None
         out_of_turn = False
         if self.mode == MEMBER and src in self.ring and self.phase in (WAIT, WINDOW) and \
                 self.owner is not None and src != self.owner and not answering:
@@ -813,9 +814,9 @@ class RotationalMac:
                         # and stands by; if PC1 is dead, PC2 answers the next invitation.
                         self._passed_invite = True
                         break
-                    ring = _unmask(p.args[1]) | {self.id, src}
+                    members = _unmask(p.args[1]) | {self.id, src}
                     self.mode = MEMBER
-                    self.ring = tuple(sorted(ring))
+                    self.ring = tuple(sorted(members))
                     self.misses = {r: 0 for r in self.ring}
                     self.ever_member |= set(self.ring)
                     self._silent = 0
@@ -899,6 +900,7 @@ class RotationalMac:
     def _auth_refusal(self, frame: Frame) -> tuple[str, str] | None:
         """Authenticated profile (clause 53): None for a genuine fresh frame (its freshness is
         then remembered as its Source's last), else (kind, reason)."""
+        assert self._key is not None                   # called in the authenticated profile
         fresh = _auth.check(self._key, frame)
         if fresh is None:
             return "forged", "forged: no valid authentication tag"
@@ -997,7 +999,7 @@ class RotationalMac:
             self.phase in (WAIT, HOLD) else None
         return out
 
-    def on_frame_over(self, now: int) -> list:
+    def on_frame_over(self, now: int) -> Sequence[Any]:
         """The frame that failed after its Length (``on_corrupt`` with the End it promised) is
         over sooner: its bytes stopped for the stall gap before that End (the sender died, or a
         Header cut off on purpose: 12 bytes that promise 562). Its turn closes now instead
@@ -1013,12 +1015,13 @@ class RotationalMac:
             self.turn_start = now
             self.deadline = now + self.cfg.tmax
         elif phase == HOLD:
+            assert deadline is not None                # HOLD always has its deadline
             self.deadline = deadline - (end - now)
             if self._hold_ref == end:
                 self._hold_ref = now
         return _NOTHING
 
-    def on_garbage(self, first: int, last: int, now: int) -> list:
+    def on_garbage(self, first: int, last: int, now: int) -> Sequence[Any]:
         """Bytes that form no frame were heard. In the owner's slot they are probably its frame
         with a corrupted Header: if the channel then falls quiet the turn closes (no miss);
         if it never does (idle noise), the owner misses at E + Tmax as usual."""
@@ -1156,13 +1159,16 @@ class RotationalMac:
             self._deadline_wait(now, rx_busy, last_rx, None, out)
             return
         if quiet or now >= self._quiet_limit:
-            garbled = self.owner if self._quiet_miss else None
+            owner = self.owner
+            assert owner is not None                   # QUIET is an owner's slot
+            garbled = owner if self._quiet_miss else None
             self._quiet_miss = False
-            self._slot_failed(self.owner, out)
-            self._next_turn(self.owner, now, now, out, uncertain=True)  # the frame is over
+            self._slot_failed(owner, out)
+            self._next_turn(owner, now, now, out, uncertain=True)  # the frame is over
             if garbled is not None and self.phase == WAIT:
                 self._garbled = (garbled, self.turn_start, self.owner)
         else:
+            assert last_rx is not None                 # not quiet: bytes were heard
             self.deadline = min(last_rx + gap, self._quiet_limit)
 
     def _header_coming(self, now: int, rx_busy: bool, rx_began: int | None,
@@ -1182,6 +1188,7 @@ class RotationalMac:
         """WINDOW: the invited robot did not answer by E + Twin: the poller's successor's turn
         (or a lone member's next pause)."""
         if not self._header_coming(now, rx_busy, rx_began, self.turn_start + self.cfg.twin):
+            assert self.poller is not None             # WINDOW: someone opened it
             self._after_window(self.poller, now, out)
 
     def _deadline_wait(self, now: int, rx_busy: bool, last_rx: int | None,
@@ -1275,13 +1282,15 @@ class RotationalMac:
         elapsed = first - cfg.byte_ticks - self.turn_start
         slack = 1.0 - TAKEOVER_TOLERANCE
         if self.phase == WINDOW:
+            assert self.poller is not None             # WINDOW: someone opened it
             # The poller's successor raises TXEN at the window's end, E + Twin, so its Header
             # begins at E + Twin + Ttrans by its clock (clause 39; 0.95 x Twin once let a
             # forged frame 9.6 ms after a poll pass for it, issue 42).
             ok = src == self.succ(self.poller) and elapsed >= (cfg.twin + cfg.ttrans) * slack
             return [] if ok else None
-        skipped = []
+        skipped: list[int] = []
         o = self.owner
+        assert o is not None                           # called with a turn's owner known
         while o != src and len(skipped) <= len(self.ring):
             skipped.append(o)
             o = self.succ(o)
@@ -1335,9 +1344,9 @@ class RotationalMac:
                 return out
         if self.mode == LISTEN:
             horizon = end - self.cfg.claim_ticks(0)
-            ring = {r for r, t in self._seen.items() if t >= horizon} | {self.id}
+            members = {r for r, t in self._seen.items() if t >= horizon} | {self.id}
             self.mode = MEMBER
-            self.ring = tuple(sorted(ring))
+            self.ring = tuple(sorted(members))
             self.misses = {r: 0 for r in self.ring}
             self.ever_member |= set(self.ring)
             self._booting = False
@@ -1813,6 +1822,7 @@ class RotationalMac:
         """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
         if self._paper:
             return self._paper_build(now, out)
+        kind: int                               # a FrameType, or the Type announced
         if self._answering or (self._booting and self._announcing is None and
                                not self._lone_boot):
             # The answer to an invitation, or a lone claimer's first frame: nothing else in it.

@@ -47,14 +47,9 @@ from .frame import BROADCAST, Frame, FrameType
 from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
 from .mac import (
     MEMBER, LISTEN, BadChecksum, BadContent, Deliver, Duplicate, MacConfig, Message, ModeChange,
-    Outcome, QueueFull, RotationalMac, SubmitError, TX_OFF, TX_ON, Transmit, _layers,
+    Outcome, QueueFull, Refused, RotationalMac, SubmitError, TX_OFF, TX_ON, Transmit, _layers,
     check_submission,
 )
-
-try:                                        # (the rotational MAC's spoofing observation)
-    from .mac import Refused
-except ImportError:                         # pragma: no cover
-    Refused = None
 
 __all__ = [
     "KINDS", "PeerConfig", "PeerMac", "AlohaMac", "SlottedAlohaMac", "CsmaMac", "make_mac",
@@ -244,9 +239,8 @@ class PeerMac:
         if src == self.id or src not in self.cfg.team:
             # Our own ID from the air (we are deaf while sending), or a robot outside the
             # team: never acted on.
-            if Refused is not None:
-                out.append(Refused(src, frame.num, "our own robot ID from the air"
-                                   if src == self.id else f"robot {src} is not in the team"))
+            out.append(Refused(src, frame.num, "our own robot ID from the air"
+                               if src == self.id else f"robot {src} is not in the team"))
             return out
         content = frame.content
         if self.cfg.checksum:
@@ -379,6 +373,7 @@ class PeerMac:
                              f"{m.attempts} attempts", out)
                 continue
             tr.ready = now + self._backoff()
+            assert tr.first_tx is not None            # it timed out: it was sent
             if tr.ready - tr.first_tx > self.lifetime:
                 self._finish(m, False, f"expired: no acknowledgement from {missing} within "
                              f"{self.lifetime // 16_000} ms after {m.attempts} attempt(s)", out)
@@ -404,6 +399,7 @@ class PeerMac:
                 t = r
         if len(self._out) < self.peer.window and self._queue:
             r = self._track[self._queue[0]].ready
+            assert r is not None                      # a queued message has its tick
             if t is None or r < t:
                 t = r
         return t
@@ -412,22 +408,26 @@ class PeerMac:
         """The data message for a frame whose TXEN rose at ``by``: the most overdue
         retransmission, else the next new message (window permitting)."""
         best = None
+        best_ready = 0
         for m in list(self._out):
             tr = self._track[m]
             if tr.ready is None or tr.ready > by:
                 continue
+            assert tr.first_tx is not None            # in _out: it was sent
             if now - tr.first_tx > self.lifetime:
                 self._finish(m, False, f"expired: no acknowledgement from "
                              f"{','.join(str(r) for r in sorted(m.awaiting))} within "
                              f"{self.lifetime // 16_000} ms after {m.attempts} attempt(s)", out)
                 continue
-            if best is None or tr.ready < self._track[best].ready:
-                best = m
+            if best is None or tr.ready < best_ready:
+                best, best_ready = m, tr.ready
         if best is not None:
             return best
         if len(self._out) < self.peer.window and self._queue:
             m = self._queue[0]
-            if self._track[m].ready <= by:
+            ready = self._track[m].ready
+            assert ready is not None                  # a queued message has its tick
+            if ready <= by:
                 return m
         return None
 

@@ -852,7 +852,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
                 faults: Sequence[Any] = (), pcap: str | None = None) -> int:
     """The ``rprs radio-hub`` command: print the node paths, run until SIGINT, SIGTERM or
     SIGHUP (its terminal closed), print a summary; HubError (one line) after the summary if a
-    thread of the hub failed and stopped it. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
+    thread of the hub failed and stopped it. ``pcap``: a pcapng capture to this file, or ``-`` to
+    stdout, flushed packet by
     packet (``| wireshark -k -i -``; the paths and the summary then go to stderr). Bad
     arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])
