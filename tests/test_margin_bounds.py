@@ -106,7 +106,7 @@ def test_the_bounds_fail_for_the_old_real_time_tslot():
     """The test can fail: 100 ms, the real-time Tslot before issue 40, breaks §7.6."""
     from dataclasses import replace
     old = bounds(replace(SETS["real time"], tslot=100 * MS))
-    broken = [k for k, (s, l) in old.items() if not s < l]
+    broken = [k for k, (side, limit) in old.items() if not side < limit]
     assert broken == ["7.6 6 Tslot + Ttrans + 4 B < Tmax (+L)",
                       "7.6 Ttrans + quiet gap + 6 Tslot + Ttrans + 4 B < Tmax (+L)"]
 
@@ -136,8 +136,8 @@ def test_no_healthy_robot_is_counted_missing_with_real_time_margins_and_bursts()
     (6 x Tslot) must still put its Header on the air before the others' closure + Tmax. With
     Tslot 100 ms robot 6 was counted missing 12 times by each of the others (and robot 1 12
     times by robot 2, which then took 6's late frame for one out of turn:
-    ``python benchmarks/stagger_and_cutoff.py stagger --tslot-ms 100``); now nobody is, and no two robots
-    ever collide."""
+    ``python benchmarks/stagger_and_cutoff.py stagger --tslot-ms 100``); now nobody is, and no
+    two robots ever collide."""
     from hil.sim.faults import parse_fault
     from hil.sim.world import SimConfig, World
     team = frozenset((1, 2, 6))
