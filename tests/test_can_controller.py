@@ -443,7 +443,7 @@ def test_nie_is_csr_bit_2_as_in_the_familys_header():
     bit 1 enables nothing and does not read back."""
     assert (CSR_HALT, CSR_NIE, CSR_TOE, CSR_NT) == (0x0001, 0x0004, 0x0080, 0x0400)
     for write, irq in ((0x0002, False), (CSR_NIE, True)):
-        r, a, b, f = _bus_off_rig()
+        r, a, _, _ = _bus_off_rig()
         a.CSR = CSR_HALT | write            # (the rig had set NIE: start from this write)
         a.start()
         assert bool(a.CSR & CSR_NIE) is irq and not a.CSR & 0x0002
@@ -458,7 +458,7 @@ def test_firmware_polling_halt_after_bus_off_waits_until_the_controller_has_rejo
     model's HALT read 0 the moment it was written, so the loop ended 1408 bit times before
     the controller was back on the bus. Polled every bit time from the write, HALT reads 1
     until NS is error active again, at 128 x 11 bit times on an idle bus, then 0."""
-    r, a, b, f = _bus_off_rig()
+    r, a, _, f = _bus_off_rig()
     r.run(1)
     while len(r.errs) < 32:
         r.sched.step()

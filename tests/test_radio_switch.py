@@ -5,11 +5,16 @@ docs/cpu.md). Before, the model made the radio deaf for Ttrans, so the hand-over
 zero by construction and a sender's TXEN-low latency alone could make it miss the Header."""
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from firmware_model.cycle_costs import CycleCosts
 from firmware_model.timing import (
-    CHILD_BYTE_TICKS, PTR2000_RX_READY_TICKS, PTR2000_TX_READY_TICKS, TTRANS_TICKS,
+    CHILD_BYTE_TICKS,
+    PTR2000_RX_READY_TICKS,
+    PTR2000_TX_READY_TICKS,
+    TTRANS_TICKS,
 )
 from hil.sim.world import ConfigError, SimConfig, World
 
@@ -30,7 +35,7 @@ def _handovers(cpu=None, radio_switch=None, duration=4.0):
     w.run()
     frames = [e for e in evs if e["ev"] == "frame"]
     out = []
-    for a, b in zip(frames, frames[1:]):
+    for a, b in itertools.pairwise(frames):
         if a["src"] == 1 and b["src"] == 2:
             back = min(t for t in heard_again if t > a["end"])
             out.append((a["end"], back, b["start"]))
@@ -82,3 +87,33 @@ def test_a_radio_that_switched_back_in_ttrans_had_no_margin_and_half_a_bit_saved
 def test_bad_radio_switch_times_are_refused_in_words(switch, words):
     with pytest.raises(ConfigError, match=words):
         SimConfig(robots=(0, 1, 2), radio_switch=switch).validate()
+
+
+def test_rprs_sim_takes_a_modules_switch_times(capsys):
+    """``--radio-switch ID:TX_MS,RX_MS``: robot 1's radio hearing 5.05 ms after TXEN falls
+    (its TXEN falling 24 cycles after the End: just inside the next Header's first half bit)
+    keeps the ring whole; 5.06 ms and robot 1 misses robot 2's Headers and counts it missing."""
+    import json
+
+    from hil.cli import main
+    missed = {}
+    for rx in ("5.05", "5.06"):
+        assert main(["sim", "--robots", "0,1,2", "--duration", "10", "--seed", "1", "--load",
+                     "1", "--cpu", "estimated", "--no-progress", "--json",
+                     "--radio-switch", f"1:1,{rx}"]) == 0
+        missed[rx] = json.loads(capsys.readouterr().out)["robots"]["1"]["missed"]
+    assert missed["5.05"] == 0 < missed["5.06"]
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--radio-switch", "1:1"], "is not ID:TX_MS,RX_MS"),
+    (["--radio-switch", "8:1,3"], "robot ID 8"),
+    (["--radio-switch", "1:-1,3"], "finite milliseconds >= 0"),
+    (["--radio-switch", "1:1,3", "--radio-switch", "1:1,4"], "names robot 1 twice"),
+    (["--radio-switch", "5:1,3"], "not in the ring"),
+])
+def test_a_bad_radio_switch_option_is_one_line(capsys, args, words):
+    from hil.cli import main
+    assert main(["sim", "--robots", "0,1,2", "--duration", "1", "--no-progress", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and words in err and "Traceback" not in err, err

@@ -18,7 +18,11 @@ from pathlib import Path
 import pytest
 
 from firmware_model.timing import (
-    CHILD_BYTE_TICKS, PC_BYTE_TICKS, PTR2000_RX_READY_TICKS, PTR2000_TX_READY_TICKS, TTRANS_TICKS,
+    CHILD_BYTE_TICKS,
+    PC_BYTE_TICKS,
+    PTR2000_RX_READY_TICKS,
+    PTR2000_TX_READY_TICKS,
+    TTRANS_TICKS,
 )
 from hil.cli import main
 from hil.sim.faults import Fault, FaultError, parse_fault

@@ -59,7 +59,12 @@ import time
 from typing import Any, Iterable, Sequence
 
 from firmware_model.mcu.ptr2000 import NEVER
-from firmware_model.timing import BITS_PER_BYTE_8N1, PTR2000_RX_READY_TICKS, TICK_HZ, s_to_ticks
+from firmware_model.timing import (
+    BITS_PER_BYTE_8N1,
+    PTR2000_RX_READY_TICKS,
+    TICK_HZ,
+    s_to_ticks,
+)
 
 from ..sim.air import Air
 from ..sim.realtime import RealTimeScheduler
