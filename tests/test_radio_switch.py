@@ -117,3 +117,27 @@ def test_a_bad_radio_switch_option_is_one_line(capsys, args, words):
     assert main(["sim", "--robots", "0,1,2", "--duration", "1", "--no-progress", *args]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("per_byte,holds", [(20_000, True), (36_000, False)])
+def test_a_transmit_handler_slower_than_a_byte_leaves_gaps_but_only_the_stall_gap_breaks_the_ring(
+        tmp_path, capsys, per_byte, holds):
+    """docs/cpu.md, redone with the part's figures: ``uart_tx_byte = 20000`` (1.25 ms a byte,
+    longer than the 1.04 ms byte time) stretches every frame a child sends with gaps. With
+    the radio deaf for Ttrans after TXEN fell that broke the ring (the sender, its TXEN late
+    after its stretched frame, missed the next Header: 42 of 107 messages in 30 s, 58
+    membership changes); with the part's 3 ms the ring holds. At 36,000 cycles (2.25 ms a
+    byte) the gaps pass the 2.08 ms stall gap and receivers abandon the frames: that breaks
+    it."""
+    import json
+
+    from hil.cli import main
+    costs = tmp_path / "slow.toml"
+    costs.write_text(f"[costs]\nuart_tx_byte = {per_byte}\n")
+    assert main(["sim", "--robots", "0,1,2", "--duration", "10", "--seed", "1", "--load", "1",
+                 "--cpu", "estimated", "--cpu-costs", str(costs), "--no-progress",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    formed = [c for c in out["membership_changes"] if c["t"] > 3 * 16_000_000]  # ticks
+    assert sum(out["cpu_tx_gaps"].values()) > 1000
+    assert (formed == [] and out["delivered"] >= out["submitted"] - 2) is holds, out
