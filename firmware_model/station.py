@@ -313,12 +313,15 @@ def _nothing() -> None:
 
 def build_station(robot_id: int, sched: Scheduler, byte_ticks: int | None = None,
                   config: MacConfig | None = None,
-                  observer: Observer | None = None) -> tuple[RadioStation, Ptr2000]:
+                  observer: Observer | None = None,
+                  radio_switch: tuple[int, int] | None = None) -> tuple[RadioStation, Ptr2000]:
     """A station on simulated peripherals: UART0 at "9600" (or ``byte_ticks``), TXEN on P40,
-    wired to a PTR2000 model. Returns the station and its radio (to attach to a channel)."""
+    wired to a PTR2000 model. Returns the station and its radio (to attach to a channel).
+    ``radio_switch``: the module's (TX-ready, RX-ready) switch times in ticks; default the
+    data sheet's (firmware_model/mcu/ptr2000.py), whatever the MAC's Ttrans."""
     uart = Uart(sched, byte_ticks=byte_ticks) if byte_ticks else Uart(sched, baud=9600)
     cfg = config or MacConfig()
-    radio = Ptr2000(robot_id, ttrans=cfg.ttrans)
+    radio = Ptr2000(robot_id, *radio_switch) if radio_switch is not None else Ptr2000(robot_id)
     radio.uart = uart
     uart.line = radio
     txen = OutputPin("P40/TXEN")

@@ -17,7 +17,9 @@ from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TTRANS_TICKS
 from hil.sim.air import Air
 
 BT = CHILD_BYTE_TICKS          # 16640
-TT = TTRANS_TICKS              # 80000
+TT = TTRANS_TICKS              # 80000: the switch time, both ways, of the radios of ``Net``
+# (Ptr2000(i, TT, TT)): these tests check the air's rules against a radio's switch times,
+# whatever they are; the part's own figures (1 ms, 3 ms) are tests/test_mcu.py's.
 T0 = 1_000_000                 # a start tick well after power-on
 
 
@@ -34,7 +36,7 @@ class Net:
         for i in range(n):
             bt = byte_ticks[i] if byte_ticks else None
             u = Uart(self.s, byte_ticks=bt) if bt else Uart(self.s)
-            r = Ptr2000(i)
+            r = Ptr2000(i, tx_ready_delay=TT, rx_ready_delay=TT)
             r.uart = u
             u.line = r
             pin = OutputPin(f"TXEN{i}")

@@ -719,11 +719,12 @@ def test_no_healthy_robot_is_counted_missing_after_a_burst_over_a_frame_end_on_t
     on air: the hub, which made no node deaf, gave it the garbage, which it took for its
     successor's broken frame (clause 42); the successor, whose turn followed a broken frame,
     began after its R-stagger, and the sender refused its good frame as out of turn and
-    counted the next robot missing (clause 39). A PTR2000 is deaf until Ttrans after its last
-    byte left: the hub now deafens a node so on the air's clock, and the garbage reaches only
-    the others. Children 1, 2 and 6, twelve such bursts: no child counts anyone missing once
-    the ring has formed, and nobody is dropped (the simulator's prediction:
-    tests/test_margin_bounds.py)."""
+    counted the next robot missing (clause 39). A PTR2000 is deaf until 3 ms (the nRF401's
+    TX->RX switch time) after its last byte left: the hub now deafens a node so on the air's
+    clock, and of the garbage the sender hears at most the burst's last 1.94 ms, before its
+    End + Ttrans on the air's clock. Children 1, 2 and 6, twelve such bursts: no child counts
+    anyone missing once the ring has formed, and nobody is dropped (the simulator's
+    prediction: tests/test_margin_bounds.py)."""
     hub = _TailHub(nodes=3, seed=1, left=12, every=16_000_000 * 2 // 5)
     air = _Air(hub)
     hub.capture(air)

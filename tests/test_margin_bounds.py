@@ -159,8 +159,9 @@ def test_no_robot_is_counted_missing_after_a_burst_over_a_frame_end():
     """What the pty hub's test of issue 40 (tests/test_bench_processes.py, a burst over a
     frame's end) must match: a 6 ms burst from 1.3 ms before a robot's frame ends on the air
     to 62.5 us before that robot's Ttrans is over, 40 times. The sender's radio is deaf until
-    Ttrans after its last byte, so it hears none of the garbage; the others hear the frame
-    broken, close its turn uncertainly and let the successor begin after its R-stagger.
+    3 ms after its last byte, so it hears only the burst's tail, before its successor could
+    have begun (clause 42: not its successor's frame); the others hear the frame broken,
+    close its turn uncertainly and let the successor begin after its R-stagger.
     Nobody is counted missing, nobody is dropped."""
     from hil.sim.world import SimConfig, World
     team = frozenset((1, 2, 6))
@@ -220,9 +221,10 @@ def test_a_late_header_after_garbage_in_its_slot_is_its_owners_frame():
         transmit(radio, data, t0, bt)
 
     def on_air_late(radio, data, bt):
-        # as the pty hub does: the node is deaf while its bytes are on the air, Ttrans after
+        # as the pty hub does: the node is deaf while its bytes are on the air, and its
+        # radio's RX-ready delay (3 ms) after
         w.air.deafen(radio, late)
-        radio.rx_from = end = late + len(data) * bt + TTRANS_TICKS
+        radio.rx_from = end = late + len(data) * bt + radio.rx_ready_delay
         w.air.inject(data, bt)
         w.sched.at(end, w.air.rx_restart, radio, end)
     w.air.transmit = late_on_air
@@ -286,7 +288,7 @@ def test_a_lone_members_invitation_answered_late_admits_the_answerer():
 
     def on_air_late(radio, data, bt, late):
         w.air.deafen(radio, late)                # deaf while its bytes are on the air
-        radio.rx_from = end = late + len(data) * bt + TTRANS_TICKS
+        radio.rx_from = end = late + len(data) * bt + radio.rx_ready_delay
         w.air.inject(data, bt)
         w.sched.at(end, w.air.rx_restart, radio, end)
     w.air.transmit = late_on_air

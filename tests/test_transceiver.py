@@ -17,7 +17,7 @@ from can_bus.transceiver import (
     max_bitrate,
     slew_rate,
 )
-from firmware_model.mcu.can_controller import AMS_ALL, NS_PASSIVE, CanController
+from firmware_model.mcu.can_controller import AMS_ALL, CSR_NIE, NS_PASSIVE, CanController
 from firmware_model.mcu.scheduler import Scheduler
 
 TPB = 32  # 500 kbit/s
@@ -311,7 +311,7 @@ def test_firmware_isolates_itself_from_its_status_interrupt():
     """The faulty node's ISR reacts to error passive by putting its 82C250 in standby (from
     inside the bus's callback): the others communicate again."""
     sched, bus, (a, b, c), (xa, xb, xc), log, errs = rig(3)
-    a.CSR = a.CSR | 0x0002  # NIE
+    a.CSR = a.CSR | CSR_NIE
 
     def isr(ns):
         if ns >= NS_PASSIVE:
