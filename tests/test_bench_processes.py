@@ -558,9 +558,12 @@ def _ring_of_three_formed(air) -> bool:
 
 
 class _PeriodicHub(RadioHub):
-    """A hub that, once armed, puts ``count`` bursts of 4 ms on its air, ``every`` ticks apart,
-    from the end of the first frame sent after arming, in the air's own thread and ticks;
-    ``first`` is the tick of the first burst."""
+    """A hub that, once armed, puts ``count`` bursts of 4 ms on its air, about ``every`` ticks
+    apart, from the end of the first frame sent after arming, in the air's own thread and
+    ticks; ``first`` is the tick of the first burst. Burst k comes k x 17 ms (modulo 80 ms)
+    later than k x ``every``: an idle ring's cycle can divide ``every``, and bursts at one
+    phase of it would break the same robot's frame every time (robot 6 then never has to
+    stagger)."""
 
     def __init__(self, *args, count, every, **kw):
         super().__init__(*args, **kw)
@@ -573,8 +576,10 @@ class _PeriodicHub(RadioHub):
         super()._send(i)
         if self.armed and self.first is None:
             self.first = self._tx_end[i] + self.every
+            sweep = 17 * 16_000                      # ticks (17 ms)
             for k in range(self.count):
-                self.sched.at(self.first + k * self.every, self.air.burst, 0.004)
+                at = self.first + k * self.every + (k * sweep) % (80 * 16_000)
+                self.sched.at(at, self.air.burst, 0.004)
 
 
 def test_a_healthy_robot_6_keeps_its_turn_after_bursts_on_the_hub():
@@ -596,7 +601,7 @@ def test_a_healthy_robot_6_keeps_its_turn_after_bursts_on_the_hub():
         assert wait_for(lambda: _ring_of_three_formed(air), 40.0), "the ring 1, 2, 6 did not form"
         hub.armed = True
         assert wait_for(lambda: hub.first is not None, 10.0), "no frame after the ring formed"
-        last = hub.first + (hub.count - 1) * hub.every
+        last = hub.first + hub.count * hub.every
         assert wait_for(lambda: air.packets and air.packets[-1][2] > last + tb, 30.0)
         alive = [p.poll() is None for p in logs]
     finally:
