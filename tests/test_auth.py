@@ -225,6 +225,20 @@ def _joint1_moves(evs: list) -> list:
     return [e for e in evs if e["ev"] == "can" and e.get("bus") == 1 and e.get("id") == 0x101]
 
 
+def _refused_by_every_member(w, evs, data: bytes, end: int, why: str) -> list[dict]:
+    """Put ``data`` on the air 9.6 ms after the invitation frame ending at tick ``end`` (issue
+    42's instant), run to the end, and check every member (0, 1, 2) refused it for ``why``;
+    returns the events after it."""
+    at = end + s_to_ticks(0.0096)
+    w.inject_bytes(data, at)
+    w.run()
+    after = [e for e in evs if e.get("t", 0) > at]
+    refused = [e for e in after if e["ev"] == "refused"]
+    assert {e["to"] for e in refused} == {0, 1, 2}
+    assert all(e["reason"].startswith(why) for e in refused)
+    return after
+
+
 def test_a_frame_forged_in_an_invitation_window_is_refused_by_every_robot():
     """Issue 42: a frame with the father's Source sent 9.6 ms after a child's poll was taken
     as a takeover by robot 1 and acted on (joint(1,33)). With the profile on every member
@@ -235,13 +249,7 @@ def test_a_frame_forged_in_an_invitation_window_is_refused_by_every_robot():
     end = _next_poll_by(w, evs, 2, s_to_ticks(9), AUTH_TEXT_LEN)
     moves = len(_joint1_moves(evs))
     forged = Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode()
-    at = end + s_to_ticks(0.0096)
-    w.inject_bytes(forged, at)
-    w.run()
-    after = [e for e in evs if e.get("t", 0) > at]
-    refused = [e for e in after if e["ev"] == "refused"]
-    assert {e["to"] for e in refused} == {0, 1, 2}
-    assert all(e["reason"].startswith("forged") for e in refused)
+    after = _refused_by_every_member(w, evs, forged, end, "forged")
     assert not [e for e in after if e["ev"] in ("deliver", "miss", "disable", "mode")]
     assert len(_joint1_moves(evs)) == moves
     s = w.summary()["robots"]
@@ -265,13 +273,7 @@ def test_an_exact_replay_of_an_earlier_father_order_is_refused_by_every_robot():
     assert [e["num"] for e in delivered] == [1, 2]
     first = next(data for robot, data, _ in tap if robot == 0 and b"joint(1,10)" in data)
     end = _next_poll_by(w, evs, 2, w.now, AUTH_TEXT_LEN)
-    at = end + s_to_ticks(0.0096)
-    w.inject_bytes(first, at)
-    w.run()
-    after = [e for e in evs if e.get("t", 0) > at]
-    refused = [e for e in after if e["ev"] == "refused"]
-    assert {e["to"] for e in refused} == {0, 1, 2}
-    assert all(e["reason"].startswith("replayed") for e in refused)
+    after = _refused_by_every_member(w, evs, first, end, "replayed")
     assert not [e for e in after if e["ev"] in ("deliver", "duplicate", "miss", "mode")]
 
 
