@@ -401,6 +401,7 @@ class _HubRing:
         return errs
 
 
+@pytest.mark.timing
 def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_path):
     """Issue 42 at the bench: the father and children 1 and 2 as processes with one key file,
     team 0-3 so that invitations of the absent robot 3 open windows. A transmitter on the
@@ -445,6 +446,7 @@ def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_
                          r"own ID \d+\), numbers behind 0,", closing[-1]), err
 
 
+@pytest.mark.timing
 def test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_on_the_hub():
     """Issue 42's replay at the bench, without the profile: the father (a process) orders
     robot 1 joint(1,10) and then joint(1,20), and dies. In its slot, still its own, a
@@ -478,6 +480,7 @@ def test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_o
         assert closing and ", numbers behind 1," in closing[-1], err
 
 
+@pytest.mark.timing
 def test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart():
     """Issue 42's forged father order 9.6 ms after an invitation, at the bench without the
     profile: the children refuse it out of turn (clause 39) and the father as its own ID from
@@ -509,6 +512,7 @@ def test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart
         assert re.search(r"\(out of turn [1-9]\d*, own ID \d+\)", line), closing
 
 
+@pytest.mark.timing
 def test_conformance_checks_an_authenticated_childs_frames_and_refusals(tmp_path):
     """``rprs conformance --auth-key`` against ``rprs child --auth-key`` on the hub: the
     robot's frames carry right tags and rising freshness (clause 52), and a frame with a wrong

@@ -148,7 +148,6 @@ def test_father_failover_between_processes(hub):
     assert order.count(0) > 10 and good >= 0.98 * (len(order) - 1)
 
 
-@pytest.mark.shares_cpu
 def test_bench_scripts_against_the_hub(hub):
     # status() is answered by a child's dispatcher: give the children their CAN side
     kids = [spawn("child", "--id", str(i), "--radio", hub.paths[i], "--team", "0,1,2",
@@ -174,7 +173,6 @@ def test_bench_scripts_against_the_hub(hub):
         stop(kids)
 
 
-@pytest.mark.shares_cpu
 def test_runner_errors_are_one_line():
     for args, needle in ((["child", "--id", "1", "--radio", "/dev/nonexistent"], "does not exist"),
                          (["child", "--id", "1", "--can", "socketcan:nonexist0"],
@@ -187,7 +185,6 @@ def test_runner_errors_are_one_line():
         assert r.returncode == 2 and needle in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
-@pytest.mark.shares_cpu
 @pytest.mark.skipif(not hasattr(os, "killpg"), reason="needs POSIX signals")
 def test_sigusr1_prints_every_threads_stack_and_the_process_goes_on(hub):
     p = spawn("child", "--id", "1", "--radio", hub.paths[0], "--team", "1,2")
@@ -202,7 +199,6 @@ def test_sigusr1_prints_every_threads_stack_and_the_process_goes_on(hub):
     assert "File " in err and "run" in err, err
 
 
-@pytest.mark.shares_cpu
 def test_child_stops_cleanly_on_sigterm(hub):
     """SIGTERM once the child has said it runs stops it cleanly. The test slept 1.5 s instead
     of waiting for that line, and on a loaded machine (load 12 on 2 cores) the child was
@@ -219,7 +215,6 @@ def test_child_stops_cleanly_on_sigterm(hub):
         assert "robot 1:" in err and "Traceback" not in err
 
 
-@pytest.mark.shares_cpu
 def test_a_busy_port_is_refused_with_one_line(hub):
     from hil.bench.serial_radio import PortError, open_port
     first = open_port(hub.paths[0])
@@ -253,7 +248,6 @@ def _lines_of(proc, into: list) -> None:
     threading.Thread(target=read, daemon=True).start()
 
 
-@pytest.mark.shares_cpu
 @pytest.mark.parametrize("mode", ["human", "json"])
 def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
     """rprs father printed a JSON tx line for every frame; replies and failures were buried.
@@ -325,7 +319,6 @@ def _order_ends(lines: list[str]) -> dict[int, list[dict]]:
     return ends
 
 
-@pytest.mark.shares_cpu
 def test_piped_orders_wait_for_room_and_each_line_ends_once_with_an_honest_status(hub):
     """Issue 40, finding 2: 40 piped orders to a child with no CAN side gave 32 order records;
     the other 8 were refused ("queue full") on stderr only, and the exit status was 0 although
@@ -366,7 +359,6 @@ def test_piped_orders_wait_for_room_and_each_line_ends_once_with_an_honest_statu
     assert "orders: 1 (done 0, replied 0, sent-only 1, failed 0" in ok.stderr, ok.stderr
 
 
-@pytest.mark.shares_cpu
 @pytest.mark.parametrize("mode", ["human", "json"])
 def test_an_order_typed_into_a_standby_father_is_refused_at_once(hub, mode):
     """Issue 40, finding 1: an order typed into a standby PC showed "queued" and then nothing,
@@ -435,7 +427,6 @@ def _pcap(path):
     return ifaces, out
 
 
-@pytest.mark.shares_cpu
 def test_each_bench_process_captures_its_own_port_and_bus(hub, tmp_path):
     """rprs father/child/submodules --pcap: the father's and the child's radio (sent, heard)
     and the child's and the submodules' CAN bus, wall-clock ns, one order's whole path."""
@@ -486,7 +477,6 @@ def test_each_bench_process_captures_its_own_port_and_bus(hub, tmp_path):
         assert t_start <= min(ts) and max(ts) <= t_end         # the wall clock, in ns
 
 
-@pytest.mark.shares_cpu
 @pytest.mark.parametrize("pcap,words", [("-", "console"), ("/no/such/dir/x.pcapng",
                                                           "cannot write capture")])
 def test_a_bad_capture_path_is_one_line(pcap, words):
@@ -495,7 +485,6 @@ def test_a_bad_capture_path_is_one_line(pcap, words):
     assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
-@pytest.mark.shares_cpu
 @pytest.mark.parametrize("command", [["child", "--id", "1"], ["submodules"]])
 def test_a_can_log_and_a_capture_in_one_file_are_refused_before_the_run(tmp_path, command):
     """``--can-log F --pcap F``: both writers opened the one file and the run went on, exit
@@ -582,6 +571,7 @@ class _PeriodicHub(RadioHub):
                 self.sched.at(at, self.air.burst, 0.004)
 
 
+@pytest.mark.timing
 def test_a_healthy_robot_6_keeps_its_turn_after_bursts_on_the_hub():
     """Issue 40 at the bench: children 1, 2 and 6 on the hub, a 4 ms burst every 0.73 s once
     the ring has formed. A burst that breaks a frame closes its turn uncertainly, and the next
@@ -651,6 +641,7 @@ class _Answerer(_Air):
         self.hub.air.inject(CUT_OFF)
 
 
+@pytest.mark.timing
 def test_a_cut_off_header_answering_invitations_costs_its_bytes_on_the_hub():
     """Issue 40, finding 5, at the bench: children 1, 3 and 4 (team 1, 3, 4, 5: robot 4 invites
     the absent 5), and a transmitter on the hub's air answering 8 invitations with a Header
@@ -722,6 +713,7 @@ class _TailHub(RadioHub):
             self.sched.at(end - BEFORE_END, self.air.burst, 0.006)
 
 
+@pytest.mark.timing
 def test_no_healthy_robot_is_counted_missing_after_a_burst_over_a_frame_end_on_the_hub():
     """Issue 40 at the bench: a 6 ms burst over a robot's last 1.3 ms on air that goes on for
     4.94 ms after, just less than Ttrans. Its sender dated its End earlier than the air (its
@@ -794,6 +786,7 @@ class _LateHub(RadioHub):
             self._tx_end[0] = max(self._tx_end[0], end + LATE_BURST + 66_668 + LATE_BY)
 
 
+@pytest.mark.timing
 def test_a_late_header_after_a_burst_in_the_hand_over_costs_nobody_a_miss_on_the_hub():
     """Issue 40 at the bench, the last false misses: a burst in the hand-over from robot 6 to
     robot 1, after robot 1's turn began, is taken for robot 1's broken frame and its turn

@@ -75,6 +75,7 @@ def _reader(stream, into: list[str]) -> threading.Thread:
     return t
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("stopped", [2, 0], ids=["child", "father"])
 def test_a_process_stopped_for_a_second_sends_nothing_stale_when_it_continues(
         recorded_hub, stopped):
@@ -140,6 +141,7 @@ SHORTEST_FRAME_TICKS = 14 * 16_640
 long after at the earliest: an event before it came from bytes heard before."""
 
 
+@pytest.mark.timing
 def test_a_father_restarted_on_a_live_ring_acts_only_on_what_it_heard_listening(
         recorded_hub, tmp_path):
     """A father is restarted on a live ring, and bytes pile up in its port before it runs (its

@@ -209,6 +209,7 @@ def test_clause_29_is_judged_on_a_boot_frame_only(type_, num, verdict):
     assert ("not a BOOT frame" in c29.figure) == (type_ != 5)
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("profile", ["rprs", "paper"])
 def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
     child = _spawn("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
@@ -258,6 +259,7 @@ def _run_against(robot: PaperRobot, port: str, profile: str) -> dict[tuple[str, 
     return {(c.clause, c.name): c.passed for c in rep.checks}
 
 
+@pytest.mark.timing
 def test_a_robot_that_hands_over_late_fails_the_timing_clauses(air, monkeypatch):
     """A paper robot whose switch time is 30 ms instead of Ttrans = 5 ms: the hand-over
     (clause 23), the hand-over after a late frame (26) and the takeover (24) fail; its frames,
@@ -416,6 +418,7 @@ def _documented_run(tmp_path, tolerance_ms: float | None):
     return run, out, err, probe.result
 
 
+@pytest.mark.timing
 def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
     """docs/conformance.md ran the child with ``--can virtual:r1`` and no submodules: the
     child said its bus could not be reached from other processes, and answered our status()

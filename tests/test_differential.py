@@ -163,6 +163,7 @@ def sim_run(offset_ticks, n, seed):
     return frames, t0, drops
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("n, seed", BURSTS, ids=[f"{n}B" for n, _ in BURSTS])
 def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed, tmp_path):
     hframes, ht0, split, late_ms = hub_run(n, seed, tmp_path)

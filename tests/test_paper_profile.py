@@ -238,6 +238,7 @@ def test_the_paper_robot_imports_nothing_from_the_project():
     assert not [m for m in names if m.split(".")[0] in ("firmware_model", "can_bus", "hil")]
 
 
+@pytest.mark.timing
 def test_a_paper_robot_silences_robots_of_the_full_protocol(hub):
     """The reason for the profile: a paper robot never invites anyone, and our robots in the
     rprs profile wait in LISTEN for as long as the channel is busy (clause 28)."""
@@ -255,6 +256,7 @@ def test_a_paper_robot_silences_robots_of_the_full_protocol(hub):
             k.stop()
 
 
+@pytest.mark.timing
 def test_the_paper_profile_shares_a_ring_with_a_paper_robot(hub):
     """Children 1 and 2 with ``--profile paper`` and the paper robot 3: one ring of three, in
     ascending order; the paper robot's message is delivered to child 1 and child 1's reply

@@ -679,6 +679,7 @@ def test_the_robot_imports_nothing_from_the_project():
     assert not [m for m in names if m.split(".")[0] in ("firmware_model", "can_bus", "hil")]
 
 
+@pytest.mark.timing
 def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
     why = _ptys_available()
     if why:
