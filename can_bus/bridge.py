@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING, Any, Callable
 import can
 
 from .bits import BitTiming, frame_length_bits
-from .bus import CanFrame, ErrorState, NodeStatus
+from .bus import ErrorState, NodeStatus
+from .frames import CanFrame
 
 if TYPE_CHECKING:
     from can.io.generic import MessageWriter

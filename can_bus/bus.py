@@ -138,15 +138,14 @@ from can_bus.bits import (
     SUSPEND_TRANSMISSION_BITS,
     TRAILER_BITS,
     BitTiming,
-    _check,
     _length,
     _wire,
 )
 from can_bus.clock import Cancellable as Event, Clock as Scheduler
+from can_bus.frames import CanFrame
 from can_bus.physical import DEFAULT_LENGTH_M, LINE_DELAY_S_PER_M, loop_delay_s, prop_time_s
 
 __all__ = [
-    "CanFrame",
     "CanBus",
     "CanErrorEvent",
     "ErrorState",
@@ -170,43 +169,6 @@ class ErrorState(str, Enum):
 
 
 ACTIVE, PASSIVE, BUS_OFF = ErrorState.ACTIVE, ErrorState.PASSIVE, ErrorState.BUS_OFF
-
-
-@dataclass(frozen=True)
-class CanFrame:
-    """A CAN 2.0A data or remote frame. ``dlc`` defaults to ``len(data)`` (0 for remote)."""
-
-    id: int
-    data: bytes = b""
-    rtr: bool = False
-    dlc: int | None = None
-
-    def __post_init__(self) -> None:
-        data = bytes(self.data)
-        object.__setattr__(self, "data", data)
-        object.__setattr__(self, "rtr", bool(self.rtr))
-        object.__setattr__(self, "dlc", _check(self.id, data, self.rtr, self.dlc))
-
-    def to_message(self, timestamp: float = 0.0) -> can.Message:
-        return can.Message(
-            timestamp=timestamp,
-            arbitration_id=self.id,
-            is_extended_id=False,
-            is_remote_frame=self.rtr,
-            dlc=self.dlc,
-            data=self.data,
-        )
-
-    @classmethod
-    def from_message(cls, msg: can.Message) -> "CanFrame":
-        if msg.is_extended_id:
-            raise ValueError("extended (29-bit) identifiers are not CAN 2.0A")
-        if msg.is_fd or msg.is_error_frame:
-            raise ValueError("only classical data/remote frames convert to CanFrame")
-        if msg.is_remote_frame:
-            return cls(msg.arbitration_id, b"", True, msg.dlc)
-        data = bytes(msg.data or b"")
-        return cls(msg.arbitration_id, data, False, msg.dlc if msg.dlc is not None else len(data))
 
 
 @lru_cache(maxsize=8192)

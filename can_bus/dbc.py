@@ -29,7 +29,7 @@ import can
 import cantools
 from cantools.database.can import Database, Message
 
-from can_bus.bus import CanFrame
+from can_bus.frames import CanFrame
 
 __all__ = [
     "DBC_FILE",

@@ -80,7 +80,8 @@ import heapq
 from typing import Any, Callable, Sequence
 
 from can_bus import dbc
-from can_bus.bus import CanBus, CanFrame
+from can_bus.bus import CanBus
+from can_bus.frames import CanFrame
 from can_bus.dbc import (
     ACTION_CLOSE,
     ACTION_OPEN,

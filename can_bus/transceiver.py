@@ -69,7 +69,8 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 from can_bus import physical
 from can_bus.bits import wire_bits
-from can_bus.bus import CanErrorEvent, CanFrame, ErrorState, NodeStatus
+from can_bus.bus import CanErrorEvent, ErrorState, NodeStatus
+from can_bus.frames import CanFrame
 from can_bus.clock import Cancellable, Clock
 from can_bus.physical import HIGH_SPEED_MAX_OHMS, MAX_BITRATE, loop_delay_s, slew_rate
 

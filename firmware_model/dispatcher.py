@@ -30,7 +30,7 @@ from functools import lru_cache
 from typing import Callable
 
 from can_bus import dbc
-from can_bus.bus import CanFrame
+from can_bus.frames import CanFrame
 
 from .kinematics import (
     HOME, JOINT_LIMITS, WHEEL_MAX_SPEED, Pose, Unreachable, forward, inverse,

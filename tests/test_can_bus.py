@@ -7,7 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from can_bus.bits import BitTiming, frame_length_bits, wire_bits
-from can_bus.bus import CanBus, CanFrame, ErrorState
+from can_bus.bus import CanBus, ErrorState
+from can_bus.frames import CanFrame
 from firmware_model.mcu.scheduler import Scheduler
 
 TPB = 32  # default BitTiming: 500 kbit/s at 16 MHz

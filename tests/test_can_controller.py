@@ -6,7 +6,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from can_bus.bits import BitTiming, frame_length_bits, wire_bits
-from can_bus.bus import CanBus, CanFrame, ErrorState
+from can_bus.bus import CanBus, ErrorState
+from can_bus.frames import CanFrame
 from can_bus.transceiver import Transceiver82C250
 from firmware_model.mcu.can_controller import (
     AMS_ALL,

@@ -16,7 +16,7 @@ from budgets import quick_and_thorough
 
 import can_bus
 from can_bus import dbc
-from can_bus.bus import CanFrame
+from can_bus.frames import CanFrame
 
 DBC = Path(can_bus.__file__).parent / "rprs.dbc"
 

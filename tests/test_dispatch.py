@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from can_bus import dbc
-from can_bus.bus import CanFrame
+from can_bus.frames import CanFrame
 from firmware_model.kinematics import HOME, forward, inverse
 from firmware_model.radio.content import cmd
 from firmware_model.timing import s_to_ticks

@@ -6,7 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from can_bus import dbc
-from can_bus.bus import CanBus, CanFrame
+from can_bus.bus import CanBus
+from can_bus.frames import CanFrame
 from can_bus.submodules import (
     MS,
     PAW_FULL,

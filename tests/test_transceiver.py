@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from can_bus.bits import BitTiming, frame_length_bits, wire_bits
-from can_bus.bus import CanBus, CanFrame, ErrorState
+from can_bus.bus import CanBus, ErrorState
+from can_bus.frames import CanFrame
 from can_bus.physical import loop_delay_s, max_bus_length_m, prop_time_s
 from can_bus.transceiver import (
     MAX_BITRATE,

@@ -87,7 +87,8 @@ from __future__ import annotations
 from typing import Any, Callable
 
 from can_bus.bits import BitTiming
-from can_bus.bus import CanErrorEvent, CanFrame, ErrorState
+from can_bus.bus import CanErrorEvent, ErrorState
+from can_bus.frames import CanFrame
 
 from ..timing import TICK_HZ
 
