@@ -29,6 +29,7 @@ import can
 from .bits import BitTiming, frame_length_bits
 from .bus import ErrorState, NodeStatus
 from .frames import CanFrame
+from .node import check_node
 
 if TYPE_CHECKING:
     from can.io.generic import MessageWriter
@@ -364,6 +365,7 @@ class PythonCanBus:
     # -- the CanBus node interface --------------------------------------------------------
 
     def attach(self, node: Any) -> None:
+        check_node(node)                # a misspelt hook is refused, as by CanBus.attach
         self.nodes.append(node)
 
     def detach(self, node: Any) -> None:

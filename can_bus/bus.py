@@ -6,7 +6,9 @@ one per bit.
 
 Nodes
 -----
-A node is any object; the bus looks up these optional methods once, at :meth:`CanBus.attach`:
+A node is any object; the bus looks up these optional methods once, at :meth:`CanBus.attach`
+(:mod:`can_bus.node` declares them as Protocols a node's class names, and ``attach`` refuses a
+node that names one and lacks a hook, or has a misspelt one):
 
 * ``pending() -> CanFrame | None``: the node's highest-priority frame waiting to be sent. If the
   node has it, the node keeps its own queue and the bus asks at every arbitration; otherwise the
@@ -143,6 +145,7 @@ from can_bus.bits import (
 )
 from can_bus.clock import Cancellable as Event, Clock as Scheduler
 from can_bus.frames import CanFrame
+from can_bus.node import check_node
 from can_bus.physical import DEFAULT_LENGTH_M, LINE_DELAY_S_PER_M, loop_delay_s, prop_time_s
 
 __all__ = [
@@ -323,6 +326,7 @@ class CanBus:
     def attach(self, node: Any) -> None:
         if id(node) in self._by_id:
             raise ValueError(f"{node!r} is already attached")
+        check_node(node)
         ns = _Node(node)
         self._nodes.append(ns)
         self._by_id[id(node)] = ns

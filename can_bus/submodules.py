@@ -82,6 +82,7 @@ from typing import Any, Callable, Sequence
 from can_bus import dbc
 from can_bus.bus import CanBus
 from can_bus.frames import CanFrame
+from can_bus.node import FrameSink, FrameSource
 from can_bus.dbc import (
     ACTION_CLOSE,
     ACTION_OPEN,
@@ -158,7 +159,7 @@ def _trunc_div(a: int, b: int) -> int:
     return a // b if a >= 0 else -((-a) // b)
 
 
-class _Submodule:
+class _Submodule(FrameSource, FrameSink):
     """Queue, status timer, EVENTs, silence, ESTOP and fault bookkeeping shared by all nodes."""
 
     # stall detection, kept by the nodes that detect stalls (joints and the wheel), which

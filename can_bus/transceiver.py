@@ -9,9 +9,9 @@ its 82C250::
 
 A controller is any object with the bus node methods it wants (``pending``, ``on_frame``,
 ``on_tx_done``, ``on_arbitration_lost``, ``on_error``, ``on_state_change``, looked up once at
-:meth:`Transceiver82C250.connect`); it asks for an arbitration with :meth:`request`, reads its
-error counters with :meth:`status` and may look at ``bus_idle`` and ``ticks_per_bit``.
-``connect`` sets ``controller.transceiver = self``.
+:meth:`Transceiver82C250.connect`; the roles of :mod:`can_bus.node`); it asks for an
+arbitration with :meth:`request`, reads its error counters with :meth:`status` and may look
+at ``bus_idle`` and ``ticks_per_bit``. ``connect`` sets ``controller.transceiver = self``.
 
 Rs pin (pin 8) modes
 --------------------
@@ -65,12 +65,13 @@ call :meth:`standby` from an ISR running inside a bus callback.
 from __future__ import annotations
 
 from enum import Enum
-from typing import TYPE_CHECKING, Any, Callable, Protocol
+from typing import TYPE_CHECKING, Any, Callable, Protocol, final
 
 from can_bus import physical
 from can_bus.bits import wire_bits
 from can_bus.bus import CanErrorEvent, ErrorState, NodeStatus
 from can_bus.frames import CanFrame
+from can_bus.node import CanNode, check_node
 from can_bus.clock import Cancellable, Clock
 from can_bus.physical import HIGH_SPEED_MAX_OHMS, MAX_BITRATE, loop_delay_s, slew_rate
 
@@ -178,7 +179,8 @@ if TYPE_CHECKING:
         return bus
 
 
-class Transceiver82C250:
+@final
+class Transceiver82C250(CanNode):
     """One 82C250 on ``bus``; ``rs_ohms`` is the resistor fitted between Rs and the port pin
     that drives it (0: high-speed). ``standby=True`` starts with the pin high."""
 
@@ -216,7 +218,9 @@ class Transceiver82C250:
 
     # ------------------------------------------------------------------ wiring
     def connect(self, controller: Any) -> None:
-        """Wire ``controller`` to TXD/RXD (replacing any previous one)."""
+        """Wire ``controller`` to TXD/RXD (replacing any previous one). A controller with a
+        misspelt hook is refused (:func:`can_bus.node.check_node`)."""
+        check_node(controller)
         self.controller = controller
         self._c_pending = getattr(controller, "pending", None)
         self._c_frame = getattr(controller, "on_frame", None)

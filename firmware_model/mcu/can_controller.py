@@ -84,11 +84,12 @@ CAN chapter describes it.
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, final
 
 from can_bus.bits import BitTiming
 from can_bus.bus import CanErrorEvent, ErrorState
 from can_bus.frames import CanFrame
+from can_bus.node import CanNode
 
 from ..timing import TICK_HZ
 
@@ -161,7 +162,8 @@ def _check_id(can_id: int) -> int:
     return can_id
 
 
-class CanController:
+@final
+class CanController(CanNode):
     """One MB90F549 CAN interface. Reset state: HALT = 1, TOE = 0, every buffer invalid."""
 
     recovers_on_request = True
