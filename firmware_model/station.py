@@ -19,6 +19,7 @@ from .mcu.uart import Uart
 from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from .radio.mac import (SEND, Deliver, MacConfig, NumberBehind, Refused, RotationalMac,
                          Transmit, TxEnable)
+from .radio.station_mac import StationMac
 
 if TYPE_CHECKING:
     from .cycle_costs import CycleCosts
@@ -46,8 +47,11 @@ class RadioStation:
         self.sched = sched
         self.uart = uart
         self.txen = txen
-        self.mac = RotationalMac(robot_id, cfg)
-        self.deframer = Deframer(max_content=self.mac.rx_max_content,
+        rotational = RotationalMac(robot_id, cfg)
+        self.mac: StationMac = rotational
+        """The paper's MAC; a peer MAC may take its place (radio/peer_macs.py): the station
+        uses only what :class:`~firmware_model.radio.station_mac.StationMac` lists."""
+        self.deframer = Deframer(max_content=rotational.rx_max_content,
                                  byte_ticks=uart.byte_ticks)
         self.timer = ReloadTimer(sched, self._on_timer)
         self.stall_timer = ReloadTimer(sched, self._on_stall, name="RXWATCH")

@@ -50,6 +50,7 @@ from .mac import (
     Outcome, QueueFull, Refused, RotationalMac, SubmitError, TX_OFF, TX_ON, Transmit, _layers,
     check_submission,
 )
+from .station_mac import StationMac
 
 __all__ = [
     "KINDS", "PeerConfig", "PeerMac", "AlohaMac", "SlottedAlohaMac", "CsmaMac", "make_mac",
@@ -319,6 +320,21 @@ class PeerMac:
     def force_turn(self, now: int) -> list:
         """Fault injection of the rotational MAC; a peer MAC has no turn to steal."""
         return []
+
+    def resync(self, now: int) -> list:
+        """The station was not running for longer than the margins allow (a bench process
+        stopped; ``RadioStation.resync``). A peer MAC keeps no view of the air but its
+        timers, which run when the station next looks; like the rotational MAC it does not
+        send a frame decided before the gap: TXEN raised for one goes down, and whatever was
+        due (acks, data) is decided again from now. A frame already on the air ends first
+        (the station resyncs after it)."""
+        out: list = []
+        if self.mode == MEMBER and self.phase == SWITCH:
+            self.phase = RX
+            self._rx_from = now + self.cfg.ttrans
+            out.append(TX_OFF)
+        self._arm(now)
+        return out
 
     # -- delivery ----------------------------------------------------------------------------
 
@@ -657,7 +673,7 @@ _CLASSES = {"aloha": AlohaMac, "slotted": SlottedAlohaMac, "csma": CsmaMac}
 
 
 def make_mac(kind: str, robot_id: int, config: MacConfig | None = None, seed: int | str = 0,
-             peer: PeerConfig | None = None):
+             peer: PeerConfig | None = None) -> StationMac:
     """The MAC a station runs: ``"rotational"`` (the paper's), ``"aloha"``, ``"slotted"`` or
     ``"csma"``. ``seed`` seeds the peer MACs' random draws (per kind and robot)."""
     if kind == "rotational":
@@ -669,14 +685,14 @@ def make_mac(kind: str, robot_id: int, config: MacConfig | None = None, seed: in
     return cls(robot_id, config, peer, seed)
 
 
-def install(world, kind: str, peer: PeerConfig | None = None) -> dict[int, object]:
+def install(world, kind: str, peer: PeerConfig | None = None) -> dict[int, StationMac]:
     """Swap every station of a freshly built ``hil.sim.world.World`` (not yet run) to ``kind``.
 
     Each station keeps its own ``MacConfig`` (byte rate, team); the world powers the MACs on
     at their power-on ticks as usual. Returns the MACs by robot ID."""
     if world.sched.now != 0 or getattr(world, "standby_station", None) is not None:
         raise ValueError("install peer MACs on a fresh world without a standby father PC")
-    macs = {}
+    macs: dict[int, StationMac] = {}
     for r, st in world.stations.items():
         mac = make_mac(kind, r, st.mac.cfg, seed=world.cfg.seed, peer=peer)
         st.mac = mac
