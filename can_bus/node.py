@@ -32,6 +32,7 @@ would never call.
 from __future__ import annotations
 
 import difflib
+from functools import lru_cache
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
@@ -116,7 +117,10 @@ _NEAR = 0.85
 ``on_timer``, ``error_state`` are not (0.7 and less)."""
 
 
+@lru_cache(maxsize=1024)
 def _misspelt(names: tuple[str, ...]) -> tuple[tuple[str, str], ...]:
+    """(name, the hook it is a typo of) for each such name; cached: the nodes of one class
+    have the same names."""
     found = []
     for name in names:
         if name.startswith("_") or name in HOOKS:
