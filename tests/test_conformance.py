@@ -20,8 +20,8 @@ from firmware_model.radio.deframer import Deframer
 from hil.bench.conformance import BYTE, MS, TTRANS, Check, ConformanceError, Heard, Report, Tester
 
 from hostload import SchedulingLatency
-from test_paper_profile import PaperRobot
-import test_paper_profile
+import paper_robot
+from paper_robot import PaperRobot
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -264,7 +264,7 @@ def test_a_robot_that_hands_over_late_fails_the_timing_clauses(air, monkeypatch)
     """A paper robot whose switch time is 30 ms instead of Ttrans = 5 ms: the hand-over
     (clause 23), the hand-over after a late frame (26) and the takeover (24) fail; its frames,
     heartbeats, broken-frame handling and acknowledgements (none) pass."""
-    monkeypatch.setattr(test_paper_profile, "TTRANS", 0.030)
+    monkeypatch.setattr(paper_robot, "TTRANS", 0.030)
     verdicts = _run_against(PaperRobot(str(air / "node0"), 1, {0, 1}), str(air / "node1"),
                             "paper")
     failed = {c for (c, _), ok in verdicts.items() if not ok}

@@ -18,6 +18,7 @@ from firmware_model.timing import (
 )
 from hil.sim.faults import Fault, parse_fault
 from hil.sim.world import SimConfig, World
+from contents import content_of
 
 B = PC_BYTE_TICKS          # a foreign transmitter's byte time (9600 baud)
 
@@ -103,19 +104,6 @@ def test_a_forged_frame_from_a_never_member_is_refused_and_not_acted_on():
 
 
 # -- finding 3: the largest legal frame between every pair, father included -----------------
-
-def content_of(size):
-    """Commands whose Content is exactly ``size`` bytes (size >= 16)."""
-    out, left = [], size
-    while left >= 32:
-        out.append(cmd("movex", 123456789))        # 16 bytes
-        left -= 16
-    a = left // 2                                  # two commands of 8-16 bytes each
-    for n in (a, left - a):
-        out.append(cmd("movex", int("1" * (n - 7))))
-    assert sum(len(c.text()) for c in out) == size
-    return out
-
 
 def test_every_station_receives_the_largest_frame_any_station_may_send():
     assert protocol_max_content() == 562

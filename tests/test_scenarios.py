@@ -46,7 +46,7 @@ from firmware_model.timing import (
 )
 from hil.sim.faults import parse_fault
 from hil.sim.world import SimConfig, World
-from test_promises import content_of
+from contents import content_of
 
 B = CHILD_BYTE_TICKS
 FOREIGN_B = PC_BYTE_TICKS        # a transmitter that is no robot sends at exact 9600 baud

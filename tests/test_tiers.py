@@ -4,6 +4,7 @@ the SocketCAN tests that ran in the VM, the programs CI installs for the tests t
 and the host-latency probe of the wall-clock tests (tests/hostload.py)."""
 from __future__ import annotations
 
+import ast
 import os
 import re
 import subprocess
@@ -219,3 +220,21 @@ def test_every_test_that_starts_the_hub_runs_as_a_wall_clock_test():
                 stray.append(f"tests/{path.name}::{node.name}")
     assert stray == [], "start the pty radio hub but are not wall-clock tests: " \
         f"{stray} (add them to REALTIME_TESTS in tests/conftest.py)"
+
+
+def test_no_test_module_imports_another():
+    """Helpers the tests share live in modules of their own (``tests/processes.py``,
+    ``tests/paper_robot.py``, ``tests/can_testbed.py``, ...), not in a test module: importing
+    a test module runs its module-level code and its fixtures' imports a second time, and ties
+    one file's tests to another's internals."""
+    tests = Path(__file__).resolve().parent
+    modules = {p.stem for p in tests.rglob("test_*.py")}
+    found = []
+    for path in sorted(tests.rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            found += [f"{path.relative_to(tests)}: {n}" for n in names
+                      if n.partition(".")[0] in modules]
+    assert not found, found
