@@ -50,12 +50,16 @@ TRANSITIONS: tuple[Transition, ...] = (
        "designed"),
     _T("LISTEN", "garbage", "LISTEN", "bytes that form no frame: nothing changes (only a frame "
        "or a failed frame restarts the claim timer)", "designed"),
+    _T("LISTEN", "failed frame", "LISTEN", "a frame that broke after its Header: the claim "
+       "timer restarts", "designed"),
     _T("LISTEN", "frame", "SWITCH", "invited (poll names us): answer with JOIN at E + Ttrans",
        "designed"),
     _T("LISTEN", "frame", "HOLD", "a father PC hears the active PC: stands by, following the "
        "ring (its turn starts at the deadline)", "designed"),
     _T("LISTEN", "frame", "WAIT", "a father PC hears the active PC: stands by, following the "
        "ring", "designed"),
+    _T("LISTEN", "deadline", "LISTEN", "a frame is still coming in: look again 2 bytes later",
+       "designed"),
     _T("LISTEN", "deadline", "SWITCH", "silence for Tclaim(id): claim, a ring of one",
        "designed"),
     # -- waiting for the owner ------------------------------------------------------------
@@ -66,6 +70,9 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WAIT", "frame", "WINDOW", "the frame invites an absent robot: its window until "
        "E + Twin", "designed"),
     _T("WAIT", "frame", "WATCH", "ID 0's turn on a PC that checks for the other PC",
+       "designed"),
+    _T("WAIT", "frame", "HOLD", "a frame refused as a failed one (bad checksum, outside the "
+       "team, forged) in the slot before ours: id x Tslot after its End (R-stagger)",
        "designed"),
     _T("WAIT", "garbage", "WAIT", "bytes before the owner could have begun (its Ttrans)",
        "designed"),
@@ -95,6 +102,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WINDOW", "frame", "WATCH", "the answer came and ID 0's turn follows on a checking PC",
        "designed"),
     _T("WINDOW", "garbage", "WINDOW", "bytes that form no Header: keep waiting", "designed"),
+    _T("WINDOW", "failed frame", "QUIET", "a frame broke before its Length: wait for quiet",
+       "designed"),
     _T("WINDOW", "deadline", "WINDOW", "a Header had begun by E + Twin: look again", "designed"),
     _T("WINDOW", "deadline", "WAIT", "no answer by E + Twin: the poller's successor's turn",
        "designed"),
@@ -118,6 +127,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("HOLD", "garbage", "HOLD", "bytes heard while we wait to begin", "designed"),
     _T("HOLD", "failed frame", "HOLD", "a frame abandoned while we wait to begin: no change",
        "designed"),
+    _T("HOLD", "frame", "HOLD", "a frame refused as a failed one (bad checksum, outside the "
+       "team, forged) while we wait to begin: no change", "designed"),
     _T("HOLD", "frame", "WAIT", "someone else sent first: resynchronise on it", "paper §IV.C"),
     _T("HOLD", "frame", "SWITCH", "a frame from the robot before us came first (a late "
        "twin's; a lone member's invitation answered after its window, clause 31): "
@@ -135,6 +146,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("SEND", "tx done", "WAIT", "our End is out: the successor's turn at E", "paper §IV.C"),
     _T("SEND", "tx done", "WINDOW", "we invited a robot: its window until E + Twin",
        "designed"),
+    _T("SEND", "tx done", "LISTEN", "our BOOT/JOIN went out the announcement limit of times "
+       "and a member never acknowledged it: to be invited again", "designed"),
     _T("SEND", "tx done", "HOLD", "a lone member pauses Twin + id x Tslot", "designed"),
     # -- father failover ------------------------------------------------------------------
     _T("WATCH", "frame", "WAIT", "the active PC's frame: follow it", "designed"),
