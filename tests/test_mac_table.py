@@ -53,8 +53,9 @@ def _rare_paths() -> None:
     """Paths the runs above seldom or never take, each driven on one MAC: the claim wait
     restarted by a failed frame and held off by a frame in progress (clause 28); a BOOT no
     member acknowledges, given up after the announcement limit (clause 36); a bad checksum in
-    the slot before ours (clauses 43, 44) and while we hold (clause 43); a frame that fails
-    in an invitation's window (clause 41)."""
+    the slot before ours (clauses 43, 44) and while we hold (clause 43); frames that fail in
+    an invitation's window and while a broken frame is being waited out (clause 41); a poll
+    and a mask without us heard then (clauses 33, 37), and a poll while we hold."""
     mac = M.RotationalMac(1, M.MacConfig(team=frozenset({1, 2})))
     mac.power_on(0)
     mac.on_corrupt(100 * B, 2, 120 * B, 120 * B)
@@ -81,11 +82,88 @@ def _rare_paths() -> None:
     assert mac.phase == M.HOLD
     mac.on_frame(Frame(7, 1, 0, 3, b"crc(00000)"), t, t + 14 * B, t + 14 * B)
 
-    mac, t = _answer(1, {1, 2, 3}, 2, 0b0100)  # ring {1, 2}
+    for me, poller, mask, length in ((1, 2, 0b0100, None), (1, 2, 0b0100, 20), (2, 1, 0b0010, 20)):
+        mac, t = _answer(me, {1, 2, 3}, poller, mask)     # ring {1, 2}; the other polls 3
+        t += 50 * B
+        mac.on_frame(_hb(poller, t, b"poll(3,6)"), t - 23 * B, t, t)
+        assert mac.phase == M.WINDOW
+        end = None if length is None else t + length * B
+        mac.on_corrupt(t + 5 * B, None, end, t + 8 * B)   # QUIET; HOLD (succ(3) is 1); WAIT
+
+    # a frame breaks in o's slot before its Length (QUIET), then: a failed frame with its
+    # Length, in the slot before ours or not; a bad checksum before ours; a poll; a poll
+    # mask that lacks us
+    for me, team, poller, mask, then in (
+            (1, {1, 2, 3}, 2, 0b0100, "failed"), (1, {1, 2, 3, 4}, 2, 0b1100, "failed"),
+            (1, {1, 2, 3}, 2, 0b0100, "bad crc"), (1, {1, 2, 3, 4}, 2, 0b1100, "poll(4,14)"),
+            (1, {1, 2, 3, 4}, 2, 0b1100, "poll(4,12)")):
+        mac, t = _answer(me, team, poller, mask, checksum=then == "bad crc")
+        t += 50 * B
+        mac.on_corrupt(t - 10 * B, None, None, t)
+        assert mac.phase == M.QUIET
+        if then == "failed":
+            mac.on_corrupt(t + 5 * B, None, t + 20 * B, t + 8 * B)
+        elif then == "bad crc":
+            mac.on_frame(Frame(7, mac.owner, 0, 3, b"crc(00000)"), t, t + 14 * B, t + 14 * B)
+        else:
+            mac.on_frame(_hb(2, t, then.encode()), t, t + 24 * B, t + 24 * B)
+
+    # a frame that polls while we hold after an uncertain closure
+    mac, t = _answer(3, {1, 2, 3, 4}, 2, 0b0110, checksum=True)
     t += 50 * B
-    mac.on_frame(Frame(7, 2, 0, 3, b"poll(3,6)"), t - 23 * B, t, t)
-    assert mac.phase == M.WINDOW
-    mac.on_corrupt(t + 5 * B, None, None, t + 8 * B)
+    mac.on_frame(seal(7, 1, 0, 3, b""), t - 14 * B, t, t)
+    t += 50 * B
+    mac.on_frame(Frame(7, 2, 0, 3, b"crc(00000)"), t - 14 * B, t, t)
+    assert mac.phase == M.HOLD
+    mac.on_frame(seal(7, 1, 0, 3, b"poll(4,14)"), t + 3 * B, t + 33 * B, t + 33 * B)
+
+
+def _hb(src: int, t: int, content: bytes = b"") -> Frame:
+    return Frame(7, src, 0, 3, content)
+
+
+def _father_paths() -> None:
+    """The father's PC2 (clause 50), driven on one MAC: a standby that hears the active PC's
+    invitation from LISTEN, that claims (and watches first), that hears garbage and failed
+    frames while it watches, that follows the active PC's poll from WATCH, that watches after
+    a miss or an unanswered window; PC2 answering its second invitation on a check turn."""
+    def pc2(standby: bool = True) -> M.RotationalMac:
+        cfg = M.MacConfig(team=frozenset({0, 1, 2, 3}), paired=True, pc=2, standby=standby)
+        mac = M.RotationalMac(0, cfg)
+        mac.power_on(0)
+        return mac
+
+    def heard(mac: M.RotationalMac, src: int, t: int, content: bytes = b"") -> None:
+        mac.on_frame(_hb(src, t, content), t - (14 + len(content)) * B, t, t)
+
+    mac = pc2()
+    heard(mac, 0, 100 * B, b"poll(3,7)")                 # LISTEN -> WINDOW
+    mac = pc2()
+    mac.on_timer(mac.deadline)                           # LISTEN -> WATCH
+    mac.on_garbage(mac.deadline - 10 * B, mac.deadline - 5 * B, mac.deadline - 5 * B)
+
+    def follower() -> tuple[M.RotationalMac, int]:       # a standby in a ring {0, 1}
+        mac = pc2()
+        heard(mac, 1, 100 * B)
+        heard(mac, 0, 140 * B)                           # LISTEN -> WAIT for robot 1
+        return mac, 140 * B
+
+    mac, t = follower()
+    mac.on_timer(mac.deadline)                           # 1 missed: WAIT -> WATCH
+    mac.on_corrupt(mac.turn_start + 8 * B, None, None, mac.turn_start + 10 * B)   # QUIET
+    mac, t = follower()
+    heard(mac, 1, t + 40 * B)                            # WAIT -> WATCH
+    mac.on_corrupt(t + 45 * B, None, t + 60 * B, t + 48 * B)                      # WAIT
+    mac, t = follower()
+    heard(mac, 1, t + 40 * B)
+    heard(mac, 0, t + 70 * B, b"poll(3,3)")              # WATCH -> WINDOW
+    mac, t = follower()
+    heard(mac, 1, t + 40 * B, b"poll(3,3)")              # WAIT -> WINDOW
+    mac.on_timer(mac.deadline)                           # no answer: WINDOW -> WATCH
+    mac = pc2(standby=False)
+    for i in range(2):                                   # the first invitation passes
+        heard(mac, 1, (100 + 100 * i) * B, b"poll(0,2)")  # LISTEN -> WATCH
+    assert mac.phase == M.WATCH
 
 
 HOOKS = {"on_frame": "frame", "on_corrupt": "failed frame", "on_garbage": "garbage",
@@ -117,6 +195,7 @@ def observed():
         for kw in RUNS:
             World(SimConfig(**kw)).run()
         _rare_paths()
+        _father_paths()
     finally:
         mp.undo()
     return seen
