@@ -118,6 +118,60 @@ def _rare_paths() -> None:
     mac.on_frame(seal(7, 1, 0, 3, b"poll(4,14)"), t + 3 * B, t + 33 * B, t + 33 * B)
 
 
+def _sent(mac: M.RotationalMac) -> int:
+    """From SWITCH: the frame goes out; the tick its End left."""
+    mac.on_timer(mac.deadline)
+    t = mac.turn_start + mac.cfg.ttrans + 20 * B
+    mac.on_tx_done(t)
+    return t
+
+
+def _window_paths() -> None:
+    """Frames that end an invitation's window otherwise than clause 35 says: another robot's
+    frame in a lone member's window (clause 31), a twin's second frame (clause 38), and a
+    takeover by the poller's successor late enough (clause 39) that polls (clause 33) or
+    whose mask lacks us (clause 37); and the cut-off (clause 40) reached on noise in QUIET."""
+    mac = M.RotationalMac(2, M.MacConfig(team=frozenset({1, 2, 3})))
+    mac.power_on(0)
+    mac.on_timer(mac.deadline)                           # the claim
+    _sent(mac)                                           # BOOT, no poll: HOLD
+    mac.on_timer(mac.deadline)
+    t = _sent(mac)                                       # poll(3,4): WINDOW
+    assert mac.phase == M.WINDOW
+    mac.on_frame(_hb(1, 0), t - 4 * B, t + 10 * B, t + 10 * B)
+    assert mac.mode == M.LISTEN
+
+    mac, t = _answer(1, {1, 2, 3}, 2, 0b0100)            # ring {1, 2}
+    mac.on_frame(_hb(1, 0), t + 26 * B, t + 40 * B, t + 40 * B)   # our ID: refused
+    t += 80 * B
+    mac.on_frame(_hb(2, 0, b"poll(3,6)"), t - 23 * B, t, t)      # WINDOW
+    mac.on_frame(_hb(1, 0), t + 26 * B, t + 40 * B, t + 40 * B)   # our ID again: a twin
+    assert mac.mode == M.LISTEN
+
+    for mask, phase in ((0b1110, M.WINDOW), (0b1100, None)):
+        mac, t = _answer(1, {1, 2, 3, 4, 5}, 2, 0b1100)  # ring {1, 2, 3}
+        t += 40 * B
+        mac.on_frame(_hb(2, 0, b"poll(4,14)"), t - 24 * B, t, t)  # the window of 4
+        poll = f"poll(5,{mask})".encode()
+        mac.on_frame(_hb(3, 0, poll), t + 20 * B, t + 44 * B, t + 44 * B)
+        assert (mac.phase if mac.mode == M.MEMBER else None) == phase
+
+    mac, t = _answer(1, {1, 2, 3, 4}, 2, 0b1100)         # ring {1, 2, 3}: 3 misses cut off
+    for _ in range(20):
+        if mac.mode != M.MEMBER:
+            break
+        if mac.phase == M.WAIT:                          # noise in the owner's slot, no frame
+            g = mac.turn_start + mac.cfg.ttrans + 5 * B
+            mac.on_garbage(g - B, g, g)
+            limit = mac.turn_start + mac.cfg.tmax
+            mac.on_timer(limit, False, limit - B)
+        elif mac.phase == M.SEND:
+            mac.on_tx_done(mac.turn_start + mac.cfg.ttrans + 20 * B)
+        else:
+            mac.on_timer(mac.deadline)
+    assert mac.mode == M.LISTEN
+
+
 def _hb(src: int, t: int, content: bytes = b"") -> Frame:
     return Frame(7, src, 0, 3, content)
 
@@ -196,6 +250,7 @@ def observed():
             World(SimConfig(**kw)).run()
         _rare_paths()
         _father_paths()
+        _window_paths()
     finally:
         mp.undo()
     return seen

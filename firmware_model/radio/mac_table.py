@@ -109,6 +109,10 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WINDOW", "frame", "HOLD", "the answer came and a lone member pauses", "designed"),
     _T("WINDOW", "frame", "WATCH", "the answer came and ID 0's turn follows on a checking PC",
        "designed"),
+    _T("WINDOW", "frame", "LISTEN", "a lone member hears another robot; left out by the "
+       "frame that took the window over; or a twin: yield", "designed"),
+    _T("WINDOW", "frame", "WINDOW", "the poller's successor took the window over late enough "
+       "and invites a robot: its window", "designed"),
     _T("WINDOW", "garbage", "WINDOW", "bytes that form no Header: keep waiting", "designed"),
     _T("WINDOW", "failed frame", "QUIET", "a frame broke before its Length: wait for quiet",
        "designed"),
@@ -146,6 +150,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "(R-stagger)", "designed"),
     _T("QUIET", "deadline", "SWITCH", "only noise until E + Tmax: a miss, and ours is next",
        "paper §IV.C"),
+    _T("QUIET", "deadline", "LISTEN", "only noise until E + Tmax: the miss that makes a whole "
+       "round unheard", "designed"),
     # -- our turn -------------------------------------------------------------------------
     _T("HOLD", "garbage", "HOLD", "bytes heard while we wait to begin", "designed"),
     _T("HOLD", "failed frame", "HOLD", "a frame abandoned while we wait to begin: no change",
