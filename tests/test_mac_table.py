@@ -177,10 +177,11 @@ def _hb(src: int, t: int, content: bytes = b"") -> Frame:
 
 
 def _father_paths() -> None:
-    """The father's PC2 (clause 50), driven on one MAC: a standby that hears the active PC's
+    """The father's PCs (clause 50), driven on one MAC: a standby that hears the active PC's
     invitation from LISTEN, that claims (and watches first), that hears garbage and failed
     frames while it watches, that follows the active PC's poll from WATCH, that watches after
-    a miss or an unanswered window; PC2 answering its second invitation on a check turn."""
+    a miss or an unanswered window; PC2 answering its second invitation on a check turn; PC1
+    on probation refusing the other PC's frame while it watches."""
     def pc2(standby: bool = True) -> M.RotationalMac:
         cfg = M.MacConfig(team=frozenset({0, 1, 2, 3}), paired=True, pc=2, standby=standby)
         mac = M.RotationalMac(0, cfg)
@@ -218,6 +219,19 @@ def _father_paths() -> None:
     for i in range(2):                                   # the first invitation passes
         heard(mac, 1, (100 + 100 * i) * B, b"poll(0,2)")  # LISTEN -> WATCH
     assert mac.phase == M.WATCH
+
+    # PC1, which heard the other PC after a miss: on probation it watches its turns, and
+    # refuses the other PC's frame heard then (clause 50)
+    mac = M.RotationalMac(0, M.MacConfig(team=frozenset({0, 1, 2}), paired=True, pc=1))
+    mac.power_on(0)
+    heard(mac, 1, 100 * B, b"poll(0,2)")                 # invited: ring {0, 1}
+    _sent(mac)
+    mac.on_timer(mac.deadline)                           # robot 1 missed: our turn, R-stagger
+    heard(mac, 0, mac.turn_start + 40 * B)               # the other PC: probation; WAIT for 1
+    heard(mac, 1, mac.turn_start + 80 * B)               # our turn, watched
+    assert mac.phase == M.WATCH
+    heard(mac, 0, mac.turn_start + 30 * B)               # refused: WATCH -> WATCH
+    assert mac.phase == M.WATCH and not mac.standby
 
 
 HOOKS = {"on_frame": "frame", "on_corrupt": "failed frame", "on_garbage": "garbage",

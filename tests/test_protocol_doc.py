@@ -361,8 +361,11 @@ def test_the_guard_check_catches_a_dropped_line_or_a_wrong_target():
     assert guard_problems(text.replace(full, full.replace("SWITCH", "WAIT  ")))
     assert guard_problems(text.replace(full, full.replace("[23, 39]", "[23, 40]")))
     assert guard_problems(text.replace(full, full + " †"))
-    for marked in [t for t in text.splitlines() if t.endswith(" †")][:1]:
-        assert guard_problems(text.replace(marked, marked[:-2]))   # a path no test takes
+    sent = "    else WAIT for succ(me) until E + Tmax ............................. -> WAIT   [22]"
+    assert sent in text
+    not_a_row = sent.replace("WAIT   [22]", "SEND   [22]")      # (SEND, tx done, SEND)
+    assert guard_problems(text.replace(sent, sent + "\n" + not_a_row))
+    assert not guard_problems(text.replace(sent, sent + "\n" + not_a_row + " †"))
 
 
 # ----------------------------------------------------------------------------------------------

@@ -189,6 +189,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "designed"),
     _T("WATCH", "failed frame", "WAIT", "a frame broke after its Length: the turn passes at "
        "its promised end", "designed"),
+    _T("WATCH", "frame", "WATCH", "PC1 on probation hears the other PC: refused, keeps "
+       "watching", "designed"),
     _T("WATCH", "deadline", "WAIT", "the active PC's Header is coming: stand by", "designed"),
     _T("WATCH", "deadline", "SWITCH", "no Header from the active PC: take ID 0's turn",
        "designed"),
