@@ -74,3 +74,25 @@ def test_with_the_extension_on_the_owners_heartbeat_without_a_checksum_is_refuse
     mac = _member_waiting_for_robot_1(checksum=False)
     out = mac.on_frame(Frame(dst=7, src=1, num=5, type=3, content=b""), t, t + 1000, t + 1000)
     assert any(isinstance(a, TxEnable) for a in out)       # extension off: a plain heartbeat
+
+
+def test_with_the_extension_on_a_bad_checksum_is_judged_before_the_source_it_names():
+    """Clause 43: with the checksum on, a frame whose checksum fails is a failed frame whose
+    Source was not read. A byte error that turns the Source into our own ID, or into a robot
+    outside the team, must not be taken for a twin (clause 38) or a foreign ring: two such
+    frames once made a member announce a duplicate ID and leave for LISTEN."""
+    from firmware_model.radio.mac import (BadChecksum, DuplicateId, ForeignRing, ModeChange,
+                                          Refused)
+    mac = _member_waiting_for_robot_1(checksum=True)
+    t = 3_000_000
+    events = []
+    for src in (2, 2, 5, 2):                     # our own ID twice, one outside (1, 2), again
+        good = seal(7, 1, 6, 3, b"")
+        forged_src = Frame(dst=7, src=src, num=good.num, type=3, content=good.content)
+        events += list(mac.on_frame(forged_src, t, t + 1000, t + 1000))
+        t += 700_000
+    kinds = {type(e) for e in events}
+    assert BadChecksum in kinds, events
+    assert not kinds & {DuplicateId, ForeignRing, Refused}, events
+    assert not [e for e in events if isinstance(e, ModeChange)], events
+    assert mac.mode == "member"

@@ -710,6 +710,12 @@ class RotationalMac:
                 out.append(Refused(src, frame.num, why[1], why[0]))
                 out.extend(self.on_corrupt(first, None, end, now))
                 return out
+        if self.cfg.checksum and not crc_ok(frame):
+            # A failed frame whose Source was not read (clause 43): a byte error may have made
+            # it our own ID or a robot outside the team, so the checksum is judged first.
+            out.append(BadChecksum(first, end))
+            out.extend(self.on_corrupt(first, None, end, now))
+            return out
         if src == self.id:
             # Our own ID from the air (we are deaf while sending): another PC is ID 0, or a
             # robot with our ID, or a forger. Refused; it still sets the timing. A father that
@@ -725,11 +731,7 @@ class RotationalMac:
             return out
         content = frame.content
         if self.cfg.checksum:
-            if not crc_ok(frame):
-                out.append(BadChecksum(first, end))
-                out.extend(self.on_corrupt(first, None, end, now))
-                return out
-            content = strip_crc(content)
+            content = strip_crc(content)              # checked above
         elif self._key is not None:
             content = _auth.strip(content)    # checked above
         try:
