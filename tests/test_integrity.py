@@ -96,3 +96,29 @@ def test_with_the_extension_on_a_bad_checksum_is_judged_before_the_source_it_nam
     assert not kinds & {DuplicateId, ForeignRing, Refused}, events
     assert not [e for e in events if isinstance(e, ModeChange)], events
     assert mac.mode == "member"
+
+
+def test_a_refused_good_frame_proves_the_radio_hears_and_resets_the_cut_off_count():
+    """Clause 40: a member goes to LISTEN after max(3, n - 1) misses "without hearing any good
+    frame in between". A good frame it refuses (our own ID, here) was heard: its radio is not
+    cut off. Robot 2 of ring (1, 2, 3), after its own frame: robots 3 and 1 miss, our own ID
+    is heard, robot 3 misses: three misses, not in a row, and R2 stays a member."""
+    from firmware_model.radio.mac import MacConfig, Miss, ModeChange, Refused, RotationalMac
+    mac = RotationalMac(2, MacConfig(team=frozenset({1, 2, 3})))
+    mac.power_on(0)
+    t = 1_000_000
+    mac.on_frame(Frame(dst=7, src=1, num=5, type=3, content=b"poll(2,10)"), t - 20_000, t, t)
+    mac.on_timer(mac.deadline)                  # SWITCH: our JOIN goes out
+    mac.on_tx_done(mac.turn_start + 2_000_000)
+    assert (mac.mode, mac.ring, mac.owner) == ("member", (1, 2, 3), 3)
+    events = list(mac.on_timer(mac.deadline))   # robot 3 misses
+    events += mac.on_timer(mac.deadline)        # robot 1 misses
+    e = mac.turn_start + 100_000                # our own ID heard in robot 2's turn: refused
+    events += mac.on_frame(Frame(dst=7, src=2, num=9, type=3, content=b""), e - 233_000, e, e)
+    while mac.owner != 3 or mac.phase != "wait":
+        events += mac.on_timer(mac.deadline)
+    events += mac.on_timer(mac.deadline)        # robot 3 misses again
+    assert [type(x) for x in events if isinstance(x, (Miss, Refused))] == \
+        [Miss, Miss, Refused, Miss], events
+    assert not [x for x in events if isinstance(x, ModeChange)], events
+    assert mac.mode == "member"

@@ -701,6 +701,8 @@ class RotationalMac:
             self.deadline = end + self.cfg.tmax
             return _NOTHING
         out: list = []
+        # a good frame, even one refused below: our radio hears (the cut-off, clause 40)
+        silent, self._silent = self._silent, 0
         if self._key is not None:
             why = self._auth_refusal(frame)
             if why is not None:
@@ -723,7 +725,7 @@ class RotationalMac:
             if self.id != 0 or not self._pair:
                 self._own_id_heard(frame.num, end, now, out)
                 return out
-            return self._active_frame(frame, end, now, out)
+            return self._active_frame(frame, end, now, out, silent)
         if src not in self.cfg.team:
             self._foreign_heard(src, end, out)
             out.append(Refused(src, frame.num, f"robot {src} is not in the team"))
@@ -1310,8 +1312,10 @@ class RotationalMac:
             if n >= cfg.miss_limit:
                 self._drop(r, out)
 
-    def _active_frame(self, frame: Frame, end: int, now: int, out: list) -> list:
-        """A frame with ID 0 that we did not send: the active PC of the father's pair."""
+    def _active_frame(self, frame: Frame, end: int, now: int, out: list,
+                      silent: int) -> list:
+        """A frame with ID 0 that we did not send: the active PC of the father's pair.
+        ``silent``: the misses counted before it with no good frame heard (clause 40)."""
         content = strip_crc(frame.content) if self.cfg.checksum and crc_ok(frame) \
             else frame.content
         if self._key is not None:
@@ -1340,7 +1344,7 @@ class RotationalMac:
                 # a forger's, is refused and closes the slot it was sent in. Heard after a miss
                 # with no frame accepted since, it says we were deaf while PC2 took over: on
                 # probation we leave new messages to PC2 (clause 50), or both deliver them.
-                if self._silent:
+                if silent:
                     self._check_turns = 3
                 self._own_id_heard(frame.num, end, now, out)
                 return out
