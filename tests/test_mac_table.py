@@ -181,7 +181,7 @@ def _father_paths() -> None:
     invitation from LISTEN, that claims (and watches first), that hears garbage and failed
     frames while it watches, that follows the active PC's poll from WATCH, that watches after
     a miss or an unanswered window; PC2 answering its second invitation on a check turn; PC1
-    on probation refusing the other PC's frame while it watches."""
+    on probation refusing the other PC's frame while it watches (the slot closes)."""
     def pc2(standby: bool = True) -> M.RotationalMac:
         cfg = M.MacConfig(team=frozenset({0, 1, 2, 3}), paired=True, pc=2, standby=standby)
         mac = M.RotationalMac(0, cfg)
@@ -230,8 +230,8 @@ def _father_paths() -> None:
     heard(mac, 0, mac.turn_start + 40 * B)               # the other PC: probation; WAIT for 1
     heard(mac, 1, mac.turn_start + 80 * B)               # our turn, watched
     assert mac.phase == M.WATCH
-    heard(mac, 0, mac.turn_start + 30 * B)               # refused: WATCH -> WATCH
-    assert mac.phase == M.WATCH and not mac.standby
+    heard(mac, 0, mac.turn_start + 30 * B)               # refused, closes the slot: -> WAIT
+    assert (mac.phase, mac.owner) == (M.WAIT, 1) and not mac.standby
 
 
 HOOKS = {"on_frame": "frame", "on_corrupt": "failed frame", "on_garbage": "garbage",

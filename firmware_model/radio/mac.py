@@ -1552,7 +1552,9 @@ class RotationalMac:
             out.append(Refused(self.id, num, "our own robot ID from the air", "own_id"))
             self.deadline = now + self._claim_ticks()
             return
-        if self.phase in (WAIT, WINDOW, QUIET, HOLD):
+        if self.phase in (WAIT, WINDOW, QUIET, HOLD, WATCH):
+            # WATCH: PC1 on probation heard the other PC's whole frame while it watched its
+            # turn; the members took it as ID 0's, so the next turn is robot succ(0)'s
             self._refuse_in_slot(self.id, num, "our own robot ID from the air", end, now, out,
                                  "own_id")
         else:

@@ -182,7 +182,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "and a member never acknowledged it: to be invited again", "designed"),
     _T("SEND", "tx done", "HOLD", "a lone member pauses Twin + id x Tslot", "designed"),
     # -- father failover ------------------------------------------------------------------
-    _T("WATCH", "frame", "WAIT", "the active PC's frame: follow it", "designed"),
+    _T("WATCH", "frame", "WAIT", "the active PC's frame: follow it; PC1 on probation refuses "
+       "the other PC's, which closes ID 0's slot", "designed"),
     _T("WATCH", "frame", "WINDOW", "the active PC's frame invites a robot: its window",
        "designed"),
     _T("WATCH", "garbage", "WATCH", "bytes that form no frame: keep watching", "designed"),
@@ -190,8 +191,6 @@ TRANSITIONS: tuple[Transition, ...] = (
        "designed"),
     _T("WATCH", "failed frame", "WAIT", "a frame broke after its Length: the turn passes at "
        "its promised end", "designed"),
-    _T("WATCH", "frame", "WATCH", "PC1 on probation hears the other PC: refused, keeps "
-       "watching", "designed"),
     _T("WATCH", "deadline", "WAIT", "the active PC's Header is coming: stand by", "designed"),
     _T("WATCH", "deadline", "SWITCH", "no Header from the active PC: take ID 0's turn",
        "designed"),
