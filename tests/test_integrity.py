@@ -1,6 +1,8 @@
 """The opt-in checksum extension (docs/protocol.md §3.4, docs/mac.md): test vectors and interop."""
 from __future__ import annotations
 
+import pytest
+
 from firmware_model.radio.content import parse_content, split_layers
 from firmware_model.radio.frame import Frame, parse_frame
 from firmware_model.radio.integrity import CRC_TEXT_LEN, check, crc16, seal, strip
@@ -122,3 +124,25 @@ def test_a_refused_good_frame_proves_the_radio_hears_and_resets_the_cut_off_coun
         [Miss, Miss, Refused, Miss], events
     assert not [x for x in events if isinstance(x, ModeChange)], events
     assert mac.mode == "member"
+
+
+@pytest.mark.parametrize("frame", [
+    pytest.param(Frame(dst=7, src=5, num=1, type=3, content=b""), id="outside the team"),
+    pytest.param(Frame(dst=7, src=1, num=1, type=3, content=b"crc(00000)"), id="bad checksum"),
+])
+def test_a_lone_member_stays_for_a_frame_refused_as_failed(frame):
+    """Clause 31: a lone member goes back to LISTEN for a good frame of another robot of its
+    team; a frame refused as a failed frame (Source outside the team, clause 38; bad checksum,
+    clause 43) is none: its Source may be a byte error or a stranger's."""
+    from firmware_model.radio.mac import MacConfig, ModeChange, RotationalMac
+    mac = RotationalMac(2, MacConfig(team=frozenset({1, 2, 3}), checksum=True))
+    mac.power_on(0)
+    while mac.mode != "member":                  # silence: it claims, a ring of one
+        mac.on_timer(mac.deadline)
+    mac.on_timer(mac.deadline)
+    mac.on_tx_done(mac.deadline if mac.deadline else mac.turn_start + 1_000_000)
+    assert mac.ring == (2,)
+    t = mac.turn_start + 2_000_000
+    out = mac.on_frame(frame, t - 14 * 16_667, t, t)
+    assert not [e for e in out if isinstance(e, ModeChange)], out
+    assert (mac.mode, mac.ring) == ("member", (2,))
