@@ -46,61 +46,73 @@ from __future__ import annotations
 
 import random
 from bisect import bisect_right
-from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Iterable, Sequence
 
-from ..timing import (
-    CHILD_BYTE_TICKS,
-    FRAME_OVERHEAD,
-    MISS_LIMIT,
-    PC_BYTE_TICKS,
-    TMAX_TICKS,
-    TTRANS_TICKS,
-    max_content_bytes,
-    protocol_max_content,
+from ..timing import FRAME_OVERHEAD, max_content_bytes, protocol_max_content
+from ..timing import (  # still importable from here, as before MacConfig moved out
+    CHILD_BYTE_TICKS as CHILD_BYTE_TICKS,
+    MISS_LIMIT as MISS_LIMIT,
+    PC_BYTE_TICKS as PC_BYTE_TICKS,
+    TMAX_TICKS as TMAX_TICKS,
+    TTRANS_TICKS as TTRANS_TICKS,
 )
 from .content import Command, cmd, format_content, parse_content, split_layers
 from .errors import ContentError
 from .frame import BROADCAST, Frame, FrameType
 from . import auth as _auth
 from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
+# The MAC's records and configuration live in modules of their own; every public name stays
+# importable from here (``from firmware_model.radio.mac import MacConfig, Deliver``).
+from .mac_config import (
+    BEHIND_WINDOW,
+    FAILING_SLOT_LIMIT,
+    LET_PASS_MAX,
+    PC2_CHECK_EVERY,
+    PROFILES,
+    TAKEOVER_TOLERANCE,
+    TWIN_FRAMES,
+    MacConfig,
+    check_submission,
+)
+from .mac_events import (
+    TX_OFF,
+    TX_ON,
+    UNACKNOWLEDGED,
+    BadChecksum,
+    BadContent,
+    Deliver,
+    Disable,
+    Duplicate,
+    DuplicateId,
+    ForeignRing,
+    Join,
+    Message,
+    Miss,
+    ModeChange,
+    NumberBehind,
+    Outcome,
+    QueueFull,
+    Refused,
+    StandingBy,
+    SubmitError,
+    Transmit,
+    TxEnable,
+)
+
+__all__ = [
+    "RotationalMac", "DEADLINE_HANDLERS", "LISTEN", "MEMBER", "WAIT", "WINDOW", "HOLD", "SWITCH",
+    "SEND", "QUIET", "WATCH", "MacConfig", "check_submission", "PROFILES", "PC2_CHECK_EVERY",
+    "TAKEOVER_TOLERANCE", "TWIN_FRAMES", "BEHIND_WINDOW", "FAILING_SLOT_LIMIT", "LET_PASS_MAX",
+    "TxEnable", "TX_ON", "TX_OFF", "Transmit", "Miss", "Disable", "Join", "ModeChange", "Deliver",
+    "Duplicate", "BadContent", "Refused", "NumberBehind", "DuplicateId", "ForeignRing",
+    "BadChecksum", "Outcome", "Message", "UNACKNOWLEDGED", "SubmitError", "QueueFull",
+    "StandingBy",
+]
 
 LISTEN = "listen"
 MEMBER = "member"
-PROFILES = ("rprs", "paper")
-"""``rprs``: docs/protocol.md in full. ``paper``: only the paper's rules on the wire (a static ring
-from the team, empty heartbeats, no BOOT, JOIN, poll, ring, ack or crc; docs/protocol.md §9)."""
-UNACKNOWLEDGED = "unacknowledged"
-"""A message's final state in the paper profile: sent once, never acknowledged."""
 _NOTHING: tuple = ()
-PC2_CHECK_EVERY = 7
-"""An active PC2 listens for PC1 on one of its turns in this many (docs/mac.md, failover). Odd:
-in a ring of two with both PCs active PC2 sends twice a cycle, and an even period (8) always
-listened on the same one of the two, the one PC1 does not send in, so they never met
-(docs/guarantees.md)."""
-TAKEOVER_TOLERANCE = 0.05
-"""Clock difference (fraction of Tmax) between robots within which a takeover heard before
-our own timer expires is still taken as one (a fast clock's Tmax ends first)."""
-
-TWIN_FRAMES = 2
-"""Frames with our own ID that we did not send, each heard less than Tclaim(id) after the
-previous one, that say another robot has our ID (docs/protocol.md clause 38.2): one forged
-frame is never enough."""
-BEHIND_WINDOW = 8
-"""A message frame whose Number is 1 to this many behind the last one heard from its Source
-(modulo 100) is *behind* (docs/protocol.md clause 48a): reported, and refused when the
-checksum extension vouches for the Number, for no genuine sender's Number goes backwards. A
-genuine Number looks behind only after a member stayed in the ring with its Source and heard
-none of its next 100 - 8 - 1 = 91 messages."""
-FAILING_SLOT_LIMIT = 8
-"""Turns of one member in a row that end in a failed frame while the other members' frames are
-heard good in between, after which every member drops it (docs/protocol.md clause 41a): two
-robots with one ID that send in lock-step, or a transmitter that only garbles."""
-LET_PASS_MAX = 3
-"""A robot whose BOOT or JOIN was never acknowledged (or that was left out before it was) lets
-0 to this many invitations pass (a seeded draw) before it answers one: twins that answer
-together collide every time (docs/protocol.md clause 38.2)."""
 
 # Phases while MEMBER.
 WAIT = "wait"        # waiting for the header of ``owner`` until ``deadline``
@@ -110,332 +122,6 @@ SWITCH = "switch"    # TXEN is high; my frame starts at ``deadline`` (= turn sta
 SEND = "send"        # my frame is on air; ``on_tx_done`` ends the turn
 QUIET = "quiet"      # a frame failed before its Length: wait for the channel to fall quiet
 WATCH = "watch"      # hot standby: ID 0's turn; is the active PC's header coming?
-
-
-class SubmitError(ValueError):
-    """A message the MAC refuses at submission (too long for one turn, bad destination, full)."""
-
-
-class QueueFull(SubmitError):
-    """The queue holds ``max_queue`` messages: nothing more is taken until one ends (which
-    needs a turn of the ring, so not before the caller's next event)."""
-
-
-class StandingBy(SubmitError):
-    """A father PC standing by refuses new messages at once (docs/protocol.md clause 50): the
-    active PC sends ID 0's frames, and a message held here would go out only if this PC took
-    over, at an hour nobody chose."""
-
-
-# ---------------------------------------------------------------------------------------------
-# Actions (for the driver) and observations (for traces, tests and the application)
-
-
-@dataclass(frozen=True, slots=True)
-class TxEnable:
-    """Drive the PTR2000's TXEN pin: True = switch to transmit, False = back to receive."""
-
-    on: bool
-
-
-TX_ON = TxEnable(True)
-TX_OFF = TxEnable(False)
-"""The two TXEN actions (frozen: one object each serves every turn)."""
-
-
-@dataclass(frozen=True, slots=True)
-class Transmit:
-    """Send these bytes now (the radio has been in TX for Ttrans)."""
-
-    frame: Frame
-    data: bytes
-
-
-@dataclass(frozen=True, slots=True)
-class Miss:
-    """``robot``'s header was not heard by the turn's deadline (observer's view)."""
-
-    robot: int
-
-
-@dataclass(frozen=True, slots=True)
-class Disable:
-    """``robot`` missed ``miss_limit`` consecutive turns and is dropped from the ring."""
-
-    robot: int
-
-
-@dataclass(frozen=True, slots=True)
-class Join:
-    """``robot`` became a member in this observer's view (``again``: it had been dropped)."""
-
-    robot: int
-    again: bool
-
-
-@dataclass(frozen=True, slots=True)
-class ModeChange:
-    """This robot changed mode (LISTEN/MEMBER) for ``reason``."""
-
-    mode: str
-    reason: str
-
-
-@dataclass(frozen=True, slots=True)
-class Deliver:
-    """A message for this robot (or broadcast) accepted once: hand it to the application."""
-
-    src: int
-    dst: int
-    num: int
-    type: int
-    commands: tuple[Command, ...]
-
-
-@dataclass(frozen=True, slots=True)
-class Duplicate:
-    """A retransmission of a message already delivered: re-acknowledged, not delivered again."""
-
-    src: int
-    num: int
-
-
-@dataclass(frozen=True, slots=True)
-class BadContent:
-    """A frame whose Content does not parse: the turn counts, nothing is delivered or acked."""
-
-    src: int
-    num: int
-    error: ContentError
-
-
-@dataclass(frozen=True, slots=True)
-class Refused:
-    """A frame refused and never acted on (docs/mac.md, spoofing and bounds): its Source is
-    not in the team, not the robot whose turn it is, our own ID, or a robot we disabled."""
-
-    src: int
-    num: int
-    reason: str
-    kind: str = ""
-    """``forged`` or ``replayed`` for a frame the authenticated profile refuses (clause 53);
-    ``out_of_turn`` (clause 39), ``own_id`` (clause 38.2) or ``behind`` (a Number that went
-    backwards, clause 48a) for the forgers a ring sees without it; empty for the ring's other
-    refusals (a Source outside the team or the ring)."""
-
-
-@dataclass(frozen=True, slots=True)
-class NumberBehind:
-    """A message frame from ``src`` whose Number ``num`` is behind ``last``, the Number of the
-    last message frame heard from it (docs/protocol.md clause 48a): a recorded frame sent
-    again, or a forger's. ``refused``: not acted on (the checksum extension is on, so the
-    Number is the one sent; a ``Refused`` of kind ``behind`` comes with it); otherwise only
-    reported, for a byte error can move a Number, and clause 48 delivers it."""
-
-    src: int
-    num: int
-    last: int
-    refused: bool
-
-
-@dataclass(frozen=True, slots=True)
-class DuplicateId:
-    """Another robot sends with our own ID ``robot`` (docs/protocol.md clause 38.2): said once
-    an episode (until our ID has not been heard for Tclaim). ``yielding``: we leave the ring to
-    it (back to LISTEN, or staying there) and answer no invitation while our ID is heard."""
-
-    robot: int
-    yielding: bool
-
-
-@dataclass(frozen=True, slots=True)
-class ForeignRing:
-    """Good frames from robots outside our team are on the air (docs/protocol.md clause 38.1):
-    ``robots``, those heard within the last 8 Tmax, said again when the set changes. A robot in
-    LISTEN that hears them cannot claim the channel and is never invited by them."""
-
-    robots: tuple[int, ...]
-    member: bool
-
-
-@dataclass(frozen=True, slots=True)
-class BadChecksum:
-    """A frame refused because its checksum was missing or wrong (checksum extension on)."""
-
-    first: int
-    end: int
-
-
-@dataclass(frozen=True, slots=True)
-class Outcome:
-    """A submitted message ended: ``delivered`` (acknowledged) or failed with ``reason``."""
-
-    message: "Message"
-    delivered: bool
-    reason: str
-
-
-@dataclass(eq=False, slots=True)
-class Message:
-    """A message submitted to the MAC, from submission to its outcome."""
-
-    src: int
-    dst: int
-    num: int
-    type: int
-    commands: tuple[Command, ...]
-    content: bytes
-    submitted: int
-    attempts: int = 0
-    waited: int = 0
-    awaiting: set[int] = field(default_factory=set)
-    acked: set[int] = field(default_factory=set)
-    state: str = "queued"   # queued | sent | delivered | failed | unacknowledged (paper profile)
-    reason: str = ""
-
-
-@dataclass(frozen=True, slots=True)
-class MacConfig:
-    """MAC timing (ticks) and policy. Defaults are the paper's experiment (docs/protocol.md §2)."""
-
-    ttrans: int = TTRANS_TICKS
-    tmax: int = TMAX_TICKS
-    miss_limit: int = MISS_LIMIT
-    byte_ticks: int = CHILD_BYTE_TICKS
-    twin: int = 160_000
-    """Poll window (10 ms): an invited robot's header must be heard by E + twin.
-    It starts at E + Ttrans, so its 3 header bytes end by E + 80000 + 3 x 16667 = E + 130001."""
-    tslot: int = 320_000
-    """ID stagger (20 ms) for claims, lone pauses and rule R-stagger: at least twice (Ttrans +
-    4 bytes), and small enough that robot 6's stagger, 6 x tslot + Ttrans + 4 bytes, ends
-    before Tmax (docs/protocol.md §7.6; tests/test_margin_bounds.py)."""
-    team: frozenset[int] = frozenset(range(7))
-    """The robots that may ever join: only these are invited."""
-    poll_every: int = 4
-    """A member with absent team robots in its gap invites one of them every this many turns."""
-    quiet_gap: int = 2 * CHILD_BYTE_TICKS
-    """No byte for this long after a frame failed before its Length: the frame is over.
-    (A frame's bytes are back to back; idle noise keeps the channel from ever going quiet,
-    and then the wait ends at Tmax after the failed header.)"""
-    stall_gap: int = 2 * CHILD_BYTE_TICKS
-    """A frame whose bytes stop coming for this long is abandoned (the sender died)."""
-    max_attempts: int = 4
-    """Transmissions of a message (first + retries) before it fails."""
-    max_age: int = 60 * 16_000_000
-    """A message not delivered this many ticks after submission fails as expired."""
-    max_queue: int = 32
-    mac_reserve: int = 64
-    """Content bytes the MAC keeps free for its own commands when a load fills frames."""
-    pc: int = 1
-    """Which of the father's PCs this is (1 or 2): on ID 0's turn a standby PC waits
-    ``pc`` x ``standby_watch`` for the active PC's header, and if two active PCs ever hear
-    each other, the higher number stands by."""
-    standby_watch: int = 4 * 16_667
-    """How long after Ttrans a standby waits for the active PC's header before it takes the
-    turn (ticks): 4 bytes in simulation; a PC on a USB adapter needs tens of ms."""
-    standby: bool = False
-    """Hot standby for the father (docs/protocol.md §4.9, clause 50; paper's PC1/PC2): follow the
-    ring as a replica of ID 0 and take ID 0's turn only when the active PC's header does not
-    come (docs/mac.md)."""
-    paired: bool = False
-    """One of the father's two PCs (the other exists): an active PC that may have been deaf
-    while the other took over goes on probation (clause 50). A lone father need not: nobody
-    else delivers as ID 0, and the probation would only delay its messages."""
-    quiet_channel: bool = True
-    """The radio gives no bytes without a carrier (the pty hub; a radio with squelch). Then an
-    owner whose turn follows an uncertain closure waits for the channel to fall quiet before
-    its ``id`` x Tslot stagger runs (rule R-stagger: a jam is the one thing two members hear in
-    common). False for a radio that outputs idle noise (a bare PTR2000, ``--idle-noise``):
-    that channel never falls quiet."""
-    checksum: bool = False
-    """Opt-in integrity extension (firmware_model.radio.integrity): every frame sent ends
-    with ``crc(NNNNN)`` and frames received without a good one are refused."""
-    seed: int = 0
-    """Seeds the MAC's one random choice: how many invitations a robot whose JOIN was never
-    acknowledged lets pass (LET_PASS_MAX; docs/protocol.md clause 38.2). Two robots with one
-    ID must not share it, or they answer together for ever: the simulator and the bench
-    processes pass their own."""
-    auth: "_auth.RingKey | None" = None
-    """The opt-in authenticated profile (firmware_model.radio.auth, docs/protocol.md §4.11): the
-    ring key. Every frame sent ends with ``auth(freshness,tag)``; a frame received with a
-    missing or wrong tag, or a freshness not above the last accepted from its Source, is
-    refused and never acted on."""
-    profile: str = "rprs"
-    """``rprs`` (the whole of docs/protocol.md) or ``paper``: only the paper's rules, to share a
-    ring with robots that implement only the paper (docs/protocol.md §9, the paper profile)."""
-
-    def __post_init__(self) -> None:
-        if self.profile not in PROFILES:
-            raise ValueError(f"profile must be one of {', '.join(PROFILES)}, "
-                             f"got {self.profile!r}")
-        if self.profile == "paper" and (self.checksum or self.standby):
-            raise ValueError("the paper profile has no checksum extension and no standby PC "
-                             "(both are this project's extensions)")
-        if self.profile == "paper" and self.auth is not None:
-            raise ValueError("the paper profile has no authenticated profile (this project's "
-                             "extension)")
-        if self.checksum and self.auth is not None:
-            raise ValueError("the authenticated profile's tag already detects every changed "
-                             "byte: use it or the checksum, not both")
-
-    def claim_ticks(self, robot: int) -> int:
-        """Silence after which a listening robot claims the channel (start-up).
-
-        Longer than any silence a live ring of this team can make (every other member missing
-        one turn each: (|team|-1) x Tmax), plus one Tmax, staggered by ID so the lowest claims
-        first."""
-        return len(self.team) * self.tmax + robot * self.tslot
-
-    def silent_drop_ticks(self, ring: Iterable[int]) -> int:
-        """The longest time from a member's radio failing to its drop, in an idle ring of the
-        members ``ring`` (docs/protocol.md §7.3, each term with its clause there).
-
-        The worst failure cuts the robot's frame after its Header, before its Length: the
-        others abandon it one stall gap after its last byte and close its turn a quiet gap
-        later (clause 41; 2 ticks for the stall timer's resolution); the robot after it
-        waits its R-stagger (clause 44), at worst the highest ID's; then three rounds of the
-        others' turns, each frame with ``ring(mask)`` (clause 51), and three times Tmax
-        (clauses 24, 25). In a ring of two every miss follows the survivor's own frame, so
-        each adds its R-stagger. A team with IDs outside the ring adds each member's one
-        invitation in those turns (clauses 32, 33). B is a PC's byte, the slower."""
-        ring = tuple(sorted(set(ring)))
-        n = len(ring)
-        if n < 2:
-            raise ValueError(f"a silent robot is dropped by the others: give 2 or more "
-                             f"members, got {list(ring)}")
-        b, m = PC_BYTE_TICKS, self.miss_limit
-        cut = max(self.stall_gap, 2 * b) + self.quiet_gap + 2
-        if self.profile == "paper":    # no ring(mask), no R-stagger (§9.1): heartbeats
-            return cut + m * ((n - 1) * (self.ttrans + FRAME_OVERHEAD * b) + self.tmax)
-        sealed = (CRC_TEXT_LEN if self.checksum else 0) + \
-            (_auth.AUTH_TEXT_LEN if self.auth is not None else 0)
-        told = self.ttrans + (FRAME_OVERHEAD + len("ring(127)") + sealed) * b
-        stagger = max(ring) * self.tslot
-        # A member whose gap holds team IDs outside the ring invites one every poll_every of
-        # its turns: poll(k,127) is 2 bytes longer than ring(127), and a window of Twin follows
-        inviters = sum(1 for i, r in enumerate(ring) if any(
-            (r + d) % 7 in self.team for d in range(1, (ring[(i + 1) % n] - r) % 7)))
-        polls = min(inviters, n - 1) * -(-m // self.poll_every) * (self.twin + 2 * b)
-        if n == 2:
-            return cut + polls + m * (told + self.tmax + stagger)
-        return cut + polls + stagger + m * ((n - 1) * told + self.tmax)
-
-
-def check_submission(robot: int, dst: int, commands: Iterable[Command],
-                     type: int) -> tuple[tuple[Command, ...], bytes]:
-    """The checks every MAC makes when a message is submitted (a destination other than the
-    sender, a Type digit, no MAC commands); returns the commands and their Content."""
-    commands = tuple(commands)
-    if not 0 <= dst <= BROADCAST or dst == robot:
-        raise SubmitError(f"destination must be a robot ID 0-6 other than {robot}, "
-                          f"or {BROADCAST} (broadcast); got {dst}")
-    if not 0 <= int(type) <= 4:
-        raise SubmitError(f"a message's Type must be 0-4 (5 BOOT and 6 JOIN are the MAC's own, "
-                          f"7-9 are reserved: docs/protocol.md), got {type}")
-    mac_cmds = [c for c in commands if c.spec.layer == "mac"]
-    if mac_cmds:
-        raise SubmitError(f"{mac_cmds[0].name}() is a MAC command and cannot be submitted")
-    return commands, format_content(commands)
 
 
 @lru_cache(maxsize=2048)
