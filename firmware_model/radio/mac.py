@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import random
 from bisect import bisect_right
-from functools import lru_cache
 from typing import Any, Iterable, Sequence
 
 from ..timing import FRAME_OVERHEAD, max_content_bytes, protocol_max_content
@@ -57,11 +56,11 @@ from ..timing import (  # still importable from here, as before MacConfig moved 
     TMAX_TICKS as TMAX_TICKS,
     TTRANS_TICKS as TTRANS_TICKS,
 )
-from .content import Command, cmd, format_content, parse_content, split_layers
+from .content import Command
 from .errors import ContentError
 from .frame import BROADCAST, Frame, FrameType
 from . import auth as _auth
-from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
+from .integrity import CRC_TEXT_LEN, check as crc_ok, strip as strip_crc
 # The MAC's records and configuration live in modules of their own; every public name stays
 # importable from here (``from firmware_model.radio.mac import MacConfig, Deliver``).
 from .mac_config import (
@@ -75,6 +74,9 @@ from .mac_config import (
     MacConfig,
     check_submission,
 )
+from . import mac_frames as _frames, mac_paper as _paper
+from .mac_frames import _layers, _unmask
+from .mac_phases import HOLD, LISTEN, MEMBER, QUIET, SEND, SWITCH, WAIT, WATCH, WINDOW
 from .mac_events import (
     TX_OFF,
     TX_ON,
@@ -110,41 +112,7 @@ __all__ = [
     "StandingBy",
 ]
 
-LISTEN = "listen"
-MEMBER = "member"
 _NOTHING: tuple = ()
-
-# Phases while MEMBER.
-WAIT = "wait"        # waiting for the header of ``owner`` until ``deadline``
-WINDOW = "window"    # a poll window for the invited ``owner`` until ``deadline``
-HOLD = "hold"        # my turn starts at ``deadline`` (after a corrupted frame or a lone pause)
-SWITCH = "switch"    # TXEN is high; my frame starts at ``deadline`` (= turn start + Ttrans)
-SEND = "send"        # my frame is on air; ``on_tx_done`` ends the turn
-QUIET = "quiet"      # a frame failed before its Length: wait for the channel to fall quiet
-WATCH = "watch"      # hot standby: ID 0's turn; is the active PC's header coming?
-
-
-@lru_cache(maxsize=2048)
-def _layers(content: bytes) -> tuple[tuple[Command, ...], tuple[Command, ...]]:
-    """Parse Content once per distinct byte string: every receiver of a frame shares it."""
-    return split_layers(parse_content(content))
-
-
-@lru_cache(maxsize=1024)
-def _ack_len(ack: tuple[int, int]) -> int:
-    """Content bytes of ``ack(src,num)``."""
-    return len(cmd("ack", ack[0], ack[1]).text())
-
-
-def _mask(ids: Iterable[int]) -> int:
-    m = 0
-    for i in ids:
-        m |= 1 << i
-    return m
-
-
-def _unmask(mask: int) -> set[int]:
-    return {i for i in range(7) if mask >> i & 1}
 
 
 class RotationalMac:
@@ -286,30 +254,10 @@ class RotationalMac:
         self.deadline = now + self._claim_ticks()
         return [TX_OFF]
 
-    def _paper_power_on(self, now: int) -> list:
-        out: list = [TX_OFF]
-        self._last_num = 0
-        self._next_num = 0                 # the paper: a robot's first message is '00'
-
-        self.mode = MEMBER
-        self.ring = tuple(sorted(set(self.cfg.team) | {self.id}))
-        self.misses = {r: 0 for r in self.ring}
-        self.ever_member = set(self.ring)
-        self._unheard = set(self.ring) - {self.id}
-        self._booting = False
-        self._announcing = None
-        self._silent = 0
-        self._rejected = 0
-        out.append(ModeChange(MEMBER, "a member of the static ring of the team (paper profile)"))
-        first = self.ring[0]
-        if first == self.id:
-            self._my_turn(now, now, out)
-        else:                              # paper §IV.C: first's turn; takeover at + Tmax
-            self.phase = WAIT
-            self.owner = first
-            self.turn_start = now
-            self.deadline = now + self.cfg.tmax
-        return out
+    # the paper profile's power-on, reception and frames (mac_paper.py)
+    _paper_power_on = _paper._paper_power_on
+    _paper_frame = _paper._paper_frame
+    _paper_build = _paper._paper_build
 
     def _claim_ticks(self) -> int:
         # A standby claims after every other robot would have (the active PC claims first).
@@ -599,60 +547,6 @@ class RotationalMac:
             return "replayed", f"replayed: freshness {fresh:08x} not above {last:08x}"
         self._auth_rx[frame.src] = fresh
         return None
-
-    def _paper_frame(self, frame: Frame, first: int, end: int, now: int) -> list:
-        """A good frame, in the paper profile (paper §IV.C-D): the owner is whoever sends (a
-        team robot outside the ring is back in it), and a message for us is delivered. No MAC
-        command is obeyed, nothing is acknowledged, and, as no paper robot retransmits, no
-        message is taken for a duplicate."""
-        out: list = []
-        src = frame.src
-        after_own = not self._heard_since_tx
-        self._heard_since_tx = True
-        if src == self.id:
-            self._own_id_heard(frame.num, end, now, out)
-            return out
-        if src not in self.cfg.team:
-            self._foreign_heard(src, end, out)
-            out.append(Refused(src, frame.num, f"robot {src} is not in the team"))
-            out.extend(self.on_corrupt(first, None, end, now))
-            return out
-        if self.mode == LISTEN:            # out of the ring while it talks: no rejoin
-            self.deadline = now + self._claim_ticks()
-            return out
-        if after_own and not self._noise_since_tx and src != self.succ(self.id) and \
-                first - self._tx_end < (1.0 - TAKEOVER_TOLERANCE) * self.cfg.tmax:
-            # The first thing heard after our frame is someone sending in our successor's
-            # slot without waiting Tmax for it: our frame was not heard (it collided with a
-            # robot that has our slot; garbage first would mean a collision of others). Twice
-            # in a row means the ring dropped us, and the paper has no way back in: stay out.
-            self._rejected += 1
-            if self._rejected >= 2:
-                self._to_listen(out, now, "our slot is taken: the ring dropped us (the "
-                                "paper profile has no rejoin)")
-                return out
-        elif after_own:
-            self._rejected = 0
-        if src not in self.ring:
-            self._admit(src, out)
-        elif self.phase == WAIT and src != self.owner:
-            skipped = self._takeover(src, first)
-            if skipped:
-                self._count_skipped(skipped, out)
-        self._last_heard = (src, end)
-        self.misses[src] = 0
-        self._silent = 0
-        if self._unheard:
-            self._unheard.discard(src)
-        if frame.dst == self.id or frame.dst == BROADCAST:
-            try:
-                app_cmds = _layers(frame.content)[1] if frame.content else ()
-                if app_cmds:
-                    out.append(Deliver(src, frame.dst, frame.num, frame.type, app_cmds))
-            except ContentError as exc:
-                out.append(BadContent(src, frame.num, exc))
-        self._next_turn(src, end, now, out)
-        return out
 
     def on_corrupt(self, first: int, src: int | None, expected_end: int | None,
                    now: int) -> list:
@@ -1449,193 +1343,12 @@ class RotationalMac:
             self._finish(self._queue[0], False, f"expired: not sent within "
                          f"{self.cfg.max_age // 16_000} ms", out)
 
-    def _pick_message(self, now: int, out: list) -> Message | None:
-        """The message to carry this turn (retransmission first), failing what must fail."""
-        cfg = self.cfg
-        m = self._inflight
-        if m is not None:
-            if now - m.submitted > cfg.max_age:
-                self._finish(m, False, f"expired: not acknowledged within "
-                             f"{cfg.max_age // 16_000} ms", out)
-            elif m.attempts >= cfg.max_attempts:
-                missing = ",".join(str(r) for r in sorted(m.awaiting))
-                self._finish(m, False, f"no acknowledgement from {missing} after "
-                             f"{m.attempts} attempts", out)
-            else:
-                return m
-        while self._queue:
-            m = self._queue[0]
-            if now - m.submitted > cfg.max_age:
-                self._finish(m, False, f"expired: not sent within {cfg.max_age // 16_000} ms",
-                             out)
-                continue
-            if m.dst != BROADCAST and m.dst not in self.ring:
-                m.waited += 1
-                if m.waited >= cfg.max_attempts:
-                    self._finish(m, False, f"destination {m.dst} not in the ring", out)
-                    continue
-                return None
-            if m.dst == BROADCAST and len(self.ring) < 2:
-                m.waited += 1
-                if m.waited >= cfg.max_attempts:
-                    self._finish(m, False, "broadcast with no other member in the ring", out)
-                    continue
-                return None
-            self._queue.pop(0)
-            m.awaiting = {m.dst} if m.dst != BROADCAST else set(self.ring) - {self.id}
-            self._inflight = m
-            return m
-        return None
+    # -- frame building (mac_frames.py) ------------------------------------------------------
 
-    def _poll_target(self) -> int | None:
-        """An absent team robot in the gap after me to invite this turn, if one is due."""
-        cfg = self.cfg
-        self._turns_since_poll += 1
-        if not self.lone and self._turns_since_poll < cfg.poll_every:
-            return None
-        ring = self.ring
-        nxt = self.succ(self.id)
-        gap = []
-        i = (self.id + 1) % 7
-        while i != nxt and i != self.id:
-            if i in cfg.team and i not in ring:
-                gap.append(i)
-            i = (i + 1) % 7
-        if self.lone:
-            gap = [r for r in sorted(cfg.team) if r != self.id]
-            gap = [r for r in gap if r > self.id] + [r for r in gap if r < self.id]
-        if not gap:
-            self._turns_since_poll = 0     # nobody to invite: look again in poll_every turns
-            return None
-        k = self._poll_ptr.get(nxt, 0) % len(gap)
-        self._poll_ptr[nxt] = k + 1
-        self._turns_since_poll = 0
-        return gap[k]
-
-    def _build_frame(self, now: int, out: list) -> tuple[Frame, bytes]:
-        """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
-        if self._paper:
-            return self._paper_build(now, out)
-        kind: int                               # a FrameType, or the Type announced
-        if self._answering or (self._booting and self._announcing is None and
-                               not self._lone_boot):
-            # The answer to an invitation, or a lone claimer's first frame: nothing else in it.
-            # A BOOT frame is Number '00'; a JOIN frame takes the next Number, so that its
-            # acknowledgement cannot be mistaken for a message's (docs/protocol.md §4.4,
-            # clause 34).
-            self._answering = False
-            self._sent_poll = None
-            if self._booting:
-                kind, num = FrameType.BOOT, 0
-            else:
-                kind, num = FrameType.JOIN, self._next_num
-                self._next_num = (num + 1) % 100
-            self._announcing, self._ann_num, self._ann_turns = kind, num, 1
-            self._ann_awaiting = set(self.ring) - {self.id}
-            if not self._ann_awaiting and kind == FrameType.BOOT:
-                # A lone claimer's BOOT: nobody acknowledged it, so nobody forgot our old
-                # Numbers. It stays unacknowledged (clause 34): the answer to the invitation
-                # that brings us into a ring is BOOT, not JOIN, or a member that remembers
-                # our last Number from before the restart takes our message with that Number
-                # for a duplicate (found on the bench: a father restarted on a live ring).
-                self._announcing = None
-                self._lone_boot = True
-            elif not self._ann_awaiting:
-                self._announced()
-            frame = self._frame(BROADCAST, num, kind, b"")
-            return frame, frame.encode()
-        if self._announcing is not None:
-            # BOOT/JOIN frames until every member has acknowledged: a BOOT so that no message
-            # of ours comes before every receiver forgot our old Numbers; a JOIN so that we
-            # know every member heard us join (else we would share a slot with someone).
-            self._ann_turns += 1
-            self._expire(now, out)
-            msg, poll_to = None, None
-        else:
-            msg = self._pick_message(now, out)
-            poll_to = self._poll_target()
-        crc_room = self._ext_len
-        extra: list[Command] = []
-        if poll_to is not None:
-            extra.append(cmd("poll", poll_to, _mask(self.ring)))
-        elif self._tell_view and self._announcing is None and not self.lone:
-            extra.append(cmd("ring", _mask(self.ring)))
-        acks = self._acks
-        room = self.max_content - crc_room - (len(msg.content) if msg is not None else 0)
-        if msg is not None and (acks and self._acks_deferred or room < 0 or
-                                room < sum(_ack_len(a) for a in acks)):
-            # Acknowledgements never wait behind a message: a sender that heard no ack by its
-            # next turn retransmits its whole frame (up to Tmax of air). Our message goes
-            # next turn instead (docs/protocol.md §4.7).
-            msg = None
-            room = self.max_content - crc_room
-        carried: list[Command] = []
-        used = sum(len(c.text()) for c in extra) if extra else 0
-        if used > room:
-            extra, used, poll_to = [], 0, None
-        elif extra:
-            self._tell_view = False            # a poll's mask tells our view too
-        kept = []
-        for a in acks:
-            n = _ack_len(a)
-            if used + n <= room:
-                carried.append(cmd("ack", a[0], a[1]))
-                used += n
-            else:
-                kept.append(a)
-        self._acks = kept
-        self._acks_deferred = bool(kept)
-        self._sent_poll = poll_to
-        mac_part = carried + extra
-        if msg is not None:
-            msg.attempts += 1
-            msg.state = "sent"
-            self._last_num = msg.num           # control frames repeat it from now on
-            content = msg.content + (format_content(mac_part) if mac_part else b"")
-            frame = self._frame(msg.dst, msg.num, msg.type, content)
-            return frame, frame.encode()
-        num = self._last_num
-        content = format_content(mac_part) if mac_part else b""
-        kind = FrameType.BROADCAST_INFO
-        if self._announcing is not None:
-            kind, num = self._announcing, self._ann_num
-        if self._key is not None:           # every frame differs: its own freshness
-            frame = self._frame(BROADCAST, num, kind, content)
-            return frame, frame.encode()
-        key = (num, content, kind)
-        hit = self._hb_cache.get(key)
-        if hit is None:
-            frame = self._frame(BROADCAST, num, kind, content)
-            hit = (frame, frame.encode())
-            if len(self._hb_cache) < 256:
-                self._hb_cache[key] = hit
-        return hit
-
-    def _paper_build(self, now: int, out: list) -> tuple[Frame, bytes]:
-        """The paper profile's frame: the next message, sent once (it ends ``sent``: nothing
-        acknowledges it), or an empty heartbeat (Type '3', Destination '7')."""
-        m = self._pick_message(now, out)
-        if m is not None:
-            self._inflight = None
-            m.attempts = 1
-            m.state = UNACKNOWLEDGED
-            m.reason = "sent once; the paper profile has no acknowledgement"
-            self._last_num = m.num
-            out.append(Outcome(m, False, m.reason))
-            frame = self._frame(m.dst, m.num, m.type, m.content)
-            return frame, frame.encode()
-        frame = self._frame(BROADCAST, self._last_num, FrameType.BROADCAST_INFO, b"")
-        return frame, frame.encode()
-
-    def _frame(self, dst: int, num: int, type: int, content: bytes) -> Frame:
-        if self._key is not None:
-            fresh = self.auth_tx
-            self.auth_tx = fresh + 1
-            self._auth_rx[self.id] = fresh     # a replay of our own frame is stale too
-            return _auth.seal(self._key, dst, self.id, num, int(type), content, fresh)
-        if self.cfg.checksum:
-            return seal(dst, self.id, num, int(type), content)
-        return Frame(dst=dst, src=self.id, num=num, type=type, content=content)
+    _pick_message = _frames._pick_message
+    _poll_target = _frames._poll_target
+    _build_frame = _frames._build_frame
+    _frame = _frames._frame
 
 
 DEADLINE_HANDLERS = {
