@@ -89,7 +89,9 @@ from . import (
     mac_turns as _turns,
 )
 from .mac_frames import _layers, _unmask
-from .mac_phases import HOLD, LISTEN, MEMBER, QUIET, SEND, SWITCH, WAIT, WATCH, WINDOW
+from .mac_phases import (
+    HOLD, LISTEN, MEMBER, QUIET, SEND, SWITCH, WAIT, WATCH, WINDOW, Phase,
+)
 from .mac_events import (
     TX_OFF,
     TX_ON,
@@ -116,13 +118,13 @@ from .mac_events import (
 )
 
 __all__ = [
-    "RotationalMac", "DEADLINE_HANDLERS", "LISTEN", "MEMBER", "WAIT", "WINDOW", "HOLD", "SWITCH",
-    "SEND", "QUIET", "WATCH", "MacConfig", "check_submission", "PROFILES", "PC2_CHECK_EVERY",
-    "TAKEOVER_TOLERANCE", "TWIN_FRAMES", "BEHIND_WINDOW", "FAILING_SLOT_LIMIT", "LET_PASS_MAX",
-    "TxEnable", "TX_ON", "TX_OFF", "Transmit", "Miss", "Disable", "Join", "ModeChange", "Deliver",
-    "Duplicate", "BadContent", "Refused", "NumberBehind", "DuplicateId", "ForeignRing",
-    "BadChecksum", "Outcome", "Message", "UNACKNOWLEDGED", "SubmitError", "QueueFull",
-    "StandingBy",
+    "RotationalMac", "DEADLINE_HANDLERS", "LISTEN", "MEMBER", "Phase", "WAIT", "WINDOW", "HOLD",
+    "SWITCH", "SEND", "QUIET", "WATCH", "MacConfig", "check_submission", "PROFILES",
+    "PC2_CHECK_EVERY", "TAKEOVER_TOLERANCE", "TWIN_FRAMES", "BEHIND_WINDOW", "FAILING_SLOT_LIMIT",
+    "LET_PASS_MAX", "TxEnable", "TX_ON", "TX_OFF", "Transmit", "Miss", "Disable", "Join",
+    "ModeChange", "Deliver", "Duplicate", "BadContent", "Refused", "NumberBehind", "DuplicateId",
+    "ForeignRing", "BadChecksum", "Outcome", "Message", "UNACKNOWLEDGED", "SubmitError",
+    "QueueFull", "StandingBy",
 ]
 
 _NOTHING: tuple = ()
@@ -144,7 +146,7 @@ class RotationalMac:
         """Largest Length this robot accepts: the protocol's bound (docs/protocol.md §3.1,
         clause 11)."""
         self.mode = LISTEN
-        self.phase = WAIT
+        self.phase: Phase = WAIT
         self.ring: tuple[int, ...] = ()
         self.owner: int | None = None     # whose header we wait for (WAIT/WINDOW)
         self.poller: int | None = None    # who opened the current WINDOW
