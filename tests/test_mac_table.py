@@ -7,6 +7,7 @@ table, and every row must be taken at least once: the table is neither wrong nor
 docs/mac.md must hold the diagram and table generated from it."""
 from __future__ import annotations
 
+import json
 from collections import Counter
 from pathlib import Path
 
@@ -286,6 +287,17 @@ def test_the_table_names_only_known_states_and_events():
     assert {t.event for t in TRANSITIONS} <= set(EVENTS)
     assert set(M.DEADLINE_HANDLERS) | {M.SEND} == {s.lower() for s in STATES} - {"listen"}
 
+
+def test_the_phases_are_an_enum_whose_members_are_the_old_strings():
+    """``mac_phases.Phase``: one member per MEMBER state of the table, each equal to the string
+    it was before (same hash, same text in an f-string or JSON), so traces and tables keep it."""
+    assert {p.value for p in M.Phase} == {s.lower() for s in STATES} - {"listen"}
+    for p in M.Phase:
+        assert p == p.value and hash(p) == hash(p.value) and {p.value: 1}[p] == 1
+        assert str(p) == f"{p}" == p.value and json.dumps(p) == f'"{p.value}"'
+    mac = M.RotationalMac(1)
+    mac.power_on(0)
+    assert isinstance(mac.phase, M.Phase)
 
 def test_docs_hold_the_generated_diagram_and_table():
     text = (Path(__file__).resolve().parent.parent / "docs" / "mac.md").read_text()

@@ -93,9 +93,9 @@ COUNTERS = frozenset({
 a period (nothing reads them to decide what to do)."""
 
 MODULAR = {"turns": PC2_CHECK_EVERY}
-"""Counters the model reads only modulo a number (``turns``: the standby PC2's checks, mac.py):
-a period must move them by a multiple. Without a standby PC nothing reads ``turns``: it is
-one of the counters then."""
+"""Counters the model reads only modulo a number (``turns``: the standby PC2's checks,
+mac_turns.py): a period must move them by a multiple. Without a standby PC nothing reads
+``turns``: it is one of the counters then."""
 
 TICK_KEYS = frozenset({"t", "start", "end", "sof"})
 """Keys of a trace event that hold ticks (docs/trace.md): moved on by the period when the
