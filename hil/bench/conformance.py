@@ -139,7 +139,8 @@ class Tester:
 
     def __init__(self, port: str, robot: int, profile: str = "rprs", tester: int | None = None,
                  tolerance_ms: float = 15.0, turns: int = 20,
-                 progress: Callable[[str], None] | None = None) -> None:
+                 progress: Callable[[str], None] | None = None,
+                 team: tuple[int, ...] = tuple(range(7))) -> None:
         if not 0 <= robot <= 6:
             raise ValueError(f"robot ID must be 0-6, got {robot}")
         self.robot = robot
@@ -147,6 +148,9 @@ class Tester:
         if self.me == robot or not 0 <= self.me <= 6:
             raise ValueError(f"the tester's ID must be 0-6 and not the robot's, got {self.me}")
         self.forger = _forger(robot, self.me)
+        # paper profile: the static ring is the robot's whole team; the absent robots
+        # between it and us keep their turns (Tmax each) until dropped after three misses
+        self.absent = {i: 0 for i in team if i not in (robot, self.me)}
         self.profile = profile
         self.tol = int(tolerance_ms * MS)
         self.turns = turns
@@ -341,9 +345,39 @@ class Tester:
                            applicable=not (stopped and not frames and not self.bad))
         return self.report
 
+    def _turn_at(self, h: Heard) -> int:
+        """When our turn after the robot's frame ``h`` lets our Header begin: Ttrans after
+        its End, or later where the ring puts a turn between (called once per frame):
+
+        - rprs: ``h`` invites an absent robot (clause 33): its window runs to E + Twin, and a
+          frame of ours in it is out of turn (clause 39, refused with the acks it carries);
+        - paper: the static ring holds the robot's whole team; the first absent robot after
+          it keeps its turn until it has missed three (clauses 24, 25), and we send at its
+          takeover, E + Tmax + Ttrans, in the next one's turn (the paper profile accepts
+          whoever sends). Sent at once, our frame would follow the robot's before its
+          successor's turn, which the paper profile takes for a collision (twice: the robot
+          goes to LISTEN); sent after every absent robot's takeover, it lets the robot count
+          more misses in a row without a good frame, and the cut-off (clause 40) comes
+          sooner."""
+        if self.profile == "rprs":
+            try:
+                cmds = parse_content(h.frame.content) if h.frame.content else []
+            except ContentError:
+                cmds = []
+            if any(c.name == "poll" and c.args[0] not in (self.me, self.robot) for c in cmds):
+                return h.end + TWIN + TTRANS
+            return h.end + TTRANS
+        between = [i for i, n in self.absent.items() if n < 3 and
+                   _succ(self.robot, (self.robot, self.me, i)) == i]
+        if not between:
+            return h.end + TTRANS
+        first = min(between, key=lambda i: (i - self.robot) % 7)
+        self.absent[first] += 1
+        return h.end + TMAX + TTRANS
+
     def _answer_turn(self, h: Heard, content: bytes = b"", **kw) -> int:
-        """Our turn after the robot's frame ``h``: a frame Ttrans after its End."""
-        return self.send(self.frame(content + self._acks_content(), **kw), h.end + TTRANS)
+        """Our turn after the robot's frame ``h`` (:meth:`_turn_at`)."""
+        return self.send(self.frame(content + self._acks_content(), **kw), self._turn_at(h))
 
     def _note_acks(self, h: Heard) -> None:
         """Acknowledge what the robot sent that needs it (rprs: BOOT, JOIN, messages to us)."""
@@ -358,24 +392,28 @@ class Tester:
     def _start(self) -> Heard:
         t0 = time.monotonic()
         if self.profile == "paper":
-            # A static ring {me, robot}: we take our turns; the robot must join the rotation.
-            # Listen before we talk: a robot alone in the ring already takes its turns (one
-            # every Tmax + Ttrans), so our first frame follows one of its Ends by Ttrans, as
-            # our turn would, instead of landing on its frame (and then, both timing out
-            # from that collision, on its next one too). We listen for two of its cycles:
-            # the first frame may begin just before we do and end after one cycle would.
-            h = self.wait_frame(-1, 2 * (TMAX + TTRANS + self.tol), self.robot)
-            end = self.send(self.frame(), h.end + TTRANS if h is not None else self.now())
-            h = None
-            for _ in range(40):
-                h = self.wait_frame(end, TMAX + TTRANS + 14 * BYTE + 2 * self.tol,
-                                    self.robot)
+            # The static ring of the robot's team: we take our turns; the robot must join the
+            # rotation. Listen before we talk: a robot alone in the ring already takes its
+            # turns (one a cycle, each absent robot's turn taken over at Tmax), so our first
+            # frame comes in our turn after one of its frames (:meth:`_turn_at`) instead of
+            # landing on one. Alone for a whole cycle it is cut off (clause 40) and listens
+            # until Tclaim of silence: we listen that long (sending would keep it silent).
+            n = len(self.absent) + 2
+            listen = 3 * n * TMAX + 7 * TSLOT
+            h, end = None, -1
+            for _ in range(3):
+                h = self.wait_frame(end, listen, self.robot)
+                if h is None:
+                    break
+                end = self.send(self.frame(), self._turn_at(h))
+                h = self.wait_frame(end, (len(self.absent) + 1) * TMAX + TTRANS + 14 * BYTE +
+                                    2 * self.tol, self.robot)
                 if h is not None:
                     break
-                end = self.send(self.frame(), self.now())
             if h is None:
                 self._mark, self._mark_collided = (0, 0, 0), 0
-                raise self._quiet("in 40 of our turns")
+                raise self._quiet(f"in its static ring (team of {n}) in {listen / MS / 1000:.1f}"
+                                  f" s of listening, or after our frame, three times")
             first = (h.start - end) / MS
             # The static ring is the whole team: until the robot has dropped every absent
             # team robot between us (three misses each, Tmax apart), its turn after ours
@@ -478,7 +516,7 @@ class Tester:
         gaps = []
         for _ in range(3):
             self._note_acks(h)
-            end = self.send(self.frame(self._acks_content()), h.end + TTRANS + 300 * MS)
+            end = self.send(self.frame(self._acks_content()), self._turn_at(h) + 300 * MS)
             h = self.wait_frame(end, TMAX + 4 * TSLOT, self.robot)
             if h is None:
                 raise self._quiet("after a late frame of ours")
@@ -563,7 +601,7 @@ class Tester:
             return h
         self._note_acks(h)
         forged = self.frame(b"status()", dst=self.robot, type_=2, num=42, src=self.forger)
-        end = self.send(forged, h.end + TTRANS)
+        end = self.send(forged, self._turn_at(h))
         # A team robot outside the ring still sets the timing (clause 38.3): the next turn is
         # succ(forger) in the ring {us, robot}. Ours when the forger lies between the robot
         # and us in ring order (then our frame follows the forged one); else the robot's, and
@@ -597,7 +635,7 @@ class Tester:
         acted, figures, staggers = 0, [], []
         for name, data in (("a bad Number digit", bad_digit), ("Length 9999", oversize)):
             self._note_acks(h)
-            at = h.end + TTRANS
+            at = self._turn_at(h)
             while self.now() < at:
                 self._poll_rx()
                 time.sleep(0.0002)
