@@ -475,6 +475,9 @@ def _conformance_run(air: Path, robot: int, profile: str, team: str, tmp_path: P
     try:
         first = proc.stderr.readline()
         assert first.startswith("running "), first + proc.stderr.read()
+        # as a user starts the kit once the robot runs: not while the child still loads
+        # (a child starved past a Tslot at its start resynchronises and misses turns)
+        time.sleep(1.0)
         run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
                               str(air / "node1"), "--id", str(robot), "--profile", profile,
                               "--team", team, "--junit", str(junit), "--quiet"],
