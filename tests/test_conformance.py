@@ -573,8 +573,8 @@ def _figure(junit: Path, clause: str) -> str:
                                    "no-stagger", "late-answer"])
 def test_the_kit_names_the_cause_of_each_deliberate_bug(air, tmp_path, fault):
     """The project's child with one rule broken (tests/faulty_child.py) fails the clause of
-    that rule, with the figure that shows it; the bugs that leave its frames good are not
-    blamed on clause 15. A child that answers the invitation 40 ms late once got only "no
+    that rule, with the figure that shows it; the bugs that leave its frames good and cause
+    no collision are not blamed on clause 15. A child that answers the invitation 40 ms late once got only "no
     good frame answering our invitations": our next invitation ran over its answer."""
     import re
     run, junit = _conformance_run(air, 1, "rprs", "0,1", tmp_path,
@@ -591,7 +591,8 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(air, tmp_path, fault):
         assert "answered 5 invitations in a row with failed frames" in out, out
         assert "a Length longer than the Content" in _figure(junit, "15"), out
         return
-    assert "15" not in failed, out
+    if fault != "no-stagger":         # without R-stagger it may well collide with us
+        assert "15" not in failed, out
     if fault == "late-turn":          # 20 ms late: every hand-over and takeover
         assert {"23", "26", "24"} <= failed, out
         med = float(re.search(r"Header ([+-][\d.]+) ms \(median\)", _figure(junit, "23"))[1])
