@@ -116,9 +116,10 @@ def _tester_answered_with(frame: Frame) -> Tester:
     t.robot, t.me, t.profile, t.tol = 1, 0, "rprs", 15 * MS
     t.report, t.progress, t.acks, t.num, t.last_end = Report(1, "rprs"), lambda s: None, [], 0, 0
     t.rx_bytes = t.bad = t.garbage = 0
-    t._mark = (0, 0, 0)
+    t._mark, t.strangers, t.collisions, t.absent = (0, 0, 0), {}, [], {}
     answers = [Heard(frame, 100 * MS + TTRANS, 100 * MS + TTRANS + 14 * 16667)]
     t.now = lambda: 0
+    t.listen = lambda ticks: None                     # a channel of its own
     t.send = lambda f, at: 100 * MS
     t.wait_frame = lambda after, timeout, src=None: answers.pop(0) if answers else None
     return t
@@ -148,6 +149,7 @@ def _tester_on(wire: _Wire, clock: list[int], profile: str = "paper") -> Tester:
     t.report, t.progress, t.acks, t.num, t.last_end = Report(1, profile), lambda s: None, [], 0, 0
     t.rx_bytes = t.bad = t.collided = t.garbage = 0
     t.on_air, t.heard, t.first_failure, t._mark = [], [], None, (0, 0, 0)
+    t.strangers, t.collisions, t.absent = {}, [], {}
     t.port, t.deframer, t.now = wire, Deframer(byte_ticks=BYTE), lambda: clock[0]
     return t
 
@@ -188,12 +190,43 @@ def test_the_paper_start_listens_first_and_follows_the_robots_frame():
     t = _tester_on(wire, clock)
     alone = Heard(Frame(dst=BROADCAST, src=1, num=0, type=3, content=b""), 300 * MS, 315 * MS)
     joins = Heard(alone.frame, 360 * MS, 375 * MS)
-    answers = [alone, joins]
+    # then it follows each of our frames at once (ours end 14 B after they start)
+    steps = [Heard(alone.frame, t * MS, t * MS + 14 * BYTE) for t in (415, 455, 495)]
+    answers = [alone, joins, *steps]
     sent = []
     t.wait_frame = lambda after, timeout, src=None: answers.pop(0) if answers else None
     t.send = lambda f, at: sent.append(at) or at + 14 * BYTE
-    assert t._start() is joins
-    assert sent == [alone.end + TTRANS]
+    assert t._start() is steps[-1]
+    assert sent == [alone.end + TTRANS] + [h.end + TTRANS for h in [joins] + steps[:2]]
+    assert "in step after 3 turns" in t.report.checks[-1].figure
+
+
+def test_the_paper_start_waits_until_the_robot_dropped_the_absent_team():
+    """In the paper profile the static ring is the whole team: robot 6 with the default team
+    takes over the turns of 1-5, absent, until it has dropped them (three misses each), so
+    its first answers to our frames come Tmax or more late. The rotation's timing is judged
+    only once it follows us at once three times in a row (robot 6 once failed clause 23 on
+    those takeovers)."""
+    wire, clock = _Wire(), [0]
+    t = _tester_on(wire, clock)
+    f = Frame(dst=BROADCAST, src=6, num=0, type=3, content=b"")
+    # the gap from our End (Ttrans after its previous End) to its next Header, ms: takeovers
+    # of 1-5 first, then prompt answers, once interrupted by one more takeover
+    gaps = [600, 1200, 600, 1, 600, 1, 1, 1]
+    first = Heard(f, 1000 * MS, 1000 * MS + 14 * BYTE)
+    answers, prev = [first, first], first
+    for g in gaps:
+        start = prev.end + TTRANS + g * MS
+        prev = Heard(f, start, start + 14 * BYTE)
+        answers.append(prev)
+    prompt = answers[-3:]
+
+    def wait(after, timeout, src=None):
+        return answers.pop(0) if answers else None
+    t.wait_frame = wait
+    t.send = lambda fr, at: at
+    assert t._start() is prompt[-1] and not answers
+    assert t.report.checks[-1].passed and "in step after 8 turns" in t.report.checks[-1].figure
 
 
 @pytest.mark.parametrize("type_,num,verdict", [(6, 1, "n/a"), (5, 0, "pass"), (5, 3, "FAIL"),
@@ -218,7 +251,8 @@ def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
         time.sleep(0.5)
         run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
                               str(air / "node1"), "--id", "1", "--profile", profile,
-                              "--junit", str(junit), "--quiet"], cwd=ROOT, capture_output=True,
+                              "--team", "0,1", "--junit", str(junit), "--quiet"], cwd=ROOT,
+                             capture_output=True,
                              text=True, timeout=120)
     finally:
         _stop(child)
@@ -226,7 +260,7 @@ def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
     cases = _cases(junit)
     clauses = {c.split()[1] for c, _ in cases}
     expected = {"15", "21", "23", "24", "25", "26", "47", "38", "41"} | (
-        {"29", "34", "36", "45", "48"} if profile == "rprs" else set())
+        {"29", "34", "36", "44", "45", "48"} if profile == "rprs" else set())
     assert clauses == expected and all(cases.values()), cases
     assert "pass" in run.stdout and "FAIL" not in run.stdout
     # paper: 38 does not apply (the paper admits any team robot); a robot just powered on
@@ -236,7 +270,7 @@ def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
 
 
 def _run_against(robot: PaperRobot, port: str, profile: str) -> dict[tuple[str, str], bool]:
-    t = Tester(port, 1, profile)
+    t = Tester(port, 1, profile, team=(0, 1))
     stop = threading.Event()
 
     def drive():
@@ -446,3 +480,164 @@ def test_the_documented_conformance_run_as_written_passes_on_an_idle_machine(tmp
     assert run.returncode == 0, f"{lat}\n" + run.stdout + run.stderr
     cases = _cases(tmp_path / "verdicts.xml")
     assert cases and all(cases.values()), (str(lat), cases)
+
+
+# ------------------------------------------------ the project's child, every ID, both profiles
+def test_the_forger_is_one_after_which_our_turn_comes_when_there_is_one():
+    """Clause 38.3: a frame from a team robot outside the ring still sets the timing (next
+    turn succ(Source)). With the forger before the robot in ring order (robot 4, forger 1),
+    the turn after the forged frame is the robot's, and our own frame collided with it."""
+    from hil.bench.conformance import _forger, _succ
+    for robot in range(1, 7):
+        f = _forger(robot, 0)
+        assert f not in (0, robot)
+        assert _succ(f, (0, robot)) == (0 if robot < 6 else robot), (robot, f)
+    assert _forger(4, 0) == 5 and _forger(6, 0) == 1 and _forger(1, 3) == 2
+
+
+def _conformance_run(air: Path, robot: int, profile: str, team: str, tmp_path: Path,
+                     child: list[str] | None = None):
+    """``rprs child`` (or ``child``: a command line that runs one) on node0, then ``rprs
+    conformance`` on node1: the finished run and its JUnit verdicts."""
+    args = ["child", "--id", str(robot), "--radio", str(air / "node0"), "--team", team,
+            "--profile", profile]
+    proc = subprocess.Popen((child or [sys.executable, "-m", "hil.cli"]) + args, cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    junit = tmp_path / f"verdicts-{robot}-{profile}.xml"
+    try:
+        first = proc.stderr.readline()
+        assert first.startswith("running "), first + proc.stderr.read()
+        # as a user starts the kit once the robot runs: not while the child still loads
+        # (a child starved past a Tslot at its start resynchronises and misses turns)
+        time.sleep(1.0)
+        run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
+                              str(air / "node1"), "--id", str(robot), "--profile", profile,
+                              "--team", team, "--junit", str(junit), "--quiet"],
+                             cwd=ROOT, capture_output=True, text=True, timeout=180)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        proc.stderr.close()
+    return run, junit
+
+
+# The whole matrix: IDs 1-6 x both profiles x the default team and a team of two. The default
+# tier keeps cases the kit once failed (robot 4 with the default team: our frame after the
+# forged one ran into its rightful turn; robots 5 and 6 in the paper profile: their lone
+# rhythm taken for the takeover's) and robot 1 in the paper profile's static ring of seven.
+_REPRESENTATIVE = {(4, "rprs", "all"), (1, "paper", "all"), (6, "paper", "pair"),
+                   (5, "paper", "pair")}
+# Robots 2-6 in the paper profile with the default team: the static ring holds five absent
+# robots, which the child drops in the same round, and its ring then shrinks to two while
+# it still counts the misses of that round: max(3, n - 1) consecutive misses, and the
+# cut-off (clause 40) sends it to LISTEN (seen in its events: "disable 1, 2, 4", then "heard
+# nobody for a whole round"). A finding about the child's paper profile, not the kit's:
+# left open, not hidden.
+_CUT_OFF = pytest.mark.xfail(reason="the child's paper-profile cut-off after the absent "
+                             "team robots are dropped together (clause 40)", strict=False)
+
+
+def _marks(r: int, p: str, t: str) -> list:
+    marks = [] if (r, p, t) in _REPRESENTATIVE else [pytest.mark.slow]
+    return marks + ([_CUT_OFF] if p == "paper" and t == "all" and r > 1 else [])
+
+
+_MATRIX = [pytest.param(r, p, t, marks=_marks(r, p, t), id=f"{r}-{p}-{t}")
+           for r in range(1, 7) for p in ("rprs", "paper") for t in ("all", "pair")]
+
+
+@pytest.mark.parametrize("robot,profile,team", _MATRIX)
+def test_the_kit_passes_the_projects_child(air, tmp_path, robot, profile, team):
+    run, junit = _conformance_run(air, robot, profile,
+                                  "0,1,2,3,4,5,6" if team == "all" else f"0,{robot}", tmp_path)
+    assert run.returncode == 0, run.stdout + run.stderr
+    cases = _cases(junit)
+    assert all(cases.values()), run.stdout
+    clauses = {c.split()[1] for c, _ in cases}
+    assert {"15", "23", "24", "25", "26", "41"} <= clauses, clauses
+    assert ("38" in _skipped(junit)) == (profile == "paper"), run.stdout
+
+
+def test_a_shared_channel_is_named_and_the_robot_not_failed(tmp_path):
+    """R1 and R2 share the hub with this PC: the kit checks a ring of two, so it stops and
+    says the channel carries robot 2, instead of failing robot 1 on the others' frames (it
+    once reported 8 FAILs)."""
+    why = _ptys_available()
+    if why:
+        pytest.skip(why)
+    d = tmp_path / "air"
+    hub = _spawn("radio-hub", "--nodes", "3", "--link-dir", str(d), "--seed", "1")
+    procs = [hub]
+    try:
+        end = time.monotonic() + 15
+        while time.monotonic() < end and not (d / "node2").exists():
+            time.sleep(0.05)
+        assert (d / "node2").exists(), "the hub made no ptys"
+        for i, r in enumerate((1, 2)):
+            procs.append(_spawn("child", "--id", str(r), "--radio", str(d / f"node{i}"),
+                                "--team", "0,1,2"))
+        time.sleep(3)                   # they claim (Tclaim 1.9 s) and form their ring
+        run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
+                              str(d / "node2"), "--id", "1", "--quiet"], cwd=ROOT,
+                             capture_output=True, text=True, timeout=120)
+    finally:
+        _stop(*reversed(procs))
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert "the channel is not a ring of two" in run.stdout and "robot 2" in run.stdout, \
+        run.stdout
+    assert "FAIL" not in run.stdout, run.stdout
+
+
+# ------------------------------------------------------- the project's child with one bug each
+FAULTY = str(ROOT / "tests" / "faulty_child.py")
+
+
+def _figure(junit: Path, clause: str) -> str:
+    return " | ".join(c.find("system-out").text or "" for c in ET.parse(junit).getroot().iter(
+        "testcase") if c.get("classname") == f"clause {clause}")
+
+
+@pytest.mark.parametrize("fault", ["late-turn", "long-length", "no-ack", "boot-01",
+                                   "no-stagger", "late-answer"])
+def test_the_kit_names_the_cause_of_each_deliberate_bug(air, tmp_path, fault):
+    """The project's child with one rule broken (tests/faulty_child.py) fails the clause of
+    that rule, with the figure that shows it; the bugs that leave its frames good and cause
+    no collision are not blamed on clause 15. A child that answers the invitation 40 ms late once got only "no
+    good frame answering our invitations": our next invitation ran over its answer."""
+    import re
+    run, junit = _conformance_run(air, 1, "rprs", "0,1", tmp_path,
+                                  child=[sys.executable, FAULTY, fault])
+    assert run.returncode == 1, run.stdout + run.stderr
+    out = run.stdout
+    assert "Traceback" not in run.stdout + run.stderr, run.stderr
+    verdicts: dict[str, set[bool]] = {}
+    for (classname, _), ok in _cases(junit).items():
+        verdicts.setdefault(classname.split()[1], set()).add(ok)
+    failed = {c for c, oks in verdicts.items() if False in oks}
+    if fault == "long-length":
+        assert failed == {"15"}, out
+        assert "answered 5 invitations in a row with failed frames" in out, out
+        assert "a Length longer than the Content" in _figure(junit, "15"), out
+        return
+    if fault != "no-stagger":         # without R-stagger it may well collide with us
+        assert "15" not in failed, out
+    if fault == "late-turn":          # 20 ms late: every hand-over and takeover
+        assert {"23", "26", "24"} <= failed, out
+        med = float(re.search(r"Header ([+-][\d.]+) ms \(median\)", _figure(junit, "23"))[1])
+        assert med >= 15, out
+    elif fault == "no-ack":
+        assert {"47", "48"} <= failed, out
+        assert "no ack" in _figure(junit, "47") and "re-acknowledged: no" in _figure(junit, "48")
+    elif fault == "boot-01":
+        assert "29" in failed and "Number '01'" in _figure(junit, "29"), out
+    elif fault == "no-stagger":        # id x Tslot = 80 ms early after each uncertain closure
+        assert {"44", "24"} <= failed, out
+        offs = [float(x) for x in re.findall(r"[+-]\d+\.\d", _figure(junit, "44"))]
+        assert offs and all(o < -50 for o in offs), out
+    elif fault == "late-answer":
+        assert "34" in failed, out
+        assert float(re.search(r"Header \+([\d.]+) ms", _figure(junit, "34"))[1]) >= 35, out
