@@ -43,6 +43,8 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     for c in rep.checks:
         table.add_row(c.clause, c.name, VERDICT_STYLE[c.verdict], c.figure)
     stdout_console().print(table)
+    for note in rep.notes:
+        print(f"rprs conformance: {note}")
     if error:
         print(f"rprs conformance: stopped: {error}")
     if a.junit:
