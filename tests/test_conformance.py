@@ -357,7 +357,8 @@ def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
         time.sleep(0.5)
         run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
                               str(air / "node1"), "--id", "1", "--profile", profile,
-                              "--team", "0,1", "--junit", str(junit), "--quiet"], cwd=ROOT,
+                              "--team", "0,1", "--junit", str(junit), "--quiet",
+                              "--tolerance-ms", str(LOADED_TOLERANCE_MS)], cwd=ROOT,
                              capture_output=True,
                              text=True, timeout=120)
     finally:
@@ -605,9 +606,10 @@ def test_the_forger_is_one_after_which_our_turn_comes_when_there_is_one():
 
 
 def _conformance_run(air: Path, robot: int, profile: str, team: str, tmp_path: Path,
-                     child: list[str] | None = None):
+                     child: list[str] | None = None, tolerance_ms: float | None = None):
     """``rprs child`` (or ``child``: a command line that runs one) on node0, then ``rprs
-    conformance`` on node1: the finished run and its JUnit verdicts."""
+    conformance`` on node1 (with ``--tolerance-ms`` if given): the finished run, its JUnit
+    verdicts, and the host's scheduling latency while it ran (for a failure message)."""
     args = ["child", "--id", str(robot), "--radio", str(air / "node0"), "--team", team,
             "--profile", profile]
     proc = subprocess.Popen((child or [sys.executable, "-m", "hil.cli"]) + args, cwd=ROOT,
@@ -619,10 +621,12 @@ def _conformance_run(air: Path, robot: int, profile: str, team: str, tmp_path: P
         # as a user starts the kit once the robot runs: not while the child still loads
         # (a child starved past a Tslot at its start resynchronises and misses turns)
         time.sleep(1.0)
-        run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
-                              str(air / "node1"), "--id", str(robot), "--profile", profile,
-                              "--team", team, "--junit", str(junit), "--quiet"],
-                             cwd=ROOT, capture_output=True, text=True, timeout=180)
+        extra = [] if tolerance_ms is None else ["--tolerance-ms", str(tolerance_ms)]
+        with SchedulingLatency() as probe:
+            run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
+                                  str(air / "node1"), "--id", str(robot), "--profile", profile,
+                                  "--team", team, "--junit", str(junit), "--quiet", *extra],
+                                 cwd=ROOT, capture_output=True, text=True, timeout=180)
     finally:
         proc.terminate()
         try:
@@ -631,7 +635,7 @@ def _conformance_run(air: Path, robot: int, profile: str, team: str, tmp_path: P
             proc.kill()
             proc.wait()
         proc.stderr.close()
-    return run, junit
+    return run, junit, probe.result
 
 
 # The whole matrix: IDs 1-6 x both profiles x the default team and a team of two. The default
@@ -661,11 +665,11 @@ _MATRIX = [pytest.param(r, p, t, marks=_marks(r, p, t), id=f"{r}-{p}-{t}")
 
 @pytest.mark.parametrize("robot,profile,team", _MATRIX)
 def test_the_kit_passes_the_projects_child(air, tmp_path, robot, profile, team):
-    run, junit = _conformance_run(air, robot, profile,
-                                  "0,1,2,3,4,5,6" if team == "all" else f"0,{robot}", tmp_path)
-    assert run.returncode == 0, run.stdout + run.stderr
+    run, junit, lat = _conformance_run(air, robot, profile, "0,1,2,3,4,5,6" if team == "all"
+                                       else f"0,{robot}", tmp_path, tolerance_ms=LOADED_TOLERANCE_MS)
+    assert run.returncode == 0, f"{lat}\n" + run.stdout + run.stderr
     cases = _cases(junit)
-    assert all(cases.values()), run.stdout
+    assert all(cases.values()), f"{lat}\n" + run.stdout
     clauses = {c.split()[1] for c, _ in cases}
     assert {"15", "23", "24", "25", "26", "41"} <= clauses, clauses
     assert ("38" in _skipped(junit)) == (profile == "paper"), run.stdout
@@ -765,8 +769,8 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(air, tmp_path, fault):
     no collision are not blamed on clause 15. A child that answers the invitation 40 ms late once got only "no
     good frame answering our invitations": our next invitation ran over its answer."""
     import re
-    run, junit = _conformance_run(air, 1, "rprs", "0,1", tmp_path,
-                                  child=[sys.executable, FAULTY, fault])
+    run, junit, _ = _conformance_run(air, 1, "rprs", "0,1", tmp_path,
+                                     child=[sys.executable, FAULTY, fault])
     assert run.returncode == 1, run.stdout + run.stderr
     out = run.stdout
     assert "Traceback" not in run.stdout + run.stderr, run.stderr

@@ -18,6 +18,10 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     from ..bench.serial_radio import PortError
     if a.tester is not None and a.tester == a.id:
         raise UserError(f"--tester must differ from --id (both {a.id})")
+    me = a.tester if a.tester is not None else (0 if a.id != 0 else 1)
+    if a.team and not {a.id, me} <= set(a.team):
+        raise UserError(f"--team {','.join(map(str, a.team))} must hold the robot's ID {a.id} "
+                        f"and this PC's {me}: the robot's team holds both")
     if a.junit:
         output_file(a.junit, "JUnit XML")
     quiet = a.quiet
