@@ -317,6 +317,39 @@ def test_hand_overs_after_a_missed_turn_are_not_timed_and_more_are_taken():
     assert len(sent) == 6 and len(t.misses) == 1      # 5 turns, one of them taken over
 
 
+def test_a_status_reply_that_comes_after_a_few_turns_is_awaited():
+    """Under load, or with a CAN side that waits for its submodules, the child's reply to
+    our status() can come later than the 6 turns the kit once gave it: the reply to the
+    second status() came after them, and clause 45 failed with "its replies' Numbers: 01".
+    The kit now turns the ring on until the reply comes (at most 30 turns)."""
+    t, sent = _ring_tester([])
+    heard_nums: set[int] = set()
+    due: dict[int, int] = {}                       # our frame count -> the reply's Number
+    mine = [0]
+
+    def robot(after, timeout, src=None):
+        last = sent[-1][1]
+        content = b""
+        if b"status()" in last:
+            num = int(last[5:7])
+            content += b"ack(0,%d)" % num
+            if num not in heard_nums:              # a new message: its reply, 9 turns on
+                heard_nums.add(num)
+                mine[0] += 1
+                due[len(sent) + 9] = mine[0]
+        f = Frame(dst=BROADCAST, src=1, num=0, type=3, content=content)
+        if len(sent) in due:
+            f = Frame(dst=0, src=1, num=due.pop(len(sent)), type=2, content=content +
+                      b"joint(1,0)")
+        start = after + TTRANS
+        return Heard(f, start, start + f.nbytes * BYTE)
+    t.wait_frame = robot
+    t._message(_heard_at(100))
+    verdicts = {c.clause: (c.passed, c.figure) for c in t.report.checks}
+    assert all(ok for ok, _ in verdicts.values()), verdicts
+    assert verdicts["45"][1] == "its replies' Numbers: 01, 02", verdicts
+
+
 def test_a_lone_members_own_frame_is_not_taken_for_its_answer_to_our_invitation():
     """A robot that claimed the silent channel before the kit invited it is a lone member,
     a frame every Twin + id x Tslot: one came in the window of our invitation and was taken

@@ -789,6 +789,8 @@ class Tester:
                 seen["replies"].append(h.frame.num)    # the status, or why there is none
         ask = (b"status()", {"dst": self.robot, "type_": 2})
         h = self._turns(h, 6, ask, watch)
+        if self.profile == "rprs":       # (the paper has no status(): none is awaited)
+            h = self._until(h, lambda: seen["replies"], watch)
         acked, replies = seen["acked"], list(seen["replies"])
         if self.profile == "paper":
             self.check("47", "paper profile: nothing is acknowledged", not acked,
@@ -813,11 +815,25 @@ class Tester:
         self.num = (self.num + 1) % 100
         before = list(seen["replies"])
         h = self._turns(h, 6, (b"status()", {"dst": self.robot, "type_": 2}), watch)
+        h = self._until(h, lambda: seen["replies"][len(before):], watch)
         new = seen["replies"][len(before):]
         ok = len(before) == 1 and len(new) == 1 and new[0] == (before[0] + 1) % 100
         self.check("45", "its next message takes the next Number",
                    ok, f"its replies' Numbers: {', '.join(f'{n:02d}' for n in before + new)}",
                    t0)
+        return h
+
+    REPLY_TURNS = 30
+    """Turns we wait at most for the robot's reply to a status() (a busy PC, or a CAN side
+    that waits for its submodules, can take longer than a few turns)."""
+
+    def _until(self, h: Heard, seen: Callable[[], list], watch, done: int = 6) -> Heard:
+        """More turns from ``h`` (``done`` were taken), each of its frames shown to
+        ``watch`` with its index, until ``seen()`` is not empty (at most ``REPLY_TURNS``)."""
+        for k in range(done, done + self.REPLY_TURNS):
+            if seen():
+                break
+            h = self._turns(h, 1, None, lambda x, i: watch(x, k))
         return h
 
     def _forged(self, h: Heard) -> Heard:
