@@ -317,12 +317,10 @@ def test_hand_overs_after_a_missed_turn_are_not_timed_and_more_are_taken():
     assert len(sent) == 6 and len(t.misses) == 1      # 5 turns, one of them taken over
 
 
-def test_a_status_reply_that_comes_after_a_few_turns_is_awaited():
-    """Under load, or with a CAN side that waits for its submodules, the child's reply to
-    our status() can come later than the 6 turns the kit once gave it: the reply to the
-    second status() came after them, and clause 45 failed with "its replies' Numbers: 01".
-    The kit now turns the ring on until the reply comes (at most 30 turns)."""
-    t, sent = _ring_tester([])
+def _status_robot(sent: list, delay: int, resend: bool):
+    """A robot 1 for ``_ring_tester``'s wait: it acknowledges our status() in its next frame
+    and replies ``delay`` turns later (its own Numbers from 01); with ``resend`` it sends
+    each reply twice, the same Number (its retransmission, as when our ack was lost)."""
     heard_nums: set[int] = set()
     due: dict[int, int] = {}                       # our frame count -> the reply's Number
     mine = [0]
@@ -333,17 +331,31 @@ def test_a_status_reply_that_comes_after_a_few_turns_is_awaited():
         if b"status()" in last:
             num = int(last[5:7])
             content += b"ack(0,%d)" % num
-            if num not in heard_nums:              # a new message: its reply, 9 turns on
+            if num not in heard_nums:              # a new message: its reply, later
                 heard_nums.add(num)
                 mine[0] += 1
-                due[len(sent) + 9] = mine[0]
+                due[len(sent) + delay] = mine[0]
+                if resend:
+                    due[len(sent) + delay + 1] = mine[0]
         f = Frame(dst=BROADCAST, src=1, num=0, type=3, content=content)
         if len(sent) in due:
             f = Frame(dst=0, src=1, num=due.pop(len(sent)), type=2, content=content +
                       b"joint(1,0)")
         start = after + TTRANS
         return Heard(f, start, start + f.nbytes * BYTE)
-    t.wait_frame = robot
+    return robot
+
+
+@pytest.mark.parametrize("delay,resend", [(9, False), (2, True)])
+def test_a_status_reply_late_or_retransmitted_is_one_reply(delay, resend):
+    """Under load, or with a CAN side that waits for its submodules, the child's reply to
+    our status() can come later than the 6 turns the kit once gave it: the reply to the
+    second status() came after them, and clause 45 failed with "its replies' Numbers: 01".
+    The kit now turns the ring on until the reply comes (at most 30 turns). A reply sent
+    again with the same Number (the robot retransmits when our ack was lost to it, as in a
+    stall) is the same message: clause 45 once failed with "01, 02, 02"."""
+    t, sent = _ring_tester([])
+    t.wait_frame = _status_robot(sent, delay, resend)
     t._message(_heard_at(100))
     verdicts = {c.clause: (c.passed, c.figure) for c in t.report.checks}
     assert all(ok for ok, _ in verdicts.values()), verdicts

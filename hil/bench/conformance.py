@@ -785,8 +785,11 @@ class Tester:
             if ack in h.frame.content:
                 seen["acked"].append(i)
             if h.frame.dst == self.me and (b"joint(" in h.frame.content or
-                                           b"fail(" in h.frame.content):
-                seen["replies"].append(h.frame.num)    # the status, or why there is none
+                                           b"fail(" in h.frame.content) and \
+                    h.frame.num not in seen["replies"][-1:]:
+                # the status, or why there is none; the same Number again is its message
+                # retransmitted (our ack was lost to it, e.g. while it stalled), no new reply
+                seen["replies"].append(h.frame.num)
         ask = (b"status()", {"dst": self.robot, "type_": 2})
         h = self._turns(h, 6, ask, watch)
         if self.profile == "rprs":       # (the paper has no status(): none is awaited)
