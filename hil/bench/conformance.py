@@ -32,6 +32,10 @@ clause        what is checked, and the figure reported
               come at its lone cadence)
 ===========  ================================================================================
 
+A turn the robot misses (a bench process starved past a Tslot listens for the ring again) is
+taken over as a member of the ring does, and the run goes on: the frame after it is no sample
+(another is taken); three missed turns in a row stop the run (clause 25).
+
 Times are the arrival of bytes at this PC: a Header's start is estimated as its End minus its
 bytes at 9600 bit/s, so every measured gap includes the port's latency; ``tolerance`` (default
 15 ms) bounds the median hand-over, and twice that 9 hand-overs in 10. The robot must run with the real-time margins (``rprs child`` does; a flashed
