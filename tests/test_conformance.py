@@ -654,7 +654,8 @@ def _conformance_run(air: Path, robot: int, profile: str, team: str, tmp_path: P
                      child: list[str] | None = None, tolerance_ms: float | None = None):
     """``rprs child`` (or ``child``: a command line that runs one) on node0, then ``rprs
     conformance`` on node1 (with ``--tolerance-ms`` if given): the finished run, its JUnit
-    verdicts, and the host's scheduling latency while it ran (for a failure message)."""
+    verdicts, and for a failure message the host's scheduling latency while it ran and the
+    child's last lines on stderr (its stalls, its closing line)."""
     args = ["child", "--id", str(robot), "--radio", str(air / "node0"), "--team", team,
             "--profile", profile]
     proc = subprocess.Popen((child or [sys.executable, "-m", "hil.cli"]) + args, cwd=ROOT,
@@ -679,8 +680,10 @@ def _conformance_run(air: Path, robot: int, profile: str, team: str, tmp_path: P
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        child_err = proc.stderr.read()
         proc.stderr.close()
-    return run, junit, probe.result
+    return run, junit, f"{probe.result}\nthe child's stderr, last lines:\n" + \
+        "\n".join(child_err.splitlines()[-6:])
 
 
 # The whole matrix: IDs 1-6 x both profiles x the default team and a team of two. The default
