@@ -164,8 +164,9 @@ def _tester_on(wire: _Wire, clock: list[int], profile: str = "paper") -> Tester:
 def test_a_frame_we_stepped_on_is_a_collision_not_the_robots_bad_frame():
     """Clause 15 judges the robot's frames: one whose Header began before our frame and that
     broke while ours was on air (we stepped on it: the air gives both of us garbage) is
-    counted apart; one that broke in silence, or that began after ours (the robot spoke
-    while we were on air), counts."""
+    counted apart, and so is one whose Header began within the tolerance after ours (the
+    stamps cannot order them: a takeover race); one that broke in silence, or that began
+    later after ours (the robot spoke while we were on air), counts."""
     wire, clock = _Wire(), [0]
     t = _tester_on(wire, clock)
     good = Frame(dst=BROADCAST, src=1, num=0, type=3, content=b"").encode()
@@ -183,9 +184,13 @@ def test_a_frame_we_stepped_on_is_a_collision_not_the_robots_bad_frame():
     assert (t.bad, t.collided) == (1, 1)
     assert "0x9d" in t.first_failure
     clock[0] += 200 * MS
+    t._write(ours)                                         # ours first, then its frame ...
+    hear(broken, clock[0] + 16 * BYTE)                     # ... its Header 3 B after ours began:
+    assert (t.bad, t.collided) == (1, 2)                   # within the stamps' uncertainty
+    clock[0] += 200 * MS
     t._write(ours)                                         # ours first, then its frame
-    hear(broken, clock[0] + 20 * BYTE)                     # its Header 7 bytes after ours began
-    assert (t.bad, t.collided) == (2, 1)
+    hear(broken, clock[0] + 29 * BYTE)                     # its Header 16 B (17 ms) after ours
+    assert (t.bad, t.collided) == (2, 2)                   # began: later than the tolerance
     t.check("15", "x", t.bad == 0, "", time.monotonic())
     assert t.report.checks[-1].verdict == "FAIL"
 

@@ -250,11 +250,15 @@ class Tester:
 
     def _ours_overlap(self, first: int, at: int) -> bool:
         """A frame of the robot's whose Header began (tick ``first``) before one of our
-        transmissions and that broke (tick ``at``) while it was on air, or within the
-        tolerance after its End: we stepped on it (a collision we caused), so it says
-        nothing of the robot's frames. A frame that began after ours began is judged: the
-        robot spoke while we were on air. Both are stamps of this PC, late by its latency."""
-        return any(first < s <= at <= e + self.tol for s, e in self.on_air[-4:])
+        transmissions, or within the tolerance after it began, and that broke (tick ``at``)
+        while ours was on air, or within the tolerance after its End: we stepped on it (a
+        collision we caused, or a race neither side can order: both are stamps of this PC,
+        late by its latency, and a takeover of ours can meet the robot's own), so it says
+        nothing of the robot's frames. A frame that began later than that is judged: the
+        robot spoke while we were on air. (A takeover race once failed clause 15 on a frame
+        of the robot's cut after 4 bytes, its Header stamped a few ms after ours began.)"""
+        return any(first < s + self.tol and s <= at <= e + self.tol
+                   for s, e in self.on_air[-4:])
 
     def _write(self, data: bytes) -> int:
         """Put ``data`` on the port now; the tick its End leaves the air."""
