@@ -17,7 +17,8 @@ from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
 from .mcu.uart import Uart
 from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
-from .radio.mac import SEND, Deliver, MacConfig, Refused, RotationalMac, Transmit, TxEnable
+from .radio.mac import (SEND, Deliver, MacConfig, NumberBehind, Refused, RotationalMac,
+                         Transmit, TxEnable)
 
 Observer = Callable[["RadioStation", object, int], None]
 
@@ -61,7 +62,10 @@ class RadioStation:
         self.frames_failed = 0
         self.refused: dict[str, int] = {}
         """Frames the MAC refused, by kind: ``forged`` and ``replayed`` (the authenticated
-        profile), ``ring`` (the ring's own rules, clauses 38-39)."""
+        profile), ``out_of_turn`` (clause 39), ``own_id`` (clause 38.2), ``behind`` (clause
+        48a, with the checksum), ``ring`` (the ring's other rules, clause 38)."""
+        self.behind = 0
+        """Message frames whose Number went backwards (clause 48a), refused or not."""
         self._stall = max(cfg.stall_gap, 2 * uart.byte_ticks)
         self._promise: int | None = None
         """The End a failed frame's Length promised, while its turn is to close there: if its
@@ -287,6 +291,8 @@ class RadioStation:
                 elif t is Refused:
                     k = a.kind or "ring"
                     self.refused[k] = self.refused.get(k, 0) + 1
+                elif t is NumberBehind:
+                    self.behind += 1
                 if obs is not None:
                     obs(self, a, now)
 

@@ -12,6 +12,9 @@ repository's root; PYTHONPATH chooses the code the children run.
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    import _needs_project  # noqa: F401    (scripts/ is sys.path[0] here)
+
 import argparse
 import signal
 import sys

@@ -5,6 +5,9 @@ for rings of 2-7 robots with and without the father (hil/sim/lockstep.py; docs/g
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    import _needs_project  # noqa: F401    (scripts/ is sys.path[0] here)
+
 import argparse
 import sys
 import time

@@ -6,14 +6,18 @@ off, on random rings, faults, loads, byte errors and run segments.
 
 Each run draws a world from its seed (robots, duration, CAN sides, the standby father, the
 soak's random faults at a random spacing, a load that may stop half-way, byte errors, the
-checksum, perhaps a robot gone for good), runs it once with every frame run and once with the fast paths, the second cut into
-0-3 ``World.run`` segments that wake the CAN sides or not, and compares the summaries and the
-whole state (every part, every pending event, the random generators). A difference prints the
-world and makes the exit status 1. Two inexact sleeps were found this way (docs/performance.md,
-"Session 24"); tests/test_quiet_can.py keeps both as named scenarios and runs a few seeds of
-this hunt.
+checksum, perhaps a robot gone for good), runs it once with every frame run and once with the
+fast paths, the second cut into 0-3 ``World.run`` segments that wake the CAN sides or not, and
+compares the summaries and the whole state (every part, every pending event, the random
+generators). A difference prints the world and makes the exit status 1. Two inexact sleeps were
+found this way (a message noted between a probe's two snapshots, a cruising wheel whose
+odometer did not change for three periods); tests/test_quiet_can.py keeps both as named
+scenarios and runs a few seeds of this hunt.
 """
 from __future__ import annotations
+
+if __name__ == "__main__":     # a Python without the project says so in one line
+    import _needs_project  # noqa: F401    (scripts/ is sys.path[0] here)
 
 import argparse
 import json

@@ -9,6 +9,9 @@ is meant, and say why in the commit.
 """
 from __future__ import annotations
 
+if __name__ == "__main__":     # a Python without the project says so in one line
+    import _needs_project  # noqa: F401    (scripts/ is sys.path[0] here)
+
 import argparse
 import sys
 

@@ -18,32 +18,54 @@ REALTIME_MODULES = frozenset({
     "test_bench_processes", "test_bridge", "test_conformance", "test_differential",
     "test_monitor", "test_paper_profile", "test_radio_hub", "test_stranger_robot",
     "test_unixbus", "test_socketcan_smoke", "test_child_acceptance", "test_father_app",
-    "test_lost_port",
+    "test_lost_port", "test_bench_stalls",
 })
 """Modules whose tests run on the wall clock: processes on the pty hub, CAN buses between
 processes, the timers of a live UI."""
-REALTIME_TESTS = frozenset({"tests/test_action_sequence.py::test_in_real_time",
-                            "tests/test_readme_commands.py::test_the_readme_monitor_command_runs_in_a_terminal"})
+
+TIMING_TESTS = frozenset({
+    "tests/test_auth.py::test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub",
+    "tests/test_auth.py::test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_on_the_hub",
+    "tests/test_auth.py::test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart",
+    "tests/test_auth.py::test_conformance_checks_an_authenticated_childs_frames_and_refusals",
+})
+"""Wall-clock tests outside ``TIMING_MODULES`` that judge timing too (a frame put on the hub's
+air at a chosen offset into a turn, the conformance kit's tolerances): they run with the CPU
+to themselves (the CPU lock, ``pytest_runtest_protocol``), in the fast tier."""
+
+REALTIME_TESTS = TIMING_TESTS | frozenset({
+    "tests/test_action_sequence.py::test_in_real_time",
+    "tests/test_readme_commands.py::test_the_readme_monitor_command_runs_in_a_terminal",
+    "tests/test_identity.py::test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going",
+    "tests/test_identity.py::test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring",
+})
 
 
 TIMING_MODULES = frozenset({
     "test_bench_processes", "test_conformance", "test_differential", "test_stranger_robot",
-    "test_paper_profile", "test_child_acceptance",
+    "test_paper_profile", "test_child_acceptance", "test_bench_stalls",
 })
 """Wall-clock tests that judge timing (turn hand-overs to a few ms, gaps, misses), and the
 acceptance tests whose bench father keeps a ring with a child process: they run with the CPU
-to themselves (``_cpu_to_itself``)."""
+to themselves (the CPU lock, ``pytest_runtest_protocol``)."""
+
+
+def node_key(nodeid: str) -> str:
+    """``path::name`` of a node ID, without its parameters."""
+    path, _, name = nodeid.partition("::")
+    return f"{path}::{name.partition('[')[0]}"
 
 
 def is_realtime(nodeid: str) -> bool:
-    path, _, name = nodeid.partition("::")
+    path = nodeid.partition("::")[0]
     module = path.rpartition("/")[2].removesuffix(".py")
-    return module in REALTIME_MODULES or f"{path}::{name.partition('[')[0]}" in REALTIME_TESTS
+    return module in REALTIME_MODULES or node_key(nodeid) in REALTIME_TESTS
 
 
 def _lock_base(config) -> Path:
-    """Path stem of this test run's lock files (``_cpu_to_itself``): one pair per run, shared
-    by its xdist workers through the run's uid, removed when the run ends."""
+    """Path stem of this test run's lock files (the CPU lock, ``pytest_runtest_protocol``):
+    one pair per run, shared by its xdist workers through the run's uid, removed when the run
+    ends."""
     worker = getattr(config, "workerinput", None)
     if worker:
         uid = worker["testrunuid"]
@@ -57,8 +79,7 @@ def pytest_configure(config):
         # Started as a background job of a shell without job control (``pytest &`` in a
         # script, some CI runners), this process ignores SIGINT, and every program a test
         # starts would inherit that: Python then installs no Ctrl-C handler, and a test that
-        # stops ``rprs soak`` with SIGINT saw it run to the end and exit 0 (a helper's run,
-        # 2026-11-26). Tests play a terminal's foreground job: Ctrl-C is delivered.
+        # stops ``rprs soak`` with SIGINT saw it run to the end and exit 0. Tests play a terminal's foreground job: Ctrl-C is delivered.
         signal.signal(signal.SIGINT, signal.default_int_handler)
     if not getattr(config, "workerinput", None) and \
             getattr(config.option, "testrunuid", "unset") is None:
@@ -71,9 +92,16 @@ def pytest_configure(config):
     )
     config.addinivalue_line(
         "markers", "realtime: runs on the wall clock (tests/conftest.py: is_realtime)")
+    config.addinivalue_line(
+        "markers", "shares_cpu: a wall-clock test of a TIMING_MODULES module that judges no "
+        "timing (orders end, lines said, files written): it shares the CPU with the simulator's "
+        "tests instead of running alone (tests/conftest.py: _exclusive)")
 
 
 def pytest_unconfigure(config):
+    lock = config.stash.get(_CPU_LOCK, None)
+    if lock is not None:
+        lock.close()
     if not getattr(config, "workerinput", None):
         base = _lock_base(config)
         for suffix in (".turnstile", ".cpu"):
@@ -194,27 +222,72 @@ def vcan_channel() -> str:
     return _vcan_or_skip()
 
 
-@pytest.fixture(autouse=True)
-def _cpu_to_itself(request):
-    """A test that judges wall-clock timing runs alone: on a 2-core machine the simulator's
-    tests on the other xdist worker took a core from the robot processes, and hand-overs then
-    came 70 ms late now and then. Such a test (a module of ``TIMING_MODULES``, or a test
-    marked ``timing``) takes a run-wide lock exclusively, every other
-    test shares it; a turnstile lock first keeps a waiting timing test from being starved by
-    a stream of others (a fair readers-writer lock on flock)."""
-    base = _lock_base(request.config)
-    module = request.node.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
-    exclusive = module in TIMING_MODULES or request.node.get_closest_marker("timing") is not None
-    with open(f"{base}.turnstile", "a+") as gate, open(f"{base}.cpu", "a+") as cpu:
-        fcntl.flock(gate, fcntl.LOCK_EX)
+def _exclusive(item) -> bool:
+    """Whether ``item`` judges wall-clock timing and so runs with the CPU to itself: a test of
+    ``TIMING_MODULES`` (unless marked ``shares_cpu``), one of ``TIMING_TESTS``, or one marked
+    ``timing``."""
+    if item.get_closest_marker("shares_cpu") is not None:
+        return False
+    module = item.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
+    return module in TIMING_MODULES or node_key(item.nodeid) in TIMING_TESTS or \
+        item.get_closest_marker("timing") is not None
+
+
+class _CpuLock:
+    """This process's hold on the run's CPU lock (``pytest_runtest_protocol``): none, shared
+    or exclusive. The lock files are opened once, on first use."""
+
+    def __init__(self, config) -> None:
+        base = _lock_base(config)
+        self.gate = open(f"{base}.turnstile", "a+")
+        self.cpu = open(f"{base}.cpu", "a+")
+        self.held: int | None = None
+
+    def take(self, mode: int) -> None:
+        if self.held == mode:
+            return
+        self.release()
+        fcntl.flock(self.gate, fcntl.LOCK_EX)
         try:
-            fcntl.flock(cpu, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+            fcntl.flock(self.cpu, mode)
         finally:
-            fcntl.flock(gate, fcntl.LOCK_UN)
-        try:
-            yield
-        finally:
-            fcntl.flock(cpu, fcntl.LOCK_UN)
+            fcntl.flock(self.gate, fcntl.LOCK_UN)
+        self.held = mode
+
+    def release(self) -> None:
+        if self.held is not None:
+            fcntl.flock(self.cpu, fcntl.LOCK_UN)
+            self.held = None
+
+    def close(self) -> None:
+        self.release()
+        self.gate.close()
+        self.cpu.close()
+
+
+_CPU_LOCK = pytest.StashKey()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """The CPU lock: a test that judges wall-clock timing runs alone. On a 2-core machine
+    the simulator's tests on the other xdist worker took a core from the robot processes, and
+    hand-overs then came 70 ms late now and then. Such a test (``_exclusive``) takes a run-wide
+    lock exclusively, every other test shares it; a turnstile lock first keeps a waiting
+    timing test from being starved by a stream of others (a fair readers-writer lock on
+    flock). A test that shares the lock lets it go after its teardown, so that a timing test
+    waits for one test at most; a timing test followed by another keeps it, so that a run of
+    them (a module) waits once, not once a test, for the other worker's test in progress."""
+    lock = item.config.stash.get(_CPU_LOCK, None)
+    if lock is None:
+        lock = item.config.stash[_CPU_LOCK] = _CpuLock(item.config)
+    exclusive = _exclusive(item)
+    lock.take(fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+    try:
+        yield
+    finally:
+        if not (exclusive and nextitem is not None and _exclusive(nextitem)):
+            lock.release()
 
 
 def _child_processes() -> set[tuple[int, str]] | None:

@@ -299,9 +299,10 @@ def test_the_cpu_model_charges_the_tags():
 class _Attacker:
     """A capture sink for the hub (``RadioHub.capture``) that is also a transmitter on its air:
     it records every packet (node, End tick, bytes) and, once armed, puts ``payload`` on the
-    air 9.6 ms after the End of each of the next ``left`` invitations (a ``poll(`` frame), the
-    moment issue 42 found a forged frame taken as a takeover. Air ticks, so a late thread of
-    the test process cannot move when it sends."""
+    air ``delay`` s after the End of each of the next ``left`` frames that ``trigger(node,
+    bytes)`` picks: by default 9.6 ms after invitations (a ``poll(`` frame), the moment issue
+    42 found a forged frame taken as a takeover. Air ticks, so a late thread of the test
+    process cannot move when it sends."""
 
     tsresol = 9
     epoch_units = 0
@@ -312,19 +313,90 @@ class _Attacker:
         self.payload = b""
         self.left = 0
         self.sent: list[int] = []
+        self.delay = 0.0096
+        self.trigger = lambda node, data: b"poll(" in data
 
     def follow(self, clock) -> None:
         pass
 
     def radio(self, key, tick, data, comment=None) -> None:
         self.packets.append((key, tick, bytes(data)))
-        if self.left and key != "foreign" and comment is None and b"poll(" in data:
+        if self.left and key != "foreign" and comment is None and self.trigger(key, data):
             self.left -= 1
-            self.hub.sched.at(tick + s_to_ticks(0.0096), self._send, self.payload)
+            self.hub.sched.at(tick + s_to_ticks(self.delay), self._send, self.payload)
 
     def _send(self, payload: bytes) -> None:
         self.sent.append(self.hub.sched.now)
         self.hub.air.inject(payload)
+
+
+class _HubRing:
+    """The father (``--json``, orders on stdin) and children 1 and 2 (``--events``) as
+    processes on a pty hub of ``nodes`` nodes whose capture is an ``_Attacker`` (``air``);
+    ``lines[i]``: the event lines of procs[i] (0 the father), read as they come."""
+
+    def __init__(self, nodes: int, options: list[str]) -> None:
+        import json
+        import threading
+
+        from hil.bench.radio_hub import RadioHub
+        self.hub = hub = RadioHub(nodes=nodes, seed=1)
+        self.air = _Attacker(hub)
+        hub.capture(self.air)
+        hub.start()
+        self.father = subprocess.Popen(
+            [sys.executable, "-m", "hil.cli", "father", "--radio", hub.paths[0], "--json",
+             *options], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True)
+        kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
+                                  "--radio", hub.paths[r], "--events", *options],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                for r in (1, 2)]
+        self.procs = [self.father, *kids]
+        self.lines: list[list[dict]] = [[], [], []]
+
+        def read(p, out):
+            with p.stdout:
+                for line in p.stdout:
+                    out.append(json.loads(line))
+        for p, out in zip(self.procs, self.lines):
+            threading.Thread(target=read, args=(p, out), daemon=True).start()
+
+    def delivered_to_1(self, content: str) -> list[dict]:
+        return [e for e in list(self.lines[1]) if e["ev"] == "deliver" and e["src"] == 0
+                and e["content"] == content]
+
+    def order(self, text: str) -> None:
+        self.father.stdin.write(text + "\n")
+        self.father.stdin.flush()
+
+    def two_orders(self) -> bytes:
+        """Once the ring 0, 1, 2 has formed, the father orders robot 1 joint(1,10) and then
+        joint(1,20), each delivered; the bytes of the first as the air carried them."""
+        from processes import wait_for
+        air, lines = self.air, self.lines
+
+        def formed():
+            srcs = [k for k, t, d in list(air.packets)[-6:]]
+            return sorted(set(srcs)) == [0, 1, 2]
+        assert wait_for(formed, 40.0), "the ring 0, 1, 2 did not form"
+        self.order("1 joint(1,10)")
+        assert wait_for(lambda: self.delivered_to_1("joint(1,10)"), 20.0), lines[1][-5:]
+        self.order("1 joint(1,20)")
+        assert wait_for(lambda: self.delivered_to_1("joint(1,20)"), 20.0), lines[1][-5:]
+        return next(d for k, t, d in air.packets if k == 0 and b"joint(1,10)" in d)
+
+    def stop(self) -> list[str]:
+        """Stop the processes and the hub; each process's stderr."""
+        from processes import stop
+        try:
+            self.father.stdin.close()
+        except OSError:
+            pass
+        errs = stop(self.procs)
+        self.hub.stop()
+        self.hub.close()
+        return errs
 
 
 def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_path):
@@ -335,58 +407,19 @@ def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_
     newer one. Every process refuses each as forged or replayed (event lines, closing-line
     counts), robot 1 delivers each genuine order once and never the forged one, and the ring
     stays whole."""
-    import json
-    import threading
-
-    from hil.bench.radio_hub import RadioHub
-    from processes import stop, wait_for
+    from processes import wait_for
 
     key = tmp_path / "ring.key"
     key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
-    hub = RadioHub(nodes=4, seed=1)
-    air = _Attacker(hub)
-    hub.capture(air)
-    hub.start()
-    common = ["--team", "0,1,2,3", "--auth-key", str(key)]
-    father = subprocess.Popen([sys.executable, "-m", "hil.cli", "father", "--radio",
-                               hub.paths[0], "--json", *common],
-                              stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True)
-    kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
-                              "--radio", hub.paths[r], "--events", *common],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-            for r in (1, 2)]
-    procs = [father, *kids]
-    lines: list[list[dict]] = [[], [], []]
-
-    def read(p, out):
-        with p.stdout:
-            for line in p.stdout:
-                out.append(json.loads(line))
-    for p, out in zip(procs, lines):
-        threading.Thread(target=read, args=(p, out), daemon=True).start()
-
-    def delivered_to_1(content: str) -> list[dict]:
-        return [e for e in list(lines[1]) if e["ev"] == "deliver" and e["src"] == 0
-                and e["content"] == content]
-
-    def order(text: str) -> None:
-        father.stdin.write(text + "\n")
-        father.stdin.flush()
+    bench = _HubRing(4, ["--team", "0,1,2,3", "--auth-key", str(key)])
+    air, lines, procs = bench.air, bench.lines, bench.procs
+    delivered_to_1 = bench.delivered_to_1
 
     def refusals(kind: str) -> set:
         return {e["to"] for ls in lines for e in list(ls)
                 if e["ev"] == "refused" and e.get("kind") == kind}
     try:
-        def formed():
-            srcs = [k for k, t, d in list(air.packets)[-6:]]
-            return sorted(set(srcs)) == [0, 1, 2]
-        assert wait_for(formed, 40.0), "the ring 0, 1, 2 did not form"
-        order("1 joint(1,10)")
-        assert wait_for(lambda: delivered_to_1("joint(1,10)"), 20.0), lines[1][-5:]
-        order("1 joint(1,20)")
-        assert wait_for(lambda: delivered_to_1("joint(1,20)"), 20.0), lines[1][-5:]
-        old = next(d for k, t, d in air.packets if k == 0 and b"joint(1,10)" in d)
+        old = bench.two_orders()
         air.payload = Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode()
         air.left = 3
         assert wait_for(lambda: refusals("forged") == {0, 1, 2}, 20.0), air.sent
@@ -395,10 +428,7 @@ def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_
         time.sleep(0.5)
         alive = [p.poll() is None for p in procs]
     finally:
-        father.stdin.close()
-        errs = stop(procs)
-        hub.stop()
-        hub.close()
+        errs = bench.stop()
     assert alive == [True] * 3, errs
     assert len(delivered_to_1("joint(1,10)")) == 1 and len(delivered_to_1("joint(1,20)")) == 1
     assert not delivered_to_1("joint(1,33)")
@@ -409,8 +439,72 @@ def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_
     for err in errs:
         closing = [x for x in err.splitlines() if x.startswith("robot ")]
         assert closing and "member, ring [0, 1, 2]" in closing[-1], err
-        assert re.search(r"refused \d+ \(forged [1-9]\d*, replayed [1-9]\d*\)",
-                         closing[-1]), err
+        assert re.search(r"refused \d+ \(forged [1-9]\d*, replayed [1-9]\d*, out of turn \d+, "
+                         r"own ID \d+\), numbers behind 0,", closing[-1]), err
+
+
+def test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_on_the_hub():
+    """Issue 42's replay at the bench, without the profile: the father (a process) orders
+    robot 1 joint(1,10) and then joint(1,20), and dies. In its slot, still its own, a
+    transmitter on the hub's air sends the first order's bytes from the hub's capture, 20 ms
+    after robot 2's frame. Both children report the Number that went backwards (event line
+    ``behind``, clause 48a) and count it in their closing lines."""
+    from processes import wait_for
+
+    bench = _HubRing(3, ["--team", "0,1,2"])
+    air, lines = bench.air, bench.lines
+
+    def behind() -> list[dict]:
+        return [e for ls in lines[1:] for e in list(ls) if e["ev"] == "behind"]
+    try:
+        old = bench.two_orders()
+        bench.father.kill()
+        bench.father.wait(10)
+        air.trigger = lambda node, data: node == 2
+        air.payload, air.delay, air.left = old, 0.02, 1
+        assert wait_for(lambda: {e["to"] for e in behind()} == {1, 2}, 20.0), \
+            (air.sent, lines[1][-8:])
+        kids_alive = [p.poll() is None for p in bench.procs[1:]]
+    finally:
+        errs = bench.stop()
+    assert kids_alive == [True, True], errs
+    num = parse_frame(old).num
+    assert sorted((e["to"], e["src"], e["num"], e["last"], e["refused"]) for e in behind()) == \
+        [(1, 0, num, num + 1, False), (2, 0, num, num + 1, False)]
+    for err in errs[1:]:
+        closing = [x for x in err.splitlines() if x.startswith("robot ")]
+        assert closing and ", numbers behind 1," in closing[-1], err
+
+
+def test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart():
+    """Issue 42's forged father order 9.6 ms after an invitation, at the bench without the
+    profile: the children refuse it out of turn (clause 39) and the father as its own ID from
+    the air (clause 38.2); each says so in an event line of its kind and counts it in its
+    closing line, and robot 1 never acts on it."""
+    from processes import wait_for
+
+    bench = _HubRing(4, ["--team", "0,1,2,3"])
+    air, lines = bench.air, bench.lines
+
+    def kinds(i: int) -> set:
+        return {e.get("kind") for e in list(lines[i]) if e["ev"] == "refused"}
+    try:
+        def formed():
+            srcs = [k for k, t, d in list(air.packets)[-6:]]
+            return sorted(set(srcs)) == [0, 1, 2]
+        assert wait_for(formed, 40.0), "the ring 0, 1, 2 did not form"
+        air.payload = Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode()
+        air.left = 3
+        assert wait_for(lambda: "own_id" in kinds(0) and "out_of_turn" in kinds(1) and
+                        "out_of_turn" in kinds(2), 20.0), (air.sent, [kinds(i) for i in
+                                                                     range(3)])
+    finally:
+        errs = bench.stop()
+    assert not bench.delivered_to_1("joint(1,33)")
+    closing = [[x for x in err.splitlines() if x.startswith("robot ")][-1] for err in errs]
+    assert re.search(r"\(out of turn \d+, own ID [1-9]\d*\)", closing[0]), closing
+    for line in closing[1:]:
+        assert re.search(r"\(out of turn [1-9]\d*, own ID \d+\)", line), closing
 
 
 def test_conformance_checks_an_authenticated_childs_frames_and_refusals(tmp_path):
@@ -473,3 +567,130 @@ def test_without_the_profile_the_forged_frame_in_the_window_is_refused_and_repor
     assert refused[1].startswith("out of turn") and refused[2].startswith("out of turn")
     assert not [e for e in after if e["ev"] == "deliver"]
     assert len(_joint1_moves(evs)) == moves
+
+
+# -- forgers seen without the profile (issue 42, item 3) ----------------------------------
+
+def _replay_in_a_silent_slot(checksum: bool) -> tuple[list, World]:
+    """The father sends robot 1 joint(1,10) and then joint(1,20), then its radio dies (9 s).
+    In its next slot, still its own (it is dropped only after 3 misses), the very bytes of
+    the first order, from a capture of this run, go on the air 20 ms after robot 2's frame:
+    issue 42's replay of an older father order. Returns the events after the replay."""
+    from hil.sim.faults import parse_fault
+    evs: list[dict] = []
+    tap: list = []
+    w = World(SimConfig(robots=(0, 1, 2), duration=12, seed=1, ring_sleep=False,
+                        mac=MacConfig(checksum=checksum),
+                        faults=(parse_fault("fail:0@9"),)), on_event=evs.append)
+    heard = w.air.on_transmission
+
+    def on_tx(tx) -> None:
+        tap.append((tx.radio.robot, tx.data, tx.end))
+        heard(tx)
+    w.air.on_transmission = on_tx
+    w.run(s_to_ticks(6))
+    w.submit(0, 1, [auth_cmd("joint", 1, 10)])
+    w.run(s_to_ticks(7.5))
+    w.submit(0, 1, [auth_cmd("joint", 1, 20)])
+    w.run(s_to_ticks(9))
+    delivered = [e["num"] for e in evs if e["ev"] == "deliver" and e["src"] == 0]
+    assert delivered == [1, 2], delivered
+    old = next(data for robot, data, _ in tap if robot == 0 and b"joint(1,10)" in data)
+    while True:
+        w.run(w.now + s_to_ticks(0.01))
+        ends = [end for robot, _, end in tap if robot == 2 and end > s_to_ticks(9)]
+        if ends:
+            break
+    at = ends[0] + s_to_ticks(0.02)
+    w.inject_bytes(old, at)
+    w.run()
+    return [e for e in evs if e.get("t", 0) > at], w
+
+
+def test_a_replayed_order_whose_number_went_backwards_is_reported_without_the_checksum():
+    """Without the profile nothing proves a frame genuine, but no genuine sender's Number
+    goes backwards (clause 48a): both children report the replayed order (`behind`, Number 01
+    after 02). Without the checksum a byte error can move a Number, so it is only reported,
+    and robot 1 delivers it as clause 48 says."""
+    after, w = _replay_in_a_silent_slot(False)
+    behind = [e for e in after if e["ev"] == "behind"]
+    assert sorted((e["to"], e["src"], e["num"], e["last"], e["refused"]) for e in behind) == \
+        [(1, 0, 1, 2, False), (2, 0, 1, 2, False)]
+    assert [e["to"] for e in after if e["ev"] == "deliver"] == [1]
+    s = w.summary()["robots"]
+    assert s[1]["numbers_behind"] == 1 and s[2]["numbers_behind"] == 1
+
+
+def test_with_the_checksum_a_replayed_order_whose_number_went_backwards_is_refused():
+    """With the checksum the Number is the one sent: the order whose Number went backwards is
+    refused by both children (`refused`, kind behind), robot 1 delivers and acknowledges
+    nothing, and the turn still counts (the father is not counted missing for that slot)."""
+    after, w = _replay_in_a_silent_slot(True)
+    behind = [e for e in after if e["ev"] == "behind"]
+    assert sorted((e["to"], e["refused"]) for e in behind) == [(1, True), (2, True)]
+    refused = [e for e in after if e["ev"] == "refused"]
+    assert sorted(e["to"] for e in refused) == [1, 2]
+    assert all(e["reason"].startswith("behind: Number 01 is 1 behind 02") for e in refused)
+    assert not [e for e in after if e["ev"] == "deliver"]
+    s = w.summary()["robots"]
+    assert s[1]["refused_by"] == {"behind": 1} and s[2]["refused_by"] == {"behind": 1}
+
+
+def test_out_of_turn_and_own_id_frames_are_counted_by_kind():
+    """Issue 42's forged father order 9.6 ms after robot 2's invitation: robots 1 and 2 refuse
+    it out of turn (clause 39), the father as its own ID from the air (clause 38.2, the
+    identity work's refusal, one frame: no twin yet). Each is counted by its kind."""
+    evs: list[dict] = []
+    w = _ring(False, evs)
+    w.run(s_to_ticks(9))
+    end = _next_poll_by(w, evs, 2, s_to_ticks(9), 0)
+    w.inject_bytes(Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode(),
+                   end + s_to_ticks(0.0096))
+    w.run()
+    s = w.summary()["robots"]
+    assert s[0]["refused_by"] == {"own_id": 1}
+    assert s[1]["refused_by"] == {"out_of_turn": 1} and s[2]["refused_by"] == {"out_of_turn": 1}
+
+
+# -- the father's PC pair with the profile ------------------------------------------------
+
+def test_a_standby_pcs_frames_are_fresh_to_every_member_after_it_takes_over():
+    """Clause 52: the father's second PC sends as Source 0 too, so after a takeover its
+    freshness must go on above PC1's. PC1 dies at 5 s with messages flowing; PC2 takes ID 0's
+    turn, and no member refuses one of its frames (no forged, no replayed), nobody misses or
+    drops robot 0, and its messages are delivered; PC1, back at 9 s, hears PC2 and stands by,
+    refusing none of PC2's frames either, its own counter above them for a takeover back."""
+    from hil.sim.faults import parse_fault
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(0, 1, 2), duration=14, seed=3, load=1.0, father_standby=True,
+                        mac=MacConfig(auth=KEY),
+                        faults=(parse_fault("fail:0@5"), parse_fault("recover:0@9"))),
+              on_event=evs.append)
+    w.run()
+    took = [e for e in evs if e["ev"] == "mode" and e.get("pc") == 2 and "took over" in
+            e["reason"]]
+    assert len(took) == 1, took
+    after = [e for e in evs if e.get("t", 0) > took[0]["t"]]
+    refused = [e for e in after if e["ev"] == "refused"]
+    # (PC1, back from a dead radio, first refuses robot 1 as a robot it dropped: clause 38.3)
+    assert not [e for e in refused if e["to"] != 0 or
+                e["reason"].startswith(("forged", "replayed"))], refused
+    assert not [e for e in evs if e["ev"] in ("miss", "disable") and e["robot"] == 0
+                and e["by"] != 0]
+    pc2_sent = [e for e in after if e["ev"] == "frame" and e["src"] == 0]
+    assert len(pc2_sent) > 50
+    assert [e for e in after if e["ev"] == "deliver" and e["src"] == 0]
+    assert w.stations[0].mac.standby and not w.standby_station.mac.standby
+    assert w.stations[0].mac.auth_tx > w.standby_station.mac._auth_rx[0]
+
+
+def test_rprs_sim_says_who_refused_what(capsys):
+    """``rprs sim``'s text summary names each robot's refused frames by kind (they were in
+    ``--json`` and the trace only): the issue's forged order 9.6 ms after robot 2's poll."""
+    from hil.cli import main
+    forged = "0f0a053130353032303031316a6f696e7428312c3333291719"
+    assert main(["sim", "--robots", "0,1,2,3", "--power", "3@9.9", "--duration", "10",
+                 "--seed", "1", "--every-frame", "--fault", f"foreign@7.478132:x{forged}"]) == 0
+    out = capsys.readouterr().out
+    assert "frames refused (docs/mac.md): father 0 1 (own ID 1); R1 1 (out of turn 1); " \
+        "R2 1 (out of turn 1)" in out, out

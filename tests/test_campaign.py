@@ -164,6 +164,9 @@ def _free_port():
         return s.getsockname()[1]
 
 
+# a real `dask scheduler` and two `dask worker` processes, about 25 s: the slow tier (the fast
+# tier keeps the local cluster's test)
+@pytest.mark.slow
 def test_a_real_scheduler_and_two_workers_give_the_same_rows(spec_file, tmp_path):
     run_cli(spec_file, tmp_path / "local.sqlite")
     port = _free_port()
@@ -185,6 +188,7 @@ def test_a_real_scheduler_and_two_workers_give_the_same_rows(spec_file, tmp_path
     assert _rows(tmp_path / "remote.sqlite") == _rows(tmp_path / "local.sqlite")
 
 
+@pytest.mark.slow  # 24 runs killed mid-way and resumed: about 23 s
 def test_a_killed_campaign_resumes_losing_nothing_and_repeating_nothing(tmp_path):
     spec = tmp_path / "k.toml"
     # 24 runs of about half a second, one a task, so that the kill lands in the middle

@@ -12,6 +12,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from budgets import quick_and_thorough
+
 import can_bus
 from can_bus import dbc
 from can_bus.bus import CanFrame
@@ -321,9 +323,12 @@ def _outcome(fn, *args):
         return "error", str(exc)
 
 
-@settings(max_examples=1000, deadline=None)
-@given(case=_signals(), raw=st.booleans())
-def test_the_quick_check_says_what_the_one_by_one_check_says(case, raw):
+THOROUGH = settings(max_examples=1000, deadline=None)
+QUICK = settings(THOROUGH, max_examples=150)
+"""The four properties below: 150 examples in the fast tier, 1000 in the slow tier."""
+
+
+def _the_quick_check_says_what_the_one_by_one_check_says(case, raw):
     """_check_signals' common case (every signal an int or float in range) gives what the
     signal-by-signal checks give, value for value and error for error."""
     name, signals = case
@@ -335,9 +340,14 @@ def test_the_quick_check_says_what_the_one_by_one_check_says(case, raw):
         assert all(type(a) is type(b) for a, b in zip(quick[1].values(), full[1].values()))
 
 
-@settings(max_examples=1000, deadline=None)
-@given(case=_signals())
-def test_our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode(case):
+(test_the_quick_check_says_what_the_one_by_one_check_says,
+ test_the_quick_check_says_what_the_one_by_one_check_says_thoroughly) = quick_and_thorough(
+    lambda budget: budget(given(case=_signals(), raw=st.booleans())(
+        _the_quick_check_says_what_the_one_by_one_check_says)),
+    QUICK, THOROUGH)
+
+
+def _our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode(case):
     """encode() calls cantools with strict=False: whatever our checks let through, cantools'
     strict mode (every signal and none else, choice names, [min|max] with |scale| * 1e-6)
     lets through too, and encodes the same bytes either way."""
@@ -359,9 +369,14 @@ def test_our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode(case
         assert dbc.encode(name, **signals).data == strict
 
 
-@settings(max_examples=1000, deadline=None)
-@given(case=_signals(), first=st.booleans())
-def test_raw_checks_keep_what_the_bits_carry(case, first):
+(test_our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode,
+ test_our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode_thoroughly) = quick_and_thorough(
+    lambda budget: budget(given(case=_signals())(
+        _our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode)),
+    QUICK, THOROUGH)
+
+
+def _raw_checks_keep_what_the_bits_carry(case, first):
     """A raw value our checks let through is on the wire as given (cantools, strict=False,
     never wraps it)."""
     name, signals = case
@@ -370,9 +385,14 @@ def test_raw_checks_keep_what_the_bits_carry(case, first):
         assert dbc.decode_raw(frame) == (name, signals)
 
 
-@settings(max_examples=1000, deadline=None)
-@given(case=_signals(), again=st.sampled_from([None, 1, True, 1.0]))
-def test_encode_raw_values_is_encode_raw(case, again):
+(test_raw_checks_keep_what_the_bits_carry,
+ test_raw_checks_keep_what_the_bits_carry_thoroughly) = quick_and_thorough(
+    lambda budget: budget(given(case=_signals(), first=st.booleans())(
+        _raw_checks_keep_what_the_bits_carry)),
+    QUICK, THOROUGH)
+
+
+def _encode_raw_values_is_encode_raw(case, again):
     """encode_raw_values(name, values in signal_names order) gives encode_raw's frame or its
     error, also for values equal to remembered ones but of another type (True, 1.0)."""
     name, signals = case
@@ -391,6 +411,13 @@ def test_encode_raw_values_is_encode_raw(case, again):
         other = (again,) + values[1:]
         assert _outcome(dbc.encode_raw_values, name, other) == \
             _outcome(lambda: dbc.encode_raw(name, **dict(zip(order, other))))
+
+
+(test_encode_raw_values_is_encode_raw,
+ test_encode_raw_values_is_encode_raw_thoroughly) = quick_and_thorough(
+    lambda budget: budget(given(case=_signals(), again=st.sampled_from([None, 1, True, 1.0]))(
+        _encode_raw_values_is_encode_raw)),
+    QUICK, THOROUGH)
 
 
 def test_encode_raw_values_wants_every_signal():

@@ -9,6 +9,7 @@ import pytest
 pytest.importorskip("textual")
 
 from hil.view.father_app import FatherApp, LinesTo  # noqa: E402
+from pilots import stopped_within  # noqa: E402
 
 SIZE = (120, 30)
 
@@ -86,11 +87,7 @@ def test_ctrl_c_quits_the_view_even_from_the_order_line(tmp_path):
         async with app.run_test(size=SIZE) as pilot:
             await pilot.press(*"1 stat")
             await pilot.press("ctrl+c")
-            for _ in range(50):
-                await pilot.pause(0.1)
-                if not app.is_running:
-                    break
-            assert not app.is_running
+            assert await stopped_within(app, pilot)
     asyncio.run(go())
 
 

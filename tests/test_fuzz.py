@@ -18,6 +18,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from budgets import quick_and_thorough
+
 from firmware_model.radio.content import Command, format_content
 from firmware_model.radio.frame import Frame
 from firmware_model.radio.mac import MacConfig, RotationalMac, Transmit
@@ -36,6 +38,13 @@ BUDGET = settings(
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
+QUICK = settings(BUDGET, max_examples=60)
+"""The fast tier's budget for the three costliest properties; the slow tier runs each with
+``BUDGET`` too (``_quick_and_thorough``)."""
+
+
+def _quick_and_thorough(make):
+    return quick_and_thorough(make, QUICK, BUDGET)
 
 
 class HypSource:
@@ -64,11 +73,14 @@ class HypSource:
 # ------------------------------------------------------------------ (a) hypothesis versions
 
 
-@BUDGET
-@given(st.data())
-def test_deframer_bulk_equals_bytewise_and_frames_reencode(data):
+def _deframer_bulk_equals_bytewise_and_frames_reencode(data):
     max_content, chunks = fuzz_deframer.draw_plan(HypSource(data))
     fuzz_deframer.check_deframer(max_content, chunks)
+
+
+test_deframer_bulk_equals_bytewise_and_frames_reencode, \
+    test_deframer_bulk_equals_bytewise_and_frames_reencode_thoroughly = _quick_and_thorough(
+        lambda budget: budget(given(st.data())(_deframer_bulk_equals_bytewise_and_frames_reencode)))
 
 
 @BUDGET
@@ -85,10 +97,12 @@ def test_content_raises_only_content_error_and_round_trips(data):
     fuzz_content.check_content(data)
 
 
-@BUDGET
-@given(st.data())
-def test_content_from_tokens(data):
+def _content_from_tokens(data):
     fuzz_content.check_content(fuzz_content.draw_tokens(HypSource(data, continue_odds=12)))
+
+
+test_content_from_tokens, test_content_from_tokens_thoroughly = _quick_and_thorough(
+    lambda budget: budget(given(st.data())(_content_from_tokens)))
 
 
 @BUDGET
@@ -97,14 +111,17 @@ def test_content_token_lists(tokens):
     fuzz_content.check_content(b"".join(tokens))
 
 
-@BUDGET
-@pytest.mark.parametrize("checksum", [pytest.param(False, marks=pytest.mark.slow), True],
-                         ids=["plain", "checksum"])
-@given(data=st.data())
-def test_station_never_raises_keeps_deadline_and_delivers_only_received_frames(checksum, data):
+def _station_never_raises_keeps_deadline_and_delivers_only_received_frames(checksum, data):
     # raw=True: half the plans let bytes reach the UART while the station transmits too
     robot, _, deaf, late, events = fuzz_station.draw_station_plan(HypSource(data), raw=True)
     fuzz_station.check_station(robot, checksum, deaf, late, events)
+
+
+test_station_never_raises_keeps_deadline_and_delivers_only_received_frames, \
+    test_station_never_raises_keeps_deadline_and_delivers_only_received_frames_thoroughly = \
+    _quick_and_thorough(lambda budget: budget(pytest.mark.parametrize(
+        "checksum", [False, True], ids=["plain", "checksum"])(given(data=st.data())(
+            _station_never_raises_keeps_deadline_and_delivers_only_received_frames))))
 
 
 def _poll_frame(robot: int, by: int, checksum: bool) -> bytes:
@@ -152,7 +169,7 @@ ATHERIS_RUNS = {"fuzz_deframer.py": 20000, "fuzz_content.py": 20000, "fuzz_stati
                     "3.11-3.13 on x86-64 Linux; elsewhere pip install -e .[fuzz] builds it "
                     "with clang)")
 @pytest.mark.parametrize("target", [pytest.param(t, marks=pytest.mark.slow)
-                                    if t == "fuzz_station.py" else t for t in sorted(ATHERIS_RUNS)])
+                                    if t != "fuzz_content.py" else t for t in sorted(ATHERIS_RUNS)])
 def test_atheris_target_runs_clean(target, tmp_path):
     env = dict(os.environ)
     env.pop("RPRS_FUZZ_RAW", None)

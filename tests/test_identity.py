@@ -8,6 +8,7 @@ its team says so. In the simulator (seeded, tick-exact) and with real processes 
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import threading
 import time
@@ -229,8 +230,11 @@ def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going(hub)
         reader.start()
         _lines(stranger, stranger_err)
         t0 = sniffer.tick() / 16e6
-        assert wait_for(lambda: any("has ID 2" in ln for ln in twin_err), 20.0), twin_err
-        assert wait_for(lambda: any("outside the team" in ln for ln in stranger_err), 20.0), \
+        # what the twin heard (its event lines) is in the message: a busy host's stalls
+        # show there as resyncs
+        assert wait_for(lambda: any("has ID 2" in ln for ln in twin_err), 30.0), \
+            (twin_err, twin_events[-20:])
+        assert wait_for(lambda: any("outside the team" in ln for ln in stranger_err), 30.0), \
             stranger_err
         t1 = sniffer.tick() / 16e6
         assert wait_for(lambda: ring_is(sniffer, [1, 2, 3]) and
@@ -245,8 +249,13 @@ def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going(hub)
     reader.join(10.0)
     said = [json.loads(ln) for ln in twin_events if '"duplicate_id"' in ln]
     assert [(e["robot"], e["yielding"]) for e in said] == [(2, True)], twin_events[-5:]
+    # said once per set of robots heard: a listener that missed a frame on a busy host may
+    # first say a part of the ring ("2,3"), then the whole ring, never anything else
     foreign = [ln for ln in stranger_err if "outside the team" in ln]
-    assert len(foreign) == 1 and "robot(s) 1,2,3 outside the team" in foreign[0], foreign
+    assert foreign and "robot(s) 1,2,3 outside the team" in foreign[-1], foreign
+    sets = [re.search(r"robot\(s\) ([\d,]+) outside", ln).group(1) for ln in foreign]
+    assert all(set(x.split(",")) <= {"1", "2", "3"} for x in sets) and \
+        len(set(sets)) == len(sets), foreign
     assert not [f for f in frames if f.src == 5]
     # the twin never transmitted: every frame with Source 2 is one turn in the ring's order
     order = [f.src for f in frames]

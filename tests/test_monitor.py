@@ -23,6 +23,7 @@ from hil.bench.scripts import HeardFrame  # noqa: E402
 from hil.view.monitor import RadioMonitorApp, SimMonitorApp  # noqa: E402
 from hil.sim.world import SimConfig  # noqa: E402
 from textual.widgets import Static  # noqa: E402
+from pilots import stopped_within  # noqa: E402
 
 SIZE = (140, 40)
 
@@ -850,3 +851,15 @@ def test_a_radio_port_that_is_no_serial_port_is_one_plain_line(port, why):
     with pytest.raises(PortError) as e:
         open_port(port)
     assert str(e.value) == f"cannot open serial port {port}: {why}"
+
+
+def test_ctrl_c_quits_the_monitor():
+    """Ctrl-C in the live monitor only showed "Press ctrl+q to quit" (textual's own binding),
+    although every other rprs process stops on it. It now quits."""
+    app = sim()
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.press("ctrl+c")
+            assert await stopped_within(app, pilot)
+    run(go())

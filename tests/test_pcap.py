@@ -144,6 +144,24 @@ def test_the_dissector_installs_where_asked(tmp_path):
 
 
 # ---------------------------------------------------------------- CAN payloads and crc()
+def test_the_dbc_table_command_helps_and_says_a_bad_plugin_in_one_line(tmp_path):
+    """``python -m hil.wireshark.dbc_table --help`` was a traceback (it took --help for the
+    plugin's path); it helps, and a missing plugin or one without the table is one line and
+    exit status 2, the file left as it was."""
+    import subprocess
+    import sys
+    cmd = [sys.executable, "-m", "hil.wireshark.dbc_table"]
+    r = subprocess.run([*cmd, "--help"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.startswith("usage:"), r.stdout + r.stderr
+    other = tmp_path / "other.lua"
+    other.write_text("-- no table here\n")
+    for path, why in ((tmp_path / "none.lua", "No such file"), (other, "no DBC table")):
+        r = subprocess.run([*cmd, str(path)], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and r.stdout == "", r.stdout
+        assert r.stderr.count("\n") == 1 and why in r.stderr and "Traceback" not in r.stderr
+    assert other.read_text() == "-- no table here\n"
+
+
 def test_the_plugin_carries_the_dbc_table_rprs_dbc_gives():
     # regenerate with: python -m hil.wireshark.dbc_table
     from hil.wireshark.dbc_table import lua_table, section
@@ -374,3 +392,36 @@ def test_a_radio_that_dies_in_its_first_byte_leaves_an_empty_packet(tmp_path):
         out = subprocess.run(["tshark", "-r", str(path), "-Y", "frame.len == 0", "-T",
                               "fields", "-e", "frame.comment"], capture_output=True, text=True)
         assert out.stdout.strip() == "aborted: the sender's radio died", out.stderr
+
+
+@needs_tshark
+def test_tshark_decodes_the_authenticated_profiles_freshness_and_tag(tmp_path):
+    """docs/protocol.md clause 52: with --auth-key every frame ends with auth(FFFFFFFF,TTTTTTTT);
+    the dissector shows both as fields (rprs.auth.fresh, rprs.auth.tag), the values each
+    packet's bytes carry, and a forged frame's made-up ones too (it cannot check a tag: it has
+    no key)."""
+    from firmware_model.radio.auth import AUTH_TEXT_LEN
+    key = tmp_path / "ring.key"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
+    forged = b"\x0f\x0a\x05" + b"10522%04d" % 34 + b"joint(1,80)auth(0000beef,12345678)" + \
+        b"\x17\x19"
+    pcap = tmp_path / "auth.pcapng"
+    p = rprs("sim", "--robots", "0,1,2", "--duration", "3", "--seed", "4", "--load", "1",
+             "--auth-key", str(key), "--fault", f"foreign@2:x{forged.hex()}", "--no-progress",
+             "--pcap", str(pcap))
+    assert p.returncode == 0, p.stderr
+    want = []
+    for (_, name), _, data, _ in _packets(pcap)[1]:
+        if name.endswith(" radio") or name == "foreign transmitters":
+            c = parse_frame(data).content[-AUTH_TEXT_LEN:]
+            want.append((name, int(c[5:13], 16), int(c[14:22], 16)))
+    out = subprocess.run(
+        [TSHARK, "-X", f"lua_script:{plugin_path()}", "-r", str(pcap), "-Y", "rprs",
+         "-T", "fields", "-E", "separator=|", "-e", "frame.interface_name",
+         "-e", "rprs.auth.fresh", "-e", "rprs.auth.tag"],
+        capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    got = [(r[0], int(r[1], 16), int(r[2], 16))
+           for r in (x.split("|") for x in out.stdout.splitlines())]
+    assert len(got) == len(want) > 15 and got == want
+    assert ("foreign transmitters", 0xBEEF, 0x12345678) in got

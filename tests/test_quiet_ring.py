@@ -156,8 +156,8 @@ def _random_config(rng: random.Random) -> SimConfig:
 @pytest.mark.parametrize("seed", range(16))
 def test_random_rings_leap_to_the_same_state(seed):
     """Random rings (``_random_config``), stopped at random ticks: the same world with and
-    without leaps. (Seeds 16-455 of the same generator were run by hand on 2026-11-26: all
-    the same.)"""
+    without leaps. (Seeds 16-455 of the same generator, run by hand, give the same state
+    too.)"""
     rng = random.Random(seed)
     cfg = _random_config(rng)
     plain, leaping = _twins(cfg)
@@ -172,8 +172,8 @@ def test_random_rings_leap_to_the_same_state(seed):
 @pytest.mark.parametrize("seed", range(100, 106))
 def test_random_traced_rings_write_the_same_trace(seed, tmp_path):
     """Random rings (``_random_config``) with a trace and an event callback: the same trace,
-    byte for byte, with and without leaps. (Seeds 106-305 run by hand on 2026-11-26: all
-    the same.)"""
+    byte for byte, with and without leaps. (Seeds 106-305, run by hand, give the same trace
+    too.)"""
     cfg = _random_config(random.Random(seed))
     _, want, want_events = _traced(replace(cfg, ring_sleep=False), tmp_path / "a.jsonl")
     _, got, got_events = _traced(cfg, tmp_path / "b.jsonl")

@@ -207,6 +207,7 @@ def test_the_readme_monitor_command_runs_in_a_terminal(shell_dir):
 
 BENCHMARKS = sorted(p.name for p in (ROOT / "benchmarks").glob("*.py")
                     if "__main__" in p.read_text(encoding="utf-8") and p.name != "_project.py")
+SCRIPTS = sorted(p.name for p in (ROOT / "scripts").glob("*.py") if not p.name.startswith("_"))
 
 
 def test_a_python_without_the_project_gets_one_line_from_every_benchmark():
@@ -222,3 +223,14 @@ def test_a_python_without_the_project_gets_one_line_from_every_benchmark():
         assert r.returncode == 2 and r.stdout == "", (name, r.returncode, r.stdout[-300:])
         assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, (name, r.stderr)
         assert f".venv/bin/python benchmarks/{name}" in r.stderr, r.stderr
+
+
+def test_a_python_without_the_project_gets_one_line_from_every_script():
+    """The same for scripts/*.py (they printed a ModuleNotFoundError traceback)."""
+    assert len(SCRIPTS) >= 4
+    for name in SCRIPTS:
+        r = subprocess.run([sys.executable, "-S", "-s", "-E", f"scripts/{name}", "--help"],
+                           cwd=ROOT, capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and r.stdout == "", (name, r.returncode, r.stdout[-300:])
+        assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, (name, r.stderr)
+        assert f".venv/bin/python scripts/{name}" in r.stderr, r.stderr

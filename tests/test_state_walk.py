@@ -1,5 +1,5 @@
 """The state walker's snapshot (hil/sim/state_walk.py, written for speed) against a plain
-reference walker: the walk as it was before (2026-11-27, Session 25), one call per value.
+reference walker: the plain walk, one call per value.
 
 Every field must be the same: the shape entry by entry (type and value), the ints' (holder,
 key, name) (an InTuple by the chain of holders it stands for, and shared where the reference
@@ -26,7 +26,7 @@ from hil.sim.soak import random_faults
 from hil.sim.state_walk import InTuple, Snapshot, Unwalkable, snapshot
 from hil.sim.world import SimConfig, World
 
-# -- the reference: the walk before Session 25, one call of visit per value --------------------
+# -- the reference: the plain walk, one call of visit per value -------------------------------
 
 _OURS = ("can_bus", "firmware_model", "hil")
 _VALUE_TYPES = (bool, float, str, bytes, type(None), Enum, frozenset, set)

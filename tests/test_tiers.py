@@ -69,11 +69,14 @@ def test_the_default_run_is_the_fast_tier_and_says_how_to_run_the_rest(tiers):
 
 
 def test_every_exhaustive_test_keeps_a_sample_in_the_fast_tier(tiers):
-    """A parametrized test whose cases are mostly slow keeps some in the fast tier, so the
-    README's command still checks the property (on fewer cases)."""
+    """A parametrized test whose cases are mostly slow keeps some in the fast tier, and a
+    property the slow tier runs with its full budget (``<name>_thoroughly``,
+    tests/budgets.py) runs with a quick one there, so the README's command still checks the
+    property (on fewer cases)."""
     every, kept, _ = tiers
-    base = lambda t: t.partition("[")[0]          # noqa: E731
-    for fn in {base(t) for t, tier in every.items() if tier == "slow" and "[" in t}:
+    base = lambda t: t.partition("[")[0].removesuffix("_thoroughly")  # noqa: E731
+    for fn in {base(t) for t, tier in every.items()
+               if tier == "slow" and ("[" in t or base(t) != t.partition("[")[0])}:
         assert any(base(t) == fn for t in kept), f"{fn}: no case left in the fast tier"
 
 
@@ -164,3 +167,33 @@ def test_a_failing_wall_clock_test_reports_the_host_latency_beside_its_failure(t
     sections = re.findall(r"-+ host scheduling latency -+\n(.*)", r.stdout)
     assert len(sections) == 1, r.stdout               # test_monitor.py's failure only
     assert re.match(r"host scheduling latency over \d+ wake-ups: median", sections[0]), sections
+
+
+HUB_OR_ROBOT_PROCESSES = ("RadioHub(", "_HubRing(", "_TailHub(", "_children_on_hub(")
+"""Source text by which a test starts the pty radio hub (or a ring of robot processes on it):
+it then runs on the wall clock. (A test that starts one ``rprs child`` for a bad option and
+reads its one line is no ring: it need not be one.)"""
+
+
+def test_every_test_that_starts_the_hub_runs_as_a_wall_clock_test():
+    """A test that runs processes on the pty hub beside the simulator's tests on the other
+    xdist worker shares the CPU with them and with other hub tests: such a test must be a
+    wall-clock one (``tests/conftest.py``: ``REALTIME_MODULES``, ``REALTIME_TESTS``), which run
+    one after another. (Hub tests of the authenticated profile and of twins once ran as
+    simulator tests and failed under load.)"""
+    import ast
+    from conftest import is_realtime
+    here = Path(__file__).resolve().parent
+    stray = []
+    for path in sorted(here.glob("test_*.py")):
+        text = path.read_text()
+        for node in ast.parse(text).body:
+            if not (isinstance(node, ast.FunctionDef) and node.name.startswith("test_")):
+                continue
+            src = ast.get_source_segment(text, node) or ""
+            uses = any(k in src for k in HUB_OR_ROBOT_PROCESSES) or \
+                any(a.arg == "hub" for a in node.args.args)
+            if uses and not is_realtime(f"tests/{path.name}::{node.name}"):
+                stray.append(f"tests/{path.name}::{node.name}")
+    assert stray == [], "start the pty radio hub but are not wall-clock tests: " \
+        f"{stray} (add them to REALTIME_TESTS in tests/conftest.py)"

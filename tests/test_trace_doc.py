@@ -47,6 +47,11 @@ RUNS = {
     "identity": SimConfig(robots=(1, 2, 3), duration=8.0, seed=1, load=1.0,
                           extra=((2, 0.0, None), (5, 1.0, (5, 6)), (3, 5.0, None))),
     "foreign": SimConfig(robots=(2, 3), duration=3.0, seed=1, extra=((6, 0.0, (6,)),)),
+    # a father order with an older Number (02, after 03) sent in the dead father's slot, 20 ms
+    # after robot 2's frame: behind (clause 48a)
+    "behind": SimConfig(robots=(0, 1, 2), duration=4.0, seed=1, load=1.0,
+                        faults=faults("fail:0@3", "foreign@3.04146675:x0f0a05" +
+                                      b"100220008status()".hex() + "1719")),
 }
 
 

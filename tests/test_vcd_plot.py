@@ -296,9 +296,9 @@ def test_plot_idle_ring_from_file(idle_run, tmp_path):
     assert (tmp_path / "idle.PNG").stat().st_size > 20_000
 
 
-@pytest.mark.parametrize("name", ["fig.jpg", "fig.pdf", "fig", "fig.png.txt"])
+@pytest.mark.parametrize("name", ["fig.jpg", "fig.gif", "fig", "fig.png.txt"])
 def test_plot_rejects_other_formats(idle_run, tmp_path, name):
-    with pytest.raises(PlotError, match=r"\.png or \.svg"):
+    with pytest.raises(PlotError, match=r"\.png, \.svg or \.pdf"):
         plot_trace(idle_run, str(tmp_path / name))
     assert list(tmp_path.iterdir()) == []
 
@@ -344,6 +344,16 @@ def test_the_same_trace_gives_the_same_svg_bytes_every_time(idle_run, tmp_path):
         outs.append((tmp_path / f"f{i}.svg").read_bytes())
     assert all(o == outs[0] for o in outs)
     assert b'clip-path="url(#clip1)"' in outs[0] and b'id="clip1"' in outs[0]
+
+
+def test_plot_writes_a_pdf_the_same_every_time(idle_run, tmp_path):
+    """``rprs plot -o x.pdf`` was refused although matplotlib writes PDF; it is written now,
+    without a creation date, so the same trace gives the same bytes."""
+    outs = []
+    for i in range(2):
+        info = plot_trace(idle_run, str(tmp_path / f"f{i}.pdf"))
+        outs.append((tmp_path / f"f{i}.pdf").read_bytes())
+    assert info["format"] == "pdf" and outs[0].startswith(b"%PDF-") and outs[0] == outs[1]
 
 
 def test_plot_refuses_files_that_are_not_traces(idle_run, tmp_path):

@@ -86,6 +86,12 @@ TWIN_FRAMES = 2
 """Frames with our own ID that we did not send, each heard less than Tclaim(id) after the
 previous one, that say another robot has our ID (docs/protocol.md clause 38.2): one forged
 frame is never enough."""
+BEHIND_WINDOW = 8
+"""A message frame whose Number is 1 to this many behind the last one heard from its Source
+(modulo 100) is *behind* (docs/protocol.md clause 48a): reported, and refused when the
+checksum extension vouches for the Number, for no genuine sender's Number goes backwards. A
+genuine Number looks behind only after a member stayed in the ring with its Source and heard
+none of its next 100 - 8 - 1 = 91 messages."""
 FAILING_SLOT_LIMIT = 8
 """Turns of one member in a row that end in a failed frame while the other members' frames are
 heard good in between, after which every member drops it (docs/protocol.md clause 41a): two
@@ -212,7 +218,23 @@ class Refused:
     reason: str
     kind: str = ""
     """``forged`` or ``replayed`` for a frame the authenticated profile refuses (clause 53);
-    empty for the ring's own refusals."""
+    ``out_of_turn`` (clause 39), ``own_id`` (clause 38.2) or ``behind`` (a Number that went
+    backwards, clause 48a) for the forgers a ring sees without it; empty for the ring's other
+    refusals (a Source outside the team or the ring)."""
+
+
+@dataclass(frozen=True, slots=True)
+class NumberBehind:
+    """A message frame from ``src`` whose Number ``num`` is behind ``last``, the Number of the
+    last message frame heard from it (docs/protocol.md clause 48a): a recorded frame sent
+    again, or a forger's. ``refused``: not acted on (the checksum extension is on, so the
+    Number is the one sent; a ``Refused`` of kind ``behind`` comes with it); otherwise only
+    reported, for a byte error can move a Number, and clause 48 delivers it."""
+
+    src: int
+    num: int
+    last: int
+    refused: bool
 
 
 @dataclass(frozen=True, slots=True)
@@ -436,6 +458,9 @@ class RotationalMac:
         self._acks: list[tuple[int, int]] = []
         self._acks_deferred = False
         self._last_rx: dict[int, int] = {}
+        self._rx_armed: set[int] = set()
+        """Sources whose clause-48 Number we heard while they stayed in our ring and we stayed
+        a member since: only theirs can be judged *behind* (clause 48a)."""
         self._turns_since_poll = 0
         self._poll_ptr: dict[int, int] = {}
         self._sent_poll: int | None = None
@@ -696,6 +721,24 @@ class RotationalMac:
             else:
                 skipped = self._takeover(src, first)
                 out_of_turn = skipped is None
+        behind = None
+        if app_cmds and not out_of_turn and src in self._rx_armed and self.mode == MEMBER \
+                and src in self.ring and self._key is None:
+            last = self._last_rx[src]
+            back = (last - frame.num) % 100
+            if back and back <= BEHIND_WINDOW:
+                # A message Number that went backwards (clause 48a): no genuine sender's does
+                # (stop and wait, +1 a message). A recorded frame sent again, or a forger's.
+                # Reported; with the checksum (the Number is the one sent) refused, taken as
+                # an unreadable frame is (clause 43), for the timing only, so members that
+                # judge it otherwise stay in step.
+                refuse = self.cfg.checksum
+                out.append(NumberBehind(src, frame.num, last, refuse))
+                if refuse:
+                    behind = Refused(src, frame.num, f"behind: Number {frame.num:02d} is {back}"
+                                     f" behind {last:02d}, robot {src}'s last message",
+                                     "behind")
+                    mac_cmds, app_cmds, polls = (), (), []
         if self.mode == MEMBER and src in self.ring and not out_of_turn:
             # A frame accepted from a member (clauses 37, 51; not one refused out of turn):
             # its poll or ring mask says whether it still has us, and which ring it has.
@@ -764,7 +807,7 @@ class RotationalMac:
         elif out_of_turn:
             self.misses[src] = 0
             self._refuse_in_slot(src, frame.num, f"out of turn: it was robot {self.owner}'s "
-                                 f"turn", end, now, out)
+                                 f"turn", end, now, out, "out_of_turn")
             return out
         if skipped:
             self._count_skipped(skipped, out)
@@ -784,6 +827,8 @@ class RotationalMac:
             self._booting_peers.discard(src)
         if bad is not None:
             out.append(BadContent(src, frame.num, bad))
+        elif behind is not None:
+            out.append(behind)
         else:
             for c in mac_cmds:
                 if c.name == "ack" and c.args[0] == self.id:
@@ -795,6 +840,7 @@ class RotationalMac:
                 # of the last message frame heard from it, whoever that frame was for.
                 fresh = self._last_rx.get(src) != frame.num
                 self._last_rx[src] = frame.num
+                self._rx_armed.add(src)
                 if frame.dst == self.id or frame.dst == BROADCAST:
                     self._acks.append((src, frame.num))
                     if not fresh:
@@ -1390,6 +1436,7 @@ class RotationalMac:
         self.ring = tuple(sorted(set(self.ring) | {robot}))
         self.ever_member.add(robot)
         self.misses[robot] = 0
+        self._rx_armed.discard(robot)     # it may have restarted unheard: clause 48a waits
         if self._lone_boot:
             # A lone claimer whose ring grows: the robots it admits heard its frames and
             # answered them; its former Numbers are not in their memory unless one of them
@@ -1401,10 +1448,10 @@ class RotationalMac:
         out.append(Join(robot, again))
 
     def _refuse_in_slot(self, src: int, num: int, reason: str, end: int, now: int,
-                        out: list) -> None:
+                        out: list, kind: str = "") -> None:
         """A clean frame refused in someone else's slot (out of turn, or with our own ID):
         nothing in it is acted on, but it sets the timing (clause 39)."""
-        out.append(Refused(src, num, reason))
+        out.append(Refused(src, num, reason, kind))
         self._tell_view = True                 # our views may differ (rule R-view)
         o = self.owner
         if self.phase == WAIT and o in self.ring and o != self.id:
@@ -1435,18 +1482,19 @@ class RotationalMac:
             self._twin_said = True
             out.append(DuplicateId(self.id, yielding))
         if yielding and self.mode == MEMBER:
-            out.append(Refused(self.id, num, "our own robot ID from the air"))
+            out.append(Refused(self.id, num, "our own robot ID from the air", "own_id"))
             self._to_listen(out, now, f"another robot sends with our ID {self.id}: yielding "
                             f"the ring to it")
             return
         if self.mode == LISTEN:
-            out.append(Refused(self.id, num, "our own robot ID from the air"))
+            out.append(Refused(self.id, num, "our own robot ID from the air", "own_id"))
             self.deadline = now + self._claim_ticks()
             return
         if self.phase in (WAIT, WINDOW, QUIET, HOLD):
-            self._refuse_in_slot(self.id, num, "our own robot ID from the air", end, now, out)
+            self._refuse_in_slot(self.id, num, "our own robot ID from the air", end, now, out,
+                                 "own_id")
         else:
-            out.append(Refused(self.id, num, "our own robot ID from the air"))
+            out.append(Refused(self.id, num, "our own robot ID from the air", "own_id"))
 
     def _twin_frame(self, end: int) -> int:
         """Count a frame with our own ID that we did not send: how many this episode (frames
@@ -1567,6 +1615,7 @@ class RotationalMac:
 
     def _drop(self, robot: int, out: list) -> None:
         self.ring = tuple(r for r in self.ring if r != robot)
+        self._rx_armed.discard(robot)
         self._tell_view = True
         self.misses.pop(robot, None)
         if self._announcing is not None:
@@ -1603,6 +1652,7 @@ class RotationalMac:
         self.phase = WAIT
         self.owner = None
         self.misses = {}
+        self._rx_armed.clear()            # robots may restart unheard while we listen
         self._silent = 0
         self._acks.clear()
         self._announcing = None           # a BOOT not acknowledged is sent again

@@ -31,7 +31,7 @@ from firmware_model.radio.content import parse_content
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.mac import (
     UNACKNOWLEDGED, Deliver, Disable, DuplicateId, ForeignRing, Join, MacConfig, Message, Miss,
-    ModeChange, Outcome, Refused, SubmitError, Transmit,
+    ModeChange, NumberBehind, Outcome, Refused, SubmitError, Transmit,
 )
 from firmware_model.radio.auth import clock_freshness
 from firmware_model.station import RadioStation, Stalled, build_station
@@ -155,6 +155,9 @@ def _events_printer(out: TextIO | None, robot: int,
         elif t is Refused:
             emit({"t": now, "ev": "refused", "src": a.src, "num": a.num, "to": robot,
                   "reason": a.reason, **({"kind": a.kind} if a.kind else {})})
+        elif t is NumberBehind:
+            emit({"t": now, "ev": "behind", "src": a.src, "num": a.num, "last": a.last,
+                  "to": robot, "refused": a.refused})
     return observe
 
 
@@ -495,11 +498,12 @@ def feed_orders(runner: Runner, station: RadioStation, book: Any, stream: TextIO
 def summary_line(station: RadioStation) -> str:
     m = station.mac
     r = station.refused
-    auth = f" (forged {r.get('forged', 0)}, replayed {r.get('replayed', 0)})" \
+    auth = f"forged {r.get('forged', 0)}, replayed {r.get('replayed', 0)}, " \
         if m.cfg.auth is not None else ""
     return (f"robot {station.id}: {m.mode}, ring {list(m.ring)}, frames sent {m.frames_sent}, "
             f"heard {station.frames_heard}, bad frames {station.frames_failed}, "
-            f"refused {sum(r.values())}{auth}, pending {m.pending}")
+            f"refused {sum(r.values())} ({auth}out of turn {r.get('out_of_turn', 0)}, own ID "
+            f"{r.get('own_id', 0)}), numbers behind {station.behind}, pending {m.pending}")
 
 
 TICKS_PER_MS = TICK_HZ // 1000

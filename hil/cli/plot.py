@@ -23,8 +23,8 @@ def add(sub) -> None:
     pl = sub.add_parser("plot", help="draw the paper's Fig. 7 timeline from a trace")
     pl.add_argument("trace", metavar="TRACE", help="a JSON Lines trace (rprs sim --trace), "
                     "plain or gzipped")
-    pl.add_argument("-o", "--output", required=True, metavar="FILE.png|svg",
-                    help="the figure to write (.png or .svg)")
+    pl.add_argument("-o", "--output", required=True, metavar="FILE.png|svg|pdf",
+                    help="the figure to write (.png, .svg or .pdf)")
     pl.add_argument("--start", type=float, metavar="S", help="window start (s)")
     pl.add_argument("--end", type=float, metavar="S", help="window end (s)")
     pl.set_defaults(func=cmd_plot)

@@ -11,7 +11,11 @@ from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import OutputFile, TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
-from .common import UserError, auth_option, checked_mac_config, digit, distinct_outputs, profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console, stdout_console
+from .common import (
+    UserError, auth_option, checked_mac_config, digit, distinct_outputs, profile_option,
+    fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console,
+    stdout_console)
+
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                     progress: bool = True) -> None:
@@ -86,6 +90,10 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     if progress:
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+REFUSAL_WORDS = {"out_of_turn": "out of turn", "own_id": "own ID"}
+"""How the summary names a kind of refused frame (the MAC's ``refused`` kinds, docs/mac.md)."""
 
 
 def extra_robot(text: str) -> tuple[int, float, tuple[int, ...] | None]:
@@ -363,6 +371,16 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
                                                              membership else ""))
     con.print(f"channel occupations: {s['occupations']}   collisions: {s['collisions']}"
               + (f"   CAN frames: {world.can_frames}" if world.cfg.can else ""))
+    refusals = []
+    for r, v in s["robots"].items():
+        if v["refused_by"] or v["numbers_behind"]:
+            who = "father 0" if int(r) == 0 else f"R{r}"
+            kinds = ", ".join(f"{REFUSAL_WORDS.get(k, k)} {n}" for k, n in v["refused_by"].items())
+            behind = f", numbers behind {v['numbers_behind']}" if v["numbers_behind"] else ""
+            refusals.append(f"{who} {sum(v['refused_by'].values())}"
+                            + (f" ({kinds})" if kinds else "") + behind)
+    if refusals:
+        con.print("frames refused (docs/mac.md): " + "; ".join(refusals))
     unacked = (f"sent unacknowledged (paper profile) {s['unacknowledged']}, "
                if s["unacknowledged"] else "")
     if "cpu_load" in s:

@@ -135,7 +135,7 @@ class QuietCan:
         """True while a part's latest values may change without two snapshots a period
         apart showing it: a wheel cruising at 3 mm/s reports the same odometer (whole mm) for
         three periods, then the next. Every wake then runs the last whole period frame by
-        frame (found by a random hunt, 2026-11-26: the dispatcher's record of such a wheel
+        frame (a random hunt found it: the dispatcher's record of such a wheel
         kept the odometer of the period the domain fell asleep in)."""
         self.enabled = True
         self.asleep = False
@@ -174,7 +174,7 @@ class QuietCan:
         to the child, a fault): the snapshot taken before proves nothing about a period. A
         message the child only notes adds one to its main loop's handler calls, a counter, and
         two snapshots that straddle it would say the counter grows by one a period: a sleep
-        would then add one for every period it skipped (found by a random hunt, 2026-11-26)."""
+        would then add one for every period it skipped (a random hunt found it)."""
         if not self.asleep:
             self._last = None
 

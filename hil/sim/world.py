@@ -30,7 +30,8 @@ from firmware_model.radio.content import Command, cmd, frame_kind
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
     BadContent, Deliver, Disable, Duplicate, DuplicateId, ForeignRing, Join, MacConfig, Message,
-    Miss, ModeChange, UNACKNOWLEDGED, Outcome, Refused, SubmitError, Transmit, TxEnable,
+    Miss, ModeChange, NumberBehind, UNACKNOWLEDGED, Outcome, Refused, SubmitError, Transmit,
+    TxEnable,
 )
 from firmware_model.radio.deframer import FrameFailed
 from firmware_model.station import RadioStation, build_station
@@ -192,6 +193,7 @@ class SimConfig:
 class RobotStats:
     received: int = 0
     refused_frames: int = 0
+    numbers_behind: int = 0
     bad_frames: int = 0
     duplicates: int = 0
     submitted: int = 0
@@ -592,6 +594,9 @@ class World:
             ev = {"ev": "disable", "robot": a.robot, "by": r}
         elif t is Refused:
             ev = {"ev": "refused", "src": a.src, "num": a.num, "to": r, "reason": a.reason}
+        elif t is NumberBehind:
+            ev = {"ev": "behind", "src": a.src, "num": a.num, "last": a.last, "to": r,
+                  "refused": a.refused}
         elif t is DuplicateId:
             ev = {"ev": "duplicate_id", "robot": r, "yielding": a.yielding}
             self.identity.append({"t": self.sched.now, **ev, "extra": k})
@@ -785,6 +790,10 @@ class World:
             self.stats[r].refused_frames += 1
             emit({"ev": "refused", "src": a.src, "num": a.num, "to": r,
                   "reason": a.reason})
+        elif t is NumberBehind:
+            self.stats[r].numbers_behind += 1
+            emit({"ev": "behind", "src": a.src, "num": a.num, "last": a.last, "to": r,
+                  "refused": a.refused})
         elif t is DuplicateId:
             self.identity.append({"t": now, "ev": "duplicate_id", "robot": r,
                                   "yielding": a.yielding})
@@ -959,7 +968,9 @@ class World:
                          "failed": s.failed, "unacknowledged": s.unacknowledged,
                          "refused": s.refused,
                          "duplicates_dropped": s.duplicates, "refused_frames":
-                         s.refused_frames, "bad_frames": s.bad_frames, "mode": st.mac.mode,
+                         s.refused_frames, "refused_by": dict(sorted(st.refused.items())),
+                         "numbers_behind": s.numbers_behind,
+                         "bad_frames": s.bad_frames, "mode": st.mac.mode,
                          "ring": list(st.mac.ring)}
         total = lambda k: sum(v[k] for v in robots.values())  # noqa: E731
         dup_deliveries = sum(c - 1 for c in self.deliveries.values() if c > 1)

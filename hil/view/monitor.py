@@ -208,6 +208,9 @@ class MonitorApp(App):
 
     TITLE = "RPRS monitor"
     BINDINGS = [Binding("q", "quit", "quit"),
+                # Ctrl-C stops it, as it stops every rprs process (textual's own ctrl+c only
+                # said "Press ctrl+q to quit")
+                Binding("ctrl+c", "quit", "quit", show=False, priority=True),
                 Binding("space", "pause", "pause/run"),
                 # textual binds no key to its suspend: Ctrl-Z was a key the view ignored (the
                 # terminal is raw), so a shell's Ctrl-Z / fg did nothing

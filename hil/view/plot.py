@@ -30,7 +30,9 @@ from .vcd import TickReorder, checked_events, need, need_int
 
 __all__ = ["PlotError", "plot_trace", "FORMATS", "MAX_TURNS"]
 
-FORMATS = ("png", "svg")
+FORMATS = ("png", "svg", "pdf")
+NO_DATE = {"svg": {"Date": None}, "pdf": {"CreationDate": None}}
+"""The metadata that keeps a vector format's bytes the same for the same trace (no date)."""
 MAX_TURNS = 200
 """Most turns drawn in the timeline when no window is given."""
 PRE_TURNS = 40
@@ -403,7 +405,8 @@ def _number_clip_paths(data: bytes) -> bytes:
 
 def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
                end_s: float | None = None, max_turns: int = MAX_TURNS) -> dict:
-    """Draw the paper's Fig. 7 from a trace's events (meta first) into ``out`` (.png or .svg).
+    """Draw the paper's Fig. 7 from a trace's events (meta first) into ``out`` (.png, .svg or
+    .pdf).
 
     ``start_s``/``end_s`` bound the timeline (seconds); by default it shows at most
     ``max_turns`` turns, starting a little before the first miss, collision, fault, disable
@@ -419,7 +422,7 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
     """
     ext = os.path.splitext(out)[1].lower().lstrip(".")
     if ext not in FORMATS:
-        raise PlotError(f"cannot plot to {out!r}: the output must end in .png or .svg")
+        raise PlotError(f"cannot plot to {out!r}: the output must end in .png, .svg or .pdf")
     for name, v in (("start", start_s), ("end", end_s)):
         if v is not None and (not isinstance(v, (int, float)) or not v >= 0
                               or math.isinf(v)):
@@ -551,7 +554,7 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
 
     buf = io.BytesIO()          # drawn whole first: a FIFO or a device gets the final bytes
     with rc_context({"svg.hashsalt": "rprs"}):   # same trace, same SVG
-        fig.savefig(buf, format=ext, metadata={"Date": None} if ext == "svg" else None)
+        fig.savefig(buf, format=ext, metadata=NO_DATE.get(ext))
     data = buf.getvalue()
     if ext == "svg":
         data = _number_clip_paths(data)

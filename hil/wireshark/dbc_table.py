@@ -78,6 +78,26 @@ def write(path: Path | None = None) -> bool:
     return True
 
 
-if __name__ == "__main__":
-    changed = write(Path(sys.argv[1]) if len(sys.argv) > 1 else None)
+def main(argv: list[str] | None = None) -> int:
+    """``python -m hil.wireshark.dbc_table [PLUGIN]``: rewrite the plugin's DBC table from
+    can_bus/rprs.dbc. A missing or unreadable plugin, or one without the marker lines, is one
+    line on stderr and exit status 2."""
+    import argparse
+    p = argparse.ArgumentParser(prog="python -m hil.wireshark.dbc_table",
+                                description="Rewrite the Wireshark plugin's CAN signal table "
+                                "from can_bus/rprs.dbc.")
+    p.add_argument("plugin", nargs="?", type=Path, default=None,
+                   help=f"the plugin to rewrite (default: {plugin_path()})")
+    args = p.parse_args(argv)
+    try:
+        changed = write(args.plugin)
+    except (OSError, ValueError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+        print(f"{p.prog}: error: {args.plugin or plugin_path()}: {why}", file=sys.stderr)
+        return 2
     print("rewrote the DBC table" if changed else "the DBC table was up to date")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -10,7 +10,8 @@
 -- the generated table at the end of this file.
 --
 -- Display filters: rprs.src == 2, rprs.type == 4, rprs.cmd == "movex", rprs.dst == 7,
--- rprs.crc.ok == 0, rprs_can.msg == "JOINT3_CMD", rprs_can.joint3_cmd.angle > 50.
+-- rprs.crc.ok == 0, rprs.auth.fresh > 0x100, rprs_can.msg == "JOINT3_CMD",
+-- rprs_can.joint3_cmd.angle > 50.
 
 local rprs = Proto("rprs", "RPRS radio frame")
 
@@ -34,6 +35,10 @@ f.crc = ProtoField.uint16("rprs.crc", "Checksum carried by crc()", base.DEC)
 f.crc_calc = ProtoField.uint16("rprs.crc.computed", "CRC-16/CCITT-FALSE of Destination..Content",
                                base.DEC)
 f.crc_ok = ProtoField.bool("rprs.crc.ok", "Checksum correct")
+f.auth_fresh = ProtoField.uint32("rprs.auth.fresh", "Freshness value carried by auth()",
+                                 base.HEX)
+f.auth_tag = ProtoField.uint32("rprs.auth.tag", "Tag carried by auth() (HMAC-SHA256, 4 bytes)",
+                               base.HEX)
 
 local e_header = ProtoExpert.new("rprs.header.bad", "No Header 0F 0A 05: garbage or a cut frame",
                                  expert.group.MALFORMED, expert.severity.ERROR)
@@ -141,6 +146,13 @@ function rprs.dissector(tvb, pinfo, tree)
                 ok:add_proto_expert_info(e_crc)
                 info = info .. " [bad crc]"
             end
+        end
+        -- the authenticated profile (protocol clause 52): auth(FFFFFFFF,TTTTTTTT) ends Content,
+        -- 8 lowercase hex digits each. The tag is shown, not checked: it needs the ring's key.
+        local fresh, tag = content:match("auth%(([0-9a-f]+),([0-9a-f]+)%)$")
+        if fresh and #fresh == 8 and #tag == 8 and len ~= nil and clen == len then
+            t:add(f.auth_fresh, tvb(12 + clen - 18, 8), tonumber(fresh, 16))
+            t:add(f.auth_tag, tvb(12 + clen - 9, 8), tonumber(tag, 16))
         end
     end
     if len ~= nil and 12 + len + 2 <= n then
