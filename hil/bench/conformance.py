@@ -787,7 +787,7 @@ class Tester:
         self.num = (self.num + 1) % 100
         num = self.num
         ack = f"ack({self.me},{num})".encode()
-        seen: dict[str, list] = {"acked": [], "replies": []}
+        seen: dict[str, list] = {"acked": [], "replies": [], "again": []}
 
         def watch(h: Heard, i: int) -> None:
             if ack in h.frame.content:
@@ -798,6 +798,9 @@ class Tester:
                 # the status, or why there is none; the same Number again is its message
                 # retransmitted (our ack was lost to it, e.g. while it stalled), no new reply
                 seen["replies"].append(h.frame.num)
+            elif h.frame.dst == self.me and (b"joint(" in h.frame.content or
+                                             b"fail(" in h.frame.content):
+                seen["again"].append(h.frame.num)
         ask = (b"status()", {"dst": self.robot, "type_": 2})
         h = self._turns(h, 6, ask, watch)
         if self.profile == "rprs":       # (the paper has no status(): none is awaited)
@@ -829,9 +832,11 @@ class Tester:
         h = self._until(h, lambda: seen["replies"][len(before):], watch)
         new = seen["replies"][len(before):]
         ok = len(before) == 1 and len(new) == 1 and new[0] == (before[0] + 1) % 100
+        again = seen["again"]
         self.check("45", "its next message takes the next Number",
-                   ok, f"its replies' Numbers: {', '.join(f'{n:02d}' for n in before + new)}",
-                   t0)
+                   ok, f"its replies' Numbers: {', '.join(f'{n:02d}' for n in before + new)}" +
+                   (f" (sent again: {', '.join(f'{n:02d}' for n in again)})" if again else "") +
+                   ("" if new else f"; no new reply in {6 + self.REPLY_TURNS} turns"), t0)
         return h
 
     REPLY_TURNS = 30
