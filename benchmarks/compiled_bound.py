@@ -153,8 +153,8 @@ def main() -> int:
     print("|---|---|" + "---|" * len(cols))
     for name, n, shares in rows:
         print(f"| {name} | {n:,} | " + " | ".join(f"{shares[c]:.0%}" for c in cols) + " |")
-    print("\n| workload | target needs (from the figures in NEEDED) | " + " | ".join(f"at most, {b} compiled to nothing"
-                                                     for b in BOUNDS) + " |")
+    print("\n| workload | target needs (from the figures in NEEDED) | "
+          + " | ".join(f"at most, {b} compiled to nothing" for b in BOUNDS) + " |")
     print("|---|---|" + "---|" * len(BOUNDS))
     for name, _, shares in rows:
         what, need = NEEDED[name]

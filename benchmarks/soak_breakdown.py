@@ -22,7 +22,8 @@ It also records every joint job (``Dispatcher._drive_joints``: every move order)
 start to its done, in CAN periods (100 ms): a domain that slept through a job would pay two
 snapshots and a replayed period for each sleep, so only jobs much longer than that could gain.
 
-Figures and what they decided: docs/performance.md (where the soak's time goes). The instrumented run is
+Figures and what they decided: docs/performance.md (where the soak's time goes). The instrumented
+run is
 about twice as slow as a plain one; the shares are what counts.
 """
 from __future__ import annotations
@@ -44,7 +45,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from can_bus.dbc import STATE_MOVING  # noqa: E402
 from firmware_model import dispatcher as dispatcher_module  # noqa: E402
 from firmware_model.mcu.scheduler import Scheduler  # noqa: E402
-from hil.sim import quiet_can, world as world_module  # noqa: E402
+from hil.sim import world as world_module  # noqa: E402
 from hil.sim.quiet_can import PERIOD, QuietCan  # noqa: E402
 from hil.sim.soak import run_soak  # noqa: E402
 

@@ -5,8 +5,11 @@ Everything here follows Bosch CAN 2.0 part A / ISO 11898-1 (classical CAN). Bits
 
 Data/remote frame layout (unstuffed)::
 
-    SOF(1) ID(11) RTR(1) IDE(1)=0 r0(1)=0 DLC(4) DATA(8*n) CRC(15) | CRCdel(1) ACK(1) ACKdel(1) EOF(7)
-    \\______________________ stuffed, CRC covered (CRC not) _____/   \\____ fixed form, not stuffed __/
+    SOF(1) ID(11) RTR(1) IDE(1)=0 r0(1)=0 DLC(4) DATA(8*n) CRC(15)
+    \\______________ stuffed, CRC covered (CRC not) ______________/
+
+    then CRCdel(1) ACK(1) ACKdel(1) EOF(7)
+         \\___ fixed form, not stuffed ___/
 
 followed on the bus by the 3-bit intermission (IFS) before the next SOF may start.
 Unstuffed length without IFS is ``44 + 8*n`` bits; with IFS ``47 + 8*n``.
@@ -170,7 +173,8 @@ def _frame_bits(can_id: int, data: bytes, rtr: bool, dlc: int) -> list[int]:
     return bits
 
 
-def frame_bits(can_id: int, data: bytes = b"", rtr: bool = False, dlc: int | None = None) -> list[int]:
+def frame_bits(can_id: int, data: bytes = b"", rtr: bool = False,
+               dlc: int | None = None) -> list[int]:
     """Unstuffed SOF, ID, RTR, IDE, r0, DLC, data, CRC (34 + 8n bits). Dominant = 0."""
     data = bytes(data)
     return _frame_bits(can_id, data, rtr, _check(can_id, data, rtr, dlc))
@@ -335,7 +339,8 @@ def _wire(can_id: int, data: bytes, rtr: bool, dlc: int) -> tuple[int, ...]:
     return tuple(_stuff_int(value, 34 + n) + _TRAILER)
 
 
-def wire_bits(can_id: int, data: bytes = b"", rtr: bool = False, dlc: int | None = None) -> list[int]:
+def wire_bits(can_id: int, data: bytes = b"", rtr: bool = False,
+              dlc: int | None = None) -> list[int]:
     """The transmitted bit sequence: stuffed(SOF..CRC) + CRCdel + ACK slot(1) + ACKdel + EOF.
 
     The ACK slot is shown as the transmitter sends it (recessive); acknowledging receivers
@@ -448,20 +453,23 @@ class BitTiming:
     tick_hz: int = DEFAULT_TICK_HZ
 
     def __post_init__(self) -> None:
-        for name, lo, hi in (("prescaler", 1, 64), ("tseg1", 1, 16), ("tseg2", 1, 8), ("sjw", 1, 4)):
+        for name, lo, hi in (("prescaler", 1, 64), ("tseg1", 1, 16), ("tseg2", 1, 8),
+                             ("sjw", 1, 4)):
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
                 raise ValueError(f"BitTiming.{name} must be an int in {lo}..{hi}, got {v!r}")
         min_tseg1 = 5 if self.prescaler == 1 else 2  # F2MC-16LX manual ch. 21, BTR, p. 464
         if self.tseg1 < min_tseg1 or self.tseg2 < 2:
             raise ValueError(
-                f"BitTiming tseg1={self.tseg1}, tseg2={self.tseg2} with prescaler {self.prescaler}: "
+                f"BitTiming tseg1={self.tseg1}, tseg2={self.tseg2} with prescaler "
+                f"{self.prescaler}: "
                 f"the CAN controller needs tseg1 >= {min_tseg1} and tseg2 >= 2 quanta "
                 f"(F2MC-16LX hardware manual, BTR conditions)"
             )
         if self.sjw > self.tseg2 or self.sjw > self.tseg1:
             raise ValueError(
-                f"BitTiming.sjw ({self.sjw}) must not exceed tseg1 ({self.tseg1}) or tseg2 ({self.tseg2})"
+                f"BitTiming.sjw ({self.sjw}) must not exceed tseg1 ({self.tseg1}) or tseg2 "
+                f"({self.tseg2})"
             )
         if not isinstance(self.tick_hz, int) or self.tick_hz < 1_000_000:
             raise ValueError(f"BitTiming.tick_hz must be an int of at least 1 MHz, got "
@@ -505,6 +513,7 @@ class BitTiming:
         clock; ValueError if impossible."""
         ticks = tick_hz / bitrate
         if ticks != int(ticks) or int(ticks) % tq_per_bit:
-            raise ValueError(f"{bitrate} bit/s is not reachable with {tq_per_bit} quanta from {tick_hz} Hz")
+            raise ValueError(f"{bitrate} bit/s is not reachable with {tq_per_bit} quanta from "
+                             f"{tick_hz} Hz")
         tseg1 = round(sample_point * tq_per_bit) - 1
         return cls(int(ticks) // tq_per_bit, tseg1, tq_per_bit - 1 - tseg1, sjw, tick_hz)

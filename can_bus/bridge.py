@@ -18,15 +18,21 @@ from __future__ import annotations
 
 import collections
 import errno
+import io
 import logging
 import threading
 import time
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import can
 
 from .bits import BitTiming, frame_length_bits
-from .bus import CanFrame, ErrorState, NodeStatus
+from .bus import ErrorState, NodeStatus
+from .frames import CanFrame
+from .node import check_node
+
+if TYPE_CHECKING:
+    from can.io.generic import MessageWriter
 
 
 class CanOpenError(Exception):
@@ -187,13 +193,13 @@ class CandumpLogWriter(can.CanutilsLogWriter):
 
     def on_message_received(self, msg: can.Message) -> None:
         if not msg.is_error_frame and (msg.is_remote_frame and msg.dlc or msg.is_fd):
-            wrote: list[str] = []
-            file, self.file = self.file, _Collect(wrote)
+            wrote = io.StringIO()
+            file, self.file = self.file, wrote
             try:
                 super().on_message_received(msg)
             finally:
                 self.file = file
-            line = "".join(wrote)
+            line = wrote.getvalue()
             head, sep, rest = line.partition("#")
             if msg.is_remote_frame:
                 rest = f"R{msg.dlc:X}" + rest[1:]
@@ -204,14 +210,7 @@ class CandumpLogWriter(can.CanutilsLogWriter):
         super().on_message_received(msg)
 
 
-class _Collect:
-    """A file that keeps what is written to it (``CandumpLogWriter``)."""
-
-    def __init__(self, into: list[str]) -> None:
-        self.write = into.append
-
-
-def open_log(path: str) -> can.io.MessageWriter:
+def open_log(path: str) -> MessageWriter:
     """A python-can log writer for ``path``, chosen by its extension; a ``.log`` is written as
     ``candump -L`` writes (``CandumpLogWriter``)."""
     if path.lower().endswith(".log"):
@@ -366,6 +365,7 @@ class PythonCanBus:
     # -- the CanBus node interface --------------------------------------------------------
 
     def attach(self, node: Any) -> None:
+        check_node(node)                # a misspelt hook is refused, as by CanBus.attach
         self.nodes.append(node)
 
     def detach(self, node: Any) -> None:
@@ -560,6 +560,7 @@ class PythonCanBus:
     def _log(self, msg: can.Message) -> None:
         """``msg`` to the log; a write that fails (a full disk) ends the log in one line, and
         the bus goes on."""
+        assert self._writer is not None           # the callers check that there is a log
         try:
             self._writer.on_message_received(msg)
         except (OSError, ValueError) as exc:
@@ -569,6 +570,7 @@ class PythonCanBus:
         """Close the log (its last buffered lines are written now); a failure, or ``exc``
         that ended it early, is reported once."""
         writer, self._writer = self._writer, None
+        assert writer is not None                 # the callers check that there is a log
         try:
             writer.stop()
         except (OSError, ValueError) as late:

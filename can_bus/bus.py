@@ -6,7 +6,9 @@ one per bit.
 
 Nodes
 -----
-A node is any object; the bus looks up these optional methods once, at :meth:`CanBus.attach`:
+A node is any object; the bus looks up these optional methods once, at :meth:`CanBus.attach`
+(:mod:`can_bus.node` declares them as Protocols a node's class names, and ``attach`` refuses a
+node that names one and lacks a hook, or has a misspelt one):
 
 * ``pending() -> CanFrame | None``: the node's highest-priority frame waiting to be sent. If the
   node has it, the node keeps its own queue and the bus asks at every arbitration; otherwise the
@@ -125,7 +127,7 @@ import heapq
 from dataclasses import dataclass
 from enum import Enum
 from functools import lru_cache
-from typing import Any, Callable
+from typing import AbstractSet, Any, Callable
 
 import can
 
@@ -138,15 +140,15 @@ from can_bus.bits import (
     SUSPEND_TRANSMISSION_BITS,
     TRAILER_BITS,
     BitTiming,
-    _check,
     _length,
     _wire,
 )
 from can_bus.clock import Cancellable as Event, Clock as Scheduler
+from can_bus.frames import CanFrame
+from can_bus.node import check_node
 from can_bus.physical import DEFAULT_LENGTH_M, LINE_DELAY_S_PER_M, loop_delay_s, prop_time_s
 
 __all__ = [
-    "CanFrame",
     "CanBus",
     "CanErrorEvent",
     "ErrorState",
@@ -170,43 +172,6 @@ class ErrorState(str, Enum):
 
 
 ACTIVE, PASSIVE, BUS_OFF = ErrorState.ACTIVE, ErrorState.PASSIVE, ErrorState.BUS_OFF
-
-
-@dataclass(frozen=True)
-class CanFrame:
-    """A CAN 2.0A data or remote frame. ``dlc`` defaults to ``len(data)`` (0 for remote)."""
-
-    id: int
-    data: bytes = b""
-    rtr: bool = False
-    dlc: int | None = None
-
-    def __post_init__(self) -> None:
-        data = bytes(self.data)
-        object.__setattr__(self, "data", data)
-        object.__setattr__(self, "rtr", bool(self.rtr))
-        object.__setattr__(self, "dlc", _check(self.id, data, self.rtr, self.dlc))
-
-    def to_message(self, timestamp: float = 0.0) -> can.Message:
-        return can.Message(
-            timestamp=timestamp,
-            arbitration_id=self.id,
-            is_extended_id=False,
-            is_remote_frame=self.rtr,
-            dlc=self.dlc,
-            data=self.data,
-        )
-
-    @classmethod
-    def from_message(cls, msg: can.Message) -> "CanFrame":
-        if msg.is_extended_id:
-            raise ValueError("extended (29-bit) identifiers are not CAN 2.0A")
-        if msg.is_fd or msg.is_error_frame:
-            raise ValueError("only classical data/remote frames convert to CanFrame")
-        if msg.is_remote_frame:
-            return cls(msg.arbitration_id, b"", True, msg.dlc)
-        data = bytes(msg.data or b"")
-        return cls(msg.arbitration_id, data, False, msg.dlc if msg.dlc is not None else len(data))
 
 
 @lru_cache(maxsize=8192)
@@ -330,7 +295,8 @@ class CanBus:
         self._ack_limited = False            # some pair of nodes exceeds the budget
         self._cur_late = False               # this frame's ACK error is a late ACK
         self.trace: Callable[[CanFrame, int, int, Any], None] | None = None
-        self.error_trace: Callable[[str, CanFrame | None, int, int, int, Any], None] | None = None
+        self.error_trace: Callable[[str, CanFrame | None, int, int, int | None, Any], None] | None \
+            = None
         self.frames_ok = 0
         self.error_frames = 0
         self._nodes: list[_Node] = []
@@ -348,7 +314,8 @@ class CanBus:
         self._inject: dict[int | None, list[int | None]] = {}
         self._local: dict[int, list[int | None]] = {}      # node id -> bits, one per frame
         self._noisy: dict[int, int | None] = {}            # node id -> bit, every frame
-        self._cur_deaf: set[int] | frozenset[int] = _NO_DEAF  # passive nodes that flagged a local error
+        # passive nodes that flagged a local error
+        self._cur_deaf: set[int] | frozenset[int] = _NO_DEAF
         self._watch = False
         """Some node may be bus-off or in suspend transmission: the idle time's start and end
         must look at every node (False: none is, and none needs to)."""
@@ -359,6 +326,7 @@ class CanBus:
     def attach(self, node: Any) -> None:
         if id(node) in self._by_id:
             raise ValueError(f"{node!r} is already attached")
+        check_node(node)
         ns = _Node(node)
         self._nodes.append(ns)
         self._by_id[id(node)] = ns
@@ -673,7 +641,8 @@ class CanBus:
             if f != frame:
                 wire = _frame_info(frame)[0]
                 w2 = _frame_info(f)[0]
-                k = next((i for i, (a, b) in enumerate(zip(wire, w2)) if a != b), min(len(wire), len(w2)) - 1)
+                k = next((i for i, (a, b) in enumerate(zip(wire, w2)) if a != b),
+                         min(len(wire), len(w2)) - 1)
                 if err is None or k < err[0]:
                     err = (k, "bit")
         if self._inject:
@@ -737,6 +706,7 @@ class CanBus:
         now = self.sched.now
         tpb = self.tpb
         frame = self._cur_frame
+        assert frame is not None                  # the frame this segment carried
         idle_at = now + IFS_BITS * tpb
         self._phase = _TAIL
         self._busy_until = idle_at
@@ -765,7 +735,7 @@ class CanBus:
                 ns.on_tx_done(frame, now)
         self._rx_deliver(frame, self._cur_start, now, self._cur_rx, deaf)
 
-    def _rx_count(self, rx: list[_Node], deaf: set[int], now: int) -> None:
+    def _rx_count(self, rx: list[_Node], deaf: AbstractSet[int], now: int) -> None:
         """Receivers' REC after a frame they took (ISO 11898-1 rule 8)."""
         for ns in rx:
             if deaf and id(ns) in deaf and ns.state is not BUS_OFF:
@@ -782,7 +752,7 @@ class CanBus:
 
     @staticmethod
     def _rx_deliver(frame: CanFrame, start: int, now: int, rx: list[_Node],
-                    deaf: set[int]) -> None:
+                    deaf: AbstractSet[int]) -> None:
         fid = frame.id
         for ns in rx:
             ids = ns.rx_ids                   # first: most nodes ignore most frames
@@ -875,7 +845,8 @@ class CanBus:
             if err is not None and err[0] <= b:
                 continue                       # an error everyone sees comes first
             if ns.state is PASSIVE:
-                self._cur_deaf.add(key)
+                # _local_errors runs just after _cur_deaf = set(): a set of its own here
+                self._cur_deaf.add(key)  # type: ignore[union-attr]
                 continue
             if best is None or b < best[0]:
                 best = (b, ns)
@@ -1006,6 +977,7 @@ class CanBus:
 
     def _hold_tick_time(self, step: int) -> int:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         if step == 0:
             return h.flag
         if step == 1:
@@ -1014,10 +986,12 @@ class CanBus:
 
     def _can_change(self) -> bool:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         return any(ns.state is not BUS_OFF for ns in h.tx) or any(ns.state is ACTIVE for ns in h.rx)
 
     def _settle(self, upto: int) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         tpb = self.tpb
         limit = upto if h.released is None else min(upto, h.released)
         while True:
@@ -1044,12 +1018,13 @@ class CanBus:
                         ns.on_error(CanErrorEvent("bit", t, frame, True, ns.tec, ns.rec, ns.state))
                 for ns in h.rx:
                     if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
-                        ns.on_error(CanErrorEvent("stuff", t, frame, False, ns.tec, ns.rec, ns.state))
+                        ns.on_error(CanErrorEvent("stuff", t, frame, False, ns.tec, ns.rec,
+                                                  ns.state))
                 self.error_frames += 1
                 if self.error_trace is not None:
                     self.error_trace("bit" if h.tx else "stuff", frame,
-                                     self._cur_start if h.tx else t - ERROR_FLAG_BITS * tpb, t, None,
-                                     h.tx[0].node if h.tx else None)
+                                     self._cur_start if h.tx else t - ERROR_FLAG_BITS * tpb, t,
+                                     None, h.tx[0].node if h.tx else None)
             else:
                 if s >= 2:
                     self._count(h.tx, 8, 0, t)
@@ -1065,6 +1040,7 @@ class CanBus:
 
     def _hold_schedule(self) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         if h.ev is not None:
             h.ev.cancel()
             h.ev = None
@@ -1080,6 +1056,7 @@ class CanBus:
 
     def _hold_tick(self) -> None:
         h = self._hold
+        assert h is not None                  # the bus is held dominant
         h.ev = None
         self._settle(self.sched.now)
         if h.released is not None:
@@ -1089,10 +1066,12 @@ class CanBus:
 
     def _hold_finish(self) -> None:
         h = self._hold
+        assert h is not None and h.released is not None     # held, then released
         if h.ev is not None:
             h.ev.cancel()
         tpb = self.tpb
-        idle_at = max(h.released, h.flag + ERROR_FLAG_BITS * tpb) + (ERROR_DELIMITER_BITS + IFS_BITS) * tpb
+        idle_at = (max(h.released, h.flag + ERROR_FLAG_BITS * tpb)
+                   + (ERROR_DELIMITER_BITS + IFS_BITS) * tpb)
         for ns in h.tx:
             if ns.state is PASSIVE:
                 ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb

@@ -18,7 +18,10 @@ DEFAULT_TICK_HZ = 16_000_000
 
 
 class Cancellable(Protocol):
-    """A scheduled callback that can be called off."""
+    """A scheduled callback that can be called off; ``when`` is its tick (the bus looks at
+    it to keep an arbitration already due)."""
+
+    when: int
 
     def cancel(self) -> None: ...
 

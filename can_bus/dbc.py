@@ -23,13 +23,13 @@ from __future__ import annotations
 
 from functools import lru_cache
 from importlib import resources
-from typing import Any, Union
+from typing import Any, Union, cast
 
 import can
 import cantools
 from cantools.database.can import Database, Message
 
-from can_bus.bus import CanFrame
+from can_bus.frames import CanFrame
 
 __all__ = [
     "DBC_FILE",
@@ -113,7 +113,9 @@ def dbc_path():
 def load() -> Database:
     """The strictly loaded database (cached: every call returns the same object)."""
     text = dbc_path().read_text(encoding="utf-8")
-    return cantools.database.load_string(text, database_format="dbc", strict=True)
+    db = cantools.database.load_string(text, database_format="dbc", strict=True)
+    assert isinstance(db, Database)           # a DBC file loads as a CAN database
+    return db
 
 
 class _Msg:
@@ -218,7 +220,9 @@ def _check_signals(e: _Msg, signals: dict[str, Any], raw: bool) -> dict[str, Any
         for sig, lo, hi in bounds:
             value = signals.get(sig)
             t = type(value)
-            if not (t is int or (t is float and not raw)) or not lo <= value <= hi:
+            # (type(value) is int or float before the bounds: None and bool are neither)
+            if not (t is int or (t is float and not raw)) or \
+                    not lo <= value <= hi:  # type: ignore[operator]
                 break
         else:
             return signals
@@ -276,6 +280,7 @@ where ``1`` is taken, whatever was encoded before."""
 
 
 def _encode(name: str, signals: dict[str, Any], raw: bool) -> CanFrame:
+    key: tuple[Any, ...] | None
     try:
         key = (name, raw, tuple(signals.items()), tuple(map(type, signals.values())))
         hit = _ENCODED.get(key)
@@ -353,7 +358,8 @@ def encode_raw_values(name: str, values: tuple[int, ...]) -> CanFrame:
 def _lookup(frame: FrameLike) -> tuple[_Msg, bytes]:
     if isinstance(frame, can.Message):
         if frame.is_extended_id:
-            raise DbcError(f"extended id {frame.arbitration_id:#x}: {DBC_FILE} has CAN 2.0A frames only")
+            raise DbcError(f"extended id {frame.arbitration_id:#x}: {DBC_FILE} has CAN 2.0A "
+                           "frames only")
         can_id, rtr, data = frame.arbitration_id, frame.is_remote_frame, bytes(frame.data or b"")
     elif isinstance(frame, CanFrame):
         can_id, rtr, data = frame.id, frame.rtr, frame.data
@@ -383,7 +389,8 @@ def decode(frame: FrameLike) -> tuple[str, dict[str, Any]]:
             return hit[0], dict(hit[1])
     e, data = _lookup(frame)
     try:
-        values = e.msg.decode(data, decode_choices=False, scaling=True)
+        # a message's decode gives its signals by name
+        values = cast("dict[str, Any]", e.msg.decode(data, decode_choices=False, scaling=True))
     except Exception as exc:  # pragma: no cover - cannot happen with the length check
         raise DbcError(f"{e.name} ({e.id:#05x}): cannot decode {data.hex()}: {exc}") from exc
     if type(frame) is CanFrame:
@@ -397,7 +404,8 @@ def decode_raw(frame: FrameLike) -> tuple[str, dict[str, int]]:
     """Like :func:`decode` but the raw integers on the wire (no scaling)."""
     e, data = _lookup(frame)
     try:
-        values = e.msg.decode(data, decode_choices=False, scaling=False)
+        # a message's decode gives its signals by name; unscaled, the raw integers
+        values = cast("dict[str, int]", e.msg.decode(data, decode_choices=False, scaling=False))
     except Exception as exc:  # pragma: no cover
         raise DbcError(f"{e.name} ({e.id:#05x}): cannot decode {data.hex()}: {exc}") from exc
     return e.name, values

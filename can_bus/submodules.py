@@ -67,7 +67,8 @@ JOINT3     elbow                 -135 .. 135     90         45
 JOINT4     wrist (end link)      -120 .. 120     90         45
 =========  ====================  ==============  =========  =============
 
-Joints start at 0 deg (or ``initial_angles``), idle. WHEEL: max 300 mm/s, acceleration 500 mm/s^2, odometer 0.
+Joints start at 0 deg (or ``initial_angles``), idle. WHEEL: max 300 mm/s, acceleration 500 mm/s^2,
+odometer 0.
 PAW: full stroke 800 ms, starts fully open (100 %), object size 40 %, no object.
 
 Over 500 lines on purpose: the six submodules share one node base (queue, status, DBC coding);
@@ -76,10 +77,12 @@ the joint, wheel and paw physics are short.
 from __future__ import annotations
 
 import heapq
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from can_bus import dbc
-from can_bus.bus import CanBus, CanFrame
+from can_bus.bus import CanBus
+from can_bus.frames import CanFrame
+from can_bus.node import FrameSink, FrameSource
 from can_bus.dbc import (
     ACTION_CLOSE,
     ACTION_OPEN,
@@ -156,8 +159,14 @@ def _trunc_div(a: int, b: int) -> int:
     return a // b if a >= 0 else -((-a) // b)
 
 
-class _Submodule:
+class _Submodule(FrameSource, FrameSink):
     """Queue, status timer, EVENTs, silence, ESTOP and fault bookkeeping shared by all nodes."""
+
+    # stall detection, kept by the nodes that detect stalls (joints and the wheel), which
+    # also define _stall_detected
+    _stall_ev: Event | None
+    _noprog_since: int | None
+    _stall_detected: Callable[[], None]
 
     def __init__(self, sched: Scheduler, bus: CanBus, number: int,
                  status_offset: int | None = None) -> None:
@@ -415,6 +424,7 @@ class _AxisNode(_Submodule):
     def _plan(self) -> None:
         """Plan the motion from the (frozen) current position toward ``_target``."""
         p, target = self._p0, self._target
+        assert target is not None                 # a move was commanded
         if p == target:
             self._cancel_stall()
             self._target = None
@@ -843,14 +853,14 @@ class WheelNode(_Submodule):
             elif lo + brake(lo, a) > rem:
                 w = lo
             else:  # largest w in [lo, hi) with w + brake(w) <= rem
-                l, h = lo, hi
-                while h - l > 1:
-                    m = (l + h) // 2
+                fits, over = lo, hi
+                while over - fits > 1:
+                    m = (fits + over) // 2
                     if m + brake(m, a) <= rem:
-                        l = m
+                        fits = m
                     else:
-                        h = m
-                w = l
+                        over = m
+                w = fits
             if w >= rem:
                 self._x_nm += d * rem
                 self.v_ums = 0
@@ -921,7 +931,8 @@ class WheelNode(_Submodule):
 
 
 def make_submodules(sched: Scheduler, bus: CanBus,
-                    initial_angles: Sequence[float] = (0.0, 0.0, 0.0, 0.0)) -> dict[str, _Submodule]:
+                    initial_angles: Sequence[float] = (0.0, 0.0, 0.0, 0.0),
+                    ) -> dict[str, _Submodule]:
     """The six executive submodules with the default parameters (module docstring table),
     attached to ``bus``, keyed by DBC node name: JOINT1..JOINT4, WHEEL, PAW.
 

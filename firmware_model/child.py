@@ -32,7 +32,8 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from can_bus.bus import CanFrame, ErrorState
+from can_bus.bus import ErrorState
+from can_bus.frames import CanFrame
 
 from .cycle_costs import DEFAULT_COSTS, CycleCosts, message_cycles
 from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, REQUEST_TYPES, Dispatcher

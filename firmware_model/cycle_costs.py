@@ -23,6 +23,7 @@ Change any row with ``--cpu-costs FILE`` (TOML, ``name = cycles`` under ``[costs
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
@@ -132,10 +133,10 @@ def ops_cycles(ops: dict[str, int], costs: CycleCosts = DEFAULT_COSTS) -> int:
 def load_costs(path: str | Path, base: CycleCosts = DEFAULT_COSTS) -> CycleCosts:
     """``base`` with the rows a TOML file's ``[costs]`` table sets (``name = cycles``).
     Raises ValueError with the file, the row and what is wrong."""
-    try:
+    if sys.version_info >= (3, 11):
         import tomllib
-    except ModuleNotFoundError:          # Python 3.10
-        import tomli as tomllib          # type: ignore[no-redef]
+    else:                                # Python 3.10
+        import tomli as tomllib
     p = Path(path)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))

@@ -27,9 +27,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Callable
 
 from can_bus import dbc
-from can_bus.bus import CanFrame
+from can_bus.frames import CanFrame
 
 from .kinematics import (
     HOME, JOINT_LIMITS, WHEEL_MAX_SPEED, Pose, Unreachable, forward, inverse,
@@ -137,8 +138,10 @@ class Dispatcher:
         """CAN frames received that do not decode (a wrong length, a remote frame, an id the
         acceptance masks let in that no node sends): ignored, counted."""
         self.report_done = True    # a finished order is reported done() to its sender
-        self.on_notice = None      # callable(src, action, now): a robot's act(n,1) notice heard
-        self.on_action = None      # callable(action, phase, now): our own action starts/ends
+        # a robot's act(n,1) notice heard: (src, action, now)
+        self.on_notice: Callable[[int, int, int], None] | None = None
+        # our own action starts or ends: (action, phase, now)
+        self.on_action: Callable[[int, str, int], None] | None = None
 
     # -- outputs -------------------------------------------------------------------------
 
@@ -216,7 +219,7 @@ class Dispatcher:
     def on_timer(self, now: int) -> None:
         for job in list(self.jobs):
             late = [n for n in job.waiting if now >= job.deadline or (
-                self.nodes[n].last_seen is not None and now - self.nodes[n].last_seen >= SILENCE
+                (seen := self.nodes[n].last_seen) is not None and now - seen >= SILENCE
                 and now - job.started >= SILENCE)]
             if late:
                 self._job_failed(job, CODE_SILENT + late[0], now)

@@ -101,11 +101,12 @@ def inverse(x: float, y: float, z: float, phi: float) -> tuple[float, float, flo
         q3 = sign * math.acos(d)
         q2 = math.atan2(zw, rw) - math.atan2(L2 * math.sin(q3), L1 + L2 * math.cos(q3))
         q4 = p - q2 - q3
-        q = (q1, math.degrees(q2), math.degrees(q3), _wrap(math.degrees(q4)))
-        q = tuple(round(a, 2) for a in q)
+        q = (round(q1, 2), round(math.degrees(q2), 2), round(math.degrees(q3), 2),
+             round(_wrap(math.degrees(q4)), 2))
         bad = within_limits(q)
         if bad is None:
-            return q  # type: ignore[return-value]
+            return q
+    assert bad is not None                   # both elbows were tried and failed
     lo, hi = JOINT_LIMITS[bad]
     raise Unreachable(f"({x:g}, {y:g}, {z:g}) mm needs joint {bad} outside its limits "
                       f"{lo:g}..{hi:g} deg", CODE_JOINT_LIMIT)

@@ -9,7 +9,7 @@ interrupt at tick t reads any state (``on_timer`` first brings the UART up to da
 """
 from __future__ import annotations
 
-from typing import Callable, NamedTuple
+from typing import TYPE_CHECKING, Callable, NamedTuple
 
 from .mcu.gpio import OutputPin
 from .mcu.ptr2000 import Ptr2000
@@ -19,6 +19,11 @@ from .mcu.uart import Uart
 from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from .radio.mac import (SEND, Deliver, MacConfig, NumberBehind, Refused, RotationalMac,
                          Transmit, TxEnable)
+from .radio.station_mac import StationMac
+
+if TYPE_CHECKING:
+    from .cycle_costs import CycleCosts
+    from .mcu.cpu import Cpu
 
 Observer = Callable[["RadioStation", object, int], None]
 
@@ -42,8 +47,11 @@ class RadioStation:
         self.sched = sched
         self.uart = uart
         self.txen = txen
-        self.mac = RotationalMac(robot_id, cfg)
-        self.deframer = Deframer(max_content=self.mac.rx_max_content,
+        rotational = RotationalMac(robot_id, cfg)
+        self.mac: StationMac = rotational
+        """The paper's MAC; a peer MAC may take its place (radio/peer_macs.py): the station
+        uses only what :class:`~firmware_model.radio.station_mac.StationMac` lists."""
+        self.deframer = Deframer(max_content=rotational.rx_max_content,
                                  byte_ticks=uart.byte_ticks)
         self.timer = ReloadTimer(sched, self._on_timer)
         self.stall_timer = ReloadTimer(sched, self._on_stall, name="RXWATCH")
@@ -71,7 +79,7 @@ class RadioStation:
         """The End a failed frame's Length promised, while its turn is to close there: if its
         bytes stop for the stall gap before it, the frame is over then (clause 41)."""
         self._resync_after_tx = False
-        self.cpu = None
+        self.cpu: Cpu | None = None          # run_on: the handlers run on the CPU model
         self._frame_cycles = 0
         self._block_cycles = 0
         """Authenticated profile on the CPU model: the cycles of one SHA-256 compression, run
@@ -93,7 +101,7 @@ class RadioStation:
         for part in self.clocked_parts():
             part.sched = sched
 
-    def run_on(self, cpu, costs) -> None:
+    def run_on(self, cpu: Cpu, costs: CycleCosts) -> None:
         """Run the handlers on a CPU model (mcu/cpu.py) with bodies from ``costs``
         (cycle_costs.py): UART0 reception and transmission a byte at a time, the End's
         timer, and the two timer channels, at the levels of interrupts.py."""
@@ -117,6 +125,7 @@ class RadioStation:
         11.4 ms after its covered bytes, docs/cpu.md)."""
         if self._block_cycles:
             from .radio.auth import covered_len, sha256_blocks
+            assert self.cpu is not None                   # _block_cycles is set with it
             self.cpu.task("auth_tag", self._block_cycles *
                           sha256_blocks(covered_len(len(frame.content))), _nothing)
 
@@ -141,6 +150,7 @@ class RadioStation:
             self._promise = None
             self.frames_heard += 1
             if self._frame_cycles:
+                assert self.cpu is not None               # _frame_cycles is set with it
                 self.cpu.extend(self._frame_cycles)
                 self._hash(frame)
             self._apply(mac.on_frame(frame, t0, end, now))
@@ -151,6 +161,7 @@ class RadioStation:
                 self._promise = None
                 self.frames_heard += 1
                 if self._frame_cycles:
+                    assert self.cpu is not None           # _frame_cycles is set with it
                     self.cpu.extend(self._frame_cycles)
                     self._hash(ev.frame)
                 self._apply(mac.on_frame(ev.frame, ev.first, ev.end, now), ev)
@@ -172,8 +183,11 @@ class RadioStation:
             # its turn closes then (clause 41; rule R-stagger follows), not at the MAC's next
             # deadline (which may be E + Tmax) nor at the promised End. Its own timer channel,
             # so that the MAC's timer runs the same whether bytes come one by one or in bursts.
-            stall = d.last_tick + self._stall + 1
-            if d.in_frame or stall < self._promise:
+            last = d.last_tick
+            assert last is not None                       # bytes came in this call
+            stall = last + self._stall + 1
+            promise = self._promise
+            if d.in_frame or (promise is not None and stall < promise):
                 self.stall_timer.arm_at(stall + (stall & 1))   # the timer's clock / 2
                 return
             self._promise = None       # the promised End comes first
@@ -303,12 +317,15 @@ def _nothing() -> None:
 
 def build_station(robot_id: int, sched: Scheduler, byte_ticks: int | None = None,
                   config: MacConfig | None = None,
-                  observer: Observer | None = None) -> tuple[RadioStation, Ptr2000]:
+                  observer: Observer | None = None,
+                  radio_switch: tuple[int, int] | None = None) -> tuple[RadioStation, Ptr2000]:
     """A station on simulated peripherals: UART0 at "9600" (or ``byte_ticks``), TXEN on P40,
-    wired to a PTR2000 model. Returns the station and its radio (to attach to a channel)."""
+    wired to a PTR2000 model. Returns the station and its radio (to attach to a channel).
+    ``radio_switch``: the module's (TX-ready, RX-ready) switch times in ticks; default the
+    data sheet's (firmware_model/mcu/ptr2000.py), whatever the MAC's Ttrans."""
     uart = Uart(sched, byte_ticks=byte_ticks) if byte_ticks else Uart(sched, baud=9600)
     cfg = config or MacConfig()
-    radio = Ptr2000(robot_id, ttrans=cfg.ttrans)
+    radio = Ptr2000(robot_id, *radio_switch) if radio_switch is not None else Ptr2000(robot_id)
     radio.uart = uart
     uart.line = radio
     txen = OutputPin("P40/TXEN")

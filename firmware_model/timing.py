@@ -24,7 +24,21 @@ PC_BYTE_TICKS = 16_667
 """
 
 TTRANS_TICKS = 80_000
-"""Ttrans, 5 ms: PTR2000 RX->TX (and TX->RX) switch time (paper §IV.C, Fig. 7)."""
+"""Ttrans, 5 ms: the protocol's hand-over guard (paper §IV.C, Fig. 7): the next sender raises
+TXEN at the previous frame's End and sends Ttrans later. It is longer than either switch time
+of the part (PTR2000_TX_READY_TICKS, PTR2000_RX_READY_TICKS): the margin is the protocol's."""
+
+PTR2000_TX_READY_TICKS = 16_000
+"""1 ms: the PTR2000's RX->TX switch time, TXEN high to the first bit it sends. nRF401 product
+specification (the PTR2000's radio chip), Table 5 "Switching times for nRF401" (t_RT) and
+"Switching TX <-> RX", Figure 4(a): data (DIN) may not be sent before TXEN has been high for
+at least 1 ms."""
+
+PTR2000_RX_READY_TICKS = 48_000
+"""3 ms: the PTR2000's TX->RX switch time, TXEN low to the first bit it hears. nRF401 product
+specification, Table 5 "Switching times for nRF401" (t_TR) and "Switching TX <-> RX",
+Figure 4(b): the receiver may not receive data (DOUT) before TXEN has been low for at least
+3 ms."""
 
 TMAX_TICKS = 9_600_000
 """Tmax, 600 ms: most time one robot may hold the channel; also the takeover timeout."""

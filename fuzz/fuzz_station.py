@@ -1,4 +1,5 @@
-"""Coverage-guided fuzz target: a RotationalMac driven through a RadioStation (firmware_model.station).
+"""Coverage-guided fuzz target: a RotationalMac driven through a RadioStation
+(firmware_model.station).
 
 Run:  .venv/bin/python fuzz/fuzz_station.py -atheris_runs=100000 [CORPUS_DIR ...]
 
@@ -285,7 +286,8 @@ def check_station(robot: int, checksum: bool, deaf: bool, late: bool, events,
             for k in steps:
                 sched.at(t0 + k * dt, air.deliver_upto, rx, t0 + k * dt)
         t = t0 + len(data) * dt
-    horizon = t + (cfg.claim_ticks(robot) + 2 * cfg.tmax if horizon_extra is None else horizon_extra)
+    horizon = t + (cfg.claim_ticks(robot) + 2 * cfg.tmax if horizon_extra is None
+                   else horizon_extra)
 
     excused: list = [None]   # a past deadline already excused, until the MAC changes it
 

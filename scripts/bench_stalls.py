@@ -69,7 +69,7 @@ def main() -> int:
             time.sleep(a.seconds)
             kids[2].send_signal(signal.SIGCONT)
             t = sniffer.tick()
-            if wait_for(lambda: heard(sniffer, 2, t / 16e6) >= 1, 15.0):
+            if wait_for(lambda t=t: heard(sniffer, 2, t / 16e6) >= 1, 15.0):
                 first = min(f.start for f in sniffer.snapshot() if f.src == 2 and f.start >= t)
                 back.append(round((first - t) / 16e6, 2))
             else:

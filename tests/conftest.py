@@ -23,31 +23,22 @@ REALTIME_MODULES = frozenset({
 """Modules whose tests run on the wall clock: processes on the pty hub, CAN buses between
 processes, the timers of a live UI."""
 
-TIMING_TESTS = frozenset({
+REALTIME_TESTS = frozenset({
     "tests/test_auth.py::test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub",
     "tests/test_auth.py::test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_on_the_hub",
     "tests/test_auth.py::test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart",
     "tests/test_auth.py::test_conformance_checks_an_authenticated_childs_frames_and_refusals",
-})
-"""Wall-clock tests outside ``TIMING_MODULES`` that judge timing too (a frame put on the hub's
-air at a chosen offset into a turn, the conformance kit's tolerances): they run with the CPU
-to themselves (the CPU lock, ``pytest_runtest_protocol``), in the fast tier."""
-
-REALTIME_TESTS = TIMING_TESTS | frozenset({
     "tests/test_action_sequence.py::test_in_real_time",
     "tests/test_readme_commands.py::test_the_readme_monitor_command_runs_in_a_terminal",
     "tests/test_identity.py::test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going",
     "tests/test_identity.py::test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring",
 })
+"""Wall-clock tests in modules of the simulator's: processes on the hub, a real-time ring."""
 
-
-TIMING_MODULES = frozenset({
-    "test_bench_processes", "test_conformance", "test_differential", "test_stranger_robot",
-    "test_paper_profile", "test_child_acceptance", "test_bench_stalls",
-})
-"""Wall-clock tests that judge timing (turn hand-overs to a few ms, gaps, misses), and the
-acceptance tests whose bench father keeps a ring with a child process: they run with the CPU
-to themselves (the CPU lock, ``pytest_runtest_protocol``)."""
+NEEDS_THE_CPU_TARGETS = frozenset({"process"})
+"""Acceptance targets (``tests/acceptance``, ``--target``) whose bench father keeps a ring with
+a child process: in the fast tier, such a test runs with the CPU to itself (``_exclusive``),
+since the other xdist worker's simulator took a core from the child and it missed turns."""
 
 
 def node_key(nodeid: str) -> str:
@@ -79,7 +70,8 @@ def pytest_configure(config):
         # Started as a background job of a shell without job control (``pytest &`` in a
         # script, some CI runners), this process ignores SIGINT, and every program a test
         # starts would inherit that: Python then installs no Ctrl-C handler, and a test that
-        # stops ``rprs soak`` with SIGINT saw it run to the end and exit 0. Tests play a terminal's foreground job: Ctrl-C is delivered.
+        # stops ``rprs soak`` with SIGINT saw it run to the end and exit 0. Tests play a terminal's
+        # foreground job: Ctrl-C is delivered.
         signal.signal(signal.SIGINT, signal.default_int_handler)
     if not getattr(config, "workerinput", None) and \
             getattr(config.option, "testrunuid", "unset") is None:
@@ -92,10 +84,6 @@ def pytest_configure(config):
     )
     config.addinivalue_line(
         "markers", "realtime: runs on the wall clock (tests/conftest.py: is_realtime)")
-    config.addinivalue_line(
-        "markers", "shares_cpu: a wall-clock test of a TIMING_MODULES module that judges no "
-        "timing (orders end, lines said, files written): it shares the CPU with the simulator's "
-        "tests instead of running alone (tests/conftest.py: _exclusive)")
 
 
 def pytest_unconfigure(config):
@@ -223,14 +211,13 @@ def vcan_channel() -> str:
 
 
 def _exclusive(item) -> bool:
-    """Whether ``item`` judges wall-clock timing and so runs with the CPU to itself: a test of
-    ``TIMING_MODULES`` (unless marked ``shares_cpu``), one of ``TIMING_TESTS``, or one marked
-    ``timing``."""
-    if item.get_closest_marker("shares_cpu") is not None:
-        return False
-    module = item.nodeid.partition("::")[0].rpartition("/")[2].removesuffix(".py")
-    return module in TIMING_MODULES or node_key(item.nodeid) in TIMING_TESTS or \
-        item.get_closest_marker("timing") is not None
+    """Whether ``item`` runs with the CPU to itself: a test of the timing tier (marked
+    ``timing``: it judges wall-clock timing, hand-overs to a few ms, gaps, misses), or an
+    acceptance test against a child process (``NEEDS_THE_CPU_TARGETS``)."""
+    if item.get_closest_marker("timing") is not None:
+        return True
+    callspec = getattr(item, "callspec", None)
+    return callspec is not None and callspec.params.get("dut_target") in NEEDS_THE_CPU_TARGETS
 
 
 class _CpuLock:

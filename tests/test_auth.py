@@ -225,6 +225,20 @@ def _joint1_moves(evs: list) -> list:
     return [e for e in evs if e["ev"] == "can" and e.get("bus") == 1 and e.get("id") == 0x101]
 
 
+def _refused_by_every_member(w, evs, data: bytes, end: int, why: str) -> list[dict]:
+    """Put ``data`` on the air 9.6 ms after the invitation frame ending at tick ``end`` (issue
+    42's instant), run to the end, and check every member (0, 1, 2) refused it for ``why``;
+    returns the events after it."""
+    at = end + s_to_ticks(0.0096)
+    w.inject_bytes(data, at)
+    w.run()
+    after = [e for e in evs if e.get("t", 0) > at]
+    refused = [e for e in after if e["ev"] == "refused"]
+    assert {e["to"] for e in refused} == {0, 1, 2}
+    assert all(e["reason"].startswith(why) for e in refused)
+    return after
+
+
 def test_a_frame_forged_in_an_invitation_window_is_refused_by_every_robot():
     """Issue 42: a frame with the father's Source sent 9.6 ms after a child's poll was taken
     as a takeover by robot 1 and acted on (joint(1,33)). With the profile on every member
@@ -235,13 +249,7 @@ def test_a_frame_forged_in_an_invitation_window_is_refused_by_every_robot():
     end = _next_poll_by(w, evs, 2, s_to_ticks(9), AUTH_TEXT_LEN)
     moves = len(_joint1_moves(evs))
     forged = Frame(dst=1, src=0, num=5, type=2, content=b"joint(1,33)").encode()
-    at = end + s_to_ticks(0.0096)
-    w.inject_bytes(forged, at)
-    w.run()
-    after = [e for e in evs if e.get("t", 0) > at]
-    refused = [e for e in after if e["ev"] == "refused"]
-    assert {e["to"] for e in refused} == {0, 1, 2}
-    assert all(e["reason"].startswith("forged") for e in refused)
+    after = _refused_by_every_member(w, evs, forged, end, "forged")
     assert not [e for e in after if e["ev"] in ("deliver", "miss", "disable", "mode")]
     assert len(_joint1_moves(evs)) == moves
     s = w.summary()["robots"]
@@ -265,13 +273,7 @@ def test_an_exact_replay_of_an_earlier_father_order_is_refused_by_every_robot():
     assert [e["num"] for e in delivered] == [1, 2]
     first = next(data for robot, data, _ in tap if robot == 0 and b"joint(1,10)" in data)
     end = _next_poll_by(w, evs, 2, w.now, AUTH_TEXT_LEN)
-    at = end + s_to_ticks(0.0096)
-    w.inject_bytes(first, at)
-    w.run()
-    after = [e for e in evs if e.get("t", 0) > at]
-    refused = [e for e in after if e["ev"] == "refused"]
-    assert {e["to"] for e in refused} == {0, 1, 2}
-    assert all(e["reason"].startswith("replayed") for e in refused)
+    after = _refused_by_every_member(w, evs, first, end, "replayed")
     assert not [e for e in after if e["ev"] in ("deliver", "duplicate", "miss", "mode")]
 
 
@@ -399,6 +401,7 @@ class _HubRing:
         return errs
 
 
+@pytest.mark.timing
 def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_path):
     """Issue 42 at the bench: the father and children 1 and 2 as processes with one key file,
     team 0-3 so that invitations of the absent robot 3 open windows. A transmitter on the
@@ -443,6 +446,7 @@ def test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub(tmp_
                          r"own ID \d+\), numbers behind 0,", closing[-1]), err
 
 
+@pytest.mark.timing
 def test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_on_the_hub():
     """Issue 42's replay at the bench, without the profile: the father (a process) orders
     robot 1 joint(1,10) and then joint(1,20), and dies. In its slot, still its own, a
@@ -476,6 +480,7 @@ def test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_o
         assert closing and ", numbers behind 1," in closing[-1], err
 
 
+@pytest.mark.timing
 def test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart():
     """Issue 42's forged father order 9.6 ms after an invitation, at the bench without the
     profile: the children refuse it out of turn (clause 39) and the father as its own ID from
@@ -507,6 +512,7 @@ def test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart
         assert re.search(r"\(out of turn [1-9]\d*, own ID \d+\)", line), closing
 
 
+@pytest.mark.timing
 def test_conformance_checks_an_authenticated_childs_frames_and_refusals(tmp_path):
     """``rprs conformance --auth-key`` against ``rprs child --auth-key`` on the hub: the
     robot's frames carry right tags and rising freshness (clause 52), and a frame with a wrong

@@ -123,3 +123,41 @@ def test_latency_stops_asking_once_the_runner_has_stopped():
                              finished=finished)
     r = bench.latency(runner, station, 1, 200, 10.0)
     assert (r.sent, r.replies, r.failed) == (0, 0, [])
+
+
+def test_a_request_the_runner_takes_late_does_not_answer_for_the_next_one():
+    """``latency`` gives up on a request the runner's thread has not taken in 5 s; that
+    request's callback once wrote into the next request's box (a closure over the loop's
+    variables), so the next request was judged by the late one's result."""
+    import threading
+    from types import SimpleNamespace
+
+    posted: list = []
+    both = threading.Condition()
+
+    def post(fn, *args):
+        with both:
+            posted.append((fn, args))
+            both.notify()
+
+    def runner_thread():                  # takes nothing until the second request is posted
+        with both:
+            both.wait_for(lambda: len(posted) == 2, timeout=60)
+        for fn, args in posted:
+            fn(*args)
+
+    answers = iter([ValueError("the late request"), SimpleNamespace(state="delivered")])
+
+    def submit(dst, commands, type_):
+        a = next(answers)
+        if isinstance(a, Exception):
+            raise a
+        return a
+    station = SimpleNamespace(id=0, observer=None, submit=submit)
+    runner = SimpleNamespace(sched=SimpleNamespace(now=0, post=post))
+    th = threading.Thread(target=runner_thread, daemon=True)
+    th.start()
+    r = bench.latency(runner, station, 1, 2, 0.2)
+    th.join(10)
+    assert r.failed == ["None"], r             # the first: not taken within 5 s
+    assert r.sent == 1, r                      # the second: its own request, sent

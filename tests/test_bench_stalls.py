@@ -75,6 +75,7 @@ def _reader(stream, into: list[str]) -> threading.Thread:
     return t
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("stopped", [2, 0], ids=["child", "father"])
 def test_a_process_stopped_for_a_second_sends_nothing_stale_when_it_continues(
         recorded_hub, stopped):
@@ -105,7 +106,7 @@ def test_a_process_stopped_for_a_second_sends_nothing_stale_when_it_continues(
             t_cont = sniffer.tick() / 16e6
             # it takes its turns again (within the three misses the others allow, or after
             # being invited back if a busy machine made it miss a third)
-            assert wait_for(lambda: heard(sniffer, stopped, t_cont) >= 3, 15.0)
+            assert wait_for(lambda t=t_cont: heard(sniffer, stopped, t) >= 3, 15.0)
         time.sleep(0.5)
         collisions = hub.stats()["collisions"] - collisions_before
         packets = rec.snapshot()[n_before:]
@@ -140,6 +141,7 @@ SHORTEST_FRAME_TICKS = 14 * 16_640
 long after at the earliest: an event before it came from bytes heard before."""
 
 
+@pytest.mark.timing
 def test_a_father_restarted_on_a_live_ring_acts_only_on_what_it_heard_listening(
         recorded_hub, tmp_path):
     """A father is restarted on a live ring, and bytes pile up in its port before it runs (its

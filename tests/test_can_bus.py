@@ -7,68 +7,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from can_bus.bits import BitTiming, frame_length_bits, wire_bits
-from can_bus.bus import CanBus, CanFrame, ErrorState
+from can_bus.bus import CanBus, ErrorState
+from can_bus.frames import CanFrame
 from firmware_model.mcu.scheduler import Scheduler
 
-TPB = 32  # default BitTiming: 500 kbit/s at 16 MHz
-
-
-class Node:
-    """Test node using the bus-kept queue (no pending())."""
-
-    def __init__(self, name: str) -> None:
-        self.name = name
-        self.rx: list[tuple[CanFrame, int, int]] = []
-        self.done: list[tuple[CanFrame, int]] = []
-        self.lost: list[CanFrame] = []
-        self.errors = []
-        self.states: list[tuple[str, str, int]] = []
-
-    def on_frame(self, frame, start, end):
-        self.rx.append((frame, start, end))
-
-    def on_tx_done(self, frame, end):
-        self.done.append((frame, end))
-
-    def on_arbitration_lost(self, frame):
-        self.lost.append(frame)
-
-    def on_error(self, ev):
-        self.errors.append(ev)
-
-    def on_state_change(self, old, new, tick):
-        self.states.append((old.value, new.value, tick))
-
-    def __repr__(self):
-        return self.name
-
-
-class QueueNode(Node):
-    """Node keeping its own priority queue, offered through pending()."""
-
-    def __init__(self, name):
-        super().__init__(name)
-        self.q: list[CanFrame] = []
-
-    def pending(self):
-        return min(self.q, key=lambda f: (f.id, f.rtr)) if self.q else None
-
-    def on_tx_done(self, frame, end):
-        super().on_tx_done(frame, end)
-        self.q.remove(frame)
-
-
-def make(n=2, timing=None, cls=Node):
-    sched = Scheduler()
-    bus = CanBus(sched, timing or BitTiming())
-    nodes = [cls(chr(ord("a") + i)) for i in range(n)]
-    for x in nodes:
-        bus.attach(x)
-    log = []
-    errs = []
-    bus.trace = lambda f, s, e, w: log.append((f, s, e, w))
-    bus.error_trace = lambda *a: errs.append(a)
-    return sched, bus, nodes, log, errs
+from can_testbed import TPB, Node, QueueNode, make
 
 
 def flen(f: CanFrame, ifs=True) -> int:
@@ -115,7 +58,8 @@ def test_single_frame_exact_ticks():
 @given(
     st.integers(0, 0x7FF),
     st.binary(max_size=8),
-    st.sampled_from([BitTiming(), BitTiming.from_bitrate(125_000), BitTiming.from_bitrate(1_000_000)]),
+    st.sampled_from([BitTiming(), BitTiming.from_bitrate(125_000),
+                     BitTiming.from_bitrate(1_000_000)]),
 )
 def test_frame_takes_length_times_ticks_per_bit(can_id, data, timing):
     sched, bus, (a, b), log, _ = make(timing=timing)
@@ -385,7 +329,8 @@ def test_random_traffic_and_faults_keep_invariants(n_nodes, ops):
             bus.request(node, CanFrame(x * 4 + nodes.index(node), data))
             requested += 1
         elif op == "inject":
-            bus.inject_bit_error(node if x & 1 else None, count=x % 40, bit=None if x & 2 else x % 130)
+            bus.inject_bit_error(node if x & 1 else None, count=x % 40,
+                                 bit=None if x & 2 else x % 130)
         else:
             bus.hold_dominant(node, op == "hold")
         for m in nodes:
@@ -396,7 +341,8 @@ def test_random_traffic_and_faults_keep_invariants(n_nodes, ops):
     sched.run_until(t + 10**8)
     assert bus.idle
     assert sum(len(m.done) for m in nodes) == requested  # all sent once faults are gone
-    spans = sorted([(s_, e + 3 * TPB) for _, s_, e, _ in log] + [(e[2], e[4]) for e in errs if e[4] is not None])
+    spans = sorted([(s_, e + 3 * TPB) for _, s_, e, _ in log]
+                   + [(e[2], e[4]) for e in errs if e[4] is not None])
     assert all(q[0] >= p[1] for p, q in zip(spans, spans[1:]))  # nothing overlaps on the wire
 
 
@@ -423,8 +369,8 @@ def test_a_node_pending_after_request_is_asked_again_only_after_its_request():
     for cls, b_asked in ((CountingNode, 6), (AfterRequestNode, 1)):
         sched, bus, (a, b), log, _ = make(2, cls=cls)
         for k in range(3):
-            sched.at(k * 3000, lambda k=k: (a.q.append(CanFrame(0x100 + k, b"x")),
-                                            bus.request(a)))
+            sched.at(k * 3000, lambda k=k, a=a, bus=bus: (a.q.append(CanFrame(0x100 + k, b"x")),
+                                                          bus.request(a)))
         sched.run_until(10_000)
         assert [f.id for f, *_ in log] == [0x100, 0x101, 0x102]
         assert b.asked == b_asked, cls.__name__

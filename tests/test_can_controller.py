@@ -6,7 +6,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from can_bus.bits import BitTiming, frame_length_bits, wire_bits
-from can_bus.bus import CanBus, CanFrame, ErrorState
+from can_bus.bus import CanBus, ErrorState
+from can_bus.frames import CanFrame
 from can_bus.transceiver import Transceiver82C250
 from firmware_model.mcu.can_controller import (
     AMS_ALL,
@@ -257,7 +258,7 @@ def test_acceptance_exact_masks_accept_all_and_priority():
     a.configure_tx(0, 0)
     expect = {0x181: 0, 0x0C3: 1, 0x0CF: 1, 0x0D3: 15, 0x605: 2, 0x606: 15, 0x180: 15}
     got = {}
-    for can_id, buf in expect.items():
+    for can_id in expect:
         a.configure_tx(0, can_id)
         a.transmit(0)
         r.run(r.sched.now + 200 * TPB)
@@ -392,9 +393,13 @@ def test_bus_off_halts_then_firmware_restart_and_bus_recovery():
     idle = r.errs[-1][4]
     recovery = idle + 127 * 11 * TPB  # same numbers as the bare bus test
     assert (flags[15], flags[31], recovery) == (34784, 74208, 119456)
-    assert a.bus_off and a.node_status == NS_BUS_OFF and not a.halted and a.TREQR == 1
+    # HALT was written 0, yet reads 1 until the controller has rejoined (the manual's node
+    # status transition: bus-off, HALT = 1, until 128 x 11 recessive bits after the write)
+    assert a.bus_off and a.node_status == NS_BUS_OFF and a.halted and a.TREQR == 1
     r.run(recovery - 1)
-    assert a.bus_off and r.log == []
+    assert a.bus_off and a.halted and a.CSR & CSR_HALT and r.log == []
+    r.run(recovery)
+    assert not a.bus_off and not a.halted and not a.CSR & CSR_HALT
     r.run(recovery + 1000 * TPB)
     assert r.of("CAN0", "ns") == [(NS_WARNING, flags[11]), (NS_PASSIVE, flags[15]),
                                   (NS_BUS_OFF, flags[31]), (NS_ACTIVE, recovery)]
@@ -431,3 +436,68 @@ def test_bus_off_late_restart_counts_from_halt_clear():
     assert r.of("CAN0", "ns")[-1] == (NS_ACTIVE, back)
     assert [(x[0], x[1]) for x in r.log] == [(f, back)]
 
+
+
+def test_nie_is_csr_bit_2_as_in_the_familys_header():
+    """The MB90540/545 I/O header puts CSR0's NIE at bit 2 (0x0004); the model had 0x0002, so
+    firmware ported from it would set a reserved bit and get no status interrupt. Writing
+    bit 1 enables nothing and does not read back."""
+    assert (CSR_HALT, CSR_NIE, CSR_TOE, CSR_NT) == (0x0001, 0x0004, 0x0080, 0x0400)
+    for write, irq in ((0x0002, False), (CSR_NIE, True)):
+        r, a, _, _ = _bus_off_rig()
+        a.CSR = CSR_HALT | write            # (the rig had set NIE: start from this write)
+        a.start()
+        assert bool(a.CSR & CSR_NIE) is irq and not a.CSR & 0x0002
+        seen = []
+        a.on_status_irq = seen.append
+        r.run(200_000)
+        assert bool(seen) is irq and a.node_status == NS_BUS_OFF
+
+
+def test_firmware_polling_halt_after_bus_off_waits_until_the_controller_has_rejoined():
+    """The firmware for this CAN macro clears HALT and polls ``while (CSR0_HALT);``. The
+    model's HALT read 0 the moment it was written, so the loop ended 1408 bit times before
+    the controller was back on the bus. Polled every bit time from the write, HALT reads 1
+    until NS is error active again, at 128 x 11 bit times on an idle bus, then 0."""
+    r, a, _, f = _bus_off_rig()
+    r.run(1)
+    while len(r.errs) < 32:
+        r.sched.step()
+    t = r.errs[-1][4] + 10_000
+    r.run(t)
+    assert a.bus_off and a.CSR & CSR_HALT
+    a.CSR = (a.CSR | CSR_TOE) & ~CSR_HALT            # HALT = 0: recovery starts
+    polls = 0
+    while a.CSR & CSR_HALT:                          # while (CSR0_HALT);
+        assert a.node_status == NS_BUS_OFF and r.log == []
+        polls += 1
+        r.run(r.sched.now + TPB)
+    assert polls == 128 * 11 and r.sched.now == t + 128 * 11 * TPB
+    assert a.node_status == NS_ACTIVE and not a.bus_off
+    r.run(r.sched.now + 1000 * TPB)
+    assert [x[0] for x in r.log] == [f]              # and the pending frame goes
+
+
+def test_the_childs_driver_restarts_after_bus_off_and_reads_halt_until_rejoined():
+    """The firmware model's CAN driver (firmware_model/child.py) clears HALT 100 ms after a
+    bus-off and does not poll: its requests wait in their buffers. With HALT reading 1 until
+    the controller has rejoined, its restart still works: HALT reads 1 from the bus-off
+    through the recovery, 0 once NS is no longer bus-off, and the child is back on the bus."""
+    from firmware_model.mcu.can_controller import CSR_HALT as HALT
+    from hil.sim.faults import parse_fault
+    from hil.sim.world import SimConfig, World
+    w = World(SimConfig(robots=(0, 1), duration=3.5, seed=1, can=True, load=1,
+                        faults=(parse_fault("busoff:1@1"),)))
+    driver = w.children[1].can
+    c = driver.can
+    w.run(16_000_000)
+    seen = []
+    while w.now < 54_000_000:                        # the bus-off comes with its first order
+        w.run(w.now + 8_000)                         # every 0.5 ms
+        seen.append((c.bus_off, bool(c.CSR & HALT), c.halted, c.frames_received))
+    assert driver.bus_offs == 1
+    off = [s for s in seen if s[0]]
+    assert off and all(h and hh for _, h, hh, _ in off)     # HALT reads 1 all through
+    after = seen[max(i for i, s in enumerate(seen) if s[0]) + 1:]
+    assert after and not any(h or hh for _, h, hh, _ in after)
+    assert after[-1][3] > off[-1][3]                 # it takes the submodules' frames again

@@ -13,9 +13,10 @@ tests/test_frame_length_canbusload.py against can-utils' canbusload (exact stuff
 from __future__ import annotations
 
 from can_bus.bits import wire_bits
-from can_bus.bus import CanFrame, ErrorState
+from can_bus.bus import ErrorState
+from can_bus.frames import CanFrame
 
-from test_can_bus import TPB, make
+from can_testbed import TPB, make
 
 FRAME = CanFrame(0x101, bytes.fromhex("0011223344556677"))
 

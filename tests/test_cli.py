@@ -7,6 +7,7 @@ import os
 import re
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -621,10 +622,8 @@ def test_a_father_order_to_the_father_itself_is_refused_as_it_is_parsed():
     assert parse_order("7 status()")[0] == 7
 
 
-def _read_fifo(path: Path, got: list) -> "threading.Thread":
+def _read_fifo(path: Path, got: list) -> threading.Thread:
     """A reader that takes everything written to the FIFO ``path`` into ``got``."""
-    import threading
-
     def read():
         with open(path, "rb") as f:
             got.append(f.read())

@@ -22,8 +22,8 @@ from hil.bench.conformance import (BYTE, MS, TMAX, TSLOT, TTRANS, Check, Conform
                                    Report, Tester)
 
 from hostload import SchedulingLatency
-from test_paper_profile import PaperRobot
-import test_paper_profile
+import paper_robot
+from paper_robot import PaperRobot
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -399,6 +399,7 @@ def test_clause_29_is_judged_on_a_boot_frame_only(type_, num, verdict):
     assert ("not a BOOT frame" in c29.figure) == (type_ != 5)
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("profile", ["rprs", "paper"])
 def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
     child = _spawn("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
@@ -453,11 +454,12 @@ def _run_against(robot: PaperRobot, port: str, profile: str) -> dict[tuple[str, 
     return {(c.clause, c.name): c.passed for c in rep.checks}
 
 
+@pytest.mark.timing
 def test_a_robot_that_hands_over_late_fails_the_timing_clauses(air, monkeypatch):
     """A paper robot whose switch time is 30 ms instead of Ttrans = 5 ms: the hand-over
     (clause 23), the hand-over after a late frame (26) and the takeover (24) fail; its frames,
     heartbeats, broken-frame handling and acknowledgements (none) pass."""
-    monkeypatch.setattr(test_paper_profile, "TTRANS", 0.030)
+    monkeypatch.setattr(paper_robot, "TTRANS", 0.030)
     verdicts = _run_against(PaperRobot(str(air / "node0"), 1, {0, 1}), str(air / "node1"),
                             "paper")
     failed = {c for (c, _), ok in verdicts.items() if not ok}
@@ -611,6 +613,7 @@ def _documented_run(tmp_path, tolerance_ms: float | None):
     return run, out, err, probe.result
 
 
+@pytest.mark.timing
 def test_the_documented_conformance_run_passes_with_the_childs_status(tmp_path):
     """docs/conformance.md ran the child with ``--can virtual:r1`` and no submodules: the
     child said its bus could not be reached from other processes, and answered our status()
@@ -692,10 +695,11 @@ def _conformance_run(air: Path, robot: int, profile: str, team: str, tmp_path: P
         "\n".join(child_err.splitlines()[-6:])
 
 
-# The whole matrix: IDs 1-6 x both profiles x the default team and a team of two. The default
-# tier keeps cases the kit once failed (robot 4 with the default team: our frame after the
-# forged one ran into its rightful turn; robots 5 and 6 in the paper profile: their lone
-# rhythm taken for the takeover's). Robot 1 in the paper profile's static ring of seven is
+# The whole matrix on the pty hub: IDs 1-6 x both profiles x the default team and a team of
+# two, in the timing tier (it judges wall-clock hand-overs). Of it the slow tier leaves out all
+# but cases the kit once failed (robot 4 with the default team: our frame after the forged one
+# ran into its rightful turn; robots 5 and 6 in the paper profile: their lone rhythm taken for
+# the takeover's). Robot 1 in the paper profile's static ring of seven is
 # slow: in one loaded run of ten its child sent nothing the kit heard in 13 s (not explained).
 _REPRESENTATIVE = {(4, "rprs", "all"), (6, "paper", "pair"), (5, "paper", "pair")}
 # Robots 2-6 in the paper profile with the default team: the static ring holds five absent
@@ -717,6 +721,7 @@ _MATRIX = [pytest.param(r, p, t, marks=_marks(r, p, t), id=f"{r}-{p}-{t}")
            for r in range(1, 7) for p in ("rprs", "paper") for t in ("all", "pair")]
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("robot,profile,team", _MATRIX)
 def test_the_kit_passes_the_projects_child(air, tmp_path, robot, profile, team):
     run, junit, lat = _conformance_run(air, robot, profile, "0,1,2,3,4,5,6" if team == "all"
@@ -729,6 +734,7 @@ def test_the_kit_passes_the_projects_child(air, tmp_path, robot, profile, team):
     assert ("38" in _skipped(junit)) == (profile == "paper"), run.stdout
 
 
+@pytest.mark.timing
 def test_a_shared_channel_is_named_and_the_robot_not_failed(tmp_path):
     """R1 and R2 share the hub with this PC: the kit checks a ring of two, so it stops and
     says the channel carries robot 2, instead of failing robot 1 on the others' frames (it
@@ -759,6 +765,7 @@ def test_a_shared_channel_is_named_and_the_robot_not_failed(tmp_path):
     assert "FAIL" not in run.stdout, run.stdout
 
 
+@pytest.mark.timing
 def test_a_child_stopped_for_a_second_misses_turns_and_the_run_still_passes(air, tmp_path):
     """A bench process on a busy PC can be starved: here the child is stopped (SIGSTOP) for
     a second twice, once in the rotation and once just as the kit falls silent. Each time it
@@ -815,6 +822,7 @@ def _figure(junit: Path, clause: str) -> str:
         "testcase") if c.get("classname") == f"clause {clause}")
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("fault", ["late-turn", "long-length", "no-ack", "boot-01",
                                    "no-stagger", "late-answer"])
 def test_the_kit_names_the_cause_of_each_deliberate_bug(air, tmp_path, fault):

@@ -32,9 +32,11 @@ def test_table_exact():
     assert {n for n, s in COMMANDS.items() if s.layer == "mac"} == mac
     for name, spec in COMMANDS.items():
         assert isinstance(spec, CommandSpec) and spec.name == name and spec.doc
-        assert all(isinstance(p, Param) and p.kind in ("int", "num") and p.unit for p in spec.params)
+        assert all(isinstance(p, Param) and p.kind in ("int", "num") and p.unit
+                   for p in spec.params)
     sig = {n: [(p.name, p.kind, p.lo, p.hi) for p in s.params] for n, s in COMMANDS.items()}
-    assert sig["moveto"] == [("x", "num", None, None), ("y", "num", None, None), ("z", "num", None, None)]
+    assert sig["moveto"] == [("x", "num", None, None), ("y", "num", None, None),
+                             ("z", "num", None, None)]
     assert sig["joint"] == [("index", "int", 1, 4), ("angle", "num", None, None)]
     assert sig["act"] == [("action", "int", 0, 99), ("phase", "int", 0, 1)]
     assert sig["ack"] == [("src", "int", 0, 6), ("num", "int", 0, 99)]

@@ -16,7 +16,7 @@ from budgets import quick_and_thorough
 
 import can_bus
 from can_bus import dbc
-from can_bus.bus import CanFrame
+from can_bus.frames import CanFrame
 
 DBC = Path(can_bus.__file__).parent / "rprs.dbc"
 
@@ -62,7 +62,8 @@ def test_dbc_is_package_data_and_loads_strictly():
     assert len(db.messages) == len(EXPECTED) == 19
     assert dbc.load() is dbc.load()  # cached
     assert dbc.dbc_path().read_text() == DBC.read_text()
-    assert [n.name for n in db.nodes] == ["MCU", "JOINT1", "JOINT2", "JOINT3", "JOINT4", "WHEEL", "PAW"]
+    assert [n.name for n in db.nodes] == ["MCU", "JOINT1", "JOINT2", "JOINT3", "JOINT4", "WHEEL",
+                                          "PAW"]
     assert all(n.comment for n in db.nodes)
     assert db.buses[0].baudrate == 500_000
 
@@ -78,7 +79,8 @@ def test_every_frame_of_the_contract(name):
     assert {s.name for s in m.signals} == set(signals)
     for s in m.signals:
         start, size, signed, scale, unit = signals[s.name]
-        assert (s.start, s.length, s.is_signed, s.scale, s.offset) == (start, size, signed, scale, 0)
+        assert (s.start, s.length, s.is_signed, s.scale, s.offset) == \
+            (start, size, signed, scale, 0)
         assert s.byte_order == "little_endian"
         assert (s.unit or None) == unit
         assert s.receivers == receivers
@@ -99,7 +101,8 @@ def test_name_helpers():
     assert dbc.joint_status_name(2) == "JOINT2_STATUS"
     assert [dbc.event_name(n) for n in (1, 6)] == ["EVENT1", "EVENT6"]
     assert [dbc.cmd_name(n) for n in (3, 5, 6)] == ["JOINT3_CMD", "WHEEL_CMD", "PAW_CMD"]
-    assert [dbc.status_name(n) for n in (4, 5, 6)] == ["JOINT4_STATUS", "WHEEL_STATUS", "PAW_STATUS"]
+    assert [dbc.status_name(n) for n in (4, 5, 6)] == \
+        ["JOINT4_STATUS", "WHEEL_STATUS", "PAW_STATUS"]
     for bad in (0, 5, True, "1"):
         with pytest.raises(dbc.DbcError):
             dbc.joint_cmd_name(bad)
@@ -190,7 +193,8 @@ def test_encode_errors():
         dbc.encode("PAW_CMD", action="sideways", force=0, seq=0)
     with pytest.raises(dbc.DbcError, match="must be an int"):
         dbc.encode_raw("PAW_CMD", action=0, force=1.5, seq=0)
-    with pytest.raises(dbc.DbcError, match="raw signal 'angle' = 32768 is out of range -32768..32767"):
+    with pytest.raises(dbc.DbcError,
+                       match="raw signal 'angle' = 32768 is out of range -32768..32767"):
         dbc.encode_raw("JOINT1_STATUS", angle=32768, speed=0, state=0, seq=0)
     with pytest.raises(dbc.DbcError, match="unknown frame name 'JOINT5_CMD'"):
         dbc.encode("JOINT5_CMD")
@@ -218,7 +222,8 @@ def test_cantools_cli_decodes_a_candump_log(tmp_path):
         dbc.encode("EVENT3", kind="fault", seq=4, code=1),
         dbc.encode("WHEEL_STATUS", speed=-150, odometer=1234, state=1, seq=3),
     ]
-    lines = [f"  can0  {f.id:03X}   [{f.dlc}]  " + " ".join(f"{b:02X}" for b in f.data) for f in frames]
+    lines = [f"  can0  {f.id:03X}   [{f.dlc}]  " + " ".join(f"{b:02X}" for b in f.data)
+             for f in frames]
     log = "\n".join(lines) + "\n"
     out = subprocess.run(
         [sys.executable, "-m", "cantools", "decode", str(DBC)],
@@ -370,7 +375,8 @@ def _our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode(case):
 
 
 (test_our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode,
- test_our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode_thoroughly) = quick_and_thorough(
+ test_our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode_thoroughly) = \
+    quick_and_thorough(
     lambda budget: budget(given(case=_signals())(
         _our_physical_checks_are_at_least_as_strict_as_cantools_strict_mode)),
     QUICK, THOROUGH)

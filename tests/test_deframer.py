@@ -97,7 +97,8 @@ def test_bad_byte_fails_and_resyncs_on_it():
 def test_failure_fields_before_length_known():
     ev = Deframer().feed(HEADER + b"29x", 0, 1)
     ff = ev[0]
-    assert (ff.error.field, ff.error.offset, ff.src, ff.length, ff.expected_end) == ("source", 4, None, None, None)
+    assert (ff.error.field, ff.error.offset, ff.src, ff.length, ff.expected_end) == \
+        ("source", 4, None, None, None)
     assert ev[1:] == [Garbage(2, 4, 5)]  # '9' is re-hunted as garbage, then 'x'
 
 
@@ -105,7 +106,8 @@ def test_length_above_max_content():
     d = Deframer(max_content=20)
     ev = d.feed(Frame(1, 2, 3, 2, b"a" * 21).encode() + HB.encode(), 0, 1)
     ff = ev[0]
-    assert (ff.error.field, ff.error.offset, ff.error.byte) == ("length", 11, ord("1"))  # "0021" > 20
+    # "0021" > 20
+    assert (ff.error.field, ff.error.offset, ff.error.byte) == ("length", 11, ord("1"))
     assert isinstance(ev[-1], FrameReceived) and ev[-1].frame == HB
     ev = Deframer(max_content=600).feed(Frame(1, 2, 3, 2, b"a" * 600).encode(), 0, 1)
     assert ev[0].frame.length == 600
@@ -177,7 +179,8 @@ def test_feed_split_mid_frame_and_accepts_bytearray():
 
 # Junk never contains 0x05 or 0x19, so no defect piece plus junk can ever complete a frame:
 # the only frames on the wire are the good ones (see the module docstring of deframer.py).
-junk = st.lists(st.integers(0, 255).filter(lambda b: b not in (0x05, 0x19)), min_size=1, max_size=30).map(bytes)
+junk = st.lists(st.integers(0, 255).filter(lambda b: b not in (0x05, 0x19)),
+                min_size=1, max_size=30).map(bytes)
 
 
 @st.composite
@@ -190,14 +193,16 @@ def defects(draw):
     if kind == "truncated":
         return data[: draw(st.integers(1, len(data) - 1))]
     if kind == "bad_end":
-        end = draw(st.tuples(st.integers(0, 255), st.integers(0, 255)).filter(lambda e: bytes(e) != END))
+        end = draw(st.tuples(st.integers(0, 255), st.integers(0, 255))
+                   .filter(lambda e: bytes(e) != END))
         return data[:-2] + bytes(end)
     lie = draw(st.integers(0, 9999).filter(lambda n: n != frame.length))
     return data[:8] + b"%04d" % lie + data[12:]
 
 
 pieces = st.lists(
-    st.one_of(frames.map(lambda f: ("good", f)), junk.map(lambda b: ("bad", b)), defects().map(lambda b: ("bad", b))),
+    st.one_of(frames.map(lambda f: ("good", f)), junk.map(lambda b: ("bad", b)),
+              defects().map(lambda b: ("bad", b))),
     max_size=12,
 )
 
@@ -226,7 +231,8 @@ def test_every_good_frame_found_once_in_order(parts, t0, dt):
 
 
 @SETTINGS
-@given(st.one_of(st.binary(max_size=200), pieces.map(lambda p: assemble(p)[0])), st.integers(0, 10**6), st.integers(1, 50))
+@given(st.one_of(st.binary(max_size=200), pieces.map(lambda p: assemble(p)[0])),
+       st.integers(0, 10**6), st.integers(1, 50))
 def test_bulk_equals_byte_at_a_time(data, t0, dt):
     bulk = Deframer(byte_ticks=dt)
     ev = bulk.feed(data, t0, dt)
@@ -241,7 +247,8 @@ def test_bulk_equals_byte_at_a_time(data, t0, dt):
 
 
 @SETTINGS
-@given(st.one_of(st.binary(max_size=200), pieces.map(lambda p: assemble(p)[0])), st.lists(st.integers(0, 200), max_size=6), st.integers(1, 50))
+@given(st.one_of(st.binary(max_size=200), pieces.map(lambda p: assemble(p)[0])),
+       st.lists(st.integers(0, 200), max_size=6), st.integers(1, 50))
 def test_chunked_feeds_equal_one_feed(data, cuts, dt):
     whole = Deframer().feed(data, 0, dt)
     d = Deframer()

@@ -163,14 +163,16 @@ def sim_run(offset_ticks, n, seed):
     return frames, t0, drops
 
 
+@pytest.mark.timing
 @pytest.mark.parametrize("n, seed", BURSTS, ids=[f"{n}B" for n, _ in BURSTS])
 def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed, tmp_path):
     hframes, ht0, split, late_ms = hub_run(n, seed, tmp_path)
     hub_src, hub_gap, hub_misses = outcome(hframes, ht0, n)
     sframes, st0, drops = sim_run(OFFSET_TICKS, n, seed)
     sim_src, sim_gap, sim_misses = outcome(sframes, st0, n)
-    near = lambda fs, t0: [(f[0], round((f[1] - t0) / 16_000, 1), round((f[2] - t0) / 16_000, 1))
-                           for f in fs if -40 * 16_000 < f[1] - t0 < (n + 300) * 16_000]  # noqa: E731
+    def near(fs, t0):
+        return [(f[0], round((f[1] - t0) / 16_000, 1), round((f[2] - t0) / 16_000, 1))
+                for f in fs if -40 * 16_000 < f[1] - t0 < (n + 300) * 16_000]
     # the frames around the burst, in ms from its start, and R1's packets that were not a whole
     # frame (_AirLog) go in the report
     report = dict(offset_ms=OFFSET_TICKS / 16_000, split_packets=split, inject_late_ms=late_ms,

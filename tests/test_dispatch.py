@@ -4,10 +4,10 @@ from __future__ import annotations
 import pytest
 
 from can_bus import dbc
-from can_bus.bus import CanFrame
-from firmware_model.kinematics import HOME, JOINT_LIMITS, forward, inverse
+from can_bus.frames import CanFrame
+from firmware_model.kinematics import HOME, forward, inverse
 from firmware_model.radio.content import cmd
-from firmware_model.timing import TICK_HZ, s_to_ticks
+from firmware_model.timing import s_to_ticks
 from hil.sim.world import SimConfig, World
 
 START = s_to_ticks(4.0)        # the ring has formed by then

@@ -69,7 +69,8 @@ def test_the_glossary_is_linked_and_its_references_exist():
         for a, b in re.findall(r"(\d+)(?:-(\d+))?", group):
             cited.update(range(int(a), int(b or a) + 1))
     assert cited and cited <= clauses, sorted(cited - clauses)
-    for path in re.findall(r"`((?:hil|can_bus|firmware_model|tests|benchmarks|scripts)/[\w/.]+)`", text):
+    for path in re.findall(r"`((?:hil|can_bus|firmware_model|tests|benchmarks|scripts)/[\w/.]+)`",
+                           text):
         assert (ROOT / path).exists(), path
     for page in re.findall(r"\]\((\w[\w-]*\.md)\)", text):
         assert (DOCS / page).exists(), page

@@ -69,7 +69,8 @@ def test_heartbeat_bytes():
 def test_construct_declaration_builds_and_parses():
     c = FRAME_FORMAT.parse(PAPER_BYTES)
     assert (c.dst, c.src, c.num, c.type, c.length, c.content) == (2, 1, 5, 2, 9, b"movex(10)")
-    assert FRAME_FORMAT.build(dict(dst=2, src=1, num=5, type=2, content=b"movex(10)")) == PAPER_BYTES
+    assert FRAME_FORMAT.build(dict(dst=2, src=1, num=5, type=2, content=b"movex(10)")) == \
+        PAPER_BYTES
 
 
 @SETTINGS

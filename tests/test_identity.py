@@ -368,8 +368,9 @@ def test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring(
         # the ring drops the stopped R2 (3 misses) and invites the twin in its place
         assert wait_for(lambda: heard(sniffer, 2, t_stop + 2.0) >= 5, 30.0)
         kids[2].send_signal(signal.SIGCONT)
-        said = lambda: [k for k, v in errs.items() if any("has ID 2" in ln for ln in v)]  # noqa
-        assert wait_for(lambda: said(), 20.0), errs
+        def said():
+            return [k for k, v in errs.items() if any("has ID 2" in ln for ln in v)]
+        assert wait_for(said, 20.0), errs
         t_said = sniffer.tick() / 16e6
         time.sleep(1.0)
         bad_before = sniffer.result.failed + sniffer.result.garbage

@@ -1,6 +1,8 @@
 """The opt-in checksum extension (docs/protocol.md §3.4, docs/mac.md): test vectors and interop."""
 from __future__ import annotations
 
+import pytest
+
 from firmware_model.radio.content import parse_content, split_layers
 from firmware_model.radio.frame import Frame, parse_frame
 from firmware_model.radio.integrity import CRC_TEXT_LEN, check, crc16, seal, strip
@@ -74,3 +76,73 @@ def test_with_the_extension_on_the_owners_heartbeat_without_a_checksum_is_refuse
     mac = _member_waiting_for_robot_1(checksum=False)
     out = mac.on_frame(Frame(dst=7, src=1, num=5, type=3, content=b""), t, t + 1000, t + 1000)
     assert any(isinstance(a, TxEnable) for a in out)       # extension off: a plain heartbeat
+
+
+def test_with_the_extension_on_a_bad_checksum_is_judged_before_the_source_it_names():
+    """Clause 43: with the checksum on, a frame whose checksum fails is a failed frame whose
+    Source was not read. A byte error that turns the Source into our own ID, or into a robot
+    outside the team, must not be taken for a twin (clause 38) or a foreign ring: two such
+    frames once made a member announce a duplicate ID and leave for LISTEN."""
+    from firmware_model.radio.mac import (BadChecksum, DuplicateId, ForeignRing, ModeChange,
+                                          Refused)
+    mac = _member_waiting_for_robot_1(checksum=True)
+    t = 3_000_000
+    events = []
+    for src in (2, 2, 5, 2):                     # our own ID twice, one outside (1, 2), again
+        good = seal(7, 1, 6, 3, b"")
+        forged_src = Frame(dst=7, src=src, num=good.num, type=3, content=good.content)
+        events += list(mac.on_frame(forged_src, t, t + 1000, t + 1000))
+        t += 700_000
+    kinds = {type(e) for e in events}
+    assert BadChecksum in kinds, events
+    assert not kinds & {DuplicateId, ForeignRing, Refused}, events
+    assert not [e for e in events if isinstance(e, ModeChange)], events
+    assert mac.mode == "member"
+
+
+def test_a_refused_good_frame_proves_the_radio_hears_and_resets_the_cut_off_count():
+    """Clause 40: a member goes to LISTEN after max(3, n - 1) misses "without hearing any good
+    frame in between". A good frame it refuses (our own ID, here) was heard: its radio is not
+    cut off. Robot 2 of ring (1, 2, 3), after its own frame: robots 3 and 1 miss, our own ID
+    is heard, robot 3 misses: three misses, not in a row, and R2 stays a member."""
+    from firmware_model.radio.mac import MacConfig, Miss, ModeChange, Refused, RotationalMac
+    mac = RotationalMac(2, MacConfig(team=frozenset({1, 2, 3})))
+    mac.power_on(0)
+    t = 1_000_000
+    mac.on_frame(Frame(dst=7, src=1, num=5, type=3, content=b"poll(2,10)"), t - 20_000, t, t)
+    mac.on_timer(mac.deadline)                  # SWITCH: our JOIN goes out
+    mac.on_tx_done(mac.turn_start + 2_000_000)
+    assert (mac.mode, mac.ring, mac.owner) == ("member", (1, 2, 3), 3)
+    events = list(mac.on_timer(mac.deadline))   # robot 3 misses
+    events += mac.on_timer(mac.deadline)        # robot 1 misses
+    e = mac.turn_start + 100_000                # our own ID heard in robot 2's turn: refused
+    events += mac.on_frame(Frame(dst=7, src=2, num=9, type=3, content=b""), e - 233_000, e, e)
+    while mac.owner != 3 or mac.phase != "wait":
+        events += mac.on_timer(mac.deadline)
+    events += mac.on_timer(mac.deadline)        # robot 3 misses again
+    assert [type(x) for x in events if isinstance(x, (Miss, Refused))] == \
+        [Miss, Miss, Refused, Miss], events
+    assert not [x for x in events if isinstance(x, ModeChange)], events
+    assert mac.mode == "member"
+
+
+@pytest.mark.parametrize("frame", [
+    pytest.param(Frame(dst=7, src=5, num=1, type=3, content=b""), id="outside the team"),
+    pytest.param(Frame(dst=7, src=1, num=1, type=3, content=b"crc(00000)"), id="bad checksum"),
+])
+def test_a_lone_member_stays_for_a_frame_refused_as_failed(frame):
+    """Clause 31: a lone member goes back to LISTEN for a good frame of another robot of its
+    team; a frame refused as a failed frame (Source outside the team, clause 38; bad checksum,
+    clause 43) is none: its Source may be a byte error or a stranger's."""
+    from firmware_model.radio.mac import MacConfig, ModeChange, RotationalMac
+    mac = RotationalMac(2, MacConfig(team=frozenset({1, 2, 3}), checksum=True))
+    mac.power_on(0)
+    while mac.mode != "member":                  # silence: it claims, a ring of one
+        mac.on_timer(mac.deadline)
+    mac.on_timer(mac.deadline)
+    mac.on_tx_done(mac.deadline if mac.deadline else mac.turn_start + 1_000_000)
+    assert mac.ring == (2,)
+    t = mac.turn_start + 2_000_000
+    out = mac.on_frame(frame, t - 14 * 16_667, t, t)
+    assert not [e for e in out if isinstance(e, ModeChange)], out
+    assert (mac.mode, mac.ring) == ("member", (2,))

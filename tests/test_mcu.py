@@ -11,7 +11,8 @@ from firmware_model.mcu.reload_timer import PRESCALERS, ReloadTimer, plan_delay
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.mcu.uart import BAUD_DIVISORS, Uart
 from firmware_model.timing import (
-    CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, TTRANS_TICKS, UART_BIT_TICKS_9600,
+    CHILD_BYTE_TICKS, PC_BYTE_TICKS, PTR2000_RX_READY_TICKS, PTR2000_TX_READY_TICKS, TICK_HZ,
+    TTRANS_TICKS, UART_BIT_TICKS_9600,
 )
 
 # ---------------------------------------------------------------------------------------------
@@ -435,20 +436,49 @@ def test_output_pin_notifies_only_on_change():
     assert pin.level is False and pin.changed_at == 30
 
 
-def test_ptr2000_loses_bytes_before_ttrans():
+def test_ptr2000_switch_times_are_the_nrf401_data_sheets_not_ttrans():
+    """nRF401 Table 5: data may be sent 1 ms after TXEN rises and received 3 ms after it
+    falls; the protocol's Ttrans (5 ms) is a guard longer than both, not the part's figure."""
+    assert (PTR2000_TX_READY_TICKS, PTR2000_RX_READY_TICKS) == (16_000, 48_000)
+    assert TTRANS_TICKS == 80_000 > PTR2000_RX_READY_TICKS > PTR2000_TX_READY_TICKS
+    r = Ptr2000(1)
+    assert (r.tx_ready_delay, r.rx_ready_delay) == (PTR2000_TX_READY_TICKS,
+                                                    PTR2000_RX_READY_TICKS)
+
+
+def test_ptr2000_loses_bytes_before_its_tx_ready_delay():
     s, u, r, pin, ch = _wired()
-    assert TTRANS_TICKS == 80_000
     pin.set(True, 0)
-    s.run_until(TTRANS_TICKS - 1)
+    s.run_until(PTR2000_TX_READY_TICKS - 1)
     end = u.send(b"early")
     assert r.lost_tx == 1 and ch.tx == []
     s.run_until(end)                                  # UART still shifts them out
     assert s.now == end
     s2, u2, r2, pin2, ch2 = _wired()
     pin2.set(True, 0)
-    s2.run_until(TTRANS_TICKS)
+    s2.run_until(PTR2000_TX_READY_TICKS)              # 1 ms: the part sends, Ttrans or not
     u2.send(b"ok")
-    assert r2.lost_tx == 0 and ch2.tx == [(b"ok", TTRANS_TICKS, 16640)]
+    assert r2.lost_tx == 0 and ch2.tx == [(b"ok", PTR2000_TX_READY_TICKS, 16640)]
+
+
+def test_ptr2000_switch_times_are_set_per_module():
+    """A module with its own figures (here Ttrans both ways, the model before the data
+    sheet's) loses a burst the data sheet's module sends, and hears later."""
+    slow = Ptr2000(2, tx_ready_delay=TTRANS_TICKS, rx_ready_delay=TTRANS_TICKS)
+    s = Scheduler()
+    u = Uart(s)
+    slow.uart, u.line = u, slow
+    ch = ChannelRecorder()
+    slow.channel = ch
+    slow.set_txen(True, 0)
+    s.run_until(PTR2000_TX_READY_TICKS)
+    u.send(b"x")
+    assert slow.lost_tx == 1 and ch.tx == []
+    slow.set_txen(False, 200_000)
+    assert not slow.listening(200_000 + PTR2000_RX_READY_TICKS)
+    assert slow.listening(200_000 + TTRANS_TICKS)
+    with pytest.raises(ValueError, match="switch times"):
+        Ptr2000(3, tx_ready_delay=-1)
 
 
 def test_ptr2000_txen_low_loses_bytes():
@@ -466,7 +496,7 @@ def test_ptr2000_txen_high_then_low_before_send():
     assert r.lost_tx == 1 and ch.tx == []
 
 
-def test_ptr2000_deaf_while_txen_high_and_hears_ttrans_after_low():
+def test_ptr2000_deaf_while_txen_high_and_hears_its_rx_ready_delay_after_low():
     s, u, r, pin, ch = _wired()
     assert r.listening(0)
     pin.set(True, 1000)
@@ -475,22 +505,22 @@ def test_ptr2000_deaf_while_txen_high_and_hears_ttrans_after_low():
         assert not r.listening(t)
     s.run_until(500_000)
     pin.set(False, 500_000)
-    assert ("rx_restart", 580_000) in ch.calls
-    assert not r.listening(579_999)
-    assert r.listening(580_000)
+    assert ("rx_restart", 548_000) in ch.calls        # 3 ms, not Ttrans (5 ms)
+    assert not r.listening(547_999)
+    assert r.listening(548_000)
 
 
 def test_ptr2000_retoggle_resets_switch_time():
     s, u, r, pin, ch = _wired()
     pin.set(True, 0)
-    pin.set(False, 40_000)
-    pin.set(True, 60_000)
-    s.run_until(139_999)
+    pin.set(False, 10_000)
+    pin.set(True, 20_000)
+    s.run_until(35_999)
     u.send(b"a")
     assert r.lost_tx == 1
-    s.run_until(140_000 + 16640)
+    s.run_until(36_000 + 16640)
     u.send(b"b")
-    assert ch.tx == [(b"b", 140_000 + 16640, 16640)]
+    assert ch.tx == [(b"b", 36_000 + 16640, 16640)]
 
 
 def test_dead_ptr2000_neither_sends_nor_hears():

@@ -3,6 +3,7 @@ robot written from the paper alone, on the pty hub: tests/test_paper_profile.py.
 from __future__ import annotations
 
 from firmware_model.radio.mac import MacConfig
+from firmware_model.timing import s_to_ticks
 from hil.sim.faults import Fault
 from hil.sim.world import SimConfig, World
 
@@ -82,3 +83,20 @@ def test_the_papers_action_sequence_runs_in_the_paper_profile(capsys):
     assert main(["demo", "action-sequence", "--profile", "paper"]) == 0
     out = capsys.readouterr().out
     assert "2 cycle(s) done" in out and "collisions 0" in out
+
+
+def test_in_simulation_a_lone_paper_robot_of_a_team_of_seven_keeps_its_ring():
+    """R1 on, the six others of its team never (issue 43: "a lone paper robot sent back to
+    listening after 3.6 s by a team of 7"). The misses of robots it never heard counted
+    towards the cut-off (clause 40): six in its first round and it went to LISTEN, then
+    restarted the static ring after Tclaim, and again, silent half the time. It now keeps its
+    ring: it disables each absent robot at its third miss and goes on alone, never in LISTEN."""
+    w, evs = _paper_world(robots=(0, 1, 2, 3, 4, 5, 6), duration=18.0, load="idle",
+                          power_on={r: 17.9 for r in (0, 2, 3, 4, 5, 6)})
+    w.run(s_to_ticks(17.5))                     # the others are not yet on
+    modes = [e["reason"] for e in evs if e["ev"] == "mode" and e["robot"] == 1]
+    assert modes == ["a member of the static ring of the team (paper profile)"]
+    assert sorted(e["robot"] for e in evs if e["ev"] == "disable") == [0, 2, 3, 4, 5, 6]
+    assert w.ring_views()[1] == (1,)
+    sent = [e["t"] for e in evs if e["ev"] == "frame" and e["src"] == 1]
+    assert sent and max(b - a for a, b in zip(sent, sent[1:])) < 4 * 16_000_000

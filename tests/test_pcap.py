@@ -189,7 +189,7 @@ def _fields(tree, prefix, out=None):
 @needs_tshark
 def test_every_can_payload_decodes_as_cantools_decodes_it(run):
     # the Lua table against cantools reading can_bus/rprs.dbc: every signal of every frame
-    from can_bus.bus import CanFrame
+    from can_bus.frames import CanFrame
     from can_bus.dbc import decode
     path, trace = run
     pkts = [p["_source"]["layers"] for p in _tshark_json(path, "-Y", "rprs_can")]

@@ -202,7 +202,7 @@ def test_end_to_end_between_three_robots_accounting(kind):
     bcast = [m for m in w.messages if m.dst == BROADCAST and m.state == "delivered"]
     assert bcast and all(sum(1 for k in w.deliveries if k[0] == m.src and k[1] == m.num
                              and w.messages[k[2] - 1] is m) == 2 for m in bcast)
-    for r, st in w.stations.items():
+    for st in w.stations.values():
         assert st.mac.mode == "member" and set(st.mac.ring) == {0, 1, 2}
 
 
@@ -236,7 +236,7 @@ def test_csma_with_idle_noise_senses_frames_only():
     for sense, ok in (("bytes", False), ("frame", True)):
         w = World(SimConfig(robots=(1, 2), duration=4.0, seed=1, noise=True))
         install(w, "csma", PeerConfig(sense=sense))
-        w.sched.at(100_000, lambda: w.submit(1, 2, [cmd("movex", 3)]))
+        w.sched.at(100_000, lambda w=w: w.submit(1, 2, [cmd("movex", 3)]))
         w.run()
         assert (w.stats[1].delivered == 1) is ok
 

@@ -18,6 +18,7 @@ from firmware_model.timing import (
 )
 from hil.sim.faults import Fault, parse_fault
 from hil.sim.world import SimConfig, World
+from contents import content_of
 
 B = PC_BYTE_TICKS          # a foreign transmitter's byte time (9600 baud)
 
@@ -103,19 +104,6 @@ def test_a_forged_frame_from_a_never_member_is_refused_and_not_acted_on():
 
 
 # -- finding 3: the largest legal frame between every pair, father included -----------------
-
-def content_of(size):
-    """Commands whose Content is exactly ``size`` bytes (size >= 16)."""
-    out, left = [], size
-    while left >= 32:
-        out.append(cmd("movex", 123456789))        # 16 bytes
-        left -= 16
-    a = left // 2                                  # two commands of 8-16 bytes each
-    for n in (a, left - a):
-        out.append(cmd("movex", int("1" * (n - 7))))
-    assert sum(len(c.text()) for c in out) == size
-    return out
-
 
 def test_every_station_receives_the_largest_frame_any_station_may_send():
     assert protocol_max_content() == 562
@@ -469,6 +457,37 @@ def test_a_father_pc1_that_took_over_ends_its_probation_and_delivers():
     assert mac._check_turns == 0
     msg = Frame(dst=0, src=1, num=5, type=2, content=b"movex(1)")
     assert any(type(a) is Deliver for a in r1_sends(msg))
+
+
+def test_pc1_on_probation_that_hears_the_other_pcs_frame_while_it_watches_yields_the_slot():
+    """Clause 50 with the real-time margins: PC1, on probation after hearing the other PC
+    after a miss, watches its turn for W past Ttrans (35 ms). The other PC's heartbeat begins
+    and ends inside that watch (19.6 ms): the members take it as ID 0's frame, and robot 1's
+    Header is due at its End + Ttrans. PC1 refused it as our own ID but kept watching, then
+    raised TXEN at 35 ms, over robot 1's frame. The frame closes ID 0's slot for PC1 too: it
+    waits for robot 1, and sends nothing in that turn."""
+    from firmware_model.radio.mac import TxEnable
+    from hil.bench.runner import realtime_config
+    cfg = realtime_config(MacConfig(team=frozenset({0, 1, 2}), paired=True, pc=1))
+    mac = RotationalMac(0, cfg)
+    mac.power_on(0)
+    t = 100 * B
+    mac.on_frame(Frame(7, 1, 0, 3, b"poll(0,2)"), t - 23 * B, t, t)   # invited: ring {0, 1}
+    mac.on_timer(mac.deadline)                                         # SWITCH -> SEND
+    mac.on_tx_done(mac.turn_start + cfg.ttrans + 20 * B)
+    mac.on_timer(mac.deadline)                       # robot 1 missed: our turn, R-stagger
+    e = mac.turn_start + 40 * B
+    mac.on_frame(Frame(7, 0, 0, 3, b""), e - 14 * B, e, e)   # the other PC: probation
+    e = mac.turn_start + 80 * B
+    mac.on_frame(Frame(7, 1, 0, 3, b""), e - 14 * B, e, e)   # robot 1; our turn, watched
+    assert mac.phase == "watch" and mac._check_turns
+    start = e + cfg.ttrans                           # the other PC's heartbeat, 14 bytes
+    other_end = start + 14 * B
+    out = list(mac.on_frame(Frame(7, 0, 1, 3, b""), start + B, other_end, other_end))
+    assert (mac.phase, mac.owner) == ("wait", 1), (mac.phase, mac.owner, out)
+    assert mac.deadline == other_end + cfg.tmax
+    assert not any(isinstance(a, TxEnable) for a in out)
+    assert not any(isinstance(a, TxEnable) for a in mac.on_timer(start + 35 * 16_000))
 
 
 # -- found by seeded failover runs: a father PC back from a short outage delivered twice -----

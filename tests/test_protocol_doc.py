@@ -10,13 +10,12 @@ import heapq
 import re
 from pathlib import Path
 
-import pytest
 
 from firmware_model.radio import integrity
 from firmware_model.radio.content import cmd, frame_kind
 from firmware_model.radio.frame import Frame, parse_frame
 from firmware_model.radio.mac import Deliver, MacConfig, RotationalMac, Transmit
-from firmware_model.radio.mac_table import TRANSITIONS
+from firmware_model.radio.mac_table import STATES, TRANSITIONS
 from firmware_model.timing import (
     CHILD_BYTE_TICKS,
     MISS_LIMIT,
@@ -265,6 +264,110 @@ def test_the_transition_table_is_the_macs_and_cites_existing_clauses():
             assert int(n) in clauses, cited
 
 
+def table_clauses(text: str | None = None) -> dict[tuple[str, str, str], set[int]]:
+    """§6's table: (state, event, next) -> the clauses its last column cites."""
+    rows = re.findall(r"^\| (LISTEN|WAIT|WINDOW|QUIET|HOLD|SWITCH|SEND|WATCH) \| ([a-z ]+) \| "
+                      r"([A-Z]+) \| [^|]+ \| ([\d, ]+) \|$", text or doc(), flags=re.M)
+    return {(a, b, c): {int(n) for n in cited.split(",")} for a, b, c, cited in rows}
+
+
+GUARD_EVENT = re.compile(r"^  on (power on|frame|failed frame|garbage|tx done|deadline)\b")
+GUARD = re.compile(r" -> ([A-Z]+) +\[(\d+(?:, \d+)*)\]( †)?$")
+
+
+def guards(text: str | None = None) -> list[tuple[str, str, str, set[int], bool]]:
+    """§6.1's pseudo-code: (state, event, next, clauses, marked †) for every ``-> NEXT [..]``
+    line, in the document's order. A block opens with its state's name; ``  on EVENT`` sets the
+    event of the lines after it (and of its own line)."""
+    found = []
+    for block in re.findall(r"^```guards\n(.*?)^```$", text or doc(), flags=re.S | re.M):
+        state = block.split(None, 1)[0]
+        event = None
+        for line in block.splitlines():
+            m = GUARD_EVENT.match(line)
+            if m:
+                event = m.group(1)
+            if "->" not in line:
+                continue
+            g = GUARD.search(line)
+            assert g, f"a guard must end in '-> STATE [clauses]': {line!r}"
+            assert state in STATES and event, f"a guard outside a state's event: {line!r}"
+            assert g.group(1) in STATES, line
+            found.append((state, event, g.group(1), {int(n) for n in g.group(2).split(",")},
+                          bool(g.group(3))))
+    return found
+
+
+def guard_problems(text: str | None = None) -> list[str]:
+    """What is wrong between §6.1's guards and the MAC's transition table (empty: nothing).
+
+    Unmarked lines must be rows of TRANSITIONS (without the fault injection's ``steal``, not
+    in the spec), lines marked † must not be (they are paths no simulated run takes: once a
+    run does and the row exists, the mark goes), every row must have a line, and the clauses
+    of a row in §6's table must be exactly those its lines cite: a line's clauses are a
+    subset of its row's, and none of the row's is cited by no line."""
+    text = text or doc()
+    rows, cited = _code_rows(), table_clauses(text)
+    lines = guards(text)
+    problems = []
+    union: dict[tuple[str, str, str], set[int]] = {}
+    for state, event, nxt, clauses, marked in lines:
+        key = (state, event, nxt)
+        if marked:
+            if key in rows:
+                problems.append(f"{key} is a row of the table: drop its † mark")
+            continue
+        if key not in rows:
+            problems.append(f"{key} is no row of the table (mark it † if no run takes it)")
+            continue
+        if not clauses <= cited[key]:
+            problems.append(f"{key} cites {sorted(clauses - cited[key])}, not in its row")
+        union.setdefault(key, set()).update(clauses)
+    for key in sorted(rows - set(union)):
+        problems.append(f"the row {key} has no guard")
+    for key, clauses in sorted(union.items()):
+        if clauses != cited[key]:
+            problems.append(f"{key}: the table cites {sorted(cited[key] - clauses)}, "
+                            f"which no guard does")
+    return problems
+
+
+def test_the_guards_are_one_block_per_state_in_the_tables_order():
+    heads = [b.split(None, 1)[0]
+             for b in re.findall(r"^```guards\n(.*?)^```$", doc(), flags=re.S | re.M)]
+    assert [h for h in heads if h in STATES] == list(STATES)
+    assert all(h in STATES for h in heads[1:]), "definitions come before the states"
+
+
+def test_the_guards_are_the_macs_transition_table():
+    lines = guards()
+    assert len(lines) >= len(_code_rows())
+    assert not guard_problems(), "\n".join(guard_problems())
+    clauses = clause_numbers()
+    for *_, cited, _marked in lines:
+        assert cited <= set(clauses), cited
+
+
+def test_the_guard_check_catches_a_dropped_line_or_a_wrong_target():
+    """The check above is not vacuous: deleting a guard line, changing its target, its
+    clauses or its mark makes it fail."""
+    text = doc()
+    line = "succ(s) == me: TXEN at E, Header at E + Ttrans"
+    start = text.index(line)
+    end = text.index("\n", start)
+    full = text[text.rindex("\n", 0, start) + 1:end]
+    assert full.endswith("-> SWITCH [23, 39]"), full
+    assert "('WAIT', 'frame', 'SWITCH')" in " ".join(guard_problems(text.replace(full + "\n", "")))
+    assert guard_problems(text.replace(full, full.replace("SWITCH", "WAIT  ")))
+    assert guard_problems(text.replace(full, full.replace("[23, 39]", "[23, 40]")))
+    assert guard_problems(text.replace(full, full + " †"))
+    sent = "    else WAIT for succ(me) until E + Tmax ............................. -> WAIT   [22]"
+    assert sent in text
+    not_a_row = sent.replace("WAIT   [22]", "SEND   [22]")      # (SEND, tx done, SEND)
+    assert guard_problems(text.replace(sent, sent + "\n" + not_a_row))
+    assert not guard_problems(text.replace(sent, sent + "\n" + not_a_row + " †"))
+
+
 # ----------------------------------------------------------------------------------------------
 # Numbers, clauses, references
 # ----------------------------------------------------------------------------------------------
@@ -382,3 +485,23 @@ if __name__ == "__main__":       # print the blocks docs/protocol.md §8 holds
     for block in examples():
         print(f"```frame\n{block}```\n")
     print(f"```transcript\n{transcript()}```")
+
+
+def test_clause_19a_names_the_order_types_and_the_failure_codes_the_child_uses():
+    """Clause 19a (orders and information) is normative: its order Types are the dispatcher's
+    REQUEST_TYPES, and its failure-code table holds exactly the codes the child answers with
+    (each constant of the dispatcher and the kinematics), no more."""
+    from firmware_model import dispatcher as d
+    from firmware_model import kinematics as k
+    text = doc()
+    start = text.index("**Clause 19a — Orders and information**")
+    clause = text[start:text.index("\n**Clause", start + 10)]
+    assert "only those of Type `'0'`, `'1'` or `'2'` are **orders**" in clause
+    assert d.REQUEST_TYPES == {0, 1, 2}
+    rows = re.findall(r"^\| (\d+)(\+n)? \| ", clause, flags=re.M)
+    table = {(int(c), bool(n)) for c, n in rows}
+    code = {(k.CODE_UNREACHABLE, False), (k.CODE_JOINT_LIMIT, False), (d.CODE_RANGE, False),
+            (d.CODE_FAULT, True), (d.CODE_REFUSED, True), (d.CODE_SILENT, True),
+            (d.CODE_SILENT, False), (d.CODE_BUS_OFF, False), (d.CODE_BLOCKED, False),
+            (d.CODE_NO_CAN, False)}
+    assert table == code and len(rows) == len(code)

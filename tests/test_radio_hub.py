@@ -229,16 +229,18 @@ class _Bursts:
         self.packets.append((key, tick - len(data) * self.bt, tick))
 
 
-def test_a_transmitter_is_deaf_on_the_air_clock_until_ttrans_after_its_burst(hubs):
-    """A PTR2000 hears nothing while TXEN is high and for Ttrans after it falls. A pty has no
-    TXEN line, so the hub deafens a node while its burst is on air and for Ttrans (80,000
-    ticks) after the burst ends there, on the air's own clock: a bench process, whose bytes
-    reach the air late and which dates its own End earlier, never hears the garbage of a
-    collision with its own frame (issue 40: it took it for its successor's broken frame).
-    Node 0 sends 400 bytes; a foreign transmitter collides with them and goes on after them.
-    Node 0 hears the garbage only from its burst's end + Ttrans to the end of the collision,
-    to the byte; node 1, listening throughout, hears the collision from its start."""
-    from firmware_model.timing import TTRANS_TICKS
+def test_a_transmitter_is_deaf_on_the_air_clock_until_its_rx_ready_delay_after_its_burst(hubs):
+    """A PTR2000 hears nothing while TXEN is high and for its RX-ready delay after it falls
+    (3 ms, 48,000 ticks: the nRF401 data sheet's TX->RX switch time, not the protocol's 5 ms
+    Ttrans guard). A pty has no TXEN line, so the hub deafens a node while its burst is on air
+    and for that delay after the burst ends there, on the air's own clock: a bench process,
+    whose bytes reach the air late and which dates its own End earlier, never hears the
+    garbage of a collision with its own frame (issue 40: it took it for its successor's
+    broken frame). Node 0 sends 400 bytes; a foreign transmitter collides with them and goes
+    on after them. Node 0 hears the garbage only from its burst's end + 3 ms to the end of
+    the collision, to the byte (with Ttrans, about 2 bytes fewer); node 1, listening
+    throughout, hears the collision from its start."""
+    from firmware_model.timing import PTR2000_RX_READY_TICKS, TTRANS_TICKS
     from hil.sim.faults import parse_fault
     hub = hubs(2, seed=3, faults=[parse_fault("foreign@0.25:400")])
     bursts = _Bursts(hub.byte_ticks)
@@ -259,7 +261,8 @@ def test_a_transmitter_is_deaf_on_the_air_clock_until_ttrans_after_its_burst(hub
     assert s0 < fs < e0 - 50 * bt and fe > e0 + TTRANS_TICKS + 50 * bt, \
         f"the hub put node 0's bytes on air too late to collide as planned: {bursts.packets}"
     assert _clean_run(got0, 0x41) <= 4            # never its own bytes (random: a few)
-    assert len(got0) == (fe - e0 - TTRANS_TICKS) // bt     # deaf until e0 + Ttrans
+    assert len(got0) == (fe - e0 - PTR2000_RX_READY_TICKS) // bt   # deaf until e0 + 3 ms
+    assert len(got0) > (fe - e0 - TTRANS_TICKS) // bt
     assert len(got1) >= (fe - s0) // bt - 2       # node 1 heard it all, garbage from fs
     assert hub.stats()["collisions"] == 1
 
@@ -432,7 +435,7 @@ def test_socat_a_client_nobody_here_wrote_sends_and_receives_frames_on_the_hub(h
         sock.stdin.write(payload)
         sock.stdin.flush()
         assert read_n(fd1, len(payload), 5.0)[0] == payload
-        time.sleep(0.02)            # node 0 is deaf until Ttrans after its burst (docs/radio-hub.md)
+        time.sleep(0.02)    # node 0 is deaf until 3 ms after its burst (docs/radio-hub.md)
         os.write(fd1, FRAME)                      # and back: socat prints what its node hears
         got = bytearray()
         end = time.monotonic() + 5.0
@@ -803,7 +806,7 @@ def test_the_latest_drop_and_fault_are_accepted_and_the_hub_runs(hubs):
     fd0, fd1 = (open_node(hubs, p) for p in hub.paths)
     os.write(fd0, b"xyz")
     assert read_n(fd1, 3, 5.0)[0] == b"xyz"
-    time.sleep(0.02)            # node 0's radio hears again Ttrans (5 ms) after its burst ends
+    time.sleep(0.02)            # node 0's radio hears again 3 ms after its burst ends
     os.write(fd1, b"abc")
     assert read_n(fd0, 3, 5.0)[0] == b"abc"
 

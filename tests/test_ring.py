@@ -11,6 +11,7 @@ from firmware_model.timing import (
     CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, TTRANS_TICKS, s_to_ticks,
 )
 from hil.sim.world import Fault, SimConfig, World
+from contents import content_of
 
 MAC = MacConfig()
 
@@ -90,7 +91,7 @@ def test_paper_simulation_r1_dies_three_misses_then_dropped():
     disables = [e for e in after if e["ev"] == "disable"]
     assert {e["by"] for e in disables} == {2, 3, 4} and {e["robot"] for e in disables} == {1}
     t_drop = disables[0]["t"]
-    assert all(e.get("t", -1) == t_drop for e in disables)            # every member at the same tick
+    assert all(e.get("t", -1) == t_drop for e in disables)    # every member at the same tick
     for observer in (2, 3, 4):
         mine = [e.get("t", -1) for e in misses if e["by"] == observer and e.get("t", -1) <= t_drop]
         assert len(mine) == 3                                   # exactly three misses
@@ -249,30 +250,15 @@ def test_saturated_ring_delivers_full_size_messages():
     assert max(sizes) <= 576 and max(sizes) >= 500
 
 
-def _content_of(size: int):
-    """Commands whose Content is exactly ``size`` bytes (size >= 8)."""
-    from firmware_model.radio.content import format_content
-    cmds = []
-    while size - len(format_content(cmds)) >= 16 + 8:
-        cmds.append(cmd("movex", 123456789))                # 16 bytes each
-    rest = size - len(format_content(cmds))
-    if rest > 16:
-        cmds.append(cmd("movex", int("1" * (rest - 8 - 7))))
-        rest = size - len(format_content(cmds))
-    cmds.append(cmd("movex", int("1" * (rest - 7))))
-    assert len(format_content(cmds)) == size
-    return cmds
-
-
 def test_submission_refuses_a_frame_longer_than_tmax():
     w = World(SimConfig(robots=(0, 1, 2), duration=1.0))
     child, father = w.stations[1], w.stations[0]
-    child.submit(2, _content_of(562))                       # 576 bytes x 16640 <= Tmax
-    father.submit(1, _content_of(561))                      # 575 bytes x 16667 <= Tmax
+    child.submit(2, content_of(562))                       # 576 bytes x 16640 <= Tmax
+    father.submit(1, content_of(561))                      # 575 bytes x 16667 <= Tmax
     with pytest.raises(SubmitError, match="577-byte frame"):
-        child.submit(2, _content_of(563))
+        child.submit(2, content_of(563))
     with pytest.raises(SubmitError, match="576-byte frame"):
-        father.submit(1, _content_of(562))
+        father.submit(1, content_of(562))
     with pytest.raises(SubmitError, match="destination"):
         child.submit(1, [cmd("stop")])                      # to itself
     with pytest.raises(SubmitError, match="MAC command"):

@@ -39,7 +39,6 @@ from dataclasses import replace
 import pytest
 
 from firmware_model.radio.content import cmd
-from firmware_model.radio.frame import Frame
 from firmware_model.radio.mac import MacConfig
 from firmware_model.station import build_station
 from firmware_model.timing import (
@@ -47,7 +46,7 @@ from firmware_model.timing import (
 )
 from hil.sim.faults import parse_fault
 from hil.sim.world import SimConfig, World
-from test_promises import content_of
+from contents import content_of
 
 B = CHILD_BYTE_TICKS
 FOREIGN_B = PC_BYTE_TICKS        # a transmitter that is no robot sends at exact 9600 baud

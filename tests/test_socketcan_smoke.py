@@ -6,7 +6,6 @@ set, and there a missing piece is a failure, not a skip. See docs/vcan.md.
 """
 
 import os
-import socket
 
 import pytest
 
@@ -14,7 +13,7 @@ can = pytest.importorskip("can")
 
 pytestmark = pytest.mark.vcan
 
-from can_bus.bridge import socketcan_missing
+from can_bus.bridge import socketcan_missing  # noqa: E402  (after the importorskip of can)
 
 CHANNEL = os.environ.get("RPRS_VCAN_CHANNEL", "vcan0")
 CANFD_MTU = 72
@@ -62,7 +61,8 @@ def _drain(bus):
 
 FRAMES = [
     can.Message(arbitration_id=0x010, is_extended_id=False, data=[0x01]),
-    can.Message(arbitration_id=0x101, is_extended_id=False, data=[0x10, 0x27, 0x00, 0x00, 0x07, 0x00]),
+    can.Message(arbitration_id=0x101, is_extended_id=False,
+                data=[0x10, 0x27, 0x00, 0x00, 0x07, 0x00]),
     can.Message(arbitration_id=0x1ABCDE0F, is_extended_id=True, data=bytes(range(8))),
     can.Message(arbitration_id=0x185, is_extended_id=False, data=b""),
 ]
@@ -114,7 +114,8 @@ def test_can_fd_frame(open_bus):
         pytest.skip(f"{CHANNEL} MTU {_mtu()} < {CANFD_MTU}: no CAN FD")
     tx, rx = open_bus(fd=True), open_bus(fd=True)
     _drain(rx)
-    msg = can.Message(arbitration_id=0x123, is_extended_id=False, is_fd=True, bitrate_switch=True, data=bytes(range(64)))
+    msg = can.Message(arbitration_id=0x123, is_extended_id=False, is_fd=True, bitrate_switch=True,
+                      data=bytes(range(64)))
     tx.send(msg)
     got = rx.recv(timeout=2.0)
     assert got is not None and got.is_fd

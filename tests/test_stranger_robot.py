@@ -342,7 +342,7 @@ class StrangerRobot:
                 self.next_turn(f.src, f.end)
                 return
         self.misses[f.src] = 0
-        for k, mask in polls:                                       # clause 37
+        for _k, mask in polls:                                      # clause 37
             if mask != 1 << f.src and not mask >> self.id & 1:
                 self.to_listen(f"left out of {f.src}'s ring")
                 return self.on_frame_again(f)
@@ -679,6 +679,7 @@ def test_the_robot_imports_nothing_from_the_project():
     assert not [m for m in names if m.split(".")[0] in ("firmware_model", "can_bus", "hil")]
 
 
+@pytest.mark.timing
 def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
     why = _ptys_available()
     if why:

@@ -6,7 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from can_bus import dbc
-from can_bus.bus import CanBus, CanFrame
+from can_bus.bus import CanBus
+from can_bus.frames import CanFrame
 from can_bus.submodules import (
     MS,
     PAW_FULL,
@@ -68,7 +69,8 @@ class Env:
         return self.drv.tx_end[-1]
 
     def events(self, n, since=0):
-        return [(s, v["kind"], v["seq"], v["code"]) for s, v in self.drv.frames(dbc.event_name(n), since)]
+        return [(s, v["kind"], v["seq"], v["code"])
+                for s, v in self.drv.frames(dbc.event_name(n), since)]
 
     def status(self, n, since=0):
         return self.drv.frames(dbc.status_name(n), since)
@@ -204,7 +206,8 @@ def test_hold_relax_and_preemption(env):
     end5 = env.send("JOINT4_CMD", angle=10, speed=90, seq=5, mode="move")
     p = j.angle_cdeg
     env.run(end5 + TICK_HZ)
-    assert env.events(4, since=end4) == [(end5 + ceil_div(abs(1000 - p) * TICK_HZ, 9000), DONE, 5, 0)]
+    assert env.events(4, since=end4) == \
+        [(end5 + ceil_div(abs(1000 - p) * TICK_HZ, 9000), DONE, 5, 0)]
 
 
 def test_stall_at_angle_detected_and_reported(env):

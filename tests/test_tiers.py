@@ -4,6 +4,7 @@ the SocketCAN tests that ran in the VM, the programs CI installs for the tests t
 and the host-latency probe of the wall-clock tests (tests/hostload.py)."""
 from __future__ import annotations
 
+import ast
 import os
 import re
 import subprocess
@@ -134,6 +135,28 @@ def test_ci_runs_the_slow_and_timing_tiers_as_a_step_where_no_test_is_no_failure
         assert "args: -m slow or timing" in r.stdout, r.stdout
 
 
+
+def test_ci_runs_ruff_and_mypy_before_the_tests_and_fails_on_any_finding(tmp_path):
+    """.ci/run's lint step, run with stand-ins for ruff and mypy: it names itself, runs both
+    (mypy too when ruff reported), fails when either reports and passes when neither does; it
+    comes before the fast tier, and the install brings both (the ``lint`` extra)."""
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    start = ci.index("echo \"ci: step 'lint'")
+    assert start < ci.index("echo \"ci: step 'fast tier'")
+    step = ci[start:ci.index("\nfi\n", start) + 4]
+    assert "pip install -e '.[test,lint]'" in ci[:start]
+    venv = tmp_path / ".venv" / "bin"
+    venv.mkdir(parents=True)
+    for ruff, mypy, ok in ((0, 0, True), (1, 0, False), (0, 1, False), (1, 1, False)):
+        for name, status in (("ruff", ruff), ("mypy", mypy)):
+            (venv / name).write_text(f'#!/bin/sh\necho "{name} ran: $*"\nexit {status}\n')
+            (venv / name).chmod(0o755)
+        r = subprocess.run(["bash", "-c", "set -euo pipefail\n" + step], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=30)
+        assert (r.returncode == 0) == ok, (ruff, mypy, r.stdout, r.stderr)
+        assert "ci: step 'lint'" in r.stdout
+        assert "ruff ran: check ." in r.stdout and "mypy ran:" in r.stdout, r.stdout
+
 # ---------------------------------------------------------------- the latency probe
 def test_latency_summary_percentiles():
     lat = summarise([float(x) for x in range(1, 101)] + [-0.5])
@@ -197,3 +220,21 @@ def test_every_test_that_starts_the_hub_runs_as_a_wall_clock_test():
                 stray.append(f"tests/{path.name}::{node.name}")
     assert stray == [], "start the pty radio hub but are not wall-clock tests: " \
         f"{stray} (add them to REALTIME_TESTS in tests/conftest.py)"
+
+
+def test_no_test_module_imports_another():
+    """Helpers the tests share live in modules of their own (``tests/processes.py``,
+    ``tests/paper_robot.py``, ``tests/can_testbed.py``, ...), not in a test module: importing
+    a test module runs its module-level code and its fixtures' imports a second time, and ties
+    one file's tests to another's internals."""
+    tests = Path(__file__).resolve().parent
+    modules = {p.stem for p in tests.rglob("test_*.py")}
+    found = []
+    for path in sorted(tests.rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            found += [f"{path.relative_to(tests)}: {n}" for n in names
+                      if n.partition(".")[0] in modules]
+    assert not found, found

@@ -10,7 +10,8 @@ from hil.cli.trace_digests import RUNS, digest, read_recorded
 @pytest.mark.parametrize("name", list(RUNS))
 def test_a_seeded_trace_is_the_recorded_one(name):
     recorded = read_recorded()
-    assert name in recorded, f"no digest recorded for {name!r}: python scripts/trace_digest.py --write"
+    assert name in recorded, \
+        f"no digest recorded for {name!r}: python scripts/trace_digest.py --write"
     assert digest(RUNS[name]) == recorded[name], (
         f"the trace of {name!r} ({RUNS[name]}) changed. A change meant to keep behaviour must "
         f"not; if this one changes it on purpose, record the digests again "

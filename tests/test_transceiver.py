@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from can_bus.bits import BitTiming, frame_length_bits, wire_bits
-from can_bus.bus import CanBus, CanFrame, ErrorState
+from can_bus.bus import CanBus, ErrorState
+from can_bus.frames import CanFrame
 from can_bus.physical import loop_delay_s, max_bus_length_m, prop_time_s
 from can_bus.transceiver import (
     MAX_BITRATE,
@@ -17,7 +18,7 @@ from can_bus.transceiver import (
     max_bitrate,
     slew_rate,
 )
-from firmware_model.mcu.can_controller import AMS_ALL, NS_PASSIVE, CanController
+from firmware_model.mcu.can_controller import AMS_ALL, CSR_NIE, NS_PASSIVE, CanController
 from firmware_model.mcu.scheduler import Scheduler
 
 TPB = 32  # 500 kbit/s
@@ -311,7 +312,7 @@ def test_firmware_isolates_itself_from_its_status_interrupt():
     """The faulty node's ISR reacts to error passive by putting its 82C250 in standby (from
     inside the bus's callback): the others communicate again."""
     sched, bus, (a, b, c), (xa, xb, xc), log, errs = rig(3)
-    a.CSR = a.CSR | 0x0002  # NIE
+    a.CSR = a.CSR | CSR_NIE
 
     def isr(ns):
         if ns >= NS_PASSIVE:

@@ -10,9 +10,11 @@ calls ``transceiver.request()`` / ``transceiver.status()``. All times are intege
 Registers (16 message buffers, x = 0..15; bit x of a 16-bit register is buffer x)
 ---------------------------------------------------------------------------------
 * ``CSR`` control status: ``HALT`` (bit 0, 1 = bus operation halted; 1 after reset),
-  ``NIE`` (bit 1, node status transition interrupt enable), ``TOE`` (bit 7, transmit output
-  enable: 0 = the TX pin is a port, nothing is sent), ``NS1:NS0`` (bits 9:8, node status: 00
-  error active, 01 warning = error active with TEC or REC >= 96, 10 error passive, 11 bus off),
+  ``NIE`` (bit 2, 0x0004, node status transition interrupt enable, where the MB90540/545
+  family's I/O header has CSR0's NIE; the model once had bit 1), ``TOE`` (bit 7, transmit
+  output enable: 0 = the TX pin is a port, nothing is sent), ``NS1:NS0`` (bits 9:8, node
+  status: 00 error active, 01 warning = error active with TEC or REC >= 96, 10 error passive,
+  11 bus off),
   ``NT`` (bit 10, node status transition flag, cleared by writing 0). ``TS``/``RS`` (transmit /
   receive in progress) are not modelled (read 0).
 * ``LEIR`` last event indicator: ``NTE`` (bit 7, node status transition), ``TCE`` (bit 6,
@@ -71,18 +73,23 @@ Model decisions
   (``recovers_on_request``: the bus model counts for this node only from
   ``start_recovery``); the controller comes back (NS = 00, NT = 1, transmit requests
   resume) when the count is complete, at the earliest 1408 bit times after HALT was cleared
-  (2.816 ms at 500 kbit/s). While HALT = 1 it does not acknowledge others' frames
-  (``acknowledges``).
+  (2.816 ms at 500 kbit/s). HALT reads 1 until then, though 0 was written (same figure: the
+  controller leaves bus-off, HALT = 1, only once the 128 x 11 recessive bits have passed):
+  firmware for this CAN macro clears HALT and polls ``while (CSR0_HALT);`` until the
+  controller has rejoined, which reading 0 at once would end before it had (``halted`` is
+  that read-back). While HALT = 1 it does not acknowledge others' frames (``acknowledges``).
 
 Over 500 lines on purpose: it is one peripheral, register by register, as the MB90F549 manual's
 CAN chapter describes it.
 """
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, final
 
 from can_bus.bits import BitTiming
-from can_bus.bus import CanErrorEvent, CanFrame, ErrorState
+from can_bus.bus import CanErrorEvent, ErrorState
+from can_bus.frames import CanFrame
+from can_bus.node import CanNode
 
 from ..timing import TICK_HZ
 
@@ -103,7 +110,7 @@ _IDMASK = 0x7FF
 AMS_FULL, AMS_ALL, AMS_AMR0, AMS_AMR1 = 0b00, 0b01, 0b10, 0b11
 
 CSR_HALT = 0x0001
-CSR_NIE = 0x0002
+CSR_NIE = 0x0004
 CSR_TOE = 0x0080
 CSR_NS0 = 0x0100
 CSR_NS1 = 0x0200
@@ -155,7 +162,8 @@ def _check_id(can_id: int) -> int:
     return can_id
 
 
-class CanController:
+@final
+class CanController(CanNode):
     """One MB90F549 CAN interface. Reset state: HALT = 1, TOE = 0, every buffer invalid."""
 
     recovers_on_request = True
@@ -223,7 +231,9 @@ class CanController:
 
     @property
     def halted(self) -> bool:
-        return bool(self._csr & CSR_HALT)
+        """HALT as the firmware reads it: 1 while bus-off, also after 0 was written, until the
+        bus-off recovery is complete (the module docstring)."""
+        return bool(self._csr & CSR_HALT) or self._busoff
 
     @property
     def bus_off(self) -> bool:
@@ -283,7 +293,7 @@ class CanController:
             raise RuntimeError(f"{self.name}: buffer {buf} has a transmit request pending")
         rtr = bool(self._trtr & bit)
         frame = CanFrame(self._id[buf], b"" if rtr else bytes(data), rtr, dlc)
-        self._dlc[buf] = frame.dlc
+        self._dlc[buf] = frame.dlc  # type: ignore[assignment]  # an int after __post_init__
         if not rtr:
             self._dtr[buf] = frame.data + self._dtr[buf][len(frame.data):]
         self._txframe[buf] = frame
@@ -367,7 +377,8 @@ class CanController:
     # ================================================================== registers
     @property
     def CSR(self) -> int:
-        return (self._csr & (_CSR_WRITABLE | CSR_NT)) | (self.node_status << 8)
+        halt = CSR_HALT if self._busoff else 0      # reads 1 until recovered (docstring)
+        return (self._csr & (_CSR_WRITABLE | CSR_NT)) | halt | (self.node_status << 8)
 
     @CSR.setter
     def CSR(self, value: int) -> None:
@@ -634,7 +645,7 @@ class CanController:
         self._rc = rc | bit
         self._rxframe[buf] = frame
         self._id[buf] = fid
-        self._dlc[buf] = frame.dlc
+        self._dlc[buf] = frame.dlc  # type: ignore[assignment]  # an int after __post_init__
         if frame.rtr:
             self._rrtr |= bit
         else:

@@ -1,16 +1,23 @@
 """PTR2000 (nRF401-based) 433 MHz half-duplex radio module, as the RPRS robots wire it.
 
-TXEN high: the module switches to transmit, which takes Ttrans (5 ms); bytes the UART sends
-before then never reach the air. TXEN low: it switches back and hears the air again Ttrans
-later. While transmitting or switching it is deaf. With nobody transmitting, a real module
-outputs random bytes; the channel model decides what the receiver hears (hil.sim.air). A dead
-module (``alive = False``, fault injection) neither sends nor hears.
+TXEN high: the module switches to transmit, which takes its TX-ready delay (``tx_ready_delay``,
+1 ms on the part); bytes the UART sends before then never reach the air. TXEN low: it switches
+back and hears the air again its RX-ready delay later (``rx_ready_delay``, 3 ms on the part).
+While transmitting or switching it is deaf. Both delays are the part's, from the nRF401 product
+specification (the PTR2000's radio chip), Table 5 "Switching times for nRF401" and "Switching
+TX <-> RX", Figure 4 (firmware_model/timing.py PTR2000_TX_READY_TICKS, PTR2000_RX_READY_TICKS),
+and can be set per module. They are not the protocol's Ttrans (5 ms), the guard the MAC waits
+between TXEN and its first byte and between a frame's End and the next Header: the hand-over
+margin is Ttrans less these, 2 ms on the part for the previous sender to hear the next Header.
+With nobody transmitting, a real module outputs random bytes; the channel model decides what
+the receiver hears (hil.sim.air). A dead module (``alive = False``, fault injection) neither
+sends nor hears.
 """
 from __future__ import annotations
 
 from typing import Any
 
-from ..timing import TTRANS_TICKS
+from ..timing import PTR2000_RX_READY_TICKS, PTR2000_TX_READY_TICKS
 
 NEVER = 1 << 62
 
@@ -18,12 +25,17 @@ NEVER = 1 << 62
 class Ptr2000:
     """One radio module. ``channel`` is the air (set by the world); ``uart`` receives bytes."""
 
-    __slots__ = ("robot", "ttrans", "txen", "tx_ready", "rx_from", "alive", "channel", "uart",
-                 "rx", "noise_from", "lost_tx", "idx")
+    __slots__ = ("robot", "tx_ready_delay", "rx_ready_delay", "txen", "tx_ready", "rx_from",
+                 "alive", "channel", "uart", "rx", "noise_from", "lost_tx", "idx")
 
-    def __init__(self, robot: int, ttrans: int = TTRANS_TICKS) -> None:
+    def __init__(self, robot: int, tx_ready_delay: int = PTR2000_TX_READY_TICKS,
+                 rx_ready_delay: int = PTR2000_RX_READY_TICKS) -> None:
+        if tx_ready_delay < 0 or rx_ready_delay < 0:
+            raise ValueError(f"PTR2000 switch times must be >= 0 ticks, got TX-ready "
+                             f"{tx_ready_delay} and RX-ready {rx_ready_delay}")
         self.robot = robot
-        self.ttrans = ttrans
+        self.tx_ready_delay = tx_ready_delay   # TXEN high to the first bit it sends (ticks)
+        self.rx_ready_delay = rx_ready_delay   # TXEN low to the first bit it hears (ticks)
         self.txen = False
         self.tx_ready = NEVER
         self.rx_from = 0
@@ -32,7 +44,7 @@ class Ptr2000:
         self.uart: Any = None
         self.rx: Any = None          # the reception in progress (owned by the channel)
         self.noise_from = 0          # idle noise generated up to this tick (channel bookkeeping)
-        self.lost_tx = 0             # bursts sent before Ttrans elapsed or with TXEN low
+        self.lost_tx = 0             # bursts sent before the TX-ready delay or with TXEN low
         self.idx = 0
 
     def set_txen(self, level: bool, now: int) -> None:
@@ -44,12 +56,12 @@ class Ptr2000:
             if self.channel is not None:
                 self.channel.deafen(self, now)     # takes what was heard up to now first
             self.txen = True
-            self.tx_ready = now + self.ttrans
+            self.tx_ready = now + self.tx_ready_delay
             self.rx_from = NEVER
         else:
             self.txen = False
             self.tx_ready = NEVER
-            self.rx_from = now + self.ttrans
+            self.rx_from = now + self.rx_ready_delay
             if self.channel is not None:
                 off = getattr(self.channel, "carrier_off", None)
                 if off is not None:

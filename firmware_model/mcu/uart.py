@@ -29,10 +29,13 @@ so a transmit handler that was preempted before its entry drops TXEN late by as 
 """
 from __future__ import annotations
 
-from typing import Callable, Protocol
+from typing import TYPE_CHECKING, Callable, Protocol
 
 from ..timing import BITS_PER_BYTE_8N1, TICK_HZ
 from .scheduler import Scheduler
+
+if TYPE_CHECKING:
+    from .cpu import Cpu, Vector
 
 BAUD_DIVISORS = {1200: 13312, 2400: 6656, 4800: 3328, 9600: 1664, 19200: 832, 38400: 416}
 """Nominal baud -> ticks a bit (16 x the dedicated generator's count at 16 MHz)."""
@@ -65,8 +68,8 @@ class Uart:
             if baud not in BAUD_DIVISORS:
                 raise ValueError(f"the MB90F549 baud generator has no {baud} baud setting; "
                                  f"choose one of {sorted(BAUD_DIVISORS)}")
-            self.bit_ticks = BAUD_DIVISORS[baud]
-            byte_ticks = self.bit_ticks * BITS_PER_BYTE_8N1
+            self.bit_ticks: float = BAUD_DIVISORS[baud]
+            byte_ticks = BAUD_DIVISORS[baud] * BITS_PER_BYTE_8N1
         else:
             self.bit_ticks = byte_ticks / BITS_PER_BYTE_8N1
         self.byte_ticks = byte_ticks
@@ -76,13 +79,14 @@ class Uart:
         self.busy_until = 0
         self.bytes_sent = 0
         self.bytes_received = 0
-        self.cpu = None
-        self.rx_vector = self.tx_vector = None
+        self.cpu: Cpu | None = None          # attach_cpu: the handlers run on the CPU model
+        self.rx_vector: Vector | None = None
+        self.tx_vector: Vector | None = None
         self.rx_cycles = self.tx_cycles = 0
         self.rdr: list[tuple[int, int]] = []   # (byte, stop-bit tick); RDRF while non-empty
         self.overruns = 0
         self._read: list[tuple[int, int]] = []
-        self.end_vector = None
+        self.end_vector: Vector | None = None
         self.end_cycles = 0
         self.gaps = 0                # times the shift register ran dry inside a frame
         self.gap_ticks = 0           # idle line those gaps left inside frames (ticks)
@@ -94,8 +98,8 @@ class Uart:
         self._shift: tuple[int, int] | None = None   # (index, stop-bit end) shifting out
         self._tdre_entry = 0
 
-    def attach_cpu(self, cpu, rx_vector, rx_cycles: int, tx_vector, tx_cycles: int,
-                   end_vector, end_cycles: int) -> None:
+    def attach_cpu(self, cpu: Cpu, rx_vector: Vector, rx_cycles: int, tx_vector: Vector,
+                   tx_cycles: int, end_vector: Vector, end_cycles: int) -> None:
         """Run the handlers on ``cpu`` (mcu/cpu.py): reception (``rx_cycles`` a byte), the
         transmit interrupt (TDRE, ``tx_cycles`` a byte) and the timer that marks the End's
         stop bit (``end_cycles``: TXEN low and the MAC's end-of-frame rules)."""
@@ -141,6 +145,8 @@ class Uart:
         """Byte ``k`` moves into the shift register at ``now``: TDRE, the transmit request.
         ``new_burst``: the line was idle before it (the frame's first byte, or after a gap)."""
         bt = self.byte_ticks
+        cpu = self.cpu
+        assert cpu is not None and self.tx_vector is not None     # send() takes this path
         self._shift = (k, now + bt)
         self.sched.at(now + bt, self._shift_done)
         if k == self._tx_len - 1:
@@ -148,8 +154,9 @@ class Uart:
         if new_burst and self.line is not None:
             # the rest of the frame, back to back as far as the handler keeps up; cut short
             # (``pause``) where the shift register runs dry
+            assert self._tx is not None                           # the frame being sent
             self.line.transmit(self._tx[k:], now, bt)
-        self.cpu.irq(self.tx_vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter)
+        cpu.irq(self.tx_vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter)
 
     def _tdre_enter(self) -> None:
         self._tdre_entry = self.sched.now
@@ -170,12 +177,14 @@ class Uart:
                 self._sodr = j
             return
         self._tx = None
+        assert self.cpu is not None                   # the handler runs on it
         end = self._tdre_entry - self.cpu.entry + self.byte_ticks
         self.sched.at(max(end, now), self._end_timer, end)
 
     def _shift_done(self) -> None:
         """The byte in the shift register has sent its stop bit."""
         now = self.sched.now
+        assert self._shift is not None                # _shift_in scheduled this
         k = self._shift[0]
         self._shift = None
         j = self._sodr
@@ -192,6 +201,7 @@ class Uart:
     def _end_timer(self, end: int) -> None:
         done = self.on_tx_done
         if done is not None:
+            assert self.cpu is not None and self.end_vector is not None   # set with the timer
             self.cpu.irq(self.end_vector, self.end_cycles, _nothing, enter=lambda: done(end))
 
     def receive(self, data: bytes, t0: int, dt: int) -> None:
@@ -203,6 +213,8 @@ class Uart:
             self.on_rx(data, t0, dt)
             return
         now = self.sched.now
+        cpu, vector = self.cpu, self.rx_vector
+        assert vector is not None                     # attach_cpu set both
         for i, b in enumerate(data):
             t = t0 + i * dt
             if self.rdr and t >= now:
@@ -211,8 +223,7 @@ class Uart:
                 self.overruns += 1
                 continue
             self.rdr.append((b, t))     # more than one only for bytes handed over late
-            self.cpu.irq(self.rx_vector, self.rx_cycles, self._rx_isr, dt,
-                         enter=self._take_rdr)
+            cpu.irq(vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr)
 
     def _take_rdr(self) -> None:
         """The receive handler reads SIDR: RDRF clears, the next byte may come."""

@@ -58,7 +58,8 @@ class Param:
 
 @dataclass(frozen=True)
 class CommandSpec:
-    """A Content command: its parameters in wire order, its ``layer`` ('mac' or 'app') and a doc line."""
+    """A Content command: its parameters in wire order, its ``layer`` ('mac' or 'app') and a doc
+    line."""
 
     name: str
     params: tuple[Param, ...]
@@ -98,7 +99,8 @@ _SPECS = (
         Param("index", "int", 1, 4, unit="joint no."),
         Param("angle", "num", unit="deg"),
     ),
-    _spec("wheel", "app", "Drive the wheel submodule at `speed`.", Param("speed", "num", unit="mm/s")),
+    _spec("wheel", "app", "Drive the wheel submodule at `speed`.",
+          Param("speed", "num", unit="mm/s")),
     _spec("paw", "app", "Paw submodule: 1 open, 0 close.", Param("open", "int", 0, 1, unit="flag")),
     _spec(
         "act",
@@ -128,7 +130,8 @@ _SPECS = (
     _spec(
         "poll",
         "mac",
-        "Join invitation: robot `id` is invited; `mask` = bitmask of current ring members (bit i = ID i).",
+        "Join invitation: robot `id` is invited; `mask` = bitmask of current ring members "
+        "(bit i = ID i).",
         Param("id", "int", 0, 6, unit="robot id"),
         Param("mask", "int", 0, 127, unit="bitmask"),
     ),
@@ -179,7 +182,8 @@ def _normalise(spec: CommandSpec, p: Param, v: object) -> tuple[int | float | No
     if t is not float and isinstance(v, numbers.Integral):
         v = int(v)
     elif p.kind == "num" and (t is float or isinstance(v, numbers.Real)):
-        v = float(v)
+        # a float or a numbers.Real (which has __float__, unseen by mypy through the ABC)
+        v = float(v)  # type: ignore[arg-type]
         if not math.isfinite(v):
             return None, f"{spec.name} parameter {p.name} must be finite, got {v!r}"
         v = float(f"{v:.3f}") + 0.0  # wire resolution 0.001; '+ 0.0' turns -0.0 into 0.0
@@ -192,7 +196,8 @@ def _normalise(spec: CommandSpec, p: Param, v: object) -> tuple[int | float | No
 def _check_value(spec: CommandSpec, p: Param, v: int | float) -> tuple[int | float | None, str]:
     text = format_number(v)
     if len(text) > MAX_PARAM_CHARS:
-        return None, f"{spec.name} parameter {p.name}={text} is longer than {MAX_PARAM_CHARS} characters"
+        return None, (f"{spec.name} parameter {p.name}={text} is longer than {MAX_PARAM_CHARS} "
+                      "characters")
     if (p.lo is not None and v < p.lo) or (p.hi is not None and v > p.hi):
         lo = "" if p.lo is None else p.lo
         hi = "" if p.hi is None else p.hi
@@ -316,7 +321,8 @@ def _scan_number(data: bytes, i: int, ctx: str) -> tuple[int, bool]:
         while j < n and data[j] in _DIGITS:
             j += 1
         if j == k:
-            raise _err(data, j, "params", f"expected a digit after '.' in {ctx}, got {_got(data, j)}")
+            raise _err(data, j, "params",
+                       f"expected a digit after '.' in {ctx}, got {_got(data, j)}")
         if j - k > MAX_DECIMALS:
             raise _err(
                 data, k + MAX_DECIMALS, "params", f"more than {MAX_DECIMALS} decimals in {ctx}"
@@ -423,7 +429,8 @@ def _parse_one(data: bytes, i: int) -> tuple[Command, int]:
     for p, (a, b, dotted) in zip(spec.params, tokens):
         text = data[a:b].decode("ascii")
         if p.kind == "int" and dotted:
-            raise _err(data, a, "params", f"{name} parameter {p.name} must be an integer, got {text}")
+            raise _err(data, a, "params",
+                       f"{name} parameter {p.name} must be an integer, got {text}")
         v: int | float = float(text) + 0.0 if dotted else int(text)
         _, reason = _check_value(spec, p, v)
         if reason:
@@ -461,8 +468,8 @@ def frame_kind(type_digit: int, content: bytes) -> str:
     * ``boot`` (Type '5') and ``join`` (Type '6'), the project's extensions;
     * ``message``: Content holds at least one application command;
     * ``heartbeat``: empty Content (the paper's idle frame, Type '3' to '7');
-    * ``control``: only MAC commands (``ack``, ``poll``, ``ring``, ``crc``, ``auth``): a heartbeat's place, with
-      something for the MAC to say;
+    * ``control``: only MAC commands (``ack``, ``poll``, ``ring``, ``crc``, ``auth``): a
+      heartbeat's place, with something for the MAC to say;
     * ``unreadable``: Content that does not parse.
     """
     if type_digit == 5:

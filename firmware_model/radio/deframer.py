@@ -16,7 +16,8 @@ Garbage (bytes discarded while hunting, partial Headers included) is reported as
 :class:`Garbage` event per run of consecutive discarded bytes, emitted when a Header is
 confirmed (its 3rd byte accepted), by :meth:`Deframer.flush`, and at the end of every
 :meth:`Deframer.feed` call. :meth:`Deframer.feed_byte` does not flush, so
-``feed(data, t0, dt)`` returns exactly ``feed_byte(b_i, t0 + i*dt)`` for each byte, then ``flush()``.
+``feed(data, t0, dt)`` returns exactly ``feed_byte(b_i, t0 + i*dt)`` for each byte, then
+``flush()``.
 """
 from __future__ import annotations
 
@@ -53,7 +54,8 @@ _WHOLE_MAX = 8192
 
 @dataclass(frozen=True, slots=True)
 class FrameReceived:
-    """A good frame. ``first``: tick its first Header byte completed; ``end``: tick its last End byte completed."""
+    """A good frame. ``first``: tick its first Header byte completed; ``end``: tick its last End
+    byte completed."""
 
     frame: Frame
     first: int
@@ -62,7 +64,8 @@ class FrameReceived:
 
 @dataclass(frozen=True, slots=True)
 class Garbage:
-    """``count`` consecutive bytes discarded while hunting, the first completed at tick ``first``, the last at ``last``."""
+    """``count`` consecutive bytes discarded while hunting, the first completed at tick ``first``,
+    the last at ``last``."""
 
     count: int
     first: int
@@ -175,6 +178,7 @@ class Deframer:
             pos, b, length=length, partial_length=self._partial, max_content=self.max_content
         )
         first = self.first
+        assert first is not None                      # a frame is in progress
         expected = None if length is None else first + (13 + length) * self.byte_ticks
         out.append(FrameFailed(err, first, t, self._src, length, expected))
         self.in_frame = False
@@ -205,6 +209,7 @@ class Deframer:
                 self._pos = pos + 1
             else:
                 if pos:  # the partial Header was garbage after all
+                    assert self.last_tick is not None     # its bytes came before this one
                     self._garbage(pos, self._hdr_t, self.last_tick)
                 if b == _H0:  # ... and this byte may start a new one
                     self._hdr_t = t
@@ -217,7 +222,8 @@ class Deframer:
 
         self.last_tick = t
         if pos >= CONTENT_OFFSET:
-            stop = CONTENT_OFFSET + self._len
+            # past the Length field, so _len is set (a check here would cost every byte)
+            stop = CONTENT_OFFSET + self._len  # type: ignore[operator]
             if pos < stop:
                 if 0x20 <= b <= 0x7E:
                     self._raw.append(b)
@@ -254,6 +260,7 @@ class Deframer:
     def _complete(self, t: int, out: list) -> None:
         raw = bytes(self._raw)
         first = self.first
+        assert first is not None                      # the frame now complete
         self.in_frame = False
         self.first = None
         self._pos = 0
@@ -314,9 +321,10 @@ class Deframer:
         n = len(data)
         # Fastest path: the chunk is exactly one frame already seen (the simulator hands every
         # receiver the same bytes; heartbeats repeat). Same events as the long way.
-        frame = self.known_frame(data, t0 + (n - 1) * dt)
+        end = t0 + (n - 1) * dt
+        frame = self.known_frame(data, end)
         if frame is not None:
-            return [FrameReceived(frame, t0, self.last_tick)]
+            return [FrameReceived(frame, t0, end)]
         clean = not self._pos and not self._g_count
         out: list[DeframerEvent] = []
         i = 0
@@ -385,6 +393,7 @@ class Deframer:
         pos = self._pos
         if not self.in_frame:
             if pos:
+                assert self.last_tick is not None     # the partial Header's bytes came
                 self._garbage(pos, self._hdr_t, self.last_tick)
                 self._pos = 0
             return None
@@ -396,6 +405,7 @@ class Deframer:
             offset=pos,
         )
         first = self.first
+        assert first is not None                      # in_frame
         expected = None if length is None else first + (13 + length) * self.byte_ticks
         ev = FrameFailed(err, first, now, self._src, length, expected)
         self.in_frame = False

@@ -6,7 +6,8 @@
 Header 3 bytes, Destination/Source/Type one ASCII digit each, Number two ASCII decimal digits,
 Length four ASCII decimal digits (Content bytes), Content printable ASCII, End 2 bytes: 14 bytes
 of overhead. ``FRAME_FORMAT`` is the one ``construct`` declaration of that layout; ``encode`` and
-``parse_frame`` both go through it, compiled by construct (:func:`frame_codec`). ``parse_frame`` first walks the bytes in wire order so the
+``parse_frame`` both go through it, compiled by construct (:func:`frame_codec`). ``parse_frame``
+first walks the bytes in wire order so the
 FIRST bad byte is reported as a :class:`FrameError` with its offset and field, never as a
 ``construct`` exception.
 """
@@ -74,7 +75,8 @@ MAX_CONTENT = max_content_bytes(CHILD_BYTE_TICKS)
 MAX_LENGTH_FIELD = 9999
 """Largest value four ASCII digits of Length can hold."""
 CONTENT_OFFSET = 12
-"""Offset of the first Content byte in a frame (Header 3 + Dst 1 + Src 1 + Number 2 + Type 1 + Length 4)."""
+"""Offset of the first Content byte in a frame (Header 3 + Dst 1 + Src 1 + Number 2 + Type 1 +
+Length 4)."""
 
 assert CONTENT_OFFSET + len(END) == FRAME_OVERHEAD
 
@@ -102,7 +104,8 @@ class FrameType(IntEnum):
 
 
 class AsciiDecimal(Adapter):
-    """``width`` ASCII decimal digits '0'-'9' <-> int in 0..hi, zero padded, most significant first."""
+    """``width`` ASCII decimal digits '0'-'9' <-> int in 0..hi, zero padded, most significant
+    first."""
 
     def __init__(self, width: int, hi: int | None = None) -> None:
         super().__init__(Bytes(width))
@@ -197,7 +200,8 @@ class Frame:
         ):
             v = getattr(self, name)
             if not _is_int(v) or not 0 <= v <= hi:
-                raise FrameError(f"{name}={v!r} is not an integer 0-{hi}", field=field, offset=offset)
+                raise FrameError(f"{name}={v!r} is not an integer 0-{hi}", field=field,
+                                 offset=offset)
         c = self.content
         if not isinstance(c, bytes):
             if isinstance(c, (bytearray, memoryview)):
@@ -308,7 +312,8 @@ def built_frame(data: bytes, max_content: int = MAX_CONTENT) -> Frame | None:
 
 
 def field_at(offset: int, length: int | None) -> str:
-    """Name of the field at ``offset`` of a frame whose Length is ``length`` (None: not known yet)."""
+    """Name of the field at ``offset`` of a frame whose Length is ``length`` (None: not known
+    yet)."""
     if offset < 3:
         return "header"
     if offset < 8:
@@ -326,13 +331,14 @@ def field_at(offset: int, length: int | None) -> str:
 
 @functools.lru_cache(maxsize=64)
 def length_limits(max_content: int) -> tuple[int, int, int, int]:
-    """Per Length digit k (0-3): the largest value of the first k+1 digits that can still be <= max_content.
+    """Per Length digit k (0-3): the largest value of the first k+1 digits that can still be <=
+    max_content.
 
     A Length digit is the first bad byte as soon as the digits so far make the value exceed
     ``max_content`` whatever follows (docs/protocol.md §3.1, clause 11: the deframer checks the
     length bound).
     """
-    return tuple(max_content // 10 ** (3 - k) for k in range(4))  # type: ignore[return-value]
+    return (max_content // 1000, max_content // 100, max_content // 10, max_content)
 
 
 def frame_byte_error(
@@ -364,7 +370,8 @@ def frame_byte_error(
         if 0x30 <= b <= 0x39:
             k = offset - 8
             least = partial_length * 10 ** (3 - k)
-            reason = f"{d} makes Length at least {least:04d}, above the {max_content}-byte Content limit"
+            reason = (f"{d} makes Length at least {least:04d}, above the {max_content}-byte "
+                      "Content limit")
         else:
             reason = f"{d} is not an ASCII decimal digit of Length"
     elif field == "content":

@@ -48,12 +48,13 @@ import random
 from bisect import bisect_right
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Iterable
+from typing import Any, Iterable, Sequence
 
 from ..timing import (
     CHILD_BYTE_TICKS,
     FRAME_OVERHEAD,
     MISS_LIMIT,
+    PC_BYTE_TICKS,
     TMAX_TICKS,
     TTRANS_TICKS,
     max_content_bytes,
@@ -385,6 +386,40 @@ class MacConfig:
         first."""
         return len(self.team) * self.tmax + robot * self.tslot
 
+    def silent_drop_ticks(self, ring: Iterable[int]) -> int:
+        """The longest time from a member's radio failing to its drop, in an idle ring of the
+        members ``ring`` (docs/protocol.md §7.3, each term with its clause there).
+
+        The worst failure cuts the robot's frame after its Header, before its Length: the
+        others abandon it one stall gap after its last byte and close its turn a quiet gap
+        later (clause 41; 2 ticks for the stall timer's resolution); the robot after it
+        waits its R-stagger (clause 44), at worst the highest ID's; then three rounds of the
+        others' turns, each frame with ``ring(mask)`` (clause 51), and three times Tmax
+        (clauses 24, 25). In a ring of two every miss follows the survivor's own frame, so
+        each adds its R-stagger. A team with IDs outside the ring adds each member's one
+        invitation in those turns (clauses 32, 33). B is a PC's byte, the slower."""
+        ring = tuple(sorted(set(ring)))
+        n = len(ring)
+        if n < 2:
+            raise ValueError(f"a silent robot is dropped by the others: give 2 or more "
+                             f"members, got {list(ring)}")
+        b, m = PC_BYTE_TICKS, self.miss_limit
+        cut = max(self.stall_gap, 2 * b) + self.quiet_gap + 2
+        if self.profile == "paper":    # no ring(mask), no R-stagger (§9.1): heartbeats
+            return cut + m * ((n - 1) * (self.ttrans + FRAME_OVERHEAD * b) + self.tmax)
+        sealed = (CRC_TEXT_LEN if self.checksum else 0) + \
+            (_auth.AUTH_TEXT_LEN if self.auth is not None else 0)
+        told = self.ttrans + (FRAME_OVERHEAD + len("ring(127)") + sealed) * b
+        stagger = max(ring) * self.tslot
+        # A member whose gap holds team IDs outside the ring invites one every poll_every of
+        # its turns: poll(k,127) is 2 bytes longer than ring(127), and a window of Twin follows
+        inviters = sum(1 for i, r in enumerate(ring) if any(
+            (r + d) % 7 in self.team for d in range(1, (ring[(i + 1) % n] - r) % 7)))
+        polls = min(inviters, n - 1) * -(-m // self.poll_every) * (self.twin + 2 * b)
+        if n == 2:
+            return cut + polls + m * (told + self.tmax + stagger)
+        return cut + polls + stagger + m * ((n - 1) * told + self.tmax)
+
 
 def check_submission(robot: int, dst: int, commands: Iterable[Command],
                      type: int) -> tuple[tuple[Command, ...], bytes]:
@@ -451,6 +486,7 @@ class RotationalMac:
         self.misses: dict[int, int] = {}
         self.ever_member: set[int] = set()
         self._silent = 0                  # consecutive misses with no frame heard at all
+        self._unheard: set[int] = set()   # paper profile: static-ring robots not heard yet
         self._queue: list[Message] = []
         self._inflight: Message | None = None
         self._next_num = 0
@@ -467,7 +503,7 @@ class RotationalMac:
         self._quiet_limit = 0
         self._quiet_miss = False          # QUIET entered on garbage: no header seen yet
         self._hold_ref: int | None = None   # HOLD after an uncertain closure: its reference
-        self._garbled: tuple[int, int, int] | None = None
+        self._garbled: tuple[int, int, int | None] | None = None
         """(o, the tick o's turn closed, the owner then) after o's turn closed on garbage
         (clause 42): until the next turn begins, a good frame from o is o's frame, late."""
         self._promised: tuple[int, str, int | None] | None = None
@@ -489,7 +525,8 @@ class RotationalMac:
         self._watched = False
         self._check_turns = 0               # PC2 after a takeover: turns still to watch
         self._seen: dict[int, int] = {}      # LISTEN: source -> tick last heard
-        self._heard_disabled: dict[int, int] = {}   # disabled robot -> frames heard since
+        # disabled robot -> (frames heard since, the End of the last)
+        self._heard_disabled: dict[int, tuple[int, int]] = {}
         self.frames_sent = 0
         self.turns = 0
         self._hb_cache: dict[tuple, tuple[Frame, bytes]] = {}
@@ -572,6 +609,7 @@ class RotationalMac:
         self.ring = tuple(sorted(set(self.cfg.team) | {self.id}))
         self.misses = {r: 0 for r in self.ring}
         self.ever_member = set(self.ring)
+        self._unheard = set(self.ring) - {self.id}
         self._booting = False
         self._announcing = None
         self._silent = 0
@@ -617,7 +655,7 @@ class RotationalMac:
         self._queue.append(msg)
         return msg
 
-    def on_frame(self, frame: Frame, first: int, end: int, now: int) -> list:
+    def on_frame(self, frame: Frame, first: int, end: int, now: int) -> Sequence[Any]:
         """A valid frame was heard; its first header byte ended at ``first``, its End at ``end``."""
         src = frame.src
         phase = self.phase
@@ -644,6 +682,8 @@ class RotationalMac:
                 self._booting_peers.discard(src)
             self.misses[src] = 0
             self._silent = 0
+            if self._unheard:
+                self._unheard.discard(src)
             if self._fail_run is not None:
                 self._good_since_fail = True
                 if self._fail_run[0] == src:
@@ -652,15 +692,17 @@ class RotationalMac:
             i = bisect_right(ring, src)
             nxt = ring[i] if i < len(ring) else ring[0]
             if nxt == self.id:
-                out = []
-                self._my_turn(end, now, out)
-                return out
+                mine: list = []
+                self._my_turn(end, now, mine)
+                return mine
             self.phase = WAIT
             self.owner = nxt
             self.turn_start = end
             self.deadline = end + self.cfg.tmax
             return _NOTHING
         out: list = []
+        # a good frame, even one refused below: our radio hears (the cut-off, clause 40)
+        silent, self._silent = self._silent, 0
         if self._key is not None:
             why = self._auth_refusal(frame)
             if why is not None:
@@ -670,6 +712,12 @@ class RotationalMac:
                 out.append(Refused(src, frame.num, why[1], why[0]))
                 out.extend(self.on_corrupt(first, None, end, now))
                 return out
+        if self.cfg.checksum and not crc_ok(frame):
+            # A failed frame whose Source was not read (clause 43): a byte error may have made
+            # it our own ID or a robot outside the team, so the checksum is judged first.
+            out.append(BadChecksum(first, end))
+            out.extend(self.on_corrupt(first, None, end, now))
+            return out
         if src == self.id:
             # Our own ID from the air (we are deaf while sending): another PC is ID 0, or a
             # robot with our ID, or a forger. Refused; it still sets the timing. A father that
@@ -677,7 +725,7 @@ class RotationalMac:
             if self.id != 0 or not self._pair:
                 self._own_id_heard(frame.num, end, now, out)
                 return out
-            return self._active_frame(frame, end, now, out)
+            return self._active_frame(frame, end, now, out, silent)
         if src not in self.cfg.team:
             self._foreign_heard(src, end, out)
             out.append(Refused(src, frame.num, f"robot {src} is not in the team"))
@@ -685,11 +733,7 @@ class RotationalMac:
             return out
         content = frame.content
         if self.cfg.checksum:
-            if not crc_ok(frame):
-                out.append(BadChecksum(first, end))
-                out.extend(self.on_corrupt(first, None, end, now))
-                return out
-            content = strip_crc(content)
+            content = strip_crc(content)              # checked above
         elif self._key is not None:
             content = _auth.strip(content)    # checked above
         try:
@@ -709,7 +753,7 @@ class RotationalMac:
             answering = True
         if self.mode == MEMBER and self.lone and not answering:
             self._to_listen(out, now, "heard another robot while alone")
-        skipped = None
+        skipped: list[int] | None = None
         out_of_turn = False
         if self.mode == MEMBER and src in self.ring and self.phase in (WAIT, WINDOW) and \
                 self.owner is not None and src != self.owner and not answering:
@@ -774,9 +818,9 @@ class RotationalMac:
                         # and stands by; if PC1 is dead, PC2 answers the next invitation.
                         self._passed_invite = True
                         break
-                    ring = _unmask(p.args[1]) | {self.id, src}
+                    members = _unmask(p.args[1]) | {self.id, src}
                     self.mode = MEMBER
-                    self.ring = tuple(sorted(ring))
+                    self.ring = tuple(sorted(members))
                     self.misses = {r: 0 for r in self.ring}
                     self.ever_member |= set(self.ring)
                     self._silent = 0
@@ -814,6 +858,8 @@ class RotationalMac:
         self._last_heard = (src, end)
         self.misses[src] = 0
         self._silent = 0
+        if self._unheard:
+            self._unheard.discard(src)
         if self._fail_run is not None:
             self._good_since_fail = True
             if self._fail_run[0] == src:
@@ -858,6 +904,7 @@ class RotationalMac:
     def _auth_refusal(self, frame: Frame) -> tuple[str, str] | None:
         """Authenticated profile (clause 53): None for a genuine fresh frame (its freshness is
         then remembered as its Source's last), else (kind, reason)."""
+        assert self._key is not None                   # called in the authenticated profile
         fresh = _auth.check(self._key, frame)
         if fresh is None:
             return "forged", "forged: no valid authentication tag"
@@ -909,6 +956,8 @@ class RotationalMac:
         self._last_heard = (src, end)
         self.misses[src] = 0
         self._silent = 0
+        if self._unheard:
+            self._unheard.discard(src)
         if frame.dst == self.id or frame.dst == BROADCAST:
             try:
                 app_cmds = _layers(frame.content)[1] if frame.content else ()
@@ -954,7 +1003,7 @@ class RotationalMac:
             self.phase in (WAIT, HOLD) else None
         return out
 
-    def on_frame_over(self, now: int) -> list:
+    def on_frame_over(self, now: int) -> Sequence[Any]:
         """The frame that failed after its Length (``on_corrupt`` with the End it promised) is
         over sooner: its bytes stopped for the stall gap before that End (the sender died, or a
         Header cut off on purpose: 12 bytes that promise 562). Its turn closes now instead
@@ -970,12 +1019,13 @@ class RotationalMac:
             self.turn_start = now
             self.deadline = now + self.cfg.tmax
         elif phase == HOLD:
+            assert deadline is not None                # HOLD always has its deadline
             self.deadline = deadline - (end - now)
             if self._hold_ref == end:
                 self._hold_ref = now
         return _NOTHING
 
-    def on_garbage(self, first: int, last: int, now: int) -> list:
+    def on_garbage(self, first: int, last: int, now: int) -> Sequence[Any]:
         """Bytes that form no frame were heard. In the owner's slot they are probably its frame
         with a corrupted Header: if the channel then falls quiet the turn closes (no miss);
         if it never does (idle noise), the owner misses at E + Tmax as usual."""
@@ -1113,13 +1163,16 @@ class RotationalMac:
             self._deadline_wait(now, rx_busy, last_rx, None, out)
             return
         if quiet or now >= self._quiet_limit:
-            garbled = self.owner if self._quiet_miss else None
+            owner = self.owner
+            assert owner is not None                   # QUIET is an owner's slot
+            garbled = owner if self._quiet_miss else None
             self._quiet_miss = False
-            self._slot_failed(self.owner, out)
-            self._next_turn(self.owner, now, now, out, uncertain=True)  # the frame is over
+            self._slot_failed(owner, out)
+            self._next_turn(owner, now, now, out, uncertain=True)  # the frame is over
             if garbled is not None and self.phase == WAIT:
                 self._garbled = (garbled, self.turn_start, self.owner)
         else:
+            assert last_rx is not None                 # not quiet: bytes were heard
             self.deadline = min(last_rx + gap, self._quiet_limit)
 
     def _header_coming(self, now: int, rx_busy: bool, rx_began: int | None,
@@ -1139,6 +1192,7 @@ class RotationalMac:
         """WINDOW: the invited robot did not answer by E + Twin: the poller's successor's turn
         (or a lone member's next pause)."""
         if not self._header_coming(now, rx_busy, rx_began, self.turn_start + self.cfg.twin):
+            assert self.poller is not None             # WINDOW: someone opened it
             self._after_window(self.poller, now, out)
 
     def _deadline_wait(self, now: int, rx_busy: bool, last_rx: int | None,
@@ -1157,7 +1211,11 @@ class RotationalMac:
         n = self.misses.get(o, 0) + 1
         self.misses[o] = n
         out.append(Miss(o))
-        self._silent += 1
+        if o not in self._unheard:
+            # the cut-off (clause 40) counts misses of robots heard since the static ring
+            # began (paper profile, docs/protocol.md §9.1): a team robot never heard is no
+            # evidence that our radio is cut off
+            self._silent += 1
         self._tell_view = True
         # An active father PC that missed two turns with nothing at all heard since its own
         # frame may have been deaf while its standby took ID 0's turn (clause 50): if its radio
@@ -1228,13 +1286,15 @@ class RotationalMac:
         elapsed = first - cfg.byte_ticks - self.turn_start
         slack = 1.0 - TAKEOVER_TOLERANCE
         if self.phase == WINDOW:
+            assert self.poller is not None             # WINDOW: someone opened it
             # The poller's successor raises TXEN at the window's end, E + Twin, so its Header
             # begins at E + Twin + Ttrans by its clock (clause 39; 0.95 x Twin once let a
             # forged frame 9.6 ms after a poll pass for it, issue 42).
             ok = src == self.succ(self.poller) and elapsed >= (cfg.twin + cfg.ttrans) * slack
             return [] if ok else None
-        skipped = []
+        skipped: list[int] = []
         o = self.owner
+        assert o is not None                           # called with a turn's owner known
         while o != src and len(skipped) <= len(self.ring):
             skipped.append(o)
             o = self.succ(o)
@@ -1252,8 +1312,10 @@ class RotationalMac:
             if n >= cfg.miss_limit:
                 self._drop(r, out)
 
-    def _active_frame(self, frame: Frame, end: int, now: int, out: list) -> list:
-        """A frame with ID 0 that we did not send: the active PC of the father's pair."""
+    def _active_frame(self, frame: Frame, end: int, now: int, out: list,
+                      silent: int) -> list:
+        """A frame with ID 0 that we did not send: the active PC of the father's pair.
+        ``silent``: the misses counted before it with no good frame heard (clause 40)."""
         content = strip_crc(frame.content) if self.cfg.checksum and crc_ok(frame) \
             else frame.content
         if self._key is not None:
@@ -1282,15 +1344,15 @@ class RotationalMac:
                 # a forger's, is refused and closes the slot it was sent in. Heard after a miss
                 # with no frame accepted since, it says we were deaf while PC2 took over: on
                 # probation we leave new messages to PC2 (clause 50), or both deliver them.
-                if self._silent:
+                if silent:
                     self._check_turns = 3
                 self._own_id_heard(frame.num, end, now, out)
                 return out
         if self.mode == LISTEN:
             horizon = end - self.cfg.claim_ticks(0)
-            ring = {r for r, t in self._seen.items() if t >= horizon} | {self.id}
+            members = {r for r, t in self._seen.items() if t >= horizon} | {self.id}
             self.mode = MEMBER
-            self.ring = tuple(sorted(ring))
+            self.ring = tuple(sorted(members))
             self.misses = {r: 0 for r in self.ring}
             self.ever_member |= set(self.ring)
             self._booting = False
@@ -1490,7 +1552,9 @@ class RotationalMac:
             out.append(Refused(self.id, num, "our own robot ID from the air", "own_id"))
             self.deadline = now + self._claim_ticks()
             return
-        if self.phase in (WAIT, WINDOW, QUIET, HOLD):
+        if self.phase in (WAIT, WINDOW, QUIET, HOLD, WATCH):
+            # WATCH: PC1 on probation heard the other PC's whole frame while it watched its
+            # turn; the members took it as ID 0's, so the next turn is robot succ(0)'s
             self._refuse_in_slot(self.id, num, "our own robot ID from the air", end, now, out,
                                  "own_id")
         else:
@@ -1766,6 +1830,7 @@ class RotationalMac:
         """This turn's one frame: a message (or a heartbeat) plus acks and an invitation."""
         if self._paper:
             return self._paper_build(now, out)
+        kind: int                               # a FrameType, or the Type announced
         if self._answering or (self._booting and self._announcing is None and
                                not self._lone_boot):
             # The answer to an invitation, or a lone claimer's first frame: nothing else in it.

@@ -3,9 +3,10 @@
 ``RotationalMac`` (firmware_model/radio/mac.py) is the executable form; this table is the
 readable one, and the two are checked against each other: ``tests/test_mac_table.py`` records
 every transition the MAC makes in a set of simulated runs (faults, noise, failover, start-up)
-and requires each to be a row here, and every row to be taken at least once. The state
-diagram in docs/mac.md is generated from this table (``python -m
-firmware_model.radio.mac_table`` prints it; the same test checks the docs hold it).
+and in rare paths it drives on one MAC, and requires each to be a row here, and every row to
+be taken at least once. The state diagram in docs/mac.md is generated from this table
+(``python -m firmware_model.radio.mac_table`` prints it; the same test checks the docs hold
+it).
 
 States: ``LISTEN`` (mode LISTEN) and the phases of a member (mode MEMBER): ``WAIT`` (for the
 owner's Header until E + Tmax), ``WINDOW`` (for an invited robot's answer until E + Twin),
@@ -50,12 +51,22 @@ TRANSITIONS: tuple[Transition, ...] = (
        "designed"),
     _T("LISTEN", "garbage", "LISTEN", "bytes that form no frame: nothing changes (only a frame "
        "or a failed frame restarts the claim timer)", "designed"),
+    _T("LISTEN", "failed frame", "LISTEN", "a frame that broke after its Header: the claim "
+       "timer restarts", "designed"),
     _T("LISTEN", "frame", "SWITCH", "invited (poll names us): answer with JOIN at E + Ttrans",
        "designed"),
     _T("LISTEN", "frame", "HOLD", "a father PC hears the active PC: stands by, following the "
        "ring (its turn starts at the deadline)", "designed"),
     _T("LISTEN", "frame", "WAIT", "a father PC hears the active PC: stands by, following the "
        "ring", "designed"),
+    _T("LISTEN", "frame", "WINDOW", "a father PC hears the active PC invite a robot: stands "
+       "by, in that robot's window", "designed"),
+    _T("LISTEN", "frame", "WATCH", "PC2 invited on a check turn: watches for PC1's Header "
+       "first", "designed"),
+    _T("LISTEN", "deadline", "LISTEN", "a frame is still coming in: look again 2 bytes later",
+       "designed"),
+    _T("LISTEN", "deadline", "WATCH", "a standby (or PC2 on a check turn) claims: watches for "
+       "the other PC's Header first", "designed"),
     _T("LISTEN", "deadline", "SWITCH", "silence for Tclaim(id): claim, a ring of one",
        "designed"),
     # -- waiting for the owner ------------------------------------------------------------
@@ -66,6 +77,9 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WAIT", "frame", "WINDOW", "the frame invites an absent robot: its window until "
        "E + Twin", "designed"),
     _T("WAIT", "frame", "WATCH", "ID 0's turn on a PC that checks for the other PC",
+       "designed"),
+    _T("WAIT", "frame", "HOLD", "a frame refused as a failed one (bad checksum, outside the "
+       "team, forged) in the slot before ours: id x Tslot after its End (R-stagger)",
        "designed"),
     _T("WAIT", "garbage", "WAIT", "bytes before the owner could have begun (its Ttrans)",
        "designed"),
@@ -84,6 +98,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WAIT", "deadline", "HOLD", "the owner missed right after our own frame, nothing "
        "heard since: id x Tslot more (R-stagger)", "designed"),
     _T("WAIT", "deadline", "LISTEN", "nobody heard for a whole round", "designed"),
+    _T("WAIT", "deadline", "WATCH", "the owner missed and ID 0's turn follows on a PC that "
+       "checks for the other PC", "designed"),
     _T("WAIT", "frame", "LISTEN", "left out: a member's poll or ring mask lacks us (R-view); "
        "or our own ID a second time (a twin: yield, clause 38.2)", "designed"),
     _T("WAIT", "steal", "SWITCH", "fault injection: we wrongly take the turn", "fault"),
@@ -94,18 +110,39 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WINDOW", "frame", "HOLD", "the answer came and a lone member pauses", "designed"),
     _T("WINDOW", "frame", "WATCH", "the answer came and ID 0's turn follows on a checking PC",
        "designed"),
+    _T("WINDOW", "frame", "LISTEN", "a lone member hears another robot; left out by the "
+       "frame that took the window over; or a twin: yield", "designed"),
+    _T("WINDOW", "frame", "WINDOW", "the poller's successor took the window over late enough "
+       "and invites a robot: its window", "designed"),
     _T("WINDOW", "garbage", "WINDOW", "bytes that form no Header: keep waiting", "designed"),
+    _T("WINDOW", "failed frame", "QUIET", "a frame broke before its Length: wait for quiet",
+       "designed"),
+    _T("WINDOW", "failed frame", "WAIT", "a frame broke after its Length: the window closes "
+       "at its promised end", "designed"),
+    _T("WINDOW", "failed frame", "HOLD", "... and ours is next: id x Tslot after it "
+       "(R-stagger)", "designed"),
     _T("WINDOW", "deadline", "WINDOW", "a Header had begun by E + Twin: look again", "designed"),
     _T("WINDOW", "deadline", "WAIT", "no answer by E + Twin: the poller's successor's turn",
        "designed"),
     _T("WINDOW", "deadline", "SWITCH", "no answer, and ours is the next turn", "designed"),
     _T("WINDOW", "deadline", "HOLD", "no answer to a lone member: its next pause", "designed"),
+    _T("WINDOW", "deadline", "WATCH", "no answer, and ID 0's turn follows on a checking PC",
+       "designed"),
     # -- after a frame that broke early ---------------------------------------------------
     _T("QUIET", "garbage", "QUIET", "bytes keep coming", "designed"),
     _T("QUIET", "failed frame", "QUIET", "another frame broke before its Length: wait for quiet",
        "designed"),
+    _T("QUIET", "failed frame", "WAIT", "a frame broke after its Length: the turn closes at "
+       "its promised end", "designed"),
+    _T("QUIET", "failed frame", "HOLD", "... and ours is next: id x Tslot after it "
+       "(R-stagger)", "designed"),
     _T("QUIET", "frame", "WAIT", "a good frame: resynchronise on it", "paper §IV.C"),
     _T("QUIET", "frame", "SWITCH", "a good frame, and ours is the next turn", "paper §IV.C"),
+    _T("QUIET", "frame", "HOLD", "a frame refused as a failed one (bad checksum, outside the "
+       "team, forged), and ours is next: id x Tslot after its End (R-stagger)", "designed"),
+    _T("QUIET", "frame", "LISTEN", "left out: a member's poll or ring mask lacks us; or a "
+       "twin: yield", "designed"),
+    _T("QUIET", "frame", "WINDOW", "a good frame that invites a robot: its window", "designed"),
     _T("QUIET", "deadline", "QUIET", "not quiet yet: look again at the last byte + the gap",
        "designed"),
     _T("QUIET", "deadline", "WAIT", "quiet: the turn closed, the next owner's (R-stagger); or "
@@ -114,16 +151,22 @@ TRANSITIONS: tuple[Transition, ...] = (
        "(R-stagger)", "designed"),
     _T("QUIET", "deadline", "SWITCH", "only noise until E + Tmax: a miss, and ours is next",
        "paper §IV.C"),
+    _T("QUIET", "deadline", "LISTEN", "only noise until E + Tmax: the miss that makes a whole "
+       "round unheard", "designed"),
     # -- our turn -------------------------------------------------------------------------
     _T("HOLD", "garbage", "HOLD", "bytes heard while we wait to begin", "designed"),
     _T("HOLD", "failed frame", "HOLD", "a frame abandoned while we wait to begin: no change",
        "designed"),
+    _T("HOLD", "frame", "HOLD", "a frame refused as a failed one (bad checksum, outside the "
+       "team, forged) while we wait to begin: no change", "designed"),
     _T("HOLD", "frame", "WAIT", "someone else sent first: resynchronise on it", "paper §IV.C"),
     _T("HOLD", "frame", "SWITCH", "a frame from the robot before us came first (a late "
        "twin's; a lone member's invitation answered after its window, clause 31): "
        "resynchronise, and ours is the next turn", "paper §IV.C"),
     _T("HOLD", "frame", "LISTEN", "heard another robot while alone; or our own ID a second "
        "time (a twin: yield, clause 38.2)", "designed"),
+    _T("HOLD", "frame", "WINDOW", "a frame that invites a robot came first: its window",
+       "designed"),
     _T("HOLD", "deadline", "HOLD", "a frame is coming in, or a jam not yet quiet for "
        "id x Tslot (R-stagger)", "designed"),
     _T("HOLD", "deadline", "SWITCH", "our turn: raise TXEN", "paper §IV.C"),
@@ -135,9 +178,19 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("SEND", "tx done", "WAIT", "our End is out: the successor's turn at E", "paper §IV.C"),
     _T("SEND", "tx done", "WINDOW", "we invited a robot: its window until E + Twin",
        "designed"),
+    _T("SEND", "tx done", "LISTEN", "our BOOT/JOIN went out the announcement limit of times "
+       "and a member never acknowledged it: to be invited again", "designed"),
     _T("SEND", "tx done", "HOLD", "a lone member pauses Twin + id x Tslot", "designed"),
     # -- father failover ------------------------------------------------------------------
-    _T("WATCH", "frame", "WAIT", "the active PC's frame: follow it", "designed"),
+    _T("WATCH", "frame", "WAIT", "the active PC's frame: follow it; PC1 on probation refuses "
+       "the other PC's, which closes ID 0's slot", "designed"),
+    _T("WATCH", "frame", "WINDOW", "the active PC's frame invites a robot: its window",
+       "designed"),
+    _T("WATCH", "garbage", "WATCH", "bytes that form no frame: keep watching", "designed"),
+    _T("WATCH", "failed frame", "QUIET", "a frame broke before its Length: wait for quiet",
+       "designed"),
+    _T("WATCH", "failed frame", "WAIT", "a frame broke after its Length: the turn passes at "
+       "its promised end", "designed"),
     _T("WATCH", "deadline", "WAIT", "the active PC's Header is coming: stand by", "designed"),
     _T("WATCH", "deadline", "SWITCH", "no Header from the active PC: take ID 0's turn",
        "designed"),

@@ -47,14 +47,10 @@ from .frame import BROADCAST, Frame, FrameType
 from .integrity import CRC_TEXT_LEN, check as crc_ok, seal, strip as strip_crc
 from .mac import (
     MEMBER, LISTEN, BadChecksum, BadContent, Deliver, Duplicate, MacConfig, Message, ModeChange,
-    Outcome, QueueFull, RotationalMac, SubmitError, TX_OFF, TX_ON, Transmit, _layers,
+    Outcome, QueueFull, Refused, RotationalMac, SubmitError, TX_OFF, TX_ON, Transmit, _layers,
     check_submission,
 )
-
-try:                                        # (the rotational MAC's spoofing observation)
-    from .mac import Refused
-except ImportError:                         # pragma: no cover
-    Refused = None
+from .station_mac import StationMac
 
 __all__ = [
     "KINDS", "PeerConfig", "PeerMac", "AlohaMac", "SlottedAlohaMac", "CsmaMac", "make_mac",
@@ -244,9 +240,8 @@ class PeerMac:
         if src == self.id or src not in self.cfg.team:
             # Our own ID from the air (we are deaf while sending), or a robot outside the
             # team: never acted on.
-            if Refused is not None:
-                out.append(Refused(src, frame.num, "our own robot ID from the air"
-                                   if src == self.id else f"robot {src} is not in the team"))
+            out.append(Refused(src, frame.num, "our own robot ID from the air"
+                               if src == self.id else f"robot {src} is not in the team"))
             return out
         content = frame.content
         if self.cfg.checksum:
@@ -326,6 +321,21 @@ class PeerMac:
         """Fault injection of the rotational MAC; a peer MAC has no turn to steal."""
         return []
 
+    def resync(self, now: int) -> list:
+        """The station was not running for longer than the margins allow (a bench process
+        stopped; ``RadioStation.resync``). A peer MAC keeps no view of the air but its
+        timers, which run when the station next looks; like the rotational MAC it does not
+        send a frame decided before the gap: TXEN raised for one goes down, and whatever was
+        due (acks, data) is decided again from now. A frame already on the air ends first
+        (the station resyncs after it)."""
+        out: list = []
+        if self.mode == MEMBER and self.phase == SWITCH:
+            self.phase = RX
+            self._rx_from = now + self.cfg.ttrans
+            out.append(TX_OFF)
+        self._arm(now)
+        return out
+
     # -- delivery ----------------------------------------------------------------------------
 
     def _ack_ready(self, frame: Frame, end: int) -> int:
@@ -379,6 +389,7 @@ class PeerMac:
                              f"{m.attempts} attempts", out)
                 continue
             tr.ready = now + self._backoff()
+            assert tr.first_tx is not None            # it timed out: it was sent
             if tr.ready - tr.first_tx > self.lifetime:
                 self._finish(m, False, f"expired: no acknowledgement from {missing} within "
                              f"{self.lifetime // 16_000} ms after {m.attempts} attempt(s)", out)
@@ -404,6 +415,7 @@ class PeerMac:
                 t = r
         if len(self._out) < self.peer.window and self._queue:
             r = self._track[self._queue[0]].ready
+            assert r is not None                      # a queued message has its tick
             if t is None or r < t:
                 t = r
         return t
@@ -412,22 +424,26 @@ class PeerMac:
         """The data message for a frame whose TXEN rose at ``by``: the most overdue
         retransmission, else the next new message (window permitting)."""
         best = None
+        best_ready = 0
         for m in list(self._out):
             tr = self._track[m]
             if tr.ready is None or tr.ready > by:
                 continue
+            assert tr.first_tx is not None            # in _out: it was sent
             if now - tr.first_tx > self.lifetime:
                 self._finish(m, False, f"expired: no acknowledgement from "
                              f"{','.join(str(r) for r in sorted(m.awaiting))} within "
                              f"{self.lifetime // 16_000} ms after {m.attempts} attempt(s)", out)
                 continue
-            if best is None or tr.ready < self._track[best].ready:
-                best = m
+            if best is None or tr.ready < best_ready:
+                best, best_ready = m, tr.ready
         if best is not None:
             return best
         if len(self._out) < self.peer.window and self._queue:
             m = self._queue[0]
-            if self._track[m].ready <= by:
+            ready = self._track[m].ready
+            assert ready is not None                  # a queued message has its tick
+            if ready <= by:
                 return m
         return None
 
@@ -657,7 +673,7 @@ _CLASSES = {"aloha": AlohaMac, "slotted": SlottedAlohaMac, "csma": CsmaMac}
 
 
 def make_mac(kind: str, robot_id: int, config: MacConfig | None = None, seed: int | str = 0,
-             peer: PeerConfig | None = None):
+             peer: PeerConfig | None = None) -> StationMac:
     """The MAC a station runs: ``"rotational"`` (the paper's), ``"aloha"``, ``"slotted"`` or
     ``"csma"``. ``seed`` seeds the peer MACs' random draws (per kind and robot)."""
     if kind == "rotational":
@@ -669,14 +685,14 @@ def make_mac(kind: str, robot_id: int, config: MacConfig | None = None, seed: in
     return cls(robot_id, config, peer, seed)
 
 
-def install(world, kind: str, peer: PeerConfig | None = None) -> dict[int, object]:
+def install(world, kind: str, peer: PeerConfig | None = None) -> dict[int, StationMac]:
     """Swap every station of a freshly built ``hil.sim.world.World`` (not yet run) to ``kind``.
 
     Each station keeps its own ``MacConfig`` (byte rate, team); the world powers the MACs on
     at their power-on ticks as usual. Returns the MACs by robot ID."""
     if world.sched.now != 0 or getattr(world, "standby_station", None) is not None:
         raise ValueError("install peer MACs on a fresh world without a standby father PC")
-    macs = {}
+    macs: dict[int, StationMac] = {}
     for r, st in world.stations.items():
         mac = make_mac(kind, r, st.mac.cfg, seed=world.cfg.seed, peer=peer)
         st.mac = mac

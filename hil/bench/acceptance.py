@@ -24,13 +24,12 @@ import sys
 import tempfile
 import threading
 import time
-from dataclasses import replace
 from typing import Any, Callable
 
 import pytest
 
 from can_bus import dbc
-from can_bus.bus import CanFrame
+from can_bus.frames import CanFrame
 from firmware_model.radio.mac import Deliver, MacConfig, Message, Outcome
 from firmware_model.timing import TICK_HZ
 

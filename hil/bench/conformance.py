@@ -38,9 +38,10 @@ taken over as a member of the ring does, and the run goes on: the frame after it
 
 Times are the arrival of bytes at this PC: a Header's start is estimated as its End minus its
 bytes at 9600 bit/s, so every measured gap includes the port's latency; ``tolerance`` (default
-15 ms) bounds the median hand-over, and twice that 9 hand-overs in 10. The robot must run with the real-time margins (``rprs child`` does; a flashed
-board on a PC bench must too, docs/bench.md) and a team that holds both IDs. The channel must
-carry only the two: a frame from any other Source stops the run (nothing is judged then).
+15 ms) bounds the median hand-over, and twice that 9 hand-overs in 10. The robot must run
+with the real-time margins (``rprs child`` does; a flashed board on a PC bench must too,
+docs/bench.md) and a team that holds both IDs. The channel must carry only the two: a frame
+from any other Source stops the run (nothing is judged then).
 """
 from __future__ import annotations
 
@@ -912,13 +913,13 @@ class Tester:
             figures.append(f"{name}: its next frame {(nxt.start - end) / MS:.0f} ms after")
             staggers.append(nxt.start - end - (QUIET_GAP + self.robot * TSLOT + TTRANS))
             h = nxt
-            watch_acts = []
+            watch_acts: list[int] = []
 
-            def watch(x: Heard, i: int) -> None:
+            def watch(x: Heard, i: int, acts: list[int] = watch_acts) -> None:
                 c = x.frame.content
                 if f"ack({self.me},77)".encode() in c or (x.frame.dst == self.me and
                                                           b"joint(" in c):
-                    watch_acts.append(i)
+                    acts.append(i)
             watch(h, -1)
             h = self._turns(h, 3, None, watch)
             acted += len(watch_acts)

@@ -5,13 +5,15 @@ An order goes ``queued`` (submitted to the MAC) -> ``sent`` (its first frame on 
 ``acknowledged`` (the robot's ``ack``) -> ``done`` (the robot's ``done()`` notice, protocol 3.0),
 ``replied`` (the answer to ``status()``), ``failed`` (no acknowledgement after the MAC's
 attempts, or the robot's ``fail(code)`` with that order), or ``unreported`` (acknowledged, and
-no report :data:`REPORT_WITHIN_S` later: :meth:`OrderBook.expire`). An order of ``act(n,0)`` ends when the
+no report :data:`REPORT_WITHIN_S` later: :meth:`OrderBook.expire`). An order of ``act(n,0)`` ends
+when the
 robot broadcasts ``act(n,1)``; ``stop()``, which the robot carries out at once and reports on
 no further, ends with its acknowledgement; a broadcast (destination 7), and every order in the
 paper profile (nothing is acknowledged there), ends ``sent-only``. An order that never reached
 the MAC ends ``refused`` at once, with the reason: a bad order line, a full queue at a terminal
 (piped input waits for room instead), or a father PC standing by (docs/protocol.md clause 50).
-A message of several commands (``1 joint(1,20)joint(2,30)``) is followed command by command, as the robot reports each on
+A message of several commands (``1 joint(1,20)joint(2,30)``) is followed command by command, as the
+robot reports each on
 its own (docs/dispatcher.md): it ends when every one has, ``failed`` at the first failure.
 Times are seconds since the order was queued (the station's clock). The robot's answer proves
 the order arrived: an answer that comes before the acknowledgement (a lost ack on a lossy

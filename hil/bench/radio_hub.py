@@ -12,9 +12,11 @@ random streams are exactly the simulator's:
   back to back (it is not a collision with itself);
 * every other node whose link is up receives each byte at the tick its stop bit ends (it is
   written to that node's pty master then); a node never hears its own bytes;
-* a node is deaf while its own bytes are on air and for Ttrans (5 ms) after its burst ends on
-  the air's timeline, as a PTR2000 is while TXEN is high and while it switches back: it never
-  hears the garbage of a collision with its own frame, however late its process dated its End;
+* a node is deaf while its own bytes are on air and for the PTR2000's RX-ready delay (3 ms, the
+  nRF401 data sheet's TX->RX switch time, firmware_model/mcu/ptr2000.py; not the protocol's
+  Ttrans guard) after its burst ends on the air's timeline, as a PTR2000 is while TXEN is high
+  and while it switches back: it never hears the garbage of a collision with its own frame,
+  however late its process dated its End;
 * two nodes on air at once: every node that is listening hears garbage until the air is
   clear; ``ber``: each byte corrupted with that probability per receiver; ``noise``: random
   bytes at the byte rate to every listening node while nothing reaches it;
@@ -24,7 +26,7 @@ random streams are exactly the simulator's:
 
 A pty has no TXEN line, so the hub takes a node's radio to switch to transmit when its bytes
 go on air and back when they end: each robot process still runs its own PTR2000 model (TXEN,
-Ttrans) on its own clock and ignores what that model could not have heard.
+its switch times) on its own clock and ignores what that model could not have heard.
 
 Threads: a reader thread ``poll``s the masters and ``post``s (node, bytes) into the
 scheduler, whose thread owns all air state. An exception in either thread stops the whole hub
@@ -57,7 +59,12 @@ import time
 from typing import Any, Iterable, Sequence
 
 from firmware_model.mcu.ptr2000 import NEVER
-from firmware_model.timing import BITS_PER_BYTE_8N1, TICK_HZ, TTRANS_TICKS, s_to_ticks
+from firmware_model.timing import (
+    BITS_PER_BYTE_8N1,
+    PTR2000_RX_READY_TICKS,
+    TICK_HZ,
+    s_to_ticks,
+)
 
 from ..sim.air import Air
 from ..sim.realtime import RealTimeScheduler
@@ -223,8 +230,8 @@ class _Uart:
 
 class _Node:
     """The radio-side interface hil.sim.air.Air drives (see firmware_model.mcu.ptr2000.Ptr2000):
-    listening while the link is up, except while its own burst is on air and for Ttrans after
-    it ends (``rx_from``; the hub switches it, a pty having no TXEN line)."""
+    listening while the link is up, except while its own burst is on air and for the PTR2000's
+    RX-ready delay after it ends (``rx_from``; the hub switches it, a pty having no TXEN line)."""
 
     __slots__ = ("hub", "robot", "idx", "alive", "rx_from", "rx", "noise_from", "uart",
                  "channel", "down")
@@ -640,8 +647,9 @@ class RadioHub:
         t0 = max(now, self._tx_end[i])
         r = self._radios[i]
         if r.rx_from != NEVER:
-            # Its radio switches to transmit: deaf from now until Ttrans after the burst ends
-            # on air (the process's own End comes earlier: its bytes reach the air late).
+            # Its radio switches to transmit: deaf from now until the RX-ready delay after the
+            # burst ends on air (the process's own End comes earlier: its bytes reach the air
+            # late).
             self.air.deafen(r, t0)
             r.rx_from = NEVER
         if self._rx_event[i] is not None:
@@ -657,10 +665,10 @@ class RadioHub:
 
     def _rx_back(self, i: int) -> None:
         """Node ``i``'s burst ended on air and nothing follows it back to back: its radio
-        switches back and hears the air again Ttrans later."""
+        switches back and hears the air again the PTR2000's RX-ready delay later."""
         self._rx_event[i] = None
         r = self._radios[i]
-        r.rx_from = self.sched.now + TTRANS_TICKS
+        r.rx_from = self.sched.now + PTR2000_RX_READY_TICKS
         self.air.rx_restart(r, r.rx_from)
 
     def _consumed(self, i: int, n: int) -> None:
@@ -852,7 +860,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
                 faults: Sequence[Any] = (), pcap: str | None = None) -> int:
     """The ``rprs radio-hub`` command: print the node paths, run until SIGINT, SIGTERM or
     SIGHUP (its terminal closed), print a summary; HubError (one line) after the summary if a
-    thread of the hub failed and stopped it. ``pcap``: a pcapng capture to this file, or ``-`` to stdout, flushed packet by
+    thread of the hub failed and stopped it. ``pcap``: a pcapng capture to this file, or ``-`` to
+    stdout, flushed packet by
     packet (``| wireshark -k -i -``; the paths and the summary then go to stderr). Bad
     arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])

@@ -235,6 +235,15 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
         elif type(a) is Outcome:
             outcomes.append((now, a))
     station.observer = observe
+
+    def submit(box: list[Any], ev: threading.Event) -> None:
+        # box and ev are this request's own: a request the runner's thread takes only after
+        # the 5 s below have run out must not answer for the next one
+        try:
+            box.append((runner.sched.now, station.submit(dst, [cmd("status")], 2)))
+        except ValueError as exc:
+            box.append((runner.sched.now, exc))
+        ev.set()
     rtt, ack, failed = [], [], []
     sent = 0
     ended = getattr(runner, "finished", None)      # the runner stopped (its port went away)
@@ -243,15 +252,8 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
             break
         box: list[Any] = []
         ev = threading.Event()
-
-        def submit() -> None:
-            try:
-                box.append((runner.sched.now, station.submit(dst, [cmd("status")], 2)))
-            except ValueError as exc:
-                box.append((runner.sched.now, exc))
-            ev.set()
         n_rep = len(replies)
-        runner.sched.post(submit)
+        runner.sched.post(submit, box, ev)
         ev.wait(5.0)
         t_sub, msg = box[0] if box else (0, None)
         if not hasattr(msg, "state"):

@@ -4,10 +4,11 @@ pyserial URL (``rfc2217://``, ``socket://``, ``loop://``).
 ``SerialChannel`` takes the place of the simulated air for one robot: the firmware's UART
 sends through the PTR2000 model to ``port.write``; bytes read from the port (by a reader
 thread) are posted into the real-time scheduler and reach the UART if the radio model is
-listening (TXEN low for at least Ttrans). With a real radio module, TXEN can be wired to the
-USB-serial adapter's RTS or DTR line (``txen="rts"|"dtr"``); ``"none"`` is for modules that
-switch themselves (and for the pty hub, which has no modem lines). The firmware waits Ttrans
-after raising TXEN before its first byte, as on the MB90F549.
+listening (TXEN low for at least its RX-ready delay, 3 ms). With a real radio module, TXEN can
+be wired to the USB-serial adapter's RTS or DTR line (``txen="rts"|"dtr"``); ``"none"`` is for
+modules that switch themselves (and for the pty hub, which has no modem lines). The firmware
+waits Ttrans (the protocol's guard, 5 ms, longer than the part's 1 ms) after raising TXEN
+before its first byte, as on the MB90F549.
 
 Only bytes heard while the station listens count: ``flush()`` (when the process starts running,
 and after a stall) drops what waited in the port and whatever the reader had read before, so a

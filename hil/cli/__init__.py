@@ -107,7 +107,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     old_term = _terminate_on_sigterm()
     try:
         code = _main(argv)
-    except SystemExit as exc:      # argparse's --help and --version; rich's own broken pipe
+    except SystemExit:      # argparse's --help and --version; rich's own broken pipe
         if not _stdout_flushed():
             raise SystemExit(1) from None
         raise

@@ -1,4 +1,5 @@
-"""``rprs encode`` and ``rprs decode``: frames to hex and back, from the command line or a stream."""
+"""``rprs encode`` and ``rprs decode``: frames to hex and back, from the command line or a
+stream."""
 from __future__ import annotations
 
 import argparse

@@ -7,7 +7,8 @@ from firmware_model.timing import TICK_HZ, ticks_to_s
 
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, SimConfig, World
-from .common import Parser, UserError, auth_option, checked_mac_config, digit, positive, probability, profile_option
+from .common import (Parser, UserError, auth_option, checked_mac_config, digit, positive,
+                     probability, profile_option)
 from .sim import add_sim_options, cmd_sim
 
 STORY_EVENTS = frozenset({"mode", "join", "rejoin", "disable", "miss", "fault", "collision"})

@@ -101,8 +101,10 @@ def cmd_submodules(a: argparse.Namespace) -> int:
     except RunError as exc:
         runner.run(0)
         raise UserError(str(exc)) from None
-    return run_until_stopped(runner, a, f"running joints 1-4, wheel and paw on CAN {a.can}; Ctrl-C stops",
-                lambda: submodules_summary(nodes), notes=can_notes("submodules", a.can))
+    return run_until_stopped(runner, a,
+                             f"running joints 1-4, wheel and paw on CAN {a.can}; Ctrl-C stops",
+                             lambda: submodules_summary(nodes),
+                             notes=can_notes("submodules", a.can))
 
 
 def submodules_summary(nodes: dict) -> str:

@@ -3,11 +3,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 
-from firmware_model.timing import TICK_HZ, ticks_to_ms, ticks_to_s
+from firmware_model.timing import TICK_HZ, ms_to_ticks, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import OutputFile, TraceWriter
 from ..sim.world import ConfigError, Fault, SimConfig, World
@@ -63,6 +62,12 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "comparison; default: the paper's rotational MAC). A peer MAC takes "
                        "--checksum; --fault steal, --profile paper and --father-standby need "
                        "the rotational MAC (docs/peer-macs.md)")
+        p.add_argument("--radio-switch", type=radio_switch_spec, action="append", default=[],
+                       metavar="ID:TX_MS,RX_MS",
+                       help="robot ID's PTR2000 switch times: TXEN high to the first byte it "
+                       "sends, TXEN low to the first it hears (default: the nRF401 data "
+                       "sheet's 1 and 3 ms; not the protocol's Ttrans, 5 ms); repeatable, "
+                       "e.g. 1:1,5 (docs/cpu.md)")
         p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
                        help="peer MACs: frame size of the load (default 80)")
         p.add_argument("--vcd", type=output_path, metavar="FILE",
@@ -112,6 +117,24 @@ def extra_robot(text: str) -> tuple[int, float, tuple[int, ...] | None]:
     return r, t, tuple(ids)
 
 
+def radio_switch_spec(text: str) -> tuple[int, int, int]:
+    """``ID:TX_MS,RX_MS`` for ``--radio-switch``: (robot, TX-ready ticks, RX-ready ticks)."""
+    rid, sep, times = text.partition(":")
+    tx, comma, rx = times.partition(",")
+    try:
+        r, tx_ms, rx_ms = int(rid), float(tx), float(rx)
+    except ValueError:
+        r = None
+    if not sep or not comma or r is None:
+        raise argparse.ArgumentTypeError(f"{text!r} is not ID:TX_MS,RX_MS, e.g. 1:1,3")
+    if not 0 <= r <= 6:
+        raise argparse.ArgumentTypeError(f"robot ID {r} in {text!r} is not 0-6")
+    if not (0 <= tx_ms < float("inf") and 0 <= rx_ms < float("inf")):
+        raise argparse.ArgumentTypeError(f"switch times in {text!r} must be finite "
+                                         f"milliseconds >= 0")
+    return r, ms_to_ticks(tx_ms), ms_to_ticks(rx_ms)
+
+
 def sim_config(a: argparse.Namespace) -> SimConfig:
     if a.profile == "paper" and a.father_standby:
         raise UserError("--profile paper has no standby PC (--father-standby is this "
@@ -134,6 +157,11 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                             "csma); the rotational MAC's frames are as long as their Content")
         from firmware_model.radio.peer_macs import PeerConfig
         peer = PeerConfig(frame_bytes=a.frame_bytes)
+    switch: dict[int, tuple[int, int]] = {}
+    for r, tx, rx in getattr(a, "radio_switch", []):
+        if r in switch:
+            raise UserError(f"--radio-switch names robot {r} twice: a robot has one radio")
+        switch[r] = (tx, rx)
     return SimConfig(robots=a.robots, duration=a.duration, seed=a.seed, cpu=cpu_costs(a),
                      faults=tuple(sorted(faults, key=lambda f: (f.at, f.kind,
                                                                  -1 if f.robot is None
@@ -145,7 +173,8 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                                             auth=a.auth_key),
                      father_standby=a.father_standby,
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer,
-                     can_sleep=not a.every_frame, ring_sleep=not a.every_frame)
+                     can_sleep=not a.every_frame, ring_sleep=not a.every_frame,
+                     radio_switch=switch)
 
 
 def peer_mac_options(a: argparse.Namespace) -> None:

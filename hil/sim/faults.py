@@ -19,9 +19,8 @@ A fault is written ``KIND[:TARGET]@WHEN[:VALUE]`` (times in seconds from the sta
 ``drop@T1-T2:P``           each received byte is lost (UART overrun) with probability P
 ``skew:R:E``               robot R's clock runs E slow (0 <= E < 0.2, e.g. 0.02): its byte
                            time and every interval it times (UART, timers) are (1 + E) times
-                           nominal; the radio's Ttrans is the PTR2000's. A clock that runs
-                           fast (E < 0) is refused: it would raise TXEN for less than Ttrans
-                           before each frame, and the radio would lose every frame
+                           nominal; its PTR2000's switch times are the part's. A clock
+                           that runs fast (E < 0) is refused: not modelled
 ``busoff:R@T``             child R's CAN controller driven bus-off (bit errors on its frames)
 ``stuck:R@T1-T2``          child R's 82C250 TXD stuck dominant from T1 to T2
 ``silent:R.NODE@T1-T2``    submodule NODE (JOINT1-4, WHEEL, PAW) of child R stops answering
@@ -171,15 +170,10 @@ SKEW_MAX = 0.2
 
 def check_skew(value: float) -> float:
     """``value`` if it is a skew the model takes (0 <= E < SKEW_MAX: the clock that much
-    slow), else FaultError. A clock that runs fast is refused, not modelled: it would time
-    Ttrans shorter than its PTR2000 switches, and the radio loses a frame sent before it has
-    switched whole (firmware_model/mcu/ptr2000.py), so the robot would be mute, whatever
-    the skew, rather than skewed."""
+    slow), else FaultError. A clock that runs fast is refused, not modelled."""
     if value < 0:
-        raise FaultError(f"skew {value:g}: a clock that runs fast (E < 0) is not modelled: the "
-                         f"robot would switch its radio to transmit for less than Ttrans and "
-                         f"lose every frame it sends; E is how much slower the robot's clock "
-                         f"runs, 0 <= E < {SKEW_MAX:g}")
+        raise FaultError(f"skew {value:g}: a clock that runs fast (E < 0) is not modelled; "
+                         f"E is how much slower the robot's clock runs, 0 <= E < {SKEW_MAX:g}")
     if not value < SKEW_MAX:
         raise FaultError(f"skew {value:g} is not a small fraction: 0 <= E < {SKEW_MAX:g}")
     return value

@@ -11,7 +11,8 @@ burst length asked, and checks what follows the burst:
 
 Each case runs on a copy of one formed world (pickled once, unpickled per case: three times
 faster than ``copy.deepcopy``, and the same run as the original world:
-``test_a_pickled_world_runs_as_the_original``), so a case costs about two simulated seconds. ``python scripts/lockstep_search.py`` runs the full search (every length
+``test_a_pickled_world_runs_as_the_original``), so a case costs about two simulated seconds.
+``python scripts/lockstep_search.py`` runs the full search (every length
 from 1 to 600 bytes); the test suite runs a sample of lengths at every offset.
 """
 from __future__ import annotations

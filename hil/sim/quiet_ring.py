@@ -49,7 +49,8 @@ of the whole radio side:
   or captured run writes the frame-by-frame run's trace and capture, byte for byte.
 * Nothing else may be watching the frames: no CPU model, and no hook of someone
   else's on the air's transmissions or collisions or on a station's actions (each would
-  miss the frames leapt over); the MAC must be the rotational one. A snapshot with an object whose inside it cannot see (anything but this project's
+  miss the frames leapt over); the MAC must be the rotational one. A snapshot with an object whose
+  inside it cannot see (anything but this project's
   classes, plain values and containers, bytearrays and random generators) never leads to a
   leap.
 

@@ -38,8 +38,8 @@ from enum import Enum
 from types import MethodType
 from typing import Any, Iterable
 
-__all__ = ["InTuple", "Snapshot", "Unwalkable", "snapshot", "period_delta", "period_steps", "on_orbit",
-           "latest_moved", "writable", "advance", "portable"]
+__all__ = ["InTuple", "Snapshot", "Unwalkable", "snapshot", "period_delta", "period_steps",
+           "on_orbit", "latest_moved", "writable", "advance", "portable"]
 
 _OURS = ("can_bus", "firmware_model", "hil")
 _VALUE_TYPES = (bool, float, str, bytes, type(None), Enum, frozenset, set)

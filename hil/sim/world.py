@@ -113,6 +113,10 @@ class SimConfig:
     """A cycle-cost table (firmware_model.cycle_costs.CycleCosts): every child's firmware runs
     on the MB90F549 CPU model, its handlers taking the time the table gives. None: the ideal
     CPU, every handler in zero time (the paper's timing)."""
+    radio_switch: dict[int, tuple[int, int]] = field(default_factory=dict)
+    """Per robot ID, its PTR2000's (TX-ready, RX-ready) switch times in ticks; robots not named
+    get the nRF401 data sheet's, 1 ms and 3 ms (firmware_model/mcu/ptr2000.py). Not the MAC's
+    Ttrans, which stays the protocol's 5 ms guard."""
 
     def validate(self) -> None:
         if not self.robots:
@@ -175,6 +179,14 @@ class SimConfig:
         for r, t in self.power_on.items():
             if r not in self.robots or t < 0:
                 raise ConfigError(f"bad power-on time {t} for robot {r}")
+        for r, sw in self.radio_switch.items():
+            if r not in self.robots:
+                raise ConfigError(f"radio switch times for robot {r}, which is not in the ring "
+                                  f"{list(self.robots)}")
+            if len(sw) != 2 or any(isinstance(v, bool) or not isinstance(v, int) or v < 0
+                                   for v in sw):
+                raise ConfigError(f"robot {r}'s radio switch times {sw!r} must be two whole "
+                                  f"tick counts >= 0 (TX-ready, RX-ready)")
         for r, t, team in self.extra:
             if not isinstance(r, int) or not 0 <= r <= 6:
                 raise ConfigError(f"extra robot ID {r!r} is not 0-6")
@@ -306,7 +318,8 @@ class World:
             if r in skew:
                 cfg = _skewed(cfg, skew[r])
             st, radio = build_station(r, self.sched, byte_ticks=self.byte_ticks[r], config=cfg,
-                                      observer=self._observe)
+                                      observer=self._observe,
+                                      radio_switch=config.radio_switch.get(r))
             if config.mac_kind != "rotational":
                 from firmware_model.radio.peer_macs import make_mac
                 st.mac = make_mac(config.mac_kind, r, st.mac.cfg, seed=config.seed,
@@ -314,8 +327,7 @@ class World:
             st.report_io = trace is not None or on_event is not None
             self.air.attach(radio)
             if r in skew:
-                self.air.set_skew(radio, skew[r])
-                radio.ttrans = base.ttrans   # the PTR2000 switches in 5 ms whatever the MCU clock
+                self.air.set_skew(radio, skew[r])   # its PTR2000 switches as the part does
             radio.alive = False
             self.stations[r] = st
             self.radios[r] = radio

@@ -322,7 +322,7 @@ def _draw_rows(ax, items, robots, unit_div, x0, x1, labels=False):
     level = 0
     last_x = None
     span = x1 - x0
-    for x, text, kind, colour in grouped:
+    for x, text, _kind, colour in grouped:
         level = level + 1 if last_x is not None and x - last_x < span * 0.09 else 0
         last_x = x
         ax.text(x, len(robots) - 0.5 + 0.05 + 0.32 * (level % 3), " " + text, color=colour,
@@ -465,7 +465,6 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
 
     from matplotlib import rc_context
     from matplotlib.figure import Figure
-    from matplotlib.patches import Patch
 
     robots = col.robots
     fig = Figure(figsize=(14, 3.2 + 1.1 * len(robots)), dpi=100, layout="constrained")
