@@ -133,21 +133,28 @@ def _tester_answered_with(frame: Frame) -> Tester:
 
 
 class _Wire:
-    """A port that gives what was put in ``rx`` and keeps what the tester wrote."""
+    """A link (hil.bench.conformance.TesterLink) that gives what was put in ``rx``, its last
+    byte heard at the tick ``clock[0]`` says, and keeps what the tester wrote."""
 
     def __init__(self) -> None:
-        self.rx, self.tx = b"", []
+        self.rx, self.tx, self.clock = b"", [], [0]
 
-    @property
-    def in_waiting(self) -> int:
-        return len(self.rx)
+    def now(self) -> int:
+        return self.clock[0]
 
-    def read(self, n: int) -> bytes:
-        out, self.rx = self.rx[:n], self.rx[n:]
-        return out
+    def read(self) -> list[tuple[bytes, int, int]]:
+        out, self.rx = self.rx, b""
+        return [(out, self.clock[0] - (len(out) - 1) * BYTE, BYTE)] if out else []
 
-    def write(self, data: bytes) -> None:
+    def write(self, data: bytes) -> int:
         self.tx.append(data)
+        return self.clock[0]
+
+    def idle(self, ticks: int) -> None:
+        self.clock[0] += ticks
+
+    def close(self) -> None:
+        pass
 
 
 def _tester_on(wire: _Wire, clock: list[int], profile: str = "paper") -> Tester:
@@ -157,7 +164,8 @@ def _tester_on(wire: _Wire, clock: list[int], profile: str = "paper") -> Tester:
     t.rx_bytes = t.bad = t.collided = t.garbage = 0
     t.on_air, t.heard, t.first_failure, t._mark = [], [], None, (0, 0, 0)
     t.strangers, t.collisions, t.absent = {}, [], {}
-    t.port, t.deframer, t.now = wire, Deframer(byte_ticks=BYTE), lambda: clock[0]
+    wire.clock = clock
+    t.link, t.deframer, t.now = wire, Deframer(byte_ticks=BYTE), lambda: clock[0]
     return t
 
 
@@ -725,7 +733,8 @@ _MATRIX = [pytest.param(r, p, t, marks=_marks(r, p, t), id=f"{r}-{p}-{t}")
 @pytest.mark.parametrize("robot,profile,team", _MATRIX)
 def test_the_kit_passes_the_projects_child(air, tmp_path, robot, profile, team):
     run, junit, lat = _conformance_run(air, robot, profile, "0,1,2,3,4,5,6" if team == "all"
-                                       else f"0,{robot}", tmp_path, tolerance_ms=LOADED_TOLERANCE_MS)
+                                       else f"0,{robot}", tmp_path,
+                                       tolerance_ms=LOADED_TOLERANCE_MS)
     assert run.returncode == 0, f"{lat}\n" + run.stdout + run.stderr
     cases = _cases(junit)
     assert all(cases.values()), f"{lat}\n" + run.stdout
@@ -828,8 +837,9 @@ def _figure(junit: Path, clause: str) -> str:
 def test_the_kit_names_the_cause_of_each_deliberate_bug(air, tmp_path, fault):
     """The project's child with one rule broken (tests/faulty_child.py) fails the clause of
     that rule, with the figure that shows it; the bugs that leave its frames good and cause
-    no collision are not blamed on clause 15. A child that answers the invitation 40 ms late once got only "no
-    good frame answering our invitations": our next invitation ran over its answer."""
+    no collision are not blamed on clause 15. A child that answers the invitation 40 ms late
+    once got only "no good frame answering our invitations": our next invitation ran over its
+    answer."""
     import re
     run, junit, _ = _conformance_run(air, 1, "rprs", "0,1", tmp_path,
                                      child=[sys.executable, FAULTY, fault])

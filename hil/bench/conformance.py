@@ -48,7 +48,7 @@ from __future__ import annotations
 import statistics
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Protocol
 from xml.etree import ElementTree as ET
 
 from firmware_model.radio.auth import AUTH_TEXT_LEN, check as auth_check, clock_freshness
@@ -71,6 +71,66 @@ TSLOT = REALTIME_MARGINS["tslot"]
 QUIET_GAP = REALTIME_MARGINS["quiet_gap"]
 BYTE = PC_BYTE_TICKS
 MISS_LIMIT = 3
+POLL_WAIT = 3 * TICK_HZ // 10_000
+"""How long the kit idles between looks at the air while it waits for a frame (0.3 ms)."""
+POLL_SEND = 2 * TICK_HZ // 10_000
+"""... and while it waits for the tick to send at (0.2 ms)."""
+
+
+class TesterLink(Protocol):
+    """The kit's radio and clock: the one seam between the scripted station and the world
+    it runs in. :class:`SerialLink` is a serial port (or a radio-hub pty) on the wall clock,
+    what ``rprs conformance`` uses; ``hil.bench.conformance_sim.SimLink`` is a station on the
+    simulator's air, the robot under test a firmware model, in simulated time."""
+
+    def now(self) -> int:
+        """The tick now (16 MHz), counted from the link's start."""
+        ...
+
+    def read(self) -> list[tuple[bytes, int, int]]:
+        """What was heard since the last read, as runs of back-to-back bytes: (bytes, the
+        tick the first one was complete, ticks a byte)."""
+        ...
+
+    def write(self, data: bytes) -> int:
+        """Put ``data`` on air now at the PC's byte time; the tick its first bit goes out."""
+        ...
+
+    def idle(self, ticks: int) -> None:
+        """Let ``ticks`` pass (the wall clock sleeps; a simulated world runs on)."""
+        ...
+
+    def close(self) -> None:
+        ...
+
+
+class SerialLink:
+    """The kit on serial port ``port`` and the wall clock: bytes are stamped when this PC
+    reads them (the last one now, those before it a byte time apart)."""
+
+    def __init__(self, port: str) -> None:
+        self.port = open_port(port)
+        self.t0 = time.monotonic_ns()
+
+    def now(self) -> int:
+        return (time.monotonic_ns() - self.t0) * TICK_HZ // 1_000_000_000
+
+    def read(self) -> list[tuple[bytes, int, int]]:
+        data = self.port.read(max(1, self.port.in_waiting))
+        if not data:
+            return []
+        return [(data, self.now() - (len(data) - 1) * BYTE, BYTE)]
+
+    def write(self, data: bytes) -> int:
+        start = self.now()
+        self.port.write(data)
+        return start
+
+    def idle(self, ticks: int) -> None:
+        time.sleep(ticks / TICK_HZ)
+
+    def close(self) -> None:
+        self.port.close()
 
 
 @dataclass
@@ -144,13 +204,14 @@ class ConformanceError(Exception):
 
 
 class Tester:
-    """The scripted station on ``port`` and the checks, run by :meth:`run`."""
+    """The scripted station on ``port`` (a serial port's name, or a :class:`TesterLink`)
+    and the checks, run by :meth:`run`."""
 
     __test__ = False                  # not a pytest class
     key = None                        # the ring key (the authenticated profile), or None
 
-    def __init__(self, port: str, robot: int, profile: str = "rprs", tester: int | None = None,
-                 tolerance_ms: float = 15.0, turns: int = 20,
+    def __init__(self, port: str | TesterLink, robot: int, profile: str = "rprs",
+                 tester: int | None = None, tolerance_ms: float = 15.0, turns: int = 20,
                  progress: Callable[[str], None] | None = None, key=None,
                  team: tuple[int, ...] = tuple(range(7))) -> None:
         if not 0 <= robot <= 6:
@@ -167,9 +228,8 @@ class Tester:
         self.tol = int(tolerance_ms * MS)
         self.turns = turns
         self.progress = progress or (lambda s: None)
-        self.port = open_port(port)
+        self.link: TesterLink = SerialLink(port) if isinstance(port, str) else port
         self.deframer = Deframer(byte_ticks=BYTE)
-        self.t0 = time.monotonic_ns()
         self.heard: list[Heard] = []
         self.bad = 0                      # failed frames heard (not in our own air time)
         self.collided = 0                 # failed frames that overlapped one of ours
@@ -198,16 +258,21 @@ class Tester:
     # -- time, air -----------------------------------------------------------------------
 
     def now(self) -> int:
-        return (time.monotonic_ns() - self.t0) * TICK_HZ // 1_000_000_000
+        return self.link.now()
+
+    def _secs(self) -> float:
+        """The link's clock in seconds (what a check took is measured on it)."""
+        return self.now() / TICK_HZ
 
     def _poll_rx(self) -> None:
-        data = self.port.read(max(1, self.port.in_waiting))
-        if not data:
-            return
-        t = self.now()
+        for data, first, dt in self.link.read():
+            self._heard_bytes(data, first, dt)
+
+    def _heard_bytes(self, data: bytes, first: int, dt: int) -> None:
+        """Bytes heard back to back, the first complete at tick ``first``."""
         self.rx_bytes += len(data)
-        self.last_rx = t
-        for ev in self.deframer.feed(data, t - (len(data) - 1) * BYTE, BYTE):
+        self.last_rx = first + (len(data) - 1) * dt
+        for ev in self.deframer.feed(data, first, dt):
             if isinstance(ev, FrameReceived):
                 f = ev.frame
                 start = ev.end - f.nbytes * BYTE
@@ -262,9 +327,8 @@ class Tester:
                    for s, e in self.on_air[-4:])
 
     def _write(self, data: bytes) -> int:
-        """Put ``data`` on the port now; the tick its End leaves the air."""
-        start = self.now()
-        self.port.write(data)
+        """Put ``data`` on air now; the tick its End leaves the air."""
+        start = self.link.write(data)
         if self.key is not None:
             self.sent.append(data)
         self.last_end = start + len(data) * BYTE
@@ -288,7 +352,7 @@ class Tester:
             if self.now() >= deadline:
                 return None
             self._poll_rx()
-            time.sleep(0.0003)
+            self.link.idle(POLL_WAIT)
 
     def _alone(self) -> None:
         """Stop the run if the channel carries a third station: the kit checks a ring of two
@@ -307,7 +371,7 @@ class Tester:
         while self.now() < deadline:
             self._poll_rx()
             self._alone()
-            time.sleep(0.0003)
+            self.link.idle(POLL_WAIT)
 
     def _quiet(self, what: str) -> ConformanceError:
         """The run stops: the robot sent no good frame ``what``; with what this port heard
@@ -330,7 +394,7 @@ class Tester:
         """Send ``frame`` with its first bit at tick ``at`` (Ttrans after TXEN); its End."""
         while self.now() < at:
             self._poll_rx()
-            time.sleep(0.0002)
+            self.link.idle(POLL_SEND)
         return self._write(frame.encode())
 
     def _busy(self) -> bool:
@@ -369,7 +433,7 @@ class Tester:
         at = self._turn_at(h) if at is None else at
         while self.now() < at:
             self._poll_rx()
-            time.sleep(0.0002)
+            self.link.idle(POLL_SEND)
         self._poll_rx()
         if self._busy() or any(x.end > h.end and x.frame.src == self.robot
                                for x in self.heard[-3:]):
@@ -421,7 +485,7 @@ class Tester:
         """Record a verdict; ``applicable`` False when nothing was there to check (then
         ``figure`` says why, and ``passed`` is ignored)."""
         c = Check(clause, name, bool(passed) or not applicable, figure,
-                  time.monotonic() - t0, applicable)
+                  self._secs() - t0, applicable)
         self.report.checks.append(c)
         self.progress(f"clause {clause}: {c.verdict} {name}: {figure}")
 
@@ -448,7 +512,7 @@ class Tester:
             shared = exc.shared
             raise
         finally:
-            self.port.close()
+            self.link.close()
             if self.misses:
                 theirs = [m for m in self.misses if not m.startswith("ours")]
                 self.report.notes.append(
@@ -458,7 +522,7 @@ class Tester:
                     ("; ..." if len(self.misses) > 5 else ""))
             frames = [h for h in self.heard if h.frame.src == self.robot]
             why = f"; the first failed at {self.first_failure}" if self.first_failure else ""
-            t0 = time.monotonic()
+            t0 = self._secs()
             # a run that stopped before any frame, good or failed, has nothing to judge
             ours = (f", {self.collided} broken in a collision with ours (not judged)"
                     if self.collided else "")
@@ -533,7 +597,7 @@ class Tester:
 
     def _forged_tag(self, h: Heard) -> Heard:
         """Our status() for the robot with a tag that is wrong by one digit."""
-        t0 = time.monotonic()
+        t0 = self._secs()
         good = self.frame(b"status()", dst=self.robot, type_=2, num=43).encode()
         i = len(good) - 4                          # the tag's last digit
         data = good[:i] + (b"0" if good[i:i + 1] != b"0" else b"1") + good[i + 1:]
@@ -541,7 +605,7 @@ class Tester:
 
     def _replayed(self, h: Heard) -> Heard:
         """The very bytes of our first status() for the robot, sent again."""
-        t0 = time.monotonic()
+        t0 = self._secs()
         first = next(d for d in self.sent if b"status()auth(" in d and
                      d[3] == 0x30 + self.robot)
         return self._refused(h, first, "53", "a replay of our earlier message is not acted "
@@ -562,7 +626,7 @@ class Tester:
             self.acks.append((f.src, f.num))
 
     def _start(self) -> Heard:
-        t0 = time.monotonic()
+        t0 = self._secs()
         if self.profile == "paper":
             h, first, turns = self._paper_join(t0)
             self.check("23", "joins the static ring (paper profile)", True,
@@ -586,7 +650,7 @@ class Tester:
                        "" if f.type == 5 else ": not a BOOT frame"), t0,
                    applicable=f.type == 5)
         self._note_acks(h)
-        t0 = time.monotonic()
+        t0 = self._secs()
         announcing = []
 
         def watch(h: Heard, i: int) -> None:
@@ -698,7 +762,7 @@ class Tester:
         return h, first, turns
 
     def _rotation(self, h: Heard) -> Heard:
-        t0 = time.monotonic()
+        t0 = self._secs()
         gaps, kinds = [], set()
 
         def watch(h: Heard, i: int) -> None:
@@ -730,12 +794,12 @@ class Tester:
     def _late(self, h: Heard) -> Heard:
         """Our frames 300 ms late (within Tmax): the robot must time its turn from the End of
         the frame it heard, not from its own clock (clause 26: resynchronise on every frame)."""
-        t0 = time.monotonic()
+        t0 = self._secs()
         gaps = []
         for _ in range(3 * MISS_LIMIT):
             self._note_acks(h)
             content = self._acks_content()
-            h, end, missed = self._exchange(h, lambda: self.frame(content).encode(),
+            h, end, missed = self._exchange(h, lambda c=content: self.frame(c).encode(),
                                             at=self._turn_at(h) + 300 * MS)
             if not missed:                   # after a missed turn: no sample
                 gaps.append(h.start - end - TTRANS)
@@ -760,7 +824,7 @@ class Tester:
             content, kw = first if (first and i == 0) else (b"", {})
             content += self._acks_content()
             h, _, self.after_miss = self._exchange(
-                h, lambda: self.frame(content, **kw).encode())
+                h, lambda c=content, kw=kw: self.frame(c, **kw).encode())
             if on_frame is not None:
                 on_frame(h, i)
         return h
@@ -774,7 +838,7 @@ class Tester:
             self._note_acks(h)
             acks = self._acks_content()
             nxt, end, missed = self._exchange(h, lambda: data,
-                                              again=lambda: self.frame(acks).encode())
+                                              again=lambda a=acks: self.frame(a).encode())
             if not missed:
                 return nxt, end
             h = nxt
@@ -784,7 +848,7 @@ class Tester:
 
     def _message(self, h: Heard) -> Heard:
         """Our status() to the robot, then the same message again (a retransmission)."""
-        t0 = time.monotonic()
+        t0 = self._secs()
         self.num = (self.num + 1) % 100
         num = self.num
         ack = f"ack({self.me},{num})".encode()
@@ -815,7 +879,7 @@ class Tester:
         self.check("47", "acknowledges our message in its next frame", acked[:1] == [0],
                    "ack in its next frame" if acked[:1] == [0] else
                    f"first ack in its frame {acked[0] + 1}" if acked else "no ack", t0)
-        t0 = time.monotonic()
+        t0 = self._secs()
         seen["acked"].clear()
         h = self._turns(h, 4, (b"status()", {"dst": self.robot, "type_": 2, "num": num}),
                         watch)
@@ -826,7 +890,7 @@ class Tester:
                    f"{len(replies)}, then {more} more", t0)
         # A new message (the next Number): its reply is a new message of the robot's, with
         # the Number after its first reply's (clause 45), which we acknowledge.
-        t0 = time.monotonic()
+        t0 = self._secs()
         self.num = (self.num + 1) % 100
         before = list(seen["replies"])
         h = self._turns(h, 6, (b"status()", {"dst": self.robot, "type_": 2}), watch)
@@ -850,13 +914,13 @@ class Tester:
         for k in range(done, done + self.REPLY_TURNS):
             if seen():
                 break
-            h = self._turns(h, 1, None, lambda x, i: watch(x, k))
+            h = self._turns(h, 1, None, lambda x, i, k=k: watch(x, k))
         return h
 
     def _forged(self, h: Heard) -> Heard:
         """In our turn, first a frame from a forger (a team robot outside the ring) carrying
         status() for the robot, then our own frame: the robot must refuse the forged one."""
-        t0 = time.monotonic()
+        t0 = self._secs()
         if self.profile == "paper":
             self.check("38", "a forged Source is refused", True, "the paper profile admits "
                        "any team robot that sends (docs/protocol.md §9.1)", t0,
@@ -876,7 +940,7 @@ class Tester:
                 end = self._write(forged)
                 while self.now() < end + TTRANS:
                     self._poll_rx()
-                    time.sleep(0.0002)
+                    self.link.idle(POLL_SEND)
                 return ours
             h, _, _ = self._exchange(h, data, again=lambda: ours)
         else:
@@ -898,7 +962,7 @@ class Tester:
         a bad digit in its Number, then (next turn) with a Length beyond the protocol's bound.
         Neither may be acted on (clauses 15, 11, 43), and each still closes our turn (41): the
         robot takes the next one."""
-        t0 = time.monotonic()
+        t0 = self._secs()
         good = self.frame(b"status()", dst=self.robot, type_=2, num=77).encode()
         bad_digit = good[:5] + b"x" + good[6:]                        # Number '7x'
         oversize = good[:8] + b"9999" + good[12:]                      # Length 9999
@@ -954,7 +1018,7 @@ class Tester:
         invitation, or in the paper profile our frame in its static ring) and fall silent
         again, up to ``SILENCES`` times: clause 24 is judged on every takeover measured (at
         least three), clause 25 on the first silence it kept turning through."""
-        t0 = time.monotonic()
+        t0 = self._secs()
         if self.profile == "rprs":
             rule = "max(its End + Tmax + id x Tslot, our End + Tmax + our id x Tslot + Ttrans + " \
                    "4 B) + Ttrans (R-stagger, R-pair)"
@@ -967,7 +1031,7 @@ class Tester:
             frames = self._fall_silent(h)
             our_end = self.last_end
             if self.profile == "rprs":
-                def expect(prev_end: int) -> int:
+                def expect(prev_end: int, our_end: int = our_end) -> int:
                     return max(prev_end + TMAX + self.robot * TSLOT,
                                our_end + TMAX + self.me * TSLOT + TTRANS + 4 * BYTE) + TTRANS
             else:
@@ -997,7 +1061,7 @@ class Tester:
                    f"Header {mid:+.1f} ms (median of {len(offs)} takeovers: "
                    f"{', '.join(f'{o:+.1f}' for o in offs)}) from {rule}" + (
                        "" if len(offs) >= 3 else "; fewer than 3 takeovers") + stops, t0)
-        t0 = time.monotonic()
+        t0 = self._secs()
         ok, fig = fig25 if fig25 is not None else (
             False, f"it never kept turning alone for 6 frames{stops}")
         self.check("25", "drops us after our third missed turn", ok, fig, t0)
@@ -1039,7 +1103,7 @@ class Tester:
         frame in its static ring (paper); then a few turns, so that it counts us a member
         again before we fall silent once more."""
         if self.profile == "paper":
-            h, _, _ = self._paper_join(time.monotonic(), since=self.now())
+            h, _, _ = self._paper_join(self._secs(), since=self.now())
         else:
             h, _ = self._invite(self.now())
         return self._turns(h, 4)
