@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any, Callable
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
@@ -24,10 +25,11 @@ from firmware_model.timing import TICK_HZ                   # noqa: E402
 
 MS = TICK_HZ // 1000
 Mac = mac_mod.RotationalMac
+Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer")
 
 
-def _delay_switch(ms: int, only_answers: bool) -> None:
+def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
     """Our Header ``ms`` later: the SWITCH phase (TXEN up, Ttrans to the first bit) lasts
     longer."""
     orig = Mac._my_turn
@@ -36,29 +38,29 @@ def _delay_switch(ms: int, only_answers: bool) -> None:
         orig(self, start, now, out)
         if self.phase == mac_mod.SWITCH and (self._answering or not only_answers):
             self.deadline += ms * MS
-    Mac._my_turn = _my_turn
+    set_attr(Mac, "_my_turn", _my_turn)
 
 
-def _long_length() -> None:
+def _long_length(set_attr: Setter) -> None:
     orig = Mac._build_frame
 
     def _build_frame(self, now, out):
         frame, data = orig(self, now, out)
         n = int(data[8:12]) + 1
         return frame, data[:8] + b"%04d" % n + data[12:]
-    Mac._build_frame = _build_frame
+    set_attr(Mac, "_build_frame", _build_frame)
 
 
-def _no_ack() -> None:
+def _no_ack(set_attr: Setter) -> None:
     orig = Mac._build_frame
 
     def _build_frame(self, now, out):
         self._acks = []
         return orig(self, now, out)
-    Mac._build_frame = _build_frame
+    set_attr(Mac, "_build_frame", _build_frame)
 
 
-def _boot_01() -> None:
+def _boot_01(set_attr: Setter) -> None:
     orig = Mac._build_frame
 
     def _build_frame(self, now, out):
@@ -70,22 +72,24 @@ def _boot_01() -> None:
                           content=frame.content)
             data = frame.encode()
         return frame, data
-    Mac._build_frame = _build_frame
+    set_attr(Mac, "_build_frame", _build_frame)
 
 
-def _no_stagger() -> None:
+def _no_stagger(set_attr: Setter) -> None:
     orig = Mac._next_turn
 
     def _next_turn(self, after, start, now, out, uncertain=False, not_before=None):
         orig(self, after, start, now, out)
-    Mac._next_turn = _next_turn
+    set_attr(Mac, "_next_turn", _next_turn)
 
 
-def patch(fault: str) -> None:
-    {"late-turn": lambda: _delay_switch(20, False),
-     "late-answer": lambda: _delay_switch(40, True),
+def patch(fault: str, set_attr: Setter = setattr) -> None:
+    """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
+    ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
+    {"late-turn": lambda s: _delay_switch(s, 20, False),
+     "late-answer": lambda s: _delay_switch(s, 40, True),
      "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
-     "no-stagger": _no_stagger}[fault]()
+     "no-stagger": _no_stagger}[fault](set_attr)
 
 
 if __name__ == "__main__":
