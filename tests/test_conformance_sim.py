@@ -149,3 +149,22 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
         assert "takeovers: -80.0, -80.0, -80.0" in _figure(rep, "24"), why
     elif fault == "late-answer":
         assert _figure(rep, "34").startswith("Type '5', Header +40.0 ms"), why
+
+
+# ------------------------------------------------------------------- the seam
+def test_both_links_have_the_seams_methods_with_its_signatures():
+    """``SerialLink`` and ``SimLink`` are ``TesterLink``s: every method the Protocol declares,
+    with the same parameters and return annotation (hil is outside mypy's packages, so this
+    test holds them to it)."""
+    import inspect
+
+    from hil.bench.conformance import SerialLink, TesterLink
+    names = [n for n, v in vars(TesterLink).items() if inspect.isfunction(v) and
+             not n.startswith("_")]
+    assert sorted(names) == ["close", "idle", "now", "read", "write"]
+    for cls in (SerialLink, SimLink):
+        for n in names:
+            want, got = inspect.signature(getattr(TesterLink, n)), \
+                inspect.signature(getattr(cls, n))
+            assert list(got.parameters) == list(want.parameters), (cls, n)
+            assert got.return_annotation == want.return_annotation, (cls, n)
