@@ -168,3 +168,14 @@ def test_both_links_have_the_seams_methods_with_its_signatures():
                 inspect.signature(getattr(cls, n))
             assert list(got.parameters) == list(want.parameters), (cls, n)
             assert got.return_annotation == want.return_annotation, (cls, n)
+
+
+# ------------------------------------------------------------------- the kit started late
+def test_the_tester_hears_nothing_from_before_it_started():
+    """As a port opened when the kit starts: the robot's frames before then (it claimed the
+    channel and ran alone for seconds) are not heard; they once reached the kit as its
+    first frames, and its first frame answered one of them seconds late."""
+    link = SimLink(1, "paper", tuple(range(7)), lead_s=5.0)
+    assert '"ev":"tx"' in link.events.getvalue()               # it did send before
+    assert link.read() == []
+

@@ -97,6 +97,7 @@ class SimLink:
         self._rx_back: Event | None = None
         self.sent = 0                          # transmissions of the tester's
         self.sched.run_until(s_to_ticks(lead_s))
+        self.read()          # as a port opened now: what came before is stale, not heard
 
     def now(self) -> int:
         return self.sched.now
