@@ -714,8 +714,10 @@ _REPRESENTATIVE = {(4, "rprs", "all"), (6, "paper", "pair"), (5, "paper", "pair"
 # robots, which the child drops in the same round, and its ring then shrinks to two while
 # it still counts the misses of that round: max(3, n - 1) consecutive misses, and the
 # cut-off (clause 40) sends it to LISTEN (seen in its events: "disable 1, 2, 4", then "heard
-# nobody for a whole round"). A finding about the child's paper profile, not the kit's:
-# left open, not hidden.
+# nobody for a whole round"). Left open, not hidden. In simulated time the same cases failed
+# when the kit started seconds after the robot and counted the absent robots' misses from its
+# own start (tests/test_conformance_sim.py); the kit now waits until the robot runs alone.
+# Whether that was the cause on the hub too is not yet known: rerun these before removing it.
 _CUT_OFF = pytest.mark.xfail(reason="the child's paper-profile cut-off after the absent "
                              "team robots are dropped together (clause 40)", strict=False)
 

@@ -179,3 +179,19 @@ def test_the_tester_hears_nothing_from_before_it_started():
     assert '"ev":"tx"' in link.events.getvalue()               # it did send before
     assert link.read() == []
 
+
+@pytest.mark.parametrize("lead_s", [3.0, 11.0])
+@pytest.mark.parametrize("robot", range(1, 7))
+def test_a_paper_robot_that_ran_alone_before_the_kit_started_passes(robot, lead_s):
+    """The paper profile with the default team: the robot alone in its static ring of seven
+    counts misses of the absent robots from its power-on, and drops them all after three
+    rounds (about 11 s). The kit once counted their misses from its own start: started 3 s
+    after the robot, robot 3 failed clause 23 (a takeover timed as a hand-over, +600 ms) and
+    robot 1 missed turns; started 11 s after, the robot took our turn over where our frame
+    began, dropped us, and the run stopped for every ID. The kit now listens until the
+    robot runs alone (its lone pause, shorter than Tmax) and joins it then."""
+    rep, stopped, link = _run(robot, "paper", lead_s=lead_s)
+    why = _table(rep, stopped, link)
+    assert stopped is None and rep.passed, why
+    assert not rep.notes, why
+    assert all(v <= {"pass", "n/a"} for v in _verdicts(rep).values()), why

@@ -723,6 +723,7 @@ class Tester:
             h = self.wait_frame(end, listen, self.robot)
             if h is None:
                 break
+            h = self._lone(h, h.end + listen)
             end = self.send(self.frame(), self._turn_at(h))
             h = self.wait_frame(end, (len(self.absent) + 1) * TMAX + TTRANS + 14 * BYTE +
                                 2 * self.tol, self.robot)
@@ -760,6 +761,30 @@ class Tester:
             h, missed = nxt, 0
             prompt = prompt + 1 if h.start - end < TMAX // 2 else 0
         return h, first, turns
+
+    def _lone(self, h: Heard, until: int) -> Heard:
+        """Paper profile, before our first frame: listen (to tick ``until`` at most) until
+        the robot runs alone in its static ring; its frame to answer. While the ring holds
+        other members (the absent team robots, and us) it waits Tmax for each before its
+        next frame, and a robot alone drops them all in the same round, after three rounds
+        (docs/protocol.md §9.1): from then on its frames come at its lone pause, Twin + id x
+        Tslot, sooner than Tmax. Once such a frame came, every absent robot is dropped and
+        our turn is at once after its frame. If it never did by ``until``, its last frame:
+        we take our turns after the absent robots' takeovers (:meth:`_turn_at`), which
+        holds only if the robot had counted no miss of theirs before we started. (The kit
+        once sent after the first frame it heard: a robot that had counted misses before
+        the kit started dropped the absent robots sooner than the kit counted, took our
+        turn over at the instant our frame began, dropped us after three such collisions
+        and, hearing us again, listened for good: the paper has no rejoin.)"""
+        while any(n < 3 for n in self.absent.values()):
+            nxt = self.wait_frame(h.end, max(0, until - max(self.now(), h.end)), self.robot)
+            if nxt is None:
+                return h
+            if nxt.start - h.end < TMAX:
+                for i in self.absent:
+                    self.absent[i] = 3
+            h = nxt
+        return h
 
     def _rotation(self, h: Heard) -> Heard:
         t0 = self._secs()
