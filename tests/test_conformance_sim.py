@@ -195,3 +195,46 @@ def test_a_paper_robot_that_ran_alone_before_the_kit_started_passes(robot, lead_
     assert stopped is None and rep.passed, why
     assert not rep.notes, why
     assert all(v <= {"pass", "n/a"} for v in _verdicts(rep).values()), why
+
+
+def test_the_serial_link_stamps_and_sleeps_as_the_kit_always_did(monkeypatch):
+    """``SerialLink`` is the kit's port and wall clock as before the seam: bytes read are
+    stamped the last one now and each before it a byte time earlier, a write is stamped when
+    it is made, ``idle`` sleeps the ticks on the wall clock, ``close`` closes the port."""
+    import hil.bench.conformance as kit
+    from firmware_model.timing import TICK_HZ
+
+    class Port:
+        def __init__(self) -> None:
+            self.rx, self.tx, self.closed = b"", [], False
+
+        @property
+        def in_waiting(self) -> int:
+            return len(self.rx)
+
+        def read(self, n: int) -> bytes:
+            out, self.rx = self.rx[:n], self.rx[n:]
+            return out
+
+        def write(self, data: bytes) -> None:
+            self.tx.append(data)
+
+        def close(self) -> None:
+            self.closed = True
+
+    port, clock, slept = Port(), [5_000_000_000], []
+    monkeypatch.setattr(kit, "open_port", lambda name: port)
+    monkeypatch.setattr(kit.time, "monotonic_ns", lambda: clock[0])
+    monkeypatch.setattr(kit.time, "sleep", slept.append)
+    link = kit.SerialLink("/dev/ttyX")
+    clock[0] += 2_000_000                                       # 2 ms on
+    assert link.now() == 2 * MS
+    port.rx = b"abc"
+    assert link.read() == [(b"abc", 2 * MS - 2 * kit.BYTE, kit.BYTE)]
+    assert link.read() == []
+    assert link.write(b"xyz") == 2 * MS and port.tx == [b"xyz"]
+    link.idle(kit.POLL_WAIT)
+    link.idle(kit.POLL_SEND)
+    assert slept == [kit.POLL_WAIT / TICK_HZ, kit.POLL_SEND / TICK_HZ] == [0.0003, 0.0002]
+    link.close()
+    assert port.closed
