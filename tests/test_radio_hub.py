@@ -103,6 +103,7 @@ def test_frame_reaches_every_other_node_intact_and_not_the_sender(hubs):
     assert [n["bytes_out"] for n in st["per_node"][1:]] == [len(FRAME)] * 2
 
 
+@pytest.mark.timing  # the hub's threads must run when they wake (README, "Tests")
 def test_bytes_are_paced_at_the_air_byte_time(hubs):
     hub = hubs(2).start()
     tx, rx = (open_node(hubs, p) for p in hub.paths)
@@ -173,6 +174,7 @@ def _clean_run(got: bytes, base: int) -> int:
     return best
 
 
+@pytest.mark.timing  # the hub's threads must run when they wake (README, "Tests")
 def test_two_nodes_at_once_collide_into_garbage(hubs):
     hub = hubs(3)
     fds = [open_node(hubs, p) for p in hub.paths]
