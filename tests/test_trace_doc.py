@@ -145,19 +145,3 @@ def test_an_extra_robots_events_carry_extra_and_the_text_says_so(events):
     assert {"power", "frame", "mode", "duplicate_id", "foreign_ring"} <= {e["ev"] for e in tagged}
     assert all(e["extra"] >= 1 for e in tagged)
     assert 'carry `"extra": k`' in DOC.read_text(encoding="utf-8")
-
-
-def test_each_typed_event_writes_its_rows_keys_in_order():
-    """hil/sim/events.py: an event's dict has ``t``, ``ev`` and then exactly the keys of its
-    row, in the row's order (``pc``, a tag, only where it is given)."""
-    from hil.sim import events as E
-    doc = table()
-    kinds = [c for c in vars(E).values()
-             if isinstance(c, type) and issubclass(c, E.Event) and c is not E.Event]
-    assert {c.ev for c in kinds} >= {"miss", "deliver", "submit", "fail", "foreign_ring"}
-    for cls in kinds:
-        values = [2 if k == "pc" else i for i, k in enumerate(cls._keys)]
-        d = cls(*values).to_dict(7, **({} if "pc" in cls._keys else {"pc": 2}))
-        assert list(d)[:2] == ["t", "ev"] and d["t"] == 7 and d["ev"] == cls.ev
-        want = doc[cls.ev] if "pc" in doc[cls.ev] else [*doc[cls.ev], "pc"]
-        assert list(d)[2:] == want, (cls.ev, list(d))

@@ -34,7 +34,6 @@ from firmware_model.radio.deframer import FrameFailed
 from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to_ticks
 
-from . import events as E
 from .air import Air, Transmission
 from .collector import fewer_collections
 from .config import ConfigError, SimConfig
@@ -367,19 +366,6 @@ class World:
         if ring is not None and not meta:
             ring.note(ev)
 
-    def _event(self, e: E.Event, **tags) -> None:
-        """A typed event (hil/sim/events.py), tagged (``pc``, ``extra``), as :meth:`_emit`."""
-        trace, on_event = self.trace, self.on_event
-        if trace is None and on_event is None:
-            return
-        ev = e.to_dict(self.sched.now, **tags)
-        if trace is not None:
-            trace.write(ev)
-        if on_event is not None:
-            on_event(ev)
-        if self.quiet_ring is not None:
-            self.quiet_ring.note(ev)
-
     def replay(self, ev: dict, sink: str = "trace") -> None:
         """Write an event the ring did not run but whose place it knows (a cycle it leapt
         over, shifted: hil/sim/quiet_ring.py) to the trace and the event callback, or with
@@ -411,24 +397,30 @@ class World:
         r = st.id
         self.observed += 1
         if t is ModeChange:
-            e = E.Mode(r, a.mode, a.reason)
+            ev = {"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason}
         elif t is Deliver:
-            e = E.Deliver(a.src, a.dst, a.num, a.type, r, self.ledger.intact(a))
+            intact = self.ledger.intact(a)
+            ev = {"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num, "type": a.type,
+                  "to": r, "intact": intact}
         elif t is Join:
-            e = (E.Rejoin if a.again else E.Join)(a.robot, r)
+            ev = {"ev": "rejoin" if a.again else "join", "robot": a.robot, "by": r}
         elif t is Disable:
-            e = E.Disable(a.robot, r)
+            ev = {"ev": "disable", "robot": a.robot, "by": r}
         elif t is Refused:
-            e = E.Refused(a.src, a.num, r, a.reason)
+            ev = {"ev": "refused", "src": a.src, "num": a.num, "to": r, "reason": a.reason}
         elif t is NumberBehind:
-            e = E.Behind(a.src, a.num, a.last, r, a.refused)
-        elif t is DuplicateId or t is ForeignRing:
-            e = E.DuplicateId(r, a.yielding) if t is DuplicateId else \
-                E.ForeignRing(r, list(a.robots), a.member)
-            self.identity.append(e.to_dict(self.sched.now, extra=k))
+            ev = {"ev": "behind", "src": a.src, "num": a.num, "last": a.last, "to": r,
+                  "refused": a.refused}
+        elif t is DuplicateId:
+            ev = {"ev": "duplicate_id", "robot": r, "yielding": a.yielding}
+            self.identity.append({"t": self.sched.now, **ev, "extra": k})
+        elif t is ForeignRing:
+            ev = {"ev": "foreign_ring", "robot": r, "robots": list(a.robots),
+                  "member": a.member}
+            self.identity.append({"t": self.sched.now, **ev, "extra": k})
         else:
             return
-        self._event(e, extra=k)
+        self._emit({**ev, "extra": k})
 
     def _power_on_standby(self) -> None:
         self.air.revive(self.radios[STANDBY], self.sched.now)
@@ -535,9 +527,6 @@ class World:
         """An event of the father's standby PC: it carries ``"pc": 2`` (docs/trace.md)."""
         self._emit({**ev, "pc": 2})
 
-    def _event_pc2(self, e: E.Event) -> None:
-        self._event(e, pc=2)
-
     def activity(self) -> tuple[int, ...]:
         """Changes whenever a MAC reports something (any action but its own I/O), two
         transmissions collide or bytes are injected: a ring that only repeats itself leaves
@@ -546,7 +535,7 @@ class World:
 
     def _observe(self, st: RadioStation, a: object, now: int) -> None:
         r = st.id
-        emit, event = self._emit, self._event
+        emit = self._emit
         if self._extra_of:
             k = self._extra_of.get(id(st))
             if k is not None:
@@ -556,10 +545,10 @@ class World:
         if st is self.standby_station:
             if type(a) is ModeChange:
                 self.observed += 1
-                self._event(E.Mode(0, a.mode, a.reason, pc=2))
+                self._emit({"ev": "mode", "robot": 0, "pc": 2, "mode": a.mode,
+                            "reason": a.reason})
                 return
-            # both PCs are ID 0: the tag tells them apart
-            emit, event = self._emit_pc2, self._event_pc2
+            emit = self._emit_pc2      # both PCs are ID 0: the tag tells them apart
         t = type(a)
         if t is Transmit:
             return
@@ -573,53 +562,64 @@ class World:
             # own radio: it once went by PC1's, both being robot 0).
             if self.radios[STANDBY if st is self.standby_station else r].alive:
                 self.ledger.missed(now, a.robot)
-            event(E.Miss(a.robot, r))
+            emit({"ev": "miss", "robot": a.robot, "by": r})
         elif t is Disable:
             self.ledger.membership_change("disable", a.robot, now)
-            event(E.Disable(a.robot, r))
+            emit({"ev": "disable", "robot": a.robot, "by": r})
         elif t is Join:
-            e = E.Rejoin(a.robot, r) if a.again else E.Join(a.robot, r)
-            self.ledger.membership_change(e.ev, a.robot, now)
-            event(e)
+            kind = "rejoin" if a.again else "join"
+            self.ledger.membership_change(kind, a.robot, now)
+            emit({"ev": kind, "robot": a.robot, "by": r})
         elif t is ModeChange:
             self.ledger.membership_change(a.mode, r, now)
-            event(E.Mode(r, a.mode, a.reason))
+            emit({"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason})
         elif t is Deliver:
             intact = self.ledger.delivered_to(a, r)
-            event(E.Deliver(a.src, a.dst, a.num, a.type, r, intact))
+            emit({"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
+                  "type": a.type, "to": r, "intact": intact})
         elif t is Duplicate:
             self.stats[r].duplicates += 1
-            event(E.Duplicate(a.src, a.num, r))
+            emit({"ev": "duplicate", "src": a.src, "num": a.num, "to": r})
         elif t is Refused:
             self.stats[r].refused_frames += 1
-            event(E.Refused(a.src, a.num, r, a.reason))
+            emit({"ev": "refused", "src": a.src, "num": a.num, "to": r,
+                  "reason": a.reason})
         elif t is NumberBehind:
             self.stats[r].numbers_behind += 1
-            event(E.Behind(a.src, a.num, a.last, r, a.refused))
+            emit({"ev": "behind", "src": a.src, "num": a.num, "last": a.last, "to": r,
+                  "refused": a.refused})
         elif t is DuplicateId:
-            e = E.DuplicateId(r, a.yielding)
-            self.identity.append(e.to_dict(now))
-            event(e)
+            self.identity.append({"t": now, "ev": "duplicate_id", "robot": r,
+                                  "yielding": a.yielding})
+            emit({"ev": "duplicate_id", "robot": r, "yielding": a.yielding})
         elif t is ForeignRing:
-            e = E.ForeignRing(r, list(a.robots), a.member)
-            self.identity.append(e.to_dict(now))
-            event(e)
+            self.identity.append({"t": now, "ev": "foreign_ring", "robot": r,
+                                  "robots": list(a.robots), "member": a.member})
+            emit({"ev": "foreign_ring", "robot": r, "robots": list(a.robots),
+                  "member": a.member})
         elif t is FrameFailed:
             self.stats[r].bad_frames += 1
             if self.trace is not None or self.on_event is not None:
-                event(E.BadFrame(r, a.error.field, str(a.error)))
+                emit({"ev": "bad_frame", "to": r, "field": a.error.field,
+                      "reason": str(a.error)})
         elif t is BadContent:
-            event(E.BadContent(a.src, a.num, r, str(a.error)))
+            emit({"ev": "bad_content", "src": a.src, "num": a.num, "to": r,
+                  "reason": str(a.error)})
         elif t is Outcome:
             m = a.message
             ended = self.ledger.ended(a)
-            event(E.ENDED[ended](m.src, m.dst, m.num, m.attempts if ended == "delivered"
-                                 else a.reason))
+            if ended == "delivered":
+                emit({"ev": "delivered", "src": m.src, "dst": m.dst, "num": m.num,
+                      "attempts": m.attempts})
+            else:                              # sent (unacknowledged) or fail
+                emit({"ev": ended, "src": m.src, "dst": m.dst, "num": m.num,
+                      "reason": a.reason})
             if self.cfg.load == "saturate":
                 self.load.refill(r)
         elif t is Message:
             self.ledger.submitted(a)
-            event(E.Submit(a.src, a.dst, a.num, a.type, len(a.content)))
+            emit({"ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
+                  "type": a.type, "len": len(a.content)})
 
     # -- the world's parts ----------------------------------------------------------------
 
