@@ -35,7 +35,8 @@ import time
 from firmware_model.radio.mac import MacConfig, Outcome, SubmitError
 from firmware_model.radio.peer_macs import PeerConfig, install
 from firmware_model.timing import CHILD_BYTE_TICKS, FRAME_OVERHEAD, TICK_HZ, TTRANS_TICKS
-from hil.sim.world import SimConfig, World, _filled_commands
+from hil.sim.load import filled_commands
+from hil.sim.world import SimConfig, World
 
 FRAME_BYTES = 40
 T_FRAME = FRAME_BYTES * CHILD_BYTE_TICKS
@@ -77,7 +78,7 @@ def csma_with_acks(g: float, a: float = A_CSMA,
 
 
 def _commands(content_bytes: int):
-    cmds = _filled_commands(content_bytes)
+    cmds = filled_commands(content_bytes)
     n = sum(len(c.text()) for c in cmds)
     if n != content_bytes:
         raise ValueError(f"cannot make {content_bytes} Content bytes exactly (got {n})")

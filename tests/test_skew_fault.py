@@ -2,7 +2,7 @@
 
 E is how much slower robot R's clock runs than nominal: every byte time and every interval
 it times (Ttrans, Tmax, the poll window, the stagger, the quiet gap) is (1 + E) times its
-nominal length in true ticks (hil/sim/world.py ``_skewed``). A negative E (a clock that runs
+nominal length in true ticks (hil/sim/faults.py ``skewed_mac``). A negative E (a clock that runs
 fast) was half-allowed: the parser's range check took |E| < 0.2, while its pattern refused
 any minus sign with "is not a fault spec like ...". And the docs said the clock runs E *fast*
 while the model made it slow. A fast clock is refused now, in words, as not modelled. (It was

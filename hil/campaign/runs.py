@@ -14,7 +14,8 @@ import traceback
 from typing import Any, Callable, Sequence
 
 from ..sim.soak import run_timing_reformations
-from ..sim.world import SimConfig, World
+from ..sim.config import SimConfig
+from ..sim.world import World
 
 Item = tuple[str, str, tuple[str, ...], int, int]
 """(run key, point key, rprs sim arguments, seed index, seed)."""
@@ -26,16 +27,20 @@ class _Parser(argparse.ArgumentParser):
 
 
 def sim_config_for(args: Sequence[str], seed: int) -> SimConfig:
-    """The SimConfig ``rprs sim ARGS --seed SEED`` runs; ValueError for what it refuses."""
+    """The SimConfig ``rprs sim ARGS --seed SEED`` runs; ValueError for what it refuses: the
+    options it cannot parse (the parser is ``rprs sim``'s) and the settings that cannot work
+    (``SimConfig.validate``'s ConfigError, as ``rprs sim`` checks them before it runs)."""
     from ..cli.common import UserError
     from ..cli.sim import add_sim_options, sim_config
     p = _Parser(prog="rprs sim", add_help=False)
     add_sim_options(p)
     a = p.parse_args([*args, "--seed", str(seed)])
     try:
-        return sim_config(a)
+        cfg = sim_config(a)
     except UserError as e:
         raise ValueError(str(e)) from None
+    cfg.validate()
+    return cfg
 
 
 def check_args(args: Sequence[str]) -> None:

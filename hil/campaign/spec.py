@@ -16,7 +16,8 @@ seeds per point (docs/campaigns.md).
 Grid keys are ``rprs sim`` options without the dashes (``father_standby`` for
 ``--father-standby``): a boolean is a flag, ``fault`` (and ``fail``, ``recover``, ``power``)
 a list of values for the repeatable option, anything else one value. Each point is checked
-with ``rprs sim``'s own option parser before anything runs, so a bad value is one clear error.
+with ``rprs sim``'s own option parser and ``SimConfig.validate`` before anything runs, so a bad
+value is one clear error.
 Outputs (``trace``, ``vcd``, ``pcap``, ``json``) and ``seed`` are the campaign's, not the
 grid's.
 """

@@ -9,7 +9,9 @@ import time
 from firmware_model.timing import TICK_HZ, ms_to_ticks, ticks_to_ms, ticks_to_s
 
 from ..sim.trace import OutputFile, TraceWriter
-from ..sim.world import ConfigError, Fault, SimConfig, World
+from ..sim.config import ConfigError, SimConfig
+from ..sim.faults import Fault
+from ..sim.world import World
 from .common import (
     UserError, auth_option, checked_mac_config, digit, distinct_outputs, profile_option,
     fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console,
@@ -136,9 +138,10 @@ def radio_switch_spec(text: str) -> tuple[int, int, int]:
 
 
 def sim_config(a: argparse.Namespace) -> SimConfig:
-    if a.profile == "paper" and a.father_standby:
-        raise UserError("--profile paper has no standby PC (--father-standby is this "
-                        "project's extension)")
+    """The SimConfig the options ask for; a UserError for what only the options can say is
+    wrong (a time past ``--duration``, a robot's radio switch times given twice, a cycle-cost
+    file that cannot be read). The settings themselves are checked by
+    :meth:`SimConfig.validate` (hil/sim/config.py)."""
     late = [f"--{opt} {r}@{t:g}" for opt, times in (("fail", a.fail), ("recover", a.recover),
                                                     ("power", a.power),
                                                     ("extra", [x[:2] for x in a.extra]))
@@ -149,12 +152,8 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                         f"gets there")
     faults = tuple(Fault("fail", r, t) for r, t in a.fail) + \
         tuple(Fault("recover", r, t) for r, t in a.recover) + tuple(a.fault)
-    peer_mac_options(a)
     peer = None
     if getattr(a, "frame_bytes", None):
-        if getattr(a, "mac", "rotational") == "rotational":
-            raise UserError("--frame-bytes sizes the peer MACs' frames (--mac aloha|slotted|"
-                            "csma); the rotational MAC's frames are as long as their Content")
         from firmware_model.radio.peer_macs import PeerConfig
         peer = PeerConfig(frame_bytes=a.frame_bytes)
     switch: dict[int, tuple[int, int]] = {}
@@ -175,30 +174,6 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer,
                      can_sleep=not a.every_frame, ring_sleep=not a.every_frame,
                      radio_switch=switch)
-
-
-def peer_mac_options(a: argparse.Namespace) -> None:
-    """A UserError for an option that only the rotational MAC acts on, given with a peer MAC
-    (``--mac aloha|slotted|csma``), where it would be taken and do nothing. The peer MACs do
-    use ``--checksum`` (their frames are sealed and checked), the air's and CAN faults, skew,
-    the load and the CAN side; they have no turns (``steal``: ``force_turn`` does nothing), no
-    standby PC, and never read the profile (they acknowledge and retransmit whatever it says)."""
-    mac = getattr(a, "mac", "rotational")
-    if mac == "rotational":
-        return
-    if a.auth_key is not None:
-        raise UserError(f"--auth-key: --mac {mac} has no authenticated profile (it is the "
-                        f"rotational MAC's)")
-    steal = next((f for f in a.fault if f.kind == "steal"), None)
-    if steal is not None:
-        raise UserError(f"--fault {steal.spec()}: --mac {mac} has no turns to steal (steal "
-                        f"is a fault of the rotational MAC)")
-    if a.profile != "rprs":
-        raise UserError(f"--profile {a.profile} is a profile of the rotational MAC "
-                        f"(docs/protocol.md §9); --mac {mac} does not follow it")
-    if a.father_standby:
-        raise UserError(f"--father-standby needs the rotational MAC: the standby PC takes ID "
-                        f"0's turn, and --mac {mac} has no turns")
 
 
 def cpu_costs(a: argparse.Namespace):

@@ -43,9 +43,13 @@ from __future__ import annotations
 
 import random
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 from firmware_model.timing import PC_BYTE_TICKS, s_to_ticks
+
+if TYPE_CHECKING:
+    from firmware_model.radio.mac import MacConfig
 
 KINDS = ("fail", "recover", "steal", "ber", "noise", "burst", "foreign", "drop", "skew",
          "busoff", "stuck", "silent", "stall", "noisy")
@@ -177,6 +181,16 @@ def check_skew(value: float) -> float:
     if not value < SKEW_MAX:
         raise FaultError(f"skew {value:g} is not a small fraction: 0 <= E < {SKEW_MAX:g}")
     return value
+
+
+def skewed_mac(cfg: MacConfig, eps: float) -> MacConfig:
+    """A robot whose clock runs ``eps`` slow (``skew:R:E``, 0 <= E < 0.2): every interval it
+    times is that much longer in true ticks (rounded up to the reload timer's even ticks)."""
+    def k(t: int) -> int:
+        v = round(t * (1 + eps))
+        return v + (v & 1)
+    return replace(cfg, ttrans=k(cfg.ttrans), tmax=k(cfg.tmax), twin=k(cfg.twin),
+                   tslot=k(cfg.tslot), quiet_gap=k(cfg.quiet_gap))
 
 
 def foreign_fault(at: float, count: float | None = None, hexdata: str | None = None) -> Fault:

@@ -4,15 +4,13 @@ goes by one integer-tick scheduler.
 Everything random (noise, byte errors, load) is drawn from streams seeded by ``seed``, so the
 same configuration gives the same trace to the tick.
 
-Over 500 lines on purpose: the world wires robots, air, CAN sides, load and faults, and keeps
-the accounting the invariants are checked on; the parts themselves live elsewhere.
+The world wires robots, air, CAN sides, load and faults and feeds the accounting; the parts
+live elsewhere: the settings and their checks in config.py, the load in load.py, the
+accounting and the summary in ledger.py, the air in air.py, the faults in faults.py.
 """
 from __future__ import annotations
 
-import random
-from collections import Counter
-from dataclasses import dataclass, field, replace
-from functools import lru_cache
+from dataclasses import replace
 from typing import Callable, Iterable
 
 from can_bus.bits import BitTiming
@@ -26,11 +24,10 @@ from firmware_model.mcu.can_controller import CanController
 from firmware_model.mcu.cpu import Cpu
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.sequence import ACTION_NAMES
-from firmware_model.radio.content import Command, cmd, frame_kind
-from firmware_model.radio.frame import BROADCAST
+from firmware_model.radio.content import Command, frame_kind
 from firmware_model.radio.mac import (
     BadContent, Deliver, Disable, Duplicate, DuplicateId, ForeignRing, Join, MacConfig, Message,
-    Miss, ModeChange, NumberBehind, UNACKNOWLEDGED, Outcome, Refused, SubmitError, Transmit,
+    Miss, ModeChange, NumberBehind, Outcome, Refused, SubmitError, Transmit,
     TxEnable,
 )
 from firmware_model.radio.deframer import FrameFailed
@@ -39,10 +36,12 @@ from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to
 
 from .air import Air, Transmission
 from .collector import fewer_collections
+from .config import ConfigError, SimConfig
 from .faults import (
-    AIR_KINDS, CAN_KINDS, KINDS, Fault, FaultError, apply_air_fault, check_skew,
-    schedule as schedule_fault,
+    AIR_KINDS, KINDS, Fault, apply_air_fault, schedule as schedule_fault, skewed_mac,
 )
+from .ledger import Ledger, Tally, summary
+from .load import Load
 from .quiet_can import PERIOD as CAN_PERIOD, QuietCan
 from .quiet_ring import QuietRing
 from .realtime import RealTimeScheduler
@@ -53,204 +52,11 @@ CAN_TIMING = BitTiming()
 """500 kbit/s: 2 ticks a time quantum, 16 quanta a bit (docs/can.md)."""
 
 
-class ConfigError(ValueError):
-    """A simulation setting that cannot work (bad robot list, fault time, load ...)."""
-
-
 FAULT_KINDS = KINDS
 STANDBY = 100
 """Key of the father's standby PC (PC2, also ID 0 on the air) in ``World.radios``."""
 EXTRA = 200
 """``World.radios`` holds the k-th of ``SimConfig.extra`` at EXTRA + k."""
-
-
-@dataclass
-class SimConfig:
-    """One simulation run. Times in seconds; IDs 0 (father) to 6."""
-
-    robots: tuple[int, ...] = (1, 2, 3, 4)
-    duration: float = 10.0
-    seed: int = 0
-    faults: tuple[Fault, ...] = ()
-    ber: float = 0.0
-    noise: bool = False
-    load: str | float = "idle"
-    payload: int | None = None
-    """Content bytes of each message under ``load='saturate'`` (default: as large as a turn
-    allows, less the MAC's reserve)."""
-    load_until: float | None = None
-    """No new messages after this many seconds (lets a run drain its queues)."""
-    power_on: dict[int, float] = field(default_factory=dict)
-    byte_by_byte: bool = False
-    mac: MacConfig | None = None
-    can: bool = False
-    """Give every child its CAN side: controller, 82C250, dispatcher and six submodules."""
-    can_sleep: bool = True
-    """A child's CAN side that only repeats itself is moved on in whole periods instead of
-    frame by frame (hil/sim/quiet_can.py). The run is the same to the tick either way;
-    False is slower and exists to show that."""
-    ring_sleep: bool = True
-    """A ring that only repeats itself (idle, nothing watching its frames) is moved on in whole
-    cycles instead of frame by frame (hil/sim/quiet_ring.py). The run is the same to the tick
-    either way; False is slower and exists to show that."""
-    sequence: tuple[tuple[int, ...], int] | None = None
-    """(row order, cycles): the children run the paper's action sequence (needs ``can``)."""
-    realtime: bool = False
-    """Run on the wall clock (hil.sim.realtime) instead of as fast as the CPU goes."""
-    father_standby: bool = False
-    """A second father PC (PC2) as hot standby for ID 0 (needs 0 in ``robots``)."""
-    mac_kind: str = "rotational"
-    """The MAC every robot runs: the paper's rotational MAC, or a peer for comparison
-    (aloha, slotted, csma; firmware_model/radio/peer_macs.py)."""
-    peer: object | None = None
-    """PeerConfig for the peer MACs."""
-    extra: tuple[tuple[int, float, tuple[int, ...] | None], ...] = ()
-    """More robots on the same air, outside ``robots``: (ID, power-on seconds, team or None for
-    the run's). An ID of ``robots`` again is a twin (two robots with one ID, docs/protocol.md
-    clause 38.2); another team is a co-channel ring (clause 38.1). Their events carry
-    ``"extra": k`` (1 for the first) in the trace; they get no load."""
-    cpu: object | None = None
-    """A cycle-cost table (firmware_model.cycle_costs.CycleCosts): every child's firmware runs
-    on the MB90F549 CPU model, its handlers taking the time the table gives. None: the ideal
-    CPU, every handler in zero time (the paper's timing)."""
-    radio_switch: dict[int, tuple[int, int]] = field(default_factory=dict)
-    """Per robot ID, its PTR2000's (TX-ready, RX-ready) switch times in ticks; robots not named
-    get the nRF401 data sheet's, 1 ms and 3 ms (firmware_model/mcu/ptr2000.py). Not the MAC's
-    Ttrans, which stays the protocol's 5 ms guard."""
-
-    def validate(self) -> None:
-        if not self.robots:
-            raise ConfigError("no robots: give at least one ID with --robots")
-        for r in self.robots:
-            if not isinstance(r, int) or not 0 <= r <= 6:
-                raise ConfigError(f"robot ID {r!r} is not 0-6 (0 is the father, 1-6 children)")
-        if len(set(self.robots)) != len(self.robots):
-            raise ConfigError(f"robot IDs repeat in {list(self.robots)}")
-        if not self.duration > 0:
-            raise ConfigError(f"duration must be positive, got {self.duration}")
-        if s_to_ticks(self.duration) < 1:
-            raise ConfigError(f"duration {self.duration:g} s is shorter than one tick (62.5 ns): "
-                              f"nothing would run")
-        if not 0.0 <= self.ber < 1.0:
-            raise ConfigError(f"byte error rate must be in [0, 1), got {self.ber}")
-        if self.sequence is not None:
-            order, cycles = self.sequence
-            if not self.can:
-                raise ConfigError("the action sequence needs the children's CAN side (can)")
-            if not order or any(r not in self.robots or r == 0 for r in order):
-                raise ConfigError(f"the action-sequence row {list(order)} must be children "
-                                  f"of the ring {list(self.robots)}")
-            if cycles < 1:
-                raise ConfigError(f"cycles must be at least 1, got {cycles}")
-        from firmware_model.radio.peer_macs import KINDS as MAC_KINDS
-        if self.mac_kind not in MAC_KINDS:
-            raise ConfigError(f"unknown MAC {self.mac_kind!r}; one of {', '.join(MAC_KINDS)}")
-        if self.mac_kind != "rotational" and (self.father_standby or self.sequence):
-            raise ConfigError("the standby father and the action sequence need the rotational "
-                              "MAC")
-        if self.father_standby and 0 not in self.robots:
-            raise ConfigError("a standby father PC needs the father (ID 0) in the ring")
-        skews: dict[int | None, Fault] = {}
-        for f in self.faults:
-            if f.kind == "skew":
-                first = skews.setdefault(f.robot, f)
-                if first is not f:
-                    raise ConfigError(f"faults {first.spec()} and {f.spec()}: a robot has one "
-                                      f"clock, give it one skew")
-            if f.robot is not None and f.robot not in self.robots:
-                raise ConfigError(f"fault {f.spec()} names robot {f.robot}, which is not in the "
-                                  f"ring {list(self.robots)}")
-            if f.at < 0:
-                raise ConfigError(f"fault {f.spec()}: time must not be negative")
-            if f.kind in CAN_KINDS and not self.can:
-                raise ConfigError(f"fault {f.spec()} needs the children's CAN side (--can)")
-            if f.kind == "skew":
-                try:
-                    check_skew(f.value)
-                except FaultError as exc:
-                    raise ConfigError(f"fault {f.spec()}: {exc}") from None
-        if isinstance(self.load, str):
-            if self.load not in ("idle", "saturate"):
-                raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
-        elif isinstance(self.load, bool) or not isinstance(self.load, (int, float)):
-            raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
-        elif not self.load > 0:
-            raise ConfigError(f"load rate must be positive messages/s, got {self.load}")
-        for r, t in self.power_on.items():
-            if r not in self.robots or t < 0:
-                raise ConfigError(f"bad power-on time {t} for robot {r}")
-        for r, sw in self.radio_switch.items():
-            if r not in self.robots:
-                raise ConfigError(f"radio switch times for robot {r}, which is not in the ring "
-                                  f"{list(self.robots)}")
-            if len(sw) != 2 or any(isinstance(v, bool) or not isinstance(v, int) or v < 0
-                                   for v in sw):
-                raise ConfigError(f"robot {r}'s radio switch times {sw!r} must be two whole "
-                                  f"tick counts >= 0 (TX-ready, RX-ready)")
-        for r, t, team in self.extra:
-            if not isinstance(r, int) or not 0 <= r <= 6:
-                raise ConfigError(f"extra robot ID {r!r} is not 0-6")
-            if not t >= 0:
-                raise ConfigError(f"bad power-on time {t} for extra robot {r}")
-            if team is not None and (not team or any(not 0 <= i <= 6 for i in team)):
-                raise ConfigError(f"extra robot {r}'s team {list(team)} must be IDs 0-6")
-            if team is None and r not in self.robots:
-                raise ConfigError(f"extra robot {r} is no twin of a robot of the ring "
-                                  f"{list(self.robots)}: give its team ({r}@{t:g}:TEAM)")
-        if self.extra and self.mac_kind != "rotational":
-            raise ConfigError("extra robots need the rotational MAC")
-
-
-@dataclass
-class RobotStats:
-    received: int = 0
-    refused_frames: int = 0
-    numbers_behind: int = 0
-    bad_frames: int = 0
-    duplicates: int = 0
-    submitted: int = 0
-    delivered: int = 0
-    failed: int = 0
-    unacknowledged: int = 0     # paper profile: sent once, nothing acknowledges it
-    refused: int = 0
-    missed: int = 0
-
-
-def _random_commands(rng: random.Random) -> list[Command]:
-    """One to three plausible application commands (seeded): small tip moves, targets in the
-    arm's workspace, joint angles and wheel speeds within their limits."""
-    out = []
-    for _ in range(rng.randint(1, 3)):
-        k = rng.randrange(7)
-        if k == 0:
-            out.append(cmd("movex", rng.randint(-10, 10)))
-        elif k == 1:
-            out.append(cmd("movey", rng.randint(-10, 10)))
-        elif k == 2:
-            out.append(cmd("movez", rng.randint(-10, 10)))
-        elif k == 3:
-            out.append(cmd("moveto", rng.randint(180, 240), rng.randint(-60, 60),
-                           rng.randint(60, 140)))
-        elif k == 4:
-            out.append(cmd("joint", 1, rng.randint(-90, 90)))
-        elif k == 5:
-            out.append(cmd("wheel", rng.randint(-100, 100)))
-        else:
-            out.append(cmd("paw", rng.randint(0, 1)))
-    return out
-
-
-@lru_cache(maxsize=64)
-def _filled_commands(size: int) -> tuple[Command, ...]:
-    """Commands whose Content is ``size`` bytes or up to 7 fewer (a full-size message)."""
-    out = []
-    left = size
-    while left >= 16:
-        out.append(cmd("movex", 123456789))   # 'movex(123456789)' = 16 bytes
-        left -= 16
-    if left >= 8:
-        out.append(cmd("movex", int("1" * (left - 7))))
-    return tuple(out)
 
 
 class World:
@@ -282,7 +88,7 @@ class World:
         self.dispatch_latency: list[tuple[int, int, int]] = []   # (robot, End tick, SOF tick)
         self.can_buses: dict[int, CanBus] = {}
         self.submodules: dict[int, dict] = {}
-        self._can_tally: dict[int, _Tally] = {}
+        self._can_tally: dict[int, Tally] = {}
         self.quiet: dict[int, QuietCan] = {}
         """Each child's CAN side as a domain that sleeps while it only repeats itself
         (hil/sim/quiet_can.py); none with the CPU model, which times every handler."""
@@ -292,21 +98,17 @@ class World:
         self.action_turns: list[int] = []
         """``transmissions`` when each entry of ``actions`` happened."""
         self.radios = {}
-        self.stats: dict[int, RobotStats] = {r: RobotStats() for r in config.robots}
-        self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
-        self._membership_seen: set[tuple[int, str, int]] = set()
-        self._miss_seen: set[tuple[int, int]] = set()
-        self.outcomes: list[Outcome] = []
-        self.messages: list[Message] = []
-        self.deliveries: Counter = Counter()        # (src, num, submit-serial, receiver)
+        self.ledger = ledger = Ledger(config.robots)
+        """The run's accounting (hil/sim/ledger.py); its parts are the world's too."""
+        self.stats, self.membership, self.outcomes = ledger.stats, ledger.membership, \
+            ledger.outcomes
+        self.messages, self.deliveries, self.identity = ledger.messages, ledger.deliveries, \
+            ledger.identity
         self.collisions = 0
         self.observed = 0
         """Actions the MACs reported to the world (a count: :meth:`activity`)."""
-        self.corrupt_deliveries = 0
-        self.wrong_deliveries = 0
-        self._rngs = {r: random.Random(f"{config.seed}:load:{r}") for r in config.robots}
-        self._serial: dict[tuple[int, int], int] = {}
-        self._by_key: dict[tuple[int, int], list[int]] = {}
+        self.load = Load(config, self.sched, self.stations, self.submit)
+        """The configured load (hil/sim/load.py)."""
         self.byte_ticks = {r: (PC_BYTE_TICKS if r == 0 else CHILD_BYTE_TICKS)
                            for r in config.robots}
         skew = {f.robot: f.value for f in config.faults if f.kind == "skew"}
@@ -316,7 +118,7 @@ class World:
             cfg = replace(base, byte_ticks=self.byte_ticks[r],
                           paired=r == 0 and config.father_standby)
             if r in skew:
-                cfg = _skewed(cfg, skew[r])
+                cfg = skewed_mac(cfg, skew[r])
             st, radio = build_station(r, self.sched, byte_ticks=self.byte_ticks[r], config=cfg,
                                       observer=self._observe,
                                       radio_switch=config.radio_switch.get(r))
@@ -348,8 +150,6 @@ class World:
             self.radios[STANDBY] = radio
             self.stations_extra = {STANDBY: st}
             self.sched.at(s_to_ticks(config.power_on.get(0, 0.0)), self._power_on_standby)
-        self.identity: list[dict] = []
-        """Every duplicate_id and foreign_ring said, by any robot (the summary lists them)."""
         self.extra_stations: dict[int, RadioStation] = {}
         """The ``extra`` robots by ``EXTRA + k`` (k from 1), their radios in ``radios``."""
         self._extra_of: dict[int, int] = {}
@@ -416,7 +216,7 @@ class World:
             child.run_sequence(*self.cfg.sequence)
         self.can_buses[r] = bus
         self.submodules[r] = make_submodules(clock, bus, initial_angles=HOME)
-        tally = self._can_tally[r] = _Tally()
+        tally = self._can_tally[r] = Tally()
         bus.trace = lambda frame, start, end, winner, r=r, tally=tally: \
             self._on_can(r, tally, frame, start, end)
         if quiet is not None:
@@ -498,7 +298,7 @@ class World:
         self._emit({"ev": "action", "robot": robot, "phase": phase,
                     "name": ACTION_NAMES.get(action, str(action))})
 
-    def _on_can(self, r: int, tally: "_Tally", frame, start: int, end: int) -> None:
+    def _on_can(self, r: int, tally: Tally, frame, start: int, end: int) -> None:
         tally.frames += 1
         if self.pcap is not None:
             self.pcap.can(r, end, frame.id, frame.data)
@@ -540,6 +340,16 @@ class World:
     def now(self) -> int:
         return self.sched.now
 
+    @property
+    def corrupt_deliveries(self) -> int:
+        """Deliveries of what no sender submitted (the ledger's count)."""
+        return self.ledger.corrupt_deliveries
+
+    @property
+    def wrong_deliveries(self) -> int:
+        """Deliveries to a robot the message was not for (the ledger's count)."""
+        return self.ledger.wrong_deliveries
+
     # -- events from the parts ------------------------------------------------------------
 
     def _emit(self, ev: dict, meta: bool = False) -> None:
@@ -573,12 +383,7 @@ class World:
         self.air.revive(radio, self.sched.now)
         self._emit({"ev": "power", "robot": r})
         self.stations[r].power_on()
-        load = self.cfg.load
-        if load == "saturate":
-            for _ in range(2):
-                self._submit_full(r)
-        elif not isinstance(load, str):
-            self._schedule_arrival(r)
+        self.load.start(r)
 
     def _power_on_extra(self, k: int) -> None:
         self.air.revive(self.radios[EXTRA + k], self.sched.now)
@@ -594,10 +399,7 @@ class World:
         if t is ModeChange:
             ev = {"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason}
         elif t is Deliver:
-            intact = any(
-                self.messages[c - 1].dst == a.dst and self.messages[c - 1].type == a.type and
-                self.messages[c - 1].commands == a.commands
-                for c in self._by_key.get((a.src, a.num), ()))
+            intact = self.ledger.intact(a)
             ev = {"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num, "type": a.type,
                   "to": r, "intact": intact}
         elif t is Join:
@@ -756,43 +558,23 @@ class World:
             return
         self.observed += 1
         if t is Miss:
-            key = (now, a.robot)
-            radio = self.radios[STANDBY if st is self.standby_station else r]
-            if key not in self._miss_seen and radio.alive:
-                # Counted once per turn, and only by observers that can hear the air (PC2 by
-                # its own radio: it once went by PC1's, both being robot 0).
-                self._miss_seen.add(key)
-                if a.robot in self.stats:
-                    self.stats[a.robot].missed += 1
+            # Counted once per turn, and only by observers that can hear the air (PC2 by its
+            # own radio: it once went by PC1's, both being robot 0).
+            if self.radios[STANDBY if st is self.standby_station else r].alive:
+                self.ledger.missed(now, a.robot)
             emit({"ev": "miss", "robot": a.robot, "by": r})
         elif t is Disable:
-            self._membership("disable", a.robot, now)
+            self.ledger.membership_change("disable", a.robot, now)
             emit({"ev": "disable", "robot": a.robot, "by": r})
         elif t is Join:
             kind = "rejoin" if a.again else "join"
-            self._membership(kind, a.robot, now)
+            self.ledger.membership_change(kind, a.robot, now)
             emit({"ev": kind, "robot": a.robot, "by": r})
         elif t is ModeChange:
-            self._membership(a.mode, r, now)
+            self.ledger.membership_change(a.mode, r, now)
             emit({"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason})
         elif t is Deliver:
-            self.stats[r].received += 1
-            # Ground truth the firmware cannot see: is this what the sender submitted? (Any
-            # message with this Source and Number: Numbers wrap, and the father's two PCs
-            # number their own queues.)
-            serial = 0
-            for cand in reversed(self._by_key.get((a.src, a.num), ())):
-                m = self.messages[cand - 1]
-                if m.dst == a.dst and m.type == a.type and m.commands == a.commands:
-                    serial = cand
-                    break
-            intact = serial != 0
-            if intact:
-                self.deliveries[(a.src, a.num, serial, r)] += 1
-            else:
-                self.corrupt_deliveries += 1
-            if a.dst not in (r, BROADCAST):
-                self.wrong_deliveries += 1
+            intact = self.ledger.delivered_to(a, r)
             emit({"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
                   "type": a.type, "to": r, "intact": intact})
         elif t is Duplicate:
@@ -825,40 +607,21 @@ class World:
                   "reason": str(a.error)})
         elif t is Outcome:
             m = a.message
-            self.outcomes.append(a)
-            s = self.stats[m.src]
-            if a.delivered:
-                s.delivered += 1
+            ended = self.ledger.ended(a)
+            if ended == "delivered":
                 emit({"ev": "delivered", "src": m.src, "dst": m.dst, "num": m.num,
                       "attempts": m.attempts})
-            elif m.state == UNACKNOWLEDGED:
-                s.unacknowledged += 1
-                emit({"ev": "sent", "src": m.src, "dst": m.dst, "num": m.num,
-                      "reason": a.reason})
-            else:
-                s.failed += 1
-                emit({"ev": "fail", "src": m.src, "dst": m.dst, "num": m.num,
+            else:                              # sent (unacknowledged) or fail
+                emit({"ev": ended, "src": m.src, "dst": m.dst, "num": m.num,
                       "reason": a.reason})
             if self.cfg.load == "saturate":
-                self._submit_full(r)
+                self.load.refill(r)
         elif t is Message:
-            self.stats[a.src].submitted += 1
-            self.messages.append(a)
-            self._serial[(a.src, a.num)] = len(self.messages)
-            keyed = self._by_key.setdefault((a.src, a.num), [])
-            keyed.append(len(self.messages))
-            if len(keyed) > 8:
-                del keyed[0]
+            self.ledger.submitted(a)
             emit({"ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
                   "type": a.type, "len": len(a.content)})
 
-    def _membership(self, kind: str, robot: int, now: int) -> None:
-        key = (now, kind, robot)
-        if key not in self._membership_seen:
-            self._membership_seen.add(key)
-            self.membership.append(key)
-
-    # -- load -----------------------------------------------------------------------------
+    # -- the world's parts ----------------------------------------------------------------
 
     def hooks(self) -> tuple:
         """What is called with each transmission, collision and station action: the world's
@@ -895,46 +658,6 @@ class World:
             self.stats[src].refused += 1
             raise
 
-    def _others(self, r: int) -> list[int]:
-        return [x for x in sorted(self.cfg.robots) if x != r]
-
-    def _load_on(self) -> bool:
-        lu = self.cfg.load_until
-        return lu is None or self.sched.now < s_to_ticks(lu)
-
-    def _submit_full(self, r: int) -> None:
-        if not self._load_on():
-            return
-        st = self.stations[r]
-        others = self._others(r)
-        if not others:
-            return
-        dst = self._rngs[r].choice(others)
-        size = self.cfg.payload if self.cfg.payload is not None else \
-            st.mac.max_content - st.mac.cfg.mac_reserve
-        try:
-            self.submit(r, dst, _filled_commands(size))
-        except SubmitError:
-            pass
-
-    def _schedule_arrival(self, r: int) -> None:
-        rate = float(self.cfg.load)
-        dt = max(1, round(self._rngs[r].expovariate(rate) * TICK_HZ))
-        self.sched.after(dt, self._arrival, r)
-
-    def _arrival(self, r: int) -> None:
-        if not self._load_on():
-            return
-        rng = self._rngs[r]
-        others = self._others(r)
-        if others:
-            dst = rng.choice(others + [BROADCAST]) if len(others) > 1 else others[0]
-            try:
-                self.submit(r, dst, _random_commands(rng))
-            except SubmitError:
-                pass
-        self._schedule_arrival(r)
-
     # -- results --------------------------------------------------------------------------
 
     def alive(self) -> tuple[int, ...]:
@@ -967,67 +690,6 @@ class World:
         return {r: st.mac.ring for r, st in self.stations.items()}
 
     def summary(self) -> dict:
-        """The figures of the paper's simulator (Fig. 9) and the delivery accounting."""
-        self.wake_can()
-        robots = {}
-        for r in sorted(self.stations):
-            st, s = self.stations[r], self.stats[r]
-            pending = st.mac.pending + (self.standby_station.mac.pending
-                                        if r == 0 and self.standby_station else 0)
-            robots[r] = {"frames_sent": self.air.sent.get(r, 0), "received": s.received,
-                         "pending": pending, "missed": s.missed,
-                         "submitted": s.submitted, "delivered": s.delivered,
-                         "failed": s.failed, "unacknowledged": s.unacknowledged,
-                         "refused": s.refused,
-                         "duplicates_dropped": s.duplicates, "refused_frames":
-                         s.refused_frames, "refused_by": dict(sorted(st.refused.items())),
-                         "numbers_behind": s.numbers_behind,
-                         "bad_frames": s.bad_frames, "mode": st.mac.mode,
-                         "ring": list(st.mac.ring)}
-        total = lambda k: sum(v[k] for v in robots.values())  # noqa: E731
-        dup_deliveries = sum(c - 1 for c in self.deliveries.values() if c > 1)
-        return {"duration_ticks": self.sched.now, "robots": robots,
-                "occupations": self.air.occupations, "collisions": self.collisions,
-                "membership_changes": [{"t": t, "ev": k, "robot": r}
-                                       for t, k, r in self.membership],
-                "submitted": total("submitted"), "delivered": total("delivered"),
-                "failed": total("failed"), "unacknowledged": total("unacknowledged"),
-                "pending": total("pending"),
-                "can_frames": self.can_frames,
-                **({"identity": self.identity} if self.identity else {}),
-                **({"cpu_load": {r: round(c.load(), 6) for r, c in sorted(self.cpus.items())},
-                    "cpu_overruns": {r: self.stations[r].uart.overruns
-                                     for r in sorted(self.cpus)},
-                    "cpu_tx_gaps": {r: self.stations[r].uart.gaps
-                                    for r in sorted(self.cpus)}} if self.cpus else {}),
-                **({"dispatch_latency_ticks": _spread([s - e for _, e, s in
-                                                        self.dispatch_latency])}
-                   if self.dispatch_latency else {}),
-                "duplicate_deliveries": dup_deliveries,
-                "corrupt_deliveries": self.corrupt_deliveries,
-                "wrong_robot_deliveries": self.wrong_deliveries}
-
-
-class _Tally:
-    """The world's count of one bus's frames, kept in that child's CAN domain."""
-
-    __slots__ = ("frames",)
-
-    def __init__(self) -> None:
-        self.frames = 0
-
-
-def _spread(values: list[int]) -> dict:
-    """count, min, median and max of ``values`` (ticks)."""
-    v = sorted(values)
-    return {"count": len(v), "min": v[0], "median": v[len(v) // 2], "max": v[-1]}
-
-
-def _skewed(cfg: MacConfig, eps: float) -> MacConfig:
-    """A robot whose clock runs ``eps`` slow (``skew:R:E``, 0 <= E < 0.2): every interval it
-    times is that much longer in true ticks (rounded up to the reload timer's even ticks)."""
-    def k(t: int) -> int:
-        v = round(t * (1 + eps))
-        return v + (v & 1)
-    return replace(cfg, ttrans=k(cfg.ttrans), tmax=k(cfg.tmax), twin=k(cfg.twin),
-                   tslot=k(cfg.tslot), quiet_gap=k(cfg.quiet_gap))
+        """The figures of the paper's simulator (Fig. 9) and the delivery accounting
+        (hil/sim/ledger.py)."""
+        return summary(self)

@@ -1,0 +1,187 @@
+"""One simulation run's settings (:class:`SimConfig`) and all of their checks: a setting that
+cannot work, or settings that do not go together, are a :class:`ConfigError` before anything is
+built. ``rprs sim``'s options map onto it (hil/cli/sim.py); the campaign and the soak build it
+too, and the world (hil/sim/world.py) runs it."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from firmware_model.radio.mac import MacConfig
+from firmware_model.timing import s_to_ticks
+
+from .faults import CAN_KINDS, Fault, FaultError, check_skew
+
+
+class ConfigError(ValueError):
+    """A simulation setting that cannot work (bad robot list, fault time, load ...)."""
+
+
+@dataclass
+class SimConfig:
+    """One simulation run. Times in seconds; IDs 0 (father) to 6."""
+
+    robots: tuple[int, ...] = (1, 2, 3, 4)
+    duration: float = 10.0
+    seed: int = 0
+    faults: tuple[Fault, ...] = ()
+    ber: float = 0.0
+    noise: bool = False
+    load: str | float = "idle"
+    payload: int | None = None
+    """Content bytes of each message under ``load='saturate'`` (default: as large as a turn
+    allows, less the MAC's reserve)."""
+    load_until: float | None = None
+    """No new messages after this many seconds (lets a run drain its queues)."""
+    power_on: dict[int, float] = field(default_factory=dict)
+    byte_by_byte: bool = False
+    mac: MacConfig | None = None
+    can: bool = False
+    """Give every child its CAN side: controller, 82C250, dispatcher and six submodules."""
+    can_sleep: bool = True
+    """A child's CAN side that only repeats itself is moved on in whole periods instead of
+    frame by frame (hil/sim/quiet_can.py). The run is the same to the tick either way;
+    False is slower and exists to show that."""
+    ring_sleep: bool = True
+    """A ring that only repeats itself (idle, nothing watching its frames) is moved on in whole
+    cycles instead of frame by frame (hil/sim/quiet_ring.py). The run is the same to the tick
+    either way; False is slower and exists to show that."""
+    sequence: tuple[tuple[int, ...], int] | None = None
+    """(row order, cycles): the children run the paper's action sequence (needs ``can``)."""
+    realtime: bool = False
+    """Run on the wall clock (hil.sim.realtime) instead of as fast as the CPU goes."""
+    father_standby: bool = False
+    """A second father PC (PC2) as hot standby for ID 0 (needs 0 in ``robots``)."""
+    mac_kind: str = "rotational"
+    """The MAC every robot runs: the paper's rotational MAC, or a peer for comparison
+    (aloha, slotted, csma; firmware_model/radio/peer_macs.py)."""
+    peer: object | None = None
+    """PeerConfig for the peer MACs."""
+    extra: tuple[tuple[int, float, tuple[int, ...] | None], ...] = ()
+    """More robots on the same air, outside ``robots``: (ID, power-on seconds, team or None for
+    the run's). An ID of ``robots`` again is a twin (two robots with one ID, docs/protocol.md
+    clause 38.2); another team is a co-channel ring (clause 38.1). Their events carry
+    ``"extra": k`` (1 for the first) in the trace; they get no load."""
+    cpu: object | None = None
+    """A cycle-cost table (firmware_model.cycle_costs.CycleCosts): every child's firmware runs
+    on the MB90F549 CPU model, its handlers taking the time the table gives. None: the ideal
+    CPU, every handler in zero time (the paper's timing)."""
+    radio_switch: dict[int, tuple[int, int]] = field(default_factory=dict)
+    """Per robot ID, its PTR2000's (TX-ready, RX-ready) switch times in ticks; robots not named
+    get the nRF401 data sheet's, 1 ms and 3 ms (firmware_model/mcu/ptr2000.py). Not the MAC's
+    Ttrans, which stays the protocol's 5 ms guard."""
+
+    def validate(self) -> None:
+        """A ConfigError for the first setting that cannot work. The settings that do not
+        go together come first (:meth:`_check_together`), then each setting alone."""
+        self._check_together()
+        if not self.robots:
+            raise ConfigError("no robots: give at least one ID with --robots")
+        for r in self.robots:
+            if not isinstance(r, int) or not 0 <= r <= 6:
+                raise ConfigError(f"robot ID {r!r} is not 0-6 (0 is the father, 1-6 children)")
+        if len(set(self.robots)) != len(self.robots):
+            raise ConfigError(f"robot IDs repeat in {list(self.robots)}")
+        if not self.duration > 0:
+            raise ConfigError(f"duration must be positive, got {self.duration}")
+        if s_to_ticks(self.duration) < 1:
+            raise ConfigError(f"duration {self.duration:g} s is shorter than one tick (62.5 ns): "
+                              f"nothing would run")
+        if not 0.0 <= self.ber < 1.0:
+            raise ConfigError(f"byte error rate must be in [0, 1), got {self.ber}")
+        if self.sequence is not None:
+            order, cycles = self.sequence
+            if not self.can:
+                raise ConfigError("the action sequence needs the children's CAN side (can)")
+            if not order or any(r not in self.robots or r == 0 for r in order):
+                raise ConfigError(f"the action-sequence row {list(order)} must be children "
+                                  f"of the ring {list(self.robots)}")
+            if cycles < 1:
+                raise ConfigError(f"cycles must be at least 1, got {cycles}")
+        if self.mac_kind != "rotational" and (self.father_standby or self.sequence):
+            raise ConfigError("the standby father and the action sequence need the rotational "
+                              "MAC")
+        if self.father_standby and 0 not in self.robots:
+            raise ConfigError("a standby father PC needs the father (ID 0) in the ring")
+        skews: dict[int | None, Fault] = {}
+        for f in self.faults:
+            if f.kind == "skew":
+                first = skews.setdefault(f.robot, f)
+                if first is not f:
+                    raise ConfigError(f"faults {first.spec()} and {f.spec()}: a robot has one "
+                                      f"clock, give it one skew")
+            if f.robot is not None and f.robot not in self.robots:
+                raise ConfigError(f"fault {f.spec()} names robot {f.robot}, which is not in the "
+                                  f"ring {list(self.robots)}")
+            if f.at < 0:
+                raise ConfigError(f"fault {f.spec()}: time must not be negative")
+            if f.kind in CAN_KINDS and not self.can:
+                raise ConfigError(f"fault {f.spec()} needs the children's CAN side (--can)")
+            if f.kind == "skew":
+                try:
+                    check_skew(f.value)
+                except FaultError as exc:
+                    raise ConfigError(f"fault {f.spec()}: {exc}") from None
+        if isinstance(self.load, str):
+            if self.load not in ("idle", "saturate"):
+                raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
+        elif isinstance(self.load, bool) or not isinstance(self.load, (int, float)):
+            raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
+        elif not self.load > 0:
+            raise ConfigError(f"load rate must be positive messages/s, got {self.load}")
+        for r, t in self.power_on.items():
+            if r not in self.robots or t < 0:
+                raise ConfigError(f"bad power-on time {t} for robot {r}")
+        for r, sw in self.radio_switch.items():
+            if r not in self.robots:
+                raise ConfigError(f"radio switch times for robot {r}, which is not in the ring "
+                                  f"{list(self.robots)}")
+            if len(sw) != 2 or any(isinstance(v, bool) or not isinstance(v, int) or v < 0
+                                   for v in sw):
+                raise ConfigError(f"robot {r}'s radio switch times {sw!r} must be two whole "
+                                  f"tick counts >= 0 (TX-ready, RX-ready)")
+        for r, t, team in self.extra:
+            if not isinstance(r, int) or not 0 <= r <= 6:
+                raise ConfigError(f"extra robot ID {r!r} is not 0-6")
+            if not t >= 0:
+                raise ConfigError(f"bad power-on time {t} for extra robot {r}")
+            if team is not None and (not team or any(not 0 <= i <= 6 for i in team)):
+                raise ConfigError(f"extra robot {r}'s team {list(team)} must be IDs 0-6")
+            if team is None and r not in self.robots:
+                raise ConfigError(f"extra robot {r} is no twin of a robot of the ring "
+                                  f"{list(self.robots)}: give its team ({r}@{t:g}:TEAM)")
+        if self.extra and self.mac_kind != "rotational":
+            raise ConfigError("extra robots need the rotational MAC")
+
+    def _check_together(self) -> None:
+        """Settings that do not go together: the paper profile has no standby PC, and an
+        option that only the rotational MAC acts on, given with a peer MAC, where it would be
+        taken and do nothing. The peer MACs do use the checksum (their frames are sealed and
+        checked), the air's and CAN faults, skew, the load and the CAN side; they have no
+        turns (``steal``: ``force_turn`` does nothing), no standby PC, and never read the
+        profile (they acknowledge and retransmit whatever it says). The messages name the
+        ``rprs sim`` options, which is how the settings are mostly given."""
+        from firmware_model.radio.peer_macs import KINDS as MAC_KINDS
+        if self.mac_kind not in MAC_KINDS:
+            raise ConfigError(f"unknown MAC {self.mac_kind!r}; one of {', '.join(MAC_KINDS)}")
+        mac = self.mac if self.mac is not None else MacConfig()
+        if mac.profile == "paper" and self.father_standby:
+            raise ConfigError("--profile paper has no standby PC (--father-standby is this "
+                              "project's extension)")
+        kind = self.mac_kind
+        if kind != "rotational":
+            if mac.auth is not None:
+                raise ConfigError(f"--auth-key: --mac {kind} has no authenticated profile (it "
+                                  f"is the rotational MAC's)")
+            steal = next((f for f in self.faults if f.kind == "steal"), None)
+            if steal is not None:
+                raise ConfigError(f"--fault {steal.spec()}: --mac {kind} has no turns to "
+                                  f"steal (steal is a fault of the rotational MAC)")
+            if mac.profile != "rprs":
+                raise ConfigError(f"--profile {mac.profile} is a profile of the rotational "
+                                  f"MAC (docs/protocol.md §9); --mac {kind} does not follow it")
+            if self.father_standby:
+                raise ConfigError(f"--father-standby needs the rotational MAC: the standby PC "
+                                  f"takes ID 0's turn, and --mac {kind} has no turns")
+        elif self.peer is not None:
+            raise ConfigError("--frame-bytes sizes the peer MACs' frames (--mac aloha|slotted|"
+                              "csma); the rotational MAC's frames are as long as their Content")

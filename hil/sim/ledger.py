@@ -1,0 +1,178 @@
+"""The accounting of a simulated run, kept beside the firmware and never seen by it: each robot's
+counts, every message submitted and how it ended, each delivery checked against what its sender
+submitted (the ground truth the invariants of docs/guarantees.md are checked on: delivered
+twice, to the wrong robot, corrupted), the membership changes, what the robots said of their
+identity. The world (hil/sim/world.py) feeds it from the MACs' reports."""
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from firmware_model.radio.frame import BROADCAST
+from firmware_model.radio.mac import UNACKNOWLEDGED, Deliver, Message, Outcome
+
+if TYPE_CHECKING:
+    from .world import World
+
+KEYED = 8
+"""The latest messages kept per (Source, Number) to check a delivery against: Numbers wrap,
+and the father's two PCs number their own queues."""
+
+
+@dataclass
+class RobotStats:
+    received: int = 0
+    refused_frames: int = 0
+    numbers_behind: int = 0
+    bad_frames: int = 0
+    duplicates: int = 0
+    submitted: int = 0
+    delivered: int = 0
+    failed: int = 0
+    unacknowledged: int = 0     # paper profile: sent once, nothing acknowledges it
+    refused: int = 0
+    missed: int = 0
+
+
+class Tally:
+    """The world's count of one bus's frames, kept in that child's CAN domain."""
+
+    __slots__ = ("frames",)
+
+    def __init__(self) -> None:
+        self.frames = 0
+
+
+def spread(values: list[int]) -> dict:
+    """count, min, median and max of ``values`` (ticks)."""
+    v = sorted(values)
+    return {"count": len(v), "min": v[0], "median": v[len(v) // 2], "max": v[-1]}
+
+
+class Ledger:
+    """The run's accounting for the robots of the ring ``robots``."""
+
+    def __init__(self, robots) -> None:
+        self.stats: dict[int, RobotStats] = {r: RobotStats() for r in robots}
+        self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
+        self._membership_seen: set[tuple[int, str, int]] = set()
+        self._miss_seen: set[tuple[int, int]] = set()
+        self.outcomes: list[Outcome] = []
+        self.messages: list[Message] = []
+        self.deliveries: Counter = Counter()        # (src, num, submit-serial, receiver)
+        self.corrupt_deliveries = 0
+        self.wrong_deliveries = 0
+        self._by_key: dict[tuple[int, int], list[int]] = {}
+        self.identity: list[dict] = []
+        """Every duplicate_id and foreign_ring said, by any robot (the summary lists them)."""
+
+    def missed(self, now: int, robot: int) -> None:
+        """``robot`` missed its turn, as one robot that hears the air saw it: counted once per
+        turn however many saw it."""
+        key = (now, robot)
+        if key not in self._miss_seen:
+            self._miss_seen.add(key)
+            if robot in self.stats:
+                self.stats[robot].missed += 1
+
+    def membership_change(self, kind: str, robot: int, now: int) -> None:
+        """A join, rejoin, disable or mode change, listed once however many robots saw it."""
+        key = (now, kind, robot)
+        if key not in self._membership_seen:
+            self._membership_seen.add(key)
+            self.membership.append(key)
+
+    def _serial(self, a: Deliver) -> int:
+        """The serial (1 on) of the latest message submitted that ``a`` delivers whole, 0 if
+        none: a delivery the sender's message does not match is corrupted."""
+        for cand in reversed(self._by_key.get((a.src, a.num), ())):
+            m = self.messages[cand - 1]
+            if m.dst == a.dst and m.type == a.type and m.commands == a.commands:
+                return cand
+        return 0
+
+    def delivered_to(self, a: Deliver, r: int) -> bool:
+        """Robot ``r`` of the ring delivered ``a`` to its application: counted, checked against
+        the ground truth the firmware cannot see; True if it is what the sender submitted."""
+        self.stats[r].received += 1
+        serial = self._serial(a)
+        intact = serial != 0
+        if intact:
+            self.deliveries[(a.src, a.num, serial, r)] += 1
+        else:
+            self.corrupt_deliveries += 1
+        if a.dst not in (r, BROADCAST):
+            self.wrong_deliveries += 1
+        return intact
+
+    def intact(self, a: Deliver) -> bool:
+        """Whether ``a`` is what its sender submitted, counted nowhere (a robot outside the
+        ring delivered it)."""
+        return self._serial(a) != 0
+
+    def ended(self, a: Outcome) -> str:
+        """A message's outcome at its sender: ``delivered``, ``sent`` (the paper profile: sent
+        once, unacknowledged) or ``fail``."""
+        m = a.message
+        self.outcomes.append(a)
+        s = self.stats[m.src]
+        if a.delivered:
+            s.delivered += 1
+            return "delivered"
+        if m.state == UNACKNOWLEDGED:
+            s.unacknowledged += 1
+            return "sent"
+        s.failed += 1
+        return "fail"
+
+    def submitted(self, a: Message) -> None:
+        """A message was queued at its sender."""
+        self.stats[a.src].submitted += 1
+        self.messages.append(a)
+        keyed = self._by_key.setdefault((a.src, a.num), [])
+        keyed.append(len(self.messages))
+        if len(keyed) > KEYED:
+            del keyed[0]
+
+
+def summary(world: World) -> dict:
+    """The figures of the paper's simulator (Fig. 9) and the delivery accounting of
+    ``world``'s run so far (``World.summary``)."""
+    world.wake_can()
+    robots = {}
+    for r in sorted(world.stations):
+        st, s = world.stations[r], world.stats[r]
+        pending = st.mac.pending + (world.standby_station.mac.pending
+                                    if r == 0 and world.standby_station else 0)
+        robots[r] = {"frames_sent": world.air.sent.get(r, 0), "received": s.received,
+                     "pending": pending, "missed": s.missed,
+                     "submitted": s.submitted, "delivered": s.delivered,
+                     "failed": s.failed, "unacknowledged": s.unacknowledged,
+                     "refused": s.refused,
+                     "duplicates_dropped": s.duplicates, "refused_frames":
+                     s.refused_frames, "refused_by": dict(sorted(st.refused.items())),
+                     "numbers_behind": s.numbers_behind,
+                     "bad_frames": s.bad_frames, "mode": st.mac.mode,
+                     "ring": list(st.mac.ring)}
+    total = lambda k: sum(v[k] for v in robots.values())  # noqa: E731
+    dup_deliveries = sum(c - 1 for c in world.deliveries.values() if c > 1)
+    return {"duration_ticks": world.sched.now, "robots": robots,
+            "occupations": world.air.occupations, "collisions": world.collisions,
+            "membership_changes": [{"t": t, "ev": k, "robot": r}
+                                   for t, k, r in world.membership],
+            "submitted": total("submitted"), "delivered": total("delivered"),
+            "failed": total("failed"), "unacknowledged": total("unacknowledged"),
+            "pending": total("pending"),
+            "can_frames": world.can_frames,
+            **({"identity": world.identity} if world.identity else {}),
+            **({"cpu_load": {r: round(c.load(), 6) for r, c in sorted(world.cpus.items())},
+                "cpu_overruns": {r: world.stations[r].uart.overruns
+                                 for r in sorted(world.cpus)},
+                "cpu_tx_gaps": {r: world.stations[r].uart.gaps
+                                for r in sorted(world.cpus)}} if world.cpus else {}),
+            **({"dispatch_latency_ticks": spread([s - e for _, e, s in world.dispatch_latency])}
+               if world.dispatch_latency else {}),
+            "duplicate_deliveries": dup_deliveries,
+            "corrupt_deliveries": world.ledger.corrupt_deliveries,
+            "wrong_robot_deliveries": world.ledger.wrong_deliveries}

@@ -1,0 +1,64 @@
+"""hil/sim/config.py: a SimConfig is checked whole by ``validate``, whoever builds it (``rprs
+sim``, the campaign, the soak, a script): the settings that do not go together are refused
+through the Python API as ``rprs sim`` refuses them, and a campaign refuses a grid point that
+``rprs sim`` would refuse before it runs one."""
+from __future__ import annotations
+
+import pytest
+
+import hil.sim.config
+import hil.sim.world
+from firmware_model.radio.auth import RingKey
+from firmware_model.radio.mac import MacConfig
+from firmware_model.radio.peer_macs import PeerConfig
+from hil.campaign.runs import check_args
+from hil.campaign.spec import SpecError, load_spec
+from hil.sim.config import ConfigError, SimConfig
+from hil.sim.faults import parse_fault
+
+
+def test_the_world_module_still_offers_the_config():
+    assert hil.sim.world.SimConfig is hil.sim.config.SimConfig
+    assert hil.sim.world.ConfigError is hil.sim.config.ConfigError
+
+
+@pytest.mark.parametrize("settings,words", [
+    ({"robots": (0, 1), "father_standby": True, "mac": MacConfig(profile="paper")},
+     "--profile paper has no standby PC"),
+    ({"mac_kind": "aloha", "mac": MacConfig(profile="paper")},
+     "--profile paper is a profile of the rotational MAC"),
+    ({"mac_kind": "csma", "faults": (parse_fault("steal:2@3"),)},
+     "--fault steal:2@3: --mac csma has no turns to steal"),
+    ({"mac_kind": "slotted", "mac": MacConfig(auth=RingKey(bytes(16)))},
+     "--auth-key: --mac slotted has no authenticated profile"),
+    ({"mac_kind": "aloha", "robots": (0, 1), "father_standby": True},
+     "--father-standby needs the rotational MAC"),
+    ({"peer": PeerConfig(frame_bytes=100)}, "sizes the peer MACs' frames"),
+])
+def test_settings_that_do_not_go_together_are_a_config_error(settings, words):
+    """These were refused only by ``rprs sim``'s option handling (hil/cli/sim.py): a
+    SimConfig built in Python with them ran, and did nothing with the setting."""
+    with pytest.raises(ConfigError, match=words):
+        SimConfig(duration=5.0, **settings).validate()
+
+
+def test_the_same_settings_alone_are_good():
+    for settings in ({"robots": (0, 1), "father_standby": True},
+                     {"mac": MacConfig(profile="paper")},
+                     {"faults": (parse_fault("steal:2@3"),)},
+                     {"mac_kind": "aloha", "peer": PeerConfig(frame_bytes=100)}):
+        SimConfig(duration=5.0, **settings).validate()
+
+
+def test_a_campaign_refuses_a_point_that_rprs_sim_refuses(tmp_path):
+    """``rprs sim --robots 1,2 --fault fail:3@1`` is refused (robot 3 is not in the ring);
+    the campaign checked its points with the option handling only and took it, to record
+    every one of its runs as crashed."""
+    spec = tmp_path / "c.toml"
+    spec.write_text("[campaign]\nseeds = 2\n[grid]\nrobots = ['1,2']\nduration = [2]\n"
+                    "fault = [[], ['fail:3@1']]\n")
+    with pytest.raises(SpecError, match="names robot 3, which is not in the ring"):
+        load_spec(spec, check=check_args)
+    spec.write_text("[campaign]\nseeds = 2\n[grid]\nrobots = ['1,2']\nduration = [2]\n"
+                    "fault = [[], ['fail:2@1']]\n")
+    assert load_spec(spec, check=check_args).runs == 4
