@@ -52,7 +52,6 @@ CAN_TIMING = BitTiming()
 """500 kbit/s: 2 ticks a time quantum, 16 quanta a bit (docs/can.md)."""
 
 
-FAULT_KINDS = KINDS
 STANDBY = 100
 """Key of the father's standby PC (PC2, also ID 0 on the air) in ``World.radios``."""
 EXTRA = 200
