@@ -237,7 +237,7 @@ class MacUnderFaults(RuleBasedStateMachine):
 
     def teardown(self):
         w = self.w
-        w.cfg.load_until = w.now / TICK_HZ         # no new messages: let the queues drain
+        w.load.end(w.now)                          # no new messages: let the queues drain
         for robot, died in list(self.down.items()):
             t = max(w.now, died) + 1
             w.inject("recover", robot, t)

@@ -85,6 +85,11 @@ class Load:
         elif not isinstance(self.load, str):
             self._schedule_arrival(r)
 
+    def end(self, tick: int) -> None:
+        """No new message from ``tick`` on (ticks): the run drains its queues from there, as
+        ``load_until`` has it when known before the run."""
+        self.until = tick
+
     def on(self) -> bool:
         """New messages still come (``load_until`` not reached)."""
         return self.until is None or self.sched.now < self.until
