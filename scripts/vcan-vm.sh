@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Run a command inside a small user-mode Linux (UML) VM that has a SocketCAN vcan0 interface.
 #
-#   scripts/vcan-vm.sh                      # runs: $RPRS_VM_PYTHON -m pytest -m vcan -q -n 0
+#   scripts/vcan-vm.sh                      # runs: $RPRS_VM_PYTHON -m pytest -m vcan -q -n 0 --timeout 120 --timeout-method thread
 #   scripts/vcan-vm.sh .venv/bin/pytest -k smoke -v
 #   scripts/vcan-vm.sh --prepare            # only fetch/extract the UML kernel (cached)
 #
@@ -165,7 +165,9 @@ if [ $# -eq 0 ]; then
   if [ ! -x "$ROOT/$PY" ] && [ ! -x "$PY" ]; then
     die "no python at '$PY' (create the venv: python3 -m venv .venv && .venv/bin/pip install -e '.[test]', or set RPRS_VM_PYTHON)"
   fi
-  set -- "$PY" -m pytest -m vcan -q -n 0     # a few tests: no xdist workers in the small VM
+  # a few tests: no xdist workers in the small VM; a test that hangs there fails in 120 s with
+  # every thread's stack (pytest-timeout) rather than holding the VM to its whole timeout
+  set -- "$PY" -m pytest -m vcan -q -n 0 --timeout 120 --timeout-method thread
 fi
 PYBIN=$(cd "$ROOT" && cd "$(dirname "$PY")" 2>/dev/null && pwd || true)
 

@@ -310,8 +310,10 @@ def _nothing_outlives_its_module(request):
     yield
     deadline = time.monotonic() + 5.0
     while True:
+        # (pytest-timeout's timer thread, with --timeout-method thread, is not ours)
         left = [t.name for t in threading.enumerate()
-                if t not in before and t.is_alive()] if realtime else []
+                if t not in before and t.is_alive()
+                and not t.name.startswith("pytest_timeout")] if realtime else []
         now = _child_processes()
         procs = sorted(now - procs_before) if now is not None and procs_before is not None \
             else []
