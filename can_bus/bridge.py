@@ -7,9 +7,13 @@ and the submodule nodes run unchanged on SocketCAN (``socketcan:vcan0``), python
 nodes sharing one ``PythonCanBus`` also hear each other's frames, as on a real bus.
 
 It needs a scheduler with ``post`` (``hil.sim.realtime.RealTimeScheduler``): a reader thread
-hands every received frame to the scheduler's thread. A receive or send error (an interface
-taken down) is reported in one line through ``on_error`` and the bus goes on. ``log`` writes
-every frame sent or received with python-can's writers, chosen by the file's extension
+hands every received frame to the scheduler's thread, with ``post_at`` if the scheduler has it,
+at the tick the frame arrived (its python-can timestamp when that is a wall-clock time of the
+last second: SocketCAN's kernel stamp), so that a timer due after the frame (the submodules'
+300 ms silence) runs after it even when this process takes the frame in late. A receive or
+send error (an interface taken down) is reported in one line through ``on_error`` and the bus
+goes on. ``log`` writes every frame sent or received with python-can's writers, chosen by the
+file's extension
 (candump ``.log``, ``.asc``, ``.blf``, ``.csv``, ``.trc``), the frames no node here takes too
 (extended IDs, error frames, CAN FD: counted in ``not_ours``), so that the log holds what
 candump shows.
@@ -292,6 +296,7 @@ class PythonCanBus:
         and for the first of a run of failed sends (an interface taken down or removed);
         reading and sending go on either way, as an MCU's controller does."""
         self.sched = sched
+        self._post_at = getattr(sched, "post_at", None)   # (a RealTimeScheduler's)
         self.bus = bus
         self.channel = channel
         self.timing = timing or BitTiming()
@@ -515,7 +520,15 @@ class PythonCanBus:
         if msg.is_error_frame or msg.is_extended_id or msg.is_fd:
             self.sched.post(self._not_ours, msg)
             return
-        self.sched.post(self._deliver, msg)
+        post_at = self._post_at
+        if post_at is None:
+            self.sched.post(self._deliver, msg)
+            return
+        ago = time.time() - (msg.timestamp or 0.0)
+        wall = self.sched.wall()
+        # a stamp from the last second is the wall clock's (an adapter's own clock is not)
+        post_at(wall - round(ago * self.timing.tick_hz) if 0.0 <= ago <= 1.0 else wall,
+                self._deliver, msg)
 
     def _not_ours(self, msg: can.Message) -> None:
         """A frame no node here takes: counted and logged, as candump would show it."""

@@ -4,6 +4,7 @@ the station's and the MAC's resynchronisation, and the start of a bench station
 (docs/guarantees.md, "Stalls and restarts at the bench")."""
 from __future__ import annotations
 
+import threading
 import time
 
 from firmware_model.radio.frame import Frame
@@ -70,6 +71,75 @@ def test_on_start_runs_before_anything_posted_earlier():
     s.post(s.stop)
     s.run_for(1.0)
     assert order == ["start", "posted"]
+
+
+def test_an_input_that_came_before_a_timer_runs_before_it_though_taken_in_late():
+    """The scheduler's thread is held 300 ms (a busy host gives the process no CPU); meanwhile
+    an input arrives (at 5 ms) before a timer due at 20 ms. Taken in late, it still runs first,
+    as an MCU takes the receive interrupt before the timer: a supervision timer must not judge
+    "nothing came" when only the process was late (before: the due timer ran first)."""
+    s = RealTimeScheduler()
+    order: list[str] = []
+    held = threading.Event()
+
+    def hold() -> None:
+        held.set()
+        time.sleep(0.3)
+    s.at(1 * MS, hold)
+    s.at(20 * MS, order.append, "timer")
+    poster = threading.Thread(target=lambda: (held.wait(2.0),
+                                              s.post_at(5 * MS, order.append, "input")))
+    poster.start()
+    s.run_for(0.4)
+    poster.join()
+    assert order == ["input", "timer"]
+
+
+def test_an_input_posted_late_runs_after_the_timers_due_before_it():
+    """The other way round: an input that arrived after a timer's tick runs after it, and
+    ``now`` never goes back (the input runs at the tick it was posted at, the timer at its
+    own or later)."""
+    s = RealTimeScheduler()
+    seen: list[tuple[str, int]] = []
+    s.at(10 * MS, lambda: time.sleep(0.05))
+    s.at(20 * MS, lambda: seen.append(("timer", s.now)))
+    s.at(15 * MS, lambda: s.post_at(40 * MS, lambda: seen.append(("input", s.now))))
+    s.run_for(0.1)
+    assert [k for k, _ in seen] == ["timer", "input"]
+    assert seen[0][1] <= seen[1][1]
+
+
+def test_a_can_frame_read_late_is_posted_at_its_bus_timestamp():
+    """The python-can bridge posts a received frame at the tick of its bus timestamp (a wall
+    clock time of the last second: SocketCAN's kernel stamp), so a frame that waited while
+    the process got no CPU runs before the timers due after it came (the scheduler's order is
+    the test above); a stamp from another clock (an adapter's own) is not trusted."""
+    import can
+    from can_bus.bridge import PythonCanBus
+    from can_bus.frames import CanFrame
+
+    class Sched(RealTimeScheduler):
+        __slots__ = ("posted",)
+
+        def post_at(self, tick, fn, *args):
+            self.posted.append((tick, self.wall()))
+    chan = f"late-frame-{id(object())}"
+    s = Sched()
+    s.posted = []
+    bus = PythonCanBus(s, can.Bus(interface="virtual", channel=chan))
+    other = can.Bus(interface="virtual", channel=chan, preserve_timestamps=True)
+    try:
+        other.send(CanFrame(0x123, b"\x01").to_message(timestamp=time.time() - 0.2))
+        other.send(CanFrame(0x124, b"\x01").to_message(timestamp=12.5))   # its own clock
+        deadline = time.monotonic() + 5.0
+        while len(s.posted) < 2 and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        bus.close()
+        other.shutdown()
+    (tick, wall), (tick2, wall2) = s.posted
+    assert 190 * MS <= wall - tick <= 400 * MS, (wall - tick) / MS
+    assert 0 <= wall2 - tick2 < MS        # taken as arriving when read
 
 
 def test_the_bench_stall_threshold_is_tslot_of_the_margin_set():

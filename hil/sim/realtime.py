@@ -4,8 +4,14 @@ The same firmware objects run on it unchanged (``at``/``after``/``now`` in 16 MH
 zero is the moment the scheduler starts; a scheduled event runs when the monotonic clock
 reaches its tick and sees ``now`` equal to that tick, so the firmware's relative timing is
 exact even when the operating system wakes us late (the lateness is measured: ``max_late``).
-Other threads (python-can readers, serial readers) hand work in with ``post``; it runs in the
-scheduler's thread with ``now`` set to the wall-clock tick of its arrival.
+Other threads (python-can readers, serial readers) hand work in with ``post`` (or
+``post_at``, with the tick the input really arrived at when the poster knows an earlier one:
+a CAN frame's kernel timestamp); it runs in the scheduler's thread, in tick
+order with the due events, as an MCU takes a receive interrupt before a timer due after it: a
+timer never judges "nothing came" when something came before it was due and only the process
+was late to take it in. A late wake (the process got no CPU for a while) first gives the reader
+threads a moment to hand in what came meanwhile. ``now`` only moves forward: an input runs at
+its arrival tick or at the tick of the last event run, whichever is later.
 
 A process that did not run for a while (SIGSTOP and SIGCONT, a machine that gave it no CPU, a
 handler blocked in a write) must not replay its past: with ``watch_stalls(ticks, fn)``, once
@@ -35,13 +41,18 @@ an end far in the future (a drop at 10**7 s, a ``--duration`` of 1e300 s) is sti
 without asking the OS for a timeout it cannot represent (``threading.TIMEOUT_MAX``)."""
 _MAX_WAIT_TICKS = round(MAX_WAIT_S * TICK_HZ)
 
+LATE_WAKE_TICKS = TICK_HZ // 1000
+"""A due event this late (1 ms) means the process was not running for a while: before it runs,
+the reader threads get ``READERS_S`` to hand in what arrived meanwhile."""
+READERS_S = 0.001
+
 
 class RealTimeScheduler(Scheduler):
     """Runs events at their wall-clock tick; ``post`` is the thread-safe way in."""
 
     __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started", "epoch_ns",
                  "_at_start", "stall_ticks", "stalls", "_on_stall", "_beat", "_stalled",
-                 "_beater", "_beat_stop", "_settled")
+                 "_beater", "_beat_stop", "_settled", "_pending", "_seq")
 
     def __init__(self) -> None:
         super().__init__(0)
@@ -65,6 +76,8 @@ class RealTimeScheduler(Scheduler):
         self._beater: threading.Thread | None = None
         self._beat_stop = threading.Event()   # ends the heartbeat when running ends
         self._settled = 0               # the tick the last stall was handled at
+        self._pending: list = []        # posts taken from the inbox: (tick, seq, fn, args)
+        self._seq = 0
 
     def on_start(self, fn: Callable[[], None]) -> None:
         """Run ``fn()`` in the scheduler's thread when running starts, before anything posted
@@ -117,8 +130,17 @@ class RealTimeScheduler(Scheduler):
         return (time.monotonic_ns() - self._t0) * _NS_PER_TICK_NUM // 1_000_000_000
 
     def post(self, fn: Callable[..., Any], *args: Any) -> None:
-        """Run ``fn(*args)`` in the scheduler's thread as soon as possible (thread-safe)."""
-        self._inbox.put((fn, args))
+        """Run ``fn(*args)`` in the scheduler's thread as soon as possible (thread-safe), in
+        order with the events due up to now (its tick is the wall clock's now)."""
+        w = self.wall()
+        self._inbox.put((w, w, fn, args))
+
+    def post_at(self, tick: int, fn: Callable[..., Any], *args: Any) -> None:
+        """``post`` for an input that arrived at ``tick`` (thread-safe): events due after
+        ``tick`` run after it, even if the process takes it in later; it runs with ``now`` at
+        the tick of this call."""
+        w = self.wall()
+        self._inbox.put((min(tick, w), w, fn, args))
 
     def stop(self) -> None:
         """Make ``run_forever``/``run_for`` return (thread-safe)."""
@@ -171,18 +193,58 @@ class RealTimeScheduler(Scheduler):
                 self._beater.join(timeout=1.0)
                 self._beater = None
 
+    def _take_inbox(self) -> bool:
+        """Move what other threads posted into the pending heap; False once ``stop()`` was
+        called (its None is in the inbox)."""
+        inbox = self._inbox
+        while True:
+            try:
+                item = inbox.get_nowait()
+            except queue.Empty:
+                return True
+            if item is None:
+                return False
+            self._pend(item)
+
+    def _pend(self, item: tuple) -> None:
+        """One posted item into the pending heap. (A tick taken before running started counts
+        from the scheduler's creation, not from tick 0: it is no later than the wall now.)"""
+        w = self.wall()
+        self._seq += 1
+        heapq.heappush(self._pending, (min(item[0], w), self._seq, min(item[1], w), item[2],
+                                       item[3]))
+
     def _loop(self, end: int | None, watch: bool) -> None:
         heap = self._heap
         inbox = self._inbox
+        pending = self._pending
         while not self._stop.is_set():
             wall = self.wall()
             if end is not None and wall >= end:
                 break
             if watch:
                 self._check_stall(wall, heap[0][0] if heap else None)
-            # due events first, in tick order, each seeing its own tick (after a stall: the
-            # tick it was noticed at, as a late interrupt sees the time it runs at)
-            while heap and heap[0][0] <= wall:
+            self._take_inbox()
+            if heap and wall - heap[0][0] > LATE_WAKE_TICKS:
+                # a late wake: the readers (woken with us) hand in what came meanwhile first
+                time.sleep(READERS_S)
+                self._take_inbox()
+                wall = self.wall()
+            # due events and posted inputs, in tick order (an input first on a tie: it came
+            # before the timer fired); each event sees its own tick, an input the tick it
+            # was posted at (``now`` never goes back; after a stall: the tick it was noticed
+            # at, as a late interrupt sees the time it runs at)
+            while True:
+                if pending and (not heap or heap[0][0] > wall or pending[0][0] <= heap[0][0]):
+                    _, _, posted, fn, args = heapq.heappop(pending)
+                    if watch:
+                        self._check_stall(self.wall())
+                    if posted > self.now:
+                        self.now = posted
+                    fn(*args)
+                    continue
+                if not heap or heap[0][0] > wall:
+                    break
                 when, _, ev = heapq.heappop(heap)
                 if ev.cancelled:
                     continue
@@ -198,7 +260,9 @@ class RealTimeScheduler(Scheduler):
                 if late > TICK_HZ // 1000:
                     self.late_events += 1
                 ev.fn(*ev.args)
-            # then whatever other threads handed in
+            if self._stop.is_set():
+                break
+            # then wait for the next event, an input or the end
             wait = _MAX_WAIT_TICKS          # whole ticks: no float of a far tick overflows
             nxt = self.next_time()
             wall = self.wall()
@@ -211,17 +275,8 @@ class RealTimeScheduler(Scheduler):
                 item = inbox.get(timeout=timeout) if timeout > 0 else inbox.get_nowait()
             except queue.Empty:
                 continue
-            while item is not None:
-                fn, args = item
-                w = self.wall()
-                if watch:
-                    self._check_stall(w)
-                if w > self.now:
-                    self.now = w
-                fn(*args)
-                try:
-                    item = inbox.get_nowait()
-                except queue.Empty:
-                    break
+            if item is None:
+                break
+            self._pend(item)
         if end is not None and self.now < end and not self._stop.is_set():
             self.now = max(self.now, min(end, self.wall()))
