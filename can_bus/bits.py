@@ -104,6 +104,10 @@ BUS_IDLE_RECESSIVE_BITS = 11
 """A bus-off node counts sequences of this many consecutive recessive bits ..."""
 BUS_OFF_RECOVERY_SEQUENCES = 128
 """... and becomes error-active again after this many of them."""
+ERROR_PASSIVE_LIMIT = 128
+"""A node whose TEC or REC reaches this is error-passive (ISO 11898-1 fault confinement)."""
+BUS_OFF_LIMIT = 256
+"""A node whose TEC reaches this (exceeds 255) is bus-off (ISO 11898-1 fault confinement)."""
 
 
 class StuffError(ValueError):

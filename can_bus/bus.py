@@ -133,8 +133,10 @@ import can
 
 from can_bus.bits import (
     BUS_IDLE_RECESSIVE_BITS,
+    BUS_OFF_LIMIT,
     BUS_OFF_RECOVERY_SEQUENCES,
     ERROR_DELIMITER_BITS,
+    ERROR_PASSIVE_LIMIT,
     ERROR_FLAG_BITS,
     IFS_BITS,
     SUSPEND_TRANSMISSION_BITS,
@@ -513,7 +515,7 @@ class CanBus:
         old = ns.state
         if old is BUS_OFF:
             return
-        if ns.tec > 255:
+        if ns.tec >= BUS_OFF_LIMIT:
             new = BUS_OFF
             ns.occ = 0
             ns.suspend_until = 0
@@ -522,7 +524,7 @@ class CanBus:
             # does not count until start_recovery(); others count at once (CAN 2.0)
             ns.counting = not getattr(ns.node, "recovers_on_request", False)
             ns.count_from = None
-        elif ns.tec >= 128 or ns.rec >= 128:
+        elif ns.tec >= ERROR_PASSIVE_LIMIT or ns.rec >= ERROR_PASSIVE_LIMIT:
             new = PASSIVE
         else:
             new = ACTIVE
