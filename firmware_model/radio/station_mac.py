@@ -46,6 +46,27 @@ class StationMac(Protocol):
         """The robots it knows on the channel, itself included."""
         ...
 
+    # what the simulator's ledger and load generators read (hil/sim)
+    @property
+    def mode(self) -> str:
+        """Its place on the channel: listening, joining, a member."""
+        ...
+
+    @property
+    def pending(self) -> int:
+        """Messages submitted and not yet ended (queued or awaiting acknowledgement)."""
+        ...
+
+    @property
+    def max_content(self) -> int:
+        """The largest frame content it sends, in bytes."""
+        ...
+
+    @property
+    def frames_sent(self) -> int:
+        """Frames it has put on the air."""
+        ...
+
     def power_on(self, now: int) -> Sequence[Any]: ...
 
     def submit(self, dst: int, commands: Iterable[Command], now: int,

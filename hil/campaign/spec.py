@@ -25,14 +25,15 @@ from __future__ import annotations
 
 import itertools
 import json
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-try:
+if sys.version_info >= (3, 11):
     import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
+else:  # Python 3.10
+    import tomli as tomllib
 
 REPEATABLE = ("fault", "fail", "recover", "power")
 NOT_IN_GRID = ("seed", "trace", "vcd", "pcap", "json", "no_progress", "cpu_report")

@@ -117,7 +117,11 @@ class Reception:
             k = self.n
         if k > pos:
             self.pos = k
-            data = self.data[pos:k] if self.data is not None else self.stream.take(k - pos)
+            if self.data is not None:
+                data = self.data[pos:k]
+            else:
+                assert self.stream is not None      # (garbage comes with its stream)
+                data = self.stream.take(k - pos)
             holes = self.holes
             if holes is None:
                 radio.deliver(data, self.t0 + (pos + 1) * self.bt, self.bt)
@@ -288,7 +292,7 @@ class Air:
                 if noise:
                     self._noise_upto(r, t0)
                     self._noise_gen[r.idx] += 1
-                r.rx = Reception(data, t0, bt, tx.n, tx) if plain and clean[r.idx] \
+                r.rx = Reception(data, t0, bt, tx.n, tx) if clean is not None and clean[r.idx] \
                     else self._reception(r, tx)
         self.sched.at(tx.end, self._end, tx)
 

@@ -117,6 +117,7 @@ class SimConfig:
             if f.kind in CAN_KINDS and not self.can:
                 raise ConfigError(f"fault {f.spec()} needs the children's CAN side (--can)")
             if f.kind == "skew":
+                assert f.value is not None     # (a skew is its fraction)
                 try:
                     check_skew(f.value)
                 except FaultError as exc:

@@ -89,6 +89,7 @@ class Fault:
         target = "" if self.robot is None else f":{self.robot}" + (
             f".{self.node}" if self.node else "")
         if self.kind == "skew":
+            assert self.value is not None      # (a skew is its fraction)
             return f"skew{target}:{num(self.value)}"
         when = f"@{num(self.at)}" + (f"-{num(self.until)}" if self.until is not None else "")
         val = f":x{self.data.hex()}" if self.data is not None else \
@@ -210,6 +211,7 @@ def foreign_fault(at: float, count: float | None = None, hexdata: str | None = N
         if len(data) > FOREIGN_MAX:
             raise FaultError(f"foreign sends at most {FOREIGN_MAX} bytes, got {len(data)}")
         return Fault("foreign", None, at, data=data)
+    assert count is not None                   # (one of the two, checked above)
     if count != int(count) or not 1 <= count <= FOREIGN_MAX:
         raise FaultError(f"foreign needs a whole number of bytes, 1-{FOREIGN_MAX}: "
                          f"foreign@T:N, got {count:.15g}")
@@ -222,6 +224,7 @@ def foreign_bytes(fault: Fault, seed: int) -> bytes:
     on the radio hub and from ``rprs inject``)."""
     if fault.data is not None:
         return fault.data
+    assert fault.value is not None             # (a foreign fault is its bytes or its count)
     return random.Random(f"{seed}:{fault.spec()}").randbytes(int(fault.value))
 
 

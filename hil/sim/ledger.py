@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from collections import Counter
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import UNACKNOWLEDGED, Deliver, Message, Outcome
@@ -140,7 +140,7 @@ def summary(world: World) -> dict:
     """The figures of the paper's simulator (Fig. 9) and the delivery accounting of
     ``world``'s run so far (``World.summary``)."""
     world.wake_can()
-    robots = {}
+    robots: dict[int, dict[str, Any]] = {}
     for r in sorted(world.stations):
         st, s = world.stations[r], world.stats[r]
         pending = st.mac.pending + (world.standby_station.mac.pending

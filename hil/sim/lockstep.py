@@ -65,7 +65,8 @@ def idle_cycle_ticks(robots: tuple[int, ...]) -> int:
 
 def formed_world(robots: tuple[int, ...], seed: int = 0) -> World:
     """An idle ring of ``robots``, run until every member has every other in its ring."""
-    w = World(SimConfig(robots=robots, duration=3600.0, seed=seed), on_event=[].append)
+    events: list[dict] = []
+    w = World(SimConfig(robots=robots, duration=3600.0, seed=seed), on_event=events.append)
     limit = s_to_ticks(30.0)
 
     def formed() -> bool:

@@ -221,8 +221,8 @@ class QuietCan:
             self.resleeps += 1
             self._sleep(snap, steps, self._replay or latest_moved(orbit, snap, steps, periods))
             return
-        steps = period_steps(last, snap, PERIOD, COUNTERS)
-        if steps is None:
+        found = period_steps(last, snap, PERIOD, COUNTERS)
+        if found is None:
             # busy in a way may_sleep does not see (it knows jobs and moving nodes only): look
             # again in 1, 2, 4 ... 16 periods, and compare with the snapshot then
             self._misses += 1
@@ -230,7 +230,7 @@ class QuietCan:
             if self._skip:
                 self._last = None
             return
-        self._sleep(snap, steps, latest_moved(last, snap, steps))
+        self._sleep(snap, found, latest_moved(last, snap, found))
 
     def _sleep(self, snap: Snapshot, steps: dict[int, int], replay: bool) -> None:
         moved = writable(snap, steps)

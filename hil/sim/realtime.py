@@ -97,6 +97,7 @@ class RealTimeScheduler(Scheduler):
     def _heartbeat(self) -> None:
         """Beats every quarter of the threshold; a beat that came more than the threshold
         after the last means the whole process was stopped (SIGSTOP) or starved of CPU."""
+        assert self.stall_ticks is not None    # (started only when stalls are watched)
         period = self.stall_ticks / 4 / TICK_HZ
         prev = self.wall()
         while not self._beat_stop.wait(period):
@@ -112,6 +113,7 @@ class RealTimeScheduler(Scheduler):
         """Handle a stall if the heartbeat saw one, it has not beaten for too long, or the
         event due at ``due`` is too late (an event due before the last stall was handled
         is not late again)."""
+        assert self.stall_ticks is not None    # (called only when stalls are watched)
         late = max(self._stalled, wall - max(self._beat, self._settled),
                    0 if due is None else wall - max(due, self._settled))
         if late <= self.stall_ticks:
@@ -249,6 +251,7 @@ class RealTimeScheduler(Scheduler):
                 if ev.cancelled:
                     continue
                 if watch:
+                    assert self.stall_ticks is not None
                     w = self.wall()             # (``wall`` is stale if a handler blocked)
                     if w - max(when, self._settled) > self.stall_ticks:
                         self._check_stall(w, when)

@@ -256,6 +256,8 @@ def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | N
         waiting = {parent_end: i for i, (parent_end, _) in enumerate(pipes)}
         while waiting:
             for conn in multiprocessing.connection.wait(list(waiting), timeout=0.1):
+                # (wait hands back the pipe ends it was given)
+                assert isinstance(conn, multiprocessing.connection.Connection)
                 i = waiting.pop(conn)
                 try:
                     res = conn.recv()

@@ -172,7 +172,8 @@ def _kind(t: type) -> str:
         k = _LIST
     elif issubclass(t, dict):
         k = _DICT
-    elif dataclasses.is_dataclass(t) and t.__dataclass_params__.frozen:
+    elif dataclasses.is_dataclass(t) and (
+            t.__dataclass_params__.frozen):  # type: ignore[attr-defined]  # not in typeshed
         k = _VALUE                # a frozen dataclass is a value: equal ones are the same
     elif issubclass(t, random.Random):
         k = _RNG
@@ -242,7 +243,8 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
                     fn = getattr(v, "__func__", v)
                 hold(fn)
                 hold(self_)
-                m = ("fn", id(fn), id(self_), getattr(v, "__qualname__", t.__name__))
+                m: tuple[Any, ...] = ("fn", id(fn), id(self_),
+                                      getattr(v, "__qualname__", t.__name__))
                 append(mark(m, m))
             elif kind is _TUPLE:        # walked wherever reached (module docstring)
                 m = ("tuple", len(v))
@@ -291,6 +293,7 @@ def snapshot(roots: Iterable[Any], boundary: Iterable[Any] = (),
             if d is not None:
                 items(d.items(), x, "", True, records)
         if slots:
+            pairs: Iterable[tuple[str, Any]]
             if getter is not None:
                 try:
                     pairs = zip(slots, getter(x))
@@ -430,7 +433,9 @@ def writable(snap: Snapshot, steps: dict[int, int]) -> list[tuple[Any, Any, int]
     """(holder, key, delta) of every position in ``steps``, in ``snap``'s objects."""
     out = []
     for pos, d in sorted(steps.items()):
-        holder, key, _ = snap.spot(pos)   # type: ignore[misc]  (steps are ints' positions)
+        spot = snap.spot(pos)
+        assert spot is not None           # (steps are ints' positions)
+        holder, key, _ = spot
         out.append((holder, key, d))
     return out
 

@@ -132,7 +132,7 @@ def read_trace(path: str) -> Iterator[dict[str, Any]]:
         raise TraceError(f"cannot read trace {path}: {exc.strerror}") from None
     with raw:
         compressed = raw.peek(2)[:2] == b"\x1f\x8b" if hasattr(raw, "peek") else False
-        f: IO[bytes] = gzip.GzipFile(fileobj=raw) if compressed else raw
+        f: io.BufferedIOBase = gzip.GzipFile(fileobj=raw) if compressed else raw
         n = 0
         try:
             for n, line in enumerate(f, 1):
