@@ -8,7 +8,7 @@ from typing import TextIO
 
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver, Disable, Join, ModeChange
-from firmware_model.station import Stalled
+from firmware_model.station import RadioStation, Stalled
 from firmware_model.timing import TICK_HZ
 
 from ..bench.orders import Order, describe_reply
@@ -55,6 +55,7 @@ class FatherConsole:
         elif o.state == "queued":
             tail = ""
         elif o.state == "sent":
+            assert o.message is not None       # (a sent order went through the MAC)
             tail = f" (Number {o.message.num:02d})"
         elif o.state == "replied":
             tail = f" in {took}: {o.reply}"
@@ -69,16 +70,15 @@ class FatherConsole:
         if self.mode == "human":
             self._line(now, f"{_who(d.src)} says: {describe_reply(d.commands)}")
 
-    def ring(self, st: object, a: object, now: int) -> None:
+    def ring(self, st: RadioStation, a: object, now: int) -> None:
         """The father's view of the ring changed (its station ``st``'s observer)."""
         if self.mode != "human":
             return
-        t = type(a)
-        if t is Join:
+        if isinstance(a, Join):
             self._line(now, f"ring: {_who(a.robot)} {'rejoined' if a.again else 'joined'}")
-        elif t is Disable:
+        elif isinstance(a, Disable):
             self._line(now, f"ring: {_who(a.robot)} dropped after three missed turns")
-        elif t is ModeChange:
+        elif isinstance(a, ModeChange):
             ring = " ".join(_who(r) for r in st.mac.ring)
             note = ""
             if getattr(st.mac, "standby", False):
@@ -88,7 +88,7 @@ class FatherConsole:
                     note += (f"; {held} held here go out if it does, else fail (expired) "
                              f"{st.mac.cfg.max_age // TICK_HZ} s after each was given")
             self._line(now, f"father: {a.mode} ({a.reason}); ring [{ring}]{note}")
-        elif t is Stalled:
+        elif isinstance(a, Stalled):
             self._line(now, f"father: stalled {a.late / TICK_HZ:.2f} s (the process did not "
                             f"run); what it heard meanwhile is dropped, listening for the "
                             f"ring again")

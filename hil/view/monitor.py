@@ -62,7 +62,7 @@ from textual.widgets import Footer, Static
 
 from firmware_model.radio.content import format_content
 from firmware_model.radio.frame import BROADCAST
-from firmware_model.radio.mac import Deliver
+from firmware_model.radio.mac import Deliver, RotationalMac
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, s_to_ticks
 
 from ..bench.scripts import HeardFrame, Sniffer
@@ -590,6 +590,7 @@ class SimMonitorApp(MonitorApp):
         t.append(f"  view [{_ids(mac.ring)}]\n", "dim")
         t.append(f"sent {w.air.sent.get(r, 0)}  recv {stats.received}  ")
         t.append(f"missed {stats.missed}\n", "red" if stats.missed else "")
+        assert isinstance(mac, RotationalMac)   # (the monitor refuses the peer MACs)
         outbox = mac.outbox
         inflight = getattr(mac, "inflight", None)
         lines_left = height - 2
@@ -612,8 +613,9 @@ class SimMonitorApp(MonitorApp):
         lines_left -= 1
         n = max(0, lines_left)
         items = list(rec)[-n:] if n else []
-        for m in items:
-            t.append(_cut(f" {m.src}#{m.num:02d}→{_dst(m.dst)} {m.content}", width) + "\n")
+        for got in items:
+            t.append(_cut(f" {got.src}#{got.num:02d}→{_dst(got.dst)} {got.content}", width)
+                     + "\n")
         t.rstrip()
         return t, state
 

@@ -134,17 +134,15 @@ class _Collector:
                 q.push(t, ("mark", t, k, r, k), 2, n)
         elif k == "fault":
             need(ev, n, "kind")
-            r = ev.get("robot")
-            if r is not None:
-                r = need_int(ev, n, "robot")
+            hit = None if ev.get("robot") is None else need_int(ev, n, "robot")
             kind, phase = ev["kind"], ev.get("phase", "start")
-            if r is not None and kind in ("fail", "recover"):
+            if hit is not None and kind in ("fail", "recover"):
                 if (kind == "fail") == (phase != "end"):
-                    self.dead.add(r)
+                    self.dead.add(hit)
                 else:
-                    self.dead.discard(r)
+                    self.dead.discard(hit)
             label = str(ev.get("spec") or kind) + (" ends" if phase == "end" else "")
-            q.push(t, ("mark", t, kind if phase != "end" else "fault_end", r, label), 2, n)
+            q.push(t, ("mark", t, kind if phase != "end" else "fault_end", hit, label), 2, n)
         elif k == "interference":
             s, e = need_int(ev, n, "start"), need_int(ev, n, "end")
             if s > e:
@@ -521,16 +519,17 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
 
     # utilisation over the whole trace
     axu = fig.add_subplot(gs[2])
-    b = col.bin
-    nb = max(1, math.ceil(end_tick / b))
+    bw = col.bin
+    nb = max(1, math.ceil(end_tick / bw))
     busy = (col.busy + [0] * nb)[:nb]
-    xs = [i * b / hz for i in range(nb + 1)]
-    frac = [min(1.0, busy[i] / min(b, max(1, end_tick - i * b))) for i in range(nb)]
+    xs = [i * bw / hz for i in range(nb + 1)]
+    frac = [min(1.0, busy[i] / min(bw, max(1, end_tick - i * bw))) for i in range(nb)]
     axu.stairs(frac, xs, fill=True, color="#4c72b0", alpha=0.35)
     axu.stairs(frac, xs, color="#4c72b0", linewidth=1.0, label="measured")
     bts = meta.get("byte_ticks") or {}
-    bt = [bts.get(str(r)) for r in robots]
-    if all(isinstance(v, int) for v in bt) and bt:
+    given = [bts.get(str(r)) for r in robots]
+    bt = [v for v in given if isinstance(v, int)]
+    if bt and len(bt) == len(given):
         theory = sum(14 * v for v in bt) / sum(14 * v + meta["ttrans"] for v in bt)
         if len(set(bt)) == 1:
             label = (f"idle ring: 14×{bt[0]} / (14×{bt[0]} + {meta['ttrans']}) = "
@@ -544,7 +543,7 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
     axu.set_ylim(0, 1.05)
     axu.set_ylabel("air busy")
     axu.set_xlabel("time (s)")
-    bin_s = b / hz
+    bin_s = bw / hz
     width = f"{bin_s:g} s" if bin_s >= 1 else f"{bin_s * 1000:g} ms"
     axu.set_title(f"channel utilisation, {width} bins, whole run", fontsize=10, loc="left")
     axu.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=8, ncol=3,

@@ -57,6 +57,8 @@ def terminal_size() -> tuple[int, int] | None:
     """(columns, lines) of the terminal the view draws on: stderr's, else stdin's, else
     stdout's; None if none of them is a terminal."""
     for f in (sys.__stderr__, sys.__stdin__, sys.__stdout__):
+        if f is None:
+            continue
         try:
             size = os.get_terminal_size(f.fileno())
         except (AttributeError, ValueError, OSError):
@@ -71,7 +73,10 @@ class TerminalDriver(LinuxDriver):
 
     def __init__(self, app: Any, **kwargs: Any) -> None:
         super().__init__(app, **kwargs)
-        self._file = _TerminalOutput(sys.__stderr__)
+        stderr = sys.__stderr__
+        assert stderr is not None               # (textual draws on it)
+        # textual types its ``_file`` as the text file itself; the wrapper stands in for it
+        self._file = _TerminalOutput(stderr)    # type: ignore[assignment]
 
     def _get_terminal_size(self) -> tuple[int, int]:
         return terminal_size() or super()._get_terminal_size()

@@ -251,10 +251,10 @@ class VcdTraceWriter:
                    2, n)
         elif kind == "fault":
             need(ev, n, "kind")
-            r = None if ev.get("robot") is None else self._robot(ev, "robot", n)
-            if r is not None and ev["kind"] in ("fail", "recover"):
+            hit = None if ev.get("robot") is None else self._robot(ev, "robot", n)
+            if hit is not None and ev["kind"] in ("fail", "recover"):
                 down = (ev["kind"] == "fail") == (ev.get("phase", "start") != "end")
-                q.push(t, ("dead", r, down), 2, n)
+                q.push(t, ("dead", hit, down), 2, n)
         elif kind == "interference":
             start, end = _int(ev, "start", n), _int(ev, "end", n)
             if not start <= end:
@@ -305,6 +305,7 @@ class VcdTraceWriter:
     def _apply(self, batch: list[tuple[int, Any]]) -> None:
         """All the edges at one tick, then the derived signals once (no zero-width glitch)."""
         w = self._w
+        assert w is not None                    # (the meta line came first)
         ts = batch[0][0] * self.units
         for _, item in batch:
             k = item[0]
@@ -361,6 +362,7 @@ class VcdTraceWriter:
                 raise TraceError("empty trace: no meta line")
             self._flush(None)
             end = max(self.last_tick, int(self.meta.get("duration_ticks") or 0))
+            assert self._w is not None          # (the meta line came first)
             self._w.close(end * self.units)
             self._out.commit()
         except BaseException:
