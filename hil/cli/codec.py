@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import binascii
+import io
 import json
 import sys
+from typing import Iterable, cast
 
 from firmware_model.radio.content import parse_content
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
@@ -68,9 +70,9 @@ def _decode_bytes(chunks, out) -> tuple[int, int]:
             elif isinstance(ev, FrameFailed):
                 out({"offset": ev.first, "error": str(ev.error)})
         offset += len(data)
-    ev = d.abort(offset)
-    if ev is not None:
-        out({"offset": ev.first, "error": f"truncated: {ev.error}"})
+    cut = d.abort(offset)
+    if cut is not None:
+        out({"offset": cut.first, "error": f"truncated: {cut.error}"})
     for ev in d.flush():
         if isinstance(ev, Garbage):
             out({"offset": ev.first, "garbage": ev.count})
@@ -89,10 +91,12 @@ def cmd_decode(a: argparse.Namespace) -> int:
     def out(obj):
         print(json.dumps(obj), flush=False)
     if a.stream:
+        chunks: Iterable[bytes]
         if a.hex:
             chunks = (_unhex(line) for line in sys.stdin)
         else:
-            src = sys.stdin.buffer
+            # (a buffered reader: read1 hands over what has come, without waiting for more)
+            src = cast(io.BufferedIOBase, sys.stdin.buffer)
             chunks = iter(lambda: src.read1(4096), b"")
         frames, size = _decode_bytes(chunks, out)
     else:

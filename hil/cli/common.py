@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from typing import Sequence
+from typing import NoReturn, Sequence
 
 
 class UserError(Exception):
@@ -37,7 +37,7 @@ def stdout_gone() -> int:
 
 
 class Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, status 2, no usage dump
+    def error(self, message: str) -> NoReturn:  # one line, status 2, no usage dump
         raise UserError(f"{message} (see '{self.prog} --help')")
 
     def _print_message(self, message, file=None) -> None:
@@ -116,8 +116,8 @@ def id_at(text: str) -> tuple[int, float]:
     try:
         r, t = int(rid), float(when)
     except ValueError:
-        r = t = None
-    if not sep or r is None:
+        raise argparse.ArgumentTypeError(f"{text!r} is not ID@SECONDS, e.g. 1@5.5") from None
+    if not sep:
         raise argparse.ArgumentTypeError(f"{text!r} is not ID@SECONDS, e.g. 1@5.5")
     if not 0 <= r <= 6:
         raise argparse.ArgumentTypeError(f"robot ID {r} in {text!r} is not 0-6")

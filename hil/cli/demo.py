@@ -29,7 +29,13 @@ def ring_story(events: list[dict]) -> list[str]:
         if k not in STORY_EVENTS:
             continue
         t = ev["t"] / TICK_HZ
+        if k == "collision":
+            who = " and ".join(_name(x) for x in ev["robots"] if x >= 0) or "a foreign radio"
+            lines.append(f"{t:8.3f} s  collision: {who} sent at once")
+            continue
         r = ev.get("robot")
+        if r is None:
+            continue                        # a fault on the whole channel (noise, a burst)
         if k == "miss" and ev["by"] in cut:
             continue                        # a robot that hears nothing counts everyone out
         if k in ("join", "rejoin", "disable", "miss"):
@@ -49,9 +55,6 @@ def ring_story(events: list[dict]) -> list[str]:
         elif k in ("join", "rejoin"):
             again = " again" if k == "rejoin" else ""
             lines.append(f"{t:8.3f} s  {_name(r)} is in the ring{again}")
-        elif k == "collision":
-            who = " and ".join(_name(x) for x in ev["robots"] if x >= 0) or "a foreign radio"
-            lines.append(f"{t:8.3f} s  collision: {who} sent at once")
         elif k == "mode" and ev["mode"] == "member":
             reason = ev["reason"]
             if r in cut and reason == "claimed the silent channel":

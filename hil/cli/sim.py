@@ -259,9 +259,13 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
         close_writers(trace, vcd, ok=False)
         raise
     sinks = [f for f in (vcd.write if vcd is not None else None, on_event) if f is not None]
+
+    def to_sinks(ev: dict) -> None:
+        for f in sinks:
+            f(ev)
     try:
         world = World(cfg, trace, on_event=sinks[0] if len(sinks) == 1 else
-                      (lambda ev: [f(ev) for f in sinks]) if sinks else None)
+                      to_sinks if sinks else None)
         if pcap_file is not None:
             from ..sim.pcap import PcapWriter
             world.capture(PcapWriter(pcap_file.f, *world.capture_interfaces()))
@@ -448,6 +452,7 @@ def print_summary_and_report(world: World, wall: float, a: argparse.Namespace,
     extra = None
     if report and a.json:
         from ..view.cpu_report import cpu_budget
+        assert cfg.cpu is not None              # (--cpu-report runs the CPU model)
         extra = {"cpu_report": {r: cpu_budget(
             c, cfg.cpu.sample_wait_max.cycles, world.byte_ticks[r], world.sched.now)
             for r, c in sorted(world.cpus.items())}}

@@ -5,11 +5,15 @@ too, and the world (hil/sim/world.py) runs it."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from firmware_model.radio.mac import MacConfig
 from firmware_model.timing import s_to_ticks
 
 from .faults import CAN_KINDS, Fault, FaultError, check_skew
+
+if TYPE_CHECKING:
+    from firmware_model.cycle_costs import CycleCosts
 
 
 class ConfigError(ValueError):
@@ -61,7 +65,7 @@ class SimConfig:
     the run's). An ID of ``robots`` again is a twin (two robots with one ID, docs/protocol.md
     clause 38.2); another team is a co-channel ring (clause 38.1). Their events carry
     ``"extra": k`` (1 for the first) in the trace; they get no load."""
-    cpu: object | None = None
+    cpu: CycleCosts | None = None
     """A cycle-cost table (firmware_model.cycle_costs.CycleCosts): every child's firmware runs
     on the MB90F549 CPU model, its handlers taking the time the table gives. None: the ideal
     CPU, every handler in zero time (the paper's timing)."""

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import io
 import struct
-from typing import Any, BinaryIO
+from typing import IO, Any
 
 import pcapng
 from pcapng import blocks
@@ -68,7 +68,7 @@ class PcapWriter:
     (ns: the Unix epoch at 10^-10 s would overflow pcapng's 64 bits in 2028). ``live``:
     flush after every packet (a pipe to ``wireshark -k -i -``)."""
 
-    def __init__(self, stream: BinaryIO, radios: dict[object, str], buses: dict[int, str],
+    def __init__(self, stream: IO[bytes], radios: dict[object, str], buses: dict[int, str],
                  tsresol: int = TSRESOL, epoch_units: int = 0, live: bool = False) -> None:
         self.stream = stream
         self.tsresol = tsresol

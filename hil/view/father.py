@@ -4,7 +4,7 @@ machine's stream instead, ``--quiet`` only the orders' ends (docs/bench.md)."""
 from __future__ import annotations
 
 import json
-from typing import TextIO
+from typing import Protocol
 
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver, Disable, Join, ModeChange
@@ -18,10 +18,18 @@ def _who(r: int) -> str:
     return "all" if r == BROADCAST else "father 0" if r == 0 else f"R{r}"
 
 
+class LineSink(Protocol):
+    """Where the story goes: a text file (stdout), or the app's story pane (``LinesTo``)."""
+
+    def write(self, s: str, /) -> object: ...
+
+    def flush(self) -> object: ...
+
+
 class FatherConsole:
     """Prints the father's story to ``out`` in ``mode`` ``human``, ``quiet`` or ``json``."""
 
-    def __init__(self, out: TextIO, mode: str = "human") -> None:
+    def __init__(self, out: LineSink, mode: str = "human") -> None:
         if mode not in ("human", "quiet", "json"):
             raise ValueError(f"mode {mode!r}")
         self.out = out

@@ -50,7 +50,7 @@ from __future__ import annotations
 import time
 from collections import Counter, deque
 from dataclasses import dataclass, replace
-from typing import Any, BinaryIO, Callable, Iterable
+from typing import IO, Any, Callable, Iterable
 
 from rich.text import Text
 from textual.app import App, ComposeResult
@@ -396,7 +396,7 @@ class SimMonitorApp(MonitorApp):
     def __init__(self, config: SimConfig, speed: float = 1.0, paused: bool = False,
                  rate: float = RATE_HZ, keep: int = KEEP, trace: Any = None,
                  on_event: Callable[[dict], None] | None = None,
-                 capture: BinaryIO | None = None) -> None:
+                 capture: IO[bytes] | None = None) -> None:
         """``trace`` (a TraceWriter) and ``on_event`` also get the world's events, and
         ``capture`` (a binary file) its traffic as pcapng (hil/sim/pcap.py), as in ``rprs
         sim`` (the caller closes them)."""
@@ -877,7 +877,7 @@ class RadioMonitorApp(MonitorApp):
 
 def run_monitor_sim(config: SimConfig, speed: float = 1.0, trace: Any = None,
                     on_event: Callable[[dict], None] | None = None,
-                    capture: BinaryIO | None = None) -> tuple[int, World]:
+                    capture: IO[bytes] | None = None) -> tuple[int, World]:
     """``rprs monitor [sim options] [--speed X]``: run the TUI on a simulated world until q.
     The world stops at ``config.duration`` (the header then says FINISHED). Returns the exit
     status and the world as it was when the view closed. An output that could not be written
