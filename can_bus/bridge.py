@@ -328,7 +328,8 @@ class PythonCanBus:
         """Identifiers this process sends that another node sent too (data frames): two
         nodes of one kind on the bus, e.g. a second ``rprs child`` on it. Said once each."""
         self._send_failing = False
-        self.trace = None          # callable(frame, start, end, node) like CanBus.trace
+        # (frame, start, end, node) of each frame, like CanBus.trace
+        self.trace: Callable[[CanFrame, int, int, Any], None] | None = None
         self.log = log
         self._writer = open_log(log) if log else None
         self._drops0 = kernel_drops(bus)

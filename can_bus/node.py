@@ -36,6 +36,7 @@ from functools import lru_cache
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
+    from can_bus.bits import BitTiming
     from can_bus.bus import CanErrorEvent, ErrorState
     from can_bus.frames import CanFrame
 
@@ -46,6 +47,7 @@ __all__ = [
     "FrameSink",
     "FrameSource",
     "HOOKS",
+    "NodeBus",
     "check_node",
 ]
 
@@ -102,6 +104,21 @@ class CanNode(FrameSource, FrameSink, ArbitrationLoser, ErrorListener, Protocol)
     """A node with every hook: a CAN controller, or the transceiver in front of one."""
 
     __slots__ = ()
+
+
+class NodeBus(Protocol):
+    """What a node sees of the bus it is on: the simulator's ``CanBus``, or the bench's
+    ``PythonCanBus`` (can_bus/bridge.py) in front of a real or virtual bus."""
+
+    timing: BitTiming
+
+    def attach(self, node: object) -> None:
+        """Put ``node`` on the bus (its hooks are checked: ``check_node``)."""
+        ...
+
+    def request(self, node: FrameSource) -> None:
+        """``node`` has a frame to send: the bus asks its ``pending`` when it may."""
+        ...
 
 
 ROLES: tuple[type, ...] = (FrameSource, FrameSink, ArbitrationLoser, ErrorListener)

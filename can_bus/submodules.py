@@ -80,9 +80,8 @@ import heapq
 from typing import Any, Callable, Sequence
 
 from can_bus import dbc
-from can_bus.bus import CanBus
 from can_bus.frames import CanFrame
-from can_bus.node import FrameSink, FrameSource
+from can_bus.node import FrameSink, FrameSource, NodeBus
 from can_bus.dbc import (
     ACTION_CLOSE,
     ACTION_OPEN,
@@ -168,7 +167,7 @@ class _Submodule(FrameSource, FrameSink):
     _noprog_since: int | None
     _stall_detected: Callable[[], None]
 
-    def __init__(self, sched: Scheduler, bus: CanBus, number: int,
+    def __init__(self, sched: Scheduler, bus: NodeBus, number: int,
                  status_offset: int | None = None) -> None:
         if bus.timing.tick_hz != TICK_HZ:
             raise ValueError(f"the submodule models run on a {TICK_HZ} Hz clock, the bus's "
@@ -379,7 +378,7 @@ class _AxisNode(_Submodule):
     motion completes, the next one is jammed).
     """
 
-    def __init__(self, sched: Scheduler, bus: CanBus, number: int, position: int,
+    def __init__(self, sched: Scheduler, bus: NodeBus, number: int, position: int,
                  status_offset: int | None) -> None:
         self._p0 = position
         self._t0 = sched.now
@@ -522,7 +521,7 @@ class JointNode(_AxisNode):
     (default: half the maximum). Angles are kept in 0.01 deg, speeds in 0.1 deg/s.
     """
 
-    def __init__(self, sched: Scheduler, bus: CanBus, number: int,
+    def __init__(self, sched: Scheduler, bus: NodeBus, number: int,
                  limits: tuple[float, float] = (-170.0, 170.0), max_speed_dps: float = 60.0,
                  default_speed_dps: float | None = None, initial_deg: float = 0.0,
                  status_offset: int | None = None) -> None:
@@ -607,7 +606,7 @@ class PawNode(_AxisNode):
     opening at which the fingers meet an object placed with :meth:`place_object`.
     """
 
-    def __init__(self, sched: Scheduler, bus: CanBus, stroke_ms: float = PAW_STROKE_MS,
+    def __init__(self, sched: Scheduler, bus: NodeBus, stroke_ms: float = PAW_STROKE_MS,
                  object_size_pct: float = 40.0, initial_opening_pct: float = 100.0,
                  status_offset: int | None = None) -> None:
         self.stroke_ticks = round(stroke_ms * MS)
@@ -710,7 +709,7 @@ class WheelNode(_Submodule):
     speed changes by at most this much a second (``accel_mm_s2`` um/s a 1 ms step).
     """
 
-    def __init__(self, sched: Scheduler, bus: CanBus, max_speed_mm_s: int = WHEEL_MAX_SPEED_MM_S,
+    def __init__(self, sched: Scheduler, bus: NodeBus, max_speed_mm_s: int = WHEEL_MAX_SPEED_MM_S,
                  accel_mm_s2: int = WHEEL_ACCEL_MM_S2, status_offset: int | None = None) -> None:
         if not isinstance(accel_mm_s2, int) or accel_mm_s2 <= 0:
             raise ValueError("accel_mm_s2 must be a positive int (um/s per 1 ms step)")
@@ -930,7 +929,7 @@ class WheelNode(_Submodule):
                 self._step_ev = self._at_step(self.sched.now + WHEEL_STEP_TICKS)
 
 
-def make_submodules(sched: Scheduler, bus: CanBus,
+def make_submodules(sched: Scheduler, bus: NodeBus,
                     initial_angles: Sequence[float] = (0.0, 0.0, 0.0, 0.0),
                     ) -> dict[str, _Submodule]:
     """The six executive submodules with the default parameters (module docstring table),

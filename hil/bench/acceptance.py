@@ -177,6 +177,7 @@ class ModelDut(Dut):
         self.submodules = self.world.submodules[robot]
         bus = self.world.can_buses[robot]
         prev_trace = bus.trace
+        assert prev_trace is not None           # (the world tallies the bus's frames with it)
 
         def trace(frame: CanFrame, start: int, end: int, winner: Any) -> None:
             prev_trace(frame, start, end, winner)

@@ -35,7 +35,7 @@ class BenchCapture:
     def __init__(self, sched: Any, stream: BinaryIO, robot: int | None, radio: bool,
                  can: str | None) -> None:
         self.sched = sched
-        radios = {} if not radio else {"sent": f"R{robot} radio, sent",
+        radios: dict[object, str] = {} if not radio else {"sent": f"R{robot} radio, sent",
                                        "heard": f"R{robot} radio, heard"}
         buses = {} if can is None else {0: f"CAN {can}"}
         self.writer = PcapWriter(stream, radios, buses, tsresol=9)

@@ -165,24 +165,24 @@ class OrderBook:
         return o
 
     def observe(self, a: object, now: int) -> None:
-        t = type(a)
-        if t is Transmit:
+        if isinstance(a, Transmit):
             f = a.frame
             for o in self.open_orders():
-                if o.state == "queued" and o.message.num == f.num and o.message.dst == f.dst:
+                m = o.message                   # (a queued order has its message)
+                if o.state == "queued" and m is not None and m.num == f.num and m.dst == f.dst:
                     self._set(o, "sent", now)
-        elif t is Outcome:
-            o = self._by_msg.get(id(a.message))
-            if o is None or o.finished:
+        elif isinstance(a, Outcome):
+            ended = self._by_msg.get(id(a.message))
+            if ended is None or ended.finished:
                 return
             if a.delivered:
-                self._acknowledged(o, now)
-            elif a.message.state == UNACKNOWLEDGED or o.dst == BROADCAST:
-                self._set(o, "sent-only", now, "nothing acknowledges it (paper profile or "
+                self._acknowledged(ended, now)
+            elif a.message.state == UNACKNOWLEDGED or ended.dst == BROADCAST:
+                self._set(ended, "sent-only", now, "nothing acknowledges it (paper profile or "
                           "broadcast)")
             else:
-                self._set(o, "failed", now, a.reason)
-        elif t is Deliver:
+                self._set(ended, "failed", now, a.reason)
+        elif isinstance(a, Deliver):
             self._news(a, now)
 
     def expire(self, now: int, within_s: float = REPORT_WITHIN_S) -> None:

@@ -166,7 +166,9 @@ def cycle_report(res: Listening) -> dict[str, Any]:
     fs = res.frames
     spec = TTRANS_TICKS * 1000 / TICK_HZ
     tmax = TMAX_TICKS * 1000 / TICK_HZ
-    gaps, windows, long_gaps = [], [], []
+    gaps: list[float] = []
+    windows: list[float] = []
+    long_gaps: list[dict[str, Any]] = []
     for a, b in zip(fs, fs[1:]):
         g = (b.start - a.end) * 1000 / TICK_HZ
         (windows if a.invites else gaps).append(g)
@@ -256,7 +258,7 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
         runner.sched.post(submit, box, ev)
         ev.wait(5.0)
         t_sub, msg = box[0] if box else (0, None)
-        if not hasattr(msg, "state"):
+        if msg is None or not hasattr(msg, "state"):    # (an error's text, or nothing)
             failed.append(str(msg))
             continue
         sent += 1
