@@ -233,7 +233,8 @@ def _unit(span_ticks: int, hz: int) -> tuple[str, float]:
     return ("ms", hz / 1000) if span_ticks < 2 * hz else ("s", hz)
 
 
-def _draw_rows(ax, items, robots, unit_div, x0, x1, labels=False):
+def _draw_rows(ax: Any, items: list[tuple], robots: list[int], unit_div: float, x0: float,
+               x1: float, labels: bool = False) -> dict[str, Any]:
     """The Fig. 7 rows: bars, missed-turn boxes, markers. Returns the legend handles."""
     from matplotlib.patches import Patch, Rectangle
 
