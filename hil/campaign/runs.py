@@ -11,7 +11,7 @@ import os
 import socket
 import time
 import traceback
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, NoReturn, Sequence
 
 from ..sim.soak import run_timing_reformations
 from ..sim.config import SimConfig
@@ -22,7 +22,7 @@ Item = tuple[str, str, tuple[str, ...], int, int]
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         raise ValueError(message)
 
 
