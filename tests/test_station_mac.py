@@ -3,6 +3,7 @@ every MAC that plugs into the station (the rotational one, the peer MACs) giving
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -22,12 +23,20 @@ def _members(proto: type) -> set[str]:
     return {n for n in vars(proto) if not n.startswith("_")}
 
 
-def test_the_protocol_lists_exactly_what_the_station_and_the_child_use():
+SIM_READS = {"mode", "pending", "max_content", "frames_sent"}
+"""What the simulator (hil/sim) reads of any station's MAC, beside what the station uses."""
+
+
+def test_the_protocol_lists_exactly_what_the_station_the_child_and_the_simulator_use():
     used = set()
     for mod in (station, child):
         used |= set(re.findall(r"\bmac\.([a-z_]+)", Path(mod.__file__).read_text()))
     assert {"on_frame", "on_timer", "resync", "deadline", "ring"} <= used
-    assert _members(StationMac) == used
+    sim = set()
+    for f in Path(sys.modules[World.__module__].__file__).parent.glob("*.py"):
+        sim |= set(re.findall(r"\bmac\.([a-z_]+)", f.read_text()))
+    assert SIM_READS <= sim
+    assert _members(StationMac) == used | SIM_READS
 
 
 @pytest.mark.parametrize("cls", [RotationalMac, AlohaMac, SlottedAlohaMac, CsmaMac])
