@@ -122,6 +122,7 @@ def _tester_answered_with(frame: Frame) -> Tester:
     answers = [Heard(frame, 100 * MS + TTRANS, 100 * MS + TTRANS + 14 * 16667)]
     t.now = lambda: 0
     t.listen = lambda ticks: None                     # a channel of its own
+    t._arriving = lambda at: None                     # ... clear whenever we send
     t.send = lambda f, at: 100 * MS
     t.wait_frame = lambda after, timeout, src=None: answers.pop(0) if answers else None
 

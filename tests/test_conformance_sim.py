@@ -13,18 +13,20 @@ import pytest
 import faulty_child
 from hil.bench.conformance import ConformanceError, Report, Tester
 from hil.bench.conformance_sim import SimLink
+from firmware_model.radio.auth import RingKey
 from firmware_model.radio.frame import BROADCAST, Frame
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS
 from hil.bench.conformance import MS, TTRANS
 
 
 def _run(robot: int, profile: str = "rprs", team: tuple[int, ...] | None = None,
-         seed: int = 1, lead_s: float = 1.0) -> tuple[Report, str | None, SimLink]:
+         seed: int = 1, lead_s: float = 1.0, key: RingKey | None = None,
+         tolerance_ms: float = 15.0) -> tuple[Report, str | None, SimLink]:
     """One run of the kit against robot ``robot`` (team default 0-6): its report, why it
     stopped (None if it ran to the end), and the link (the robot's events)."""
     team = tuple(range(7)) if team is None else team
-    link = SimLink(robot, profile, team, seed=seed, lead_s=lead_s)
-    t = Tester(link, robot, profile, team=team)
+    link = SimLink(robot, profile, team, seed=seed, lead_s=lead_s, key=key)
+    t = Tester(link, robot, profile, team=team, key=key, tolerance_ms=tolerance_ms)
     try:
         return t.run(), None, link
     except ConformanceError as exc:
@@ -238,3 +240,57 @@ def test_the_serial_link_stamps_and_sleeps_as_the_kit_always_did(monkeypatch):
     assert slept == [kit.POLL_WAIT / TICK_HZ, kit.POLL_SEND / TICK_HZ] == [0.0003, 0.0002]
     link.close()
     assert port.closed
+
+
+# ------------------------------------------------------------------- the authenticated profile
+KEY = RingKey(bytes.fromhex("000102030405060708090a0b0c0d0e0f"))
+"""tests/test_auth.py's ring key."""
+
+
+def _talked_over(link: SimLink, robot: int) -> list[str]:
+    """Every transmission of the tester's that overlapped one of the robot's on the air."""
+    ours = [(a, b) for r, a, b, _ in link.transmissions if r != robot]
+    theirs = [(a, b) for r, a, b, _ in link.transmissions if r == robot]
+    return [f"ours {s / MS:.1f}-{e / MS:.1f} ms, its {a / MS:.1f}-{b / MS:.1f} ms"
+            for s, e in ours for a, b in theirs if a < e and s < b]
+
+
+@pytest.mark.parametrize("robot, tolerance_ms, lead_s", [
+    (1, 100, 0.5),    # tests/test_auth.py's run: clause 15 failed, its claim cut
+    (3, 100, 0.65),   # five invitations in a row onto its lone member's frames
+    (5, 15, 1.0),     # the default tolerance: its claim cut
+])
+def test_the_kit_never_sends_over_an_authenticated_childs_frame(robot, tolerance_ms, lead_s):
+    """``rprs conformance --auth-key`` against ``rprs child --auth-key`` (team 0,ID) in
+    simulated time: every clause passes, 52 and both 53s included, and no frame of the
+    tester's is on air with one of the robot's. Signed, the robot's claim (a BOOT, clause 28)
+    lasts 38.5 ms and its lone member's frames 48: the kit sent its first invitation as its
+    listening ended, onto a claim begun before, and the next ones when an invitation's window
+    ran out, onto its lone member's next frame. The frame it cut broke, for the kit, only at
+    the robot's next Header, R-stagger after our End (105 ms for robot 1), beyond the 100 ms
+    tolerance: clause 15 failed against the robot, as on the pty hub ("3 failed, first
+    failed at byte 16 (content): 0x0f", a Header where Content was due)."""
+    rep, stopped, link = _run(robot, "rprs", (0, robot), lead_s=lead_s, key=KEY,
+                              tolerance_ms=tolerance_ms)
+    why = _table(rep, stopped, link)
+    assert stopped is None and rep.passed, why
+    assert [c.clause for c in rep.checks].count("53") == 2 and "52" in _verdicts(rep), why
+    assert all(v == {"pass"} for v in _verdicts(rep).values()), why
+    assert "collision" not in _figure(rep, "15"), why
+    assert _talked_over(link, robot) == [], why
+
+
+@pytest.mark.parametrize("robot", range(1, 7))
+def test_an_authenticated_child_passes_every_clause_with_either_team(robot):
+    """The authenticated profile for every ID, the default team and a team of two: every
+    clause passes (52, and 53 twice besides the rprs profile's), with no missed turn, and
+    the tester never sends while the robot does. (Robot 5 with the team 0,5 had its claim
+    cut by the kit's first invitation.)"""
+    for team in (None, (0, robot)):
+        rep, stopped, link = _run(robot, "rprs", team, key=KEY)
+        why = _table(rep, stopped, link)
+        assert stopped is None and rep.passed and not rep.notes, why
+        verdicts = _verdicts(rep)
+        assert {"52", "53"} <= set(verdicts), why
+        assert all(v == {"pass"} for v in verdicts.values()), why
+        assert _talked_over(link, robot) == [], why

@@ -23,6 +23,7 @@ from typing import Callable
 from firmware_model.child import RadioOnlyChild
 from firmware_model.mcu.ptr2000 import NEVER
 from firmware_model.mcu.scheduler import Event, Scheduler
+from firmware_model.radio.auth import RingKey
 from firmware_model.radio.mac import MacConfig
 from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, PTR2000_RX_READY_TICKS, \
@@ -69,18 +70,26 @@ class SimLink:
 
     ``profile``, ``team``: the robot's (``--profile``, ``--team``); ``seed``: the air's and
     the robot's MAC's random draws; ``lead_s``: seconds the robot runs before the tester
-    starts. ``patch``: called with the station and its child once they are built and before
+    starts. ``key``: the ring key (``--auth-key``, the authenticated profile); the robot's
+    freshness counter starts at 0 (a bench process seeds it from its clock: only rising
+    matters). ``patch``: called with the station and its child once they are built and before
     the robot powers on (a test breaks a rule of the robot's there). ``events``: the robot's
-    MAC events as JSON lines, as ``rprs child --events`` prints them."""
+    MAC events as JSON lines, as ``rprs child --events`` prints them. ``transmissions``: every
+    transmission that left the air, ``(ID, first tick, End tick, collided)``, the tester's
+    and the robot's, in the order they ended."""
 
     def __init__(self, robot: int, profile: str = "rprs", team: tuple[int, ...] = tuple(range(7)),
                  tester: int = 0, seed: int = 1, lead_s: float = 1.0,
-                 patch: Callable[[RadioStation, RadioOnlyChild], None] | None = None) -> None:
+                 patch: Callable[[RadioStation, RadioOnlyChild], None] | None = None,
+                 key: RingKey | None = None) -> None:
         self.sched = Scheduler()
         self.air = Air(self.sched, seed=seed)
+        self.transmissions: list[tuple[int, int, int, bool]] = []
+        self.air.on_transmission = lambda tx: self.transmissions.append(
+            (tx.radio.robot, tx.t0, tx.end, tx.collided))
         # rprs child's configuration, but its MAC's seed from ``seed``, not from the OS
         cfg = realtime_config(MacConfig(team=frozenset(team), profile=profile,
-                                        seed=1000 + seed))
+                                        seed=1000 + seed, auth=key))
         self.events = io.StringIO()
         self.station, radio = build_station(
             robot, self.sched, byte_ticks=CHILD_BYTE_TICKS,
