@@ -13,7 +13,7 @@ import pytest
 import faulty_child
 from hil.bench.conformance import ConformanceError, Report, Tester
 from hil.bench.conformance_sim import SimLink
-from firmware_model.radio.auth import RingKey
+from firmware_model.radio.auth import RingKey, seal
 from firmware_model.radio.frame import BROADCAST, Frame
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS
 from hil.bench.conformance import MS, TTRANS
@@ -294,3 +294,55 @@ def test_an_authenticated_child_passes_every_clause_with_either_team(robot):
         assert {"52", "53"} <= set(verdicts), why
         assert all(v == {"pass"} for v in verdicts.values()), why
         assert _talked_over(link, robot) == [], why
+
+
+class _Air:
+    """A link whose bytes the test hands in: what the kit reads, stamped as given."""
+
+    def __init__(self) -> None:
+        self.t, self.rx, self.tx = 0, [], []
+
+    def now(self) -> int:
+        return self.t
+
+    def read(self) -> list[tuple[bytes, int, int]]:
+        out, self.rx = self.rx, []
+        return out
+
+    def write(self, data: bytes) -> int:
+        self.tx.append(data)
+        return self.t
+
+    def idle(self, ticks: int) -> None:
+        self.t += ticks
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("read_before_we_send", [True, False])
+def test_a_frame_our_transmission_cut_is_ours_when_the_next_header_comes_late(
+        read_before_we_send):
+    """A signed frame of robot 1's, 15 bytes in when our frame goes out: we hear no more of
+    it (deaf while on air), and its next Header comes R-stagger after our End, 105 ms, beyond
+    a 100 ms tolerance. The cut frame is a collision of ours, not a failed frame of the
+    robot's, whether its bytes reached us before our write or (a port's latency) after it.
+    It once failed clause 15 as "first failed at byte 16 (content): 0x0f", judged at that
+    next Header."""
+    air = _Air()
+    t = Tester(air, 1, "rprs", team=(0, 1), tolerance_ms=100, key=KEY)
+    bt = CHILD_BYTE_TICKS
+    robots = seal(KEY, BROADCAST, 1, 0, 5, b"", 1).encode()
+    air.t = 1000 * MS
+    heard = (robots[:15], air.t - MS - 14 * bt, bt)      # its 16th byte not yet complete
+    if read_before_we_send:
+        air.rx.append(heard)
+    end = t._write(t.frame(b"poll(1,1)").encode())
+    if not read_before_we_send:          # its bytes, on air before ours, read after our write
+        air.rx.append((heard[0], air.t + 2 * MS, bt))
+        t._poll_rx()
+    nxt = seal(KEY, BROADCAST, 1, 0, 5, b"", 2).encode()
+    air.rx.append((nxt, end + 105 * MS, bt))
+    t._poll_rx()
+    assert (t.bad, t.collided) == (0, 1), t.first_failure
+    assert [h.frame.src for h in t.heard] == [1]              # its next frame, whole

@@ -56,7 +56,7 @@ from firmware_model.radio.auth import seal as auth_seal, strip as auth_strip
 from firmware_model.radio.content import parse_content
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from firmware_model.radio.errors import ContentError
-from firmware_model.radio.frame import BROADCAST, Frame
+from firmware_model.radio.frame import BROADCAST, HEADER, Frame
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
 
 from .runner import REALTIME_MARGINS
@@ -271,7 +271,7 @@ class Tester:
     def _heard_bytes(self, data: bytes, first: int, dt: int) -> None:
         """Bytes heard back to back, the first complete at tick ``first``."""
         self.rx_bytes += len(data)
-        self.last_rx = first + (len(data) - 1) * dt
+        before, self.last_rx = self.last_rx, first + (len(data) - 1) * dt
         for ev in self.deframer.feed(data, first, dt):
             if isinstance(ev, FrameReceived):
                 f = ev.frame
@@ -286,19 +286,33 @@ class Tester:
             elif isinstance(ev, Garbage):
                 self.garbage += ev.count
             elif isinstance(ev, FrameFailed):
-                if self._ours_overlap(ev.first, ev.at):
-                    self.collided += 1
-                    before = [e for _, e in self.on_air if e <= ev.first]
-                    if before:      # where its Header began, from our End before it
-                        self.collisions.append(ev.first - before[-1])
-                    continue
-                self.bad += 1
-                if self.first_failure is None:
-                    self.first_failure = str(ev.error)
-                    if "(content): 0x17 " in self.first_failure:
-                        # the End's first byte where the Length promised more Content
-                        self.first_failure += " (the End came early: a Length longer than " \
-                            "the Content)"
+                i = (ev.at - first) // dt
+                if 0 <= i < len(data) and data[i] == HEADER[0]:
+                    # Broken by the first byte of a later Header: its bytes stopped after
+                    # the last one heard before it (a gap, or the Header came at once)
+                    stop = first + (i - 1) * dt if i else before
+                    self._failed(ev, stop if ev.at - stop > 2 * dt else ev.at)
+                else:
+                    self._failed(ev, ev.at)
+
+    def _failed(self, ev: FrameFailed, at: int) -> None:
+        """A frame that broke at tick ``at``: one we stepped on (:meth:`_ours_overlap`), or
+        the robot's. A frame whose bytes stopped broke where they stopped, not at the later
+        Header that showed it: a frame cut by ours (we hear nothing while on air) was once
+        judged at the robot's next Header, R-stagger after our End (105 ms for robot 1),
+        beyond the tolerance, and failed clause 15 against the robot."""
+        if self._ours_overlap(ev.first, at):
+            self.collided += 1
+            before = [e for _, e in self.on_air if e <= ev.first]
+            if before:          # where its Header began, from our End before it
+                self.collisions.append(ev.first - before[-1])
+            return
+        self.bad += 1
+        if self.first_failure is None:
+            self.first_failure = str(ev.error)
+            if "(content): 0x17 " in self.first_failure:
+                # the End's first byte where the Length promised more Content
+                self.first_failure += " (the End came early: a Length longer than the Content)"
 
     def _authenticated(self, f: Frame) -> Frame:
         """The robot's frame ``f`` with its ``auth(...)`` taken off, its tag and freshness
@@ -327,12 +341,17 @@ class Tester:
                    for s, e in self.on_air[-4:])
 
     def _write(self, data: bytes) -> int:
-        """Put ``data`` on air now; the tick its End leaves the air."""
+        """Put ``data`` on air now; the tick its End leaves the air. Our radio is deaf from
+        then on: a frame still arriving is cut by ours and broke now (:meth:`_failed`)."""
+        self._poll_rx()                         # what arrived before our bytes go out
         start = self.link.write(data)
         if self.key is not None:
             self.sent.append(data)
         self.last_end = start + len(data) * BYTE
         self.on_air.append((start, self.last_end))
+        cut = self.deframer.abort(start)
+        if cut is not None:
+            self._failed(cut, start)
         return self.last_end
 
     def wait_frame(self, after: int, timeout_ticks: int, src: int | None = None) -> Heard | None:
