@@ -337,6 +337,7 @@ def test_a_frame_our_transmission_cut_is_ours_when_the_next_header_comes_late(
     heard = (robots[:15], air.t - MS - 14 * bt, bt)      # its 16th byte not yet complete
     if read_before_we_send:
         air.rx.append(heard)
+        t._poll_rx()
     end = t._write(t.frame(b"poll(1,1)").encode())
     if not read_before_we_send:          # its bytes, on air before ours, read after our write
         air.rx.append((heard[0], air.t + 2 * MS, bt))
@@ -346,3 +347,77 @@ def test_a_frame_our_transmission_cut_is_ours_when_the_next_header_comes_late(
     t._poll_rx()
     assert (t.bad, t.collided) == (0, 1), t.first_failure
     assert [h.frame.src for h in t.heard] == [1]              # its next frame, whole
+
+
+class _BlockingPort:
+    """A serial port as pyserial's with a read timeout (hil/bench/serial_radio.py: 50 ms) on
+    a fake clock: a read with nothing heard waits until a byte comes or the timeout runs out.
+    ``frames``: (tick its first byte is complete, bytes) the robot sends; ``answer(t)``
+    gives what to schedule after each write ending at tick ``t``."""
+
+    TIMEOUT = 50 * MS
+
+    def __init__(self, clock: list[int], frames, answer) -> None:
+        self.clock, self.answer, self.writes = clock, answer, []
+        self.bytes = [(t + i * PC_BYTE_TICKS, b) for t, f in frames for i, b in enumerate(f)]
+
+    def _tick(self) -> int:
+        return self.clock[0] * 16 // 1000                     # ns -> ticks (16 MHz)
+
+    @property
+    def in_waiting(self) -> int:
+        return sum(1 for t, _ in self.bytes if t <= self._tick())
+
+    def read(self, n: int) -> bytes:
+        if not self.in_waiting:                               # blocks: a byte, or the timeout
+            nxt = min((t for t, _ in self.bytes), default=None)
+            until = self._tick() + self.TIMEOUT
+            self.clock[0] = (until if nxt is None else min(nxt, until)) * 1000 // 16
+        ready = [x for x in self.bytes if x[0] <= self._tick()][:n]
+        self.bytes = self.bytes[len(ready):]
+        return bytes(b for _, b in ready)
+
+    def write(self, data: bytes) -> None:
+        self.writes.append((self._tick(), data))
+        end = self._tick() + len(data) * PC_BYTE_TICKS
+        self.bytes += [(t + i * PC_BYTE_TICKS, b) for t, f in self.answer(end)
+                       for i, b in enumerate(f)]
+
+    def close(self) -> None:
+        pass
+
+
+def test_on_a_serial_port_the_invitation_after_a_lone_members_frame_comes_in_its_pause(
+        monkeypatch):
+    """Robot 1 runs alone (a frame every Twin + 1 x Tslot: TXEN 130 ms after its End) and
+    does not hear our first invitation. Its next frame comes in that invitation's window;
+    we invite Ttrans after it, and on a serial port whose read waits up to 50 ms for a byte
+    the invitation still begins within one such wait of that instant, in the robot's pause.
+    With a look at the port before the invitation and another as it was written, it began
+    about 150 ms after the robot's End, onto its next frame, every time: on the pty hub the
+    robot never answered, and the run stopped after 400 invitations."""
+    import hil.bench.conformance as kit
+    from hil.bench.conformance import TWIN, TSLOT
+
+    clock = [0]
+    monkeypatch.setattr(kit.time, "monotonic_ns", lambda: clock[0])
+    monkeypatch.setattr(kit.time, "sleep", lambda s: clock.__setitem__(
+        0, clock[0] + int(s * 1e9)))
+    lone = seal(KEY, BROADCAST, 1, 3, 3, b"poll(0,2)", 7).encode()
+    boot = seal(KEY, BROADCAST, 1, 0, 5, b"", 8).encode()
+    writes = []
+
+    def answer(end: int):
+        writes.append(end)
+        if len(writes) == 1:               # not heard: its next lone frame, in the window
+            return [(end + 60 * MS, lone)]
+        return [(end + TTRANS + PC_BYTE_TICKS, boot)]    # heard: its BOOT, at E + Ttrans
+    port = _BlockingPort(clock, [], answer)
+    monkeypatch.setattr(kit, "open_port", lambda name: port)
+    t = Tester("/dev/ttyX", 1, "rprs", team=(0, 1), tolerance_ms=100, key=KEY)
+    h, end = t._invite(-1)
+    assert h.frame.type == 5 and len(port.writes) == 2, port.writes
+    lone_end = writes[0] + 60 * MS + (len(lone) - 1) * PC_BYTE_TICKS
+    began = port.writes[1][0] - lone_end
+    assert began <= TTRANS + _BlockingPort.TIMEOUT + MS, began / MS
+    assert began < TWIN + TSLOT, began / MS           # before its next TXEN

@@ -342,8 +342,8 @@ class Tester:
 
     def _write(self, data: bytes) -> int:
         """Put ``data`` on air now; the tick its End leaves the air. Our radio is deaf from
-        then on: a frame still arriving is cut by ours and broke now (:meth:`_failed`)."""
-        self._poll_rx()                         # what arrived before our bytes go out
+        then on: a frame still arriving is cut by ours and broke now (:meth:`_failed`); of
+        one whose bytes we read only after this, the bytes stopped in our air time."""
         start = self.link.write(data)
         if self.key is not None:
             self.sent.append(data)
@@ -422,11 +422,13 @@ class Tester:
 
     def _arriving(self, at: int) -> Heard | None:
         """Wait until tick ``at``; if a frame of the robot's is arriving then, wait for it
-        and return it (sent then, ours would cut it), else None: the channel is clear."""
+        and return it (sent then, ours would cut it), else None: the channel is clear.
+        (Callers have just looked at the air: a serial port's read waits up to its timeout,
+        50 ms, on a quiet channel, and one more look here put our invitation that much
+        later, onto a lone member's next frame.)"""
         while self.now() < at:
             self._poll_rx()
             self.link.idle(POLL_SEND)
-        self._poll_rx()
         h = None
         while h is None and self._busy():
             h = self.wait_frame(self.last_rx - 1, QUIET_GAP, self.robot)
