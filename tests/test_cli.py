@@ -95,6 +95,8 @@ def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
      "--trace and --pcap name the same file"),
     (["conformance", "--radio", "x", "--id", "1", "--junit", "."], "it is a directory"),
     (["conformance", "--radio", "x", "--id", "1", "--tolerance-ms", "-5"], "positive"),
+    (["conformance", "--radio", "x", "--id", "1", "--team", "0,2"], "must hold the robot's ID 1"),
+    (["conformance", "--radio", "x", "--id", "1", "--team", "1,2"], "and this PC's 0"),
     (["campaign", "run", "none.toml", "--scheduler", "bogus"], "missing port number"),
     (["campaign", "run", "none.toml", "--scheduler", "foo://x"], "unknown address scheme"),
     (["soak", "--hours", "0.01"], "too short"),

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import UserError, auth_option, digit, output_file, port_name, positive, stdout_console
+from .common import (UserError, auth_option, digit, output_file, port_name, positive,
+                     robot_list, stdout_console)
 
 
 VERDICT_STYLE = {"pass": "[green]pass[/green]", "FAIL": "[red]FAIL[/red]", "n/a": "[dim]n/a[/dim]"}
@@ -17,13 +18,17 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     from ..bench.serial_radio import PortError
     if a.tester is not None and a.tester == a.id:
         raise UserError(f"--tester must differ from --id (both {a.id})")
+    me = a.tester if a.tester is not None else (0 if a.id != 0 else 1)
+    if a.team and not {a.id, me} <= set(a.team):
+        raise UserError(f"--team {','.join(map(str, a.team))} must hold the robot's ID {a.id} "
+                        f"and this PC's {me}: the robot's team holds both")
     if a.junit:
         output_file(a.junit, "JUnit XML")
     quiet = a.quiet
     try:
         t = Tester(a.radio, a.id, a.profile, a.tester, a.tolerance_ms, a.turns,
                    progress=None if quiet else lambda s: print(s, file=sys.stderr, flush=True),
-                   key=a.auth_key)
+                   key=a.auth_key, team=tuple(a.team) if a.team else tuple(range(7)))
     except (PortError, ValueError) as exc:
         raise UserError(str(exc)) from None
     try:
@@ -42,6 +47,8 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     for c in rep.checks:
         table.add_row(c.clause, c.name, VERDICT_STYLE[c.verdict], c.figure)
     stdout_console().print(table)
+    for note in rep.notes:
+        print(f"rprs conformance: {note}")
     if error:
         print(f"rprs conformance: stopped: {error}")
     if a.junit:
@@ -67,6 +74,9 @@ def add(sub) -> None:
                    "the robot's team must hold it")
     p.add_argument("--tolerance-ms", type=positive, default=15.0, metavar="MS",
                    help="timing tolerance for a PC and its port (default 15)")
+    p.add_argument("--team", type=robot_list, metavar="IDS",
+                   help="the robot's team (default 0-6), as given to it: in the paper profile "
+                   "its static ring, whose absent robots keep their turns until dropped")
     p.add_argument("--turns", type=digit(3, 1000, "turns"), default=20,
                    help="hand-overs timed (default 20)")
     auth_option(p)

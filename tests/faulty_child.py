@@ -1,0 +1,100 @@
+"""The project's child with one deliberate bug, for the conformance kit's tests (not a product
+command): ``python tests/faulty_child.py FAULT child --id 1 --radio PORT ...`` patches the
+rotational MAC, then runs ``rprs`` with the remaining arguments.
+
+Faults (each one rule of docs/protocol.md broken, the rest of the child untouched):
+
+- ``late-turn``: every frame's Header 20 ms after Ttrans (clause 23);
+- ``long-length``: every frame's Length one more than its Content (clauses 11, 15);
+- ``no-ack``: acknowledges nothing (clauses 36, 47);
+- ``boot-01``: its BOOT frames are Number '01' (clause 29);
+- ``no-stagger``: no R-stagger (nor R-pair) after an uncertain turn end (clause 44);
+- ``late-answer``: its answer to an invitation 40 ms after Ttrans (clause 34).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from firmware_model.radio import mac as mac_mod            # noqa: E402
+from firmware_model.radio.frame import Frame, FrameType     # noqa: E402
+from firmware_model.timing import TICK_HZ                   # noqa: E402
+
+MS = TICK_HZ // 1000
+Mac = mac_mod.RotationalMac
+Setter = Callable[[Any, str, Any], None]
+FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer")
+
+
+def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
+    """Our Header ``ms`` later: the SWITCH phase (TXEN up, Ttrans to the first bit) lasts
+    longer."""
+    orig = Mac._my_turn
+
+    def _my_turn(self, start, now, out):
+        orig(self, start, now, out)
+        if self.phase == mac_mod.SWITCH and (self._answering or not only_answers):
+            self.deadline += ms * MS
+    set_attr(Mac, "_my_turn", _my_turn)
+
+
+def _long_length(set_attr: Setter) -> None:
+    orig = Mac._build_frame
+
+    def _build_frame(self, now, out):
+        frame, data = orig(self, now, out)
+        n = int(data[8:12]) + 1
+        return frame, data[:8] + b"%04d" % n + data[12:]
+    set_attr(Mac, "_build_frame", _build_frame)
+
+
+def _no_ack(set_attr: Setter) -> None:
+    orig = Mac._build_frame
+
+    def _build_frame(self, now, out):
+        self._acks = []
+        return orig(self, now, out)
+    set_attr(Mac, "_build_frame", _build_frame)
+
+
+def _boot_01(set_attr: Setter) -> None:
+    orig = Mac._build_frame
+
+    def _build_frame(self, now, out):
+        frame, data = orig(self, now, out)
+        if frame.type == FrameType.BOOT:
+            if self._announcing == FrameType.BOOT:
+                self._ann_num = 1              # it waits for the acks of what it sent
+            frame = Frame(dst=frame.dst, src=frame.src, num=1, type=frame.type,
+                          content=frame.content)
+            data = frame.encode()
+        return frame, data
+    set_attr(Mac, "_build_frame", _build_frame)
+
+
+def _no_stagger(set_attr: Setter) -> None:
+    orig = Mac._next_turn
+
+    def _next_turn(self, after, start, now, out, uncertain=False, not_before=None):
+        orig(self, after, start, now, out)
+    set_attr(Mac, "_next_turn", _next_turn)
+
+
+def patch(fault: str, set_attr: Setter = setattr) -> None:
+    """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
+    ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
+    {"late-turn": lambda s: _delay_switch(s, 20, False),
+     "late-answer": lambda s: _delay_switch(s, 40, True),
+     "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
+     "no-stagger": _no_stagger}[fault](set_attr)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 2 or sys.argv[1] not in FAULTS:
+        sys.exit(f"usage: faulty_child.py {{{'|'.join(FAULTS)}}} child ARGS...")
+    patch(sys.argv[1])
+    from hil.cli import main
+    sys.exit(main(sys.argv[2:]))
