@@ -74,14 +74,27 @@ def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
 
 def _stacks_on_sigusr1() -> None:
     """``kill -USR1 PID`` makes a running ``rprs`` print every thread's stack on stderr and go
-    on: how to see where a bench process that has gone quiet is waiting."""
+    on: how to see where a bench process that has gone quiet is waiting.
+
+    A Python-level handler, run by the main thread with the GIL held: faulthandler's own C
+    handler (``faulthandler.register``) walks the threads while they run, and a child
+    signalled as its threads started died of SIGSEGV (once, in a quiet loop of the fast tier;
+    not seen again in 25 tries). A main thread waiting
+    in a lock, a sleep or a blocking read or write is interrupted to run it (PEP 475)."""
     import faulthandler
     import signal
-    if hasattr(signal, "SIGUSR1"):
+    if not hasattr(signal, "SIGUSR1"):
+        return
+
+    def stacks(signum, frame) -> None:
         try:
-            faulthandler.register(signal.SIGUSR1, all_threads=True, chain=False)
-        except (ValueError, OSError, RuntimeError, io.UnsupportedOperation):
-            pass                     # no usable stderr (an embedding), or not the main thread
+            faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+        except (ValueError, OSError, RuntimeError, AttributeError, io.UnsupportedOperation):
+            pass                     # no usable stderr (an embedding, a closed pipe)
+    try:
+        signal.signal(signal.SIGUSR1, stacks)
+    except ValueError:
+        pass                         # not the main thread of the main interpreter
 
 
 def _terminate_on_sigterm():
