@@ -10,8 +10,8 @@ a CAN frame's kernel timestamp); it runs in the scheduler's thread, in tick
 order with the due events, as an MCU takes a receive interrupt before a timer due after it: a
 timer never judges "nothing came" when something came before it was due and only the process
 was late to take it in. A late wake (the process got no CPU for a while) first gives the reader
-threads a moment to hand in what came meanwhile. ``now`` only moves forward: an input runs at
-its arrival tick or at the tick of the last event run, whichever is later.
+threads a moment to hand in what came meanwhile. An input runs with ``now`` at the wall-clock
+tick it was posted at (``now`` never goes back).
 
 A process that did not run for a while (SIGSTOP and SIGCONT, a machine that gave it no CPU, a
 handler blocked in a write) must not replay its past: with ``watch_stalls(ticks, fn)``, once
@@ -76,7 +76,7 @@ class RealTimeScheduler(Scheduler):
         self._beater: threading.Thread | None = None
         self._beat_stop = threading.Event()   # ends the heartbeat when running ends
         self._settled = 0               # the tick the last stall was handled at
-        self._pending: list = []        # posts taken from the inbox: (tick, seq, fn, args)
+        self._pending: list = []        # posts taken in: (arrival, seq, posted, fn, args)
         self._seq = 0
 
     def on_start(self, fn: Callable[[], None]) -> None:
@@ -195,17 +195,17 @@ class RealTimeScheduler(Scheduler):
                 self._beater.join(timeout=1.0)
                 self._beater = None
 
-    def _take_inbox(self) -> bool:
-        """Move what other threads posted into the pending heap; False once ``stop()`` was
-        called (its None is in the inbox)."""
+    def _take_inbox(self) -> None:
+        """Move what other threads posted into the pending heap (``stop()``'s None ends it:
+        the loop sees the stop flag)."""
         inbox = self._inbox
         while True:
             try:
                 item = inbox.get_nowait()
             except queue.Empty:
-                return True
+                return
             if item is None:
-                return False
+                return
             self._pend(item)
 
     def _pend(self, item: tuple) -> None:
