@@ -518,18 +518,18 @@ class PythonCanBus:
             self.on_error(f"CAN bus {self.channel or self.bus.channel_info}: {what}")
 
     def _from_thread(self, msg: can.Message) -> None:
-        if msg.is_error_frame or msg.is_extended_id or msg.is_fd:
-            self.sched.post(self._not_ours, msg)
-            return
+        # every frame, ours or not, at the tick it arrived: the log keeps the bus's order
+        handler = self._not_ours if msg.is_error_frame or msg.is_extended_id or msg.is_fd \
+            else self._deliver
         post_at = self._post_at
         if post_at is None:
-            self.sched.post(self._deliver, msg)
+            self.sched.post(handler, msg)
             return
         ago = time.time() - (msg.timestamp or 0.0)
         wall = self.sched.wall()
         # a stamp from the last second is the wall clock's (an adapter's own clock is not)
         post_at(wall - round(ago * self.timing.tick_hz) if 0.0 <= ago <= 1.0 else wall,
-                self._deliver, msg)
+                handler, msg)
 
     def _not_ours(self, msg: can.Message) -> None:
         """A frame no node here takes: counted and logged, as candump would show it."""

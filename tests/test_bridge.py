@@ -545,6 +545,30 @@ def test_a_can_log_writes_remote_and_can_fd_frames_as_candump_does(tmp_path):
     assert back[2].is_fd and back[2].bitrate_switch
 
 
+def test_frames_are_logged_in_the_order_they_came_even_when_read_late(tmp_path):
+    """A frame no node takes (CAN FD) was posted at the tick the reader handed it in, a
+    frame for a node at the tick its kernel stamp gives: read late (a busy host), the second
+    of two frames was logged before the first (CI's VM: ``181#...`` above ``101##5...``).
+    Both now come in at the tick they arrived."""
+    channel = f"rprs-{os.getpid()}-order"
+    sched = RealTimeScheduler()
+    log = tmp_path / "order.log"
+    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel)
+    try:
+        now = time.time()
+        # what the reader thread hands in 50 ms and 40 ms after the frames came
+        bus._from_thread(can.Message(timestamp=now - 0.050, arbitration_id=0x101, is_fd=True,
+                                     bitrate_switch=True,
+                                     data=bytes(12), is_extended_id=False))
+        bus._from_thread(can.Message(timestamp=now - 0.040, arbitration_id=0x181,
+                                     data=bytes(6), is_extended_id=False))
+        _run_until(_runner_of(sched), lambda: bus.received == 1 and bus.not_ours == 1)
+    finally:
+        bus.close()
+    assert [line.split()[2] for line in log.read_text().splitlines()] == \
+        ["101##5" + "00" * 12, "181#000000000000"]
+
+
 def _runner_of(sched):
     """A bench ``Runner`` around an existing scheduler (``_run_until`` drives a runner)."""
     from hil.bench.runner import Runner
