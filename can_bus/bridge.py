@@ -334,6 +334,9 @@ class PythonCanBus:
         self._writer = open_log(log) if log else None
         self._drops0 = kernel_drops(bus)
         self._drops_seen = self._drops0
+        self._in_flight: dict[int, can.Message] = {}
+        """Frames read and handed to the scheduler, not yet taken there (by ``id``, in the
+        order read): what ``close`` still logs if the scheduler stopped first."""
         self._closing = threading.Event()
         self._reader = threading.Thread(target=self._read, name=f"can-reader {channel or ''}",
                                         daemon=True)
@@ -475,6 +478,20 @@ class PythonCanBus:
             if msg is not None:
                 self._from_thread(msg)
 
+    def _unread(self, most: int = 10_000) -> list[can.Message]:
+        """What the socket holds unread now (``most`` at most: a flood does not hold up
+        closing); a driver's error ends it."""
+        out: list[can.Message] = []
+        while len(out) < most:
+            try:
+                msg = self.bus.recv(0)
+            except Exception:  # noqa: BLE001 - any driver's error: nothing more to read
+                break
+            if msg is None:
+                break
+            out.append(msg)
+        return out
+
     def _look_for_drops(self) -> None:
         """The kernel's drop count went up since last looked: those frames are lost (the
         reader thread, or ``close``)."""
@@ -521,6 +538,7 @@ class PythonCanBus:
         # every frame, ours or not, at the tick it arrived: the log keeps the bus's order
         handler = self._not_ours if msg.is_error_frame or msg.is_extended_id or msg.is_fd \
             else self._deliver
+        self._in_flight[id(msg)] = msg
         post_at = self._post_at
         if post_at is None:
             self.sched.post(handler, msg)
@@ -534,13 +552,14 @@ class PythonCanBus:
     def _not_ours(self, msg: can.Message) -> None:
         """A frame no node here takes: counted and logged, as candump would show it."""
         self.not_ours += 1
+        self._in_flight.pop(id(msg), None)
         if self._writer is not None:
             self._log_received(msg)
 
     def _deliver(self, msg: can.Message) -> None:
+        self._in_flight.pop(id(msg), None)
         frame = CanFrame.from_message(msg)
-        if self._echoes and frame == self._echoes[0]:
-            self._echoes.popleft()          # our own frame back (in order): sent, not heard
+        if self._echo(frame):
             return
         end = self.sched.now
         start = end - frame_length_bits(frame.id, frame.data, frame.rtr, include_ifs=False) \
@@ -560,6 +579,13 @@ class PythonCanBus:
         for node in self.nodes:
             if hasattr(node, "on_frame"):
                 node.on_frame(frame, start, end)
+
+    def _echo(self, frame: CanFrame) -> bool:
+        """``frame`` is our own frame back (in order): sent, not heard."""
+        if self._echoes and frame == self._echoes[0]:
+            self._echoes.popleft()
+            return True
+        return False
 
     # -- the log ------------------------------------------------------------------------------
 
@@ -594,8 +620,20 @@ class PythonCanBus:
             self._report(f"cannot write the log {self.log}: {why}; the log ends here")
 
     def close(self) -> None:
+        """Stop reading and close the bus (after the scheduler stopped). The log ends with
+        the frames the socket had received that no node took in time (read and not yet
+        taken, or still queued in the socket): it holds what candump shows up to now."""
         self._closing.set()
         self._reader.join()
+        if self._writer is not None:
+            for msg in [*self._in_flight.values(), *self._unread()]:
+                if self._writer is None:
+                    break                        # (the log ended: a full disk)
+                if not (msg.is_error_frame or msg.is_extended_id or msg.is_fd) \
+                        and self._echo(CanFrame.from_message(msg)):
+                    continue
+                self._log_received(msg)
+        self._in_flight.clear()
         if self._drops0 is not None:
             self._look_for_drops()               # the last ones, counted (``lost``)
         try:
