@@ -320,6 +320,15 @@ class ChildFirmware:
         self.dispatcher.on_bus_fault(code, now)
         self._pump()
 
+    def on_stall(self, late: int) -> None:
+        """The process did not run for ``late`` ticks (the real-time runner's stall watch,
+        docs/guarantees.md): the dispatcher's and the blocked-bus watch's clocks of silence
+        skip it (the frames that came meanwhile are read next), and the timer is re-armed."""
+        self.dispatcher.on_stall(late)
+        if self.can.last_rx is not None:
+            self.can.last_rx += late
+        self._pump()
+
     def _on_timer_isr(self) -> None:
         self._on_timer(self.sched.now)
 

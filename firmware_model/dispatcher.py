@@ -216,6 +216,19 @@ class Dispatcher:
                 self.log.append((now, f"submodule {n} fault code {code}"))
         self._update_deadline()
 
+    def on_stall(self, late: int) -> None:
+        """The process did not run for ``late`` ticks (a bench host's stall): that time is
+        nobody's silence. Every job's deadline and start, and when each submodule was last
+        heard, move on by ``late``, so no order fails 30+n for the reports the stall kept
+        from being read (they come in next)."""
+        for job in self.jobs:
+            job.deadline += late
+            job.started += late
+        for v in self.nodes.values():
+            if v.last_seen is not None:
+                v.last_seen += late
+        self._update_deadline()
+
     def on_timer(self, now: int) -> None:
         for job in list(self.jobs):
             late = [n for n in job.waiting if now >= job.deadline or (

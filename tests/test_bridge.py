@@ -26,6 +26,7 @@ from firmware_model.radio.mac import Deliver
 from firmware_model.station import build_station
 from hil.bench.runner import summary_line
 from hil.sim.realtime import RealTimeScheduler
+from firmware_model.timing import TICK_HZ
 
 
 def _run_until(runner, done) -> None:
@@ -52,6 +53,8 @@ def test_dispatcher_drives_the_submodules_over_python_can(can_channel, tmp_path)
         ctrl = CanController(sched)
         child = ChildFirmware(station, ctrl, Transceiver82C250(child_bus, ctrl))
         subs = make_submodules(sched, node_bus, initial_angles=HOME)
+        # as ``rprs child`` does: a stall of the host (CI's VM) is nobody's silence
+        sched.watch_stalls(80 * TICK_HZ // 1000, lambda late, now: child.on_stall(late))
         sched.post(child._on_message,
                    Deliver(0, 1, 0, 2, (cmd("joint", 1, 12), cmd("paw", 0))), 0)
         sched.run_for(1.6)                   # 12 deg at 60 deg/s = 0.2 s; paw stroke 0.8 s
@@ -60,7 +63,8 @@ def test_dispatcher_drives_the_submodules_over_python_can(can_channel, tmp_path)
         assert not child.dispatcher.jobs                 # both done events came back
         # no failure, and each order reported done to its sender (protocol 3.0)
         assert [m.content for m in station.mac.outbox] == [b"done()joint(1,12)",
-                                                            b"done()paw(0)"]
+                                                            b"done()paw(0)"], \
+            (child.dispatcher.log, f"latest event {sched.max_late / TICK_HZ * 1e3:.1f} ms late")
         assert child_bus.sent >= 2 and child_bus.received > 10   # commands out, status in
     finally:
         child_bus.close()
@@ -131,8 +135,11 @@ def test_can_logs_have_wall_clock_times_directions_and_the_channel(can_channel, 
     assert len(mine) == 1 and len(theirs) > 10
     assert all(t0 <= m.timestamp <= t1 for m in logged), (t0, t1, logged[:3])
     # in the order this process handled them: a frame the kernel stamped just before our own
-    # send may be logged just after it, so the order is within a few ms of the stamps
-    assert all(b.timestamp > a.timestamp - 0.02 for a, b in zip(logged, logged[1:]))
+    # send may be logged just after it, by as much as the host was late reading it (tens of
+    # ms in CI's user-mode VM), so the order is the stamps' within 0.1 s (a clock of seconds
+    # since start, the bug, is off by 1.7e9 s)
+    assert all(b.timestamp > a.timestamp - 0.1 for a, b in zip(logged, logged[1:])), \
+        [(round(m.timestamp, 4), hex(m.arbitration_id)) for m in logged]
     assert not mine[0].is_rx and all(m.is_rx for m in theirs)
     assert {m.channel for m in logged} == {channel}
     # the submodules' log, .asc: it begins today, not in 1970; its own frames are Tx
@@ -202,7 +209,8 @@ def test_a_can_log_agrees_with_candump(vcan_channel, tmp_path):
     logged = collections.defaultdict(list)
     for m in can.LogReader(str(tmp_path / "child.log")):
         logged[f"{m.arbitration_id:03X}#{m.data.hex().upper()}"].append(m.timestamp)
-    assert {f: len(v) for f, v in logged.items()} == {f: len(v) for f, v in dumped.items()}
+    assert {f: len(v) for f, v in logged.items()} == {f: len(v) for f, v in dumped.items()}, \
+        f"candump:\n{out}\nthe child's log:\n{(tmp_path / 'child.log').read_text()}"
     worst = max(abs(a - b) for f in logged for a, b in zip(sorted(logged[f]), dumped[f]))
     assert worst < 0.02, worst
     # README and docs/can.md: "a candump log of our traffic decodes with python -m cantools
@@ -567,6 +575,33 @@ def test_frames_are_logged_in_the_order_they_came_even_when_read_late(tmp_path):
         bus.close()
     assert [line.split()[2] for line in log.read_text().splitlines()] == \
         ["101##5" + "00" * 12, "181#000000000000"]
+
+
+def test_frames_received_before_closing_are_in_the_log(tmp_path):
+    """Frames on the bus in the last moments before a process stopped (read by the reader
+    thread and not yet taken by the stopped scheduler, or still in the socket) were missing
+    from its log, which candump's held (CI's VM: the submodules' last reports). ``close`` now
+    logs them, in the order they came; the nodes do not take them (they have stopped)."""
+    channel = f"rprs-{os.getpid()}-closing"
+    sched = RealTimeScheduler()
+    log = tmp_path / "closing.log"
+    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel)
+    tx = can.Bus(interface="virtual", channel=channel)
+    try:
+        sched.run_for(0.05)
+        for i in range(5):
+            tx.send(can.Message(arbitration_id=0x181 + i, data=bytes([i] * 6),
+                                is_extended_id=False))
+        tx.send(can.Message(arbitration_id=0x101, is_fd=True, bitrate_switch=True,
+                            data=bytes(12), is_extended_id=False))
+        time.sleep(0.1)             # the reader hands some in; the scheduler does not run
+    finally:
+        tx.shutdown()
+        bus.close()
+    assert [line.split()[2] for line in log.read_text().splitlines()] == \
+        [f"{0x181 + i:03X}#{f'{i:02X}' * 6}" for i in range(5)] + ["101##5" + "00" * 12]
+    assert all(line.endswith(" R") for line in log.read_text().splitlines())
+    assert bus.received == 0 and bus.not_ours == 0
 
 
 def _runner_of(sched):

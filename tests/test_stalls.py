@@ -245,3 +245,27 @@ def test_the_father_console_tells_a_stall_in_one_line():
     assert out.getvalue() == ("    3.00 s  father: stalled 1.02 s (the process did not run); "
                               "what it heard meanwhile is dropped, listening for the ring "
                               "again\n")
+
+
+def test_a_stall_of_a_bench_child_fails_no_order_for_silence_it_caused():
+    """A ``rprs child`` with a CAN side whose process did not run for 0.6 s while a joint
+    moved (CI's user-mode VM did; SIGSTOP does) failed the order ``fail(31)``: its dispatcher
+    counted the stall as joint 1's silence (300 ms) and judged before the reports that came
+    meanwhile were read. A stall now moves the dispatcher's clocks of silence and deadlines on
+    by its length, and the order ends done."""
+    from firmware_model.radio.content import cmd
+    from firmware_model.radio.mac import Deliver
+    from hil.bench.runner import Runner, build_child, build_submodules
+
+    can_spec = f"virtual:stall-{id(object())}"
+    runner = Runner()
+    station, child = build_child(runner, 1, None, can_spec)
+    subs = build_submodules(runner, can_spec)
+    sched = runner.sched
+    sched.post(child._on_message, Deliver(0, 1, 0, 2, (cmd("joint", 1, 12),)), 0)
+    sched.after(60 * MS, time.sleep, 0.6)             # the process holds still 0.6 s
+    runner.run(1.5)                                   # (and closes the buses)
+    assert sched.stalls and sched.stalls[0][1] > 500 * MS
+    assert subs["JOINT1"].angle_deg == 12
+    assert [m.content for m in station.mac.outbox] == [b"done()joint(1,12)"], \
+        child.dispatcher.log

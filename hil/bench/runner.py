@@ -352,6 +352,8 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
         bus = _can_bus(runner, can, can_log)
         ctrl = CanController(runner.sched)
         child = ChildFirmware(station, ctrl, Transceiver82C250(bus, ctrl))
+        # a stall is nobody's silence: no order fails 30+n for reports it kept unread
+        runner.sched.watch_stalls(stall_threshold(cfg), lambda late, now: child.on_stall(late))
     else:
         child = RadioOnlyChild(station)      # answers orders fail(42): no CAN side
     _capture(runner, pcap, robot, channel, bus, can)
