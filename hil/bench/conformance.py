@@ -48,7 +48,8 @@ from __future__ import annotations
 import statistics
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from functools import partial
+from typing import Any, Callable, Protocol
 from xml.etree import ElementTree as ET
 
 from firmware_model.radio.auth import AUTH_TEXT_LEN, check as auth_check, clock_freshness
@@ -190,8 +191,7 @@ class Report:
                 ET.SubElement(case, "failure", message=c.figure)
             elif c.verdict == "n/a":
                 ET.SubElement(case, "skipped", message=f"not applicable: {c.figure}")
-        return ET.tostring(ET.ElementTree(suite).getroot(), encoding="utf-8",
-                           xml_declaration=True)
+        return ET.tostring(suite, encoding="utf-8", xml_declaration=True)
 
 
 class ConformanceError(Exception):
@@ -318,6 +318,7 @@ class Tester:
         """The robot's frame ``f`` with its ``auth(...)`` taken off, its tag and freshness
         checked (clauses 52-53); a frame that fails keeps its Content (it reads as
         unreadable) and is noted for clause 52's verdict."""
+        assert self.key is not None       # (called only in an authenticated ring)
         fresh = auth_check(self.key, f)
         if fresh is None:
             self.auth_bad.append(f"Number {f.num:02d}: no valid tag")
@@ -497,6 +498,11 @@ class Tester:
                                   f"clause 25)")
             end = self._write((again or data)())
 
+    def _encoded(self, content: bytes = b"", **fields: Any) -> bytes:
+        """Our next frame's bytes (a Number, a freshness counter taken only when it is
+        built: at the moment it goes on air)."""
+        return self.frame(content, **fields).encode()
+
     def frame(self, content: bytes = b"", dst: int = BROADCAST, type_: int = 3,
               num: int | None = None, src: int | None = None) -> Frame:
         src = self.me if src is None else src
@@ -565,7 +571,7 @@ class Tester:
                            "other stations'", t0, applicable=False)
             else:
                 self.check("15", "every frame from the robot is a good frame",
-                           self.bad == 0 and frames,
+                           self.bad == 0 and bool(frames),
                            f"{len(frames)} good frames, {self.bad} failed frames{ours}, "
                            f"{self.garbage} garbage bytes{why}" + (
                                ": the run stopped before the robot sent a frame"
@@ -876,7 +882,7 @@ class Tester:
         for _ in range(3 * MISS_LIMIT):
             self._note_acks(h)
             content = self._acks_content()
-            h, end, missed = self._exchange(h, lambda c=content: self.frame(c).encode(),
+            h, end, missed = self._exchange(h, partial(self._encoded, content),
                                             at=self._turn_at(h) + 300 * MS)
             if not missed:                   # after a missed turn: no sample
                 gaps.append(h.start - end - TTRANS)
@@ -900,8 +906,7 @@ class Tester:
             self._note_acks(h)
             content, kw = first if (first and i == 0) else (b"", {})
             content += self._acks_content()
-            h, _, self.after_miss = self._exchange(
-                h, lambda c=content, kw=kw: self.frame(c, **kw).encode())
+            h, _, self.after_miss = self._exchange(h, partial(self._encoded, content, **kw))
             if on_frame is not None:
                 on_frame(h, i)
         return h
@@ -915,7 +920,7 @@ class Tester:
             self._note_acks(h)
             acks = self._acks_content()
             nxt, end, missed = self._exchange(h, lambda: data,
-                                              again=lambda a=acks: self.frame(a).encode())
+                                              again=partial(self._encoded, acks))
             if not missed:
                 return nxt, end
             h = nxt
@@ -985,13 +990,14 @@ class Tester:
     """Turns we wait at most for the robot's reply to a status() (a busy PC, or a CAN side
     that waits for its submodules, can take longer than a few turns)."""
 
-    def _until(self, h: Heard, seen: Callable[[], list], watch, done: int = 6) -> Heard:
+    def _until(self, h: Heard, seen: Callable[[], list], watch: Callable[[Heard, int], None],
+               done: int = 6) -> Heard:
         """More turns from ``h`` (``done`` were taken), each of its frames shown to
         ``watch`` with its index, until ``seen()`` is not empty (at most ``REPLY_TURNS``)."""
         for k in range(done, done + self.REPLY_TURNS):
             if seen():
                 break
-            h = self._turns(h, 1, None, lambda x, i, k=k: watch(x, k))
+            h = self._turns(h, 1, None, partial(_at_turn, watch, k))
         return h
 
     def _forged(self, h: Heard) -> Heard:
@@ -1112,7 +1118,7 @@ class Tester:
                     return max(prev_end + TMAX + self.robot * TSLOT,
                                our_end + TMAX + self.me * TSLOT + TTRANS + 4 * BYTE) + TTRANS
             else:
-                def expect(prev_end: int) -> int:
+                def expect(prev_end: int, our_end: int = our_end) -> int:
                     return prev_end + TMAX + TTRANS
             offs += [(b.start - expect(a.end)) / MS for a, b in zip(frames, frames[1:4])]
             if len(frames) == 7 and fig25 is None:
@@ -1231,3 +1237,9 @@ def _forger(robot: int, me: int) -> int:
     others = [i for i in range(7) if i not in (robot, me)]
     ours = [i for i in others if _succ(i, (robot, me)) == me]
     return (ours or others)[0]
+
+
+def _at_turn(watch: Callable[[Heard, int], None], k: int, h: Heard, i: int) -> None:
+    """``watch`` shown the robot's frame ``h`` as the ``k``-th of a run of turns (``i``, the
+    index within one call of :meth:`Tester._turns`, is not used)."""
+    watch(h, k)

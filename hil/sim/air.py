@@ -32,12 +32,32 @@ from __future__ import annotations
 
 import math
 import random
-from typing import Callable
+from typing import Any, Callable, Protocol
 
 from firmware_model.mcu.ptr2000 import NEVER, Ptr2000
 from firmware_model.mcu.uart import rates_agree, sample_byte
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.timing import PC_BYTE_TICKS
+
+
+class AirRadio(Protocol):
+    """What the air drives of a radio: a PTR2000 model (``firmware_model.mcu.ptr2000``), the
+    hub's pty node, the conformance kit's tester. The air owns ``idx``, ``rx``,
+    ``noise_from`` and ``rx_from``; ``uart.byte_ticks`` is the radio's byte time (ticks)."""
+
+    robot: int
+    idx: int
+    alive: bool
+    rx_from: int
+    rx: Any
+    noise_from: int
+    uart: Any
+    channel: Any
+
+    def listening(self, t: int) -> bool: ...
+
+    def deliver(self, data: bytes, t0: int, dt: int) -> None: ...
+
 
 HEADER = b"\x0f\x0a\x05"
 NOISE_LOOKAHEAD = 1024
@@ -79,7 +99,7 @@ class Transmission:
 
     __slots__ = ("radio", "data", "t0", "bt", "end", "collided", "aborted", "n")
 
-    def __init__(self, radio: Ptr2000, data: bytes, t0: int, bt: int) -> None:
+    def __init__(self, radio: AirRadio, data: bytes, t0: int, bt: int) -> None:
         self.radio = radio
         self.data = data
         self.t0 = t0
@@ -109,7 +129,7 @@ class Reception:
         self.stream = stream
         self.holes = holes            # byte indices the receiver's UART lost (overrun)
 
-    def flush(self, radio: Ptr2000, now: int) -> None:
+    def flush(self, radio: AirRadio, now: int) -> None:
         """Deliver every byte whose stop bit ended by ``now``."""
         pos = self.pos
         k = (now - self.t0) // self.bt
@@ -136,7 +156,7 @@ class Reception:
                                   self.bt)
                     start = None
 
-    def finish(self, radio: Ptr2000) -> None:
+    def finish(self, radio: AirRadio) -> None:
         """Deliver every byte not delivered yet, the transmission being over: ``flush`` at the
         tick its last stop bit ends, in one hand-over of the whole ``data`` when no byte went
         before and none was lost (most receptions)."""
@@ -160,7 +180,7 @@ class Air:
         self._log1mp = math.log1p(-ber) if ber > 0 else 0.0
         self.noise = noise
         self.byte_by_byte = byte_by_byte
-        self.radios: list[Ptr2000] = []
+        self.radios: list[AirRadio] = []
         self.active: list[Transmission] = []
         self.collision_until = -1
         self._garbage: list[ByteStream] = []
@@ -171,16 +191,16 @@ class Air:
         self._drop_rng: list[random.Random] = []
         self._skew: dict[int, float] = {}
         self._clean_by_bt: dict[int, list[bool]] = {}
-        self._phantom: Ptr2000 | None = None
+        self._phantom: AirRadio | None = None
         self.bursts = 0
         self.occupations = 0
         self.sent: dict[int, int] = {}      # transmissions started, per robot
         self.collisions = 0
-        self.carrier: set[Ptr2000] = set()   # senders paused mid-frame (a gap between bytes)
+        self.carrier: set[AirRadio] = set()   # senders paused mid-frame (a gap between bytes)
         self.on_transmission: Callable[[Transmission], None] | None = None
         self.on_collision: Callable[[int, list[int]], None] | None = None
 
-    def attach(self, radio: Ptr2000) -> None:
+    def attach(self, radio: AirRadio) -> None:
         radio.channel = self
         radio.idx = len(self.radios)
         self.radios.append(radio)
@@ -224,7 +244,7 @@ class Air:
                 if r.rx is None:
                     self._idle_from(r, now)
 
-    def set_skew(self, radio: Ptr2000, eps: float) -> None:
+    def set_skew(self, radio: AirRadio, eps: float) -> None:
         """``radio``'s UART runs ``eps`` (fraction) off the others' rate (a record: what a
         receiver reads follows from the two byte times, firmware_model.mcu.uart.sample_byte)."""
         self._skew[radio.idx] = eps
@@ -263,7 +283,7 @@ class Air:
 
     # -- the radios' side -----------------------------------------------------------------
 
-    def transmit(self, radio: Ptr2000, data: bytes, t0: int, bt: int) -> None:
+    def transmit(self, radio: AirRadio, data: bytes, t0: int, bt: int) -> None:
         if radio in self.carrier:            # the frame goes on after a gap
             self.carrier.discard(radio)
             for r in self.radios:
@@ -296,7 +316,7 @@ class Air:
                     else self._reception(r, tx)
         self.sched.at(tx.end, self._end, tx)
 
-    def sync(self, radio: Ptr2000, now: int) -> None:
+    def sync(self, radio: AirRadio, now: int) -> None:
         """Bring what ``radio`` has heard up to ``now`` (before its firmware looks)."""
         rx = radio.rx
         if rx is not None:
@@ -304,7 +324,7 @@ class Air:
         elif self.noise and radio.listening(now):
             self._noise_upto(radio, now)
 
-    def rx_started(self, radio: Ptr2000, now: int) -> int | None:
+    def rx_started(self, radio: AirRadio, now: int) -> int | None:
         """Start tick of the byte ``radio`` is receiving at ``now`` (its start bit has begun,
         its stop bit has not ended), else None: the falling edge the firmware can see on its
         RX pin before the byte is complete (the miss rule asks whether a Header has *begun*).
@@ -316,7 +336,7 @@ class Air:
         start = rx.t0 + k * rx.bt
         return start if 0 <= k < rx.n and start <= now else None
 
-    def deafen(self, radio: Ptr2000, now: int) -> None:
+    def deafen(self, radio: AirRadio, now: int) -> None:
         """``radio`` stops hearing at ``now`` (TXEN raised or radio dead). A dead radio heard
         nothing since it died (``kill`` deafened it): nothing to do, and nothing of the air's
         is touched, so a station whose radio is dead runs on its own (hil/sim/quiet_ring.py)."""
@@ -326,7 +346,7 @@ class Air:
         radio.rx = None
         self._noise_gen[radio.idx] += 1
 
-    def rx_restart(self, radio: Ptr2000, when: int) -> None:
+    def rx_restart(self, radio: AirRadio, when: int) -> None:
         """``radio`` hears the air again from tick ``when`` (TXEN lowered). Not a dead radio:
         it hears nothing until ``revive``, which starts its listening itself (a join scheduled
         now would find it deaf and do nothing)."""
@@ -335,7 +355,7 @@ class Air:
         self._idle_from(radio, when)
         self.sched.at(when, self._join, radio, when)
 
-    def _join(self, r: Ptr2000, when: int) -> None:
+    def _join(self, r: AirRadio, when: int) -> None:
         """``r`` starts listening at ``when``, perhaps in the middle of a transmission: it
         hears the rest of it (a transmission that starts at ``when`` reaches it anyway)."""
         if r.rx is not None or not r.listening(when):
@@ -359,7 +379,7 @@ class Air:
                 r.rx = self._reception(r, tx, k, bytewise=True)
             return
 
-    def pause(self, radio: Ptr2000, now: int) -> None:
+    def pause(self, radio: AirRadio, now: int) -> None:
         """``radio``'s UART ran out of bytes at ``now``, a byte boundary, in the middle of a
         frame (its transmit handler was late): the burst on air stops there. The radio still
         transmits its carrier, an idle line (mark), so the others hear neither bytes nor
@@ -370,7 +390,7 @@ class Air:
                 self._abort(tx, now, carrier=True)
                 return
 
-    def carrier_off(self, radio: Ptr2000, now: int) -> None:
+    def carrier_off(self, radio: AirRadio, now: int) -> None:
         """``radio`` stops transmitting (TXEN low, or dead): a paused frame's carrier ends."""
         if radio in self.carrier:
             self.carrier.discard(radio)
@@ -378,7 +398,7 @@ class Air:
                 if r is not radio and r.rx is None and r.listening(now):
                     self._idle_from(r, now)
 
-    def kill(self, radio: Ptr2000, now: int) -> None:
+    def kill(self, radio: AirRadio, now: int) -> None:
         """Fault injection: the radio goes silent (mid-frame too) and deaf."""
         self.carrier_off(radio, now)
         self.deafen(radio, now)
@@ -387,7 +407,7 @@ class Air:
             if tx.radio is radio and not tx.aborted:
                 self._abort(tx, now)
 
-    def revive(self, radio: Ptr2000, now: int) -> None:
+    def revive(self, radio: AirRadio, now: int) -> None:
         radio.alive = True
         when = now if radio.rx_from == NEVER else max(now, radio.rx_from)
         self._idle_from(radio, when)
@@ -395,7 +415,7 @@ class Air:
 
     # -- receptions -----------------------------------------------------------------------
 
-    def _reception(self, r: Ptr2000, tx: Transmission, k: int = 0,
+    def _reception(self, r: AirRadio, tx: Transmission, k: int = 0,
                    bytewise: bool = False) -> Reception:
         """What ``r`` hears of ``tx`` from its byte ``k`` on."""
         data = tx.data[k:] if k else tx.data
@@ -444,7 +464,7 @@ class Air:
         self._bytewise(r, rx, 0 if self.byte_by_byte or bytewise else first_bad, n - 1)
         return rx
 
-    def _bytewise(self, r: Ptr2000, rx: Reception, lo: int, hi: int) -> None:
+    def _bytewise(self, r: AirRadio, rx: Reception, lo: int, hi: int) -> None:
         """Deliver bytes lo..hi-1 (0-based) each at its own tick; the last byte of a reception
         is delivered by the end-of-transmission event, in radio order, in every mode."""
         at = self.sched.at
@@ -453,19 +473,19 @@ class Air:
             t = t0 + i * bt
             at(t, self._sync_rx, r, rx, t)
 
-    def _sync_rx(self, r: Ptr2000, rx: Reception, t: int) -> None:
+    def _sync_rx(self, r: AirRadio, rx: Reception, t: int) -> None:
         if r.rx is rx:
             rx.flush(r, t)
 
     # -- idle noise -----------------------------------------------------------------------
 
-    def _idle_from(self, r: Ptr2000, t: int) -> None:
+    def _idle_from(self, r: AirRadio, t: int) -> None:
         r.noise_from = max(r.noise_from, t)
         if self.noise:
             self._noise_gen[r.idx] += 1
             self._scan_noise(r, r.noise_from)
 
-    def _scan_noise(self, r: Ptr2000, start: int) -> None:
+    def _scan_noise(self, r: AirRadio, start: int) -> None:
         """Find the next header in the noise this radio will hear from ``start`` and make sure
         it is delivered byte by byte (it can make the firmware act); re-scan further on."""
         bt = r.uart.byte_ticks
@@ -477,14 +497,14 @@ class Air:
         else:
             self.sched.at(start + (k + 1) * bt, self._noise_header, r, gen)
 
-    def _noise_rescan(self, r: Ptr2000, gen: int) -> None:
+    def _noise_rescan(self, r: AirRadio, gen: int) -> None:
         if gen != self._noise_gen[r.idx] or r.rx is not None or not r.listening(self.sched.now):
             return
         self._noise_upto(r, self.sched.now)
         self._noise_gen[r.idx] += 1
         self._scan_noise(r, r.noise_from)
 
-    def _noise_header(self, r: Ptr2000, gen: int) -> None:
+    def _noise_header(self, r: AirRadio, gen: int) -> None:
         if gen != self._noise_gen[r.idx] or r.rx is not None or not r.listening(self.sched.now):
             return
         now = self.sched.now
@@ -496,11 +516,11 @@ class Air:
             self.sched.at(now + i * bt, self._noise_byte, r, gen)
         self.sched.at(now + 600 * bt, self._noise_rescan, r, gen)
 
-    def _noise_byte(self, r: Ptr2000, gen: int) -> None:
+    def _noise_byte(self, r: AirRadio, gen: int) -> None:
         if gen == self._noise_gen[r.idx] and r.rx is None and r.listening(self.sched.now):
             self._noise_upto(r, self.sched.now)
 
-    def _noise_upto(self, r: Ptr2000, t: int) -> None:
+    def _noise_upto(self, r: AirRadio, t: int) -> None:
         if not self.noise:
             return
         if self.carrier:                     # a paused sender's carrier: no noise heard
