@@ -31,7 +31,7 @@ from firmware_model.radio.content import parse_content
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.mac import (
     UNACKNOWLEDGED, Deliver, Disable, DuplicateId, ForeignRing, Join, MacConfig, Message, Miss,
-    ModeChange, NumberBehind, Outcome, Refused, SubmitError, Transmit,
+    ModeChange, NumberBehind, Outcome, Refused, RotationalMac, SubmitError, Transmit,
 )
 from firmware_model.radio.auth import clock_freshness
 from firmware_model.station import RadioStation, Stalled, build_station
@@ -64,7 +64,8 @@ def realtime_config(config: MacConfig | None = None) -> MacConfig:
     ID must not draw alike (docs/protocol.md clause 38.2)."""
     cfg = config or MacConfig()
     base = MacConfig()
-    changes = {k: v for k, v in REALTIME_MARGINS.items() if getattr(cfg, k) == getattr(base, k)}
+    changes: dict[str, Any] = {k: v for k, v in REALTIME_MARGINS.items()
+                               if getattr(cfg, k) == getattr(base, k)}
     if cfg.seed == base.seed:
         changes["seed"] = int.from_bytes(os.urandom(4), "big")
     return replace(cfg, **changes)
@@ -112,50 +113,49 @@ def _events_printer(out: TextIO | None, robot: int,
                 on_closed()
 
     def observe(st: RadioStation, a: object, now: int) -> None:
-        t = type(a)
-        if t is Transmit:
+        if isinstance(a, Transmit):
             f = a.frame
             emit({"t": now, "ev": "tx", "robot": robot, "dst": f.dst, "num": f.num,
                   "type": f.type, "len": len(f.content)})
-        elif t is Miss:
+        elif isinstance(a, Miss):
             emit({"t": now, "ev": "miss", "robot": a.robot, "by": robot})
-        elif t is Disable:
+        elif isinstance(a, Disable):
             emit({"t": now, "ev": "disable", "robot": a.robot, "by": robot})
-        elif t is Join:
+        elif isinstance(a, Join):
             emit({"t": now, "ev": "rejoin" if a.again else "join", "robot": a.robot,
                   "by": robot})
-        elif t is ModeChange:
+        elif isinstance(a, ModeChange):
             emit({"t": now, "ev": "mode", "robot": robot, "mode": a.mode, "reason": a.reason})
-        elif t is Deliver:
+        elif isinstance(a, Deliver):
             emit({"t": now, "ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
                   "type": a.type, "to": robot,
                   "content": "".join(c.text() for c in a.commands)})
-        elif t is Outcome:
+        elif isinstance(a, Outcome):
             m = a.message
             ev = "delivered" if a.delivered else "sent" if m.state == UNACKNOWLEDGED else "fail"
             emit({"t": now, "ev": ev, "src": m.src, "dst": m.dst, "num": m.num,
                   "reason": a.reason})
-        elif t is Message:
+        elif isinstance(a, Message):
             emit({"t": now, "ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
                   "type": a.type, "len": len(a.content)})
-        elif t is Stalled:
+        elif isinstance(a, Stalled):
             emit({"t": now, "ev": "stall", "robot": robot, "late": a.late})
-        elif t is DuplicateId or t is ForeignRing:
+        elif isinstance(a, (DuplicateId, ForeignRing)):
             line = identity_line(robot, a)
             try:
                 (err or sys.stderr).write(f"rprs: {line}\n")
                 (err or sys.stderr).flush()
             except (BrokenPipeError, ValueError):
                 pass
-            if t is DuplicateId:
+            if isinstance(a, DuplicateId):
                 emit({"t": now, "ev": "duplicate_id", "robot": robot, "yielding": a.yielding})
             else:
                 emit({"t": now, "ev": "foreign_ring", "robot": robot, "robots": list(a.robots),
                       "member": a.member})
-        elif t is Refused:
+        elif isinstance(a, Refused):
             emit({"t": now, "ev": "refused", "src": a.src, "num": a.num, "to": robot,
                   "reason": a.reason, **({"kind": a.kind} if a.kind else {})})
-        elif t is NumberBehind:
+        elif isinstance(a, NumberBehind):
             emit({"t": now, "ev": "behind", "src": a.src, "num": a.num, "last": a.last,
                   "to": robot, "refused": a.refused})
     return observe
@@ -257,7 +257,9 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
     if config.auth is not None:
         # A bench process keeps nothing across restarts: its freshness counter starts from
         # the clock, above every value it sent before (docs/protocol.md clause 52).
-        station.mac.auth_tx = clock_freshness(time.time())
+        mac = station.mac
+        assert isinstance(mac, RotationalMac)   # (a station is built with the paper's MAC)
+        mac.auth_tx = clock_freshness(time.time())
     try:
         channel = SerialChannel(runner.sched, port, txen)
     except PortError as exc:
@@ -351,9 +353,11 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
     if can:
         bus = _can_bus(runner, can, can_log)
         ctrl = CanController(runner.sched)
-        child = ChildFirmware(station, ctrl, Transceiver82C250(bus, ctrl))
+        firmware = ChildFirmware(station, ctrl, Transceiver82C250(bus, ctrl))
         # a stall is nobody's silence: no order fails 30+n for reports it kept unread
-        runner.sched.watch_stalls(stall_threshold(cfg), lambda late, now: child.on_stall(late))
+        runner.sched.watch_stalls(stall_threshold(cfg),
+                                  lambda late, now: firmware.on_stall(late))
+        child = firmware
     else:
         child = RadioOnlyChild(station)      # answers orders fail(42): no CAN side
     _capture(runner, pcap, robot, channel, bus, can)
@@ -415,7 +419,7 @@ def _typed_lines(prompt: str = "order> "):
     try:
         import readline
     except ImportError:                 # not on every platform: plain input() then
-        readline = None
+        readline = None  # type: ignore[assignment]
     path = os.path.expanduser(HISTORY_FILE)
     if readline is not None:
         try:
