@@ -56,7 +56,7 @@ import sys
 import termios
 import threading
 import time
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Sequence, cast
 
 from firmware_model.mcu.ptr2000 import NEVER
 from firmware_model.timing import (
@@ -66,7 +66,7 @@ from firmware_model.timing import (
     s_to_ticks,
 )
 
-from ..sim.air import Air
+from ..sim.air import Air, AirRadio
 from ..sim.realtime import RealTimeScheduler
 
 MAX_NODES = 7
@@ -119,9 +119,9 @@ def byte_ticks_for(baud: float) -> int:
     return round(BITS_PER_BYTE_8N1 * TICK_HZ / baud)
 
 
-def check_args(nodes: int, baud: float, ber: float,
-               drops: Iterable[tuple[int, float, float]] = ()) -> None:
-    """Raise ValueError (one line) for arguments the hub cannot run with."""
+def check_args(nodes: int, baud: float, ber: float, drops: Iterable[Any] = ()) -> None:
+    """Raise ValueError (one line) for arguments the hub cannot run with (each of ``drops``
+    must be ``(node, start s, end s)``)."""
     if isinstance(nodes, bool) or not isinstance(nodes, int) or not 1 <= nodes <= MAX_NODES:
         raise ValueError(f"nodes must be an integer from 1 to {MAX_NODES} (robot IDs 0-6), "
                          f"got {nodes!r}")
@@ -262,7 +262,7 @@ class _HubAir(Air):
         super().__init__(*args, **kw)
         self.in_noise = False
 
-    def _noise_upto(self, r, t):  # type: ignore[override]
+    def _noise_upto(self, r: AirRadio, t: int) -> None:
         self.in_noise = True
         try:
             super()._noise_upto(r, t)
@@ -273,12 +273,24 @@ class _HubAir(Air):
 class RadioHub:
     """N ptys sharing one simulated half-duplex radio channel (see the module docstring)."""
 
+    @property
+    def _sched(self) -> RealTimeScheduler:
+        """The running hub's scheduler (set by ``start``)."""
+        assert self.sched is not None, "the hub is not started"
+        return self.sched
+
+    @property
+    def _air(self) -> _HubAir:
+        """The running hub's air (set by ``start``)."""
+        assert self.air is not None, "the hub is not started"
+        return self.air
+
     def __init__(self, nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
                  seed: int = 0, link_dir: str | None = None,
                  drops: Sequence[tuple[int, float, float]] = (),
                  faults: Sequence[Any] = ()) -> None:
-        drops = [tuple(d) for d in drops]
-        check_args(nodes, baud, ber, drops)
+        windows = [tuple(d) for d in drops]
+        check_args(nodes, baud, ber, windows)     # (so each is (node, start s, end s))
         for f in faults:
             check_fault(f, nodes)
         self.faults = list(faults)
@@ -287,7 +299,7 @@ class RadioHub:
         self.ber = float(ber)
         self.noise = bool(noise)
         self.seed = seed
-        self.drops: list[tuple[int, float, float]] = drops  # type: ignore[assignment]
+        self.drops = cast("list[tuple[int, float, float]]", windows)
         self.byte_ticks = byte_ticks_for(baud)
         self.link_dir = link_dir
         self.links: list[str] = []
@@ -495,7 +507,7 @@ class RadioHub:
 
     def _run_sched(self) -> None:
         try:
-            self.sched.run_forever()
+            self._sched.run_forever()
         except Exception as exc:            # noqa: BLE001 - any bug stops the hub, loudly
             self._fail(exc, "air")
         finally:
@@ -551,7 +563,7 @@ class RadioHub:
         masters = list(self.masters)
         index = {fd: i for i, fd in enumerate(masters)}
         wake = self._wake_r
-        sched = self.sched
+        sched = self._sched
         next_raw = 0.0
         while not self._stopping.is_set():
             now = time.monotonic()
@@ -631,8 +643,8 @@ class RadioHub:
             return
         self._pending[i] += data
         if self._tx_event[i] is None:
-            if self._tx_end[i] > self.sched.now:
-                self._tx_event[i] = self.sched.at(self._tx_end[i], self._send, i)
+            if self._tx_end[i] > self._sched.now:
+                self._tx_event[i] = self._sched.at(self._tx_end[i], self._send, i)
             else:
                 self._send(i)
 
@@ -643,33 +655,33 @@ class RadioHub:
             return
         chunk = bytes(pend[:MAX_BURST])
         del pend[:MAX_BURST]
-        now = self.sched.now
+        now = self._sched.now
         t0 = max(now, self._tx_end[i])
         r = self._radios[i]
         if r.rx_from != NEVER:
             # Its radio switches to transmit: deaf from now until the RX-ready delay after the
             # burst ends on air (the process's own End comes earlier: its bytes reach the air
             # late).
-            self.air.deafen(r, t0)
+            self._air.deafen(r, t0)
             r.rx_from = NEVER
         if self._rx_event[i] is not None:
             self._rx_event[i].cancel()
             self._rx_event[i] = None
-        self.air.transmit(r, chunk, t0, self.byte_ticks)
+        self._air.transmit(r, chunk, t0, self.byte_ticks)
         self._tx_end[i] = t0 + len(chunk) * self.byte_ticks
         self._consumed(i, len(chunk))
         if pend:
-            self._tx_event[i] = self.sched.at(self._tx_end[i], self._send, i)
+            self._tx_event[i] = self._sched.at(self._tx_end[i], self._send, i)
         else:
-            self._rx_event[i] = self.sched.at(self._tx_end[i], self._rx_back, i)
+            self._rx_event[i] = self._sched.at(self._tx_end[i], self._rx_back, i)
 
     def _rx_back(self, i: int) -> None:
         """Node ``i``'s burst ended on air and nothing follows it back to back: its radio
         switches back and hears the air again the PTR2000's RX-ready delay later."""
         self._rx_event[i] = None
         r = self._radios[i]
-        r.rx_from = self.sched.now + PTR2000_RX_READY_TICKS
-        self.air.rx_restart(r, r.rx_from)
+        r.rx_from = self._sched.now + PTR2000_RX_READY_TICKS
+        self._air.rx_restart(r, r.rx_from)
 
     def _consumed(self, i: int, n: int) -> None:
         with self._lock:
@@ -679,7 +691,7 @@ class RadioHub:
             self._wake()                 # the reader may read this node again
 
     def _deliver(self, i: int, data: bytes) -> None:
-        if self.air.in_noise:
+        if self._air.in_noise:
             self.noise_bytes[i] += len(data)
         if not self._is_open(i):
             self.not_open[i] += len(data)     # no program to hear them: not written
@@ -742,15 +754,15 @@ class RadioHub:
     def _on_collision(self, t0: int, robots: list[int]) -> None:
         if t0 >= self._clear_at:
             self.collisions += 1         # a new collision, not the extension of one
-        self._clear_at = self.air.collision_until
+        self._clear_at = self._air.collision_until
 
     def _pump(self) -> None:
         """Idle noise reaches the ptys byte by byte, not in the Air's lazy bursts."""
-        now = self.sched.now
+        now = self._sched.now
         for r in self._radios:
             if r.rx is None and r.alive:
-                self.air.sync(r, now)
-        self.sched.at(max(now, self.sched.wall()) + self.byte_ticks, self._pump)
+                self._air.sync(r, now)
+        self._sched.at(max(now, self._sched.wall()) + self.byte_ticks, self._pump)
 
     def _fault_start(self, f: Any) -> None:
         self._fault(f, "start")
@@ -769,13 +781,13 @@ class RadioHub:
                             foreign_byte_ticks=self.byte_ticks)
             if f.kind == "noise" and phase == "start" and not self._pumping:
                 self._pumping = True
-                self.sched.at(self.sched.now + self.byte_ticks, self._pump)
+                self._sched.at(self._sched.now + self.byte_ticks, self._pump)
 
     def _link_down(self, i: int) -> None:
         r = self._radios[i]
         r.down += 1
         if r.down == 1:
-            self.air.kill(r, self.sched.now)
+            self._air.kill(r, self._sched.now)
             n = len(self._pending[i])
             if n:
                 self.lost[i] += n
@@ -788,13 +800,13 @@ class RadioHub:
                 self._rx_event[i].cancel()
                 self._rx_event[i] = None
             r.rx_from = 0                # sends nothing now: hears as soon as its link is up
-            self._tx_end[i] = min(self._tx_end[i], self.sched.now)
+            self._tx_end[i] = min(self._tx_end[i], self._sched.now)
 
     def _link_up(self, i: int) -> None:
         r = self._radios[i]
         r.down -= 1
         if r.down == 0:
-            self.air.revive(r, self.sched.now)
+            self._air.revive(r, self._sched.now)
 
     # -- reporting ------------------------------------------------------------------------
 
