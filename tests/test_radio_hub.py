@@ -19,7 +19,8 @@ import time
 import pytest
 
 from firmware_model.radio.frame import Frame
-from hil.bench.radio_hub import RadioHub, check_args, parse_drop, run_hub_cli, summary_line
+from hil.bench.radio_hub import RadioHub, check_args, parse_drop
+from hil.cli.hub import run_hub_cli, summary_line
 
 serial = pytest.importorskip("serial")
 
@@ -830,7 +831,7 @@ def _stopped_with_summary(p: subprocess.Popen, sig: int) -> str:
 
 
 def test_cli_prints_paths_and_summary_on_signal(tmp_path):
-    code = ("import sys; from hil.bench.radio_hub import run_hub_cli; "
+    code = ("import sys; from hil.cli.hub import run_hub_cli; "
             f"sys.exit(run_hub_cli(2, link_dir={str(tmp_path / 'r')!r}))")
     p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
