@@ -301,6 +301,9 @@ class PythonCanBus:
         self.channel = channel
         self.timing = timing or BitTiming()
         self.nodes: list[Any] = []
+        self._sinks: list[tuple[Any, Callable[[CanFrame, int, int], None]]] = []
+        """(node, its ``on_frame``) of each node that takes frames, looked up at ``attach``
+        (as :class:`~can_bus.bus.CanBus` does: no ``hasattr`` per frame)."""
         self._queues: dict[int, list[CanFrame]] = {}
         self._busy: set[int] = set()
         self.sent = 0
@@ -376,10 +379,14 @@ class PythonCanBus:
     def attach(self, node: Any) -> None:
         check_node(node)                # a misspelt hook is refused, as by CanBus.attach
         self.nodes.append(node)
+        on_frame = getattr(node, "on_frame", None)
+        if on_frame is not None:
+            self._sinks.append((node, on_frame))
 
     def detach(self, node: Any) -> None:
         if node in self.nodes:
             self.nodes.remove(node)
+            self._sinks = [(n, fn) for n, fn in self._sinks if n is not node]
 
     def request(self, node: Any, frame: CanFrame | can.Message | None = None) -> None:
         """``node`` has something to send (its ``pending()``, or ``frame``)."""
@@ -437,9 +444,9 @@ class PythonCanBus:
             self._log(msg)
         if self.trace is not None:
             self.trace(frame, now, end, node)
-        for other in self.nodes:                 # local nodes hear it too, at its end
-            if other is not node and hasattr(other, "on_frame"):
-                self.sched.at(end, other.on_frame, frame, now, end)
+        for other, on_frame in self._sinks:      # local nodes hear it too, at its end
+            if other is not node:
+                self.sched.at(end, on_frame, frame, now, end)
         self.sched.at(end, self._tx_done, node, frame, end)
 
     def _tx_done(self, node: Any, frame: CanFrame, end: int) -> None:
@@ -576,9 +583,8 @@ class PythonCanBus:
             self._log_received(msg)
         if self.trace is not None:
             self.trace(frame, start, end, None)
-        for node in self.nodes:
-            if hasattr(node, "on_frame"):
-                node.on_frame(frame, start, end)
+        for _node, on_frame in self._sinks:
+            on_frame(frame, start, end)
 
     def _echo(self, frame: CanFrame) -> bool:
         """``frame`` is our own frame back (in order): sent, not heard."""
