@@ -91,6 +91,31 @@ def _skipped(path: Path) -> set[str]:
 
 
 # ---------------------------------------------------------------- verdicts, without a robot
+def test_the_kits_serial_link_never_waits_in_a_read_and_wakes_for_a_byte():
+    """The kit's serial link read with the port's 50 ms timeout: on a quiet channel every
+    poll of its wait for its own turn blocked, and its turns on the hub went out about
+    100 ms late. A read now takes only what waits in the port, and ``idle`` returns when a
+    byte comes (a pty: its descriptor), so bytes are still stamped as they come."""
+    from hil.bench.conformance import SerialLink
+    master, slave = os.openpty()
+    link = SerialLink(os.ttyname(slave))
+    try:
+        reads = []
+        real_read = link.port.read
+        link.port.read = lambda n=1: reads.append(n) or real_read(n)
+        assert link.read() == [] and reads == []          # nothing waiting: no read at all
+        os.write(master, b"\x0f\x0a")
+        t0 = time.monotonic()
+        link.idle(600 * MS * 100)                         # 60 s, unless a byte wakes it
+        assert time.monotonic() - t0 < 30
+        (data, _first, dt), = link.read() or [(b"", 0, 0)]
+        assert data == b"\x0f\x0a" and dt == BYTE and reads == [2]
+    finally:
+        link.close()
+        os.close(master)
+        os.close(slave)
+
+
 def test_a_clause_not_applicable_is_skipped_in_junit_with_its_reason_and_fails_nothing():
     rep = Report(1, "rprs", [Check("34", "answers", True, "Type '6'"),
                              Check("29", "a BOOT frame is Number '00'", True,

@@ -45,6 +45,7 @@ from any other Source stops the run (nothing is judged then).
 """
 from __future__ import annotations
 
+import select
 import statistics
 import time
 from dataclasses import dataclass, field
@@ -98,7 +99,8 @@ class TesterLink(Protocol):
         ...
 
     def idle(self, ticks: int) -> None:
-        """Let ``ticks`` pass (the wall clock sleeps; a simulated world runs on)."""
+        """Let up to ``ticks`` pass (the wall clock waits, and may return early when a byte
+        comes; a simulated world runs on): callers poll, and look at :meth:`now`."""
         ...
 
     def close(self) -> None:
@@ -107,17 +109,27 @@ class TesterLink(Protocol):
 
 class SerialLink:
     """The kit on serial port ``port`` and the wall clock: bytes are stamped when this PC
-    reads them (the last one now, those before it a byte time apart)."""
+    reads them (the last one now, those before it a byte time apart). Reading never waits
+    (a read that waited for a byte held the kit past the instant its turn was due, by up to
+    the port's 50 ms timeout); :meth:`idle` waits for the time given or the next byte,
+    whichever comes first, so bytes are read, and stamped, as they come."""
 
     def __init__(self, port: str) -> None:
         self.port = open_port(port)
         self.t0 = time.monotonic_ns()
+        try:
+            self._fd: int | None = self.port.fileno()
+        except (AttributeError, OSError, ValueError):   # a port with no descriptor (a URL's)
+            self._fd = None
 
     def now(self) -> int:
         return (time.monotonic_ns() - self.t0) * TICK_HZ // 1_000_000_000
 
     def read(self) -> list[tuple[bytes, int, int]]:
-        data = self.port.read(max(1, self.port.in_waiting))
+        waiting = self.port.in_waiting
+        if not waiting:
+            return []
+        data = self.port.read(waiting)
         if not data:
             return []
         return [(data, self.now() - (len(data) - 1) * BYTE, BYTE)]
@@ -128,7 +140,10 @@ class SerialLink:
         return start
 
     def idle(self, ticks: int) -> None:
-        time.sleep(ticks / TICK_HZ)
+        if self._fd is None:
+            time.sleep(ticks / TICK_HZ)
+        else:
+            select.select([self._fd], [], [], ticks / TICK_HZ)
 
     def close(self) -> None:
         self.port.close()
