@@ -9,7 +9,9 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
 - ``no-ack``: acknowledges nothing (clauses 36, 47);
 - ``boot-01``: its BOOT frames are Number '01' (clause 29);
 - ``no-stagger``: no R-stagger (nor R-pair) after an uncertain turn end (clause 44);
-- ``late-answer``: its answer to an invitation 40 ms after Ttrans (clause 34).
+- ``late-answer``: its answer to an invitation 40 ms after Ttrans (clause 34);
+- ``invite-every-turn``: it invites an absent robot of its gap in each of its turns, not in
+  every P-th (clause 32).
 """
 from __future__ import annotations
 
@@ -26,7 +28,8 @@ from firmware_model.timing import TICK_HZ                   # noqa: E402
 MS = TICK_HZ // 1000
 Mac = mac_mod.RotationalMac
 Setter = Callable[[Any, str, Any], None]
-FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer")
+FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
+          "invite-every-turn")
 
 
 def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
@@ -83,13 +86,22 @@ def _no_stagger(set_attr: Setter) -> None:
     set_attr(Mac, "_next_turn", _next_turn)
 
 
+def _invite_every_turn(set_attr: Setter) -> None:
+    orig = Mac._poll_target
+
+    def _poll_target(self):
+        self._turns_since_poll = self.cfg.poll_every      # always due
+        return orig(self)
+    set_attr(Mac, "_poll_target", _poll_target)
+
+
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
     ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
     {"late-turn": lambda s: _delay_switch(s, 20, False),
      "late-answer": lambda s: _delay_switch(s, 40, True),
      "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
-     "no-stagger": _no_stagger}[fault](set_attr)
+     "no-stagger": _no_stagger, "invite-every-turn": _invite_every_turn}[fault](set_attr)
 
 
 if __name__ == "__main__":

@@ -546,7 +546,9 @@ def test_conformance_checks_an_authenticated_childs_frames_and_refusals(tmp_path
     assert run.returncode == 0, run.stdout + run.stderr
     cases = [(c.get("classname"), c.get("name"), c.find("failure") is None and
               c.find("skipped") is None) for c in ET.parse(junit).getroot().iter("testcase")]
-    assert all(ok for _, _, ok in cases), cases
+    # (team 0,1: no robot in its gap to invite, clause 32 does not apply)
+    assert all(ok for c, _, ok in cases if c != "clause 32"), cases
+    assert ("clause 32", False) in {(c, ok) for c, _, ok in cases}, cases
     clauses = [c for c, _, _ in cases]
     assert clauses.count("clause 53") == 2 and clauses.count("clause 52") == 1, cases
     assert {"clause 38", "clause 41", "clause 47", "clause 48"} <= set(clauses)

@@ -53,9 +53,9 @@ def _table(rep: Report, stopped: str | None, link: SimLink) -> str:
 
 
 # ------------------------------------------------------------------- the matrix
-PROTOCOL_ONLY = {"29", "34", "36", "44", "45", "48"}
-"""Clauses the rprs profile adds to the paper's (the invitation, BOOT, R-stagger, the reply's
-Number, the retransmission)."""
+PROTOCOL_ONLY = {"29", "32", "34", "36", "44", "45", "48"}
+"""Clauses the rprs profile adds to the paper's (the invitation, the duty to invite, BOOT,
+R-stagger, the reply's Number, the retransmission)."""
 
 
 @pytest.mark.parametrize("team", ["default", "small"])
@@ -75,7 +75,10 @@ def test_the_projects_child_passes_every_clause(robot, profile, team):
         PROTOCOL_ONLY if profile == "rprs" else set())
     assert set(verdicts) == expected, why
     assert verdicts["38"] == ({"n/a"} if profile == "paper" else {"pass"}), why
-    assert all(v == {"pass"} for c, v in verdicts.items() if c != "38"), why
+    if profile == "rprs":     # a team robot between it and us (tester 0) is its to invite
+        inviting = team == "default" and robot < 6
+        assert verdicts["32"] == ({"pass"} if inviting else {"n/a"}), why
+    assert all(v == {"pass"} for c, v in verdicts.items() if c not in ("38", "32")), why
     assert not rep.notes, why                       # no missed turn, ours or the robot's
     offsets = [float(x) for x in re.findall(r"Header ([+-][\d.]+) ms \(median",
                                             _figure(rep, "23") + _figure(rep, "24"))]
@@ -125,11 +128,13 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     patched) fails exactly the clauses of that rule, with the figure that names the cause;
     every other clause passes. In simulated time the figures are exact."""
     faulty_child.patch(fault, monkeypatch.setattr)
-    rep, stopped, link = _run(1, "rprs", (0, 1))
+    # (clause 32 needs robots to invite: the default team; the others run with a team of two)
+    rep, stopped, link = _run(1, "rprs", None if fault == "invite-every-turn" else (0, 1))
     why = _table(rep, stopped, link)
     failed = {c.clause for c in rep.checks if c.verdict == "FAIL"}
     expected = {"late-turn": {"23", "26", "24"}, "long-length": {"15"}, "no-ack": {"47", "48"},
-                "boot-01": {"29"}, "no-stagger": {"44", "24"}, "late-answer": {"34"}}[fault]
+                "boot-01": {"29"}, "no-stagger": {"44", "24"}, "late-answer": {"34"},
+                "invite-every-turn": {"32"}}[fault]
     assert failed == expected, why
     if fault == "long-length":         # no good frame: the run stops at the invitation
         assert stopped is not None and "answered 5 invitations in a row with failed " \
@@ -151,6 +156,9 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
         assert "takeovers: -80.0, -80.0, -80.0" in _figure(rep, "24"), why
     elif fault == "late-answer":
         assert _figure(rep, "34").startswith("Type '5', Header +40.0 ms"), why
+    elif fault == "invite-every-turn":
+        assert "invitations 1, 1, 1" in _figure(rep, "32") and \
+            "turns apart, not every 4" in _figure(rep, "32"), why
 
 
 # ------------------------------------------------------------------- the seam
@@ -275,7 +283,8 @@ def test_the_kit_never_sends_over_an_authenticated_childs_frame(robot, tolerance
     why = _table(rep, stopped, link)
     assert stopped is None and rep.passed, why
     assert [c.clause for c in rep.checks].count("53") == 2 and "52" in _verdicts(rep), why
-    assert all(v == {"pass"} for v in _verdicts(rep).values()), why
+    assert _verdicts(rep)["32"] == {"n/a"}, why          # team 0,ID: nobody to invite
+    assert all(v == {"pass"} for c, v in _verdicts(rep).items() if c != "32"), why
     assert "collision" not in _figure(rep, "15"), why
     assert _talked_over(link, robot) == [], why
 
@@ -292,7 +301,8 @@ def test_an_authenticated_child_passes_every_clause_with_either_team(robot):
         assert stopped is None and rep.passed and not rep.notes, why
         verdicts = _verdicts(rep)
         assert {"52", "53"} <= set(verdicts), why
-        assert all(v == {"pass"} for v in verdicts.values()), why
+        assert verdicts["32"] == ({"pass"} if team is None and robot < 6 else {"n/a"}), why
+        assert all(v == {"pass"} for c, v in verdicts.items() if c != "32"), why
         assert _talked_over(link, robot) == [], why
 
 

@@ -73,6 +73,9 @@ TSLOT = REALTIME_MARGINS["tslot"]
 QUIET_GAP = REALTIME_MARGINS["quiet_gap"]
 BYTE = PC_BYTE_TICKS
 MISS_LIMIT = 3
+INVITE_EVERY = 4
+"""P: a member invites an absent team robot of its gap in every P-th of its turns
+(docs/protocol.md clause 5's table, clause 32)."""
 POLL_WAIT = 3 * TICK_HZ // 10_000
 """How long the kit idles between looks at the air while it waits for a frame (0.3 ms)."""
 POLL_SEND = 2 * TICK_HZ // 10_000
@@ -239,6 +242,7 @@ class Tester:
         # paper profile: the static ring is the robot's whole team; the absent robots
         # between it and us keep their turns (Tmax each) until dropped after three misses
         self.absent = {i: 0 for i in team if i not in (robot, self.me)}
+        self.team = tuple(team)
         self.profile = profile
         self.tol = int(tolerance_ms * MS)
         self.turns = turns
@@ -862,11 +866,13 @@ class Tester:
     def _rotation(self, h: Heard) -> Heard:
         t0 = self._secs()
         gaps, kinds = [], set()
+        polls: list[tuple[list[tuple[int, int]], bool]] = []   # each frame's, after a miss
 
         def watch(h: Heard, i: int) -> None:
             if not self.after_miss:          # after a missed turn: no hand-over to time
                 gaps.append(h.start - self.last_end - TTRANS)
             kinds.add(_kind(h.frame))
+            polls.append((_polls_of(h.frame), self.after_miss))
         for _ in range(3):                   # until as many hand-overs as asked are timed
             h = self._turns(h, self.turns - len(gaps), None, watch)
             if len(gaps) >= self.turns:
@@ -887,7 +893,56 @@ class Tester:
         self.check("21", "nothing to say: an empty heartbeat" + (" or a control frame"
                    if self.profile == "rprs" else ""), kinds <= allowed,
                    f"frame kinds: {', '.join(sorted(kinds))}", t0)
+        if self.profile == "rprs":
+            self._invitations(polls, t0)
         return h
+
+    def _invitations(self, frames: list[tuple[list[tuple[int, int]], bool]],
+                     t0: float) -> None:
+        """Clause 32 on the robot's frames of the hand-overs (``frames``: each frame's
+        ``poll(k,mask)`` and whether a missed turn came before it): it invites the absent
+        team robots of its gap (the IDs after it, before us), one in every P-th of its turns,
+        in turn (ascending, wrapping), each with the ring's mask (it and us), at most one a
+        frame. Spacings across a missed turn are not judged."""
+        name = "invites the absent team robots of its gap, one every P = 4 of its turns"
+        gap, i = [], (self.robot + 1) % 7
+        while i != self.me:
+            if i in self.team:
+                gap.append(i)
+            i = (i + 1) % 7
+        if not gap:
+            self.check("32", name, True, "nothing to invite: no team robot between it and us "
+                       "(its gap)", t0, applicable=False)
+            return
+        mask = (1 << self.robot) | (1 << self.me)
+        at = [n for n, (p, _) in enumerate(frames) if p]
+        invited = [p[0][0] for p, _ in frames if p]
+        spacings = [b - a for a, b in zip(at, at[1:])
+                    if not any(frames[j][1] for j in range(a + 1, b + 1))]
+        wrong: list[str] = []
+        if len(at) < 2:
+            wrong.append(f"{len(at)} invitation{'s' if len(at) != 1 else ''} in "
+                         f"{len(frames)} of its turns")
+        if any(len(p) > 1 for p, _ in frames):
+            wrong.append("more than one poll in a frame")
+        strays = sorted({k for p, _ in frames for k, _ in p if k not in gap})
+        if strays:
+            wrong.append(f"invited {', '.join(map(str, strays))}, outside its gap's absent "
+                         f"team robots")
+        masks = sorted({m for p, _ in frames for _, m in p if m != mask})
+        if masks:
+            wrong.append(f"mask {masks[0]}, not {mask} (it and us)")
+        if any(sp != INVITE_EVERY for sp in spacings):
+            wrong.append(f"invitations {', '.join(map(str, spacings))} turns apart, not "
+                         f"every {INVITE_EVERY}")
+        if any(a in gap and b != gap[(gap.index(a) + 1) % len(gap)]
+               for a, b in zip(invited, invited[1:])):
+            wrong.append("not in turn (ascending, wrapping)")
+        seen = (f"{len(frames)} turns: invited {', '.join(map(str, invited)) or 'nobody'} "
+                f"of its gap's {', '.join(map(str, gap))}")
+        self.check("32", name, not wrong,
+                   f"{seen}; " + "; ".join(wrong) if wrong else
+                   f"{seen}, every {INVITE_EVERY} turns, mask {mask}", t0)
 
     def _late(self, h: Heard) -> Heard:
         """Our frames 300 ms late (within Tmax): the robot must time its turn from the End of
@@ -1104,6 +1159,10 @@ class Tester:
     SILENCES = 3
     """Times we fall silent at most, until the robot took three turns in a row for us."""
 
+    def _invites(self, f: Frame) -> bool:
+        """``f`` invites a robot outside the ring of two (a ``poll(k,...)``, clause 32)."""
+        return any(k not in (self.robot, self.me) for k, _ in _polls_of(f))
+
     def _silence(self, h: Heard) -> None:
         """We stop sending: the robot's takeovers, then our drop (clauses 24, 25, 44).
 
@@ -1119,7 +1178,8 @@ class Tester:
         t0 = self._secs()
         if self.profile == "rprs":
             rule = "max(its End + Tmax + id x Tslot, our End + Tmax + our id x Tslot + Ttrans + " \
-                   "4 B) + Ttrans (R-stagger, R-pair)"
+                   "4 B) + Ttrans (R-stagger, R-pair; its End + Twin after a frame of its that " \
+                   "invited a robot, clause 33)"
         else:
             rule = "its End + Tmax + Ttrans"
         offs: list[float] = []
@@ -1135,7 +1195,10 @@ class Tester:
             else:
                 def expect(prev_end: int, our_end: int = our_end) -> int:
                     return prev_end + TMAX + TTRANS
-            offs += [(b.start - expect(a.end)) / MS for a, b in zip(frames, frames[1:4])]
+            # after a frame of its that invited a robot outside the ring our turn begins at
+            # its End + Twin (clause 33), and its takeover of our turn counts from there
+            offs += [(b.start - expect(a.end + (TWIN if self._invites(a.frame) else 0))) / MS
+                     for a, b in zip(frames, frames[1:4])]
             if len(frames) == 7 and fig25 is None:
                 fig25 = self._dropped(frames[1:])
             else:
@@ -1222,6 +1285,15 @@ def _kind(f: Frame) -> str:
     except ContentError:
         return "unreadable"
     return "control" if all(c.spec.layer == "mac" for c in cmds) else "message"
+
+
+def _polls_of(f: Frame) -> list[tuple[int, int]]:
+    """The ``poll(k,mask)`` commands of ``f``'s Content, as (k, mask)."""
+    try:
+        cmds = parse_content(f.content) if f.content else []
+    except ContentError:
+        return []
+    return [(c.args[0], c.args[1]) for c in cmds if c.name == "poll"]
 
 
 def _mask_of(f: Frame) -> int | None:
