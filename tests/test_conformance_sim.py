@@ -431,3 +431,42 @@ def test_on_a_serial_port_the_invitation_after_a_lone_members_frame_comes_in_its
     began = port.writes[1][0] - lone_end
     assert began <= TTRANS + _BlockingPort.TIMEOUT + MS, began / MS
     assert began < TWIN + TSLOT, began / MS           # before its next TXEN
+
+
+# ------------------------------------------------------------------- the checksum extension
+@pytest.mark.parametrize("robot", [1, 6])
+def test_a_child_with_the_checksum_passes_every_clause_and_refuses_a_wrong_checksum(robot):
+    """``rprs conformance --checksum`` against ``rprs child --checksum`` (clause 20): every
+    frame of the robot's ends with a right ``crc(NNNNN)``, our status() with its checksum
+    wrong in one digit is not acted on and closes our turn (clause 43: R-stagger after our
+    End), and every other clause passes with the kit's frames checksummed."""
+    team = (0, robot)
+    link = SimLink(robot, "rprs", team, checksum=True)
+    t = Tester(link, robot, "rprs", team=team, checksum=True)
+    rep = t.run()
+    why = _table(rep, None, link)
+    assert rep.passed and not rep.notes, why
+    twenty = [c for c in rep.checks if c.clause == "20"]
+    assert [c.verdict for c in twenty] == ["pass", "pass"], why
+    assert "frames acting on it: 0" in twenty[0].figure, why
+    # a good frame without a right crc closes the turn at its own End, uncertain (clause
+    # 43): R-stagger from there, id x Tslot + Ttrans
+    assert f"its next frame {robot * 80 + 5} ms after" in twenty[0].figure, why
+    assert twenty[1].figure.endswith("all right"), why
+
+
+def test_a_robot_without_the_checksum_fails_clause_20_by_name():
+    """Checked with ``--checksum``, a robot that runs without it: its frames carry no
+    ``crc(NNNNN)``, and it obeys our status() whose checksum is wrong: both verdicts of
+    clause 20 fail, saying so (it ignores our ``crc`` commands, clause 20: the rest passes)."""
+    link = SimLink(1, "rprs", (0, 1))
+    t = Tester(link, 1, "rprs", team=(0, 1), checksum=True)
+    try:
+        rep = t.run()
+    except ConformanceError:
+        rep = t.report
+    why = _table(rep, None, link)
+    assert {c.clause for c in rep.checks if c.verdict == "FAIL"} == {"20"}, why
+    refusal, frames = [c for c in rep.checks if c.clause == "20"]
+    assert "frames acting on it: 1" in refusal.figure, why        # it obeyed it
+    assert re.match(r"(\d+) frames, \1 not: Number 00: no crc\(NNNNN\)", frames.figure), why

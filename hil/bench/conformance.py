@@ -59,6 +59,7 @@ from firmware_model.radio.content import parse_content
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from firmware_model.radio.errors import ContentError
 from firmware_model.radio.frame import BROADCAST, HEADER, Frame
+from firmware_model.radio.integrity import check as crc_check, seal as crc_seal
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
 
 from .runner import REALTIME_MARGINS
@@ -231,7 +232,7 @@ class Tester:
     def __init__(self, port: str | TesterLink, robot: int, profile: str = "rprs",
                  tester: int | None = None, tolerance_ms: float = 15.0, turns: int = 20,
                  progress: Callable[[str], None] | None = None, key=None,
-                 team: tuple[int, ...] = tuple(range(7))) -> None:
+                 team: tuple[int, ...] = tuple(range(7)), checksum: bool = False) -> None:
         if not 0 <= robot <= 6:
             raise ValueError(f"robot ID must be 0-6, got {robot}")
         self.robot = robot
@@ -268,6 +269,11 @@ class Tester:
         self.fresh = clock_freshness(time.time())   # our next freshness value
         self.rx_fresh: int | None = None  # the robot's last freshness value
         self.auth_bad: list[str] = []     # the robot's frames with a wrong tag or stale value
+        self.checksum = checksum          # the checksum extension (clause 20)
+        if checksum and (profile == "paper" or key is not None):
+            raise ValueError("the checksum extension is for the rprs profile without "
+                             "--auth-key (the tag vouches for every byte: one or the other)")
+        self.crc_bad: list[str] = []      # the robot's frames without a right crc(NNNNN)
         self.sent: list[bytes] = []       # every frame we sent, as sent
         self.strangers: dict[int, int] = {}       # good frames heard from any other Source
         self.collisions: list[int] = []           # each collided frame's start - our End
@@ -301,6 +307,9 @@ class Tester:
                     self.strangers[f.src] = self.strangers.get(f.src, 0) + 1
                 elif self.key is not None:
                     f = self._authenticated(f)
+                elif self.checksum and f.src == self.robot and not crc_check(f):
+                    self.crc_bad.append(f"Number {f.num:02d}: " + (
+                        "a wrong crc" if b"crc(" in f.content else "no crc(NNNNN)"))
                 self.heard.append(Heard(f, start, ev.end))
             elif isinstance(ev, Garbage):
                 self.garbage += ev.count
@@ -529,6 +538,8 @@ class Tester:
         if self.key is not None:
             self.fresh += 1
             return auth_seal(self.key, dst, src, num, type_, content, self.fresh - 1)
+        if self.checksum:
+            return crc_seal(dst, src, num, type_, content)
         return Frame(dst=dst, src=src, num=num, type=type_, content=content)
 
     def _acks_content(self) -> bytes:
@@ -563,6 +574,8 @@ class Tester:
             if self.key is not None:
                 last = self._forged_tag(last)
                 last = self._replayed(last)
+            if self.checksum:
+                last = self._wrong_crc(last)
             last = self._broken(last)
             self._silence(last)
             stopped = False
@@ -596,6 +609,12 @@ class Tester:
                                ": the run stopped before the robot sent a frame"
                                if stopped and not frames and not self.bad else ""), t0,
                            applicable=not (stopped and not frames and not self.bad))
+            if self.checksum and frames and not shared:
+                self.check("20", "every frame from the robot ends with a right crc(NNNNN)",
+                           not self.crc_bad,
+                           f"{len(frames)} frames, {len(self.crc_bad)} not: "
+                           f"{'; '.join(self.crc_bad[:3])}" if self.crc_bad else
+                           f"{len(frames)} frames, all right", t0)
             if self.key is not None and frames and not shared:
                 self.check("52", "every frame from the robot has a right tag and a rising "
                            "freshness value", not self.auth_bad,
@@ -656,10 +675,18 @@ class Tester:
     def _forged_tag(self, h: Heard) -> Heard:
         """Our status() for the robot with a tag that is wrong by one digit."""
         t0 = self._secs()
-        good = self.frame(b"status()", dst=self.robot, type_=2, num=43).encode()
-        i = len(good) - 4                          # the tag's last digit
-        data = good[:i] + (b"0" if good[i:i + 1] != b"0" else b"1") + good[i + 1:]
+        data = _last_digit_changed(self.frame(b"status()", dst=self.robot, type_=2,
+                                             num=43).encode())
         return self._refused(h, data, "53", "a frame with a wrong tag is not acted on", 43, t0)
+
+    def _wrong_crc(self, h: Heard) -> Heard:
+        """Our status() for the robot with its checksum wrong in one digit (clauses 20, 43:
+        a failed frame, its turn closed uncertainly)."""
+        t0 = self._secs()
+        data = _last_digit_changed(self.frame(b"status()", dst=self.robot, type_=2,
+                                             num=44).encode())
+        return self._refused(h, data, "20", "a frame with a wrong checksum is not acted on",
+                             44, t0)
 
     def _replayed(self, h: Heard) -> Heard:
         """The very bytes of our first status() for the robot, sent again."""
@@ -1285,6 +1312,13 @@ def _kind(f: Frame) -> str:
     except ContentError:
         return "unreadable"
     return "control" if all(c.spec.layer == "mac" for c in cmds) else "message"
+
+
+def _last_digit_changed(frame: bytes) -> bytes:
+    """An encoded frame whose Content ends ``...N)`` with that last digit N changed (a tag's
+    or a checksum's): the End (2 bytes) and ``)`` follow it."""
+    i = len(frame) - 4
+    return frame[:i] + (b"0" if frame[i:i + 1] != b"0" else b"1") + frame[i + 1:]
 
 
 def _polls_of(f: Frame) -> list[tuple[int, int]]:

@@ -72,8 +72,9 @@ class SimLink:
     the robot's MAC's random draws; ``lead_s``: seconds the robot runs before the tester
     starts. ``key``: the ring key (``--auth-key``, the authenticated profile); the robot's
     freshness counter starts at 0 (a bench process seeds it from its clock: only rising
-    matters). ``patch``: called with the station and its child once they are built and before
-    the robot powers on (a test breaks a rule of the robot's there). ``events``: the robot's
+    matters). ``checksum``: the robot's checksum extension (``--checksum``, clause 20).
+    ``patch``: called with the station and its child once they are built and before the
+    robot powers on (a test breaks a rule of the robot's there). ``events``: the robot's
     MAC events as JSON lines, as ``rprs child --events`` prints them. ``transmissions``: every
     transmission that left the air, ``(ID, first tick, End tick, collided)``, the tester's
     and the robot's, in the order they ended."""
@@ -81,7 +82,7 @@ class SimLink:
     def __init__(self, robot: int, profile: str = "rprs", team: tuple[int, ...] = tuple(range(7)),
                  tester: int = 0, seed: int = 1, lead_s: float = 1.0,
                  patch: Callable[[RadioStation, RadioOnlyChild], None] | None = None,
-                 key: RingKey | None = None) -> None:
+                 key: RingKey | None = None, checksum: bool = False) -> None:
         self.sched = Scheduler()
         self.air = Air(self.sched, seed=seed)
         self.transmissions: list[tuple[int, int, int, bool]] = []
@@ -89,7 +90,7 @@ class SimLink:
             (tx.radio.robot, tx.t0, tx.end, tx.collided))
         # rprs child's configuration, but its MAC's seed from ``seed``, not from the OS
         cfg = realtime_config(MacConfig(team=frozenset(team), profile=profile,
-                                        seed=1000 + seed, auth=key))
+                                        seed=1000 + seed, auth=key, checksum=checksum))
         self.events = io.StringIO()
         self.station, radio = build_station(
             robot, self.sched, byte_ticks=CHILD_BYTE_TICKS,

@@ -28,7 +28,8 @@ def cmd_conformance(a: argparse.Namespace) -> int:
     try:
         t = Tester(a.radio, a.id, a.profile, a.tester, a.tolerance_ms, a.turns,
                    progress=None if quiet else lambda s: print(s, file=sys.stderr, flush=True),
-                   key=a.auth_key, team=tuple(a.team) if a.team else tuple(range(7)))
+                   key=a.auth_key, team=tuple(a.team) if a.team else tuple(range(7)),
+                   checksum=a.checksum)
     except (PortError, ValueError) as exc:
         raise UserError(str(exc)) from None
     try:
@@ -80,6 +81,10 @@ def add(sub) -> None:
     p.add_argument("--turns", type=digit(3, 1000, "turns"), default=20,
                    help="hand-overs timed (default 20)")
     auth_option(p)
+    p.add_argument("--checksum", action="store_true",
+                   help="the robot runs the checksum extension (rprs child --checksum, "
+                   "docs/protocol.md clause 20): every frame ends with crc(NNNNN), ours too, "
+                   "and one with a wrong checksum must not be acted on")
     p.add_argument("--junit", metavar="FILE", help="write the verdicts as JUnit XML here")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=cmd_conformance)
