@@ -11,7 +11,9 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
 - ``no-stagger``: no R-stagger (nor R-pair) after an uncertain turn end (clause 44);
 - ``late-answer``: its answer to an invitation 40 ms after Ttrans (clause 34);
 - ``invite-every-turn``: it invites an absent robot of its gap in each of its turns, not in
-  every P-th (clause 32).
+  every P-th (clause 32);
+- ``deaf-to-masks``: it reads no ``ring(mask)``, so a mask without its bit does not send it
+  back to LISTEN (clause 51).
 """
 from __future__ import annotations
 
@@ -29,7 +31,7 @@ MS = TICK_HZ // 1000
 Mac = mac_mod.RotationalMac
 Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
-          "invite-every-turn")
+          "invite-every-turn", "deaf-to-masks")
 
 
 def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
@@ -95,13 +97,18 @@ def _invite_every_turn(set_attr: Setter) -> None:
     set_attr(Mac, "_poll_target", _poll_target)
 
 
+def _deaf_to_masks(set_attr: Setter) -> None:
+    set_attr(Mac, "_reconcile", lambda self, src, mask, now, out: None)
+
+
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
     ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
     {"late-turn": lambda s: _delay_switch(s, 20, False),
      "late-answer": lambda s: _delay_switch(s, 40, True),
      "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
-     "no-stagger": _no_stagger, "invite-every-turn": _invite_every_turn}[fault](set_attr)
+     "no-stagger": _no_stagger, "invite-every-turn": _invite_every_turn,
+     "deaf-to-masks": _deaf_to_masks}[fault](set_attr)
 
 
 if __name__ == "__main__":

@@ -53,9 +53,9 @@ def _table(rep: Report, stopped: str | None, link: SimLink) -> str:
 
 
 # ------------------------------------------------------------------- the matrix
-PROTOCOL_ONLY = {"29", "32", "34", "36", "44", "45", "48"}
+PROTOCOL_ONLY = {"29", "32", "34", "36", "44", "45", "48", "51"}
 """Clauses the rprs profile adds to the paper's (the invitation, the duty to invite, BOOT,
-R-stagger, the reply's Number, the retransmission)."""
+R-stagger, the reply's Number, the retransmission, ring views)."""
 
 
 @pytest.mark.parametrize("team", ["default", "small"])
@@ -134,7 +134,7 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     failed = {c.clause for c in rep.checks if c.verdict == "FAIL"}
     expected = {"late-turn": {"23", "26", "24"}, "long-length": {"15"}, "no-ack": {"47", "48"},
                 "boot-01": {"29"}, "no-stagger": {"44", "24"}, "late-answer": {"34"},
-                "invite-every-turn": {"32"}}[fault]
+                "invite-every-turn": {"32"}, "deaf-to-masks": {"51"}}[fault]
     assert failed == expected, why
     if fault == "long-length":         # no good frame: the run stops at the invitation
         assert stopped is not None and "answered 5 invitations in a row with failed " \
@@ -156,6 +156,11 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
         assert "takeovers: -80.0, -80.0, -80.0" in _figure(rep, "24"), why
     elif fault == "late-answer":
         assert _figure(rep, "34").startswith("Type '5', Header +40.0 ms"), why
+    elif fault == "deaf-to-masks":     # it kept its turn after our ring(1)
+        told, left_out = [c for c in rep.checks if c.clause == "51"]
+        assert told.verdict == "pass" and left_out.verdict == "FAIL", why
+        assert left_out.figure.startswith("it kept its turn: its frame 5 ms after our "
+                                          "ring(1)"), why
     elif fault == "invite-every-turn":
         assert "invitations 1, 1, 1" in _figure(rep, "32") and \
             "turns apart, not every 4" in _figure(rep, "32"), why

@@ -228,6 +228,7 @@ class Tester:
 
     __test__ = False                  # not a pytest class
     key = None                        # the ring key (the authenticated profile), or None
+    checksum = False                  # the checksum extension (clause 20)
 
     def __init__(self, port: str | TesterLink, robot: int, profile: str = "rprs",
                  tester: int | None = None, tolerance_ms: float = 15.0, turns: int = 20,
@@ -577,6 +578,8 @@ class Tester:
             if self.checksum:
                 last = self._wrong_crc(last)
             last = self._broken(last)
+            if self.profile == "rprs":
+                last = self._left_out(last)
             self._silence(last)
             stopped = False
         except ConformanceError as exc:
@@ -1147,6 +1150,7 @@ class Tester:
         bad_digit = good[:5] + b"x" + good[6:]                        # Number '7x'
         oversize = good[:8] + b"9999" + good[12:]                      # Length 9999
         acted, figures, staggers = 0, [], []
+        told: list[int | None] = []          # the mask its next frame gave, each time
         for name, data in (("a bad Number digit", bad_digit), ("Length 9999", oversize)):
             try:
                 nxt, end = self._once_heard(h, data, f"a frame with {name}")
@@ -1156,6 +1160,7 @@ class Tester:
                 raise
             figures.append(f"{name}: its next frame {(nxt.start - end) / MS:.0f} ms after")
             staggers.append(nxt.start - end - (QUIET_GAP + self.robot * TSLOT + TTRANS))
+            told.append(_mask_of(nxt.frame))
             h = nxt
             watch_acts: list[int] = []
 
@@ -1181,7 +1186,40 @@ class Tester:
                        f"its Header {', '.join(f'{o:+.1f}' for o in offs)} ms from our End + "
                        f"quiet gap + {self.robot} x Tslot + Ttrans; tolerance "
                        f"{2 * self.tol / MS:g} ms", t0)
+            # a failed frame in a turn: its view may differ, so its next frame tells its ring
+            # (clause 51.1-2: ring(mask), or a poll, whose mask tells the same)
+            mask = (1 << self.robot) | (1 << self.me)
+            self.check("51", "after a failed frame it tells its ring in its next frame",
+                       all(m == mask for m in told),
+                       "masks in its next frames: " + ", ".join(
+                           "none" if m is None else str(m) for m in told) +
+                       f" (its ring, it and us: {mask})", t0)
         return h
+
+    def _left_out(self, h: Heard) -> Heard:
+        """Our frame carries ``ring(mask)`` without the robot's bit (our ring: us alone): it
+        has been dropped by us and goes back to LISTEN, sending nothing in its turn (clause
+        51.3); invited, it answers with JOIN, as a station that left and did not power off
+        (clauses 34, 49), which we acknowledge, and the ring goes on."""
+        t0 = self._secs()
+        name = "a mask without its bit sends it back to LISTEN; invited, it answers JOIN"
+        self._note_acks(h)
+        mask = 1 << self.me
+        end = self.send(self.frame(self._acks_content() + b"ring(%d)" % mask),
+                        self._turn_at(h))
+        # a member would take its turn at our End + Ttrans: Tmax is more than enough to see
+        # it (and less than a lone listener's claim wait, so it does not claim meanwhile)
+        kept = self.wait_frame(end, TMAX + 2 * self.tol, self.robot)
+        if kept is not None:
+            self.check("51", name, False, f"it kept its turn: its frame "
+                       f"{(kept.start - end) / MS:.0f} ms after our ring({mask})", t0)
+            return kept
+        answer, _ = self._invite(self.now())
+        kind = {5: "BOOT", 6: "JOIN"}.get(answer.frame.type, "no BOOT or JOIN")
+        self.check("51", name, answer.frame.type == 6,
+                   f"silent after our ring({mask}); answered our invitation with Type "
+                   f"'{answer.frame.type}' ({kind})", t0)
+        return self._turns(answer, 4)             # acknowledged: back in the ring
 
     SILENCES = 3
     """Times we fall silent at most, until the robot took three turns in a row for us."""
