@@ -17,15 +17,22 @@ clause        what is checked, and the figure reported
 23            its Header begins Ttrans after our End (median and worst gap over the turns)
 26            with our frames 300 ms late, still Ttrans after our End: it resynchronises
 21            a frame with nothing to say is an empty heartbeat (or, rprs, a control frame)
+32            it invites the absent team robots of its gap, one poll every P = 4 of its turns,
+              in turn, with the ring's mask (rprs; n/a when its gap holds none)
 47, 48        our message is acknowledged in its next frame; a retransmission (same Number)
               is acknowledged again but not acted on again (its status() answered once)
               (rprs); in the paper profile nothing is acknowledged
 45            its reply to our next status() takes the Number after its first reply's (rprs)
 38            a frame with a forged Source (a team robot outside the ring) is not acted on
               (rprs; n/a in the paper profile, which admits any team robot that sends)
+20            with ``checksum``: our status() with a wrong crc(NNNNN) is not acted on; and
+              every frame of the robot's ends with a right one
 41, 15, 11    frames that break (a bad digit in the Number; Length 9999) are not acted on,
               and close our turn: the robot takes the next
 44            ... after R-stagger: id x Tslot after the closure (rprs)
+51            ... and its next frame tells its ring (ring(mask) or a poll's mask) (rprs)
+51, 34, 49    our ring(mask) without its bit sends it back to LISTEN; invited, it answers
+              JOIN (rprs)
 24, 44        when we fall silent it takes the turn: Tmax after its own End, plus R-stagger and
               R-pair in a ring of two (rprs), or at its End + Tmax + Ttrans (paper)
 25            after our third missed turn it drops us (its masks lack us; paper: its turns
