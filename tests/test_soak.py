@@ -157,6 +157,32 @@ def test_a_soak_process_that_fails_is_an_error_not_a_hang():
         run_soaks(0.001, 3, [True, False], parallel=True, can=False)
 
 
+def test_stop_signals_wait_while_the_soak_processes_fork(monkeypatch, tmp_path):
+    """SIGTERM to the group just as ``rprs soak --checksum both`` forked reached a child
+    before it had set its own handlers: it ran the parent's, which raises, inside the fork's
+    bookkeeping, and stderr got "Exception ignored in: <function _after_fork>" and a
+    traceback (the README's loop saw it once). The parent now holds SIGINT and SIGTERM while
+    it forks: each child starts with them blocked (and unblocks them once its handlers are
+    set), and the parent's own mask is back as it was afterwards."""
+    import signal
+
+    import hil.sim.soak as soak
+
+    def spy(conn, done, hours, seed, checksum, kw):
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, [])       # (reads the mask)
+        (tmp_path / f"mask-{checksum}").write_text(" ".join(str(int(s)) for s in mask))
+        conn.send(ValueError("spy"))
+        conn.close()
+    monkeypatch.setattr(soak, "_soak_child", spy)
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    with pytest.raises(ValueError, match="spy"):
+        soak.run_soaks(0.05, 3, [True, False], parallel=True, can=False)
+    for checksum in (True, False):
+        held = {int(x) for x in (tmp_path / f"mask-{checksum}").read_text().split()}
+        assert {int(signal.SIGINT), int(signal.SIGTERM)} <= held, held
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == before
+
+
 @pytest.mark.parametrize("signame,status,said", [("SIGINT", 130, "rprs: interrupted"),
                                                  ("SIGTERM", 143, "rprs: terminated")])
 def test_ctrl_c_stops_both_soaks_and_leaves_no_process(signame, status, said):

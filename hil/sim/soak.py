@@ -228,6 +228,10 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
     return res
 
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+"""The signals that stop a soak (Ctrl-C, ``kill``), held while its processes fork."""
+
+
 def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | None = None,
               progress=None, **kw) -> list[SoakResult]:
     """:func:`run_soak` once per checksum setting (the paper's frame against the extension,
@@ -249,8 +253,16 @@ def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | N
                          daemon=True) for i, ck in enumerate(checksums)]
     results: dict[int, SoakResult] = {}
     try:
-        for p in procs:
-            p.start()
+        # Ctrl-C and SIGTERM wait while the processes fork: a child they reached before its
+        # own handlers were set ran the parent's, and printed a traceback from the middle of
+        # the fork ("Exception ignored in: <function _after_fork>"). Each child unblocks them
+        # once its handlers are its own; the parent here, after the last fork.
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        try:
+            for p in procs:
+                p.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
         for _, child_end in pipes:
             child_end.close()
         waiting = {parent_end: i for i, (parent_end, _) in enumerate(pipes)}
@@ -289,6 +301,7 @@ def _soak_child(conn, done, hours: float, seed: int, checksum: bool, kw: dict) -
     (it stops this process: SIGTERM ends it at once, whatever handler the parent had)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)   # (held by the parent's fork)
 
     def progress(s: float) -> None:
         done.value = s
