@@ -959,7 +959,8 @@ class Tester:
         wrong: list[str] = []
         if len(at) < 2:
             wrong.append(f"{len(at)} invitation{'s' if len(at) != 1 else ''} in "
-                         f"{len(frames)} of its turns")
+                         f"{len(frames)} of its turns (was this kit given the robot's own "
+                         f"--team? it was told {','.join(map(str, self.team))})")
         if any(len(p) > 1 for p, _ in frames):
             wrong.append("more than one poll in a frame")
         strays = sorted({k for p, _ in frames for k, _ in p if k not in gap})
@@ -1210,23 +1211,35 @@ class Tester:
         (clauses 34, 49), which we acknowledge, and the ring goes on."""
         t0 = self._secs()
         name = "a mask without its bit sends it back to LISTEN; invited, it answers JOIN"
-        self._note_acks(h)
         mask = 1 << self.me
-        end = self.send(self.frame(self._acks_content() + b"ring(%d)" % mask),
-                        self._turn_at(h))
-        # a member would take its turn at our End + Ttrans: Tmax is more than enough to see
-        # it (and less than a lone listener's claim wait, so it does not claim meanwhile)
-        kept = self.wait_frame(end, TMAX + 2 * self.tol, self.robot)
-        if kept is not None:
-            self.check("51", name, False, f"it kept its turn: its frame "
-                       f"{(kept.start - end) / MS:.0f} ms after our ring({mask})", t0)
-            return kept
-        answer, _ = self._invite(self.now())
+        not_answers: list[int] = []
+        for _ in range(MISS_LIMIT):
+            self._note_acks(h)
+            end = self.send(self.frame(self._acks_content() + b"ring(%d)" % mask),
+                            self._turn_at(h))
+            # a member would take its turn at our End + Ttrans: Tmax is more than enough to
+            # see it (and less than a lone listener's claim wait, so it does not claim)
+            kept = self.wait_frame(end, TMAX + 2 * self.tol, self.robot)
+            if kept is not None:
+                self.check("51", name, False, f"it kept its turn: its frame "
+                           f"{(kept.start - end) / MS:.0f} ms after our ring({mask})", t0)
+                return kept
+            answer, _ = self._invite(self.now())
+            if answer.frame.type in (5, 6):
+                break
+            # a member's frame, not an answer: it did not hear our ring (a robot on a busy PC
+            # stalled through it, and resynchronised on our invitation); once more
+            not_answers.append(answer.frame.type)
+            h = answer
         kind = {5: "BOOT", 6: "JOIN"}.get(answer.frame.type, "no BOOT or JOIN")
+        again = (f" (before that, {len(not_answers)} frame(s) of a member, Type "
+                 f"{', '.join(repr(str(t)) for t in not_answers)}: it had not heard our ring; "
+                 f"our ring sent again)" if not_answers else "")
+        h = self._turns(answer, 4)                # acknowledged: back in the ring
         self.check("51", name, answer.frame.type == 6,
                    f"silent after our ring({mask}); answered our invitation with Type "
-                   f"'{answer.frame.type}' ({kind})", t0)
-        return self._turns(answer, 4)             # acknowledged: back in the ring
+                   f"'{answer.frame.type}' ({kind}){again}", t0)
+        return h
 
     SILENCES = 3
     """Times we fall silent at most, until the robot took three turns in a row for us."""
