@@ -525,15 +525,22 @@ def test_a_bench_process_that_went_on_through_troubles_exits_1(tmp_path, capsys,
                  str(tmp_path / "fine.log"), "--duration", "0.5"]) == 0
 
 
+def _logged_virtual_bus(tmp_path, name: str):
+    """A bridge on a python-can virtual channel of its own, logging to ``tmp_path/NAME.log``:
+    its scheduler (not running), the log's path, the bridge and the channel's name."""
+    channel = f"rprs-{os.getpid()}-{name}"
+    sched = RealTimeScheduler()
+    log = tmp_path / f"{name}.log"
+    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel)
+    return sched, log, bus, channel
+
+
 def test_a_can_log_writes_remote_and_can_fd_frames_as_candump_does(tmp_path):
     """``cansend vcan0 101#R6`` (a remote frame asking for 6 bytes) was logged ``101#R``, its
     DLC lost, where ``candump -L`` writes ``101#R6``; a CAN FD frame ``101##1...`` was logged
     ``##1`` where candump, on a kernel that flags CAN FD frames (6.2 on), writes ``##5``. The
     .log now holds what candump's does, and python-can reads it back the same."""
-    channel = f"rprs-{os.getpid()}-remote"
-    sched = RealTimeScheduler()
-    log = tmp_path / "all.log"
-    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel)
+    sched, log, bus, channel = _logged_virtual_bus(tmp_path, "remote")
     tx = can.Bus(interface="virtual", channel=channel)
     try:
         tx.send(can.Message(arbitration_id=0x101, is_remote_frame=True, dlc=6,
@@ -558,10 +565,7 @@ def test_frames_are_logged_in_the_order_they_came_even_when_read_late(tmp_path):
     frame for a node at the tick its kernel stamp gives: read late (a busy host), the second
     of two frames was logged before the first (CI's VM: ``181#...`` above ``101##5...``).
     Both now come in at the tick they arrived."""
-    channel = f"rprs-{os.getpid()}-order"
-    sched = RealTimeScheduler()
-    log = tmp_path / "order.log"
-    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel)
+    sched, log, bus, channel = _logged_virtual_bus(tmp_path, "order")
     try:
         now = time.time()
         # what the reader thread hands in 50 ms and 40 ms after the frames came
@@ -582,10 +586,7 @@ def test_frames_received_before_closing_are_in_the_log(tmp_path):
     thread and not yet taken by the stopped scheduler, or still in the socket) were missing
     from its log, which candump's held (CI's VM: the submodules' last reports). ``close`` now
     logs them, in the order they came; the nodes do not take them (they have stopped)."""
-    channel = f"rprs-{os.getpid()}-closing"
-    sched = RealTimeScheduler()
-    log = tmp_path / "closing.log"
-    bus = PythonCanBus(sched, open_bus(f"virtual:{channel}"), log=str(log), channel=channel)
+    sched, log, bus, channel = _logged_virtual_bus(tmp_path, "closing")
     tx = can.Bus(interface="virtual", channel=channel)
     try:
         sched.run_for(0.05)
