@@ -277,6 +277,12 @@ def _errno(exc: BaseException) -> int | None:
     return code
 
 
+def _classic(msg: can.Message) -> bool:
+    """A CAN 2.0A data or remote frame, what the nodes here take (not an extended ID, an
+    error frame or CAN FD)."""
+    return not (msg.is_error_frame or msg.is_extended_id or msg.is_fd)
+
+
 class PythonCanBus:
     """Local CAN nodes on a python-can bus (real time)."""
 
@@ -543,8 +549,7 @@ class PythonCanBus:
 
     def _from_thread(self, msg: can.Message) -> None:
         # every frame, ours or not, at the tick it arrived: the log keeps the bus's order
-        handler = self._not_ours if msg.is_error_frame or msg.is_extended_id or msg.is_fd \
-            else self._deliver
+        handler = self._deliver if _classic(msg) else self._not_ours
         self._in_flight[id(msg)] = msg
         post_at = self._post_at
         if post_at is None:
@@ -635,8 +640,7 @@ class PythonCanBus:
             for msg in [*self._in_flight.values(), *self._unread()]:
                 if self._writer is None:
                     break                        # (the log ended: a full disk)
-                if not (msg.is_error_frame or msg.is_extended_id or msg.is_fd) \
-                        and self._echo(CanFrame.from_message(msg)):
+                if _classic(msg) and self._echo(CanFrame.from_message(msg)):
                     continue
                 self._log_received(msg)
         self._in_flight.clear()
