@@ -23,9 +23,15 @@ of an R1 frame, and the two outcomes are compared:
 * the longest gap without a good frame (burst start to the next good frame): within 40 ms.
   The hub's air times include the pty and scheduler latency of the child processes (a few
   ms each, tens on a loaded 2-core machine).
+
+A hub run in which the host did not run a child for longer than its margins (Tslot) ran the
+product's answer to a stall, which the simulator's run does not have: the child says so with a
+``stall`` event, and the hub run is made again (``HUB_ATTEMPTS``), the stalled runs listed in
+the report. A failure prints every packet on the hub's air near the burst, broken ones too.
 """
 from __future__ import annotations
 
+import json
 import pprint
 import random
 import time
@@ -44,6 +50,10 @@ from hil.sim.world import SimConfig, World
 from processes import ring_is, spawn, stop, wait_for
 
 TOLERANCE_MS = 40.0
+HUB_ATTEMPTS = 3
+"""Hub runs in which the host stalled a child (its ``stall`` event) show the product's
+documented answer to a stall, not the scenario: the test runs the hub again, up to this many
+times in all, and lists the stalled runs in its report."""
 BURSTS = [(13, 1), (120, 2), (300, 3)]       # (bytes, seed): the finding's range, 13-300 bytes
 
 
@@ -124,7 +134,9 @@ class _AirLog:
 
 def hub_run(n, seed, logs):
     """The hub run; each child's MAC events (``--events``) go to ``logs``/R<i>.jsonl, for the
-    failure report."""
+    failure report. ``stalls``: (robot, ms) for each time the host did not run a child for
+    longer than its margins allow (Tslot), so that it resynchronised (docs/guarantees.md,
+    "Stalls and restarts at the bench"): the simulator's run has no such stall."""
     hub = RadioHub(nodes=4, seed=1)
     outs = [open(logs / f"R{i}.jsonl", "w") for i in (1, 2)]
     kids = [spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", "1,2",
@@ -147,7 +159,10 @@ def hub_run(n, seed, logs):
         hub.stop()
         hub.close()
     assert alive == {True}
-    return list(air.frames), air.t0, air.split, air.late_ms, list(air.packets)
+    stalls = [(i, e["late"] / 16_000) for i in (1, 2)
+              for e in map(json.loads, (logs / f"R{i}.jsonl").read_text().splitlines())
+              if e["ev"] == "stall"]
+    return list(air.frames), air.t0, air.split, air.late_ms, list(air.packets), stalls
 
 
 def sim_run(offset_ticks, n, seed):
@@ -171,7 +186,18 @@ def sim_run(offset_ticks, n, seed):
 @pytest.mark.timing
 @pytest.mark.parametrize("n, seed", BURSTS, ids=[f"{n}B" for n, _ in BURSTS])
 def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed, tmp_path):
-    hframes, ht0, split, late_ms, packets = hub_run(n, seed, tmp_path)
+    stalled = []
+    for attempt in range(1, HUB_ATTEMPTS + 1):
+        logs = tmp_path / f"attempt{attempt}"
+        logs.mkdir()
+        hframes, ht0, split, late_ms, packets, stalls = hub_run(n, seed, logs)
+        if not stalls:
+            break
+        stalled.append((attempt, stalls))
+    else:
+        pytest.fail(f"the host stalled a child process beyond its margins in each of "
+                    f"{HUB_ATTEMPTS} hub runs, so the hub never ran the simulator's scenario: "
+                    f"{stalled}")
     hub_src, hub_gap, hub_misses = outcome(hframes, ht0, n)
     sframes, st0, drops = sim_run(OFFSET_TICKS, n, seed)
     sim_src, sim_gap, sim_misses = outcome(sframes, st0, n)
@@ -182,7 +208,7 @@ def test_simulator_and_hub_agree_on_a_foreign_burst_over_a_handover(n, seed, tmp
     # (the broken and foreign packets too: when robot 2 began, whether it collided); R1's
     # packets that were not a whole frame (_AirLog)
     report = dict(offset_ms=OFFSET_TICKS / 16_000, split_packets=split, inject_late_ms=late_ms,
-                  children_mac_events=str(tmp_path),
+                  children_mac_events=str(logs), stalled_attempts=stalled,
                   hub=(hub_src, hub_gap, hub_misses),
                   sim=(sim_src, sim_gap, sim_misses), hub_frames=near(hframes, ht0),
                   sim_frames=near(sframes, st0),
