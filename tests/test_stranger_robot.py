@@ -5,10 +5,11 @@ project (``test_the_robot_imports_nothing_from_the_project`` checks the whole fi
 *joiner* (docs/protocol.md §10): it never claims, so it needs a ring to exist. The harness starts
 ``rprs radio-hub`` and two ``rprs child`` processes (team {1, 2, 4}), waits for their ring, and
 lets the stranger, robot 4, join it by answering an invitation (clause 34), ask child 1 for its
-``status()``, get the acknowledgement (clause 47) and the reply, and leave by falling silent
-(clause 49). The children's ``--events`` say what they saw: the stranger admitted by both, its
-message delivered once, its acknowledgement of the reply heard, no turn missed while it was a
-member, and three misses then a clean drop by both once it left, the ring going on without it.
+``status()``, get the acknowledgement (clause 47) and the reply, leave by falling silent and come
+back with JOIN (clause 49). The children's ``--events`` say what they saw: the stranger admitted
+by both, its message delivered once, its acknowledgement of the reply heard, no turn missed while
+it was a member, three misses then a clean drop by both once it left, the ring going on without
+it, and its JOIN taken as a rejoin by both.
 """
 from __future__ import annotations
 
@@ -174,10 +175,12 @@ class Receiver:
 
 
 class StrangerRobot:
-    """A station of docs/protocol.md, version 2.0, that joins rings: clauses 1-19, 21-27 and
-    29-49, the jam case of clause 44 simplified (its stagger runs from the quiet closure); not
-    20 (the ring runs without the checksum), 28 (it never claims: a joiner, §10) or 50 (it is no
-    father)."""
+    """A station of docs/protocol.md, version 3.3, that joins rings: clauses 1-19a, 21-27,
+    29-49 and 51, the jam case of clause 44 simplified (its stagger runs from the quiet
+    closure); it reads ``done()`` (version 3.0) and obeys no message (clause 19a: it has no
+    submodule). Not 20 (the ring runs without the checksum), 28 (it never claims: a joiner,
+    §10), 48a (a report, not a rule of the wire), 50 (it is no father) or 52-54 (the
+    authenticated profile is opt-in)."""
 
     def __init__(self, port: str, robot: int, team: set[int]) -> None:
         self.id, self.team = robot, set(team)
@@ -559,6 +562,13 @@ class StrangerRobot:
         self.left = True
         self.mode, self.phase, self.deadline = "LEFT", None, None
 
+    def come_back(self) -> None:
+        """Clause 49: not in the old slot (clause 38.3 would refuse it) but from LISTEN, by
+        answering the next invitation; with JOIN, as our BOOT was acknowledged (clause 34)."""
+        self.left = False
+        self.to_listen("coming back")
+        self.misses, self.outsiders, self.silent = {}, {}, 0
+
     @property
     def member(self) -> bool:
         return self.mode == "MEMBER" and self.announcing is None and not self.answering
@@ -730,6 +740,20 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
         dropped = time.monotonic() - t_left
         n_heard = len(robot.heard)
         assert robot.run_until(lambda: len(robot.heard) >= n_heard + 8, 5)
+        after = list(robot.heard[n_heard:])
+
+        n_sent = len(robot.sent)
+        robot.come_back()
+        t_back = time.monotonic()
+        assert robot.run_until(lambda: robot.member, 10), robot.log
+        back = time.monotonic() - t_back
+        assert robot.ring == [1, 2, 4], robot.log
+        # the answer is JOIN with the next Number: status() had 01 (clause 45), so 02
+        assert robot.sent[n_sent][1] == encode(7, 4, msg["num"] + 1, JOIN, ""), robot.sent
+        turns = len(robot.sent)
+        assert robot.run_until(lambda: len(robot.sent) >= turns + 3, 5), robot.log
+        assert _wait(lambda: all(ev[r].find(ev="rejoin", robot=4) for r in kids), 5), \
+            [e for r in kids for e in ev[r].lines if e["ev"] in ("join", "rejoin")]
     finally:
         if robot is not None:
             robot.close()
@@ -738,15 +762,15 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
     # the children's view, from the moment the stranger opened its port
     for r in kids:
         seen = ev[r].lines[before[r]:]
-        assert [e["robot"] for e in seen if e["ev"] in ("join", "rejoin")] == [4], seen
+        assert [(e["ev"], e["robot"]) for e in seen if e["ev"] in ("join", "rejoin")] == \
+            [("join", 4), ("rejoin", 4)], seen
         assert not [e for e in seen if e["ev"] == "mode"]         # the ring never broke
         assert [e["robot"] for e in seen if e["ev"] == "disable"] == [4]
         assert [e["robot"] for e in seen if e["ev"] == "miss"] == [4, 4, 4]   # after it left
     assert len(ev[1].find(ev="deliver", src=4, dst=1, content="status()")) == 1
     assert not ev[2].find(ev="deliver", src=4)
     # after the drop, the ring is 1 -> 2 -> 1 ..., and 2 invites 4 again (clause 32)
-    after = [f for f in robot.heard[n_heard:]]
     assert all(b.src == 3 - a.src for a, b in zip(after, after[1:])), after
     polls = [f.content for f in robot.heard if f.src == 2 and "poll(4," in f.content]
     assert polls and all("poll(4,6)" in c for c in polls)
-    assert joined < 5 and dropped < 5, (joined, dropped)
+    assert joined < 5 and dropped < 5 and back < 5, (joined, dropped, back)
