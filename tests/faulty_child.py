@@ -13,7 +13,9 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
 - ``invite-every-turn``: it invites an absent robot of its gap in each of its turns, not in
   every P-th (clause 32);
 - ``deaf-to-masks``: it reads no ``ring(mask)``, so a mask without its bit does not send it
-  back to LISTEN (clause 51).
+  back to LISTEN, and a robot the mask adds is not admitted (clause 51);
+- ``no-cut-off``: it never concludes its radio is cut off, however many turns in a row it
+  missed with nothing heard (clause 40).
 """
 from __future__ import annotations
 
@@ -31,7 +33,7 @@ MS = TICK_HZ // 1000
 Mac = mac_mod.RotationalMac
 Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
-          "invite-every-turn", "deaf-to-masks")
+          "invite-every-turn", "deaf-to-masks", "no-cut-off")
 
 
 def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
@@ -101,6 +103,15 @@ def _deaf_to_masks(set_attr: Setter) -> None:
     set_attr(Mac, "_reconcile", lambda self, src, mask, now, out: None)
 
 
+def _no_cut_off(set_attr: Setter) -> None:
+    orig = Mac.on_timer
+
+    def on_timer(self, now, rx_busy=False, last_rx=None, rx_began=None):
+        self._silent = 0                   # it forgets the misses it counted with nothing heard
+        return orig(self, now, rx_busy, last_rx, rx_began)
+    set_attr(Mac, "on_timer", on_timer)
+
+
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
     ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
@@ -108,7 +119,7 @@ def patch(fault: str, set_attr: Setter = setattr) -> None:
      "late-answer": lambda s: _delay_switch(s, 40, True),
      "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
      "no-stagger": _no_stagger, "invite-every-turn": _invite_every_turn,
-     "deaf-to-masks": _deaf_to_masks}[fault](set_attr)
+     "deaf-to-masks": _deaf_to_masks, "no-cut-off": _no_cut_off}[fault](set_attr)
 
 
 if __name__ == "__main__":

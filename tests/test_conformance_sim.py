@@ -53,9 +53,10 @@ def _table(rep: Report, stopped: str | None, link: SimLink) -> str:
 
 
 # ------------------------------------------------------------------- the matrix
-PROTOCOL_ONLY = {"29", "32", "34", "36", "44", "45", "48", "51"}
+PROTOCOL_ONLY = {"29", "32", "34", "36", "40", "44", "45", "48", "51"}
 """Clauses the rprs profile adds to the paper's (the invitation, the duty to invite, BOOT,
-R-stagger, the reply's Number, the retransmission, ring views)."""
+the cut-off in a ring of three, R-stagger, the reply's Number, the retransmission, ring
+views)."""
 
 
 @pytest.mark.parametrize("team", ["default", "small"])
@@ -78,7 +79,15 @@ def test_the_projects_child_passes_every_clause(robot, profile, team):
     if profile == "rprs":     # a team robot between it and us (tester 0) is its to invite
         inviting = team == "default" and robot < 6
         assert verdicts["32"] == ({"pass"} if inviting else {"n/a"}), why
-    assert all(v == {"pass"} for c, v in verdicts.items() if c not in ("38", "32")), why
+        # a team of two leaves the kit no robot to play as a third member (40, 51.3)
+        three = team == "default"
+        assert verdicts["40"] == ({"pass"} if three else {"n/a"}), why
+        assert verdicts["51"] == ({"pass"} if three else {"pass", "n/a"}), why
+        if three:
+            assert [c.name for c in rep.checks if c.clause == "51"][-1].startswith(
+                "admits the robot a ring view names"), why
+    assert all(v == {"pass"} for c, v in verdicts.items()
+               if c not in ("38", "32", "40", "51")), why
     assert not rep.notes, why                       # no missed turn, ours or the robot's
     offsets = [float(x) for x in re.findall(r"Header ([+-][\d.]+) ms \(median",
                                             _figure(rep, "23") + _figure(rep, "24"))]
@@ -128,13 +137,16 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     patched) fails exactly the clauses of that rule, with the figure that names the cause;
     every other clause passes. In simulated time the figures are exact."""
     faulty_child.patch(fault, monkeypatch.setattr)
-    # (clause 32 needs robots to invite: the default team; the others run with a team of two)
-    rep, stopped, link = _run(1, "rprs", None if fault == "invite-every-turn" else (0, 1))
+    # (clause 32 needs robots to invite, clause 40 a robot the kit plays as a third member:
+    # the default team; the others run with a team of two)
+    default = fault in ("invite-every-turn", "no-cut-off")
+    rep, stopped, link = _run(1, "rprs", None if default else (0, 1))
     why = _table(rep, stopped, link)
     failed = {c.clause for c in rep.checks if c.verdict == "FAIL"}
     expected = {"late-turn": {"23", "26", "24"}, "long-length": {"15"}, "no-ack": {"47", "48"},
                 "boot-01": {"29"}, "no-stagger": {"44", "24"}, "late-answer": {"34"},
-                "invite-every-turn": {"32"}, "deaf-to-masks": {"51"}}[fault]
+                "invite-every-turn": {"32"}, "deaf-to-masks": {"51"},
+                "no-cut-off": {"40"}}[fault]
     assert failed == expected, why
     if fault == "long-length":         # no good frame: the run stops at the invitation
         assert stopped is not None and "answered 5 invitations in a row with failed " \
@@ -157,13 +169,29 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     elif fault == "late-answer":
         assert _figure(rep, "34").startswith("Type '5', Header +40.0 ms"), why
     elif fault == "deaf-to-masks":     # it kept its turn after our ring(1)
-        told, left_out = [c for c in rep.checks if c.clause == "51"]
+        told, left_out, three = [c for c in rep.checks if c.clause == "51"]
         assert told.verdict == "pass" and left_out.verdict == "FAIL", why
+        assert three.verdict == "n/a", why                       # a team of two
         assert left_out.figure.startswith("it kept its turn: its frame 5 ms after our "
                                           "ring(1)"), why
+    elif fault == "no-cut-off":        # still a member after 3 misses with nothing heard
+        assert "then its next frame" in _figure(rep, "40") and \
+            "(still a member)" in _figure(rep, "40"), why
     elif fault == "invite-every-turn":
         assert "invitations 1, 1, 1" in _figure(rep, "32") and \
             "turns apart, not every 4" in _figure(rep, "32"), why
+
+
+def test_a_robot_deaf_to_masks_does_not_admit_the_third_member_a_mask_names(monkeypatch):
+    """Clause 51.3 in the ring of three the kit plays (default team): a robot that reads no
+    ``ring(mask)`` never admits T, so T's message is an outsider's to it (clause 38.3) and is
+    not acknowledged; the kit names that, besides the mask without its bit it ignored."""
+    faulty_child.patch("deaf-to-masks", monkeypatch.setattr)
+    rep, stopped, link = _run(1, "rprs")
+    why = _table(rep, stopped, link)
+    told, left_out, three = [c for c in rep.checks if c.clause == "51"]
+    assert (told.verdict, left_out.verdict, three.verdict) == ("pass", "FAIL", "FAIL"), why
+    assert three.figure.startswith("T's status() never acknowledged; replies to T: 0"), why
 
 
 # ------------------------------------------------------------------- the seam
@@ -288,8 +316,11 @@ def test_the_kit_never_sends_over_an_authenticated_childs_frame(robot, tolerance
     why = _table(rep, stopped, link)
     assert stopped is None and rep.passed, why
     assert [c.clause for c in rep.checks].count("53") == 2 and "52" in _verdicts(rep), why
-    assert _verdicts(rep)["32"] == {"n/a"}, why          # team 0,ID: nobody to invite
-    assert all(v == {"pass"} for c, v in _verdicts(rep).items() if c != "32"), why
+    verdicts = _verdicts(rep)
+    # team 0,ID: nobody to invite, nobody for the kit to play as a third member
+    assert (verdicts["32"], verdicts["40"], verdicts["51"]) == ({"n/a"}, {"n/a"},
+                                                                {"pass", "n/a"}), why
+    assert all(v == {"pass"} for c, v in verdicts.items() if c not in ("32", "40", "51")), why
     assert "collision" not in _figure(rep, "15"), why
     assert _talked_over(link, robot) == [], why
 
@@ -307,7 +338,11 @@ def test_an_authenticated_child_passes_every_clause_with_either_team(robot):
         verdicts = _verdicts(rep)
         assert {"52", "53"} <= set(verdicts), why
         assert verdicts["32"] == ({"pass"} if team is None and robot < 6 else {"n/a"}), why
-        assert all(v == {"pass"} for c, v in verdicts.items() if c != "32"), why
+        # the ring of three the kit plays (40, 51.3) needs a third team robot
+        assert verdicts["40"] == ({"pass"} if team is None else {"n/a"}), why
+        assert verdicts["51"] == ({"pass"} if team is None else {"pass", "n/a"}), why
+        assert all(v == {"pass"} for c, v in verdicts.items() if c not in ("32", "40", "51")), \
+            why
         assert _talked_over(link, robot) == [], why
 
 

@@ -248,6 +248,12 @@ class Tester:
         if self.me == robot or not 0 <= self.me <= 6:
             raise ValueError(f"the tester's ID must be 0-6 and not the robot's, got {self.me}")
         self.forger = _forger(robot, self.me)
+        others = [i for i in team if i not in (robot, self.me)]
+        self.third: int | None = min(others) if others else None
+        """The team robot this PC also plays as a third member (clauses 51.3, 40), or None
+        when the team has none besides the robot and us (then those checks are n/a)."""
+        self.third_acks: list[tuple[int, int]] = []     # what the third member owes
+        self.third_num = 0                                # its last message's Number
         # paper profile: the static ring is the robot's whole team; the absent robots
         # between it and us keep their turns (Tmax each) until dropped after three misses
         self.absent = {i: 0 for i in team if i not in (robot, self.me)}
@@ -587,6 +593,7 @@ class Tester:
             last = self._broken(last)
             if self.profile == "rprs":
                 last = self._left_out(last)
+                last = self._three(last)
             self._silence(last)
             stopped = False
         except ConformanceError as exc:
@@ -1127,13 +1134,9 @@ class Tester:
         # and us in ring order (then our frame follows the forged one); else the robot's, and
         # we leave it its turn: sending ours as well would collide with its rightful frame.
         if _succ(self.forger, (self.me, self.robot)) == self.me:
-            def data() -> bytes:              # the forged frame first, ours Ttrans after it
-                end = self._write(forged)
-                while self.now() < end + TTRANS:
-                    self._poll_rx()
-                    self.link.idle(POLL_SEND)
-                return ours
-            h, _, _ = self._exchange(h, data, again=lambda: ours)
+            # the forged frame first, ours Ttrans after it
+            h, _, _ = self._exchange(h, self._in_a_row(lambda: [forged, ours]),
+                                     again=lambda: ours)
         else:
             h, _, _ = self._exchange(h, lambda: forged, again=lambda: ours)
         bad = f"ack({self.forger},42)".encode()
@@ -1240,6 +1243,153 @@ class Tester:
                    f"silent after our ring({mask}); answered our invitation with Type "
                    f"'{answer.frame.type}' ({kind}){again}", t0)
         return h
+
+    def _in_a_row(self, frames: Callable[[], list[bytes]]) -> Callable[[], bytes]:
+        """``data`` for :meth:`_exchange` when this PC sends for more than one member in a
+        turn: every frame ``frames()`` builds but the last put on air, each Header Ttrans
+        after the End before it (the ring's rhythm); the last is returned, for
+        :meth:`_exchange` to write."""
+        def data() -> bytes:
+            built = frames()
+            for f in built[:-1]:
+                end = self._write(f)
+                while self.now() < end + TTRANS:
+                    self._poll_rx()
+                    self.link.idle(POLL_SEND)
+            return built[-1]
+        return data
+
+    def _ours_after(self, ring: tuple[int, ...], src: int) -> list[int]:
+        """The members this PC plays (us, and the third member) whose turns follow a frame
+        from ``src`` in ``ring``, up to the robot's."""
+        out, x = [], _succ(src, ring)
+        while x != self.robot and x not in out:
+            out.append(x)
+            x = _succ(x, ring)
+        return out
+
+    def _three_note(self, h: Heard) -> None:
+        """Acknowledgements the robot's frame ``h`` needs: ours (:meth:`_note_acks`) and the
+        third member's (a message for it, or for every member)."""
+        self._note_acks(h)
+        f = h.frame
+        if f.dst in (self.third, BROADCAST) and f.content and _app(f.content):
+            self.third_acks.append((f.src, f.num))
+
+    def _three_turn(self, h: Heard, ring: tuple[int, ...], first: dict[int, bytes],
+                    watch: Callable[[Heard, int], None], i: int) -> Heard:
+        """Our frames after the robot's frame ``h`` in ``ring`` (each member we play, in
+        turn; ``first``: Content a member's frame carries this turn), then the robot's
+        next frame, shown to ``watch`` as ``i``."""
+        self._three_note(h)
+
+        def frames() -> list[bytes]:
+            out = []
+            for m in self._ours_after(ring, h.frame.src):
+                acks = self._acks_content() if m == self.me else b"".join(
+                    b"ack(%d,%d)" % a for a in self.third_acks)
+                if m != self.me:
+                    self.third_acks.clear()
+                content = first.get(m, b"") + acks
+                kw: dict[str, Any] = {"src": m}
+                if m == self.third:
+                    # T's one message is Number 01; its other frames repeat the Number of
+                    # the last message it sent, '00' before any (clause 45)
+                    if b"status()" in content:
+                        self.third_num = 1
+                        kw.update(dst=self.robot, type_=2)
+                    kw["num"] = self.third_num
+                out.append(self.frame(content, **kw).encode())
+            return out
+        h, _, self.after_miss = self._exchange(h, self._in_a_row(frames))
+        watch(h, i)
+        return h
+
+    def _three(self, h: Heard) -> Heard:
+        """A ring of three: this PC plays a third member, T (a team robot of the robot's,
+        neither us nor it), beside its own ID.
+
+        * Clause 51.3: our frame carries ``ring(mask)`` with T's bit. The robot admits T
+          (we vouch for it) and keeps T's turn from then on: T's frames, in its turns, carry
+          ``status()`` for the robot, which it acknowledges and answers as a member's.
+        * Clause 40: then neither we nor T send. The robot misses both turns, takes its own,
+          misses the next: max(3, n - 1) = 3 misses with no good frame heard in a ring of
+          three, before any member has missed three (clause 25), so it concludes its radio
+          is cut off and goes to LISTEN: no frame of its where its next turn would be
+          (within 2 Tmax + 8 Tslot), and it answers our invitation, with JOIN.
+
+        ``n/a`` when its team has no robot besides it and us (``--team 0,ID``)."""
+        t0 = self._secs()
+        t = self.third
+        if t is None:
+            why = f"its team {self.team} has no robot besides it and us to play as a third"
+            self.check("51", "admits the robot a ring view names, and keeps its turn", True,
+                       why, t0, applicable=False)
+            self.check("40", "cut off: 3 misses with nothing heard in a ring of three "
+                       "send it to LISTEN", True, why, t0, applicable=False)
+            return h
+        ring = tuple(sorted((self.me, self.robot, t)))
+        mask = sum(1 << i for i in ring)
+        acked: list[int] = []
+        replies: list[int] = []
+        masks: list[int | None] = []
+        ack = f"ack({t},1)".encode()
+
+        def watch(x: Heard, i: int) -> None:
+            c = x.frame.content
+            if ack in c:
+                acked.append(i)
+            if x.frame.dst == t and (b"joint(" in c or b"fail(" in c) and \
+                    x.frame.num not in replies[-1:]:
+                replies.append(x.frame.num)
+            masks.append(_mask_of(x.frame))
+        # our ring(mask) in our turn of the ring of two; if T's turn follows ours in the ring
+        # of three, T's frame follows it, as the robot now waits for T
+        self._three_note(h)
+
+        def vouch() -> list[bytes]:
+            out = [self.frame(self._acks_content() + b"ring(%d)" % mask).encode()]
+            if _succ(self.me, ring) == t:
+                out.append(self.frame(src=t, num=self.third_num).encode())
+            return out
+        h, _, _ = self._exchange(h, self._in_a_row(vouch))
+        watch(h, 0)
+        h = self._three_turn(h, ring, {t: b"status()"}, watch, 1)
+        for i in range(2, 2 + self.REPLY_TURNS):
+            if acked and replies and i >= 5:
+                break
+            h = self._three_turn(h, ring, {}, watch, i)
+        told = sorted({m for m in masks if m is not None})
+        self.check("51", f"admits the robot a ring view names (T = {t}), and keeps its turn",
+                   bool(acked) and bool(replies) and acked[0] <= 2,
+                   (f"T's status() acknowledged in its frame {acked[0]} after T's" if acked
+                    else "T's status() never acknowledged") +
+                   f"; replies to T: {len(replies)}; masks in its frames: "
+                   f"{', '.join(map(str, told)) or 'none'} (the ring of three: {mask})", t0)
+        return self._cut_off(h)
+
+    def _cut_off(self, h: Heard) -> Heard:
+        """Clause 40 in the ring of three (:meth:`_three`): we and T fall silent after the
+        robot's frame ``h``."""
+        t0 = self._secs()
+        name = "cut off: 3 misses with nothing heard in a ring of three send it to LISTEN"
+        self._three_note(h)
+        took = self.wait_frame(h.end, 2 * TMAX + 8 * TSLOT, self.robot)
+        if took is None:
+            self.check("40", name, False, "it did not take its own turn after our and T's "
+                       f"missed turns (nothing in {(2 * TMAX + 8 * TSLOT) / MS:.0f} ms)", t0)
+            answer, _ = self._invite(self.now())
+            return self._turns(answer, 4)
+        more = self.wait_frame(took.end, 2 * TMAX + 8 * TSLOT, self.robot)
+        answer, _ = self._invite(self.now())
+        kind = {5: "BOOT", 6: "JOIN"}.get(answer.frame.type, "no BOOT or JOIN")
+        self.check("40", name, more is None and answer.frame.type == 6,
+                   f"its takeover {(took.start - h.end) / MS:.0f} ms after its frame; then " +
+                   ("nothing for " f"{(2 * TMAX + 8 * TSLOT) / MS:.0f} ms"
+                    if more is None else f"its next frame {(more.start - took.end) / MS:.0f} "
+                    f"ms after (still a member)") +
+                   f"; answered our invitation with Type '{answer.frame.type}' ({kind})", t0)
+        return self._turns(answer, 4)
 
     SILENCES = 3
     """Times we fall silent at most, until the robot took three turns in a row for us."""
