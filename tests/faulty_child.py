@@ -15,7 +15,10 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
 - ``deaf-to-masks``: it reads no ``ring(mask)``, so a mask without its bit does not send it
   back to LISTEN, and a robot the mask adds is not admitted (clause 51);
 - ``no-cut-off``: it never concludes its radio is cut off, however many turns in a row it
-  missed with nothing heard (clause 40).
+  missed with nothing heard (clause 40);
+- ``masks-never-drop``: a ``ring(mask)`` admits and sends it to LISTEN as it should, but never
+  drops a member the mask leaves out, though it counted that member missing too (clause
+  51.3).
 """
 from __future__ import annotations
 
@@ -33,7 +36,8 @@ MS = TICK_HZ // 1000
 Mac = mac_mod.RotationalMac
 Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
-          "invite-every-turn", "deaf-to-masks", "no-cut-off")
+          "invite-every-turn", "deaf-to-masks", "no-cut-off",
+          "masks-never-drop")
 
 
 def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
@@ -112,6 +116,16 @@ def _no_cut_off(set_attr: Setter) -> None:
     set_attr(Mac, "on_timer", on_timer)
 
 
+def _masks_never_drop(set_attr: Setter) -> None:
+    orig = Mac._reconcile
+
+    def _reconcile(self, src, mask, now, out):
+        # every member of its ring read as in the mask (but itself: left out, it still goes)
+        kept = sum(1 << r for r in self.ring if r != self.id)
+        orig(self, src, mask | kept, now, out)
+    set_attr(Mac, "_reconcile", _reconcile)
+
+
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
     ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
@@ -119,7 +133,8 @@ def patch(fault: str, set_attr: Setter = setattr) -> None:
      "late-answer": lambda s: _delay_switch(s, 40, True),
      "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
      "no-stagger": _no_stagger, "invite-every-turn": _invite_every_turn,
-     "deaf-to-masks": _deaf_to_masks, "no-cut-off": _no_cut_off}[fault](set_attr)
+     "deaf-to-masks": _deaf_to_masks, "no-cut-off": _no_cut_off,
+     "masks-never-drop": _masks_never_drop}[fault](set_attr)
 
 
 if __name__ == "__main__":

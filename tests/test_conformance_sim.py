@@ -84,8 +84,9 @@ def test_the_projects_child_passes_every_clause(robot, profile, team):
         assert verdicts["40"] == ({"pass"} if three else {"n/a"}), why
         assert verdicts["51"] == ({"pass"} if three else {"pass", "n/a"}), why
         if three:
-            assert [c.name for c in rep.checks if c.clause == "51"][-1].startswith(
-                "admits the robot a ring view names"), why
+            admits, drops = [c.name for c in rep.checks if c.clause == "51"][-2:]
+            assert admits.startswith("admits the robot a ring view names") and \
+                drops == Tester.DROP, why
     assert all(v == {"pass"} for c, v in verdicts.items()
                if c not in ("38", "32", "40", "51")), why
     assert not rep.notes, why                       # no missed turn, ours or the robot's
@@ -139,14 +140,14 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     faulty_child.patch(fault, monkeypatch.setattr)
     # (clause 32 needs robots to invite, clause 40 a robot the kit plays as a third member:
     # the default team; the others run with a team of two)
-    default = fault in ("invite-every-turn", "no-cut-off")
+    default = fault in ("invite-every-turn", "no-cut-off", "masks-never-drop")
     rep, stopped, link = _run(1, "rprs", None if default else (0, 1))
     why = _table(rep, stopped, link)
     failed = {c.clause for c in rep.checks if c.verdict == "FAIL"}
     expected = {"late-turn": {"23", "26", "24"}, "long-length": {"15"}, "no-ack": {"47", "48"},
                 "boot-01": {"29"}, "no-stagger": {"44", "24"}, "late-answer": {"34"},
                 "invite-every-turn": {"32"}, "deaf-to-masks": {"51"},
-                "no-cut-off": {"40"}}[fault]
+                "no-cut-off": {"40"}, "masks-never-drop": {"51"}}[fault]
     assert failed == expected, why
     if fault == "long-length":         # no good frame: the run stops at the invitation
         assert stopped is not None and "answered 5 invitations in a row with failed " \
@@ -169,14 +170,17 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     elif fault == "late-answer":
         assert _figure(rep, "34").startswith("Type '5', Header +40.0 ms"), why
     elif fault == "deaf-to-masks":     # it kept its turn after our ring(1)
-        told, left_out, three = [c for c in rep.checks if c.clause == "51"]
+        told, left_out, three, drop = [c for c in rep.checks if c.clause == "51"]
         assert told.verdict == "pass" and left_out.verdict == "FAIL", why
-        assert three.verdict == "n/a", why                       # a team of two
+        assert three.verdict == drop.verdict == "n/a", why       # a team of two
         assert left_out.figure.startswith("it kept its turn: its frame 5 ms after our "
                                           "ring(1)"), why
     elif fault == "no-cut-off":        # still a member after 3 misses with nothing heard
         assert "then its next frame" in _figure(rep, "40") and \
             "(still a member)" in _figure(rep, "40"), why
+    elif fault == "masks-never-drop":  # only the drop of the ring of three fails
+        assert [c.name for c in rep.checks if c.verdict == "FAIL"] == [Tester.DROP], why
+        assert "told ring 7 (the ring of two: 3; of three: 7)" in _figure(rep, "51"), why
     elif fault == "invite-every-turn":
         assert "invitations 1, 1, 1" in _figure(rep, "32") and \
             "turns apart, not every 4" in _figure(rep, "32"), why
@@ -189,7 +193,7 @@ def test_a_robot_deaf_to_masks_does_not_admit_the_third_member_a_mask_names(monk
     faulty_child.patch("deaf-to-masks", monkeypatch.setattr)
     rep, stopped, link = _run(1, "rprs")
     why = _table(rep, stopped, link)
-    told, left_out, three = [c for c in rep.checks if c.clause == "51"]
+    told, left_out, three, drop = [c for c in rep.checks if c.clause == "51"]
     assert (told.verdict, left_out.verdict, three.verdict) == ("pass", "FAIL", "FAIL"), why
     assert three.figure.startswith("T's status() never acknowledged; replies to T: 0"), why
 

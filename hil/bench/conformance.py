@@ -763,18 +763,18 @@ class Tester:
                    f"{len(announcing)} more BOOT/JOIN frames after our ack", t0)
         return h
 
-    def _invite(self, since: int) -> tuple[Heard, int]:
+    def _invite(self, since: int, mask: int | None = None) -> tuple[Heard, int]:
         """As a lone member, invite the robot (``poll(id,mask)``, clauses 31, 34) until it
-        answers; its answer and our End before it. A lone member's frame of its own is no
-        answer: if we heard one after tick ``since``, our first invitation goes after its
-        next frame.
+        answers; its answer and our End before it. ``mask``: the ring our poll names (default
+        us alone). A lone member's frame of its own is no answer: if we heard one after tick
+        ``since``, our first invitation goes after its next frame.
 
         No invitation goes out while a frame of the robot's is arriving (its claim, clause 28,
         can begin as we stop listening; a lone member's frame as an invitation's window runs
         out): we wait for that frame and, if it is no answer, invite Ttrans after its End,
         in the lone member's pause. Sent on it, an invitation cut a frame of the signed
         robot (38.5 ms against a plain heartbeat's 14.6) and the run failed clause 15."""
-        mask = 1 << self.me
+        mask = 1 << self.me if mask is None else mask
         end, at = 0, self.now()
         lone = [x for x in self.heard if x.frame.src == self.robot and x.end > since]
         if lone:
@@ -1273,7 +1273,8 @@ class Tester:
         third member's (a message for it, or for every member)."""
         self._note_acks(h)
         f = h.frame
-        if f.dst in (self.third, BROADCAST) and f.content and _app(f.content):
+        if f.type in (5, 6) or (f.dst in (self.third, BROADCAST) and f.content and
+                                _app(f.content)):
             self.third_acks.append((f.src, f.num))
 
     def _three_turn(self, h: Heard, ring: tuple[int, ...], first: dict[int, bytes],
@@ -1316,7 +1317,12 @@ class Tester:
           misses the next: max(3, n - 1) = 3 misses with no good frame heard in a ring of
           three, before any member has missed three (clause 25), so it concludes its radio
           is cut off and goes to LISTEN: no frame of its where its next turn would be
-          (within 2 Tmax + 8 Tslot), and it answers our invitation, with JOIN.
+          (within 2 Tmax + 8 Tslot), and it answers our invitation, with JOIN. The
+          invitation names T too: the ring of three again.
+        * Clause 51.3, the drop: T misses a turn, and our next frame carries ``ring(mask)``
+          without T. The robot counted that miss too, so it drops T: its next frame tells the
+          ring of two (the miss made its view one that may differ, 51.1), and comes at our End
+          + Ttrans. A robot that kept T tells the ring of three.
 
         ``n/a`` when its team has no robot besides it and us (``--team 0,ID``)."""
         t0 = self._secs()
@@ -1327,6 +1333,7 @@ class Tester:
                        why, t0, applicable=False)
             self.check("40", "cut off: 3 misses with nothing heard in a ring of three "
                        "send it to LISTEN", True, why, t0, applicable=False)
+            self.check("51", self.DROP, True, why, t0, applicable=False)
             return h
         ring = tuple(sorted((self.me, self.robot, t)))
         mask = sum(1 << i for i in ring)
@@ -1366,22 +1373,25 @@ class Tester:
                     else "T's status() never acknowledged") +
                    f"; replies to T: {len(replies)}; masks in its frames: "
                    f"{', '.join(map(str, told)) or 'none'} (the ring of three: {mask})", t0)
-        return self._cut_off(h)
+        h = self._cut_off(h, ring)
+        return self._drop_third(h, ring)
 
-    def _cut_off(self, h: Heard) -> Heard:
+    def _cut_off(self, h: Heard, ring: tuple[int, ...]) -> Heard:
         """Clause 40 in the ring of three (:meth:`_three`): we and T fall silent after the
-        robot's frame ``h``."""
+        robot's frame ``h``; then our invitation brings it back into the ring of three. The
+        robot's frame after a few turns in it."""
         t0 = self._secs()
         name = "cut off: 3 misses with nothing heard in a ring of three send it to LISTEN"
         self._three_note(h)
         took = self.wait_frame(h.end, 2 * TMAX + 8 * TSLOT, self.robot)
+        mask = sum(1 << i for i in ring if i != self.robot)
         if took is None:
             self.check("40", name, False, "it did not take its own turn after our and T's "
                        f"missed turns (nothing in {(2 * TMAX + 8 * TSLOT) / MS:.0f} ms)", t0)
-            answer, _ = self._invite(self.now())
-            return self._turns(answer, 4)
+            answer, _ = self._invite(self.now(), mask)
+            return self._three_turns(answer, ring, 4)
         more = self.wait_frame(took.end, 2 * TMAX + 8 * TSLOT, self.robot)
-        answer, _ = self._invite(self.now())
+        answer, _ = self._invite(self.now(), mask)
         kind = {5: "BOOT", 6: "JOIN"}.get(answer.frame.type, "no BOOT or JOIN")
         self.check("40", name, more is None and answer.frame.type == 6,
                    f"its takeover {(took.start - h.end) / MS:.0f} ms after its frame; then " +
@@ -1389,7 +1399,41 @@ class Tester:
                     if more is None else f"its next frame {(more.start - took.end) / MS:.0f} "
                     f"ms after (still a member)") +
                    f"; answered our invitation with Type '{answer.frame.type}' ({kind})", t0)
-        return self._turns(answer, 4)
+        return self._three_turns(answer, ring, 4)
+
+    def _three_turns(self, h: Heard, ring: tuple[int, ...], n: int) -> Heard:
+        """``n`` rounds of the ring of three from the robot's frame ``h``: our frames and T's
+        (acknowledging what needs it), then its next."""
+        for i in range(n):
+            h = self._three_turn(h, ring, {}, lambda x, k: None, i)
+        return h
+
+    DROP = "drops a member a ring view leaves out that it counted missing too"
+
+    def _drop_third(self, h: Heard, ring: tuple[int, ...]) -> Heard:
+        """Clause 51.3, the third rule (:meth:`_three`): T misses a turn, then our
+        ``ring(mask)`` leaves it out; the robot's frame after ours must tell the ring of two."""
+        t0 = self._secs()
+        t = self.third
+        mask = (1 << self.me) | (1 << self.robot)
+        self._three_note(h)
+        if _succ(self.robot, ring) == t:
+            # T's turn first, and T is silent: we take the turn over at its start + Tmax, as
+            # the next member does (clause 24), with our ring(mask)
+            nxt, end, _ = self._exchange(h, lambda: self.frame(
+                self._acks_content() + b"ring(%d)" % mask).encode(), at=h.end + TMAX + TTRANS)
+        else:
+            # our frame, then T's turn, silent: the robot counts the miss and takes its turn
+            h = self._turns(h, 1)
+            self._note_acks(h)
+            nxt, end, _ = self._exchange(h, lambda: self.frame(
+                self._acks_content() + b"ring(%d)" % mask).encode())
+        told = _mask_of(nxt.frame)
+        self.check("51", self.DROP, told == mask,
+                   f"its frame {(nxt.start - end) / MS:.0f} ms after our ring({mask}) told "
+                   f"{'no ring' if told is None else f'ring {told}'} (the ring of two: {mask}; "
+                   f"of three: {sum(1 << i for i in ring)})", t0)
+        return self._turns(nxt, 2)
 
     SILENCES = 3
     """Times we fall silent at most, until the robot took three turns in a row for us."""
