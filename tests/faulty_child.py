@@ -16,6 +16,8 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
   back to LISTEN, and a robot the mask adds is not admitted (clause 51);
 - ``no-cut-off``: it never concludes its radio is cut off, however many turns in a row it
   missed with nothing heard (clause 40);
+- ``early-takeovers``: a frame from a member after the owner it waits for is a takeover
+  however early it comes, not one out of turn (clause 39);
 - ``masks-never-drop``: a ``ring(mask)`` admits and sends it to LISTEN as it should, but never
   drops a member the mask leaves out, though it counted that member missing too (clause
   51.3).
@@ -37,7 +39,7 @@ Mac = mac_mod.RotationalMac
 Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
           "invite-every-turn", "deaf-to-masks", "no-cut-off",
-          "masks-never-drop")
+          "masks-never-drop", "early-takeovers")
 
 
 def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
@@ -126,6 +128,18 @@ def _masks_never_drop(set_attr: Setter) -> None:
     set_attr(Mac, "_reconcile", _reconcile)
 
 
+def _early_takeovers(set_attr: Setter) -> None:
+    orig = Mac._takeover
+
+    def _takeover(self, src, first):
+        began, self.turn_start = self.turn_start, -(1 << 40)   # as if the turn began long ago
+        try:
+            return orig(self, src, first)
+        finally:
+            self.turn_start = began
+    set_attr(Mac, "_takeover", _takeover)
+
+
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
     ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
@@ -134,7 +148,7 @@ def patch(fault: str, set_attr: Setter = setattr) -> None:
      "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
      "no-stagger": _no_stagger, "invite-every-turn": _invite_every_turn,
      "deaf-to-masks": _deaf_to_masks, "no-cut-off": _no_cut_off,
-     "masks-never-drop": _masks_never_drop}[fault](set_attr)
+     "masks-never-drop": _masks_never_drop, "early-takeovers": _early_takeovers}[fault](set_attr)
 
 
 if __name__ == "__main__":

@@ -453,16 +453,17 @@ def test_an_rprs_child_passes_every_clause(air, tmp_path, profile):
     cases = _cases(junit)
     clauses = {c.split()[1] for c, _ in cases}
     expected = {"15", "21", "23", "24", "25", "26", "47", "38", "41"} | (
-        {"29", "32", "34", "36", "40", "44", "45", "48", "51"} if profile == "rprs" else set())
+        {"29", "32", "34", "36", "39", "40", "44", "45", "48", "51"} if profile == "rprs"
+        else set())
     assert clauses == expected and all(cases.values()), cases
     assert "pass" in run.stdout and "FAIL" not in run.stdout
     # paper: 38 does not apply (the paper admits any team robot); a robot just powered on
     # answers the invitation with BOOT, so 29 is judged, unless it claimed the silent
     # channel before the kit invited it: then it was a member already and answers with JOIN;
     # rprs: with the team 0,1 no robot lies in its gap to invite, so 32 does not apply, and
-    # none is there for the kit to play as a third member (40, and 51's ring of three)
+    # none is there for the kit to play as a third member (39, 40, and 51's ring of three)
     joined = profile == "rprs" and "Type '6'" in _figure(junit, "34")
-    rprs_na = {"32", "40", "51"} | ({"29"} if joined else set())
+    rprs_na = {"32", "39", "40", "51"} | ({"29"} if joined else set())
     assert _skipped(junit) == ({"38"} if profile == "paper" else rprs_na), _skipped(junit)
     assert "n/a" in run.stdout
 

@@ -53,10 +53,10 @@ def _table(rep: Report, stopped: str | None, link: SimLink) -> str:
 
 
 # ------------------------------------------------------------------- the matrix
-PROTOCOL_ONLY = {"29", "32", "34", "36", "40", "44", "45", "48", "51"}
+PROTOCOL_ONLY = {"29", "32", "34", "36", "39", "40", "44", "45", "48", "51"}
 """Clauses the rprs profile adds to the paper's (the invitation, the duty to invite, BOOT,
-the cut-off in a ring of three, R-stagger, the reply's Number, the retransmission, ring
-views)."""
+the phantom takeover and the cut-off in a ring of three, R-stagger, the reply's Number, the
+retransmission, ring views)."""
 
 
 @pytest.mark.parametrize("team", ["default", "small"])
@@ -81,14 +81,14 @@ def test_the_projects_child_passes_every_clause(robot, profile, team):
         assert verdicts["32"] == ({"pass"} if inviting else {"n/a"}), why
         # a team of two leaves the kit no robot to play as a third member (40, 51.3)
         three = team == "default"
-        assert verdicts["40"] == ({"pass"} if three else {"n/a"}), why
+        assert verdicts["40"] == verdicts["39"] == ({"pass"} if three else {"n/a"}), why
         assert verdicts["51"] == ({"pass"} if three else {"pass", "n/a"}), why
         if three:
             admits, drops = [c.name for c in rep.checks if c.clause == "51"][-2:]
             assert admits.startswith("admits the robot a ring view names") and \
                 drops == Tester.DROP, why
     assert all(v == {"pass"} for c, v in verdicts.items()
-               if c not in ("38", "32", "40", "51")), why
+               if c not in ("38", "32", "39", "40", "51")), why
     assert not rep.notes, why                       # no missed turn, ours or the robot's
     offsets = [float(x) for x in re.findall(r"Header ([+-][\d.]+) ms \(median",
                                             _figure(rep, "23") + _figure(rep, "24"))]
@@ -140,14 +140,16 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     faulty_child.patch(fault, monkeypatch.setattr)
     # (clause 32 needs robots to invite, clause 40 a robot the kit plays as a third member:
     # the default team; the others run with a team of two)
-    default = fault in ("invite-every-turn", "no-cut-off", "masks-never-drop")
+    default = fault in ("invite-every-turn", "no-cut-off", "masks-never-drop",
+                        "early-takeovers")
     rep, stopped, link = _run(1, "rprs", None if default else (0, 1))
     why = _table(rep, stopped, link)
     failed = {c.clause for c in rep.checks if c.verdict == "FAIL"}
     expected = {"late-turn": {"23", "26", "24"}, "long-length": {"15"}, "no-ack": {"47", "48"},
                 "boot-01": {"29"}, "no-stagger": {"44", "24"}, "late-answer": {"34"},
                 "invite-every-turn": {"32"}, "deaf-to-masks": {"51"},
-                "no-cut-off": {"40"}, "masks-never-drop": {"51"}}[fault]
+                "no-cut-off": {"40"}, "masks-never-drop": {"51"},
+                "early-takeovers": {"39"}}[fault]
     assert failed == expected, why
     if fault == "long-length":         # no good frame: the run stops at the invitation
         assert stopped is not None and "answered 5 invitations in a row with failed " \
@@ -178,6 +180,8 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     elif fault == "no-cut-off":        # still a member after 3 misses with nothing heard
         assert "then its next frame" in _figure(rep, "40") and \
             "(still a member)" in _figure(rep, "40"), why
+    elif fault == "early-takeovers":   # it acknowledged the phantom's message
+        assert _figure(rep, "39").endswith("frames acting on it: 1"), why
     elif fault == "masks-never-drop":  # only the drop of the ring of three fails
         assert [c.name for c in rep.checks if c.verdict == "FAIL"] == [Tester.DROP], why
         assert "told ring 7 (the ring of two: 3; of three: 7)" in _figure(rep, "51"), why
@@ -322,9 +326,10 @@ def test_the_kit_never_sends_over_an_authenticated_childs_frame(robot, tolerance
     assert [c.clause for c in rep.checks].count("53") == 2 and "52" in _verdicts(rep), why
     verdicts = _verdicts(rep)
     # team 0,ID: nobody to invite, nobody for the kit to play as a third member
-    assert (verdicts["32"], verdicts["40"], verdicts["51"]) == ({"n/a"}, {"n/a"},
-                                                                {"pass", "n/a"}), why
-    assert all(v == {"pass"} for c, v in verdicts.items() if c not in ("32", "40", "51")), why
+    assert (verdicts["32"], verdicts["39"], verdicts["40"], verdicts["51"]) == (
+        {"n/a"}, {"n/a"}, {"n/a"}, {"pass", "n/a"}), why
+    assert all(v == {"pass"} for c, v in verdicts.items()
+               if c not in ("32", "39", "40", "51")), why
     assert "collision" not in _figure(rep, "15"), why
     assert _talked_over(link, robot) == [], why
 
@@ -343,10 +348,10 @@ def test_an_authenticated_child_passes_every_clause_with_either_team(robot):
         assert {"52", "53"} <= set(verdicts), why
         assert verdicts["32"] == ({"pass"} if team is None and robot < 6 else {"n/a"}), why
         # the ring of three the kit plays (40, 51.3) needs a third team robot
-        assert verdicts["40"] == ({"pass"} if team is None else {"n/a"}), why
+        assert verdicts["40"] == verdicts["39"] == ({"pass"} if team is None else {"n/a"}), why
         assert verdicts["51"] == ({"pass"} if team is None else {"pass", "n/a"}), why
-        assert all(v == {"pass"} for c, v in verdicts.items() if c not in ("32", "40", "51")), \
-            why
+        assert all(v == {"pass"} for c, v in verdicts.items()
+                   if c not in ("32", "39", "40", "51")), why
         assert _talked_over(link, robot) == [], why
 
 

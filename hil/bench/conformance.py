@@ -1313,6 +1313,11 @@ class Tester:
         * Clause 51.3: our frame carries ``ring(mask)`` with T's bit. The robot admits T
           (we vouch for it) and keeps T's turn from then on: T's frames, in its turns, carry
           ``status()`` for the robot, which it acknowledges and answers as a member's.
+        * Clause 39, a phantom takeover: of the two turns after the robot's, the first (ours
+          or T's) stays silent and the second's frame comes half a Tmax in, with
+          ``status()`` for the robot: too early for a takeover (0.95 Tmax), so it is out of
+          turn: refused, nothing in it acted on (no acknowledgement, no reply), and the next
+          turn is the robot's.
         * Clause 40: then neither we nor T send. The robot misses both turns, takes its own,
           misses the next: max(3, n - 1) = 3 misses with no good frame heard in a ring of
           three, before any member has missed three (clause 25), so it concludes its radio
@@ -1334,6 +1339,7 @@ class Tester:
             self.check("40", "cut off: 3 misses with nothing heard in a ring of three "
                        "send it to LISTEN", True, why, t0, applicable=False)
             self.check("51", self.DROP, True, why, t0, applicable=False)
+            self.check("39", self.PHANTOM, True, why, t0, applicable=False)
             return h
         ring = tuple(sorted((self.me, self.robot, t)))
         mask = sum(1 << i for i in ring)
@@ -1373,8 +1379,50 @@ class Tester:
                     else "T's status() never acknowledged") +
                    f"; replies to T: {len(replies)}; masks in its frames: "
                    f"{', '.join(map(str, told)) or 'none'} (the ring of three: {mask})", t0)
+        h = self._phantom(h, ring)
         h = self._cut_off(h, ring)
         return self._drop_third(h, ring)
+
+    PHANTOM = "a takeover half a Tmax early is out of turn: refused, not acted on"
+
+    def _phantom(self, h: Heard, ring: tuple[int, ...]) -> Heard:
+        """Clause 39 in the ring of three (:meth:`_three`): the member after the robot is
+        silent, and the next one's frame, ``status()`` for the robot, begins Tmax / 2 into
+        that turn."""
+        t0 = self._secs()
+        silent, early = self._ours_after(ring, self.robot)
+        if early == self.me:
+            self.num = (self.num + 1) % 100
+            num = self.num
+        else:
+            self.third_num += 1
+            num = self.third_num
+        self._three_note(h)
+
+        def data() -> bytes:
+            acks = self._acks_content() if early == self.me else b"".join(
+                b"ack(%d,%d)" % a for a in self.third_acks)
+            if early != self.me:
+                self.third_acks.clear()
+            return self.frame(b"status()" + acks, dst=self.robot, type_=2, num=num,
+                              src=early).encode()
+        nxt, end, _ = self._exchange(h, data, at=h.end + TTRANS + TMAX // 2)
+        acted: list[int] = []
+        bad = f"ack({early},{num})".encode()
+
+        def watch(x: Heard, i: int) -> None:
+            c = x.frame.content
+            if bad in c or (x.frame.dst == early and (b"joint(" in c or b"fail(" in c)):
+                acted.append(i)
+        watch(nxt, 0)
+        h = nxt
+        for i in range(1, 4):
+            h = self._three_turn(h, ring, {}, watch, i)
+        self.check("39", self.PHANTOM, not acted,
+                   f"{early}'s frame {TMAX // 2 / MS:.0f} ms into {silent}'s turn; its next "
+                   f"frame {(nxt.start - end) / MS:.0f} ms after; frames acting on it: "
+                   f"{len(acted)}", t0)
+        return h
 
     def _cut_off(self, h: Heard, ring: tuple[int, ...]) -> Heard:
         """Clause 40 in the ring of three (:meth:`_three`): we and T fall silent after the
