@@ -18,6 +18,8 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
   missed with nothing heard (clause 40);
 - ``early-takeovers``: a frame from a member after the owner it waits for is a takeover
   however early it comes, not one out of turn (clause 39);
+- ``numbers-do-not-wrap``: a message is new only if its Number is above the last one heard
+  from its sender, so '00' after '99' is taken for a duplicate (clauses 45, 48);
 - ``masks-never-drop``: a ``ring(mask)`` admits and sends it to LISTEN as it should, but never
   drops a member the mask leaves out, though it counted that member missing too (clause
   51.3).
@@ -39,7 +41,7 @@ Mac = mac_mod.RotationalMac
 Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
           "invite-every-turn", "deaf-to-masks", "no-cut-off",
-          "masks-never-drop", "early-takeovers")
+          "masks-never-drop", "early-takeovers", "numbers-do-not-wrap")
 
 
 def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
@@ -140,6 +142,29 @@ def _early_takeovers(set_attr: Setter) -> None:
     set_attr(Mac, "_takeover", _takeover)
 
 
+class _Higher(int):
+    """A remembered Number that a new one differs from only if it is higher."""
+
+    def __ne__(self, other):
+        return other > int(self)
+
+
+class _NoWrap(dict):
+    def get(self, key, default=None):
+        v = super().get(key, default)
+        return v if v is None else _Higher(v)
+
+
+def _numbers_do_not_wrap(set_attr: Setter) -> None:
+    orig = Mac.on_frame
+
+    def on_frame(self, frame, first, end, now):
+        if type(self._last_rx) is dict:
+            self._last_rx = _NoWrap(self._last_rx)
+        return orig(self, frame, first, end, now)
+    set_attr(Mac, "on_frame", on_frame)
+
+
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
     ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
@@ -148,7 +173,8 @@ def patch(fault: str, set_attr: Setter = setattr) -> None:
      "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
      "no-stagger": _no_stagger, "invite-every-turn": _invite_every_turn,
      "deaf-to-masks": _deaf_to_masks, "no-cut-off": _no_cut_off,
-     "masks-never-drop": _masks_never_drop, "early-takeovers": _early_takeovers}[fault](set_attr)
+     "masks-never-drop": _masks_never_drop, "early-takeovers": _early_takeovers,
+     "numbers-do-not-wrap": _numbers_do_not_wrap}[fault](set_attr)
 
 
 if __name__ == "__main__":

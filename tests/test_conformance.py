@@ -398,7 +398,7 @@ def test_a_status_reply_late_or_retransmitted_is_one_reply(delay, resend):
     t._message(_heard_at(100))
     verdicts = {c.clause: (c.passed, c.figure) for c in t.report.checks}
     assert all(ok for ok, _ in verdicts.values()), verdicts
-    assert verdicts["45"][1] == "its replies' Numbers: 01, 02" + (
+    assert verdicts["45"][1] == "its replies' Numbers: 01, 02, to our 99 and 00" + (
         " (sent again: 01, 02)" if resend else ""), verdicts
 
 

@@ -149,7 +149,7 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
                 "boot-01": {"29"}, "no-stagger": {"44", "24"}, "late-answer": {"34"},
                 "invite-every-turn": {"32"}, "deaf-to-masks": {"51"},
                 "no-cut-off": {"40"}, "masks-never-drop": {"51"},
-                "early-takeovers": {"39"}}[fault]
+                "early-takeovers": {"39"}, "numbers-do-not-wrap": {"45"}}[fault]
     assert failed == expected, why
     if fault == "long-length":         # no good frame: the run stops at the invitation
         assert stopped is not None and "answered 5 invitations in a row with failed " \
@@ -180,6 +180,9 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     elif fault == "no-cut-off":        # still a member after 3 misses with nothing heard
         assert "then its next frame" in _figure(rep, "40") and \
             "(still a member)" in _figure(rep, "40"), why
+    elif fault == "numbers-do-not-wrap":   # our 00 after 99 taken for a duplicate
+        assert _figure(rep, "45").startswith("its replies' Numbers: 01, to our 99 and 00; "
+                                             "no new reply"), why
     elif fault == "early-takeovers":   # it acknowledged the phantom's message
         assert _figure(rep, "39").endswith("frames acting on it: 1"), why
     elif fault == "masks-never-drop":  # only the drop of the ring of three fails

@@ -1044,8 +1044,12 @@ class Tester:
                                f"closes our turn, and the next is its)")
 
     def _message(self, h: Heard) -> Heard:
-        """Our status() to the robot, then the same message again (a retransmission)."""
+        """Our status() to the robot, then the same message again (a retransmission), then a
+        new one. rprs: they are Numbers 99 and 00, so the robot must take the wrap of our
+        counter ('99' then '00', clause 45) for a new message (clause 48), not a duplicate."""
         t0 = self._secs()
+        if self.profile == "rprs":
+            self.num = 98                 # a station that has sent 98 messages since power-on
         self.num = (self.num + 1) % 100
         num = self.num
         ack = f"ack({self.me},{num})".encode()
@@ -1095,8 +1099,9 @@ class Tester:
         new = seen["replies"][len(before):]
         ok = len(before) == 1 and len(new) == 1 and new[0] == (before[0] + 1) % 100
         again = seen["again"]
-        self.check("45", "its next message takes the next Number",
-                   ok, f"its replies' Numbers: {', '.join(f'{n:02d}' for n in before + new)}" +
+        self.check("45", "its next message takes the next Number (ours wrapped, 99 then 00)",
+                   ok, f"its replies' Numbers: {', '.join(f'{n:02d}' for n in before + new)}, "
+                   f"to our {num:02d} and {self.num:02d}" +
                    (f" (sent again: {', '.join(f'{n:02d}' for n in again)})" if again else "") +
                    ("" if new else f"; no new reply in {6 + self.REPLY_TURNS} turns"), t0)
         return h
