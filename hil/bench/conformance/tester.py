@@ -69,9 +69,9 @@ from firmware_model.radio.frame import BROADCAST, HEADER, Frame
 from firmware_model.radio.integrity import check as crc_check, seal as crc_seal
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
 
-from .runner import REALTIME_MARGINS
-from .scripts import percentile
-from .serial_radio import open_port
+from ..runner import REALTIME_MARGINS
+from ..scripts import percentile
+from ..serial_radio import open_port
 
 MS = TICK_HZ // 1000
 TTRANS = 5 * MS
