@@ -255,7 +255,7 @@ def test_the_serial_link_stamps_and_sleeps_as_the_kit_always_did(monkeypatch):
     """``SerialLink`` is the kit's port and wall clock as before the seam: bytes read are
     stamped the last one now and each before it a byte time earlier, a write is stamped when
     it is made, ``idle`` sleeps the ticks on the wall clock, ``close`` closes the port."""
-    import hil.bench.conformance.tester as kit
+    import hil.bench.conformance.link as kit
     from firmware_model.timing import TICK_HZ
 
     class Port:
@@ -458,7 +458,7 @@ def test_on_a_serial_port_the_invitation_after_a_lone_members_frame_comes_in_its
     With a look at the port before the invitation and another as it was written, it began
     about 150 ms after the robot's End, onto its next frame, every time: on the pty hub the
     robot never answered, and the run stopped after 400 invitations."""
-    import hil.bench.conformance.tester as kit
+    import hil.bench.conformance.link as kit
     from hil.bench.conformance import TWIN, TSLOT
 
     clock = [0]
