@@ -65,9 +65,9 @@ from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver, RotationalMac
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, s_to_ticks
 
-from ..bench.scripts import HeardFrame, Sniffer
-from ..sim.pcap import PcapWriter
-from ..sim.world import SimConfig, World
+from ...bench.scripts import HeardFrame, Sniffer
+from ...sim.pcap import PcapWriter
+from ...sim.world import SimConfig, World
 
 RATE_HZ = 10.0
 """Display refresh (and simulator pacing) rate."""
@@ -219,7 +219,7 @@ class MonitorApp(App):
     def get_driver_class(self):
         """textual's driver, sized by the terminal drawn on and quiet once it closed
         (hil/view/terminal.py)."""
-        from .terminal import driver_for
+        from ..terminal import driver_for
         return driver_for(super().get_driver_class())
 
     def __init__(self, robots: Iterable[int], rate: float = RATE_HZ) -> None:
