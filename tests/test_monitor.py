@@ -1,4 +1,4 @@
-"""``rprs monitor`` (hil/view/monitor.py), headless with textual's pilot.
+"""``rprs monitor`` (hil/view/monitor/), headless with textual's pilot.
 
 The simulator app starts paused and the tests advance its world with ``advance(seconds)``, so
 what they check does not depend on how fast the machine is. Where the refresh timer matters the
