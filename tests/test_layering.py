@@ -72,7 +72,7 @@ def test_the_firmware_clock_is_the_can_library_default():
 
 MODULE_LINES = 700
 """No product module over this many lines (issue: "a house the next engineer can live in")."""
-OVERSIZE = {"hil/bench/radio_hub.py": 840, "can_bus/bus.py": 1084}
+OVERSIZE = {"can_bus/bus.py": 1084}
 """The modules still over it, each at most its size today: they may shrink, not grow, and
 one that comes under the limit leaves this list."""
 

@@ -19,7 +19,8 @@ import time
 import pytest
 
 from firmware_model.radio.frame import Frame
-from hil.bench.radio_hub import RadioHub, check_args, parse_drop
+from hil.bench.hub_parts import check_args, parse_drop
+from hil.bench.radio_hub import RadioHub
 from hil.cli.hub import run_hub_cli, summary_line
 
 serial = pytest.importorskip("serial")
@@ -801,7 +802,7 @@ def test_the_fastest_air_carries_bytes(hubs, baud):
 def test_the_latest_drop_and_fault_are_accepted_and_the_hub_runs(hubs):
     """A drop window and a fault at the documented maximum (MAX_SECONDS) are scheduled
     without overflow, and the air goes on carrying bytes."""
-    from hil.bench.radio_hub import MAX_SECONDS
+    from hil.bench.hub_parts import MAX_SECONDS
     from hil.sim.faults import parse_fault
     hub = hubs(2, drops=[(1, MAX_SECONDS - 1, MAX_SECONDS)],
                faults=[parse_fault(f"noise@{MAX_SECONDS - 1}-{MAX_SECONDS}"),

@@ -8,10 +8,9 @@ import sys
 import threading
 from typing import Any, Sequence
 
-from ..bench.radio_hub import (
-    MAX_BAUD, MAX_SECONDS, MIN_BAUD, HubError, RadioHub, check_args, check_fault, parse_baud,
-    parse_drop,
-)
+from ..bench.hub_parts import (MAX_BAUD, MAX_SECONDS, MIN_BAUD, HubError, check_args, check_fault,
+                               parse_baud, parse_drop)
+from ..bench.radio_hub import RadioHub
 from .common import UserError
 
 

@@ -12,7 +12,7 @@ from .common import UserError, port_name
 def cmd_inject(a: argparse.Namespace) -> int:
     import serial
 
-    from ..bench.radio_hub import MAX_SECONDS
+    from ..bench.hub_parts import MAX_SECONDS
     from ..bench.serial_radio import PortError, open_port
     from ..sim.faults import FaultError, foreign_bytes, foreign_fault
     try:
