@@ -118,37 +118,35 @@ Fault injection
   receiver error-passive at ``F + 126`` bits. No frame can start while held. After the last
   release at ``R`` the bus is idle again at ``max(R, F + 6 bits) + 11`` bits.
 
-Over 500 lines on purpose: arbitration, error signalling and error confinement are one state
-machine over the same bus state.
+Arbitration, error signalling and error confinement are one state machine over the same bus
+state; its parts: the state (bus_state.py), error signalling (bus_errors.py), a bus held
+dominant (bus_hold.py), bound here as methods of :class:`CanBus`.
 """
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
-from enum import Enum
-from functools import lru_cache
 from typing import AbstractSet, Any, Callable
 
 import can
 
 from can_bus.bits import (
-    BUS_IDLE_RECESSIVE_BITS,
     BUS_OFF_LIMIT,
-    BUS_OFF_RECOVERY_SEQUENCES,
-    ERROR_DELIMITER_BITS,
     ERROR_PASSIVE_LIMIT,
-    ERROR_FLAG_BITS,
     IFS_BITS,
     SUSPEND_TRANSMISSION_BITS,
     TRAILER_BITS,
     BitTiming,
     _length,
-    _wire,
 )
 from can_bus.clock import Cancellable as Event, Clock as Scheduler
 from can_bus.frames import CanFrame
 from can_bus.node import check_node
-from can_bus.physical import DEFAULT_LENGTH_M, LINE_DELAY_S_PER_M, loop_delay_s, prop_time_s
+from can_bus.physical import DEFAULT_LENGTH_M, LINE_DELAY_S_PER_M, prop_time_s
+from can_bus import bus_errors, bus_hold
+from can_bus.bus_state import (_ELEVEN, _FRAME, _IDLE, _NO_DEAF, _REC_AFTER_PASSIVE_RX, _RECOVERY,
+                               _TAIL, ACTIVE, BUS_OFF, ERROR_FRAME_TOTAL_BITS, PASSIVE,
+                               CanErrorEvent, ErrorState, NodeStatus, _frame_info, _Hold, _Node,
+                               _prio)
 
 __all__ = [
     "CanBus",
@@ -157,128 +155,6 @@ __all__ = [
     "NodeStatus",
     "ERROR_FRAME_TOTAL_BITS",
 ]
-
-ERROR_FRAME_TOTAL_BITS = ERROR_FLAG_BITS + ERROR_DELIMITER_BITS + IFS_BITS
-"""17: bus time from the start of a (superposed) error flag to the next possible SOF."""
-
-_REC_AFTER_PASSIVE_RX = 127
-_NO_DEAF: frozenset[int] = frozenset()  # no node lost the frame to its own local error
-_ELEVEN = BUS_IDLE_RECESSIVE_BITS
-_RECOVERY = BUS_OFF_RECOVERY_SEQUENCES
-
-
-class ErrorState(str, Enum):
-    ACTIVE = "error-active"
-    PASSIVE = "error-passive"
-    BUS_OFF = "bus-off"
-
-
-ACTIVE, PASSIVE, BUS_OFF = ErrorState.ACTIVE, ErrorState.PASSIVE, ErrorState.BUS_OFF
-
-
-@lru_cache(maxsize=8192)
-def _frame_info(frame: CanFrame) -> tuple[tuple[int, ...], int, int]:
-    """(wire bits without IFS, stuffed SOF..CRC length, trailing recessive bits of that part)."""
-    wire = _wire(frame.id, frame.data, frame.rtr, frame.dlc)
-    n = len(wire) - TRAILER_BITS
-    tail = 0
-    while tail < n and wire[n - 1 - tail] == 1:
-        tail += 1
-    return wire, n, tail
-
-
-@dataclass(frozen=True)
-class CanErrorEvent:
-    """One error seen by one node. ``kind``: 'bit', 'stuff' or 'ack'. Counters after update."""
-
-    kind: str
-    tick: int
-    frame: CanFrame | None
-    transmitter: bool
-    tec: int
-    rec: int
-    state: ErrorState
-
-
-@dataclass(frozen=True)
-class NodeStatus:
-    tec: int
-    rec: int
-    state: ErrorState
-
-
-class _Node:
-    __slots__ = (
-        "node", "tec", "rec", "state", "suspend_until", "occ", "recover_ev", "queue", "seq",
-        "pending_fn", "on_frame", "on_tx_done", "on_lost", "on_error", "on_state", "attached",
-        "entry", "counting", "count_from", "loop", "after_request", "asked", "rx_ids",
-        "always_acks",
-    )
-
-    def __init__(self, node: Any) -> None:
-        self.node = node
-        self.tec = 0
-        self.rec = 0
-        self.state = ACTIVE
-        self.suspend_until = 0
-        self.occ = 0
-        self.counting = True                 # bus-off: counting the 128 x 11 recessive bits
-        self.count_from: int | None = None   # ... from this tick, if it began in idle time
-        self.recover_ev: Event | None = None
-        self.queue: list[tuple[int, bool, int, CanFrame]] = []
-        self.seq = 0
-        self.entry: tuple[int, bool, int, CanFrame] | None = None
-        self.pending_fn = getattr(node, "pending", None)
-        self.after_request = bool(getattr(node, "pending_after_request", False))
-        self.asked = True           # pending() may return a frame (cleared when it had none)
-        self.on_frame = getattr(node, "on_frame", None)
-        ids = getattr(node, "rx_ids", None)
-        self.rx_ids: frozenset[int] | None = None if ids is None else frozenset(ids)
-        self.always_acks = not hasattr(node, "acknowledges")
-        self.on_tx_done = getattr(node, "on_tx_done", None)
-        self.on_lost = getattr(node, "on_arbitration_lost", None)
-        self.on_error = getattr(node, "on_error", None)
-        self.on_state = getattr(node, "on_state_change", None)
-        self.attached = True
-        self.loop = _HS_LOOP_S               # TXD-to-RXD loop delay (s)
-
-
-_HS_LOOP_S = loop_delay_s(0)
-
-
-class _Hold:
-    __slots__ = ("flag", "tx", "rx", "released", "step", "ev")
-
-    def __init__(self, flag: int, tx: list[_Node], rx: list[_Node]) -> None:
-        self.flag = flag
-        self.tx = tx
-        self.rx = rx
-        self.released: int | None = None
-        self.step = 0
-        self.ev: Event | None = None
-
-
-_IDLE, _FRAME, _TAIL, _HELD = range(4)
-
-
-@lru_cache(maxsize=4096)
-def _arbitration_end(wire: tuple[int, ...]) -> int:
-    """Wire index of the RTR bit (the arbitration field's last bit): SOF, 11 identifier bits
-    and RTR are 13 bits before stuffing; a bit after five equal ones is a stuff bit."""
-    run, last, real = 0, None, 0
-    for i, bit in enumerate(wire):
-        stuffed = run == 5
-        run = run + 1 if bit == last and not stuffed else 1
-        last = bit
-        if not stuffed:
-            real += 1
-            if real == 13:
-                return i
-    return len(wire) - 1
-
-
-def _prio(cand: tuple[CanFrame, Any]) -> tuple[int, bool]:
-    return cand[0].id, cand[0].rtr
 
 
 class CanBus:
@@ -774,141 +650,6 @@ class CanBus:
             self.trace(frame, start, now, tx.node)
         self._rx_deliver(frame, start, now, rx, set())
 
-    def _frame_error(self, kind: str) -> None:
-        now = self.sched.now
-        tpb = self.tpb
-        frame = self._cur_frame
-        idle_at = now + ERROR_FRAME_TOTAL_BITS * tpb
-        self._phase = _TAIL
-        self._busy_until = idle_at
-        self.error_frames += 1
-        rx = self._cur_rx
-        late_passive = kind == "ack" and self._cur_late and \
-            all(ns.state is PASSIVE for ns in self._cur_tx)
-        if late_passive:
-            # The receivers saw no error: they take the frame at its end, not REC + 1.
-            self.sched.at(self._cur_start + len(_frame_info(frame)[0]) * tpb,
-                          self._late_ack_received, frame, self._cur_start, self._cur_tx[0],
-                          list(rx))
-            rx = []
-        all_passive = True
-        for ns in self._cur_tx:
-            if not (kind == "ack" and ns.state is PASSIVE):
-                ns.tec += 8
-                self._update(ns, now)
-            if ns.state is ACTIVE:
-                all_passive = False
-            if ns.state is PASSIVE:
-                ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
-                self._watch = True
-            ns.entry = None
-        for ns in rx:
-            if ns.state is BUS_OFF:
-                continue
-            ns.rec += 1
-            self._update(ns, now)
-            if ns.state is ACTIVE:
-                all_passive = False
-        trailing = _ELEVEN
-        if all_passive:
-            if kind == "ack":
-                trailing = _frame_info(frame)[2] + 2 + ERROR_FRAME_TOTAL_BITS
-            else:
-                trailing = ERROR_FRAME_TOTAL_BITS
-        self._seg_ev = self.sched.at(idle_at, self._segment_end, trailing)
-        if self.error_trace is not None:
-            self.error_trace(kind, frame, self._cur_start, now, idle_at, self._cur_tx[0].node)
-        for ns in self._cur_tx:
-            if ns.on_error is not None and ns.attached:
-                ns.on_error(CanErrorEvent(kind, now, frame, True, ns.tec, ns.rec, ns.state))
-        for ns in rx:
-            if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
-                ns.on_error(CanErrorEvent(kind, now, frame, False, ns.tec, ns.rec, ns.state))
-
-    def _local_errors(self, rx: list[_Node], wire, nstuffed: int,
-                      err: tuple[int, str] | None):
-        """The earliest error one receiver alone sees in this frame, as (its bit b, that
-        node, where each node detects it {node: (bit, kind)}, E: the last bit of the
-        superposed error flags), or None. An error-passive node's flag is recessive: it
-        loses the frame and nobody else notices (``_cur_deaf``)."""
-        lo = _arbitration_end(wire) + 1
-        best = None
-        for ns in rx:
-            key = id(ns)
-            if ns.state is BUS_OFF or (key not in self._local and key not in self._noisy):
-                continue
-            queued = self._local.get(key)
-            bit = queued[0] if queued else self._noisy.get(key)
-            b = min(max(nstuffed - 1 if bit is None else bit, lo), nstuffed - 1)
-            if queued:
-                queued.pop(0)
-                if not queued:
-                    del self._local[key]
-            if err is not None and err[0] <= b:
-                continue                       # an error everyone sees comes first
-            if ns.state is PASSIVE:
-                # _local_errors runs just after _cur_deaf = set(): a set of its own here
-                self._cur_deaf.add(key)  # type: ignore[union-attr]
-                continue
-            if best is None or b < best[0]:
-                best = (b, ns)
-        if best is None:
-            return None
-        b, first = best
-        z = 0                                  # dominant bits in a row up to bit b
-        while z <= b and wire[b - z] == 0:
-            z += 1
-        # the others: a transmitter sees its first recessive bit read dominant (a bit error);
-        # a receiver, the sixth dominant bit in a row (stuff error) or a dominant CRC
-        # delimiter (form error), whichever comes first
-        d_tx = next(i for i in range(b + 1, b + 7) if i >= nstuffed or wire[i] == 1)
-        d_rx, k_rx = (b + 6 - z, "stuff") if b + 6 - z < nstuffed else (nstuffed, "form")
-        seen = {ns: (d_tx, "bit") for ns in self._cur_tx}
-        seen.update({ns: (d_rx, k_rx) for ns in rx if ns is not first})
-        seen[first] = (b, "local")
-        # only an error-active node's flag is dominant; the first detector's always is
-        end = max(d + ERROR_FLAG_BITS for ns, (d, _) in seen.items() if ns.state is ACTIVE)
-        return b, first, seen, end
-
-    def _local_error(self, local) -> None:
-        """A local error's error frame: the flags of the first node and of everyone who then
-        detects it overlap into 6-12 dominant bits (ISO 11898-1 error signalling). TEC + 8 for
-        the transmitter; REC + 1 for every receiver, and + 8 more for a receiver that reads a
-        dominant bit right after its own flag (the first detector, whenever the others'
-        flags outlast its own)."""
-        b, first, seen, end = local
-        now = self.sched.now
-        tpb = self.tpb
-        frame = self._cur_frame
-        start = self._cur_start
-        idle_at = start + (end + 1 + ERROR_DELIMITER_BITS + IFS_BITS) * tpb
-        self._phase = _TAIL
-        self._busy_until = idle_at
-        self.error_frames += 1
-        for ns in self._cur_tx:
-            ns.tec += 8
-            self._update(ns, now)
-            if ns.state is PASSIVE:
-                ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
-                self._watch = True
-            ns.entry = None
-        for ns in self._cur_rx:
-            if ns.state is BUS_OFF:
-                continue
-            d, _ = seen[ns]
-            after = 8 if ns.state is ACTIVE and d + ERROR_FLAG_BITS < end else 0
-            ns.rec += 1 + after
-            self._update(ns, now)
-        self._seg_ev = self.sched.at(idle_at, self._segment_end, _ELEVEN)
-        if self.error_trace is not None:
-            self.error_trace("local", frame, start, now, idle_at, self._cur_tx[0].node)
-        for group, is_tx in ((self._cur_tx, True), (self._cur_rx, False)):
-            for ns in group:
-                if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
-                    d, kind = seen[ns]
-                    ns.on_error(CanErrorEvent(kind, start + d * tpb, frame, is_tx, ns.tec,
-                                              ns.rec, ns.state))
-
     def _segment_end(self, trailing: int) -> None:
         now = self.sched.now
         self._seg_ev = None
@@ -938,147 +679,16 @@ class CanBus:
                         ns.recover_ev.cancel()
                     ns.recover_ev = self.sched.at(t, self._recover_event, ns)
 
-    # ------------------------------------------------------------------ stuck dominant
-    def _hold_start(self) -> None:
-        now = self.sched.now
-        h = self._hold
-        if h is not None:  # re-held before a short release was processed
-            h.released = None
-            return
-        if self._arb_ev is not None:
-            self._arb_ev.cancel()
-            self._arb_ev = None
-        if self._seg_ev is not None:
-            self._seg_ev.cancel()
-            self._seg_ev = None
-        if self._phase == _FRAME:
-            tx, rx, flag = self._cur_tx, self._cur_rx, now
-            for ns in tx:
-                ns.entry = None
-        else:
-            if self._phase == _IDLE:
-                self._start_segment(now)
-            tx, flag = [], now + ERROR_FLAG_BITS * self.tpb
-            rx = [ns for ns in self._nodes if ns.state is not BUS_OFF]
-        self._phase = _HELD
-        self._busy_until = None
-        self._hold = _Hold(flag, tx, rx)
-        self._hold_schedule()
-
-    def _hold_release(self) -> None:
-        h = self._hold
-        if h is None:
-            return
-        now = self.sched.now
-        h.released = now
-        self._settle(now)
-        if h.step > 0:
-            self._hold_finish()
-        else:
-            self._hold_schedule()
-
-    def _hold_tick_time(self, step: int) -> int:
-        h = self._hold
-        assert h is not None                  # the bus is held dominant
-        if step == 0:
-            return h.flag
-        if step == 1:
-            return h.flag + 7 * self.tpb
-        return h.flag + (14 + 8 * (step - 2)) * self.tpb
-
-    def _can_change(self) -> bool:
-        h = self._hold
-        assert h is not None                  # the bus is held dominant
-        return any(ns.state is not BUS_OFF for ns in h.tx) or any(ns.state is ACTIVE for ns in h.rx)
-
-    def _settle(self, upto: int) -> None:
-        h = self._hold
-        assert h is not None                  # the bus is held dominant
-        tpb = self.tpb
-        limit = upto if h.released is None else min(upto, h.released)
-        while True:
-            s = h.step
-            t = self._hold_tick_time(s)
-            if t > (upto if s == 0 else limit):
-                return
-            if s >= 2 and not self._can_change():
-                bits = (limit - h.flag) // tpb
-                total = 1 + (bits - 14) // 8
-                more = total - (s - 2)
-                for ns in h.rx:
-                    if ns.state is not BUS_OFF:
-                        ns.rec += 8 * more
-                h.step += more
-                return
-            h.step = s + 1
-            if s == 0:
-                self._count(h.tx, 8, 0, t)
-                self._count(h.rx, 0, 1, t)
-                frame = self._cur_frame if h.tx else None
-                for ns in h.tx:
-                    if ns.on_error is not None and ns.attached:
-                        ns.on_error(CanErrorEvent("bit", t, frame, True, ns.tec, ns.rec, ns.state))
-                for ns in h.rx:
-                    if ns.on_error is not None and ns.attached and ns.state is not BUS_OFF:
-                        ns.on_error(CanErrorEvent("stuff", t, frame, False, ns.tec, ns.rec,
-                                                  ns.state))
-                self.error_frames += 1
-                if self.error_trace is not None:
-                    self.error_trace("bit" if h.tx else "stuff", frame,
-                                     self._cur_start if h.tx else t - ERROR_FLAG_BITS * tpb, t,
-                                     None, h.tx[0].node if h.tx else None)
-            else:
-                if s >= 2:
-                    self._count(h.tx, 8, 0, t)
-                self._count(h.rx, 0, 8, t)
-
-    def _count(self, nodes: list, tec: int, rec: int, t: int) -> None:
-        """Add to the error counters of every node in ``nodes`` that is not bus-off."""
-        for ns in nodes:
-            if ns.state is not BUS_OFF:
-                ns.tec += tec
-                ns.rec += rec
-                self._update(ns, t)
-
-    def _hold_schedule(self) -> None:
-        h = self._hold
-        assert h is not None                  # the bus is held dominant
-        if h.ev is not None:
-            h.ev.cancel()
-            h.ev = None
-        if h.step == 0:
-            t = h.flag
-        elif self._can_change():
-            t = self._hold_tick_time(h.step)
-            if h.released is not None and t > h.released:
-                return
-        else:
-            return
-        h.ev = self.sched.at(max(t, self.sched.now), self._hold_tick)
-
-    def _hold_tick(self) -> None:
-        h = self._hold
-        assert h is not None                  # the bus is held dominant
-        h.ev = None
-        self._settle(self.sched.now)
-        if h.released is not None:
-            self._hold_finish()
-        else:
-            self._hold_schedule()
-
-    def _hold_finish(self) -> None:
-        h = self._hold
-        assert h is not None and h.released is not None     # held, then released
-        if h.ev is not None:
-            h.ev.cancel()
-        tpb = self.tpb
-        idle_at = (max(h.released, h.flag + ERROR_FLAG_BITS * tpb)
-                   + (ERROR_DELIMITER_BITS + IFS_BITS) * tpb)
-        for ns in h.tx:
-            if ns.state is PASSIVE:
-                ns.suspend_until = idle_at + SUSPEND_TRANSMISSION_BITS * tpb
-                self._watch = True
-        self._hold = None
-        self._phase = _TAIL
-        self._busy_until = idle_at
-        self._seg_ev = self.sched.at(idle_at, self._segment_end, _ELEVEN)
+    # -- error signalling (bus_errors.py) and a bus held dominant (bus_hold.py) ----------
+    _frame_error = bus_errors._frame_error
+    _local_errors = bus_errors._local_errors
+    _local_error = bus_errors._local_error
+    _hold_start = bus_hold._hold_start
+    _hold_release = bus_hold._hold_release
+    _hold_tick_time = bus_hold._hold_tick_time
+    _can_change = bus_hold._can_change
+    _settle = bus_hold._settle
+    _count = bus_hold._count
+    _hold_schedule = bus_hold._hold_schedule
+    _hold_tick = bus_hold._hold_tick
+    _hold_finish = bus_hold._hold_finish
