@@ -38,6 +38,15 @@ def _three_note(self: Tester, h: Heard) -> None:
         self.third_acks.append((f.src, f.num))
 
 
+def _acks_of(self: Tester, member: int) -> bytes:
+    """The acknowledgements ``member`` (us, or T) owes, for its frame now (taken once)."""
+    if member == self.me:
+        return self._acks_content()
+    out = b"".join(b"ack(%d,%d)" % a for a in self.third_acks)
+    self.third_acks.clear()
+    return out
+
+
 def _three_turn(self: Tester, h: Heard, ring: tuple[int, ...], first: dict[int, bytes],
                 watch: Callable[[Heard, int], None], i: int) -> Heard:
     """Our frames after the robot's frame ``h`` in ``ring`` (each member we play, in
@@ -48,11 +57,7 @@ def _three_turn(self: Tester, h: Heard, ring: tuple[int, ...], first: dict[int, 
     def frames() -> list[bytes]:
         out = []
         for m in self._ours_after(ring, h.frame.src):
-            acks = self._acks_content() if m == self.me else b"".join(
-                b"ack(%d,%d)" % a for a in self.third_acks)
-            if m != self.me:
-                self.third_acks.clear()
-            content = first.get(m, b"") + acks
+            content = first.get(m, b"") + self._acks_of(m)
             kw: dict[str, Any] = {"src": m}
             if m == self.third:
                 # T's one message is Number 01; its other frames repeat the Number of
@@ -161,12 +166,8 @@ def _phantom(self: Tester, h: Heard, ring: tuple[int, ...]) -> Heard:
     self._three_note(h)
 
     def data() -> bytes:
-        acks = self._acks_content() if early == self.me else b"".join(
-            b"ack(%d,%d)" % a for a in self.third_acks)
-        if early != self.me:
-            self.third_acks.clear()
-        return self.frame(b"status()" + acks, dst=self.robot, type_=2, num=num,
-                          src=early).encode()
+        return self.frame(b"status()" + self._acks_of(early), dst=self.robot, type_=2,
+                          num=num, src=early).encode()
     nxt, end, _ = self._exchange(h, data, at=h.end + TTRANS + TMAX // 2)
     acted: list[int] = []
     bad = f"ack({early},{num})".encode()

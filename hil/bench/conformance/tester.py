@@ -567,6 +567,7 @@ class Tester:
 
     _ours_after = ring_of_three._ours_after
     _three_note = ring_of_three._three_note
+    _acks_of = ring_of_three._acks_of
     _three_turn = ring_of_three._three_turn
     _three = ring_of_three._three
     _phantom = ring_of_three._phantom
