@@ -548,6 +548,7 @@ class Tester:
     # -- the steps (plain functions in their own modules, bound here) -------------------
 
     _start = joining._start
+    _stops_announcing = joining._stops_announcing
     _invite = joining._invite
     _air = joining._air
     _paper_join = joining._paper_join
