@@ -29,6 +29,7 @@ class Cancellable(Protocol):
 class Clock(Protocol):
     """Integer-tick time: ``now`` only moves forward; ``at`` runs ``fn(*args)`` at ``when``."""
 
-    now: int
+    @property
+    def now(self) -> int: ...
 
     def at(self, when: int, fn: Callable[..., Any], *args: Any) -> Cancellable: ...

@@ -41,7 +41,7 @@ from .mcu.can_controller import AMS_AMR0, AMS_AMR1, CSR_NIE, CSR_NT, CanControll
 from .interrupts import CAN_RX, CAN_STATUS, CAN_TX, DISPATCH_TASK, TMR1
 from .mcu.cpu import Cpu
 from .mcu.reload_timer import ReloadTimer
-from .mcu.scheduler import Scheduler
+from .mcu.scheduler import Clock
 from .radio.content import cmd
 from .radio.frame import BROADCAST, FrameType
 from .radio.mac import Deliver, Join, ModeChange, QueueFull
@@ -64,7 +64,7 @@ class CanDriver:
     """The firmware's CAN driver: a software queue per transmit buffer, receive ISRs, and the
     bus supervision. ``on_frame(frame, now)`` gets every received frame."""
 
-    def __init__(self, sched: Scheduler, controller: CanController, transceiver: Any,
+    def __init__(self, sched: Clock, controller: CanController, transceiver: Any,
                  on_frame: Callable[[CanFrame, int], None],
                  on_fault: Callable[[int, int], None],
                  on_status: Callable[[], None] = lambda: None, cpu: Cpu | None = None,
@@ -208,7 +208,7 @@ class ChildFirmware:
 
     def __init__(self, station: RadioStation, controller: CanController,
                  transceiver: Any, costs: CycleCosts | None = None,
-                 clock: Scheduler | None = None) -> None:
+                 clock: Clock | None = None) -> None:
         """``costs`` runs the firmware on the CPU model with that cycle-cost table (radio
         handlers included); None is the ideal CPU (every handler in zero time). ``clock``:
         what the CAN side (driver, dispatcher timer, ideal CPU) schedules on, by default the

@@ -32,7 +32,7 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .scheduler import Event, Scheduler
+from .scheduler import Clock, Event
 
 MAIN_LEVEL = 7
 """ILM while the main loop runs: every enabled interrupt (levels 0-6) is accepted."""
@@ -104,7 +104,7 @@ class _Frame:
 class Cpu:
     """One F2MC-16LX core on ``sched``. ``costs`` None is the ideal (zero-time) CPU."""
 
-    def __init__(self, sched: Scheduler, costs: Any = None, name: str = "CPU") -> None:
+    def __init__(self, sched: Clock, costs: Any = None, name: str = "CPU") -> None:
         self.sched = sched
         self.costs = costs
         self.name = name

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from .scheduler import Event, Scheduler
+from .scheduler import Clock, Event
 
 PRESCALERS = (2, 8, 32)
 """TMCSR.CSL: machine clock divided by 2^1, 2^3, 2^5."""
@@ -47,7 +47,7 @@ class ReloadTimer:
 
     __slots__ = ("sched", "on_expiry", "expiry", "_ev", "delay", "name")
 
-    def __init__(self, sched: Scheduler, on_expiry: Callable[[int], None],
+    def __init__(self, sched: Clock, on_expiry: Callable[[int], None],
                  name: str = "TMR0") -> None:
         self.sched = sched
         self.on_expiry = on_expiry

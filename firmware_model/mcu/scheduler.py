@@ -21,7 +21,7 @@ form: no observer's place in the tick depends on when it was scheduled.
 from __future__ import annotations
 
 import heapq
-from typing import Any, Callable
+from typing import Any, Callable, Protocol
 
 
 _FIRST = 1 << 62
@@ -51,6 +51,17 @@ class Event:
     def __repr__(self) -> str:  # pragma: no cover - debugging aid
         state = " cancelled" if self.cancelled else ""
         return f"<Event t={self.when} {getattr(self.fn, '__qualname__', self.fn)}{state}>"
+
+
+class Clock(Protocol):
+    """What a part that only schedules needs of its clock (ticks): ``now``, and ``at(when,
+    fn, *args)`` giving the :class:`Event`. A :class:`Scheduler` is one; so is the clock of a
+    domain the simulator runs apart (hil/sim/quiet_can.py's ``DomainClock``)."""
+
+    @property
+    def now(self) -> int: ...
+
+    def at(self, when: int, fn: Callable[..., Any], *args: Any) -> Event: ...
 
 
 class Scheduler:

@@ -14,6 +14,7 @@ from .faults import CAN_KINDS, Fault, FaultError, check_skew
 
 if TYPE_CHECKING:
     from firmware_model.cycle_costs import CycleCosts
+    from firmware_model.radio.peer_macs import PeerConfig
 
 
 class ConfigError(ValueError):
@@ -58,7 +59,7 @@ class SimConfig:
     mac_kind: str = "rotational"
     """The MAC every robot runs: the paper's rotational MAC, or a peer for comparison
     (aloha, slotted, csma; firmware_model/radio/peer_macs.py)."""
-    peer: object | None = None
+    peer: PeerConfig | None = None
     """PeerConfig for the peer MACs."""
     extra: tuple[tuple[int, float, tuple[int, ...] | None], ...] = ()
     """More robots on the same air, outside ``robots``: (ID, power-on seconds, team or None for

@@ -11,7 +11,7 @@ accounting and the summary in ledger.py, the air in air.py, the faults in faults
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Callable, Iterable
+from typing import Any, Callable, Iterable, cast
 
 from can_bus.bits import BitTiming
 from can_bus.bus import CanBus
@@ -27,9 +27,10 @@ from firmware_model.sequence import ACTION_NAMES
 from firmware_model.radio.content import Command, frame_kind
 from firmware_model.radio.mac import (
     BadContent, Deliver, Disable, Duplicate, DuplicateId, ForeignRing, Join, MacConfig, Message,
-    Miss, ModeChange, NumberBehind, Outcome, Refused, SubmitError, Transmit,
+    Miss, ModeChange, NumberBehind, Outcome, Refused, RotationalMac, SubmitError, Transmit,
     TxEnable,
 )
+from firmware_model.radio.station_mac import StationMac
 from firmware_model.radio.deframer import FrameFailed
 from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to_ticks
@@ -110,7 +111,8 @@ class World:
         """The configured load (hil/sim/load.py)."""
         self.byte_ticks = {r: (PC_BYTE_TICKS if r == 0 else CHILD_BYTE_TICKS)
                            for r in config.robots}
-        skew = {f.robot: f.value for f in config.faults if f.kind == "skew"}
+        skew = {f.robot: f.value for f in config.faults        # (a skew names both: faults.py)
+                if f.kind == "skew" and f.robot is not None and f.value is not None}
         for r, eps in skew.items():
             self.byte_ticks[r] = round(self.byte_ticks[r] * (1 + eps))
         for r in sorted(config.robots):
@@ -155,8 +157,9 @@ class World:
         self._extra_radio: dict[int, int] = {}
         for k, (r, t, team) in enumerate(config.extra, 1):
             bt = PC_BYTE_TICKS if r == 0 else CHILD_BYTE_TICKS
-            cfg = replace(base, byte_ticks=bt, seed=base.seed + k,
-                          **({"team": frozenset(team)} if team is not None else {}))
+            cfg = replace(base, byte_ticks=bt, seed=base.seed + k)
+            if team is not None:
+                cfg = replace(cfg, team=frozenset(team))
             st, radio = build_station(r, self.sched, byte_ticks=bt, config=cfg,
                                       observer=self._observe)
             st.report_io = trace is not None or on_event is not None
@@ -237,6 +240,7 @@ class World:
             and all(n.state != STATE_MOVING or n.cruising for n in nodes.values()))
         quiet.drifting = lambda: any(n.cruising for n in nodes.values())
         app = st.app
+        assert app is not None                 # (the child firmware's: set when it was built)
 
         def app_awake(d, now: int) -> None:
             quiet.touched()
@@ -276,7 +280,7 @@ class World:
 
     def capture_interfaces(self) -> tuple[dict[object, str], dict[int, str]]:
         """(radio key -> interface name, CAN bus -> interface name) for a capture."""
-        radios = {key: ("PC2 (standby father)" if key == STANDBY else
+        radios: dict[object, str] = {key: ("PC2 (standby father)" if key == STANDBY else
                         "father 0" if key == 0 else f"R{key}") + " radio"
                   for key in self.radios}
         radios["foreign"] = "foreign transmitters"
@@ -305,6 +309,7 @@ class World:
         lat = child.latency_from if child is not None else None
         if lat is not None and (frame.id, bytes(frame.data)) == lat[1:]:
             # an order's first CAN frame on the bus: the dispatcher's latency
+            assert child is not None               # (lat is its latency_from)
             cause, child.latency_from = lat[0], None
             self.dispatch_latency.append((r, cause, start))
             self._emit({"ev": "dispatch", "robot": r, "end": cause, "sof": start,
@@ -370,6 +375,7 @@ class World:
         over, shifted: hil/sim/quiet_ring.py) to the trace and the event callback, or with
         ``sink`` "pcap" a packet to the capture (``ev``: ``PcapWriter.radio``'s arguments)."""
         if sink == "pcap":
+            assert self.pcap is not None           # (a packet is replayed only to a capture)
             self.pcap.radio(**ev)
             return
         if self.trace is not None:
@@ -389,7 +395,7 @@ class World:
         self._emit({"ev": "power", "robot": self.extra_stations[EXTRA + k].id, "extra": k})
         self.extra_stations[EXTRA + k].power_on()
 
-    def _observe_extra(self, st: RadioStation, k: int, a: object) -> None:
+    def _observe_extra(self, st: RadioStation, k: int, a: Any) -> None:
         """An event of an ``extra`` robot: traced with ``"extra": k``, counted nowhere (the
         run's statistics are the ring's)."""
         t = type(a)
@@ -424,6 +430,7 @@ class World:
     def _power_on_standby(self) -> None:
         self.air.revive(self.radios[STANDBY], self.sched.now)
         self._emit({"ev": "power", "robot": 0, "pc": 2})
+        assert self.standby_station is not None   # (scheduled only when there is one)
         self.standby_station.power_on()
 
     def _fault(self, f: Fault) -> None:
@@ -439,29 +446,32 @@ class World:
 
     def _fault_act(self, f: Fault, phase: str) -> None:
         k = f.kind
-        q = self.quiet.get(f.robot)
+        q = self.quiet.get(f.robot) if f.robot is not None else None
         if q is not None:
             q.wake()
             q.touched()
         if k in AIR_KINDS:
             apply_air_fault(self.air, self.radios.__getitem__, f, phase, self.cfg.ber,
                             self.cfg.noise)
-        elif k == "steal":
-            self.stations[f.robot].force_turn()
+            return
+        r = f.robot
+        assert r is not None               # every other kind names a robot (hil/sim/faults.py)
+        if k == "steal":
+            self.stations[r].force_turn()
         elif k == "busoff":
-            child = self.children[f.robot]
-            self.can_buses[f.robot].inject_bit_error(child.can.xcvr, count=32)
+            child = self.children[r]
+            self.can_buses[r].inject_bit_error(child.can.xcvr, count=32)
         elif k == "stuck":
-            self.children[f.robot].can.xcvr.stick_txd(phase == "start")
+            self.children[r].can.xcvr.stick_txd(phase == "start")
         elif k == "silent":
-            self.submodules[f.robot][f.node].silent(phase == "start")
+            self.submodules[r][f.node].silent(phase == "start")
         elif k == "stall":
-            node = self.submodules[f.robot][f.node]
+            node = self.submodules[r][f.node]
             node.stall() if phase == "start" else node.clear_fault()
         elif k == "noisy":
-            target = self.children[f.robot].can.xcvr if f.node == "MCU" else \
-                self.submodules[f.robot][f.node]
-            self.can_buses[f.robot].disturb(target, phase == "start")
+            target = self.children[r].can.xcvr if f.node == "MCU" else \
+                self.submodules[r][f.node]
+            self.can_buses[r].disturb(target, phase == "start")
 
     def inject(self, kind: str, robot: int | None, at_tick: int, until_tick: int | None = None,
                value: float | None = None, node: str | None = None) -> None:
@@ -502,7 +512,7 @@ class World:
                         "bytes": (tx.end - tx.t0) // tx.bt, "collided": tx.collided})
             return
         d = tx.data
-        ev = {"ev": "frame", "src": r}
+        ev: dict[str, Any] = {"ev": "frame", "src": r}
         try:
             ev.update(dst=d[3] - 48, num=int(d[5:7]), type=d[7] - 48, len=int(d[8:12]))
             ev["kind"] = frame_kind(ev["type"], d[12:12 + ev["len"]])
@@ -532,9 +542,12 @@ class World:
         it as it was (hil/sim/quiet_ring.py)."""
         return (self.observed, self.air.collisions, self.air.bursts)
 
-    def _observe(self, st: RadioStation, a: object, now: int) -> None:
+    def _observe(self, st: RadioStation, a: Any, now: int) -> None:
+        """``a``: any action of a MAC (firmware_model/radio/mac_events.py), told apart by its
+        exact type in a chain of ``is``: the simulator's hot path, so ``a`` is typed Any
+        rather than narrowed branch by branch."""
         r = st.id
-        emit = self._emit
+        emit: Callable[[dict], None] = self._emit
         if self._extra_of:
             k = self._extra_of.get(id(st))
             if k is not None:
@@ -547,7 +560,7 @@ class World:
                 self._emit({"ev": "mode", "robot": 0, "pc": 2, "mode": a.mode,
                             "reason": a.reason})
                 return
-            emit = self._emit_pc2      # both PCs are ID 0: the tag tells them apart
+            emit = self._emit_pc2  # both PCs are ID 0: the tag tells them apart
         t = type(a)
         if t is Transmit:
             return
@@ -645,7 +658,7 @@ class World:
         """The station that speaks for ``robot`` now (for the father: its active PC)."""
         st = self.stations[robot]
         sb = self.standby_station
-        if robot == 0 and sb is not None and st.mac.standby and not sb.mac.standby:
+        if robot == 0 and sb is not None and _paired(st).standby and not _paired(sb).standby:
             return sb
         return st
 
@@ -673,9 +686,10 @@ class World:
         alive = self.alive()
         for r in alive:
             if r == 0 and self.standby_station is not None:
-                pcs = ((self.stations[0].mac, self.radios[0]),
-                       (self.standby_station.mac, self.radios[STANDBY]))
-                macs = [m for m, radio in pcs if radio.alive and not m.standby]
+                pcs = ((_paired(self.stations[0]), self.radios[0]),
+                       (_paired(self.standby_station), self.radios[STANDBY]))
+                macs: list[StationMac] = [m for m, radio in pcs
+                                          if radio.alive and not m.standby]
                 if len(macs) != 1:
                     return False
             else:
@@ -692,3 +706,9 @@ class World:
         """The figures of the paper's simulator (Fig. 9) and the delivery accounting
         (hil/sim/ledger.py)."""
         return summary(self)
+
+
+def _paired(st: RadioStation) -> RotationalMac:
+    """The MAC of a station of a ring with the father's PC pair: the rotational MAC
+    (hil/sim/config.py refuses a standby PC with the peer MACs)."""
+    return cast(RotationalMac, st.mac)
