@@ -54,9 +54,14 @@ of the whole radio side:
   classes, plain values and containers, bytearrays and random generators) never leads to a
   leap.
 
-A snapshot that finds no repetition backs off (1, 2, 4 ... 64 probes), and a busy ring takes
-none at all (something is reported every period), so a ring that does not repeat itself pays
-little for the probes. tests/test_quiet_ring.py compares runs with and without leaps, whole
+A snapshot that finds no repetition backs off (1, 2, 4 ... 64 probes), and so does one whose
+period leaves no leap of :data:`MIN_LEAP_TICKS` before the next event it does not move (a
+loaded ring's next message: the snapshots would cost more than the stretch run frame by
+frame); a busy ring takes none at all (something is reported every period). A snapshot leaves
+the run's records out (``World.records``: the accounting, which only what the MACs report
+grows, and that stops the probes first), so its cost is the ring's state, not the run's
+length. A ring that does not repeat itself pays little for the probes.
+tests/test_quiet_ring.py compares runs with and without leaps, whole
 world and summary, on seeded rings with faults, power-on times, the standby father, CAN sides
 and stops between, and on random rings.
 """
@@ -107,6 +112,10 @@ machine clock / 2 (firmware_model/mcu/reload_timer.py), so a deadline's rounding
 the tick's parity."""
 
 _BACKOFF_MAX = 64
+MIN_LEAP_TICKS = 2 * 16_000_000
+"""A leap shorter than this (2 s) is not taken (ticks): the snapshots that found the period cost
+more than running that stretch frame by frame (a 2-robot ring runs a simulated second in
+about 3 ms; a snapshot of it takes about 5 ms, more as the run's records grow)."""
 _ALONE_HISTORY = 4 * 7 * 3
 """Frames of a deaf station a snapshot is compared back over: its cycle is ``poll_every`` (4)
 times the rounds of the ring it believes in (up to 7 turns each), and its polling position."""
@@ -189,6 +198,14 @@ class QuietRing:
         the event callback and the capture, which get what the cycles leapt over wrote)?"""
         return self.world.hooks() != self._own_hooks
 
+    def _back_off(self) -> None:
+        """A snapshot that led to no leap: after the n-th in a row, the next 2^(n-1) - 1 probes
+        (at most 63) take none."""
+        self._misses += 1
+        self._skip = min(1 << (self._misses - 1), _BACKOFF_MAX) - 1
+        if self._skip:
+            self._last = None
+
     def _probe(self) -> None:
         now = self.world.sched.now
         recorded, rec_from = self._rec, self._rec_from
@@ -222,7 +239,8 @@ class QuietRing:
             sinks = [x for x in (self.world.trace, self.world.pcap) if x is not None]
             walls = [part for st in deaf for part in _own_parts(st)]
             snap = snapshot([self.world, events],
-                            [sched, self, *sinks, *self.boundary, *walls], rng_state=True)
+                            [sched, self, *sinks, *self.boundary, *walls,
+                             *self.world.records()], rng_state=True)
         except Unwalkable:                     # an iterator somewhere: its state is hidden
             self.enabled = False
             return
@@ -239,12 +257,8 @@ class QuietRing:
         steps = period_steps(last, snap, period, self.counters, self.modular) \
             if period > 0 and period % GRAIN == 0 else None
         if steps is None:
-            self._misses += 1
-            self._skip = min(1 << (self._misses - 1), _BACKOFF_MAX) - 1
-            if self._skip:
-                self._last = None
+            self._back_off()
             return
-        self._misses = 0
         moved = writable(snap, steps)
         stepped = {id(h) for h, key, _ in moved if key == "when" and type(h) is Event}
         horizon = min([e.when for e in events if id(e) not in stepped] + [self.until + 1])
@@ -252,8 +266,12 @@ class QuietRing:
         # every moved event stays before the horizon: strictly, so that one due at the
         # horizon's tick keeps its place among that tick's events
         k = (horizon - 1 - reach) // period
-        if k < 1:
+        if k * period < MIN_LEAP_TICKS:
+            # periodic, but the next event it does not move is too near for a leap to pay
+            # for the snapshots (a loaded ring's next message): backed off as a miss
+            self._back_off()
             return
+        self._misses = 0
         w = self.world
         traced = w.trace is not None or w.on_event is not None or w.pcap is not None
         if traced and (carried or not (rec_from == at and before[0] == at - period and

@@ -489,9 +489,20 @@ class World:
 
     def activity(self) -> tuple[int, ...]:
         """Changes whenever a MAC reports something (any action but its own I/O), two
-        transmissions collide or bytes are injected: a ring that only repeats itself leaves
-        it as it was (hil/sim/quiet_ring.py)."""
-        return (self.observed, self.air.collisions, self.air.bursts)
+        transmissions collide, bytes are injected or a run record grows (:meth:`records`): a
+        ring that only repeats itself leaves it as it was (hil/sim/quiet_ring.py)."""
+        led = self.ledger
+        return (self.observed, self.air.collisions, self.air.bursts, len(led.messages),
+                len(led.outcomes), len(led.membership), len(self.dispatch_latency))
+
+    def records(self) -> list[object]:
+        """The run's records: the accounting (hil/sim/ledger.py) and the dispatcher latencies.
+        They only grow, what the MACs report grows them (:meth:`activity` changes then), and no
+        part of the model reads them to act: a snapshot of the ring leaves them out, so its
+        cost stays that of the ring's state, however long the run."""
+        led = self.ledger
+        return [led, led.messages, led.outcomes, led.deliveries, led.membership, led.identity,
+                self.dispatch_latency]
 
     def _observe(self, st: RadioStation, a: Any, now: int) -> None:
         """``a``: any action of a MAC (firmware_model/radio/mac_events.py), told apart by its
