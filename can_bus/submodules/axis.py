@@ -93,10 +93,7 @@ class _AxisNode(_Submodule):
             self._arrived()
             return
         d = 1 if target > p else -1
-        stop, blocked = target, False
-        ob = self._obstacle
-        if ob is not None and (p <= ob < target if d > 0 else target < ob <= p):
-            stop, blocked = ob, True
+        stop, blocked = self._stop_from(p, target, d)
         if stop == p:
             self._no_progress()
             return
@@ -106,6 +103,14 @@ class _AxisNode(_Submodule):
         self._dir, self._num, self._den, self._t0, self._stop = d, num, den, now, stop
         self._arrive_tick = now + -(-abs(stop - p) * den // num)
         self._arrive_ev = self.sched.at(self._arrive_tick, self._on_reach, blocked)
+
+    def _stop_from(self, p: int, target: int, d: int) -> tuple[int, bool]:
+        """Where a motion from ``p`` toward ``target`` (direction ``d``) stops, and whether
+        the obstacle stops it there (positions in the axis's units)."""
+        ob = self._obstacle
+        if ob is not None and (p <= ob < target if d > 0 else target < ob <= p):
+            return ob, True
+        return target, False
 
     def _on_reach(self, blocked: bool) -> None:
         self._arrive_ev = None
@@ -146,10 +151,7 @@ class _AxisNode(_Submodule):
             self._freeze()
             self._plan()
             return
-        stop, blocked = target, False
-        ob = self._obstacle
-        if ob is not None and (p <= ob < target if d > 0 else target < ob <= p):
-            stop, blocked = ob, True
+        stop, blocked = self._stop_from(p, target, d)
         if stop == p:
             self._freeze()
             self._no_progress()
