@@ -59,3 +59,30 @@ def ring_is(sniffer, robots) -> bool:
 def heard(sniffer, robot, since=0.0) -> int:
     t0 = since * 16_000_000
     return sum(1 for f in sniffer.snapshot() if f.src == robot and f.start >= t0)
+
+
+HOST_LATE_MS = 20.0
+"""How late (ms) a bench process may run, by its own measure, before a wall-clock run counts
+as disturbed: the real-time set's quiet gap, a quarter of its Tslot. The margins that R-stagger
+leaves robot 6 (docs/protocol.md §7.6: 85.8 ms for the two pty hops and the timers) absorb one
+such delay, not several in a row."""
+
+ATTEMPTS = 3
+"""Runs of a wall-clock scenario in all when a run fails and was disturbed (``disturbed``)."""
+
+
+def disturbed(events, hub_lates=(), probe=None) -> list[str]:
+    """Why a run on the hub did not get the CPU its margins assume, in words (empty: it did):
+    every ``stall`` (a process that did not run for more than Tslot) and ``late`` (a timer run
+    more than 20 ms late) event of the children's ``--events`` lines ``events`` (one list of
+    dicts per child), the hub's own timers run late (``RealTimeScheduler.lates``: (due tick,
+    ticks late)), and the host's worst wake-up (``hostload.SchedulingLatency``) past
+    ``HOST_LATE_MS``. A failed check of a run with none of these is the product's."""
+    why = [f"robot {e['robot']}: {e['ev']} {e['late'] / 16_000:.1f} ms"
+           for ls in events for e in ls if e.get("ev") in ("stall", "late")]
+    why += [f"the hub: a timer {late / 16_000:.1f} ms late" for _, late in hub_lates]
+    if probe is not None:
+        lat = probe.stop()
+        if lat.max_ms > HOST_LATE_MS:
+            why.append(str(lat))
+    return why

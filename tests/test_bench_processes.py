@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import re
 import os
+import pprint
 import statistics
 import subprocess
 import signal
@@ -20,7 +21,7 @@ from firmware_model.mcu.ptr2000 import NEVER
 from hil.bench import scripts as bench
 from hil.bench.radio_hub import RadioHub
 from hostload import SchedulingLatency
-from processes import heard, ring_is, spawn, stop, wait_for
+from processes import ATTEMPTS, disturbed, heard, ring_is, spawn, stop, wait_for
 
 TEAM = "1,2,3,4"
 """(Tests marked ``timing`` judge hand-overs, gaps and turn order to a few ms: with two
@@ -588,22 +589,27 @@ class _BreakingHub(RadioHub):
         self.sched.at(at, self.air.burst, 0.004)
 
 
-@pytest.mark.timing
-def test_a_healthy_robot_6_keeps_its_turn_after_bursts_on_the_hub():
-    """Issue 40 at the bench: children 1, 2 and 6 on the hub; once the ring has formed, 4 ms
-    bursts break 12 frames, at least 0.73 s apart, robot 1's, 2's and 6's in turn. A burst that
-    breaks a frame closes its turn uncertainly, and the next owner waits id x Tslot
-    (R-stagger): after robot 2's broken frame robot 6 waits 6 Tslot. With the real-time Tslot
-    of 100 ms its Header began after the others' closure + Tmax: they counted it missing (9-11
-    times in 28 s) and took the turn at closure + Tmax + Ttrans. Judged on the hub's own air
-    clock: once the bursts begin, no silence on the air lasts Tmax (600 ms; robot 6's stagger
-    now leaves one of about 510 ms: 20 ms quiet gap + 6 x 80 ms + Ttrans + the processes'
-    latency), robot 6 did take turns after its stagger, and nobody is dropped."""
+def _silences(packets, since):
+    """Each silence on the air from ``since`` on, as (ms, whose packet it follows, whose it
+    ends): from the latest end of any packet before (a frame the burst broke goes on after the
+    burst) to the next packet's start."""
+    out, last_end, last_key = [], None, None
+    for key, start, end, _ in sorted(packets, key=lambda p: p[1]):
+        if last_end is not None and start >= since and start > last_end:
+            out.append(((start - last_end) / 16_000, last_key, key))
+        if last_end is None or end > last_end:
+            last_end, last_key = end, key
+    return out
+
+
+def _robot_6_after_bursts():
+    """One run of the scenario below: what the hub's air and the children said."""
     tb = 16_000_000
     hub = _BreakingHub(nodes=3, seed=1, count=12, every=tb * 73 // 100, order=(0, 1, 2))
     air = _Air(hub)
     hub.capture(air)
     hub.start()
+    probe = SchedulingLatency().__enter__()
     logs, lines = _children_on_hub(hub, (1, 2, 6), "1,2,6")
     try:
         assert wait_for(lambda: _ring_of_three_formed(air), 40.0), "the ring 1, 2, 6 did not form"
@@ -615,22 +621,55 @@ def test_a_healthy_robot_6_keeps_its_turn_after_bursts_on_the_hub():
         alive = [p.poll() is None for p in logs]
     finally:
         errs = stop(logs)
+        probe.stop()
+        hub_lates = list(hub.sched.lates) if hub.sched is not None else []
         hub.stop()
         hub.close()
     assert alive == [True] * 3, errs
+    events = [[e for _, e in ls] for ls in lines]
+    why = disturbed(events, hub_lates, probe)
     names = {0: 1, 1: 2, 2: 6, "foreign": "burst"}
-    packets = sorted(air.packets, key=lambda p: p[1])
+    packets = list(air.packets)
     assert len([p for p in packets if p[0] == "foreign"]) == hub.count
-    after = [p for p in packets if p[2] >= hub.first]
-    hits = {names[p[0]] for p in after if p[0] != "foreign" and p[3]}
-    assert hits == {1, 2, 6}                           # the bursts broke every robot's frames
-    gaps = [((b[1] - a[2]) / 16_000, names[a[0]], names[b[0]])
-            for a, b in zip(after, after[1:])]
-    long = [g for g in gaps if g[0] >= 600.0]
-    assert long == [], (long, [[e for _, e in ls if e["ev"] == "miss"] for ls in lines])
-    staggered = [g for g in gaps if g[2] == 6 and g[0] > 5 * 80]
-    assert staggered, sorted(gaps)[-5:]                # robot 6 did wait out its 6 Tslot
-    assert [e for ls in lines for _, e in ls if e["ev"] == "disable"] == []
+    hits = {names[p[0]] for p in packets
+            if p[2] >= hub.first and p[0] != "foreign" and p[3]}
+    gaps = [(ms, names[a], names[b]) for ms, a, b in _silences(packets, hub.first)]
+    checks = {
+        "the bursts broke frames of robots 1, 2 and 6": hits == {1, 2, 6},
+        "no silence of Tmax on the air": not [g for g in gaps if g[0] >= 600.0],
+        "robot 6 waited out its 6 Tslot": any(g[2] == 6 and g[0] > 5 * 80 for g in gaps),
+        "nobody dropped": not [e for ls in events for e in ls if e["ev"] == "disable"],
+    }
+    report = dict(longest=sorted(gaps)[-5:], disturbed=why,
+                  events=[[e for e in ls if e["ev"] not in ("tx",)] for ls in events])
+    return [name for name, ok in checks.items() if not ok], why, report
+
+
+@pytest.mark.timing
+def test_a_healthy_robot_6_keeps_its_turn_after_bursts_on_the_hub():
+    """Issue 40 at the bench: children 1, 2 and 6 on the hub; once the ring has formed, 4 ms
+    bursts break 12 frames, at least 0.73 s apart, robot 1's, 2's and 6's in turn. A burst that
+    breaks a frame closes its turn uncertainly, and the next owner waits id x Tslot
+    (R-stagger): after robot 2's broken frame robot 6 waits 6 Tslot. With the real-time Tslot
+    of 100 ms its Header began after the others' closure + Tmax: they counted it missing (9-11
+    times in 28 s) and took the turn at closure + Tmax + Ttrans. Judged on the hub's own air
+    clock: once the bursts begin, no silence on the air lasts Tmax (600 ms; robot 6's stagger
+    now leaves one of about 513 ms after robot 2's frame: 20 ms quiet gap + 6 x 80 ms + Ttrans
+    + the processes' latency), robot 6 did take turns after its stagger, and nobody is dropped.
+
+    The margin left, 86 ms, is for two pty hops and the processes' timers: a run in which a
+    process or the host was more than 20 ms late (``processes.disturbed``) and a check failed
+    is run again, up to three times in all; a failed check in an undisturbed run fails at
+    once."""
+    runs = []
+    for _ in range(ATTEMPTS):
+        failed, why, report = _robot_6_after_bursts()
+        if not failed:
+            return
+        runs.append((failed, report))
+        if not why:
+            break
+    pytest.fail("; ".join(runs[-1][0]) + ":\n" + pprint.pformat(runs, width=100))
 
 
 CUT_OFF = bytes.fromhex("0f0a05373230303330353632")

@@ -63,6 +63,42 @@ def test_a_late_wake_within_the_threshold_is_no_stall():
     assert calls == []
 
 
+def test_a_timer_run_more_than_20_ms_late_is_noted_and_told_short_of_a_stall():
+    """Lateness the margins absorb but a bench run must know of (``lates``, ``watch_late``):
+    a timer held 150 ms by a blocked handler is noted with its due tick; one 1 ms late is not;
+    with a stall watch, the events a stall made overdue are the stall's, not noted again."""
+    s = RealTimeScheduler()
+    told: list[tuple[int, int]] = []
+    s.watch_late(lambda late, due: told.append((due, late)))
+    s.at(10 * MS, lambda: time.sleep(0.15))
+    s.at(20 * MS, lambda: None)
+    s.at(400 * MS, lambda: None)
+    s.run_for(0.5)
+    assert [due for due, _ in told] == [20 * MS], told
+    assert 130 * MS < told[0][1] < 400 * MS and list(s.lates) == told
+
+    stalled = RealTimeScheduler()
+    noted: list[int] = []
+    stalled.watch_stalls(100 * MS, lambda late, now: None)
+    stalled.watch_late(lambda late, due: noted.append(due))
+    stalled.at(10 * MS, lambda: time.sleep(0.3))
+    stalled.at(20 * MS, lambda: None)
+    stalled.run_for(0.5)
+    assert stalled.stalls and noted == [] and not stalled.lates
+
+
+def test_a_bench_child_tells_a_late_timer_as_an_event():
+    """``rprs child --events`` writes ``{"ev": "late", "robot": 3, "late": ticks}`` for a
+    timer run late short of a stall (docs/bench.md, "Stalls and restarts")."""
+    import io
+    import json
+    from hil.bench.runner import Late, _events_printer
+    out = io.StringIO()
+    observe = _events_printer(out, 3)
+    observe(None, Late(25 * MS), 1234)
+    assert json.loads(out.getvalue()) == {"t": 1234, "ev": "late", "robot": 3, "late": 25 * MS}
+
+
 def test_on_start_runs_before_anything_posted_earlier():
     s = RealTimeScheduler()
     order: list[str] = []

@@ -19,7 +19,7 @@ import sys
 import threading
 import time
 from dataclasses import replace
-from typing import Any, Callable, TextIO
+from typing import Any, Callable, NamedTuple, TextIO
 
 from can_bus.bridge import CanOpenError, PythonCanBus, open_bus, parse_spec
 from can_bus.submodules import make_submodules
@@ -140,6 +140,8 @@ def _events_printer(out: TextIO | None, robot: int,
                   "type": a.type, "len": len(a.content)})
         elif isinstance(a, Stalled):
             emit({"t": now, "ev": "stall", "robot": robot, "late": a.late})
+        elif isinstance(a, Late):
+            emit({"t": now, "ev": "late", "robot": robot, "late": a.late})
         elif isinstance(a, (DuplicateId, ForeignRing)):
             line = identity_line(robot, a)
             try:
@@ -159,6 +161,13 @@ def _events_printer(out: TextIO | None, robot: int,
             emit({"t": now, "ev": "behind", "src": a.src, "num": a.num, "last": a.last,
                   "to": robot, "refused": a.refused})
     return observe
+
+
+class Late(NamedTuple):
+    """A timer of the station ran ``late`` ticks after its tick (more than the scheduler's
+    ``late_ticks``, 20 ms, though less than a stall): the process waited that long for a core.
+    Told to the observer at the tick the timer was due (event ``late``)."""
+    late: int
 
 
 STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
@@ -281,6 +290,7 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
                     f"(more than the margins allow); what it heard meanwhile is dropped and "
                     f"it listens for the ring again before it transmits")
     runner.sched.watch_stalls(stall_threshold(config), stalled)
+    runner.sched.watch_late(lambda late, due: observer(station, Late(late), due))
     runner.on_close(channel.close)
     runner.on_close(lambda: station.txen.set(False, runner.sched.now))
     return station, channel

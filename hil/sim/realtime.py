@@ -24,6 +24,7 @@ of all when running starts, at tick 0, before anything posted.
 """
 from __future__ import annotations
 
+import collections
 import heapq
 import queue
 import threading
@@ -46,13 +47,20 @@ LATE_WAKE_TICKS = TICK_HZ // 1000
 the reader threads get ``READERS_S`` to hand in what arrived meanwhile."""
 READERS_S = 0.001
 
+LATE_NOTE_TICKS = 20 * TICK_HZ // 1000
+"""A due event this late (20 ms: the real-time set's quiet gap, a quarter of its Tslot) is
+noted (``lates``): the bench's margins absorb it, but a few of them in a row leave a station's
+turn too little of its margin (docs/guarantees.md, "What the host must give")."""
+LATES_KEPT = 1024
+
 
 class RealTimeScheduler(Scheduler):
     """Runs events at their wall-clock tick; ``post`` is the thread-safe way in."""
 
     __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started", "epoch_ns",
                  "_at_start", "stall_ticks", "stalls", "_on_stall", "_beat", "_stalled",
-                 "_beater", "_beat_stop", "_settled", "_pending", "_seq")
+                 "_beater", "_beat_stop", "_settled", "_pending", "_seq", "late_ticks", "lates",
+                 "_on_late")
 
     def __init__(self) -> None:
         super().__init__(0)
@@ -78,6 +86,13 @@ class RealTimeScheduler(Scheduler):
         self._settled = 0               # the tick the last stall was handled at
         self._pending: list = []        # posts taken in: (arrival, seq, posted, fn, args)
         self._seq = 0
+        self.late_ticks = LATE_NOTE_TICKS
+        """A due event that runs more than this late (ticks), though not a stall, is noted in
+        ``lates`` and told to ``watch_late``'s functions."""
+        self.lates: collections.deque[tuple[int, int]] = collections.deque(maxlen=LATES_KEPT)
+        """(tick the event was due at, how late it ran) for the latest events run more than
+        ``late_ticks`` late: lateness the margins must absorb, short of a stall."""
+        self._on_late: list[Callable[[int, int], None]] = []
 
     def on_start(self, fn: Callable[[], None]) -> None:
         """Run ``fn()`` in the scheduler's thread when running starts, before anything posted
@@ -93,6 +108,11 @@ class RealTimeScheduler(Scheduler):
         have not run for more than ``ticks`` (the smallest threshold given is used)."""
         self.stall_ticks = ticks if self.stall_ticks is None else min(ticks, self.stall_ticks)
         self._on_stall.append(fn)
+
+    def watch_late(self, fn: Callable[[int, int], None]) -> None:
+        """Call ``fn(late, due)`` in the scheduler's thread whenever a due event runs more than
+        ``late_ticks`` late (and the lateness is no stall: those go to ``watch_stalls``)."""
+        self._on_late.append(fn)
 
     def _heartbeat(self) -> None:
         """Beats every quarter of the threshold; a beat that came more than the threshold
@@ -262,6 +282,10 @@ class RealTimeScheduler(Scheduler):
                     self.max_late = late
                 if late > TICK_HZ // 1000:
                     self.late_events += 1
+                    if late > self.late_ticks and when >= self._settled:
+                        self.lates.append((when, late))
+                        for fn in self._on_late:
+                            fn(late, when)
                 ev.fn(*ev.args)
             if self._stop.is_set():
                 break
