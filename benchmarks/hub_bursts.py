@@ -9,7 +9,7 @@ are healthy).
     python benchmarks/hub_bursts.py --over-end [--bursts 20]
         each burst aimed: 6 ms from 1.3 ms before a robot's frame ends on the hub's air to
         62.5 us before that robot's Ttrans is over, at least 0.4 s apart, once the ring has
-        formed (tests/test_bench_processes.py does the same)
+        formed (tests/hil/bench/test_bench_processes.py does the same)
 
 Prints the misses counted after the ring formed (robot, counted by), the drops and the hub's
 collisions. About 15-25 s of wall time a run. ``--record DIR`` keeps what explains a miss: the

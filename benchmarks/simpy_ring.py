@@ -10,8 +10,8 @@ robots take turns in ID order; the next one raises TXEN at its predecessor's End
 (5 ms, 80 000 ticks) and sends an empty heartbeat (Type 3 to 7, 14 bytes); the father's byte
 is 16 667 ticks, a child's 16 640 (16 MHz ticks, docs/protocol.md §1). It has none of the
 MAC's timers or misses: with no fault in the ring, the real MAC's frames are these (once
-rprs sim's ring has formed: tests/test_speed_targets.py checks the two cycles to the tick).
-Needs ``simpy`` (``pip install -e '.[bench]'``).
+rprs sim's ring has formed: tests/benchmarks/test_speed_targets.py checks the two cycles to the
+tick). Needs ``simpy`` (``pip install -e '.[bench]'``).
 """
 from __future__ import annotations
 

@@ -131,7 +131,7 @@ def _check_ohms(rs_ohms: int) -> int:
 class TransceiverBus(Protocol):
     """What an 82C250 needs of the bus it sits on, in one place: the simulated
     :class:`~can_bus.bus.CanBus` and the python-can bridge (:mod:`can_bus.bridge`) both give
-    it (tests/test_transceiver.py holds both to this list, and this list to the source).
+    it (tests/can_bus/test_transceiver.py holds both to this list, and this list to the source).
 
     Optional, looked up with ``getattr``: ``start_recovery(node)`` (a bus-off node counts
     its recovery on request), ``set_loop_delay(node, s)``, ``ack_budget_s`` and ``length_m``

@@ -19,8 +19,8 @@ one byte changed, or truncated), so the fuzzer reaches deep frame states quickly
    frames (``error.offset`` bytes) + bytes still buffered == bytes fed.
 
 The properties live in :func:`check_deframer` (plain arguments) and the decoder in
-:func:`draw_plan` (any "source" with int/bool/pick/bytes/more), so tests/test_fuzz.py runs the
-same checks under hypothesis without atheris.
+:func:`draw_plan` (any "source" with int/bool/pick/bytes/more), so
+tests/firmware_model/radio/test_fuzz.py runs the same checks under hypothesis without atheris.
 """
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ fast paths, the second cut into 0-3 ``World.run`` segments that wake the CAN sid
 compares the summaries and the whole state (every part, every pending event, the random
 generators). A difference prints the world and makes the exit status 1. Two inexact sleeps were
 found this way (a message noted between a probe's two snapshots, a cruising wheel whose
-odometer did not change for three periods); tests/test_quiet_can.py keeps both as named
+odometer did not change for three periods); tests/hil/sim/test_quiet_can.py keeps both as named
 scenarios and runs a few seeds of this hunt.
 """
 from __future__ import annotations

@@ -4,8 +4,8 @@
     python scripts/trace_digest.py --write    # record them (tests/data/trace_digests.txt)
 
 A change meant to leave behaviour alone must leave every digest unchanged
-(tests/test_trace_digests.py checks it); record them again only for a change of behaviour that
-is meant, and say why in the commit.
+(tests/hil/sim/test_trace_digests.py checks it); record them again only for a change of behaviour
+that is meant, and say why in the commit.
 """
 from __future__ import annotations
 

@@ -24,14 +24,22 @@ REALTIME_MODULES = frozenset({
 processes, the timers of a live UI."""
 
 REALTIME_TESTS = frozenset({
-    "tests/test_auth.py::test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub",
-    "tests/test_auth.py::test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_on_the_hub",
-    "tests/test_auth.py::test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart",
-    "tests/test_auth.py::test_conformance_checks_an_authenticated_childs_frames_and_refusals",
-    "tests/test_action_sequence.py::test_in_real_time",
-    "tests/test_readme_commands.py::test_the_readme_monitor_command_runs_in_a_terminal",
-    "tests/test_identity.py::test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going",
-    "tests/test_identity.py::test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring",
+    f"tests/{path}::{name}" for path, name in (
+        ("firmware_model/radio/test_auth.py",
+         "test_forged_and_replayed_frames_are_refused_by_every_process_on_the_hub"),
+        ("firmware_model/radio/test_auth.py",
+         "test_a_replayed_order_whose_number_went_backwards_is_reported_by_processes_on_the_hub"),
+        ("firmware_model/radio/test_auth.py",
+         "test_without_the_profile_processes_count_out_of_turn_and_own_id_frames_apart"),
+        ("firmware_model/radio/test_auth.py",
+         "test_conformance_checks_an_authenticated_childs_frames_and_refusals"),
+        ("hil/sim/test_action_sequence.py", "test_in_real_time"),
+        ("docs/test_readme_commands.py", "test_the_readme_monitor_command_runs_in_a_terminal"),
+        ("firmware_model/radio/test_identity.py",
+         "test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going"),
+        ("firmware_model/radio/test_identity.py",
+         "test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring"),
+    )
 })
 """Wall-clock tests in modules of the simulator's: processes on the hub, a real-time ring."""
 

@@ -6,6 +6,7 @@ statement counts, including ones inside functions; relative imports are resolved
 from __future__ import annotations
 
 import ast
+import os
 import sys
 from pathlib import Path
 
@@ -78,3 +79,59 @@ def test_no_product_module_is_over_700_lines():
     sizes = {str(p.relative_to(ROOT)): len(p.read_text(encoding="utf-8").splitlines())
              for pkg in ("firmware_model", "can_bus", "hil") for p in (ROOT / pkg).rglob("*.py")}
     assert {m: n for m, n in sizes.items() if n > MODULE_LINES} == {}
+
+
+TEST_ROOMS_BESIDE_PACKAGES = ("docs", "benchmarks", "acceptance", "data")
+"""Folders of ``tests/`` that mirror no package: the docs' checks, the benchmark scripts'
+tests, the acceptance tests (which run against the model or a flashed board) and test data."""
+
+PROJECT_WIDE_TESTS = {"test_layering.py", "test_tiers.py"}
+"""The tests about the project as a whole (its import rules, its test tiers), at the top of
+``tests/`` beside the helpers every folder shares (``processes.py``, ``paths.py``, ...)."""
+
+
+def test_the_tests_mirror_the_packages():
+    """A test module lives in the folder of the package it tests (``tests/firmware_model/radio/``
+    for ``firmware_model/radio/``), or in one of the rooms beside them; helpers shared by
+    tests stay at the top of ``tests/``, and no two test modules share a name (pytest imports
+    them by name)."""
+    tests = ROOT / "tests"
+    stray, names = [], {}
+    for p in tests.rglob("test_*.py"):
+        rel = p.relative_to(tests)
+        names.setdefault(p.name, []).append(rel.as_posix())
+        if len(rel.parts) == 1:
+            if p.name not in PROJECT_WIDE_TESTS:
+                stray.append(rel.as_posix())
+        elif rel.parts[0] not in TEST_ROOMS_BESIDE_PACKAGES and \
+                not (ROOT / rel.parent).is_dir():
+            stray.append(rel.as_posix())
+    assert stray == [], f"test modules outside a package's mirror or a room: {stray}"
+    assert {n: ps for n, ps in names.items() if len(ps) > 1} == {}
+    helpers = [p.relative_to(tests).as_posix() for p in tests.rglob("*.py")
+               if not p.name.startswith("test_") and p.name != "conftest.py"
+               and p.parent != tests and "acceptance" not in p.parts]
+    assert helpers == [], f"shared helpers belong at the top of tests/: {helpers}"
+
+
+def test_the_packages_tests_import_are_the_real_ones():
+    """tests/hil/, tests/can_bus/ and tests/firmware_model/ sit under tests/, which pytest puts
+    on sys.path; pyproject's ``pythonpath`` puts the checkout there too, so that the packages
+    imported are the real ones (with their ``__init__.py``), never those folders as namespace
+    packages. A fresh interpreter with tests/ first on its path shows it."""
+    import subprocess
+
+    import can_bus
+    import firmware_model
+    import hil
+    assert str(ROOT) in sys.path
+    assert [m.__file__ for m in (can_bus, firmware_model, hil)] == \
+        [str(ROOT / p / "__init__.py") for p in ("can_bus", "firmware_model", "hil")]
+    code = ("import can_bus, firmware_model, hil; "
+            "print(can_bus.__file__, firmware_model.__file__, hil.__file__)")
+    env = {"PYTHONPATH": os.pathsep.join([str(ROOT / "tests"), str(ROOT)])}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         cwd=ROOT / "tests", timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == [str(ROOT / p / "__init__.py")
+                                  for p in ("can_bus", "firmware_model", "hil")], out.stdout

@@ -28,9 +28,10 @@ def _pytest(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
 
 
 # ---------------------------------------------------------------- tiers
-SLOW_FILES = ("tests/test_fault_matrix.py", "tests/test_lockstep_search.py",
-              "tests/test_soak.py", "tests/test_soak_against.py", "tests/test_fuzz.py",
-              "tests/test_instructions.py", "tests/test_conformance.py")
+SLOW_FILES = ("tests/hil/sim/test_fault_matrix.py", "tests/hil/sim/test_lockstep_search.py",
+              "tests/hil/sim/test_soak.py", "tests/hil/sim/test_soak_against.py",
+              "tests/firmware_model/radio/test_fuzz.py", "tests/benchmarks/test_instructions.py",
+              "tests/hil/bench/test_conformance.py")
 
 _TIER_DUMP = """
 import pytest
@@ -87,14 +88,14 @@ def test_vcan_tests_that_ran_in_the_vm_are_deselected_on_the_host_and_said_so():
     deselects the SocketCAN tests and says where they ran; without it they skip with their
     reason (on a host without vcan0)."""
     from can_bus.bridge import socketcan_missing
-    r = _pytest("-n", "0", "-q", "tests/test_socketcan_smoke.py",
+    r = _pytest("-n", "0", "-q", "tests/can_bus/test_socketcan_smoke.py",
                 env={"RPRS_VCAN_RAN_IN_VM": "1"})
     assert r.returncode == 5, r.stdout + r.stderr          # nothing left to run here
     assert "skipped" not in r.stdout and "deselected" in r.stdout, r.stdout
     assert "ran and passed inside the user-mode Linux VM" in r.stdout, r.stdout
     if socketcan_missing(os.environ.get("RPRS_VCAN_CHANNEL", "vcan0")) is None:
         return                                  # this host has vcan0: they would run here
-    r = _pytest("-n", "0", "-q", "-rs", "tests/test_socketcan_smoke.py")
+    r = _pytest("-n", "0", "-q", "-rs", "tests/can_bus/test_socketcan_smoke.py")
     assert r.returncode == 0, r.stdout + r.stderr
     assert "skipped" in r.stdout and "run scripts/vcan-vm.sh" in r.stdout, r.stdout
     assert "inside the user-mode Linux VM" not in r.stdout, r.stdout
@@ -109,7 +110,7 @@ def test_ci_installs_every_program_a_test_skips_without():
     """A test that skips when a program is missing (``shutil.which``) is skipped in CI too
     unless .ci/run installs that program: socat and GTKWave's vcd2fst were not."""
     wanted = set()
-    for f in (ROOT / "tests").glob("*.py"):
+    for f in (ROOT / "tests").rglob("*.py"):
         wanted |= set(re.findall(r'shutil\.which\("([^"]+)"\)', f.read_text(encoding="utf-8")))
     wanted -= CAN_UTILS
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
@@ -181,7 +182,8 @@ def test_a_failing_wall_clock_test_reports_the_host_latency_beside_its_failure(t
     for name in ("test_monitor.py", "test_frame.py"):       # wall clock / tick time
         (tmp_path / name).write_text("def test_fails():\n    assert 1 == 2\n\n"
                                      "def test_passes():\n    pass\n")
-    path = os.pathsep.join(filter(None, [str(ROOT / "tests"), os.environ.get("PYTHONPATH")]))
+    path = os.pathsep.join(filter(None, [str(ROOT), str(ROOT / "tests"),
+                                         os.environ.get("PYTHONPATH")]))
     r = subprocess.run([sys.executable, "-m", "pytest", "-p", "conftest", "-p", "no:randomly",
                         "-p", "no:cacheprovider", "-q", "-n", "0", "test_monitor.py",
                         "test_frame.py"], cwd=tmp_path, capture_output=True, text=True,
@@ -208,7 +210,7 @@ def test_every_test_that_starts_the_hub_runs_as_a_wall_clock_test():
     from conftest import is_realtime
     here = Path(__file__).resolve().parent
     stray = []
-    for path in sorted(here.glob("test_*.py")):
+    for path in sorted(here.rglob("test_*.py")):
         text = path.read_text()
         for node in ast.parse(text).body:
             if not (isinstance(node, ast.FunctionDef) and node.name.startswith("test_")):
@@ -216,8 +218,9 @@ def test_every_test_that_starts_the_hub_runs_as_a_wall_clock_test():
             src = ast.get_source_segment(text, node) or ""
             uses = any(k in src for k in HUB_OR_ROBOT_PROCESSES) or \
                 any(a.arg == "hub" for a in node.args.args)
-            if uses and not is_realtime(f"tests/{path.name}::{node.name}"):
-                stray.append(f"tests/{path.name}::{node.name}")
+            nodeid = f"tests/{path.relative_to(here).as_posix()}::{node.name}"
+            if uses and not is_realtime(nodeid):
+                stray.append(nodeid)
     assert stray == [], "start the pty radio hub but are not wall-clock tests: " \
         f"{stray} (add them to REALTIME_TESTS in tests/conftest.py)"
 

@@ -7,8 +7,8 @@ tick, or None). The MAC owns no clock and does no I/O: the child firmware, the f
 the tests drive it. Every time is an integer tick of the 16 MHz machine clock.
 
 The same machine as a table (state x event -> next state, with the rule each row follows) is
-``firmware_model/radio/mac_table.py``; tests/test_mac_table.py checks the two agree, and a
-deadline is dispatched per state through ``DEADLINE_HANDLERS``.
+``firmware_model/radio/mac_table.py``; tests/firmware_model/radio/test_mac_table.py checks the two
+agree, and a deadline is dispatched per state through ``DEADLINE_HANDLERS``.
 
 Rules, with the paper's part and this project's designed part (docs/mac.md gives the bounds):
 

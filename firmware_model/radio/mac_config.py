@@ -67,7 +67,7 @@ class MacConfig:
     tslot: int = 320_000
     """ID stagger (20 ms) for claims, lone pauses and rule R-stagger: at least twice (Ttrans +
     4 bytes), and small enough that robot 6's stagger, 6 x tslot + Ttrans + 4 bytes, ends
-    before Tmax (docs/protocol.md §7.6; tests/test_margin_bounds.py)."""
+    before Tmax (docs/protocol.md §7.6; tests/docs/test_margin_bounds.py)."""
     team: frozenset[int] = frozenset(range(7))
     """The robots that may ever join: only these are invited."""
     poll_every: int = 4

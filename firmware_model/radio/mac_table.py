@@ -1,8 +1,9 @@
 """The rotational MAC as a transition table: state x event -> next state, with the rule.
 
 ``RotationalMac`` (firmware_model/radio/mac.py) is the executable form; this table is the
-readable one, and the two are checked against each other: ``tests/test_mac_table.py`` records
-every transition the MAC makes in a set of simulated runs (faults, noise, failover, start-up)
+readable one, and the two are checked against each other:
+``tests/firmware_model/radio/test_mac_table.py`` records every transition the MAC makes in a set of
+simulated runs (faults, noise, failover, start-up)
 and in rare paths it drives on one MAC, and requires each to be a row here, and every row to
 be taken at least once. The state diagram in docs/mac.md is generated from this table
 (``python -m firmware_model.radio.mac_table`` prints it; the same test checks the docs hold

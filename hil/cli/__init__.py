@@ -3,7 +3,7 @@ theirs): ``sim``, ``demo``, ``encode``/``decode`` (codec), ``child``/``submodule
 (robots), ``radio-hub`` (hub), ``inject``, ``bench``, ``conformance``, ``plot``, ``monitor``,
 ``soak``. Option
 types and shared options live in ``common``; ``trace_digests`` holds seeded ``rprs sim`` runs
-whose traces must not change by accident (tests/test_trace_digests.py).
+whose traces must not change by accident (tests/hil/sim/test_trace_digests.py).
 
 A user mistake (bad option value, unreadable file, malformed input) prints one line starting
 ``rprs: error:`` and exits with status 2; it never shows a traceback. Ctrl-C ends a command

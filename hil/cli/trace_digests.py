@@ -3,7 +3,7 @@
 
 A change meant to leave behaviour alone (a restructuring, a speed-up: issue 14's "traces
 byte-identical for the same seeds") must leave every digest as it was.
-``tests/test_trace_digests.py`` compares them with the ones recorded in
+``tests/hil/sim/test_trace_digests.py`` compares them with the ones recorded in
 ``tests/data/trace_digests.txt``; ``python scripts/trace_digest.py`` prints them, ``--write``
 records them again when a change of behaviour is meant (say why in the commit).
 

@@ -36,8 +36,8 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
 
 The result is the run the frame-by-frame simulation gives, to the tick: the state is the same
 after k periods whether they ran or were added up, because the snapshot covers all of it
-(tests/test_quiet_can.py compares the two on seeded runs with orders, faults, byte errors and
-load, part by part).
+(tests/hil/sim/test_quiet_can.py compares the two on seeded runs with orders, faults, byte errors
+and load, part by part).
 """
 from __future__ import annotations
 

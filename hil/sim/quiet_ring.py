@@ -61,7 +61,7 @@ frame); a busy ring takes none at all (something is reported every period). A sn
 the run's records out (``World.records``: the accounting, which only what the MACs report
 grows, and that stops the probes first), so its cost is the ring's state, not the run's
 length. A ring that does not repeat itself pays little for the probes.
-tests/test_quiet_ring.py compares runs with and without leaps, whole
+tests/hil/sim/test_quiet_ring.py compares runs with and without leaps, whole
 world and summary, on seeded rings with faults, power-on times, the standby father, CAN sides
 and stops between, and on random rings.
 """

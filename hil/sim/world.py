@@ -73,7 +73,7 @@ class World:
         self.quiet_ring: QuietRing | None = None
         self.pcap = None
         # On the CPU model every received byte is its own interrupt: the air hands each byte
-        # over on its stop-bit tick (the same trace as bursts, tests/test_air.py)
+        # over on its stop-bit tick (the same trace as bursts, tests/hil/sim/test_air.py)
         self.air = Air(self.sched, seed=config.seed, ber=config.ber, noise=config.noise,
                        byte_by_byte=config.byte_by_byte or config.cpu is not None)
         self.air.on_transmission = self._on_transmission

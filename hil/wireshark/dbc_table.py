@@ -4,7 +4,7 @@ Wireshark cannot read a DBC file. ``rprs.lua`` therefore carries a Lua table of 
 of the DBC (identifier, name, sender, length, signals with byte offset, size, sign, scale,
 offset, unit and value names) between two marker lines, and decodes the payload of the CAN
 frames in a capture from it (Wireshark's ``can.id`` dissector table). The table is generated
-here; ``tests/test_pcap.py`` checks that the file's table is the one the DBC gives, so a DBC
+here; ``tests/hil/test_pcap.py`` checks that the file's table is the one the DBC gives, so a DBC
 change without regenerating fails CI:
 
     python -m hil.wireshark.dbc_table          # rewrites the table in rprs.lua

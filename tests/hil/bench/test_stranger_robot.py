@@ -1,0 +1,776 @@
+"""docs/protocol.md tested as a stranger would: a small robot written from the spec alone.
+
+``StrangerRobot`` below knows nothing but docs/protocol.md: plain pyserial, no import from this
+project (``test_the_robot_imports_nothing_from_the_project`` checks the whole file). It is a
+*joiner* (docs/protocol.md §10): it never claims, so it needs a ring to exist. The harness starts
+``rprs radio-hub`` and two ``rprs child`` processes (team {1, 2, 4}), waits for their ring, and
+lets the stranger, robot 4, join it by answering an invitation (clause 34), ask child 1 for its
+``status()``, get the acknowledgement (clause 47) and the reply, leave by falling silent and come
+back with JOIN (clause 49). The children's ``--events`` say what they saw: the stranger admitted
+by both, its message delivered once, its acknowledgement of the reply heard, no turn missed while
+it was a member, three misses then a clean drop by both once it left, the ring going on without
+it, and its JOIN taken as a rejoin by both.
+"""
+from __future__ import annotations
+
+import ast
+import json
+import os
+import select
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from paths import ROOT
+
+serial = pytest.importorskip("serial")
+
+
+# ==============================================================================================
+# The stranger: docs/protocol.md and nothing else
+# ==============================================================================================
+
+# §2 and clause 5: a ring with a station on a PC uses the real-time margin set.
+TTRANS = 0.005
+TMAX = 0.600
+TWIN = 0.050
+TSLOT = 0.080
+QUIET_GAP = 0.020
+STALL_GAP = 0.020
+MISS_LIMIT = 3
+P_EVERY = 4                   # clause 32
+A_ATTEMPTS = 4                # clause 46
+ANNOUNCE_LIMIT = 6            # clause 36
+BYTE = 10 / 9600              # clause 3: a PC at 9600 bit/s, 8N1
+MAX_CONTENT_SENT = 561        # clause 14: a PC's frame fits in Tmax
+MAX_LENGTH = 562              # clause 11
+
+HEADER = b"\x0f\x0a\x05"      # clause 6
+END = b"\x17\x19"
+BROADCAST = 7                 # clause 7
+BOOT, JOIN = 5, 6             # clause 10
+APP = {"movex": "n", "movey": "n", "movez": "n", "moveto": "nnn", "joint": "in", "wheel": "n",
+       "paw": "i", "act": "ii", "stop": "", "status": "", "fail": "i", "done": ""}  # clause 16
+MAC = {"ack": "ii", "poll": "ii", "ring": "i", "crc": "i"}
+BOUNDS = {("joint", 0): (1, 4), ("paw", 0): (0, 1), ("act", 0): (0, 99), ("act", 1): (0, 1),
+          ("fail", 0): (0, 999), ("ack", 0): (0, 6), ("ack", 1): (0, 99), ("poll", 0): (0, 6),
+          ("poll", 1): (0, 127), ("ring", 0): (0, 127), ("crc", 0): (0, 65535)}
+
+
+class Unreadable(ValueError):
+    """Content that does not match clause 16."""
+
+
+def parse_content(text: str) -> list[tuple[str, tuple]]:
+    """Clause 16: ``name(params)`` repeated, nothing between; numbers as the grammar says."""
+    out, i = [], 0
+    while i < len(text):
+        j = text.find("(", i)
+        k = text.find(")", j + 1) if j >= 0 else -1
+        if j < 0 or k < 0:
+            raise Unreadable(text)
+        name, params = text[i:j], text[j + 1:k]
+        kinds = APP.get(name, MAC.get(name))
+        if kinds is None:
+            raise Unreadable(f"unknown command {name!r}")
+        values = params.split(",") if params else []
+        if len(values) != len(kinds):
+            raise Unreadable(f"{name} takes {len(kinds)} parameters")
+        args = []
+        for n, (v, kind) in enumerate(zip(values, kinds)):
+            body = v[1:] if v.startswith("-") else v
+            whole, dot, frac = body.partition(".")
+            if len(v) > 12 or not whole.isdigit() or not whole.isascii() or \
+                    (dot and (kind == "i" or not frac.isdigit() or len(frac) > 3)):
+                raise Unreadable(f"bad number {v!r} in {name}")
+            x = float(v) if dot else int(v)
+            lo, hi = BOUNDS.get((name, n), (None, None))
+            if lo is not None and not lo <= x <= hi:
+                raise Unreadable(f"{name} parameter {n} out of bounds")
+            args.append(x)
+        out.append((name, tuple(args)))
+        i = k + 1
+    return out
+
+
+def encode(dst: int, src: int, num: int, typ: int, content: str) -> bytes:
+    """Clause 6, byte by byte."""
+    c = content.encode("ascii")
+    return HEADER + b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c)) + c + END
+
+
+class Frame:
+    __slots__ = ("dst", "src", "num", "type", "content", "began", "end")
+
+    def __init__(self, raw: bytes, began: float, end: float) -> None:
+        self.dst, self.src = raw[3] - 48, raw[4] - 48
+        self.num, self.type = int(raw[5:7]), raw[7] - 48
+        self.content = raw[12:-2].decode("ascii")
+        self.began, self.end = began, end     # clause 15.5: Header began; E
+
+    def __repr__(self) -> str:
+        return f"<{self.dst}{self.src}{self.num:02d}{self.type} {self.content!r}>"
+
+
+class Receiver:
+    """Clause 15: hunt, check each byte, the first bad byte starts a new hunt."""
+
+    def __init__(self) -> None:
+        self.buf = bytearray()
+        self.first = 0.0               # arrival of the first Header byte
+        self.last = None               # arrival of the last byte heard, any byte
+
+    def feed(self, b: int, t: float, out: list) -> None:
+        self.last = t
+        buf, n = self.buf, len(self.buf)
+        if n < 3:
+            if b == HEADER[n]:
+                if n == 0:
+                    self.first = t
+                buf.append(b)
+            else:
+                if n:
+                    out.append(("garbage", t))
+                buf.clear()
+                if b == HEADER[0]:
+                    self.first = t
+                    buf.append(b)
+                else:
+                    out.append(("garbage", t))
+            return
+        ok = False
+        if n in (3, 5, 6, 7):
+            ok = 0x30 <= b <= 0x39
+        elif n == 4:
+            ok = 0x30 <= b <= 0x36
+        elif n < 12:
+            ok = 0x30 <= b <= 0x39 and int(bytes(buf[8:n]) + bytes([b]) + b"0" * (11 - n)) \
+                <= MAX_LENGTH
+        else:
+            length = int(bytes(buf[8:12]))
+            if n < 12 + length:
+                ok = 0x20 <= b <= 0x7E
+            else:
+                ok = b == END[n - 12 - length]
+        if not ok:
+            out.append(("failed", t, buf[4] - 48 if n > 4 else None))
+            buf.clear()
+            self.feed(b, t, out)                  # the bad byte is a fresh hunting byte
+            return
+        buf.append(b)
+        if n >= 12 and n + 1 == 14 + int(bytes(buf[8:12])):
+            out.append(("frame", Frame(bytes(buf), self.first - BYTE, t)))
+            buf.clear()
+
+    def in_frame(self) -> bool:
+        return len(self.buf) >= 3
+
+    def header_began(self) -> float | None:
+        """When a Header being received began (clause 15.4-5), else None."""
+        if not self.buf or self.last is None:
+            return None
+        return self.first - BYTE
+
+
+class StrangerRobot:
+    """A station of docs/protocol.md, version 3.3, that joins rings: clauses 1-19a, 21-27,
+    29-49 and 51, the jam case of clause 44 simplified (its stagger runs from the quiet
+    closure); it reads ``done()`` (version 3.0) and obeys no message (clause 19a: it has no
+    submodule). Not 20 (the ring runs without the checksum), 28 (it never claims: a joiner,
+    §10), 48a (a report, not a rule of the wire), 50 (it is no father) or 52-54 (the
+    authenticated profile is opt-in)."""
+
+    def __init__(self, port: str, robot: int, team: set[int]) -> None:
+        self.id, self.team = robot, set(team)
+        self.port = serial.Serial(port, 9600, bytesize=8, parity="N", stopbits=1, timeout=0,
+                                  rtscts=False, xonxoff=False)
+        self.port.reset_input_buffer()
+        self.rx = Receiver()
+        self.mode = "LISTEN"
+        self.phase = None
+        self.ring: list[int] = []
+        self.owner = self.poller = None
+        self.turn_start = 0.0
+        self.deadline: float | None = None
+        self.limit = 0.0               # E + Tmax (WAIT) or E + Twin (WINDOW): clauses 24, 33
+        self.quiet_limit = 0.0         # QUIET ends by this at the latest (clause 41)
+        self.misses: dict[int, int] = {}
+        self.outsiders: dict[int, tuple[int, float]] = {}
+        self.booted = False            # our BOOT has been acknowledged by every member
+        self.answering = False
+        self.announcing = None         # (Type, Number) of our BOOT/JOIN until acknowledged
+        self.awaiting: set[int] = set()
+        self.announced_frames = 0
+        self.next_num = 1              # clause 45: messages from '01'
+        self.last_sent_num = 0
+        self.outbox: list[dict] = []
+        self.inflight: dict | None = None
+        self.acks_owed: list[tuple[int, int]] = []
+        self.last_rx: dict[int, int] = {}
+        self.booting_peers: set[int] = set()
+        self.turns_since_poll = P_EVERY
+        self.poll_ptr = 0
+        self.sent_poll = None
+        self.heard_since_tx = True
+        self.silent = 0                # consecutive misses with no good frame heard (clause 40)
+        self.tell_view = False         # our next frame carries ring(mask) (clause 51)
+        self.left = False
+        self.inbox: list[tuple[int, int, int, list]] = []     # (src, dst, num, app commands)
+        self.outcomes: list[tuple[dict, bool, str]] = []
+        self.heard: list[Frame] = []
+        self.sent: list[tuple[float, bytes]] = []
+        self.log: list[str] = []
+
+    # -- the ring --------------------------------------------------------------------------
+
+    def succ(self, r: int) -> int:
+        later = [m for m in self.ring if m > r]
+        return later[0] if later else self.ring[0]
+
+    def gap(self) -> list[int]:
+        """Team IDs strictly between us and our successor, cyclically, not in the ring."""
+        nxt, out, i = self.succ(self.id), [], (self.id + 1) % 7
+        while i != nxt and i != self.id:
+            if i in self.team and i not in self.ring:
+                out.append(i)
+            i = (i + 1) % 7
+        return out
+
+    def next_turn(self, after: int, start: float, uncertain: bool = False) -> None:
+        """Clauses 23, 26, 44: the turn after ``after`` begins at ``start``."""
+        if not self.ring:
+            return
+        nxt = self.succ(after)
+        if nxt == self.id and self.ring == [self.id]:      # clause 31: a lone member pauses
+            self.phase, self.owner = "HOLD", self.id
+            self.deadline = start + TWIN + self.id * TSLOT
+        elif nxt == self.id:
+            self.phase, self.owner = "HOLD", self.id
+            self.deadline = start + (self.id * TSLOT if uncertain else 0.0)
+        else:
+            self.phase, self.owner, self.turn_start = "WAIT", nxt, start
+            self.deadline = self.limit = start + TMAX
+
+    def miss(self, robot: int) -> None:
+        """Clauses 24, 25."""
+        self.misses[robot] = self.misses.get(robot, 0) + 1
+        self.silent += 1
+        self.tell_view = True                              # clause 51.1
+        self.log.append(f"miss {robot} ({self.misses[robot]})")
+        if self.misses[robot] >= MISS_LIMIT:
+            self.drop(robot)
+
+    def drop(self, robot: int) -> None:
+        self.ring.remove(robot)
+        self.misses.pop(robot, None)
+        self.tell_view = True                              # clause 51.1
+        self.log.append(f"dropped {robot}")
+        self.awaiting.discard(robot)
+        m = self.inflight
+        if m is not None and robot in m["awaiting"]:
+            m["awaiting"].discard(robot)
+            if m["dst"] == robot or not m["awaiting"]:
+                self.finish(m, m["dst"] == BROADCAST and bool(m["acked"]), "dropped")
+
+    def to_listen(self, why: str) -> None:
+        self.log.append(f"LISTEN: {why}")
+        self.mode, self.phase, self.ring, self.deadline = "LISTEN", None, [], None
+        self.announcing, self.acks_owed = None, []
+
+    def finish(self, m: dict, delivered: bool, why: str) -> None:
+        self.inflight = None
+        self.outcomes.append((m, delivered, why))
+
+    # -- what arrives ----------------------------------------------------------------------
+
+    def on_frame(self, f: Frame) -> None:
+        self.heard.append(f)
+        if self.left:
+            return
+        self.heard_since_tx = True
+        self.silent = 0
+        if self.mode == "MEMBER" and self.ring == [self.id] and not (
+                self.phase == "WINDOW" and f.src == self.owner and f.type in (BOOT, JOIN)):
+            self.to_listen(f"heard robot {f.src} while alone")          # clause 31
+        try:
+            cmds = parse_content(f.content)
+            unreadable = False
+        except Unreadable:
+            cmds, unreadable = [], True
+        polls = [a for n, a in cmds if n == "poll"]
+        if self.mode == "LISTEN":                                   # clause 34
+            for k, mask in polls:
+                if k == self.id:
+                    self.mode = "MEMBER"
+                    self.ring = sorted({i for i in range(7) if mask >> i & 1} | {f.src, self.id})
+                    self.misses = {r: 0 for r in self.ring}
+                    self.answering = True
+                    self.log.append(f"invited by {f.src}, ring {self.ring}")
+                    self.phase, self.owner, self.deadline = "HOLD", self.id, f.end
+                    return
+            return
+        if f.src == self.id:                                        # clause 38.2
+            return
+        if f.src not in self.team:                                  # clause 38.1
+            self.failed(f.src, known_end=f.end)
+            return
+        answering = self.phase == "WINDOW" and f.src == self.owner and f.type in (BOOT, JOIN)
+        if f.src not in self.ring:
+            if answering:                                           # clause 35
+                self.ring = sorted(self.ring + [f.src])
+                self.misses[f.src] = 0
+                self.log.append(f"admitted {f.src}")
+            elif any(mask == 1 << f.src for _, mask in polls):      # clause 38.4
+                self.next_turn(f.src, f.end)
+                return
+            else:                                                   # clause 38.3
+                n, last = self.outsiders.get(f.src, (0, f.end))
+                n = 1 if f.end - last > (len(self.ring) + 1) * TMAX else n + 1
+                if n >= MISS_LIMIT:
+                    self.outsiders.pop(f.src, None)
+                    self.ring = sorted(self.ring + [f.src])
+                    self.misses[f.src] = 0
+                else:
+                    self.outsiders[f.src] = (n, f.end)
+                self.next_turn(f.src, f.end)
+                return
+        elif self.phase in ("WAIT", "WINDOW") and f.src != self.owner and not answering:
+            if not self.takeover(f):                                # clause 39
+                self.misses[f.src] = 0
+                self.tell_view = True                               # clause 51.1
+                if self.phase == "WAIT" and self.owner in self.ring:
+                    self.miss(self.owner)
+                self.next_turn(f.src, f.end)
+                return
+        self.misses[f.src] = 0
+        for _k, mask in polls:                                      # clause 37
+            if mask != 1 << f.src and not mask >> self.id & 1:
+                self.to_listen(f"left out of {f.src}'s ring")
+                return self.on_frame_again(f)
+        for name, args in cmds:                                     # clause 51.3
+            if name == "ring":
+                view = {i for i in range(7) if args[0] >> i & 1}
+                if self.id not in view:
+                    self.to_listen(f"left out of {f.src}'s ring")
+                    return self.on_frame_again(f)
+                for r in sorted(view - set(self.ring)):
+                    if r in self.team:
+                        self.ring = sorted(self.ring + [r])
+                        self.misses[r] = 0
+                        self.log.append(f"admitted {r} ({f.src}'s ring)")
+                for r in sorted(set(self.ring) - view - {self.id, f.src}):
+                    if self.misses.get(r, 0) > 0:
+                        self.drop(r)
+                if set(self.ring) != view:
+                    self.tell_view = True
+                break
+        if f.type in (BOOT, JOIN):                                  # clause 36
+            self.acks_owed.append((f.src, f.num))
+            if f.type == BOOT and f.src not in self.booting_peers:  # clause 30
+                self.booting_peers.add(f.src)
+                self.last_rx[f.src] = f.num
+                m = self.inflight
+                if m is not None and m["dst"] == f.src and m["attempts"]:
+                    self.finish(m, False, f"robot {f.src} restarted")
+        else:
+            self.booting_peers.discard(f.src)
+        if not unreadable:                                          # clause 43
+            for name, args in cmds:
+                if name == "ack" and args[0] == self.id:
+                    self.on_ack(f.src, args[1])
+            app = [(n, a) for n, a in cmds if n in APP]           # clause 19
+            if app:                                                 # clauses 47, 48
+                fresh = self.last_rx.get(f.src) != f.num
+                self.last_rx[f.src] = f.num
+                if f.dst in (self.id, BROADCAST):
+                    self.acks_owed.append((f.src, f.num))
+                    if fresh:
+                        self.inbox.append((f.src, f.dst, f.num, app))
+        invited = [k for k, _ in polls if k not in self.ring]
+        if invited:                                                 # clause 33
+            self.phase, self.owner, self.poller = "WINDOW", invited[0], f.src
+            self.turn_start = f.end
+            self.deadline = self.limit = f.end + TWIN
+        else:
+            self.next_turn(f.src, f.end)
+
+    def on_frame_again(self, f: Frame) -> None:
+        """After going to LISTEN on a frame, the same frame may invite us (clause 37)."""
+        self.heard.pop()
+        self.on_frame(f)
+
+    def takeover(self, f: Frame) -> bool:
+        """Clause 39: a takeover seen with a slower clock?"""
+        elapsed = f.began - self.turn_start
+        if self.phase == "WINDOW":
+            return f.src == self.succ(self.poller) and elapsed >= 0.95 * (TWIN + TTRANS)
+        skipped, o = [], self.owner
+        while o != f.src and len(skipped) <= len(self.ring):
+            skipped.append(o)
+            o = self.succ(o)
+        if o != f.src or self.id in skipped or elapsed < 0.95 * len(skipped) * TMAX:
+            return False
+        for r in skipped:
+            self.miss(r)
+        return True
+
+    def on_ack(self, src: int, num: int) -> None:
+        if self.announcing is not None and num == self.announcing[1]:    # clause 36
+            self.awaiting.discard(src)
+            if not self.awaiting:
+                self.announcing, self.booted = None, True
+            return
+        m = self.inflight
+        if m is not None and m["num"] == num and src in m["awaiting"]:    # clause 46
+            m["awaiting"].discard(src)
+            m["acked"].add(src)
+            if not m["awaiting"]:
+                self.finish(m, True, "")
+
+    def failed(self, src: int | None, known_end: float | None = None) -> None:
+        """Clauses 41-43: a broken frame used its turn; the closure is uncertain."""
+        if self.mode != "MEMBER" or self.left or self.phase not in ("WAIT", "WINDOW", "QUIET"):
+            return
+        after = src if src in self.ring else self.owner
+        self.tell_view = True                              # clause 51.1
+        if known_end is not None:
+            self.next_turn(after, known_end, uncertain=True)
+        else:
+            self.phase, self.owner = "QUIET", after
+            self.quiet_limit = self.rx.first + TMAX
+            self.deadline = time.monotonic() + QUIET_GAP
+
+    # -- timers ----------------------------------------------------------------------------
+
+    def on_deadline(self, now: float) -> None:
+        began = self.rx.header_began()
+        if began is not None and now - self.rx.last > STALL_GAP:
+            began = None                                   # clause 15.4: no Header after all
+        if self.phase == "WAIT":                           # clause 24
+            if began is not None and began <= self.limit:
+                self.deadline = now + BYTE
+                return
+            o = self.owner
+            self.miss(o)
+            if len(self.ring) >= 2 and self.silent >= max(MISS_LIMIT, len(self.ring) - 1):
+                self.to_listen("heard nobody for a whole round")          # clause 40
+                return
+            self.next_turn(o, self.limit, uncertain=not self.heard_since_tx)
+        elif self.phase == "WINDOW":                       # clause 33
+            if began is not None and began <= self.limit:
+                self.deadline = now + BYTE
+                return
+            self.next_turn(self.poller, self.limit)
+        elif self.phase == "QUIET":                        # clauses 41, 42
+            if self.rx.last is not None and now - self.rx.last < QUIET_GAP and \
+                    now < self.quiet_limit:
+                self.deadline = self.rx.last + QUIET_GAP
+                return
+            self.next_turn(self.owner, now, uncertain=True)
+        elif self.phase == "HOLD":                         # our turn: TXEN (none on a pty)
+            if self.rx.in_frame():
+                self.deadline = now + 2 * BYTE             # someone is sending: hear it first
+                return
+            self.phase, self.deadline = "SWITCH", now + TTRANS
+        elif self.phase == "SWITCH":                       # clause 23: Header at E + Ttrans
+            self.send(now)
+
+    # -- our turn --------------------------------------------------------------------------
+
+    def build(self) -> tuple[int, int, int, str]:
+        """This turn's one frame: (Destination, Number, Type, Content)."""
+        acks = "".join(f"ack({s},{n})" for s, n in self.acks_owed)
+        if self.answering:                                 # clause 34: the answer, empty
+            self.answering = False
+            if self.booted:
+                num, kind = self.next_num, JOIN
+                self.next_num = (self.next_num + 1) % 100
+            else:
+                num, kind = 0, BOOT
+            self.announcing, self.announced_frames = (kind, num), 1
+            self.awaiting = set(self.ring) - {self.id}
+            if not self.awaiting:
+                self.announcing, self.booted = None, True
+            return BROADCAST, num, kind, ""
+        if self.announcing is not None:                    # clause 36: repeat, acks only
+            self.announced_frames += 1
+            self.acks_owed = []
+            kind, num = self.announcing
+            return BROADCAST, num, kind, acks
+        m = self.inflight
+        if m is not None and m["attempts"] >= A_ATTEMPTS:  # clause 46
+            self.finish(m, False, f"no acknowledgement after {A_ATTEMPTS} attempts")
+            m = None
+        if m is None and self.outbox and (self.outbox[0]["dst"] in self.ring or
+                                          self.outbox[0]["dst"] == BROADCAST):
+            m = self.inflight = self.outbox.pop(0)
+            m["awaiting"] = {m["dst"]} if m["dst"] != BROADCAST else set(self.ring) - {self.id}
+        poll = ""
+        self.sent_poll = None
+        self.turns_since_poll += 1
+        gap = self.gap()
+        if gap and (self.turns_since_poll >= P_EVERY or self.ring == [self.id]):  # 31, 32
+            k = gap[self.poll_ptr % len(gap)]
+            self.poll_ptr += 1
+            self.turns_since_poll = 0
+            mask = sum(1 << r for r in self.ring)
+            poll, self.sent_poll = f"poll({k},{mask})", k
+            self.tell_view = False
+        elif self.tell_view and self.ring != [self.id]:    # clause 51.2
+            poll, self.tell_view = f"ring({sum(1 << r for r in self.ring)})", False
+        self.acks_owed = []
+        if m is not None:
+            m["attempts"] += 1
+            self.last_sent_num = m["num"]
+            content = m["content"] + acks + poll           # clause 18
+            assert len(content) <= MAX_CONTENT_SENT
+            return m["dst"], m["num"], m["type"], content
+        return BROADCAST, self.last_sent_num, 3, acks + poll   # clause 23, 45
+
+    def send(self, now: float) -> None:
+        dst, num, kind, content = self.build()
+        data = encode(dst, self.id, num, kind, content)
+        self.port.write(data)                              # clause 3: back to back
+        self.sent.append((now, data))
+        end = now + len(data) * BYTE
+        self.heard_since_tx = False
+        if self.announcing is not None and self.announced_frames >= ANNOUNCE_LIMIT:
+            self.to_listen("members never acknowledged our BOOT/JOIN")
+            return
+        if self.sent_poll is not None:
+            self.phase, self.owner, self.poller = "WINDOW", self.sent_poll, self.id
+            self.turn_start = end
+            self.deadline = self.limit = end + TWIN
+        else:
+            self.next_turn(self.id, end)
+
+    # -- the application side -------------------------------------------------------------
+
+    def submit(self, dst: int, content: str, kind: int = 2) -> dict:
+        """Clause 45: the next Number; the message waits for its turn."""
+        parse_content(content)
+        m = {"dst": dst, "num": self.next_num, "type": kind, "content": content,
+             "attempts": 0, "awaiting": set(), "acked": set()}
+        self.next_num = (self.next_num + 1) % 100
+        self.outbox.append(m)
+        return m
+
+    def leave(self) -> None:
+        """Clause 49: no leave message; we stop transmitting (and keep listening)."""
+        self.left = True
+        self.mode, self.phase, self.deadline = "LEFT", None, None
+
+    def come_back(self) -> None:
+        """Clause 49: not in the old slot (clause 38.3 would refuse it) but from LISTEN, by
+        answering the next invitation; with JOIN, as our BOOT was acknowledged (clause 34)."""
+        self.left = False
+        self.to_listen("coming back")
+        self.misses, self.outsiders, self.silent = {}, {}, 0
+
+    @property
+    def member(self) -> bool:
+        return self.mode == "MEMBER" and self.announcing is None and not self.answering
+
+    # -- the loop --------------------------------------------------------------------------
+
+    def run_until(self, done, timeout: float) -> bool:
+        """Serve the protocol until ``done()`` or ``timeout`` seconds; True if done."""
+        stop = time.monotonic() + timeout
+        fd = self.port.fileno()
+        while not done():
+            now = time.monotonic()
+            if now >= stop:
+                return False
+            wait = stop - now
+            if self.deadline is not None:
+                wait = min(wait, max(0.0, self.deadline - now))
+            if self.rx.in_frame():
+                wait = min(wait, max(0.0, self.rx.last + STALL_GAP - now) + 0.001)
+            ready, _, _ = select.select([fd], [], [], wait)
+            if ready:
+                data = self.port.read(self.port.in_waiting or 1)
+                t = time.monotonic()
+                events: list = []
+                if self.phase != "SWITCH":                 # clause 2: deaf while switching
+                    for i, b in enumerate(data):
+                        self.rx.feed(b, t - (len(data) - 1 - i) * BYTE, events)
+                for ev in events:
+                    if ev[0] == "frame":
+                        self.on_frame(ev[1])
+                    elif ev[0] == "failed":
+                        self.failed(ev[2])
+                    elif ev[0] == "garbage" and self.phase == "WAIT" and not self.left and \
+                            ev[1] > self.turn_start + TTRANS:
+                        self.failed(None)                  # clause 42
+            now = time.monotonic()
+            if self.rx.in_frame() and now - self.rx.last > STALL_GAP:    # clause 15.4
+                src = self.rx.buf[4] - 48 if len(self.rx.buf) > 4 else None
+                self.rx.buf.clear()
+                self.failed(src)
+            if self.deadline is not None and now >= self.deadline:
+                self.on_deadline(now)
+        return True
+
+    def close(self) -> None:
+        self.port.close()
+
+
+# ==============================================================================================
+# The harness (it may use the project, as any bench would: as processes)
+# ==============================================================================================
+
+TEAM = "1,2,4"
+
+
+def _ptys_available() -> str | None:
+    try:
+        master, slave = os.openpty()
+    except (OSError, AttributeError) as exc:
+        return f"pseudo-terminals are unavailable here: {exc}"
+    os.close(master)
+    os.close(slave)
+    return None
+
+
+def _spawn(*args: str, stdout=subprocess.PIPE) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT,
+                            stdout=stdout, stderr=subprocess.PIPE, text=True)
+
+
+class Events:
+    """The JSON lines a ``rprs child --events`` prints, collected by a thread."""
+
+    def __init__(self, proc: subprocess.Popen) -> None:
+        self.lines: list[dict] = []
+        self._t = threading.Thread(target=self._read, args=(proc,), daemon=True)
+        self._t.start()
+
+    def _read(self, proc: subprocess.Popen) -> None:
+        with proc.stdout:                        # the reader closes it, at the end
+            for line in proc.stdout:
+                try:
+                    self.lines.append(json.loads(line))
+                except ValueError:
+                    pass
+
+    def find(self, **kw) -> list[dict]:
+        return [e for e in list(self.lines) if all(e.get(k) == v for k, v in kw.items())]
+
+
+def _wait(pred, timeout: float) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.05)
+    return pred()
+
+
+def _stop(procs) -> None:
+    for p in procs:
+        if p.poll() is None:
+            p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+        p.stderr.close()                         # stdout: its reader closes it (Events)
+
+
+def test_the_robot_imports_nothing_from_the_project():
+    tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
+    names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    assert not [m for m in names if m.split(".")[0] in ("firmware_model", "can_bus", "hil")]
+
+
+@pytest.mark.timing
+def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
+    why = _ptys_available()
+    if why:
+        pytest.skip(why)
+    air = tmp_path / "air"
+    hub = _spawn("radio-hub", "--nodes", "3", "--link-dir", str(air), "--seed", "1",
+                 stdout=subprocess.DEVNULL)      # nobody reads it
+    procs = [hub]
+    robot = None
+    try:
+        assert _wait(lambda: all((air / f"node{i}").exists() for i in range(3)), 15), \
+            hub.stderr.read() if hub.poll() is not None else "the hub made no ptys"
+        kids = {1: _spawn("child", "--id", "1", "--radio", str(air / "node0"), "--team", TEAM,
+                          "--can", f"virtual:stranger{os.getpid()}", "--events"),
+                2: _spawn("child", "--id", "2", "--radio", str(air / "node1"), "--team", TEAM,
+                          "--events")}
+        procs += kids.values()
+        ev = {r: Events(p) for r, p in kids.items()}
+        # the children's ring {1, 2}; then the only absent team robot, 4, is in 2's gap
+        assert _wait(lambda: ev[1].find(ev="join", robot=2) or ev[2].find(ev="join", robot=1),
+                     25), [p.stderr.read() for p in kids.values() if p.poll() is not None]
+
+        before = {r: len(ev[r].lines) for r in kids}    # the ring's formation is not ours
+        robot = StrangerRobot(str(air / "node2"), 4, {1, 2, 4})
+        t0 = time.monotonic()
+        assert robot.run_until(lambda: robot.member, 10), robot.log
+        assert robot.ring == [1, 2, 4] and robot.sent[0][1] == encode(7, 4, 0, BOOT, "")
+        joined = time.monotonic() - t0
+
+        msg = robot.submit(1, "status()")
+        assert robot.run_until(lambda: robot.outcomes and any(
+            s == 1 and d == 4 for s, d, _, _ in robot.inbox), 10), (robot.log, robot.outcomes)
+        assert robot.outcomes == [(msg, True, "")]               # acknowledged by child 1
+        (src, dst, num, reply), = [m for m in robot.inbox if m[0] == 1]
+        # child 1's CAN bus has no submodule on it: its truthful answer is that none answers
+        # (docs/dispatcher.md, code 30), with the order it could not serve
+        assert reply == [("fail", (30,)), ("status", ())], reply
+        # a few more turns, so that child 1 hears our acknowledgement of its reply
+        turns = len(robot.sent)
+        assert robot.run_until(lambda: len(robot.sent) >= turns + 3, 5), robot.log
+        assert any(f"ack(1,{num})" in d.decode() for _, d in robot.sent[turns - 1:])
+        assert _wait(lambda: ev[1].find(ev="delivered", src=1, dst=4, num=num), 5)
+
+        robot.leave()
+        t_left = time.monotonic()
+        assert robot.run_until(lambda: all(ev[r].find(ev="disable", robot=4) for r in kids), 8), \
+            [e for r in kids for e in ev[r].lines if e["ev"] in ("miss", "disable")]
+        dropped = time.monotonic() - t_left
+        n_heard = len(robot.heard)
+        assert robot.run_until(lambda: len(robot.heard) >= n_heard + 8, 5)
+        after = list(robot.heard[n_heard:])
+
+        n_sent = len(robot.sent)
+        robot.come_back()
+        t_back = time.monotonic()
+        assert robot.run_until(lambda: robot.member, 10), robot.log
+        back = time.monotonic() - t_back
+        assert robot.ring == [1, 2, 4], robot.log
+        # the answer is JOIN with the next Number: status() had 01 (clause 45), so 02
+        assert robot.sent[n_sent][1] == encode(7, 4, msg["num"] + 1, JOIN, ""), robot.sent
+        turns = len(robot.sent)
+        assert robot.run_until(lambda: len(robot.sent) >= turns + 3, 5), robot.log
+        assert _wait(lambda: all(ev[r].find(ev="rejoin", robot=4) for r in kids), 5), \
+            [e for r in kids for e in ev[r].lines if e["ev"] in ("join", "rejoin")]
+    finally:
+        if robot is not None:
+            robot.close()
+        _stop(procs)
+
+    # the children's view, from the moment the stranger opened its port
+    for r in kids:
+        seen = ev[r].lines[before[r]:]
+        assert [(e["ev"], e["robot"]) for e in seen if e["ev"] in ("join", "rejoin")] == \
+            [("join", 4), ("rejoin", 4)], seen
+        assert not [e for e in seen if e["ev"] == "mode"]         # the ring never broke
+        assert [e["robot"] for e in seen if e["ev"] == "disable"] == [4]
+        assert [e["robot"] for e in seen if e["ev"] == "miss"] == [4, 4, 4]   # after it left
+    assert len(ev[1].find(ev="deliver", src=4, dst=1, content="status()")) == 1
+    assert not ev[2].find(ev="deliver", src=4)
+    # after the drop, the ring is 1 -> 2 -> 1 ..., and 2 invites 4 again (clause 32)
+    assert all(b.src == 3 - a.src for a, b in zip(after, after[1:])), after
+    polls = [f.content for f in robot.heard if f.src == 2 and "poll(4," in f.content]
+    assert polls and all("poll(4,6)" in c for c in polls)
+    assert joined < 5 and dropped < 5 and back < 5, (joined, dropped, back)

@@ -1,0 +1,411 @@
+"""Campaigns (hil/campaign, ``rprs campaign``): a grid of seeded runs on Dask distributed, the
+results in SQLite, resumable, with statistics. The engine runs on a LocalCluster of two
+worker processes and on a real ``dask scheduler`` with two ``dask worker`` processes on
+loopback, which must give the same rows."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hil.campaign import engine
+from hil.campaign.engine import run_campaign
+from hil.campaign.report import ber_series, plot, summarize, wilson
+from hil.campaign.runs import check_args
+from hil.campaign.seeds import run_key, run_seed
+from hil.campaign.spec import SpecError, load_spec
+from hil.campaign.store import Store, StoreError
+from processes import stop
+from paths import ROOT
+
+REAL_SOURCE_STATE = engine.source_state
+
+SPEC = """
+[campaign]
+name = "t"
+seeds = 2
+root_seed = 11
+duration = 3
+
+[grid]
+robots = ["1,2", "0,1,2"]
+load = ["1"]
+checksum = [true]
+"""
+
+
+@pytest.fixture
+def spec_file(tmp_path):
+    p = tmp_path / "t.toml"
+    p.write_text(SPEC)
+    return p
+
+
+@pytest.fixture(autouse=True)
+def clean_source(monkeypatch):
+    """The tests run from a working tree that may have changes: pretend it is clean, one
+    commit (the dirty/commit checks have their own test)."""
+    monkeypatch.setattr(engine, "source_state", lambda root=None: ("c0ffee", False))
+
+
+def _nice():
+    # The Dask processes these tests start run at a lower priority, so that the real-time
+    # tests beside them (other xdist worker) keep their timing on a 2-core machine.
+    os.nice(10)
+
+
+def rprs(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "hil.cli", *args], capture_output=True,
+                          text=True, timeout=kw.pop("timeout", 300), preexec_fn=_nice, **kw)
+
+
+# ---------------------------------------------------------------- statistics and seeds
+def test_wilson_interval_matches_published_values():
+    # Newcombe (1998), Stat. Med. 17:857, method 3 (score interval without correction)
+    for (k, n), (lo, hi) in {(0, 10): (0.0, 0.2775), (1, 10): (0.0179, 0.4042),
+                             (5, 10): (0.2366, 0.7634), (10, 10): (0.7225, 1.0)}.items():
+        assert wilson(k, n) == pytest.approx((lo, hi), abs=5e-5)
+
+
+def test_the_ber_plot_draws_one_line_per_rest_of_point_labelled_with_all_of_it(tmp_path,
+                                                                              monkeypatch):
+    # robots and load both vary besides ber: four lines, none merging two loads of one ring
+    points = [{"point": {"robots": r, "load": ld, "checksum": True, "ber": b},
+               "failed_rate": 0.1 * b, "failed_ci95": (0.0, 0.2)}
+              for r in ("1,2", "0,1,2") for ld in ("1", "saturate") for b in (0.02, 0.01)]
+    series = ber_series(points)
+    assert sorted(series) == ["checksum=true load=1 robots=0,1,2",
+                              "checksum=true load=1 robots=1,2",
+                              "checksum=true load=saturate robots=0,1,2",
+                              "checksum=true load=saturate robots=1,2"]
+    assert all([p[0] for p in pts] == [0.01, 0.02] for pts in series.values())
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    seen, legend = [], plt.Axes.legend
+    monkeypatch.setattr(plt.Axes, "legend", lambda ax, *a, **k: (
+        seen.append(ax.get_legend_handles_labels()[1]), legend(ax, *a, **k))[1])
+    assert plot(points, [], tmp_path) == [str(tmp_path / "failure_vs_ber.png")]
+    assert seen == [list(series)]                    # the labels drawn, in order
+
+
+def test_seeds_depend_on_the_point_and_index_only():
+    a = run_seed(11, '{"robots":"1,2"}', 0)
+    assert a == run_seed(11, '{"robots":"1,2"}', 0)           # repeatable alone
+    assert len({run_seed(11, '{"robots":"1,2"}', i) for i in range(100)}) == 100
+    assert a != run_seed(12, '{"robots":"1,2"}', 0) != run_seed(11, '{"robots":"1,3"}', 0)
+    assert run_key('{"robots":"1,2"}', 3).endswith("/3")
+
+
+def test_a_spec_expands_its_grid_and_checks_every_point(spec_file, tmp_path):
+    s = load_spec(spec_file, check=check_args)
+    assert s.runs == 4 and len(s.points) == 2
+    assert s.points[0].args == ("--checksum", "--duration", "3", "--load", "1",
+                                "--robots", "1,2")          # in the grid's order
+    for text, words in (("[grid]\nrobots = ['9']\n", "robot"),
+                        ("[grid]\nseed = [1]\n", "the campaign sets it"),
+                        ("[grid]\nfault = ['fail:1@2']\n", "each value is a list"),
+                        ("[campaign]\nseeds = 0\n", "seeds must be an integer >= 1"),
+                        ("[camp]\n", "unknown table"),
+                        ("not toml [", "not TOML")):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(text)
+        with pytest.raises(SpecError, match=words):
+            load_spec(bad, check=check_args)
+
+
+# ---------------------------------------------------------------- the engine
+def run_cli(spec_file, db, *extra):
+    """``rprs campaign run`` into ``db`` (local cluster of 2 unless ``extra`` says otherwise);
+    the completed process, checked for success."""
+    r = rprs("campaign", "run", str(spec_file), "--db", str(db), *(extra or ("--workers", "2")),
+             "--allow-dirty", "--no-progress")
+    assert r.returncode == 0, r.stderr
+    return r
+
+
+def _rows(db):
+    with sqlite3.connect(db) as c:
+        return {k: (s, json.loads(m) if m else None) for k, s, m in
+                c.execute("SELECT run_key, seed, metrics FROM runs")}
+
+
+def test_a_campaign_on_a_local_cluster_of_two_workers(spec_file, tmp_path):
+    db = tmp_path / "a.sqlite"
+    r = run_cli(spec_file, db)
+    assert "4 runs planned, 0 already in" in r.stdout and "(0 crashed)" in r.stdout
+    assert "on 2 worker(s)" in r.stdout
+    store = Store(db)
+    rows = store.rows()
+    assert len(rows) == 4 and {r["status"] for r in rows} == {"ok"}
+    assert len({r["worker"] for r in rows}) >= 1 and all(r["metrics"]["submitted"] > 0
+                                                        for r in rows)
+    # run-missing: nothing is run twice
+    assert "4 already in" in run_cli(spec_file, db).stdout
+    assert _rows(db) == {r["run_key"]: (r["seed"], r["metrics"]) for r in rows}
+    # any run repeats alone with its rprs sim command
+    r = rows[0]
+    p = rprs("sim", *r["args"], "--seed", str(r["seed"]), "--json", "--no-progress")
+    s = json.loads(p.stdout)
+    assert (s["submitted"], s["delivered"], s["failed"]) == \
+        (r["metrics"]["submitted"], r["metrics"]["delivered"], r["metrics"]["failed"])
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# a real `dask scheduler` and two `dask worker` processes, about 25 s: the slow tier (the fast
+# tier keeps the local cluster's test)
+@pytest.mark.slow
+def test_a_real_scheduler_and_two_workers_give_the_same_rows(spec_file, tmp_path):
+    run_cli(spec_file, tmp_path / "local.sqlite")
+    port = _free_port()
+    addr = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "dask"]
+    procs = [subprocess.Popen([*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, preexec_fn=_nice)]
+    try:
+        for _ in range(2):
+            procs.append(subprocess.Popen([*dask, "worker", addr, "--nthreads", "1",
+                                           "--no-dashboard"], stdout=subprocess.DEVNULL,
+                                          stderr=subprocess.DEVNULL, preexec_fn=_nice))
+        remote = run_cli(spec_file, tmp_path / "remote.sqlite", "--scheduler", addr,
+                         "--workers", "2")
+    finally:
+        stop(procs)
+    assert "4 run now (0 crashed)" in remote.stdout and "on 2 worker(s)" in remote.stdout
+    assert _rows(tmp_path / "remote.sqlite") == _rows(tmp_path / "local.sqlite")
+
+
+@pytest.mark.slow  # 24 runs killed mid-way and resumed: about 23 s
+def test_a_killed_campaign_resumes_losing_nothing_and_repeating_nothing(tmp_path):
+    spec = tmp_path / "k.toml"
+    # 24 runs of about half a second, one a task, so that the kill lands in the middle
+    spec.write_text(SPEC.replace("seeds = 2", "seeds = 12\nchunk = 1")
+                    .replace("duration = 3", "duration = 40"))
+    db = tmp_path / "k.sqlite"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    cmd = [sys.executable, "-m", "hil.cli", "campaign", "run", str(spec), "--db", str(db),
+           "--workers", "2", "--allow-dirty", "--no-progress"]
+    # its output to a file, not pipes: nobody reads them while it runs, and pipes left open
+    # warned (ResourceWarning: unclosed file <_io.BufferedReader>) when the Popen was collected
+    log = tmp_path / "killed.log"
+    with open(log, "wb") as out:
+        p = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env,
+                             start_new_session=True, preexec_fn=_nice)
+    try:
+        deadline = time.monotonic() + 240
+        n = 0
+        while time.monotonic() < deadline and p.poll() is None:
+            if db.exists():
+                try:
+                    with sqlite3.connect(db) as c:
+                        n = c.execute("SELECT count(*) FROM runs").fetchone()[0]
+                except sqlite3.Error:
+                    n = 0
+                if n >= 4:
+                    break
+            time.sleep(0.2)
+        assert p.poll() is None and 4 <= n < 24, (n, p.poll(), log.read_text()[-2000:])
+        os.killpg(p.pid, signal.SIGKILL)            # the campaign and its workers
+        p.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+            p.wait(timeout=30)
+    before = _rows(db)
+    assert 4 <= len(before) < 24
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300,
+                       preexec_fn=_nice)
+    assert r.returncode == 0, r.stderr
+    assert f"{len(before)} already in" in r.stdout
+    after = _rows(db)
+    assert len(after) == 24
+    assert {k: after[k] for k in before} == before       # nothing re-run or changed
+
+
+def _crash_on_odd_seeds(cfg):
+    from hil.campaign.runs import metrics_of
+    if cfg.seed % 2:
+        raise RuntimeError(f"deliberately broken run, seed {cfg.seed}")
+    return metrics_of(cfg)
+
+
+def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
+    from dask.distributed import Client
+    spec = load_spec(spec_file, check=check_args)
+    store = Store(tmp_path / "c.sqlite")
+    cluster = engine.local_cluster(1, processes=False, threads_per_worker=2)
+    client = Client(cluster)
+    try:
+        out = run_campaign(spec, store, client=client, measure=_crash_on_odd_seeds)
+    finally:
+        client.close()
+        cluster.close()
+    rows = store.rows()
+    odd = [r for r in rows if r["seed"] % 2]
+    unexpected = [r["error"] for r in rows if r["status"] != "ok" and not r["seed"] % 2]
+    assert not unexpected, "\n\n".join(unexpected)      # a run that should not have crashed
+    assert out.ran == 4 and out.crashed == len(odd) > 0
+    assert all(r["status"] == "crashed" and "deliberately broken run" in r["error"] and
+               "Traceback" in r["error"] for r in odd)
+    points = summarize(rows)
+    assert sum(p["crashed"] for p in points) == len(odd)
+    cmds = [f["command"] for p in points for f in p["failing"] if f["broke"] == ["crashed"]]
+    assert sorted(cmds) == sorted(f"rprs sim {' '.join(r['args'])} --seed {r['seed']}"
+                                  for r in odd)
+
+
+def test_the_local_cluster_takes_no_fixed_port(recwarn):
+    """With port 8787 taken (another campaign's cluster, a dashboard), the embedded cluster
+    warned "Port 8787 is already in use" and left the socket of its failed bind open (a
+    ResourceWarning that failed the broken-run test under -W error). Its HTTP server now
+    listens on a free loopback port."""
+    from dask.distributed import Client
+    held = socket.socket()
+    try:
+        held.bind(("0.0.0.0", 8787))
+        held.listen()
+    except OSError:
+        pass                                   # taken already: the same test
+    try:
+        with engine.local_cluster(1, processes=False) as cluster, Client(cluster) as client:
+            assert client.submit(sum, [1, 2]).result(timeout=30) == 3
+            port = cluster.scheduler.http_server.port
+    finally:
+        held.close()
+    assert port != 8787
+    assert not [w for w in recwarn if "8787" in str(w.message)], [str(w.message) for w in recwarn]
+
+
+def test_results_of_another_commit_or_a_dirty_tree_are_not_mixed(spec_file, tmp_path,
+                                                                  monkeypatch):
+    spec = load_spec(spec_file, check=check_args)
+    store = Store(tmp_path / "m.sqlite")
+    store.add([{"run_key": "x/0", "point_key": "{}", "args": [], "seed_index": 0, "seed": 1,
+                "status": "ok", "error": None, "metrics": None, "wall_s": 0.0,
+                "worker": "w"}], "deadbeef", False)
+    with pytest.raises(StoreError, match="deadbeef"):
+        run_campaign(spec, store, workers=1)
+    monkeypatch.setattr(engine, "source_state", lambda root=None: ("deadbeef", True))
+    with pytest.raises(StoreError, match="uncommitted"):
+        run_campaign(spec, store, workers=1)
+    other = Store(tmp_path / "o.sqlite")
+    other.claim("another", 1)
+    with pytest.raises(StoreError, match="holds campaign 'another'"):
+        run_campaign(spec, other, workers=1, allow_dirty=True)
+
+
+def test_the_real_source_state_is_a_commit_of_this_checkout():
+    commit, dirty = REAL_SOURCE_STATE()
+    head = subprocess.run(["git", "-C", str(engine.SOURCE), "rev-parse", "HEAD"],
+                          capture_output=True, text=True)
+    if head.returncode != 0:
+        pytest.skip("not a git checkout (an installed package): no commit to compare")
+    assert commit == head.stdout.strip() and isinstance(dirty, bool)
+
+
+# ---------------------------------------------------------------- the command line
+def test_cli_run_report_and_export(spec_file, tmp_path):
+    db = tmp_path / "cli.sqlite"
+    r = run_cli(spec_file, db)
+    assert "4 runs planned, 0 already in" in r.stdout and "0 crashed" in r.stdout
+    rep = rprs("campaign", "report", str(db), "--json", "--plots", str(tmp_path / "plots"))
+    assert rep.returncode == 0, rep.stderr
+    data = json.loads(rep.stdout)
+    assert len(data["points"]) == 2 and all(p["runs"] == 2 for p in data["points"])
+    assert all(Path(f).is_file() for f in data["plots"])
+    ex = rprs("campaign", "export", str(db), "--csv", str(tmp_path / "runs.csv"),
+              "--parquet", str(tmp_path / "runs.parquet"))
+    assert ex.returncode == 0, ex.stderr
+    import csv
+    with open(tmp_path / "runs.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == 4 and {r["status"] for r in table} == {"ok"}
+    assert {r["param_robots"] for r in table} == {"1,2", "0,1,2"}
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow not installed (the 'test' "
+                             "extra has it)")
+    t = pq.read_table(tmp_path / "runs.parquet").to_pylist()
+    assert sorted((r["run_key"], r["m_submitted"]) for r in t) == \
+        sorted((r["run_key"], int(r["m_submitted"])) for r in table)
+
+
+@pytest.mark.parametrize("args,words", [
+    (("campaign", "run", "/no/such.toml"), "cannot read campaign file"),
+    (("campaign", "report", "/no/such.sqlite"), "no results file"),
+    (("campaign", "export", "/no/such.sqlite", "--csv", "x.csv"), "no results file"),
+    (("campaign", "run", "{spec}", "--workers", "0"), "--workers must be at least 1"),
+])
+def test_cli_mistakes_are_one_line(args, words, spec_file):
+    r = rprs(*[a.format(spec=spec_file) for a in args])
+    assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_the_progress_bar_shows_runs_per_second_and_time_left_on_a_terminal(spec_file,
+                                                                           tmp_path):
+    """On a terminal (stderr is a pty here) ``campaign run`` draws a bar with M/N runs, runs/s
+    and the time left; with ``--no-progress`` or a pipe it draws nothing (the other tests)."""
+    import pty
+    import re
+    master, slave = pty.openpty()
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "campaign", "run", str(spec_file),
+                          "--db", str(tmp_path / "bar.sqlite"), "--workers", "1",
+                          "--allow-dirty"], stdout=subprocess.PIPE, stderr=slave,
+                         preexec_fn=_nice, env=dict(os.environ, COLUMNS="120", TERM="xterm"))
+    os.close(slave)
+    seen = bytearray()
+    stdout = b""
+    try:
+        while True:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:                      # EIO: the child closed its end
+                break
+            if not chunk:
+                break
+            seen += chunk
+        assert p.wait(timeout=300) == 0
+        stdout = p.stdout.read()
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=30)
+        p.stdout.close()                         # else: ResourceWarning, unclosed file
+        os.close(master)
+    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", seen.decode(errors="replace"))
+    assert "campaign t" in text
+    assert re.search(r"\b[1-4]/4\b", text), text[-500:]             # M of N runs
+    assert re.search(r"\d+\.\d runs/s", text), text[-500:]
+    assert re.search(r"\d:\d\d:\d\d|-:--:--", text), text[-500:]     # rich's time remaining
+    assert b"4 runs planned" in stdout
+
+
+@pytest.mark.parametrize("fmt", ["--csv", "--parquet"])
+def test_an_export_that_cannot_be_written_names_its_file_and_leaves_it(tmp_path, capsys, fmt,
+                                                                      full_device):
+    """A full disk under ``campaign export`` said "cannot write None: No space left on
+    device" (the CSV writer's OSError carries no file name), and pyarrow removes the file it
+    failed to write: as root, ``--parquet /dev/full`` deleted /dev/full."""
+    from hil.cli import main
+    if fmt == "--parquet":
+        pytest.importorskip("pyarrow", reason="pyarrow not installed (the 'test' extra has it)")
+    full = full_device
+    db = tmp_path / "r.sqlite"
+    Store(db).close()
+    code = main(["campaign", "export", str(db), fmt, str(full)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"rprs: error: cannot write {full}: No space left on device"), err
+    assert full.is_char_device()

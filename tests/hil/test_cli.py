@@ -1,0 +1,940 @@
+"""The ``rprs`` command line: outputs, files, and one-line errors with status 2."""
+from __future__ import annotations
+
+import io
+import json
+import os
+import re
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from hil.cli import main
+from paths import ROOT
+
+
+def rprs(capsys, *args):
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_sim_json_summary(capsys):
+    code, out, err = rprs(capsys, "sim", "--robots", "0,1,2", "--duration", "6", "--load", "2",
+                          "--json")
+    assert code == 0
+    s = json.loads(out)
+    assert set(s["robots"]) == {"0", "1", "2"}
+    assert s["submitted"] == s["delivered"] + s["failed"] + s["pending"]
+    assert all(v["frames_sent"] > 10 for v in s["robots"].values())
+    assert s["occupations"] == sum(v["frames_sent"] for v in s["robots"].values())
+
+
+def test_sim_table_names_the_papers_columns(capsys):
+    code, out, _ = rprs(capsys, "sim", "--duration", "5", "--fail", "2@4")
+    assert code == 0
+    for word in ("frames", "received", "pending", "missed", "membership changes",
+                 "channel occupations", "delivered"):
+        assert word in out
+
+
+def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
+    a, b = tmp_path / "a.jsonl", tmp_path / "b.jsonl"
+    for p in (a, b):
+        assert rprs(capsys, "sim", "--duration", "8", "--seed", "4", "--load", "3",
+                    "--ber", "0.002", "--fail", "3@3", "--recover", "3@6",
+                    "--trace", str(p))[0] == 0
+    assert a.read_bytes() == b.read_bytes()
+    lines = a.read_text().splitlines()
+    meta = json.loads(lines[0])
+    assert meta["ev"] == "meta" and meta["tick_hz"] == 16_000_000
+    assert meta["byte_ticks"] == {"1": 16640, "2": 16640, "3": 16640, "4": 16640}
+    assert (meta["ttrans"], meta["tmax"], meta["seed"]) == (80_000, 9_600_000, 4)
+    evs = [json.loads(x) for x in lines[1:]]
+    assert all(x["t"] <= y["t"] for x, y in zip(evs, evs[1:]))
+    kinds = {e["ev"] for e in evs}
+    assert {"frame", "miss", "disable", "rejoin", "submit", "deliver"} <= kinds
+    f = next(e for e in evs if e["ev"] == "frame")
+    assert {"src", "dst", "num", "type", "len", "start", "end"} <= set(f)
+    assert not list(tmp_path.glob("*.partial"))
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["sim", "--robots", "9"], "robot ID 9 is out of range"),
+    (["sim", "--robots", "1,1"], "repeat"),
+    (["sim", "--robots", "a,b"], "comma-separated"),
+    (["sim", "--fail", "x@y"], "ID@SECONDS"),
+    (["sim", "--fail", "5@1"], "not in the ring"),
+    (["sim", "--duration", "-1"], "positive"),
+    (["sim", "--duration", "nan"], "positive"),
+    (["sim", "--ber", "2"], "probability"),
+    (["sim", "--load", "lots"], "idle, saturate"),
+    (["sim", "--trace", "/nonexistent-dir/t.jsonl"], "cannot write trace"),
+    (["encode", "--src", "9", "--dst", "1", "movex(1)"], "source must be 0-6"),
+    (["encode", "--src", "1", "--dst", "2", "movex(1"], "content byte"),
+    (["encode", "--src", "1", "--dst", "2", "fly(1)"], "unknown command"),
+    (["decode", "zz"], "not hexadecimal"),
+    (["decode"], "give the frame"),
+    (["plot", "/nonexistent/trace.jsonl", "-o", "/tmp/x.png"], "cannot read trace"),
+    (["sim", "--fault", "ber@5-2:0.1"], "empty"),
+    (["sim", "--fault", "stall:1.PAW@3"], "cannot stall"),
+    (["sim", "--fault", "noise@1-1" + "0" * 400], "too large to be finite"),
+    (["sim", "--fault", "fail:1@1" + "0" * 400], "too large to be finite"),
+    (["soak", "--hours", "-1"], "positive"),
+    (["child", "--id", "7", "--radio", "x"], "child ID must be 1-6"),
+    (["bogus"], "invalid choice"),
+    # outputs refused before the run, not after it (an outside tester's findings)
+    (["sim", "--trace", "."], "cannot write trace .: Is a directory"),
+    (["sim", "--vcd", "."], "cannot write VCD .: Is a directory"),
+    (["sim", "--trace", "/nonexistent-dir/x", "--vcd", "/nonexistent-dir/x"],
+     "--trace and --vcd name the same file"),
+    (["sim", "--trace", "/nonexistent-dir/x", "--pcap", "/nonexistent-dir/./x"],
+     "--trace and --pcap name the same file"),
+    (["conformance", "--radio", "x", "--id", "1", "--junit", "."], "it is a directory"),
+    (["conformance", "--radio", "x", "--id", "1", "--tolerance-ms", "-5"], "positive"),
+    (["conformance", "--radio", "x", "--id", "1", "--team", "0,2"], "must hold the robot's ID 1"),
+    (["conformance", "--radio", "x", "--id", "1", "--team", "1,2"], "and this PC's 0"),
+    (["campaign", "run", "none.toml", "--scheduler", "bogus"], "missing port number"),
+    (["campaign", "run", "none.toml", "--scheduler", "foo://x"], "unknown address scheme"),
+    (["soak", "--hours", "0.01"], "too short"),
+    (["sim", "--load", "1e9"], "'saturate'"),
+    (["encode", "--src", "1", "--dst", "2", "movex(1)" * 80], "more than a frame carries (562"),
+    (["sim", "--bogus"], "unrecognized arguments: --bogus (see 'rprs sim --help')"),
+    (["wireshark", "--dir", "x"], "give --install too"),
+    (["sim", "--frame-bytes", "100"], "sizes the peer MACs' frames"),
+    (["bench", "latency", "--radio", "x", "--dst", "0"], "the bench's own ID"),
+    (["bench", "latency", "--radio", "x", "--dst", "3", "--team", "0,1"], "must hold"),
+    # an empty port meant "no radio" to rprs child and a port to others
+    (["child", "--id", "1", "--radio", "", "--can", "virtual:x"], "an empty port name"),
+    (["father", "--radio", " "], "an empty port name"),
+    (["monitor", "--radio", ""], "an empty port name"),
+    (["conformance", "--radio", "", "--id", "1"], "an empty port name"),
+])
+def test_user_mistakes_are_one_line_and_status_2(capsys, args, needle):
+    code, out, err = rprs(capsys, *args)
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("rprs: error: ")
+    assert needle in err
+    assert "Traceback" not in err
+
+
+def test_encode_the_papers_example(capsys):
+    code, out, _ = rprs(capsys, "encode", "--src", "1", "--dst", "2", "--num", "5", "--type",
+                        "2", "movex(10)")
+    assert code == 0
+    assert bytes.fromhex(out.strip()) == b"\x0f\x0a\x05" + b"21052" + b"0009" + \
+        b"movex(10)" + b"\x17\x19"
+
+
+def test_decode_reports_frames_and_garbage(capsys):
+    frame = "0f0a053231303532303030396d6f766578283130291719"
+    code, out, err = rprs(capsys, "decode", "ffee", frame, "0f0a")
+    assert code == 0
+    rows = [json.loads(x) for x in out.splitlines()]
+    assert rows[0] == {"offset": 0, "garbage": 2}
+    assert rows[1]["offset"] == 2 and rows[1]["frame"]["commands"] == [["movex", [10]]]
+    assert rows[-1] == {"offset": 25, "garbage": 2}
+    assert "1 frame(s)" in err
+
+
+def test_decode_stream_from_stdin_bytes(monkeypatch, capsys):
+    frame = bytes.fromhex("0f0a053231303532303030396d6f766578283130291719")
+    data = b"\x00\x0f\x0a\x05" + frame + frame[:10]      # partial header, frame, truncated
+    stdin = io.TextIOWrapper(io.BufferedReader(io.BytesIO(data)))
+    monkeypatch.setattr(sys, "stdin", stdin)
+    code, out, err = rprs(capsys, "decode", "--stream")
+    rows = [json.loads(x) for x in out.splitlines()]
+    assert code == 0
+    assert [r["frame"]["src"] for r in rows if "frame" in r] == [1]
+    assert any("truncated" in r.get("error", "") for r in rows)
+
+
+@pytest.mark.parametrize("args,stdin,n", [
+    (["00112233"], None, 4),                                      # garbage only
+    (["0f0a05323130353230303039"], None, 12),                     # a header, cut short
+    (["--stream"], b"", 0),                                       # nothing at all
+    (["--stream"], b"\x00" * 5000, 5000),                         # bytes, none a frame
+    (["--stream", "--hex"], b"ffee\n0f0a\n", 4),
+])
+def test_decode_that_finds_no_frame_says_so_and_exits_1(monkeypatch, capsys, args, stdin, n):
+    """``rprs decode 00112233`` printed its garbage line, "0 frame(s) decoded" and exited 0,
+    as if it had found something. Finding nothing is status 1 (as ``rprs bench link`` and
+    ``bench cycle`` that hear no frame), in one line; the rows still go to stdout."""
+    if stdin is not None:
+        stdin = io.TextIOWrapper(io.BufferedReader(io.BytesIO(stdin)))
+        monkeypatch.setattr(sys, "stdin", stdin)
+    code, out, err = rprs(capsys, "decode", *args)
+    assert code == 1, err
+    assert err == f"rprs decode: no frame in {n} bytes of input\n"
+    assert all("frame" not in json.loads(x) for x in out.splitlines())
+    if n:
+        assert out                                     # what was there: garbage, errors
+
+
+def test_console_script_runs_without_traceback():
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "7"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_plot_refuses_an_unreadable_trace_and_leaves_no_file(tmp_path, capsys):
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text('{"ev":"meta","tick_hz":16000000}\nnot json\n')
+    out = tmp_path / "x.png"
+    code, _, err = rprs(capsys, "plot", str(bad), "-o", str(out))
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert not out.exists() and not list(tmp_path.glob("*.png*"))
+
+
+def test_plot_on_an_image_or_a_gzip_is_one_line(tmp_path, capsys):
+    """A PNG given as the trace is refused in one line; a gzipped trace is read."""
+    import gzip
+    tr = tmp_path / "t.jsonl"
+    assert rprs(capsys, "sim", "--duration", "3", "--trace", str(tr))[0] == 0
+    png = tmp_path / "fig.png"
+    assert rprs(capsys, "plot", str(tr), "-o", str(png))[0] == 0
+    code, _, err = rprs(capsys, "plot", str(png), "-o", str(tmp_path / "again.png"))
+    assert code == 2 and err.count("\n") == 1 and "not a JSON line" in err, err
+    (tmp_path / "t.jsonl.gz").write_bytes(gzip.compress(tr.read_bytes()))
+    code, _, err = rprs(capsys, "plot", str(tmp_path / "t.jsonl.gz"), "-o",
+                        str(tmp_path / "gz.png"))
+    assert code == 0 and (tmp_path / "gz.png").stat().st_size > 10_000, err
+
+
+def test_version_names_the_package_and_the_protocol(capsys):
+    """``rprs --version`` gives the installed version and the protocol version, which is the
+    one docs/protocol.md declares."""
+    import re
+    from importlib.metadata import version
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    out = capsys.readouterr().out
+    assert e.value.code == 0
+    doc = (ROOT / "docs" / "protocol.md").read_text()
+    declared = re.search(r"\*\*Protocol version (\d+\.\d+)\.\*\*", doc).group(1)
+    assert out.strip() == f"rprs {version('rprs')}, radio protocol {declared}"
+
+
+def _every_parser(parser, path=("rprs",)):
+    import argparse
+    yield path, parser
+    for act in parser._actions:
+        if isinstance(act, argparse._SubParsersAction):
+            for name, sub in act.choices.items():
+                yield from _every_parser(sub, path + (name,))
+
+
+def test_every_option_of_every_command_has_help_text():
+    from hil.cli import build_parser
+    missing = []
+    for path, parser in _every_parser(build_parser()):
+        for act in parser._actions:
+            if act.option_strings and not act.help:
+                missing.append(f"{' '.join(path)} {'/'.join(act.option_strings)}")
+    assert not missing, missing
+
+
+def test_each_command_is_built_alone_from_its_own_module_as_in_the_whole_parser():
+    """``rprs NAME ...`` builds only NAME's module (start-up); MODULE_OF must name every
+    command, and the command built alone must be the command of the whole parser."""
+    from hil.cli import MODULE_OF, build_parser
+    whole = dict(_every_parser(build_parser()))
+    commands = {path[1] for path in whole if len(path) == 2}
+    assert commands == set(MODULE_OF)
+    for name, module in MODULE_OF.items():
+        alone = dict(_every_parser(build_parser((module,))))
+        mine = {p: q for p, q in alone.items() if len(p) >= 2 and p[1] == name}
+        assert set(mine) == {p for p in whole if len(p) >= 2 and p[1] == name}
+        for path, parser in mine.items():
+            assert parser.format_help() == whole[path].format_help(), path
+
+
+def test_a_light_command_does_not_import_the_simulator():
+    """``rprs encode`` and ``rprs --version`` once took 0.5 s, importing every command and
+    with them python-can and cantools; each imports its own module now."""
+    code = ("import sys; from hil.cli import main\n"
+            "for argv in (['encode', '--src', '1', '--dst', '0', 'status()'], ['--version']):\n"
+            "    try:\n        main(argv)\n    except SystemExit:\n        pass\n"
+            "heavy = sorted(m for m in ('hil.sim.world', 'can', 'cantools', 'hil.cli.sim')"
+            " if m in sys.modules)\n"
+            "print('HEAVY', heavy)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "0f0a0530313030323030303873746174757328291719" in r.stdout
+    assert "HEAVY []" in r.stdout, r.stdout
+
+
+def test_demo_takes_the_action_sequence_options_without_naming_it(capsys):
+    """``rprs demo --cycles 1`` is ``rprs demo action-sequence --cycles 1`` (it once said
+    "invalid choice: '1'")."""
+    code, out, err = rprs(capsys, "demo", "--cycles", "1", "--robots", "2")
+    assert code == 0, err
+    code2, out2, _ = rprs(capsys, "demo", "action-sequence", "--cycles", "1", "--robots", "2")
+    assert code2 == 0 and out == out2 and "cycle" in out
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--target", "board"], "--target board needs --radio PORT and --can"),
+    (["--target", "board", "--radio", "/dev/ttyUSB0"], "--target board needs --radio PORT"),
+    (["--target", "bored"], "--target 'bored': choose from model, process, board"),
+    (["--target", "model", "--dut-id", "9"], "--dut-id 9: a child's ID is 1-6"),
+    (["--target", "model", "--dut-id", "0"], "--dut-id 0: a child's ID is 1-6"),
+])
+def test_acceptance_board_without_its_ports_is_a_usage_error(args, needle):
+    """A board target with its ports forgotten once reported "6 skipped", exit 0."""
+    r = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "0",
+                        "tests/acceptance", *args], capture_output=True, text=True, timeout=120,
+                       cwd=ROOT)
+    assert r.returncode == 4, r.stdout + r.stderr
+    assert needle in r.stderr and "passed" not in r.stdout and "skipped" not in r.stdout
+
+
+def test_acceptance_board_on_a_port_that_does_not_exist_says_so_in_one_line():
+    """A board bench that cannot open its port once failed every test with a traceback
+    through the runner; now each setup error is one line naming the port."""
+    r = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "0",
+                        "tests/acceptance", "--target", "board", "--radio", "/nonexistent-rprs",
+                        "--can", "virtual:rprs-acc-missing"], capture_output=True, text=True,
+                       timeout=120, cwd=ROOT)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "board: the bench cannot start: serial port /nonexistent-rprs does not exist" \
+        in r.stdout
+    assert "Traceback" not in r.stdout and "runner.py" not in r.stdout, r.stdout
+
+
+def test_txen_on_a_pty_is_refused_in_one_line():
+    """A pty (a radio hub node) has no RTS or DTR line: ``--txen rts`` on it was accepted
+    and every TXEN edge silently failed. Now it is a one-line error, status 2."""
+    import os
+    master, slave = os.openpty()
+    try:
+        r = subprocess.run([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--radio",
+                            os.ttyname(slave), "--txen", "rts"],
+                           capture_output=True, text=True, timeout=60)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "--txen rts" in r.stderr and "no RTS line" in r.stderr
+
+
+def test_demo_ring_tells_the_story_of_its_run(capsys):
+    """The rejoin the demo exists to show was hidden behind "(+3 more)", and R1 was called a
+    "member" while its radio was off. The story has every happening, in order, in words."""
+    code, out, _ = rprs(capsys, "demo", "ring", "--no-progress")
+    assert code == 0
+    story = out.split("What happened:\n", 1)[1].split("\n\n", 1)[0].splitlines()
+    text = [line.split(" s  ", 1)[1] for line in story]
+    times = [float(line.split(" s  ", 1)[0]) for line in story]
+    assert times == sorted(times)
+    order = ["father 0 hears nobody and starts the ring", "R1 is in the ring",
+             "R1: its radio goes silent", "R1 misses its turn", "R1 misses its turn",
+             "R1 misses its turn", "R1 is dropped after three missed turns",
+             "R1, alone with its radio cut off, hears nobody and claims the channel for itself",
+             "R1: its radio comes back", "R1 is in the ring again"]
+    at = 0
+    for want in order:
+        at = text.index(want, at) + 1
+    cut = text.index("R1: its radio goes silent")
+    back = text.index("R1: its radio comes back")
+    # while its radio is cut off, R1's own view (everyone else missing) is not the story
+    assert not [t for t in text[cut:back] if "misses its turn" in t and not t.startswith("R1")]
+    assert "(+" not in out and "member 1" not in out
+
+
+def test_the_progress_bar_run_is_the_same_run():
+    """With a progress bar the world runs in one-second steps that leave sleeping CAN sides
+    asleep (``World.run(wake_can=False)``); the summary is the one-go run's."""
+    from hil.cli.sim import run_world
+    from hil.sim.world import SimConfig
+    cfg = SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=3, load=1)
+    stepped, _ = run_world(cfg, None, True)
+    whole, _ = run_world(cfg, None, False)
+    assert sum(q.periods_skipped for q in stepped.quiet.values()) > 0
+    assert json.dumps(stepped.summary(), sort_keys=True) == \
+        json.dumps(whole.summary(), sort_keys=True)
+
+
+def test_every_frame_gives_the_same_summary(capsys):
+    """``--every-frame`` runs an idle ring frame by frame, without leaps over its cycles or
+    sleeping CAN sides: the same summary, byte for byte, as the default run, which leaps."""
+    args = ("sim", "--robots", "0,1,2,3", "--duration", "120", "--can", "--fail", "2@40",
+            "--recover", "2@70", "--json")
+    code, fast, _ = rprs(capsys, *args)
+    assert code == 0
+    code, slow, _ = rprs(capsys, *args, "--every-frame")
+    assert code == 0
+    fast, slow = json.loads(fast), json.loads(slow)
+    for timing in ("speed", "wall_seconds"):
+        del fast[timing], slow[timing]
+    assert fast == slow
+    assert fast["occupations"] > 2000
+
+
+def test_the_progress_bar_leaps_too():
+    """The progress bar's steps (a hundredth of the run) leave the ring room to leap."""
+    from hil.cli.sim import run_world
+    from hil.sim.world import SimConfig
+    cfg = SimConfig(robots=(0, 1, 2), duration=600, seed=4)
+    stepped, _ = run_world(cfg, None, True)
+    assert stepped.quiet_ring.ticks_skipped > 0.8 * stepped.now
+
+
+def test_a_directory_given_for_campaign_results_is_refused(tmp_path, capsys):
+    spec = tmp_path / "c.toml"
+    spec.write_text('[campaign]\nname = "x"\nseeds = 1\nduration = 5\n[grid]\nber = [0.0]\n')
+    code, _, err = rprs(capsys, "campaign", "run", str(spec), "--db", str(tmp_path))
+    assert code == 2 and "is a directory" in err and "Traceback" not in err
+    code, _, err = rprs(capsys, "campaign", "run", str(spec), "--db",
+                        str(tmp_path / "no" / "r.sqlite"))
+    assert code == 2 and "no directory" in err and not (tmp_path / "no").exists()
+
+
+def test_encode_notes_a_frame_no_station_sends_but_encodes_it(capsys):
+    """Receivers must take reserved Destinations and Types (docs/protocol.md §3), so a test
+    frame may carry them: encoded, with a note on stderr."""
+    code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "8", "movex(1)")
+    assert code == 0 and bytes.fromhex(out.strip())[3:5] == b"81"
+    assert "reserved" in err and "Traceback" not in err
+    # a PC's frame over its 561 bytes (clause 14): the same, noted (a child's 562 is fine)
+    big = "movex(1)" * 69 + "movex(100)"                  # 562 bytes
+    code, out, err = rprs(capsys, "encode", "--src", "0", "--dst", "1", big)
+    assert code == 0 and "a PC sends at most 561 Content bytes" in err, err
+    code, out, err = rprs(capsys, "encode", "--src", "2", "--dst", "1", big)
+    assert code == 0 and err == ""
+
+
+def test_the_ring_demo_tells_the_ring_it_runs(capsys):
+    """Its default outage is of the ring's first child, and only when the run lasts long
+    enough to see it come back (it once named R1 and R1-R4 whatever --robots said)."""
+    code, out, _ = rprs(capsys, "demo", "ring", "--robots", "0,2,3")
+    assert code == 0
+    assert out.startswith("Demo: the father (ID 0), R2, R3 power on together")
+    assert "R2's radio goes silent at 8 s" in out and "R1" not in out
+    code, out, _ = rprs(capsys, "demo", "ring", "--duration", "5")
+    assert code == 0 and "goes silent" not in out and "R4 power on" in out
+
+
+def test_sim_json_with_the_cpu_report_is_one_document(capsys):
+    code, out, _ = rprs(capsys, "sim", "--robots", "0,1", "--duration", "2", "--cpu-report",
+                        "--json")
+    assert code == 0
+    doc = json.loads(out)
+    assert "cpu_report" in doc and "delivered" in doc
+
+
+def test_a_can_log_that_cannot_be_written_is_one_line_and_closes_the_bus():
+    """python-can warns at exit about a bus never shut down: that was a second line."""
+    for log in (".", "x.unknown-format"):
+        r = subprocess.run([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--can",
+                            "virtual:cli-test", "--can-log", log], capture_output=True,
+                           text=True, timeout=60)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+        assert r.stderr.startswith("rprs: error: cannot write CAN log")
+
+
+def test_a_can_log_format_python_can_cannot_write_here_is_one_line(tmp_path, capsys,
+                                                                   monkeypatch):
+    """``--can-log x.mf4`` without asammdf (python-can's optional [mf4]) ended in a
+    NotImplementedError traceback and python-can's 'not properly shut down' line."""
+    import can
+
+    def no_mf4(path, **kw):
+        raise NotImplementedError("The asammdf package was not found. Install python-can with "
+                                  "the optional dependency [mf4] to use the MF4Writer.")
+    monkeypatch.setattr(can, "Logger", no_mf4)
+    log = tmp_path / "x.mf4"
+    code, out, err = rprs(capsys, "child", "--id", "1", "--can", "virtual:cli-mf4",
+                          "--can-log", str(log))
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"rprs: error: cannot write CAN log {log}: The asammdf package")
+
+
+def test_a_can_only_child_closes_with_its_can_side_not_radio_fields(capsys):
+    """``rprs child --can ...`` without ``--radio``: its closing line was the radio's, "robot
+    1: listen, ring [], frames sent 0, heard 0, bad frames 0, pending 0", for a station that
+    never had a radio. It now gives what the child has: its CAN side."""
+    code, out, err = rprs(capsys, "child", "--id", "1", "--can", "virtual:cli-can-only",
+                          "--duration", "0.3")
+    assert code == 0, err
+    last = err.strip().splitlines()[-1]
+    assert last == "robot 1: CAN only (no radio); CAN: 0 frames sent, 0 received", err
+    assert "ring" not in err and "heard" not in err
+
+
+def test_a_child_with_a_radio_and_a_can_side_closes_with_both(capsys):
+    """``rprs child --radio ... --can ...``: its closing line was the radio's alone, with no
+    CAN frame counts (a CAN-only child gives them); it now gives both sides."""
+    code, out, err = rprs(capsys, "child", "--id", "1", "--team", "1", "--radio", "loop://",
+                          "--can", "virtual:cli-both", "--duration", "0.3")
+    assert code == 0, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("robot 1: ") and "frames sent" in last, err
+    radio, sep, can_side = last.partition("; CAN: ")
+    assert sep and "CAN only" not in radio, err
+    assert re.fullmatch(r"\d+ frames? sent, \d+ received", can_side), err
+
+
+@pytest.mark.parametrize("command", [
+    ["child", "--id", "1", "--team", "1", "--events"],
+    ["father", "--team", "0", "--json", "--no-input"],
+    ["father", "--team", "0"],
+], ids=["child --events", "father --json", "father"])
+def test_a_robot_whose_stdout_closes_stops_quietly_with_its_summary(command):
+    """``rprs child --events | head -1``: the write after head exited raised BrokenPipeError
+    out of the firmware's scheduler, and the process ended at once with status 0 and no
+    closing line, as if it had never run. A closed stdout now stops a robot as rprs stops
+    every command whose reader went away (hil/cli/__init__.py: status 1, no error): quietly,
+    but cleanly, its ports closed and its closing line on stderr, as on Ctrl-C."""
+    orders = "--no-input" not in command and "--events" not in command
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", *command, "--radio", "loop://",
+                          "--duration", "60"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, stdin=subprocess.PIPE if orders else None,
+                         text=True)
+    try:
+        first = p.stdout.readline()              # a lone robot claims its ring within 1 s
+        assert first.strip(), first
+        p.stdout.close()                          # what head -1 does once it has its line
+        t_closed = time.monotonic()
+        if orders:                                # the father's console writes of it next
+            p.stdin.write("1 status()\n")
+            p.stdin.flush()
+        err = p.stderr.read()
+        code = p.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+        if p.stdin is not None:
+            p.stdin.close()
+        p.stdout.close()
+        p.stderr.close()
+    assert time.monotonic() - t_closed < 20, "it ran on to its --duration"
+    assert code == 1, err                         # as every rprs command (test below)
+    assert "Traceback" not in err and "Exception ignored" not in err and "Broken" not in err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith(("running child 1", "father (ID 0")), err
+    if command[0] == "father":                   # the station's line, then the orders'
+        assert lines[-1].startswith("orders: "), err
+        lines.pop()
+    assert lines[-1].startswith(("robot 1: member", "robot 0: member")), err
+
+
+FRAME_HEX = "0f0a053231303532303030396d6f766578283130291719"
+
+
+@pytest.mark.parametrize("command", [
+    ["sim", "--robots", "1,2", "--duration", "2"],
+    ["sim", "--robots", "1,2", "--duration", "2", "--json"],
+    ["sim", "--robots", "1,2", "--duration", "1", "--cpu-report"],
+    ["decode", FRAME_HEX],
+    ["encode", "--src", "1", "--dst", "2", "movex(10)"],
+    ["--help"],
+    ["sim", "--help"],
+    ["--version"],
+], ids=["sim", "sim --json", "sim --cpu-report", "decode", "encode", "--help", "sim --help",
+        "--version"])
+def test_a_closed_stdout_ends_every_command_alike(command):
+    """``rprs ... | head -1``: each command ended its own way when its reader had gone:
+    ``rprs sim``'s table with status 1 (rich's own handling), ``--json`` and ``decode`` with 0
+    (main's), ``--help`` with 0 (argparse swallowed the error). Every one now ends as the
+    Python docs recommend for SIGPIPE: stdout pointed at /dev/null, status 1, nothing on
+    stderr. The pipe's reading end is closed before the command starts, so that every
+    command meets the closed pipe at its first write, whatever its output's length."""
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        p = subprocess.run([sys.executable, "-m", "hil.cli", *command], stdout=w,
+                           stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(w)
+    assert (p.returncode, p.stderr) == (1, "")
+
+
+def test_a_long_output_piped_to_head_ends_quietly(tmp_path):
+    """Through a real ``| head -1``: ``rprs decode --stream`` of 4000 frames writes far more
+    than a pipe holds, so it meets head's exit: head's one line, then status 1 and nothing
+    on stderr (it was 0 and "4000 frame(s) decoded"... on a stdout nobody read)."""
+    src = tmp_path / "frames.hex"
+    src.write_text((FRAME_HEX + "\n") * 4000)
+    p = subprocess.run(["bash", "-c", f"{sys.executable} -m hil.cli decode --stream --hex "
+                        f"< {src} 2>{tmp_path / 'err'} | head -1; "
+                        "echo status ${PIPESTATUS[0]}"],
+                       capture_output=True, text=True, timeout=120)
+    lines = p.stdout.splitlines()
+    assert json.loads(lines[0])["offset"] == 0 and lines[1:] == ["status 1"], p.stdout
+    assert (tmp_path / "err").read_text() == ""
+
+
+@pytest.mark.parametrize("command", [["child", "--id", "1"], ["submodules"]])
+def test_an_rprs_unix_bus_under_a_missing_directory_is_one_line(tmp_path, capsys, command):
+    """The ``rprs_unix:`` scheme made every missing parent of its directory (a mistyped path
+    gave a bus of its own, silently), the radio hub's ``--link-dir`` none: both now make only
+    the last directory and refuse a missing parent in one line naming it."""
+    bus = tmp_path / "no-such" / "can"
+    code, out, err = rprs(capsys, *command, "--can", f"rprs_unix:{bus}", "--duration", "0.1")
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"rprs: error: cannot open CAN bus rprs_unix:{bus}: ")
+    assert f"its parent directory {bus.parent} does not exist" in err
+    assert not bus.parent.exists()
+
+
+@pytest.mark.parametrize("command,other", [(["child", "--id", "1"], "rprs submodules"),
+                                           (["submodules"], "rprs child")])
+def test_a_virtual_can_bus_is_said_to_be_out_of_other_processes_reach(tmp_path, capsys,
+                                                                       command, other):
+    """``--can virtual:NAME`` is python-can's in-process bus: no other process (rprs
+    submodules, candump) ever sees its frames, and a user waited for them. The command now
+    says so in one note line after its running line (not an error: it runs, status 0); a
+    bus other processes share gets no note."""
+    code, out, err = rprs(capsys, *command, "--can", "virtual:cli-note", "--duration", "0.2")
+    assert code == 0, err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("running "), err
+    notes = [x for x in lines if "note:" in x]
+    assert len(notes) == 1 and lines[1] == notes[0], err
+    assert notes[0].startswith(f"rprs {command[0]}: note: virtual:cli-note is python-can's "
+                               f"in-process bus"), notes
+    assert other in notes[0] and "rprs_unix:DIR" in notes[0] and "error" not in notes[0]
+    code, out, err = rprs(capsys, *command, "--can", f"rprs_unix:{tmp_path / 'can'}",
+                          "--duration", "0.2")
+    assert code == 0 and "note:" not in err, err
+
+
+def test_a_father_order_that_is_not_ascii_is_refused_in_words():
+    from hil.bench.runner import parse_order
+    with pytest.raises(ValueError, match="'é' is not ASCII"):
+        parse_order("2 movex(1é)")
+
+
+def test_a_father_order_to_the_father_itself_is_refused_as_it_is_parsed():
+    """'0 status()' passed the order's parser ("destination ID (0-7)") and was refused later by
+    the MAC as "a robot ID 0-6 other than 0", a line of another shape; now the parser says it."""
+    from hil.bench.runner import parse_order
+    with pytest.raises(ValueError, match=r"destination must be 1-6 \(a child\) or 7 \(every "
+                       r"robot\), got 0: 0 is the father itself"):
+        parse_order("0 status()")
+    assert parse_order("7 status()")[0] == 7
+
+
+def _read_fifo(path: Path, got: list) -> threading.Thread:
+    """A reader that takes everything written to the FIFO ``path`` into ``got``."""
+    def read():
+        with open(path, "rb") as f:
+            got.append(f.read())
+    t = threading.Thread(target=read, daemon=True)
+    t.start()
+    return t
+
+
+def test_outputs_through_a_link_or_into_a_fifo_leave_the_link_and_the_fifo(tmp_path, capsys):
+    """An output was written to ``PATH.partial`` and renamed over PATH, whatever PATH was: a
+    symlink became a regular file (its target never written), a FIFO was replaced by a file
+    (its reader got nothing), and as root ``--trace /dev/null`` replaced /dev/null by a regular
+    file. A link is written through now, and a FIFO or a device straight."""
+    import os
+    import stat
+    real = tmp_path / "real.jsonl"
+    link = tmp_path / "link.jsonl"
+    link.symlink_to(real)
+    fifo = tmp_path / "capture"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = _read_fifo(fifo, got)
+    code, _, err = rprs(capsys, "sim", "--duration", "3", "--trace", str(link), "--pcap",
+                        str(fifo))
+    reader.join(30)
+    assert code == 0, err
+    assert link.is_symlink() and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert real.read_text().startswith('{"ev":"meta"')
+    assert got and got[0][:4] == b"\x0a\x0d\x0d\x0a" and len(got[0]) > 1000   # pcapng SHB
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_a_plot_through_a_link_or_into_a_fifo(tmp_path, capsys):
+    import os
+    import stat
+    trace = tmp_path / "t.jsonl"
+    assert rprs(capsys, "sim", "--duration", "3", "--trace", str(trace))[0] == 0
+    real = tmp_path / "real.svg"
+    link = tmp_path / "link.svg"
+    link.symlink_to(real)
+    assert rprs(capsys, "plot", str(trace), "-o", str(link))[0] == 0
+    assert link.is_symlink() and real.read_bytes().startswith(b"<?xml")
+    fifo = tmp_path / "fig.svg"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = _read_fifo(fifo, got)
+    code, _, err = rprs(capsys, "plot", str(trace), "-o", str(fifo))
+    reader.join(30)
+    assert code == 0, err
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert got and got[0] == real.read_bytes()          # the same bytes, clip paths numbered
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_a_full_disk_under_the_capture_is_one_line(capsys, full_device):
+    """``--pcap /dev/full`` ended in an OSError traceback when the capture was closed."""
+    code, _, err = rprs(capsys, "sim", "--duration", "2", "--pcap", str(full_device))
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"rprs: error: cannot write capture {full_device}: No space left")
+    assert full_device.is_char_device()
+
+
+@pytest.mark.parametrize("failing,kept", [("--trace", "--pcap"), ("--pcap", "--trace")])
+def test_an_output_that_cannot_be_finished_leaves_the_other_whole(tmp_path, capsys, full_device,
+                                                                  failing, kept):
+    """A run so short that its trace (or capture) is written only when it is finished, on a
+    full disk: the one that failed is one line and status 2; the other, complete, is kept, as
+    the same run without the failing output writes it. ``rprs sim`` kept a capture when its
+    trace failed, but removed its trace when its capture failed (the capture was put in place
+    inside the run's clean-up, the trace after it), and ``rprs monitor`` kept both
+    (tests/hil/view/test_monitor.py: the same test); both now keep every complete output."""
+    run = ["sim", "--robots", "1,2", "--duration", "0.2"]
+    name = {"--trace": "t.jsonl", "--pcap": "p.pcapng"}
+    whole = tmp_path / "whole" / name[kept]
+    whole.parent.mkdir()
+    assert rprs(capsys, *run, kept, str(whole))[0] == 0
+    out = tmp_path / name[kept]
+    code, _, err = rprs(capsys, *run, kept, str(out), failing, str(full_device))
+    what = {"--trace": "trace", "--pcap": "capture"}[failing]
+    assert code == 2 and err == f"rprs: error: cannot write {what} {full_device}: No space " \
+        f"left on device\n", err
+    assert out.read_bytes() == whole.read_bytes()
+    assert not list(tmp_path.glob("*.partial")) and full_device.is_char_device()
+
+
+@pytest.mark.parametrize("failing", ["--trace", "--vcd", "--pcap"])
+def test_a_write_error_mid_run_names_the_output_that_failed(tmp_path, capsys, monkeypatch,
+                                                            failing):
+    """A write that failed during the run (a full disk) was reported as "cannot write trace
+    t.jsonl, VCD v.vcd, capture p.pcapng: ...": every output given, not the one that failed.
+    Here one output's file descriptor is swapped for a read-only one once it is open, so each
+    of its writes fails in the OS (EBADF) as a full disk's would (ENOSPC); the others work."""
+    import os
+    from hil.sim import trace as trace_mod
+    outs = {"--trace": tmp_path / "t.jsonl", "--vcd": tmp_path / "v.vcd",
+            "--pcap": tmp_path / "p.pcapng"}
+    readonly = tmp_path / "readonly"
+    readonly.write_bytes(b"")
+    opened = trace_mod.OutputFile.__init__
+
+    def broken_when_failing(self, path, *a, **kw):
+        opened(self, path, *a, **kw)
+        if path == str(outs[failing]):
+            fd = os.open(readonly, os.O_RDONLY)
+            os.dup2(fd, self.f.fileno())
+            os.close(fd)
+    monkeypatch.setattr(trace_mod.OutputFile, "__init__", broken_when_failing)
+    args = [a for opt, p in outs.items() for a in (opt, str(p))]
+    code, out, err = rprs(capsys, "sim", "--duration", "20", "--load", "2", "--no-progress",
+                          *args)
+    what = {"--trace": "trace", "--vcd": "VCD", "--pcap": "capture"}[failing]
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err == f"rprs: error: cannot write {what} {outs[failing]}: Bad file descriptor\n"
+    assert out == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["readonly"]     # nothing left
+
+
+@pytest.mark.parametrize("sig,status,word", [("SIGTERM", 143, "terminated"),
+                                              ("SIGINT", 130, "interrupted")])
+def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, status, word):
+    """SIGTERM killed ``rprs sim`` where it stood: ``t.jsonl.partial`` and ``v.vcd.partial``
+    were left behind and ``p.pcapng``, written in place, was cut in the middle of a packet
+    (tshark: "appears to have been cut short"). SIGTERM now ends it as Ctrl-C does: one line,
+    no output file of any kind, status 128 + the signal."""
+    import signal
+    import time
+    outs = {"--trace": tmp_path / "t.jsonl", "--vcd": tmp_path / "v.vcd",
+            "--pcap": tmp_path / "p.pcapng"}
+    args = [a for opt, p in outs.items() for a in (opt, str(p))]
+    proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "sim", "--duration", "100000",
+                             "--load", "1", "--no-progress", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 60
+        while not any(p.stat().st_size > 10_000 for p in tmp_path.iterdir()):
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+        proc.send_signal(getattr(signal, sig))
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == status, err
+    assert err == f"rprs: {word}\n" and out == ""
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("option", ["--trace", "--vcd", "--pcap"])
+@pytest.mark.parametrize("path", ["", "-"])
+def test_an_empty_or_dash_output_name_is_refused(capsys, tmp_path, monkeypatch, option, path):
+    """``--trace ''`` wrote no trace and said nothing; ``--pcap -`` (stdout, to the radio hub)
+    wrote a file named '-'."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = rprs(capsys, "sim", "--duration", "1", option, path)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert f"argument {option}:" in err
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--fail", "1@20"], "--fail 1@20"),
+    (["--recover", "2@10"], "--recover 2@10"),
+    (["--power", "3@12.5"], "--power 3@12.5"),
+    (["--fault", "steal:2@30"], "--fault steal:2@30"),
+    (["--fault", "ber@10-20:0.01"], "--fault ber@10-20:0.01"),
+])
+def test_a_fault_or_power_on_after_the_end_of_the_run_is_refused(capsys, args, needle):
+    """``--duration 10 --fail 1@20`` ran, exit 0, and no radio failed: the fault was silently
+    never reached. A time the run never gets to is a mistake, said before it runs."""
+    code, _, err = rprs(capsys, "sim", "--duration", "10", *args)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert needle in err and "the run ends at 10 s" in err, err
+    # a window that begins before the end is fine, and so is an event before it
+    assert rprs(capsys, "sim", "--duration", "10", "--fault", "noise@9-20", "--fail", "1@9.9",
+                "--power", "2@5")[0] == 0
+
+
+@pytest.mark.parametrize("mac", ["aloha", "slotted", "csma"])
+@pytest.mark.parametrize("args,needle", [
+    (["--fault", "steal:2@3"], "--fault steal:2@3"),
+    (["--fault", "fail:1@2", "--fault", "steal:3@4.5"], "--fault steal:3@4.5"),
+    (["--profile", "paper"], "--profile paper"),
+    (["--robots", "0,1,2", "--father-standby"], "--father-standby"),
+])
+def test_a_rotational_mac_option_with_a_peer_mac_is_refused(capsys, mac, args, needle):
+    """``--mac csma --fault steal:2@3`` ran and said nothing: a peer MAC has no turn to steal
+    (its ``force_turn`` does nothing). ``--profile paper`` is a profile of the rotational MAC
+    that the peer MACs never read. Each is refused in one line naming the option and the MAC."""
+    code, out, err = rprs(capsys, "sim", "--duration", "5", "--mac", mac, *args)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"rprs: error: {needle}") and f"--mac {mac}" in err, err
+    assert out == ""
+    # the same with the rotational MAC runs (the steals are real steals there)
+    code, _, err = rprs(capsys, "sim", "--duration", "5", "--mac", "rotational", *args)
+    assert code == 0, err
+
+
+def test_the_checksum_and_the_other_sim_options_apply_to_the_peer_macs_too(capsys):
+    """What the peer MACs do use is taken: ``--checksum`` seals and checks their frames
+    (firmware_model/radio/peer_macs.py), and the air's faults, the CAN side and the load are
+    the same for every MAC."""
+    from hil.cli.sim import add_sim_options, sim_config
+    from hil.cli.common import Parser
+    from hil.sim.world import World
+    p = Parser(prog="rprs sim")
+    add_sim_options(p)
+    cfg = sim_config(p.parse_args(["--mac", "aloha", "--checksum", "--duration", "4", "--load",
+                                   "1", "--robots", "0,1,2"]))
+    w = World(cfg)
+    frames: list[bytes] = []
+    heard = w.air.on_transmission
+    w.air.on_transmission = lambda tx: (frames.append(bytes(tx.data)), heard(tx))
+    w.run()
+    assert frames and all(b"crc(" in f for f in frames)
+    code, out, err = rprs(capsys, "sim", "--duration", "5", "--mac", "csma", "--checksum",
+                          "--can", "--fault", "ber@1-2:0.001", "--fault", "skew:1:0.01",
+                          "--fault", "busoff:1@3", "--load", "1", "--json")
+    assert code == 0, err
+    assert json.loads(out)["delivered"] > 0
+
+
+def test_a_run_shorter_than_one_tick_is_refused(capsys):
+    """``rprs sim --duration 1e-9`` ran 0 ticks and exited 0 as if it had simulated something."""
+    code, out, err = rprs(capsys, "sim", "--duration", "1e-9", "--no-progress")
+    assert code == 2 and err.count("\n") == 1 and "shorter than one tick" in err, err
+    assert out == ""
+    code, _, _ = rprs(capsys, "sim", "--robots", "1,2", "--duration", "0.0000001",
+                      "--no-progress")                   # 1.6 ticks: runs
+    assert code == 0
+
+
+@pytest.mark.parametrize("command", [["submodules", "--can", "virtual:rprs-ev"],
+                                     ["father", "--radio", "loop://"]])
+def test_events_is_an_option_of_the_child_only(capsys, command):
+    """``rprs submodules --events`` and ``rprs father --events`` were accepted and printed
+    nothing: the submodules have no MAC, and the father prints its station's events with
+    --json. Only ``rprs child`` takes it now; the others refuse it in one line."""
+    from hil.cli import main
+    assert main([*command, "--events", "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "unrecognized arguments: --events" in err and "Traceback" not in err, err
+
+
+def _latency_lines(out: str) -> list[str]:
+    lines = out.splitlines()
+    i = next(i for i, x in enumerate(lines) if x.startswith("dispatcher latency"))
+    return lines[i:i + 2]
+
+
+def test_the_ring_demos_zero_latency_says_it_is_the_ideal_cpus(capsys):
+    """``rprs demo ring`` printed a median dispatcher latency of 0 us, unexplained: with the
+    ideal CPU (the default) the firmware takes no time and only the wait for a free CAN bus
+    is left. The line now says so; with ``--cpu estimated`` the figure is the firmware's
+    and no such note is printed."""
+    code, out, _ = rprs(capsys, "demo", "ring", "--duration", "6", "--no-progress")
+    assert code == 0
+    head, note = _latency_lines(out)
+    assert " median 0 us," in head
+    assert "the ideal CPU, --cpu ideal: the firmware takes no time" in note
+    assert "only the wait for a free CAN bus" in note
+    code, out, _ = rprs(capsys, "sim", "--robots", "0,1,2", "--duration", "6", "--load", "1",
+                        "--can", "--cpu", "estimated")
+    assert code == 0
+    head, after = _latency_lines(out)
+    median = float(head.split(" median ", 1)[1].split(" us", 1)[0])
+    assert median > 0 and "ideal CPU" not in out
+
+
+def test_output_to_a_pipe_is_neither_wrapped_nor_coloured():
+    """Rich wrapped at 80 columns when stdout was not a terminal: ``rprs sim | grep
+    "duplicate deliveries 0"`` found nothing. Into a pipe, no line is wrapped and nothing is
+    coloured, even with FORCE_COLOR set; the CPU report's tables included."""
+    env = dict(os.environ, FORCE_COLOR="1")
+    env.pop("COLUMNS", None)
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1,2",
+                        "--duration", "6", "--load", "2", "--can", "--cpu", "estimated",
+                        "--cpu-report"], capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stderr[-500:]
+    assert "\x1b[" not in r.stdout
+    lines = r.stdout.splitlines()
+    assert any(x.startswith("messages: submitted") and "duplicate deliveries 0" in x
+               for x in lines)
+    assert any(x.startswith("dispatcher latency") and x.rstrip().endswith(" us")
+               for x in lines)
+    budget = [x for x in lines if x.startswith("R1 CPU budget")]
+    assert len(budget) == 1 and "gaps in frames sent" in budget[0]
+
+
+def test_output_to_a_terminal_is_still_rich():
+    """The no-wrap, no-colour console is for pipes and files only: on a terminal the summary
+    keeps rich's bold title."""
+    import pty
+    master, slave = pty.openpty()
+    env = dict(os.environ, COLUMNS="100")
+    env.pop("NO_COLOR", None)
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1",
+                          "--duration", "2"], stdout=slave, stderr=subprocess.PIPE,
+                         stdin=subprocess.DEVNULL, env=env)
+    os.close(slave)
+    out = bytearray()
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:
+            break
+        if not chunk:
+            break
+        out.extend(chunk)
+    p.wait(timeout=120)
+    os.close(master)
+    assert p.returncode == 0
+    assert b"\x1b[1mRPRS ring" in out, bytes(out[:300])
