@@ -8,6 +8,7 @@ from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, 
 from firmware_model.radio.errors import FrameError
 from firmware_model.radio.frame import END, HEADER, Frame, field_at
 from firmware_model.timing import CHILD_BYTE_TICKS
+from contents import frames as frame_strategy
 
 SETTINGS = settings(max_examples=200, deadline=None)
 BT = CHILD_BYTE_TICKS
@@ -15,15 +16,7 @@ BT = CHILD_BYTE_TICKS
 PAPER = Frame(dst=2, src=1, num=5, type=2, content=b"movex(10)")
 HB = Frame(dst=7, src=3, num=0, type=3)
 
-printable = st.lists(st.integers(0x20, 0x7E), max_size=40).map(bytes)
-frames = st.builds(
-    Frame,
-    dst=st.integers(0, 9),
-    src=st.integers(0, 6),
-    num=st.integers(0, 99),
-    type=st.integers(0, 9),
-    content=printable,
-)
+frames = frame_strategy(40)
 
 
 def per_byte(d: Deframer, data: bytes, t0: int, dt: int) -> list:

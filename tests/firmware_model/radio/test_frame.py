@@ -25,18 +25,11 @@ from firmware_model.radio.frame import (
     parse_frame,
     parse_frame_cached,
 )
+from contents import frames as frame_strategy
 
 SETTINGS = settings(max_examples=200, deadline=None)
 
-printable = st.lists(st.integers(0x20, 0x7E), max_size=80).map(bytes)
-frames = st.builds(
-    Frame,
-    dst=st.integers(0, 9),
-    src=st.integers(0, 6),
-    num=st.integers(0, 99),
-    type=st.integers(0, 9),
-    content=printable,
-)
+frames = frame_strategy(80)
 
 PAPER = Frame(dst=2, src=1, num=5, type=2, content=b"movex(10)")
 PAPER_BYTES = b"\x0f\x0a\x05" + b"2" + b"1" + b"05" + b"2" + b"0009" + b"movex(10)" + b"\x17\x19"
