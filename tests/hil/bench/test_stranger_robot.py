@@ -96,16 +96,39 @@ def parse_content(text: str) -> list[tuple[str, tuple]]:
     return out
 
 
-def encode(dst: int, src: int, num: int, typ: int, content: str) -> bytes:
-    """Clause 6, byte by byte."""
+def encode(dst: int, src: int, num: int, typ: int, content: str, checksum: bool = False) -> bytes:
+    """Clause 6, byte by byte; with ``checksum``, Content ends with ``crc(NNNNN)`` (clause 20)."""
     c = content.encode("ascii")
-    return HEADER + b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c)) + c + END
+    if not checksum:
+        return HEADER + b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c)) + c + END
+    body = b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c) + 10) + c
+    return HEADER + body + b"crc(%05d)" % crc16(body) + END
+
+
+def crc16(data: bytes) -> int:
+    """Clause 20: CRC-16/CCITT-FALSE (polynomial 0x1021, initial 0xFFFF, no reflection, no
+    final XOR)."""
+    crc = 0xFFFF
+    for b in data:
+        crc ^= b << 8
+        for _ in range(8):
+            crc = (crc << 1) ^ 0x1021 if crc & 0x8000 else crc << 1
+            crc &= 0xFFFF
+    return crc
+
+
+def sealed(raw: bytes) -> bool:
+    """Clause 20: the Content of the whole frame ``raw`` ends with the right ``crc(NNNNN)``."""
+    tail = raw[-12:-2]
+    return (tail[:4] == b"crc(" and tail[-1:] == b")" and tail[4:9].isdigit()
+            and int(tail[4:9]) == crc16(raw[3:-12]))
 
 
 class Frame:
-    __slots__ = ("dst", "src", "num", "type", "content", "began", "end")
+    __slots__ = ("dst", "src", "num", "type", "content", "began", "end", "raw")
 
     def __init__(self, raw: bytes, began: float, end: float) -> None:
+        self.raw = raw
         self.dst, self.src = raw[3] - 48, raw[4] - 48
         self.num, self.type = int(raw[5:7]), raw[7] - 48
         self.content = raw[12:-2].decode("ascii")
@@ -178,13 +201,14 @@ class Receiver:
 class StrangerRobot:
     """A station of docs/protocol.md, version 3.3, that joins rings: clauses 1-19a, 21-27,
     29-49 and 51, the jam case of clause 44 simplified (its stagger runs from the quiet
-    closure); it reads ``done()`` (version 3.0) and obeys no message (clause 19a: it has no
-    submodule). Not 20 (the ring runs without the checksum), 28 (it never claims: a joiner,
-    §10), 48a (a report, not a rule of the wire), 50 (it is no father) or 52-54 (the
-    authenticated profile is opt-in)."""
+    closure), and with ``checksum`` clause 20 (every frame it sends sealed, a frame without
+    the right seal a failed frame, clause 43); it reads ``done()`` (version 3.0) and obeys no
+    message (clause 19a: it has no submodule). Not 28 (it never claims: a joiner, §10), 48a
+    (a report, not a rule of the wire), 50 (it is no father) or 52-54 (the authenticated
+    profile is opt-in)."""
 
-    def __init__(self, port: str, robot: int, team: set[int]) -> None:
-        self.id, self.team = robot, set(team)
+    def __init__(self, port: str, robot: int, team: set[int], checksum: bool = False) -> None:
+        self.id, self.team, self.checksum = robot, set(team), checksum
         self.port = serial.Serial(port, 9600, bytesize=8, parity="N", stopbits=1, timeout=0,
                                   rtscts=False, xonxoff=False)
         self.port.reset_input_buffer()
@@ -532,7 +556,7 @@ class StrangerRobot:
 
     def send(self, now: float) -> None:
         dst, num, kind, content = self.build()
-        data = encode(dst, self.id, num, kind, content)
+        data = encode(dst, self.id, num, kind, content, self.checksum)
         self.port.write(data)                              # clause 3: back to back
         self.sent.append((now, data))
         end = now + len(data) * BYTE
@@ -598,7 +622,14 @@ class StrangerRobot:
                     for i, b in enumerate(data):
                         self.rx.feed(b, t - (len(data) - 1 - i) * BYTE, events)
                 for ev in events:
-                    if ev[0] == "frame":
+                    if ev[0] == "frame" and self.checksum:
+                        f = ev[1]
+                        if not sealed(f.raw):                  # clause 43: Source unread
+                            self.failed(None, known_end=f.end)
+                            continue
+                        f.content = f.content[:-10]
+                        self.on_frame(f)
+                    elif ev[0] == "frame":
                         self.on_frame(ev[1])
                     elif ev[0] == "failed":
                         self.failed(ev[2])
@@ -689,8 +720,23 @@ def test_the_robot_imports_nothing_from_the_project():
     assert not [m for m in names if m.split(".")[0] in ("firmware_model", "can_bus", "hil")]
 
 
+def test_the_strangers_seal_is_clause_20s():
+    """The clause's check value, a sealed frame the stranger's receiver accepts, and one digit
+    of the seal or of the sealed bytes changed: refused."""
+    assert crc16(b"123456789") == 0x29B1
+    data = encode(1, 4, 3, 2, "status()", checksum=True)
+    assert data.endswith(b")" + END) and b"0018status()crc(" in data and sealed(data)
+    for i in (len(data) - 4, 12):                 # the seal's last digit; a Content byte
+        bad = bytearray(data)
+        bad[i] = ord("9") if bad[i] != ord("9") else ord("8")
+        assert not sealed(bytes(bad))
+
+
 @pytest.mark.timing
-def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
+@pytest.mark.parametrize("checksum", [False, True], ids=["plain", "checksum"])
+def test_a_stranger_robot_joins_talks_and_leaves(tmp_path, checksum):
+    """The module's scenario; with ``checksum`` every station seals its frames (clause 20):
+    the children run ``--checksum``, the stranger its own CRC from the clause."""
     why = _ptys_available()
     if why:
         pytest.skip(why)
@@ -702,10 +748,11 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
     try:
         assert _wait(lambda: all((air / f"node{i}").exists() for i in range(3)), 15), \
             hub.stderr.read() if hub.poll() is not None else "the hub made no ptys"
+        sealing = ["--checksum"] if checksum else []
         kids = {1: _spawn("child", "--id", "1", "--radio", str(air / "node0"), "--team", TEAM,
-                          "--can", f"virtual:stranger{os.getpid()}", "--events"),
+                          "--can", f"virtual:stranger{os.getpid()}", "--events", *sealing),
                 2: _spawn("child", "--id", "2", "--radio", str(air / "node1"), "--team", TEAM,
-                          "--events")}
+                          "--events", *sealing)}
         procs += kids.values()
         ev = {r: Events(p) for r, p in kids.items()}
         # the children's ring {1, 2}; then the only absent team robot, 4, is in 2's gap
@@ -713,10 +760,10 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
                      25), [p.stderr.read() for p in kids.values() if p.poll() is not None]
 
         before = {r: len(ev[r].lines) for r in kids}    # the ring's formation is not ours
-        robot = StrangerRobot(str(air / "node2"), 4, {1, 2, 4})
+        robot = StrangerRobot(str(air / "node2"), 4, {1, 2, 4}, checksum)
         t0 = time.monotonic()
         assert robot.run_until(lambda: robot.member, 10), robot.log
-        assert robot.ring == [1, 2, 4] and robot.sent[0][1] == encode(7, 4, 0, BOOT, "")
+        assert robot.ring == [1, 2, 4] and robot.sent[0][1] == encode(7, 4, 0, BOOT, "", checksum)
         joined = time.monotonic() - t0
 
         msg = robot.submit(1, "status()")
@@ -749,7 +796,8 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path):
         back = time.monotonic() - t_back
         assert robot.ring == [1, 2, 4], robot.log
         # the answer is JOIN with the next Number: status() had 01 (clause 45), so 02
-        assert robot.sent[n_sent][1] == encode(7, 4, msg["num"] + 1, JOIN, ""), robot.sent
+        assert robot.sent[n_sent][1] == encode(7, 4, msg["num"] + 1, JOIN, "", checksum), \
+            robot.sent
         turns = len(robot.sent)
         assert robot.run_until(lambda: len(robot.sent) >= turns + 3, 5), robot.log
         assert _wait(lambda: all(ev[r].find(ev="rejoin", robot=4) for r in kids), 5), \
