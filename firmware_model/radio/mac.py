@@ -203,8 +203,8 @@ class RotationalMac:
         self._hb_len = CRC_TEXT_LEN if cfg.checksum else 0   # a heartbeat's Content (bytes)
         self._key = cfg.auth                # the ring key (authenticated profile) or None
         self._ext_len = _auth.AUTH_TEXT_LEN if cfg.auth is not None else self._hb_len
-        if cfg.auth is not None:
-            self._hb_len = -1               # no fast path: every frame's tag is checked
+        if cfg.auth is not None or not cfg.fast_path:
+            self._hb_len = -1               # no fast path (with auth: every frame's tag is checked)
         self.auth_tx = 0
         """The freshness value of our next frame (authenticated profile): kept in flash across
         reboots on a child; a PC seeds it from its clock (auth.clock_freshness)."""

@@ -119,6 +119,11 @@ class MacConfig:
     ring key. Every frame sent ends with ``auth(freshness,tag)``; a frame received with a
     missing or wrong tag, or a freshness not above the last accepted from its Source, is
     refused and never acted on."""
+    fast_path: bool = True
+    """The expected owner's heartbeat takes the MAC's short path, which hands the turn on with
+    exactly the actions of the general path (tests/firmware_model/radio/test_mac_fast_path.py
+    compares them). False: every frame takes the general path (the simulator's
+    ``fast_paths=False``, to show the two are the same)."""
     profile: str = "rprs"
     """``rprs`` (the whole of docs/protocol.md) or ``paper``: only the paper's rules, to share a
     ring with robots that implement only the paper (docs/protocol.md §9, the paper profile)."""

@@ -172,7 +172,7 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                                             auth=a.auth_key),
                      father_standby=a.father_standby,
                      mac_kind=getattr(a, "mac", "rotational"), peer=peer,
-                     can_sleep=not a.every_frame, ring_sleep=not a.every_frame,
+                     fast_paths=not a.every_frame,
                      radio_switch=switch)
 
 

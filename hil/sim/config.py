@@ -42,14 +42,20 @@ class SimConfig:
     mac: MacConfig | None = None
     can: bool = False
     """Give every child its CAN side: controller, 82C250, dispatcher and six submodules."""
+    fast_paths: bool = True
+    """The one switch of the simulator's fast paths (docs/performance.md): the ring's leaps
+    (``ring_sleep``), the CAN sides' sleep (``can_sleep``) and the MAC's heartbeat short path
+    (``MacConfig.fast_path``). The run is the same to the tick either way (the trace digests
+    are checked both ways); False runs every frame the slow way, to show that
+    (``rprs sim --every-frame``)."""
     can_sleep: bool = True
     """A child's CAN side that only repeats itself is moved on in whole periods instead of
     frame by frame (hil/sim/quiet_can.py). The run is the same to the tick either way;
-    False is slower and exists to show that."""
+    False (or ``fast_paths=False``) is slower and exists to show that."""
     ring_sleep: bool = True
     """A ring that only repeats itself (idle, nothing watching its frames) is moved on in whole
     cycles instead of frame by frame (hil/sim/quiet_ring.py). The run is the same to the tick
-    either way; False is slower and exists to show that."""
+    either way; False (or ``fast_paths=False``) is slower and exists to show that."""
     sequence: tuple[tuple[int, ...], int] | None = None
     """(row order, cycles): the children run the paper's action sequence (needs ``can``)."""
     realtime: bool = False

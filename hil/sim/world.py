@@ -82,6 +82,8 @@ class World:
         base = replace(base, team=frozenset(config.robots))
         if config.noise:     # a radio that outputs noise without a carrier is never quiet
             base = replace(base, quiet_channel=False)
+        if not config.fast_paths:
+            base = replace(base, fast_path=False)
         self.mac_config = base
         self.stations: dict[int, RadioStation] = {}
         self.children: dict[int, ChildFirmware] = {}
@@ -185,7 +187,8 @@ class World:
         # sides that a trace keeps awake (QuietCan.may_sleep): it could never leap there;
         # nor with the authenticated profile, whose frames never repeat (a new freshness each).
         watched = trace is not None or on_event is not None
-        if config.ring_sleep and config.mac_kind == "rotational" and not config.realtime \
+        if config.ring_sleep and config.fast_paths and config.mac_kind == "rotational" \
+                and not config.realtime \
                 and base.auth is None \
                 and config.cpu is None and not (watched and self.quiet) and not config.extra:
             ring = self.quiet_ring = QuietRing(self, min(config.robots), base.poll_every,
@@ -232,7 +235,7 @@ class World:
         world_trace = bus.trace
         quiet.roots = parts
         quiet.boundary = [st, self.sched]
-        quiet.enabled = (self.cfg.can_sleep and not self.cfg.realtime
+        quiet.enabled = (self.cfg.can_sleep and self.cfg.fast_paths and not self.cfg.realtime
                          and self.cfg.sequence is None)
         quiet.may_sleep = lambda: (
             self.trace is None and self.on_event is None and self.pcap is None

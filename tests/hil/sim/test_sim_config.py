@@ -62,3 +62,17 @@ def test_a_campaign_refuses_a_point_that_rprs_sim_refuses(tmp_path):
     spec.write_text("[campaign]\nseeds = 2\n[grid]\nrobots = ['1,2']\nduration = [2]\n"
                     "fault = [[], ['fail:2@1']]\n")
     assert load_spec(spec, check=check_args).runs == 4
+
+
+def test_one_switch_turns_every_fast_path_off():
+    """``SimConfig(fast_paths=False)`` (``rprs sim --every-frame``): no ring leaps, no sleeping
+    CAN side, every MAC on its general path; the default has all three (docs/performance.md,
+    "How the fast paths work")."""
+    from hil.sim.world import World
+    slow = World(SimConfig(robots=(0, 1, 2), duration=1, can=True, fast_paths=False))
+    assert slow.quiet_ring is None
+    assert slow.quiet and not any(q.enabled for q in slow.quiet.values())
+    assert all(not st.mac.cfg.fast_path for st in slow.stations.values())
+    fast = World(SimConfig(robots=(0, 1, 2), duration=1, can=True))
+    assert fast.quiet_ring is not None and all(q.enabled for q in fast.quiet.values())
+    assert all(st.mac.cfg.fast_path for st in fast.stations.values())
