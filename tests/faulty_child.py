@@ -20,6 +20,8 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
   however early it comes, not one out of turn (clause 39);
 - ``numbers-do-not-wrap``: a message is new only if its Number is above the last one heard
   from its sender, so '00' after '99' is taken for a duplicate (clauses 45, 48);
+- ``own-numbers-skip-00``: its own message counter goes '99' then '01', as if '00' were kept
+  for BOOT frames (clause 45; caught only by ``rprs conformance --wrap``);
 - ``masks-never-drop``: a ``ring(mask)`` admits and sends it to LISTEN as it should, but never
   drops a member the mask leaves out, though it counted that member missing too (clause
   51.3).
@@ -41,7 +43,7 @@ Mac = mac_mod.RotationalMac
 Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
           "invite-every-turn", "deaf-to-masks", "no-cut-off",
-          "masks-never-drop", "early-takeovers", "numbers-do-not-wrap")
+          "masks-never-drop", "early-takeovers", "numbers-do-not-wrap", "own-numbers-skip-00")
 
 
 def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
@@ -165,6 +167,17 @@ def _numbers_do_not_wrap(set_attr: Setter) -> None:
     set_attr(Mac, "on_frame", on_frame)
 
 
+def _own_numbers_skip_00(set_attr: Setter) -> None:
+    orig = Mac.submit
+
+    def submit(self, *args, **kw):
+        msg = orig(self, *args, **kw)
+        if self._next_num == 0:
+            self._next_num = 1
+        return msg
+    set_attr(Mac, "submit", submit)
+
+
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
     ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
@@ -174,7 +187,8 @@ def patch(fault: str, set_attr: Setter = setattr) -> None:
      "no-stagger": _no_stagger, "invite-every-turn": _invite_every_turn,
      "deaf-to-masks": _deaf_to_masks, "no-cut-off": _no_cut_off,
      "masks-never-drop": _masks_never_drop, "early-takeovers": _early_takeovers,
-     "numbers-do-not-wrap": _numbers_do_not_wrap}[fault](set_attr)
+     "numbers-do-not-wrap": _numbers_do_not_wrap,
+     "own-numbers-skip-00": _own_numbers_skip_00}[fault](set_attr)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ def cmd_conformance(a: argparse.Namespace) -> int:
         t = Tester(a.radio, a.id, a.profile, a.tester, a.tolerance_ms, a.turns,
                    progress=None if quiet else lambda s: print(s, file=sys.stderr, flush=True),
                    key=a.auth_key, team=tuple(a.team) if a.team else tuple(range(7)),
-                   checksum=a.checksum)
+                   checksum=a.checksum, wrap=a.wrap)
     except (PortError, ValueError) as exc:
         raise UserError(str(exc)) from None
     try:
@@ -85,6 +85,9 @@ def add(sub) -> None:
                    help="the robot runs the checksum extension (rprs child --checksum, "
                    "docs/protocol.md clause 20): every frame ends with crc(NNNNN), ours too, "
                    "and one with a wrong checksum must not be acted on")
+    p.add_argument("--wrap", action="store_true",
+                   help="also run the robot's own message Number past '99' (clause 45): "
+                   "about a hundred status() orders, about 10 s more on the air")
     p.add_argument("--junit", metavar="FILE", help="write the verdicts as JUnit XML here")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=cmd_conformance)

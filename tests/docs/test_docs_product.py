@@ -18,6 +18,7 @@ DIARY = re.compile(r"[Ss]ession [0-9]+|20[0-9]{2}-[0-9]{2}-[0-9]{2}")
 REAL_DATES = {
     ("firmware_model/radio/auth.py", "2026-01-01 00:00 UTC"),
     ("docs/protocol.md", "2026-01-01 00:00 UTC"),
+    ("tests/hil/bench/test_stranger_robot.py", "2026-01-01 00:00 UTC"),
 }
 """Dates that are part of the product: the authenticated profile's freshness epoch."""
 

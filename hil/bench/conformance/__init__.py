@@ -24,6 +24,8 @@ clause        what is checked, and the figure reported
               (rprs); in the paper profile nothing is acknowledged
 45            its reply to our next status() takes the Number after its first reply's; ours
               are 99 and 00, so it must take the wrap for a new message (rprs)
+45            with ``wrap``: about a hundred status() make it write its own Number past
+              '99': each reply the next, '00' after '99' (rprs; own_counter.py)
 38            a frame with a forged Source (a team robot outside the ring) is not acted on
               (rprs; n/a in the paper profile, which admits any team robot that sends)
 20            with ``checksum``: our status() with a wrong crc(NNNNN) is not acted on; and

@@ -16,7 +16,7 @@ from firmware_model.radio.frame import BROADCAST, HEADER, Frame
 from firmware_model.radio.integrity import check as crc_check, seal as crc_seal
 from firmware_model.timing import TICK_HZ
 
-from . import joining, refusals, ring_of_three, silence
+from . import joining, own_counter, refusals, ring_of_three, silence
 from .frames import _app, _at_turn, _forger, _succ
 from .link import (BYTE, MISS_LIMIT, MS, POLL_SEND, POLL_WAIT, QUIET_GAP, TMAX, TSLOT, TTRANS,
                    TWIN, SerialLink, TesterLink)
@@ -34,7 +34,8 @@ class Tester:
     def __init__(self, port: str | TesterLink, robot: int, profile: str = "rprs",
                  tester: int | None = None, tolerance_ms: float = 15.0, turns: int = 20,
                  progress: Callable[[str], None] | None = None, key=None,
-                 team: tuple[int, ...] = tuple(range(7)), checksum: bool = False) -> None:
+                 team: tuple[int, ...] = tuple(range(7)), checksum: bool = False,
+                 wrap: bool = False) -> None:
         if not 0 <= robot <= 6:
             raise ValueError(f"robot ID must be 0-6, got {robot}")
         self.robot = robot
@@ -82,6 +83,7 @@ class Tester:
             raise ValueError("the checksum extension is for the rprs profile without "
                              "--auth-key (the tag vouches for every byte: one or the other)")
         self.crc_bad: list[str] = []      # the robot's frames without a right crc(NNNNN)
+        self.wrap = wrap                  # run its own Number past '99' too (own_counter.py)
         self.sent: list[bytes] = []       # every frame we sent, as sent
         self.strangers: dict[int, int] = {}       # good frames heard from any other Source
         self.collisions: list[int] = []           # each collided frame's start - our End
@@ -378,6 +380,8 @@ class Tester:
             last = self._rotation(last)
             last = self._late(last)
             last = self._message(last)
+            if self.wrap:
+                last = self._own_wrap(last)
             last = self._forged(last)
             if self.key is not None:
                 last = self._forged_tag(last)
@@ -565,6 +569,8 @@ class Tester:
     _forged = refusals._forged
     _broken = refusals._broken
     _left_out = refusals._left_out
+
+    _own_wrap = own_counter._own_wrap
 
     _ours_after = ring_of_three._ours_after
     _three_note = ring_of_three._three_note

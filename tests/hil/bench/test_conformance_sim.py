@@ -13,6 +13,7 @@ import pytest
 
 import faulty_child
 from hil.bench.conformance import ConformanceError, Report, Tester
+from hil.bench.conformance.own_counter import NAME as OWN_WRAP
 from hil.bench.conformance_sim import SimLink
 from firmware_model.radio.auth import RingKey, seal
 from firmware_model.radio.frame import BROADCAST, Frame
@@ -22,12 +23,12 @@ from hil.bench.conformance import MS, TTRANS
 
 def _run(robot: int, profile: str = "rprs", team: tuple[int, ...] | None = None,
          seed: int = 1, lead_s: float = 1.0, key: RingKey | None = None,
-         tolerance_ms: float = 15.0) -> tuple[Report, str | None, SimLink]:
+         tolerance_ms: float = 15.0, wrap: bool = False) -> tuple[Report, str | None, SimLink]:
     """One run of the kit against robot ``robot`` (team default 0-6): its report, why it
     stopped (None if it ran to the end), and the link (the robot's events)."""
     team = tuple(range(7)) if team is None else team
     link = SimLink(robot, profile, team, seed=seed, lead_s=lead_s, key=key)
-    t = Tester(link, robot, profile, team=team, key=key, tolerance_ms=tolerance_ms)
+    t = Tester(link, robot, profile, team=team, key=key, tolerance_ms=tolerance_ms, wrap=wrap)
     try:
         return t.run(), None, link
     except ConformanceError as exc:
@@ -143,14 +144,16 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     # the default team; the others run with a team of two)
     default = fault in ("invite-every-turn", "no-cut-off", "masks-never-drop",
                         "early-takeovers")
-    rep, stopped, link = _run(1, "rprs", None if default else (0, 1))
+    rep, stopped, link = _run(1, "rprs", None if default else (0, 1),
+                              wrap=fault == "own-numbers-skip-00")
     why = _table(rep, stopped, link)
     failed = {c.clause for c in rep.checks if c.verdict == "FAIL"}
     expected = {"late-turn": {"23", "26", "24"}, "long-length": {"15"}, "no-ack": {"47", "48"},
                 "boot-01": {"29"}, "no-stagger": {"44", "24"}, "late-answer": {"34"},
                 "invite-every-turn": {"32"}, "deaf-to-masks": {"51"},
                 "no-cut-off": {"40"}, "masks-never-drop": {"51"},
-                "early-takeovers": {"39"}, "numbers-do-not-wrap": {"45"}}[fault]
+                "early-takeovers": {"39"}, "numbers-do-not-wrap": {"45"},
+                "own-numbers-skip-00": {"45"}}[fault]
     assert failed == expected, why
     if fault == "long-length":         # no good frame: the run stops at the invitation
         assert stopped is not None and "answered 5 invitations in a row with failed " \
@@ -184,6 +187,10 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     elif fault == "numbers-do-not-wrap":   # our 00 after 99 taken for a duplicate
         assert _figure(rep, "45").startswith("its replies' Numbers: 01, to our 99 and 00; "
                                              "no new reply"), why
+    elif fault == "own-numbers-skip-00":   # read right, written wrong: only the long step
+        assert [c.name for c in rep.checks if c.verdict == "FAIL"] == [OWN_WRAP], why
+        assert _figure(rep, "45").endswith("after '99' its next message was '01', not '00' "
+                                           "('99' wraps to '00')"), why
     elif fault == "early-takeovers":   # it acknowledged the phantom's message
         assert _figure(rep, "39").endswith("frames acting on it: 1"), why
     elif fault == "masks-never-drop":  # only the drop of the ring of three fails
@@ -192,6 +199,26 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     elif fault == "invite-every-turn":
         assert "invitations 1, 1, 1" in _figure(rep, "32") and \
             "turns apart, not every 4" in _figure(rep, "32"), why
+
+
+@pytest.mark.parametrize("robot, team, key", [
+    (1, None, None), (6, (0, 6), None), (3, None, RingKey(bytes(range(16))))],
+    ids=["1-default", "6-small", "3-auth"])
+def test_the_projects_child_runs_its_own_number_past_99_with_wrap(robot, team, key):
+    """``--wrap``: about a hundred status() orders make the child write its own counter
+    past '99' (clause 45); every reply is the next Number, '00' after '99', and every other
+    clause still passes. The paper profile has nothing that makes a robot send: n/a."""
+    rep, stopped, link = _run(robot, "rprs", team, key=key, wrap=True)
+    why = _table(rep, stopped, link)
+    assert stopped is None and rep.passed, why
+    own = [c for c in rep.checks if c.name == OWN_WRAP]
+    assert [c.verdict for c in own] == ["pass"], why
+    first, last = re.search(r"'(\d\d)' to '(\d\d)', each the next; '99' then '00'",
+                            own[0].figure).groups()
+    assert last in ("00", "01") and int(first) < 10, why
+    rep, stopped, link = _run(robot, "paper", team, wrap=True)
+    assert [c.verdict for c in rep.checks if c.name == OWN_WRAP] == ["n/a"], \
+        _table(rep, stopped, link)
 
 
 def test_a_robot_deaf_to_masks_does_not_admit_the_third_member_a_mask_names(monkeypatch):
