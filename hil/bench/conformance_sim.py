@@ -81,7 +81,7 @@ class SimLink:
 
     def __init__(self, robot: int, profile: str = "rprs", team: tuple[int, ...] = tuple(range(7)),
                  tester: int = 0, seed: int = 1, lead_s: float = 1.0,
-                 patch: Callable[[RadioStation, RadioOnlyChild], None] | None = None,
+                 patch: Callable[[RadioStation, RadioOnlyChild | None], None] | None = None,
                  key: RingKey | None = None, checksum: bool = False) -> None:
         self.sched = Scheduler()
         self.air = Air(self.sched, seed=seed)
@@ -92,11 +92,12 @@ class SimLink:
         cfg = realtime_config(MacConfig(team=frozenset(team), profile=profile,
                                         seed=1000 + seed, auth=key, checksum=checksum))
         self.events = io.StringIO()
+        # robot 0 is what ``rprs father`` runs: a PC's byte time, no submodule to answer
+        byte = PC_BYTE_TICKS if robot == 0 else CHILD_BYTE_TICKS
         self.station, radio = build_station(
-            robot, self.sched, byte_ticks=CHILD_BYTE_TICKS,
-            config=replace(cfg, byte_ticks=CHILD_BYTE_TICKS),
+            robot, self.sched, byte_ticks=byte, config=replace(cfg, byte_ticks=byte),
             observer=_events_printer(self.events, robot, err=io.StringIO()))
-        self.child = RadioOnlyChild(self.station)
+        self.child = RadioOnlyChild(self.station) if robot else None
         self.air.attach(radio)
         self.radio = _PcRadio(tester)
         self.air.attach(self.radio)

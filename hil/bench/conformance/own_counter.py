@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from .frames import _app
+from .refusals import FATHER
 from .report import Heard
 
 if TYPE_CHECKING:
@@ -29,9 +30,11 @@ def _own_wrap(self: Tester, h: Heard) -> Heard:
     each reply's Number is the one after the reply before it (clause 45), '00' after '99'.
     n/a in the paper profile (it has no status(): nothing makes the robot send)."""
     t0 = self._secs()
-    if self.profile != "rprs":
+    if self.profile != "rprs" or self.robot == 0:
         self.check("45", NAME, True, "the paper profile has no status(): nothing makes the "
-                   "robot send a message of its own", t0, applicable=False)
+                   "robot send a message of its own" if self.robot else
+                   f"{FATHER}: nothing makes it send a message of its own", t0,
+                   applicable=False)
         return h
     nums: list[int] = []          # its new messages to us, in order (a resent one once)
     ours_acked = [True]

@@ -89,8 +89,8 @@ def _message(self: Tester, h: Heard) -> Heard:
             seen["again"].append(h.frame.num)
     ask = (b"status()", {"dst": self.robot, "type_": 2})
     h = self._turns(h, 6, ask, watch)
-    if self.profile == "rprs":       # (the paper has no status(): none is awaited)
-        h = self._until(h, lambda: seen["replies"], watch)
+    if self.profile == "rprs" and self.robot != 0:   # (the paper has no status(), the
+        h = self._until(h, lambda: seen["replies"], watch)   # father no submodule: no reply)
     acked, replies = seen["acked"], list(seen["replies"])
     if self.profile == "paper":
         self.check("47", "paper profile: nothing is acknowledged", not acked,
@@ -105,6 +105,8 @@ def _message(self: Tester, h: Heard) -> Heard:
     h = self._turns(h, 4, (b"status()", {"dst": self.robot, "type_": 2, "num": num}),
                     watch)
     more = len(seen["replies"]) - len(replies)
+    if self.robot == 0:
+        return _fathers_message(self, h, bool(seen["acked"]), len(replies) + more, t0)
     self.check("48", "a retransmission is acknowledged again and not acted on again",
                bool(seen["acked"]) and more == 0 and len(replies) == 1,
                f"re-acknowledged: {'yes' if seen['acked'] else 'no'}; status replies: "
@@ -124,6 +126,26 @@ def _message(self: Tester, h: Heard) -> Heard:
                f"to our {num:02d} and {self.num:02d}" +
                (f" (sent again: {', '.join(f'{n:02d}' for n in again)})" if again else "") +
                ("" if new else f"; no new reply in {6 + self.REPLY_TURNS} turns"), t0)
+    return h
+
+
+FATHER = ("the father (ID 0) has no submodule: it carries out and answers no order "
+          "(clause 19a)")
+
+
+def _fathers_message(self: Tester, h: Heard, reacked: bool, replies: int, t0: float) -> Heard:
+    """Clauses 48 and 45 for the father: it acknowledges our retransmission again, but a
+    PC with no submodule answers no status(), so nothing on the air shows whether it acted on
+    a message once or twice, nor makes it send a message of its own (its operator does)."""
+    self.check("48", "a retransmission is acknowledged again and not acted on again",
+               reacked and replies == 0,
+               f"re-acknowledged: {'yes' if reacked else 'no'}; "
+               + (f"{FATHER}: only the acknowledgement is seen" if replies == 0 else
+                  f"status replies: {replies}, though {FATHER}"), t0)
+    t0 = self._secs()
+    self.check("45", "its next message takes the next Number (ours wrapped, 99 then 00)",
+               True, f"{FATHER}: nothing makes it send a message of its own", t0,
+               applicable=False)
     return h
 
 

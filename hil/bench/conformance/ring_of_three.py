@@ -135,16 +135,18 @@ def _three(self: Tester, h: Heard) -> Heard:
     h, _, _ = self._exchange(h, self._in_a_row(vouch))
     watch(h, 0)
     h = self._three_turn(h, ring, {t: b"status()"}, watch, 1)
+    answers = self.robot != 0         # the father answers no status() (clause 19a)
     for i in range(2, 2 + self.REPLY_TURNS):
-        if acked and replies and i >= 5:
+        if acked and (replies or not answers) and i >= 5:
             break
         h = self._three_turn(h, ring, {}, watch, i)
     told = sorted({m for m in masks if m is not None})
     self.check("51", f"admits the robot a ring view names (T = {t}), and keeps its turn",
-               bool(acked) and bool(replies) and acked[0] <= 2,
+               bool(acked) and bool(replies) == answers and acked[0] <= 2,
                (f"T's status() acknowledged in its frame {acked[0]} after T's" if acked
                 else "T's status() never acknowledged") +
-               f"; replies to T: {len(replies)}; masks in its frames: "
+               f"; replies to T: {len(replies)}" + ("" if answers else " (the father "
+               "answers none)") + "; masks in its frames: "
                f"{', '.join(map(str, told)) or 'none'} (the ring of three: {mask})", t0)
     h = self._phantom(h, ring)
     h = self._cut_off(h, ring)

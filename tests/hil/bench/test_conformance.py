@@ -781,6 +781,33 @@ def test_the_kit_passes_the_projects_child(air, tmp_path, robot, profile, team):
 
 
 @pytest.mark.timing
+def test_the_kit_passes_rprs_father_as_robot_0(air, tmp_path):
+    """``rprs father`` (ID 0, a PC) checked with tester 6, so the father's gap holds robots
+    1-5 to invite (clause 32) and the kit plays robot 1 as a third member: every clause
+    passes, and 45 is n/a: the father answers no status() (clause 19a), so nothing makes it
+    send a message of its own."""
+    father = subprocess.Popen([sys.executable, "-m", "hil.cli", "father", "--radio",
+                               str(air / "node0"), "--no-input"], cwd=ROOT,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    junit = tmp_path / "verdicts.xml"
+    try:
+        first = father.stderr.readline()              # its banner: it runs
+        assert first.startswith("father (ID 0, PC)"), first + father.stderr.read()
+        time.sleep(1.0)
+        run = subprocess.run([sys.executable, "-m", "hil.cli", "conformance", "--radio",
+                              str(air / "node1"), "--id", "0", "--tester", "6", "--junit",
+                              str(junit), "--quiet", "--tolerance-ms",
+                              str(LOADED_TOLERANCE_MS)], cwd=ROOT, capture_output=True,
+                             text=True, timeout=180)
+    finally:
+        _stop(father)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert all(_cases(junit).values()), run.stdout
+    assert "45" in _skipped(junit) and "32" not in _skipped(junit), run.stdout
+    assert "only the acknowledgement is seen" in _figure(junit, "48"), run.stdout
+
+
+@pytest.mark.timing
 def test_a_shared_channel_is_named_and_the_robot_not_failed(tmp_path):
     """R1 and R2 share the hub with this PC: the kit checks a ring of two, so it stops and
     says the channel carries robot 2, instead of failing robot 1 on the others' frames (it

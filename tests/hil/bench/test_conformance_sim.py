@@ -221,6 +221,35 @@ def test_the_projects_child_runs_its_own_number_past_99_with_wrap(robot, team, k
         _table(rep, stopped, link)
 
 
+@pytest.mark.parametrize("profile", ["rprs", "paper"])
+@pytest.mark.parametrize("team, tester", [(None, 1), (None, 6), ((0, 1), 1)],
+                         ids=["default-1", "default-6", "small-1"])
+def test_the_father_passes_every_clause_it_can_be_judged_on(profile, team, tester):
+    """Robot 0 is what ``rprs father`` runs (a PC's byte time, no submodule). It keeps every
+    rule of the ring a child keeps; it acknowledges our status() but answers none (clause
+    19a), so 48 judges the acknowledgement only and both 45s are n/a, and in the ring of three
+    T's message is acknowledged with no reply. With tester 6 its gap holds 1-5, which it
+    invites (clause 32)."""
+    team = tuple(range(7)) if team is None else team
+    link = SimLink(0, profile, team, tester=tester, seed=1)
+    t = Tester(link, 0, profile, tester=tester, team=team, wrap=True)
+    try:
+        rep, stopped = t.run(), None
+    except ConformanceError as exc:
+        rep, stopped = t.report, str(exc)
+    why = _table(rep, stopped, link)
+    assert stopped is None and rep.passed and not rep.notes, why
+    verdicts = _verdicts(rep)
+    assert verdicts["45"] == {"n/a"}, why
+    assert all("answers no order (clause 19a)" in c.figure for c in rep.checks
+               if c.clause == "45"), why
+    if profile == "rprs":
+        assert verdicts["47"] == verdicts["48"] == {"pass"}, why
+        assert "only the acknowledgement is seen" in _figure(rep, "48"), why
+        assert verdicts["32"] == ({"pass"} if tester == 6 else {"n/a"}), why
+        assert ("(the father answers none)" in _figure(rep, "51")) == (len(team) > 2), why
+
+
 def test_a_robot_deaf_to_masks_does_not_admit_the_third_member_a_mask_names(monkeypatch):
     """Clause 51.3 in the ring of three the kit plays (default team): a robot that reads no
     ``ring(mask)`` never admits T, so T's message is an outsider's to it (clause 38.3) and is
