@@ -11,6 +11,7 @@ import sys
 import time
 
 import pytest
+from hypothesis import given, strategies as st
 
 from firmware_model.radio import auth
 from firmware_model.radio.auth import (AUTH_TEXT_LEN, KeyFileError, RingKey, check, load_key,
@@ -124,11 +125,29 @@ def test_each_frame_sent_carries_the_next_freshness_value():
     assert m.auth_tx == 44
 
 
-def test_the_clock_seeded_counter_starts_above_anything_sent_before_a_restart():
-    # A station sends at most one frame in 55 ms (18/s) < CLOCK_RATE (32/s).
-    t0 = auth.CLOCK_EPOCH + 1000.0
-    sent_by = auth.clock_freshness(t0) + int(18 * 600)           # 10 minutes later
-    assert auth.clock_freshness(t0 + 600) > sent_by
+SHORTEST_SEALED = 37 * 10 / 9600
+"""Seconds: the shortest frame of the profile (14 bytes and the 23 of auth(...)) at a PC's
+byte time. A station's first frame comes after a whole frame heard (or Tclaim), and its
+frames are at least this far apart (docs/protocol.md clause 52)."""
+
+
+@given(st.floats(0, 1e8), st.integers(1, 5000), st.floats(0, 1), st.floats(0, 0.2))
+def test_a_restarted_pc_starts_above_every_value_it_sent_before(t0, k, spread, restart):
+    """Clause 52: a PC started at t0 sends k frames as fast as the profile allows (the first
+    a shortest frame's time after it started, or later by ``spread`` frames), dies, and starts
+    again ``restart`` seconds after its last frame, however soon: its first value is above
+    the last it sent: ``floor(32 s)``, s with its fraction, against at most one value per
+    38.5 ms. (With the whole seconds, a PC restarted within the second fails this.)"""
+    start = auth.CLOCK_EPOCH + t0
+    last_sent_at = start + SHORTEST_SEALED * (k + spread)
+    last_value = auth.clock_freshness(start) + k - 1
+    assert auth.clock_freshness(last_sent_at + restart) > last_value
+
+
+def test_the_clock_seed_counts_32nds_of_a_second():
+    assert auth.clock_freshness(auth.CLOCK_EPOCH) == 0
+    assert auth.clock_freshness(auth.CLOCK_EPOCH + 2.99) == 95
+    assert auth.clock_freshness(auth.CLOCK_EPOCH + 3.0) == 96
 
 
 # -- the key file -----------------------------------------------------------------------
@@ -140,7 +159,11 @@ def test_the_key_file(tmp_path):
     cases = {"key = 0001": "line 1", "key = 00\nkey = 01": "line 1",
              "# nothing\n": "no 'key = ' line",
              "key = 000102030405060708090a0b0c0d0e0f\nkey = 000102030405060708090a0b0c0d0e0f":
-             "2 'key = ' lines"}
+             "2 'key = ' lines",
+             "key = 000102030405060708090a0b0c0d0e0f # the ring's": "line 1"}   # clause 54
+    spaced = tmp_path / "spaced.key"        # CRLF, spaces and tabs, an indented comment
+    spaced.write_bytes(b"  # a comment\r\n \t\r\n\tkey\t=000102030405060708090a0b0c0d0e0f \r\n")
+    assert load_key(spaced) == KEY
     for text, said in cases.items():
         p = tmp_path / "bad.key"
         p.write_text(text)

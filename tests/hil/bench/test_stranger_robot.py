@@ -9,18 +9,25 @@ lets the stranger, robot 4, join it by answering an invitation (clause 34), ask 
 back with JOIN (clause 49). The children's ``--events`` say what they saw: the stranger admitted
 by both, its message delivered once, its acknowledgement of the reply heard, no turn missed while
 it was a member, three misses then a clean drop by both once it left, the ring going on without
-it, and its JOIN taken as a rejoin by both.
+it, and its JOIN taken as a rejoin by both. The scenario runs three times: plain, with the
+checksum (clause 20) and with the authenticated profile (§4.11, clauses 52-54: the children run
+``--auth-key`` and the stranger seals, checks and reads the key file from the clauses' words,
+with ``hmac`` and ``hashlib`` from the standard library).
 """
 from __future__ import annotations
 
 import ast
+import hashlib
+import hmac
 import json
 import os
+import re
 import select
 import subprocess
 import sys
 import threading
 import time
+from datetime import datetime, timezone
 from pathlib import Path
 
 import pytest
@@ -47,6 +54,8 @@ ANNOUNCE_LIMIT = 6            # clause 36
 BYTE = 10 / 9600              # clause 3: a PC at 9600 bit/s, 8N1
 MAX_CONTENT_SENT = 561        # clause 14: a PC's frame fits in Tmax
 MAX_LENGTH = 562              # clause 11
+CRC_BYTES, AUTH_BYTES = 10, 23    # clauses 20, 52: what the seal adds to Content and Length
+AUTH_EPOCH = datetime(2026, 1, 1, tzinfo=timezone.utc).timestamp()  # clause 52's clock rule
 
 HEADER = b"\x0f\x0a\x05"      # clause 6
 END = b"\x17\x19"
@@ -96,12 +105,20 @@ def parse_content(text: str) -> list[tuple[str, tuple]]:
     return out
 
 
-def encode(dst: int, src: int, num: int, typ: int, content: str, checksum: bool = False) -> bytes:
-    """Clause 6, byte by byte; with ``checksum``, Content ends with ``crc(NNNNN)`` (clause 20)."""
+def encode(dst: int, src: int, num: int, typ: int, content: str, checksum: bool = False,
+           key: bytes | None = None, fresh: int = 0) -> bytes:
+    """Clause 6, byte by byte; with ``checksum``, Content ends with ``crc(NNNNN)`` (clause 20);
+    with ``key``, with ``auth(fresh,tag)`` (clause 52)."""
     c = content.encode("ascii")
+    if key is not None:
+        if checksum:
+            raise ValueError("the profile and the checksum are never on together (clause 52)")
+        body = b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c) + AUTH_BYTES) + c \
+            + b"auth(%08x," % fresh
+        return HEADER + body + auth_tag(key, body) + b")" + END
     if not checksum:
         return HEADER + b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c)) + c + END
-    body = b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c) + 10) + c
+    body = b"%d%d%02d%d%04d" % (dst, src, num, typ, len(c) + CRC_BYTES) + c
     return HEADER + body + b"crc(%05d)" % crc16(body) + END
 
 
@@ -122,6 +139,57 @@ def sealed(raw: bytes) -> bool:
     tail = raw[-12:-2]
     return (tail[:4] == b"crc(" and tail[-1:] == b")" and tail[4:9].isdigit()
             and int(tail[4:9]) == crc16(raw[3:-12]))
+
+
+def auth_tag(key: bytes, covered: bytes) -> bytes:
+    """Clause 52: the first four bytes of HMAC-SHA256 of ``covered`` (Destination up to the
+    ``,`` after the freshness value) under the key, as eight lowercase hex digits."""
+    return hmac.new(key, covered, hashlib.sha256).digest()[:4].hex().encode("ascii")
+
+
+AUTH_TAIL = re.compile(rb"auth\(([0-9a-f]{8}),([0-9a-f]{8})\)")      # clause 16's grammar
+
+
+def authentic(raw: bytes, key: bytes) -> int | None:
+    """Clause 53.1: the freshness value of the whole frame ``raw`` if its Content ends with
+    ``auth(fresh,tag)`` of the grammar and the tag clause 52 gives; None if forged."""
+    if int(raw[8:12]) < AUTH_BYTES:
+        return None
+    m = AUTH_TAIL.fullmatch(raw[-2 - AUTH_BYTES:-2])
+    if m is None or not hmac.compare_digest(m[2], auth_tag(key, raw[3:-11])):
+        return None
+    return int(m[1], 16)
+
+
+def clock_freshness(now: float | None = None) -> int:
+    """Clause 52, a station without non-volatile memory: floor(32 x the seconds, with their
+    fraction, since 2026-01-01 00:00 UTC)."""
+    return int(32 * ((time.time() if now is None else now) - AUTH_EPOCH))
+
+
+KEY_LINE = re.compile(r"key[ \t]*=[ \t]*([0-9A-Fa-f]{32})")
+
+
+def read_key(path: str | os.PathLike) -> bytes:
+    """Clause 54: ASCII; blank lines and lines beginning with ``#`` ignored; exactly one line
+    ``key = `` and 32 hex digits, either case. Anything else: ValueError naming the file."""
+    try:
+        text = Path(path).read_bytes().decode("ascii")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: unreadable key file: {exc}") from None
+    keys = []
+    for n, line in enumerate(text.splitlines(), 1):
+        line = line.strip(" \t\r")          # clause 54: stripped of spaces and tabs
+        if not line or line.startswith("#"):
+            continue
+        m = KEY_LINE.fullmatch(line)
+        if m is None:
+            raise ValueError(f"{path}: line {n} is neither blank, a comment nor 'key = ' "
+                             "and 32 hex digits")
+        keys.append(bytes.fromhex(m[1]))
+    if len(keys) != 1:
+        raise ValueError(f"{path}: {len(keys)} 'key = ' lines, not exactly one")
+    return keys[0]
 
 
 class Frame:
@@ -202,15 +270,25 @@ class StrangerRobot:
     """A station of docs/protocol.md, version 3.3, that joins rings: clauses 1-19a, 21-27,
     29-49 and 51, the jam case of clause 44 simplified (its stagger runs from the quiet
     closure), and with ``checksum`` clause 20 (every frame it sends sealed, a frame without
-    the right seal a failed frame, clause 43); it reads ``done()`` (version 3.0) and obeys no
-    message (clause 19a: it has no submodule). Not 28 (it never claims: a joiner, §10), 48a
-    (a report, not a rule of the wire), 50 (it is no father) or 52-54 (the authenticated
-    profile is opt-in)."""
+    the right seal a failed frame, clause 43); with ``key`` (read by ``read_key``, clause 54)
+    the authenticated profile, clauses 52-53: every frame it sends carries ``auth(fresh,tag)``,
+    its freshness from the clock (it has no non-volatile memory), and a forged or replayed
+    frame is refused as a failed frame whose Source was not read. It reads ``done()``
+    (version 3.0) and obeys no message (clause 19a: it has no submodule). Not 28 (it never
+    claims: a joiner, §10), 48a (a report, not a rule of the wire) or 50 (it is no
+    father)."""
 
-    def __init__(self, port: str, robot: int, team: set[int], checksum: bool = False) -> None:
-        self.id, self.team, self.checksum = robot, set(team), checksum
-        self.port = serial.Serial(port, 9600, bytesize=8, parity="N", stopbits=1, timeout=0,
-                                  rtscts=False, xonxoff=False)
+    def __init__(self, port: str, robot: int, team: set[int], checksum: bool = False,
+                 key: bytes | None = None) -> None:
+        if checksum and key is not None:
+            raise ValueError("the profile and the checksum are never on together (clause 52)")
+        self.id, self.team, self.checksum, self.key = robot, set(team), checksum, key
+        self.seal_bytes = AUTH_BYTES if key is not None else CRC_BYTES if checksum else 0
+        self.fresh = clock_freshness()          # clause 52: our next frame's freshness value
+        self.freshness: dict[int, int] = {}     # clause 53.2: last accepted, per Source
+        self.refused: list[tuple[str, Frame]] = []
+        self.port = serial.serial_for_url(port, 9600, bytesize=8, parity="N", stopbits=1,
+                                          timeout=0, rtscts=False, xonxoff=False)
         self.port.reset_input_buffer()
         self.rx = Receiver()
         self.mode = "LISTEN"
@@ -550,13 +628,16 @@ class StrangerRobot:
             m["attempts"] += 1
             self.last_sent_num = m["num"]
             content = m["content"] + acks + poll           # clause 18
-            assert len(content) <= MAX_CONTENT_SENT
+            assert len(content) + self.seal_bytes <= MAX_CONTENT_SENT
             return m["dst"], m["num"], m["type"], content
         return BROADCAST, self.last_sent_num, 3, acks + poll   # clause 23, 45
 
     def send(self, now: float) -> None:
         dst, num, kind, content = self.build()
-        data = encode(dst, self.id, num, kind, content, self.checksum)
+        data = encode(dst, self.id, num, kind, content, self.checksum, self.key, self.fresh)
+        if self.key is not None:                           # clauses 52, 53.2: ours too
+            self.freshness[self.id] = self.fresh
+            self.fresh += 1
         self.port.write(data)                              # clause 3: back to back
         self.sent.append((now, data))
         end = now + len(data) * BYTE
@@ -616,26 +697,7 @@ class StrangerRobot:
             ready, _, _ = select.select([fd], [], [], wait)
             if ready:
                 data = self.port.read(self.port.in_waiting or 1)
-                t = time.monotonic()
-                events: list = []
-                if self.phase != "SWITCH":                 # clause 2: deaf while switching
-                    for i, b in enumerate(data):
-                        self.rx.feed(b, t - (len(data) - 1 - i) * BYTE, events)
-                for ev in events:
-                    if ev[0] == "frame" and self.checksum:
-                        f = ev[1]
-                        if not sealed(f.raw):                  # clause 43: Source unread
-                            self.failed(None, known_end=f.end)
-                            continue
-                        f.content = f.content[:-10]
-                        self.on_frame(f)
-                    elif ev[0] == "frame":
-                        self.on_frame(ev[1])
-                    elif ev[0] == "failed":
-                        self.failed(ev[2])
-                    elif ev[0] == "garbage" and self.phase == "WAIT" and not self.left and \
-                            ev[1] > self.turn_start + TTRANS:
-                        self.failed(None)                  # clause 42
+                self.hear(data, time.monotonic())
             now = time.monotonic()
             if self.rx.in_frame() and now - self.rx.last > STALL_GAP:    # clause 15.4
                 src = self.rx.buf[4] - 48 if len(self.rx.buf) > 4 else None
@@ -644,6 +706,46 @@ class StrangerRobot:
             if self.deadline is not None and now >= self.deadline:
                 self.on_deadline(now)
         return True
+
+    def hear(self, data: bytes, t: float) -> None:
+        """Bytes read together at ``t`` (dated as clause 15.5 says), through the receiver."""
+        events: list = []
+        if self.phase != "SWITCH":                         # clause 2: deaf while switching
+            for i, b in enumerate(data):
+                self.rx.feed(b, t - (len(data) - 1 - i) * BYTE, events)
+        for ev in events:
+            if ev[0] == "frame":
+                self.take(ev[1])
+            elif ev[0] == "failed":
+                self.failed(ev[2])
+            elif ev[0] == "garbage" and self.phase == "WAIT" and not self.left and \
+                    ev[1] > self.turn_start + TTRANS:
+                self.failed(None)                          # clause 42
+
+    def take(self, f: Frame) -> None:
+        """A good frame: its seal judged before any other rule reads it (clauses 53, 43),
+        then the seal taken off its Content."""
+        if self.key is not None:
+            fresh = authentic(f.raw, self.key)
+            if fresh is None:
+                return self.refuse("forged", f)
+            if fresh <= self.freshness.get(f.src, -1):
+                return self.refuse("replayed", f)
+            self.freshness[f.src] = fresh
+            f.content = f.content[:-AUTH_BYTES]
+        elif self.checksum:
+            if not sealed(f.raw):
+                return self.refuse("bad crc", f)
+            f.content = f.content[:-CRC_BYTES]
+        self.on_frame(f)
+
+    def refuse(self, why: str, f: Frame) -> None:
+        """Clauses 43, 53: acted on in nothing; a failed frame whose Source was not read, its
+        end known."""
+        self.refused.append((why, f))
+        self.log.append(f"refused ({why}) {f!r}")
+        self.silent = 0                     # still a good frame heard (clauses 40, 53)
+        self.failed(None, known_end=f.end)
 
     def close(self) -> None:
         self.port.close()
@@ -732,14 +834,129 @@ def test_the_strangers_seal_is_clause_20s():
         assert not sealed(bytes(bad))
 
 
+AUTH_KEY = bytes.fromhex("000102030405060708090a0b0c0d0e0f")     # §4.11's worked examples
+
+
+def fresh_of(raw: bytes) -> int:
+    """The freshness value of a frame sealed by clause 52."""
+    return int(raw[-20:-12], 16)
+
+
+def test_the_strangers_seal_is_clause_52s():
+    """§4.11's two worked examples, byte for byte, taken by the stranger's check (clause 53.1)
+    with their freshness values; one changed digit of the tag or of the covered bytes, another
+    key, or no ``auth`` at all: forged."""
+    heartbeat = bytes.fromhex("0f0a05 37 31 3030 33 30303233 "
+                              "617574682830303030303030302c366534363765636529 1719")
+    status = bytes.fromhex("0f0a05 31 34 3031 32 30303331 "
+                           "7374617475732829617574682830303030303032612c333438623164646529 1719")
+    assert encode(7, 1, 0, 3, "", key=AUTH_KEY, fresh=0) == heartbeat
+    assert encode(1, 4, 1, 2, "status()", key=AUTH_KEY, fresh=0x2A) == status
+    assert heartbeat[3:-11] == b"710030023auth(00000000,"
+    assert status[3:-11] == b"140120031status()auth(0000002a,"
+    assert heartbeat[12:-2] == b"auth(00000000,6e467ece)" and fresh_of(status) == 0x2A
+    assert authentic(heartbeat, AUTH_KEY) == 0 and authentic(status, AUTH_KEY) == 0x2A
+    for i in (len(status) - 4, 12, 4):             # the tag's last digit; Content; the Source
+        bad = bytearray(status)
+        bad[i] = ord("9") if bad[i] != ord("9") else ord("8")
+        assert authentic(bytes(bad), AUTH_KEY) is None
+    assert authentic(status, bytes(16)) is None
+    assert authentic(encode(1, 4, 1, 2, "status()"), AUTH_KEY) is None
+    upper = status.replace(b"348b1dde", b"348B1DDE")              # clause 16: lowercase hex
+    assert authentic(upper, AUTH_KEY) is None
+
+
+def test_the_strangers_freshness_and_key_file_are_clauses_52_and_54s(tmp_path):
+    """Clause 52's clock rule; clause 54's file: comments and blank lines skipped, either case;
+    a file with no, two or a bad ``key = `` line, another line, or none at all: refused,
+    naming the file."""
+    assert clock_freshness(AUTH_EPOCH) == 0 and clock_freshness(AUTH_EPOCH + 2.9) == 92
+    assert clock_freshness(AUTH_EPOCH + 86400) == 32 * 86400
+    good = tmp_path / "ring.key"
+    good.write_text("# the ring's key\n\nkey = 000102030405060708090A0B0C0D0E0f\n# end\n")
+    assert read_key(good) == AUTH_KEY
+    spaced = tmp_path / "spaced.key"            # clause 54: CRLF, spaces and tabs, indented #
+    spaced.write_bytes(b"  # a comment\r\n \t\r\n\tkey\t=000102030405060708090a0b0c0d0e0f \r\n")
+    assert read_key(spaced) == AUTH_KEY
+    for name, text in [("none", "# no key\n"),
+                       ("inline", "key = " + "0" * 32 + " # the ring's\n"),
+                       ("short", "key = " + "0" * 31 + "\n"),
+                       ("two", "key = " + "0" * 32 + "\nkey = " + "1" * 32 + "\n"),
+                       ("colon", "key: " + "0" * 32 + "\n"), ("hexless", "key = " + "g" * 32),
+                       ("other", "ring = 1\nkey = " + "0" * 32 + "\n")]:
+        bad = tmp_path / f"{name}.key"
+        bad.write_text(text)
+        with pytest.raises(ValueError, match=f"{name}.key"):
+            read_key(bad)
+    with pytest.raises(ValueError, match="missing.key"):
+        read_key(tmp_path / "missing.key")
+
+
+def test_the_stranger_refuses_forged_and_replayed_frames():
+    """Clause 53 through the stranger's receive path (its own encoder makes the frames; a
+    ``loop://`` port, nothing sent): a forged or replayed invitation is not answered and a
+    replayed message not acknowledged again; neither moves the freshness kept per Source."""
+    robot = StrangerRobot("loop://", 4, {1, 2, 4}, key=AUTH_KEY)
+    try:
+        def hear(raw: bytes) -> str:
+            n = len(robot.refused)
+            robot.hear(raw, time.monotonic())
+            return robot.refused[n][0] if len(robot.refused) > n else "accepted"
+
+        def invite(fresh: int, key: bytes = AUTH_KEY) -> bytes:
+            return encode(7, 2, 0, 3, "poll(4,6)", key=key, fresh=fresh)
+
+        heartbeat = encode(7, 2, 0, 3, "", key=AUTH_KEY, fresh=10)
+        assert hear(heartbeat) == "accepted" and robot.freshness == {2: 10}
+        wrong_tag = bytearray(invite(11))
+        wrong_tag[-4] = ord("0") if wrong_tag[-4] != ord("0") else ord("1")
+        assert hear(bytes(wrong_tag)) == "forged"
+        assert hear(invite(11, key=bytes(16))) == "forged"
+        assert hear(encode(7, 2, 0, 3, "poll(4,6)")) == "forged"            # no auth at all
+        assert hear(heartbeat) == "replayed"
+        assert hear(invite(10)) == "replayed" and hear(invite(9)) == "replayed"
+        assert robot.mode == "LISTEN" and robot.freshness == {2: 10}, robot.log
+        assert hear(invite(11)) == "accepted"                                # clause 34
+        assert robot.mode == "MEMBER" and robot.ring == [1, 2, 4] and robot.answering
+        assert robot.freshness == {2: 11}
+
+        reply = encode(4, 1, 1, 3, "fail(30)status()", key=AUTH_KEY, fresh=500)
+        assert hear(reply) == "accepted"
+        assert robot.inbox == [(1, 4, 1, [("fail", (30,)), ("status", ())])]
+        assert robot.acks_owed == [(1, 1)]                                   # clause 47
+        robot.acks_owed = []
+        assert hear(reply) == "replayed"             # clause 48 would acknowledge it again
+        assert robot.acks_owed == [] and len(robot.inbox) == 1
+        assert robot.freshness == {1: 500, 2: 11}
+        assert [w for w, _ in robot.refused] == ["forged"] * 3 + ["replayed"] * 4
+    finally:
+        robot.close()
+
+
 @pytest.mark.timing
-@pytest.mark.parametrize("checksum", [False, True], ids=["plain", "checksum"])
-def test_a_stranger_robot_joins_talks_and_leaves(tmp_path, checksum):
+@pytest.mark.parametrize("profile", ["plain", "checksum", "auth"])
+def test_a_stranger_robot_joins_talks_and_leaves(tmp_path, profile):
     """The module's scenario; with ``checksum`` every station seals its frames (clause 20):
-    the children run ``--checksum``, the stranger its own CRC from the clause."""
+    the children run ``--checksum``, the stranger its own CRC from the clause; with ``auth``
+    every station runs the authenticated profile (clauses 52-54): the children run
+    ``--auth-key FILE``, the stranger reads the same file and seals and checks from the
+    clauses."""
     why = _ptys_available()
     if why:
         pytest.skip(why)
+    checksum, key, sealing = profile == "checksum", None, []
+    if checksum:
+        sealing = ["--checksum"]
+    elif profile == "auth":
+        key_file = tmp_path / "ring.key"
+        key_file.write_text("# the bench's ring key (clause 54)\n\n"
+                            "key = 00112233445566778899AABBCCDDEEFF\n", encoding="ascii")
+        key, sealing = read_key(key_file), ["--auth-key", str(key_file)]
+
+    def framed(sent: bytes, dst: int, num: int, typ: int, content: str) -> bytes:
+        """The frame the stranger should have sent as ``sent`` (with the freshness it gave)."""
+        fresh = fresh_of(sent) if key is not None else 0
+        return encode(dst, 4, num, typ, content, checksum, key, fresh)
     air = tmp_path / "air"
     hub = _spawn("radio-hub", "--nodes", "3", "--link-dir", str(air), "--seed", "1",
                  stdout=subprocess.DEVNULL)      # nobody reads it
@@ -748,7 +965,6 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path, checksum):
     try:
         assert _wait(lambda: all((air / f"node{i}").exists() for i in range(3)), 15), \
             hub.stderr.read() if hub.poll() is not None else "the hub made no ptys"
-        sealing = ["--checksum"] if checksum else []
         kids = {1: _spawn("child", "--id", "1", "--radio", str(air / "node0"), "--team", TEAM,
                           "--can", f"virtual:stranger{os.getpid()}", "--events", *sealing),
                 2: _spawn("child", "--id", "2", "--radio", str(air / "node1"), "--team", TEAM,
@@ -760,10 +976,13 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path, checksum):
                      25), [p.stderr.read() for p in kids.values() if p.poll() is not None]
 
         before = {r: len(ev[r].lines) for r in kids}    # the ring's formation is not ours
-        robot = StrangerRobot(str(air / "node2"), 4, {1, 2, 4}, checksum)
+        opened = time.time()
+        robot = StrangerRobot(str(air / "node2"), 4, {1, 2, 4}, checksum, key)
+        first_fresh = robot.fresh
         t0 = time.monotonic()
         assert robot.run_until(lambda: robot.member, 10), robot.log
-        assert robot.ring == [1, 2, 4] and robot.sent[0][1] == encode(7, 4, 0, BOOT, "", checksum)
+        assert robot.ring == [1, 2, 4] and robot.sent[0][1] == framed(robot.sent[0][1], 7, 0,
+                                                                      BOOT, "")
         joined = time.monotonic() - t0
 
         msg = robot.submit(1, "status()")
@@ -796,8 +1015,8 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path, checksum):
         back = time.monotonic() - t_back
         assert robot.ring == [1, 2, 4], robot.log
         # the answer is JOIN with the next Number: status() had 01 (clause 45), so 02
-        assert robot.sent[n_sent][1] == encode(7, 4, msg["num"] + 1, JOIN, "", checksum), \
-            robot.sent
+        assert robot.sent[n_sent][1] == framed(robot.sent[n_sent][1], 7, msg["num"] + 1, JOIN,
+                                               ""), robot.sent
         turns = len(robot.sent)
         assert robot.run_until(lambda: len(robot.sent) >= turns + 3, 5), robot.log
         assert _wait(lambda: all(ev[r].find(ev="rejoin", robot=4) for r in kids), 5), \
@@ -822,3 +1041,14 @@ def test_a_stranger_robot_joins_talks_and_leaves(tmp_path, checksum):
     polls = [f.content for f in robot.heard if f.src == 2 and "poll(4," in f.content]
     assert polls and all("poll(4,6)" in c for c in polls)
     assert joined < 5 and dropped < 5 and back < 5, (joined, dropped, back)
+    if key is not None:
+        # clause 52: from the clock when the stranger started, +1 a frame, JOIN and BOOT too
+        assert clock_freshness(opened) <= first_fresh <= clock_freshness(opened + 1)
+        assert [fresh_of(d) for _, d in robot.sent] == \
+            list(range(first_fresh, first_fresh + len(robot.sent)))
+        # clause 53: nobody found a frame forged or replayed, the stranger nor the children
+        assert not robot.refused, robot.refused
+        assert set(robot.freshness) == {1, 2, 4}, robot.freshness     # every sender's tag right
+        for r in kids:
+            assert not [e for e in ev[r].lines if e["ev"] == "refused" and any(
+                str(v).startswith(("forged", "replayed")) for v in e.values())], ev[r].lines
