@@ -13,6 +13,19 @@ from pathlib import Path
 
 import pytest
 
+from firmware_model.radio.mac_guard import ENV as MAC_TABLE_GUARD, table_guard
+
+os.environ[MAC_TABLE_GUARD] = "1"
+"""Every ``rprs`` process a test starts checks its MAC against the transition table too."""
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _mac_table_guard():
+    """The MAC's transition table guards every event of every rotational MAC the tests run
+    in this process (firmware_model/radio/mac_guard.py)."""
+    with table_guard():
+        yield
+
 
 REALTIME_MODULES = frozenset({
     "test_bench_processes", "test_bridge", "test_conformance", "test_differential",

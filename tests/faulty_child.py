@@ -28,6 +28,7 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
 """
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import Any, Callable
@@ -36,6 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from firmware_model.radio import mac as mac_mod            # noqa: E402
 from firmware_model.radio.frame import Frame, FrameType     # noqa: E402
+from firmware_model.radio.mac_guard import unguarded        # noqa: E402
 from firmware_model.timing import TICK_HZ                   # noqa: E402
 
 MS = TICK_HZ // 1000
@@ -180,7 +182,9 @@ def _own_numbers_skip_00(set_attr: Setter) -> None:
 
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
-    ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test)."""
+    ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test). The
+    transition table's guard is taken off: a broken rule may move the MAC along no row."""
+    unguarded(set_attr)
     {"late-turn": lambda s: _delay_switch(s, 20, False),
      "late-answer": lambda s: _delay_switch(s, 40, True),
      "long-length": _long_length, "no-ack": _no_ack, "boot-01": _boot_01,
@@ -195,5 +199,7 @@ if __name__ == "__main__":
     if len(sys.argv) < 2 or sys.argv[1] not in FAULTS:
         sys.exit(f"usage: faulty_child.py {{{'|'.join(FAULTS)}}} child ARGS...")
     patch(sys.argv[1])
+    # a broken rule may move the MAC along no row of the transition table: that is the point
+    os.environ.pop("RPRS_MAC_TABLE_GUARD", None)
     from hil.cli import main
     sys.exit(main(sys.argv[2:]))

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Transition", "TRANSITIONS", "STATES", "EVENTS", "markdown", "mermaid"]
+__all__ = ["PAPER_PROFILE", "Transition", "TRANSITIONS", "STATES", "EVENTS", "markdown", "mermaid"]
 
 STATES = ("LISTEN", "WAIT", "WINDOW", "QUIET", "HOLD", "SWITCH", "SEND", "WATCH")
 EVENTS = ("power on", "deadline", "frame", "failed frame", "garbage", "tx done", "steal")
@@ -45,9 +45,16 @@ class Transition:
 
 
 _T = Transition
+PAPER_PROFILE = "paper profile"
+"""The source of a row only the paper profile takes (docs/protocol.md §9.1; §6 and its guards
+are the rprs profile's)."""
 TRANSITIONS: tuple[Transition, ...] = (
     # -- start-up -------------------------------------------------------------------------
     _T("LISTEN", "power on", "LISTEN", "listen; claim after Tclaim(id) of silence", "designed"),
+    _T("LISTEN", "power on", "WAIT", "paper profile: a member of the static ring of the whole "
+       "team at once, waiting for the lowest ID's turn", PAPER_PROFILE),
+    _T("LISTEN", "power on", "SWITCH", "paper profile: a member of the static ring at once, "
+       "the lowest ID: its turn begins now", PAPER_PROFILE),
     _T("LISTEN", "frame", "LISTEN", "someone is on the air: the claim timer restarts",
        "designed"),
     _T("LISTEN", "garbage", "LISTEN", "bytes that form no frame: nothing changes (only a frame "
@@ -70,6 +77,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "the other PC's Header first", "designed"),
     _T("LISTEN", "deadline", "SWITCH", "silence for Tclaim(id): claim, a ring of one",
        "designed"),
+    _T("LISTEN", "deadline", "WAIT", "paper profile: silence for Tclaim(id): the static ring "
+       "starts again, waiting for the lowest ID's turn", PAPER_PROFILE),
     # -- waiting for the owner ------------------------------------------------------------
     _T("WAIT", "frame", "WAIT", "a member's frame: the turn passes to its successor at E",
        "paper §IV.C"),
@@ -92,6 +101,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "its promised end, or when its bytes stop sooner (stall gap)", "designed"),
     _T("WAIT", "failed frame", "HOLD", "... and ours is next: id x Tslot after it (R-stagger)",
        "designed"),
+    _T("WAIT", "failed frame", "SWITCH", "... and we are ID 0 on a channel with idle noise "
+       "(R-stagger 0, no quiet to wait for): our turn at once", "designed"),
     _T("WAIT", "deadline", "WAIT", "a Header had begun by E + Tmax: look again a byte later; "
        "or a miss, and the next owner's turn", "paper §IV.C"),
     _T("WAIT", "deadline", "SWITCH", "the owner missed: our turn at E + Tmax + Ttrans",
@@ -104,6 +115,20 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WAIT", "frame", "LISTEN", "left out: a member's poll or ring mask lacks us (R-view); "
        "or our own ID a second time (a twin: yield, clause 38.2)", "designed"),
     _T("WAIT", "steal", "SWITCH", "fault injection: we wrongly take the turn", "fault"),
+    _T("WINDOW", "steal", "SWITCH", "fault injection: we wrongly take the turn, in an "
+       "invited robot's window", "fault"),
+    _T("HOLD", "steal", "SWITCH", "fault injection: we take our turn before its start",
+       "fault"),
+    _T("LISTEN", "steal", "LISTEN", "fault injection with no turn to take: not a member",
+       "fault"),
+    _T("SWITCH", "steal", "SWITCH", "fault injection with no turn to take: ours has begun",
+       "fault"),
+    _T("SEND", "steal", "SEND", "fault injection with no turn to take: our frame is on air",
+       "fault"),
+    _T("QUIET", "steal", "QUIET", "fault injection ignored while a failed frame is waited out",
+       "fault"),
+    _T("WATCH", "steal", "WATCH", "fault injection ignored while watching for the other PC",
+       "fault"),
     # -- an invitation's window -----------------------------------------------------------
     _T("WINDOW", "frame", "WAIT", "the invited robot answered: the turn passes on",
        "designed"),
@@ -122,6 +147,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "at its promised end", "designed"),
     _T("WINDOW", "failed frame", "HOLD", "... and ours is next: id x Tslot after it "
        "(R-stagger)", "designed"),
+    _T("WINDOW", "failed frame", "SWITCH", "... and we are ID 0 on a channel with idle noise "
+       "(R-stagger 0, no quiet to wait for): our turn at once", "designed"),
     _T("WINDOW", "deadline", "WINDOW", "a Header had begun by E + Twin: look again", "designed"),
     _T("WINDOW", "deadline", "WAIT", "no answer by E + Twin: the poller's successor's turn",
        "designed"),
@@ -137,6 +164,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "its promised end", "designed"),
     _T("QUIET", "failed frame", "HOLD", "... and ours is next: id x Tslot after it "
        "(R-stagger)", "designed"),
+    _T("QUIET", "failed frame", "SWITCH", "... and we are ID 0 on a channel with idle noise "
+       "(R-stagger 0, no quiet to wait for): our turn at once", "designed"),
     _T("QUIET", "frame", "WAIT", "a good frame: resynchronise on it", "paper §IV.C"),
     _T("QUIET", "frame", "SWITCH", "a good frame, and ours is the next turn", "paper §IV.C"),
     _T("QUIET", "frame", "HOLD", "a frame refused as a failed one (bad checksum, outside the "
@@ -174,6 +203,16 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("HOLD", "deadline", "WATCH", "ID 0's turn on a PC that checks for the other PC",
        "designed"),
     _T("SWITCH", "failed frame", "SWITCH", "deaf while switching: nothing changes",
+       "paper §IV.C"),
+    _T("SWITCH", "frame", "SWITCH", "deaf while switching: a frame a radio hears anyway (a "
+       "bench port, an echo) changes nothing", "paper §IV.C"),
+    _T("SWITCH", "garbage", "SWITCH", "deaf while switching: bytes heard change nothing",
+       "paper §IV.C"),
+    _T("SEND", "frame", "SEND", "our frame is on air: a frame heard meanwhile (an echo, a "
+       "collision on a bench port) changes nothing", "paper §IV.C"),
+    _T("SEND", "failed frame", "SEND", "our frame is on air: a failed frame heard changes "
+       "nothing", "paper §IV.C"),
+    _T("SEND", "garbage", "SEND", "our frame is on air: bytes heard change nothing",
        "paper §IV.C"),
     _T("SWITCH", "deadline", "SEND", "Ttrans after TXEN: the frame goes out", "paper §IV.C"),
     _T("SEND", "tx done", "WAIT", "our End is out: the successor's turn at E", "paper §IV.C"),

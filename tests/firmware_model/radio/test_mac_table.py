@@ -31,6 +31,10 @@ RUNS = [
     dict(robots=(1, 2, 3, 4, 5), duration=20, seed=6, power_on={3: 1.5, 1: 0.7}, ber=0.001),
     # twins of R2 powered on together: they answer together until a seeded draw parts them
     dict(robots=(1, 2, 3), duration=20, seed=1, extra=((2, 0.0, None),)),
+    # the paper profile: the static ring of the whole team, robot 4 never on and 2 dying
+    dict(robots=(1, 2, 3), duration=20, seed=4, load=1.0, ber=0.001,
+         mac=M.MacConfig(profile="paper", team=frozenset({1, 2, 3, 4})),
+         faults=(parse_fault("fail:2@6"), parse_fault("recover:2@11"))),
 ]
 
 
@@ -173,6 +177,69 @@ def _window_paths() -> None:
     assert mac.mode == M.LISTEN
 
 
+def _steal_paths() -> None:
+    """Fault injection (``force_turn``, the ``steal`` fault) in every state: a member waiting
+    for a turn (WAIT, WINDOW, HOLD) takes it at once; in the others there is none to take.
+    And what a radio hears while ours switches or sends (a bench port is not deaf) changes
+    nothing."""
+    def deaf(mac: M.RotationalMac, state: str, t: int) -> None:
+        mac.on_frame(_hb(2, t), t - 14 * B, t, t)
+        mac.on_garbage(t + B, t + 2 * B, t + 2 * B)
+        mac.on_corrupt(t + 3 * B, 2, t + 20 * B, t + 5 * B)
+        assert _state(mac) == state
+
+    def steal(mac: M.RotationalMac, state: str, now: int) -> None:
+        assert _state(mac) == state
+        mac.force_turn(now)
+        assert _state(mac) == (state if state in ("LISTEN", "SWITCH", "SEND", "QUIET", "WATCH")
+                               else "SWITCH")
+
+    mac = M.RotationalMac(1, M.MacConfig(team=frozenset({1, 2})))
+    mac.power_on(0)
+    steal(mac, "LISTEN", 10 * B)
+    mac.on_timer(mac.deadline)                           # the claim: SWITCH
+    steal(mac, "SWITCH", mac.deadline - B)
+    deaf(mac, "SWITCH", mac.deadline - 4 * B)
+    mac.on_timer(mac.deadline)                           # on air: SEND
+    steal(mac, "SEND", mac.turn_start + mac.cfg.ttrans + 5 * B)
+    deaf(mac, "SEND", mac.turn_start + mac.cfg.ttrans + 6 * B)
+
+    mac, t = _answer(1, {1, 2}, 2, 0b0100)               # waits for 2
+    steal(mac, "WAIT", t + 10 * B)
+    mac, t = _answer(1, {1, 2, 3}, 2, 0b0100)
+    mac.on_frame(_hb(2, t, b"poll(3,6)"), t + 27 * B, t + 50 * B, t + 50 * B)
+    steal(mac, "WINDOW", t + 60 * B)
+    mac, t = _answer(1, {1, 2}, 2, 0b0100)
+    mac.on_corrupt(t + 10 * B, None, None, t + 12 * B)   # broke before its Length
+    steal(mac, "QUIET", t + 14 * B)
+    mac.on_timer(mac.deadline)                           # quiet: our turn, R-stagger
+    steal(mac, "HOLD", mac.deadline - B)
+
+    mac = M.RotationalMac(0, M.MacConfig(team=frozenset({0, 1}), paired=True, pc=2,
+                                         standby=True))
+    mac.power_on(0)
+    mac.on_timer(mac.deadline)                           # a standby claims: watches first
+    steal(mac, "WATCH", mac.deadline - B)
+
+
+def _id0_failed_paths() -> None:
+    """ID 0's R-stagger is 0: on a channel with idle noise (no hold for the channel to fall
+    quiet), a frame that failed after its Length in the slot before its turn leaves it nothing
+    to wait: its turn at once, from WAIT, an invitation's WINDOW and QUIET (clauses 41, 44)."""
+    for state in ("WAIT", "WINDOW", "QUIET"):
+        mac, t = _answer(0, {0, 1, 2}, 1, 0b0010, quiet_channel=False)   # ring {0, 1}
+        if state == "WINDOW":
+            mac.on_frame(_hb(1, t, b"poll(2,3)"), t + 27 * B, t + 50 * B, t + 50 * B)
+            t += 50 * B
+        elif state == "QUIET":
+            mac.on_corrupt(t + 10 * B, None, None, t + 12 * B)
+            t += 12 * B
+        assert _state(mac) == state
+        end = t + 40 * B                                     # its promised end, now past
+        mac.on_corrupt(t + 10 * B, 1 if state == "WAIT" else None, end, end + 3 * B)
+        assert _state(mac) == "SWITCH", state
+
+
 def _hb(src: int, t: int, content: bytes = b"") -> Frame:
     return Frame(7, src, 0, 3, content)
 
@@ -266,6 +333,8 @@ def observed():
         _rare_paths()
         _father_paths()
         _window_paths()
+        _steal_paths()
+        _id0_failed_paths()
     finally:
         mp.undo()
     return seen
