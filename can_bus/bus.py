@@ -160,6 +160,9 @@ __all__ = [
 class CanBus:
     """Bit-exact, event-per-frame CAN 2.0A bus. See the module docstring for the model."""
 
+    STEADY_COUNTERS = ("frames_ok",)
+    """Frames sent without error: counts only (hil/sim/steady.py)."""
+
     def __init__(self, scheduler: Scheduler, timing: BitTiming | None = None,
                  length_m: float = DEFAULT_LENGTH_M) -> None:
         """``length_m``: the bus's length between its two farthest nodes (m)."""

@@ -123,6 +123,10 @@ class NodeView:
 class Dispatcher:
     """Turns Content commands into CAN commands and submodule reports into radio replies."""
 
+    STEADY_RECORDS = ("log",)
+    """What it noticed, in words: appended to, never read by the model (tests and the monitor
+    read it; hil/sim/steady.py)."""
+
     def __init__(self, robot_id: int) -> None:
         self.id = robot_id
         self.nodes = {n: NodeView() for n in range(1, 7)}

@@ -37,6 +37,9 @@ class Stalled(NamedTuple):
 class RadioStation:
     """One robot's radio firmware on its peripherals (UART0, TXEN pin, reload timer 0)."""
 
+    STEADY_COUNTERS = ("frames_heard",)
+    """Frames it took: counts only (reports; hil/sim/steady.py)."""
+
     def __init__(self, robot_id: int, sched: Scheduler, uart: Uart, txen: OutputPin,
                  config: MacConfig | None = None, observer: Observer | None = None) -> None:
         cfg = config or MacConfig()

@@ -27,6 +27,12 @@ from .params import STALL_DETECT_TICKS, STATUS_PERIOD_TICKS, STATUS_STAGGER_TICK
 class _Submodule(FrameSource, FrameSink):
     """Queue, status timer, EVENTs, silence, ESTOP and fault bookkeeping shared by all nodes."""
 
+    STEADY_COUNTERS = ("sent", "_order")
+    """Frames sent and acknowledged (counts only); ``_order``, its queue's tie-break, compared
+    only with its own values (hil/sim/steady.py)."""
+    STEADY_RECORDS = ("events",)
+    """Every EVENT it queued: appended to, never read by the model (tests read it)."""
+
     # stall detection, kept by the nodes that detect stalls (joints and the wheel), which
     # also define _stall_detected
     _stall_ev: Event | None

@@ -166,6 +166,9 @@ def _check_id(can_id: int) -> int:
 class CanController(CanNode):
     """One MB90F549 CAN interface. Reset state: HALT = 1, TOE = 0, every buffer invalid."""
 
+    STEADY_COUNTERS = ("frames_received", "frames_sent")
+    """Frames it stored and sent: counts only (hil/sim/steady.py)."""
+
     recovers_on_request = True
     """Bus-off recovery starts when the firmware clears HALT (the bus asks, see can_bus.bus)."""
 

@@ -58,6 +58,9 @@ class HandlerStats:
     included), latency (request to acceptance) and response (request to its effects): ticks,
     counted per value (a few distinct values however long the run)."""
 
+    STEADY_COUNTERS = ("calls",)
+    """Handler calls: counts only (hil/sim/steady.py)."""
+
     __slots__ = ("name", "level", "calls", "busy", "latency", "response", "worst_latency",
                  "worst_response")
 

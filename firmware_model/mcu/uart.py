@@ -54,6 +54,9 @@ class SerialLine(Protocol):
 class Uart:
     """One UART channel. Set ``line`` (TX side), ``on_rx`` and ``on_tx_done`` before use."""
 
+    STEADY_COUNTERS = ("bytes_sent", "bytes_received")
+    """Count only (reports; hil/sim/steady.py)."""
+
     __slots__ = ("sched", "bit_ticks", "byte_ticks", "line", "on_rx", "on_tx_done",
                  "busy_until", "bytes_sent", "bytes_received", "name", "cpu", "rx_vector",
                  "rx_cycles", "tx_vector", "tx_cycles", "end_vector", "end_cycles", "rdr",

@@ -133,6 +133,12 @@ _NOTHING: tuple = ()
 class RotationalMac:
     """One robot's MAC. Create, call ``power_on(now)``, then feed it events."""
 
+    STEADY_COUNTERS = ("frames_sent",)
+    """Frames it sent: counts only (reports; hil/sim/steady.py)."""
+    STEADY_MODULAR = {"turns": PC2_CHECK_EVERY}
+    """``turns`` is read only modulo ``PC2_CHECK_EVERY`` (the standby PC2's checks,
+    mac_turns.py); without a standby PC nothing reads it (hil/sim/steady.py)."""
+
     def __init__(self, robot_id: int, config: MacConfig | None = None) -> None:
         if not 0 <= robot_id <= 6:
             raise ValueError(f"robot ID must be 0-6, got {robot_id}")

@@ -170,6 +170,10 @@ class Reception:
 class Air:
     """The shared channel. ``attach`` radios, then let their UARTs transmit."""
 
+    STEADY_COUNTERS = ("occupations", "sent", "_noise_gen")
+    """Count only: frames on air and transmissions per robot (reports); ``_noise_gen``, a
+    generation number compared only with its own copies (hil/sim/steady.py)."""
+
     def __init__(self, sched: Scheduler, seed: int = 0, ber: float = 0.0, noise: bool = False,
                  byte_by_byte: bool = False) -> None:
         if not 0.0 <= ber < 1.0:

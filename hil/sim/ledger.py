@@ -38,6 +38,9 @@ class RobotStats:
 class Tally:
     """The world's count of one bus's frames, kept in that child's CAN domain."""
 
+    STEADY_COUNTERS = ("frames",)
+    """The world's tally of a bus's frames: counts only (hil/sim/steady.py)."""
+
     __slots__ = ("frames",)
 
     def __init__(self) -> None:

@@ -48,6 +48,7 @@ from can_bus.submodules import STATUS_PERIOD_TICKS
 from firmware_model.dispatcher import NodeView
 from firmware_model.mcu.scheduler import Event, Scheduler
 
+from .steady import CAN_PARTS, counters, records
 from .state_walk import (Snapshot, Unwalkable, advance, latest_moved, on_orbit, period_steps,
                          snapshot, writable)
 
@@ -56,24 +57,16 @@ __all__ = ["COUNTERS", "LATEST", "PERIOD", "RECORDS", "DomainClock", "QuietCan"]
 PERIOD = STATUS_PERIOD_TICKS
 """1,600,000 ticks (100 ms): the submodules' status period, the domain's period."""
 
-COUNTERS = frozenset({
-    "sent",          # submodule: frames sent and acknowledged
-    "_order",        # submodule: its queue's tie-break counter (only compared within it)
-    "frames_ok",     # bus: frames sent without error
-    "frames_received",  # controller: frames it stored
-    "calls",         # ideal CPU: handler calls (HandlerStats)
-    "frames",        # world's tally of the bus's frames
-})
-"""Attributes that only count what happened: they may grow by any amount a period without
-making the domain other than periodic (nothing reads them to decide what to do)."""
+COUNTERS = counters(CAN_PARTS)
+"""Attributes that only count what happened, as the domain's classes declare them
+(``STEADY_COUNTERS``; hil/sim/steady.py): they may grow by any amount a period without making
+the domain other than periodic (nothing reads them to decide what to do)."""
 
 
-RECORDS = frozenset({
-    "log",           # dispatcher: what it noticed, in words (tests and the monitor read it)
-    "events",        # submodule: every EVENT it queued (tests read it)
-})
-"""Append-only lists of what happened that nothing in the model reads: a snapshot takes
-their length only (hil/sim/state_walk.py)."""
+RECORDS = records(CAN_PARTS)
+"""Append-only lists of what happened that nothing in the model reads, as declared
+(``STEADY_RECORDS``: the dispatcher's log, a submodule's events): a snapshot takes their length
+only (hil/sim/state_walk.py)."""
 
 LATEST: tuple[type, ...] = (NodeView,)
 """Types holding only the latest of something each period rewrites before anything in a

@@ -75,6 +75,7 @@ from firmware_model.mcu.scheduler import Event, Scheduler
 from firmware_model.radio.mac import PC2_CHECK_EVERY
 
 from .state_walk import Unwalkable, advance, period_steps, snapshot, writable
+from .steady import RING_PARTS, counters, modular
 
 if TYPE_CHECKING:
     from firmware_model.station import RadioStation
@@ -84,23 +85,16 @@ if TYPE_CHECKING:
 
 __all__ = ["COUNTERS", "MODULAR", "GRAIN", "TICK_KEYS", "QuietRing"]
 
-COUNTERS = frozenset({
-    "transmissions",   # world: transmissions started (reports only)
-    "occupations",     # air: frames on air (reports)
-    "sent",            # air: transmissions per robot (reports)
-    "frames_sent",     # MAC: frames it sent (reports)
-    "frames_heard",    # station: frames it took (reports)
-    "bytes_sent",      # UART (reports)
-    "bytes_received",  # UART (reports)
-    "_noise_gen",      # air: a generation number, compared only with its own copies
-})
-"""Attributes (or dict/list names) that only count what happened: they may grow by any amount
-a period (nothing reads them to decide what to do)."""
+COUNTERS = counters(RING_PARTS)
+"""Attributes (or dict/list names) that only count what happened, as the ring's classes declare
+them (``STEADY_COUNTERS``; hil/sim/steady.py): they may grow by any amount a period (nothing
+reads them to decide what to do). The world's own are added per ring (``World`` imports this
+module)."""
 
-MODULAR = {"turns": PC2_CHECK_EVERY}
-"""Counters the model reads only modulo a number (``turns``: the standby PC2's checks,
-mac_turns.py): a period must move them by a multiple. Without a standby PC nothing reads
-``turns``: it is one of the counters then."""
+MODULAR = modular(RING_PARTS)
+"""Counters the model reads only modulo a number, as declared (``STEADY_MODULAR``: ``turns``,
+the standby PC2's checks, mac_turns.py): a period must move them by a multiple. Without a
+standby PC nothing reads ``turns``: it is one of the counters then."""
 
 TICK_KEYS = frozenset({"t", "start", "end", "sof"})
 """Keys of a trace event that hold ticks (docs/trace.md): moved on by the period when the
@@ -133,12 +127,13 @@ class QuietRing:
         self.boundary: list[Any] = []
         """Objects the snapshot does not enter: the children's CAN domains and their parts."""
         self.anchor = anchor
+        ours = COUNTERS | counters([type(world)])
         if paired:
             self.every = poll_every * PC2_CHECK_EVERY // math.gcd(poll_every, PC2_CHECK_EVERY)
-            self.counters, self.modular = COUNTERS, MODULAR
+            self.counters, self.modular = ours, MODULAR
         else:
             self.every = poll_every
-            self.counters, self.modular = COUNTERS | {"turns"}, {}
+            self.counters, self.modular = ours | set(MODULAR), {}
         self.enabled = True
         self.until: int | None = None
         self.probes = 0

@@ -63,6 +63,9 @@ EXTRA = 200
 class World:
     """Robots, air and scheduler; ``run()`` advances simulated time."""
 
+    STEADY_COUNTERS = ("transmissions",)
+    """Counts only (reports): the fast paths may move it on by any amount (hil/sim/steady.py)."""
+
     def __init__(self, config: SimConfig, trace: TraceWriter | None = None,
                  on_event: Callable[[dict], None] | None = None) -> None:
         config.validate()
