@@ -11,7 +11,7 @@ probe's snapshot for a period, the world's record of every message's outcome). W
 default, a soak ran the young collection every few hundred events, each walking what happened
 to be alive then and promoting it, and the older generations' walks grew with the run: 7 % of
 a 0.5 h soak's CPU time, 13 % of a 1 h one's (measured with ``gc.callbacks``,
-docs/performance.md, "The collector").
+docs/fast-paths.md, "The collector").
 
 :func:`fewer_collections` raises the youngest generation's threshold to
 :data:`YOUNG_THRESHOLD` for the length of a ``with`` block (``World.run`` runs in one) and

@@ -43,7 +43,7 @@ class SimConfig:
     can: bool = False
     """Give every child its CAN side: controller, 82C250, dispatcher and six submodules."""
     fast_paths: bool = True
-    """The one switch of the simulator's fast paths (docs/performance.md): the ring's leaps
+    """The one switch of the simulator's fast paths (docs/fast-paths.md): the ring's leaps
     (``ring_sleep``), the CAN sides' sleep (``can_sleep``) and the MAC's heartbeat short path
     (``MacConfig.fast_path``). The run is the same to the tick either way (the trace digests
     are checked both ways); False runs every frame the slow way, to show that

@@ -66,7 +66,7 @@ class Snapshot:
     ``("obj", type)``, ``("ref", position)`` ... tuples) with earlier snapshots: a probe keeps
     one or two snapshots for a period or a whole sleep, and a thousand tuples each were the
     most of what Python's cyclic garbage collector found to walk in a soak
-    (docs/performance.md, "The collector")."""
+    (docs/fast-paths.md, "The collector")."""
 
     shape: list
     int_pos: list[int]
