@@ -115,6 +115,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WAIT", "frame", "LISTEN", "left out: a member's poll or ring mask lacks us (R-view); "
        "or our own ID a second time (a twin: yield, clause 38.2)", "designed"),
     _T("WAIT", "steal", "SWITCH", "fault injection: we wrongly take the turn", "fault"),
+    _T("WAIT", "steal", "WATCH", "fault injection: we wrongly take ID 0's turn, on a father "
+       "PC that checks for the other PC first", "fault"),
     _T("WINDOW", "steal", "SWITCH", "fault injection: we wrongly take the turn, in an "
        "invited robot's window", "fault"),
     _T("HOLD", "steal", "SWITCH", "fault injection: we take our turn before its start",
@@ -181,6 +183,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "(R-stagger)", "designed"),
     _T("QUIET", "deadline", "SWITCH", "only noise until E + Tmax: a miss, and ours is next",
        "paper §IV.C"),
+    _T("QUIET", "deadline", "WATCH", "quiet, or a miss, and ID 0's turn follows on a PC that "
+       "checks for the other PC", "designed"),
     _T("QUIET", "deadline", "LISTEN", "only noise until E + Tmax: the miss that makes a whole "
        "round unheard", "designed"),
     # -- our turn -------------------------------------------------------------------------

@@ -272,6 +272,17 @@ def _father_paths() -> None:
         return mac, 140 * B
 
     mac, t = follower()
+    mac.force_turn(t + 10 * B)                           # the steal fault: WAIT -> WATCH
+    assert mac.phase == M.WATCH
+    mac = M.RotationalMac(0, M.MacConfig(team=frozenset({0, 1, 2, 3}), paired=True, pc=2,
+                                         standby=True, quiet_channel=False))
+    mac.power_on(0)                                      # idle noise: no hold for quiet
+    heard(mac, 1, 100 * B)
+    heard(mac, 0, 140 * B)                               # a standby following 0 -> 1
+    mac.on_corrupt(150 * B, None, None, 152 * B)         # 1's frame breaks: WAIT -> QUIET
+    mac.on_timer(mac.deadline)                           # quiet: ID 0's turn, watched first
+    assert mac.phase == M.WATCH
+    mac, t = follower()
     mac.on_timer(mac.deadline)                           # 1 missed: WAIT -> WATCH
     mac.on_corrupt(mac.turn_start + 8 * B, None, None, mac.turn_start + 10 * B)   # QUIET
     mac, t = follower()
