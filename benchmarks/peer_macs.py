@@ -137,10 +137,7 @@ def measure(kind: str, lam: float | None, robots=(0, 1, 2, 3, 4, 5, 6), duration
         sched.after(max(1, round(rngs[r].expovariate(per_tick))), arrival, r)
 
     def wrap(st) -> None:
-        base = st.observer
-
         def obs(station, a, now):
-            base(station, a, now)
             if type(a) is Outcome:
                 m = a.message
                 if a.delivered:
@@ -154,7 +151,7 @@ def measure(kind: str, lam: float | None, robots=(0, 1, 2, 3, 4, 5, 6), duration
                     reasons[key] = reasons.get(key, 0) + 1
                 if lam is None:
                     submit(station.id)
-        st.observer = obs
+        st.add_observer(obs)
 
     for r, st in world.stations.items():
         wrap(st)

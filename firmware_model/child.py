@@ -239,15 +239,11 @@ class ChildFirmware:
         self.on_action: Callable[[int, int, str, int], None] | None = None
         self.dispatcher.on_notice = self._on_notice
         self.dispatcher.on_action = self._on_action
-        outer = station.observer
-
         def observe(st: RadioStation, a: object, now: int) -> None:
-            if outer is not None:
-                outer(st, a, now)
             if type(a) in (Join, ModeChange) and self.sequence is not None:
                 self._kickoff()
                 self._pump()
-        station.observer = observe
+        station.add_observer(observe)
 
     def run_sequence(self, order: tuple[int, ...], cycles: int) -> None:
         """Take part in the paper's action-sequence experiment (firmware_model/sequence.py)."""

@@ -62,7 +62,9 @@ class RadioStation:
         A second timer channel besides the MAC's TMR0 (the child's dispatcher has TMR1): which
         MB90F549 timer serves it on a board (the free-running timer's compare, say) is for the
         peripheral map of issue 13; the model times it exactly like a reload timer."""
-        self.observer = observer
+        self._observers: tuple[Observer, ...] = () if observer is None else (observer,)
+        self._notify: Observer | None = observer
+        """What the handlers call: None, the one observer, or one that tells them all."""
         self.report_io = True
         """Pass TxEnable/Transmit actions to the observer too (a trace wants them; a fast
         simulation without a trace does not)."""
@@ -176,8 +178,8 @@ class RadioStation:
                 # A frame that fails where its End should be while bytes keep coming had its
                 # Length corrupted downwards: its promised end is early, so do not trust it.
                 exp = None if ev.error.field == "end" else ev.expected_end
-                if self.observer is not None:
-                    self.observer(self, ev, now)
+                if self._notify is not None:
+                    self._notify(self, ev, now)
                 self._apply(mac.on_corrupt(ev.first, ev.src, exp, now), ev)
                 self._promise = exp if exp is not None and exp > now else None
         if d.in_frame or self._promise is not None:
@@ -253,20 +255,45 @@ class RadioStation:
         self.deframer.reset()
         if self.stall_timer.expiry is not None:
             self.stall_timer.stop()
-        if self.observer is not None:
-            self.observer(self, Stalled(late), now)
+        if self._notify is not None:
+            self._notify(self, Stalled(late), now)
         if self.uart.busy_until > now or self.mac.phase == SEND:
             self._resync_after_tx = True
             return
         self._apply(self.mac.resync(now))
+
+    # -- observers ---------------------------------------------------------------------------
+
+    @property
+    def observers(self) -> tuple[Observer, ...]:
+        """Who is told every action and observation, in the order they are told."""
+        return self._observers
+
+    @property
+    def observer(self) -> Observer | None:
+        """The one callable that tells every observer (None with none): stable until the list
+        changes, so a watcher can tell whether someone else has hooked in."""
+        return self._notify
+
+    def add_observer(self, fn: Observer, first: bool = False) -> None:
+        """Tell ``fn`` too, after the observers already there (``first``: before them)."""
+        self._observers = (fn, *self._observers) if first else (*self._observers, fn)
+        self._notify = _told_by(self._observers)
+
+    def remove_observer(self, fn: Observer) -> None:
+        """Stop telling ``fn`` (ValueError if it is not an observer)."""
+        obs = list(self._observers)
+        obs.remove(fn)
+        self._observers = tuple(obs)
+        self._notify = _told_by(self._observers)
 
     # -- the application side --------------------------------------------------------------
 
     def submit(self, dst: int, commands, type: int = 2):
         """Queue a message for the radio (see RotationalMac.submit)."""
         msg = self.mac.submit(dst, commands, self.sched.now, type)
-        if self.observer is not None:
-            self.observer(self, msg, self.sched.now)
+        if self._notify is not None:
+            self._notify(self, msg, self.sched.now)
         self._apply(())
         return msg
 
@@ -289,7 +316,7 @@ class RadioStation:
 
     def _act(self, actions) -> None:
         now = self.sched.now
-        obs = self.observer
+        obs = self._notify
         for a in actions:
             t = type(a)
             if t is TxEnable:
@@ -316,6 +343,19 @@ class RadioStation:
 
 def _nothing() -> None:
     pass
+
+
+def _told_by(observers: tuple[Observer, ...]) -> Observer | None:
+    """One callable for ``observers``: None, the only one, or one that calls each in turn."""
+    if not observers:
+        return None
+    if len(observers) == 1:
+        return observers[0]
+
+    def tell_all(st: RadioStation, a: object, now: int) -> None:
+        for fn in observers:
+            fn(st, a, now)
+    return tell_all
 
 
 def build_station(robot_id: int, sched: Scheduler, byte_ticks: int | None = None,

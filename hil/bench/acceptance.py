@@ -168,12 +168,7 @@ class ModelDut(Dut):
         from hil.sim.world import SimConfig, World
         self.world = World(SimConfig(robots=(0, robot), duration=10_000.0, can=True))
         self.father = self.world.stations[0]
-        prev = self.father.observer
-
-        def obs(st: Any, a: object, now: int) -> None:
-            prev(st, a, now)
-            self._observe(st, a, now)
-        self.father.observer = obs
+        self.father.add_observer(self._observe)
         self.submodules = self.world.submodules[robot]
         bus = self.world.can_buses[robot]
         prev_trace = bus.trace
@@ -240,12 +235,7 @@ class _RealTimeDut(Dut):
         from firmware_model.kinematics import HOME
         from hil.bench.runner import _can_bus, build_father
         self.father = build_father(self.runner, radio, txen=txen, config=config)
-        prev = self.father.observer
-
-        def obs(st: Any, a: object, now: int) -> None:
-            prev(st, a, now)
-            self._observe(st, a, now)
-        self.father.observer = obs
+        self.father.add_observer(self._observe)
         bus = _can_bus(self.runner, can, None)
         bus.trace = lambda frame, start, end, node: self._sniff(frame, start, end)
         if emulate:

@@ -279,14 +279,11 @@ class OrderBook:
             self.on_change(o, now)
 
 
-def chain(observer: Callable[[Any, object, int], None] | None,
-          book: OrderBook) -> Callable[[Any, object, int], None]:
-    """A station observer that feeds ``book`` and then ``observer``."""
+def book_keeper(book: OrderBook) -> Callable[[Any, object, int], None]:
+    """A station observer that feeds ``book`` (RadioStation.add_observer)."""
     def observe(st: Any, a: object, now: int) -> None:
         if type(a) is Message and a.src == st.id:
             book.submitted(a, now)
         else:
             book.observe(a, now)
-        if observer is not None:
-            observer(st, a, now)
     return observe

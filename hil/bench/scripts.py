@@ -223,11 +223,7 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
     replies: list[tuple[int, int]] = []
     refusals: list[str] = []
     outcomes: list[tuple[int, Any]] = []
-    prev = station.observer
-
     def observe(st: Any, a: object, now: int) -> None:
-        if prev is not None:
-            prev(st, a, now)
         if type(a) is Deliver and a.src == dst and a.dst == st.id:   # not its broadcasts
             replies.append((now, a.num))
             if a.commands and a.commands[0].name == "fail":
@@ -236,7 +232,7 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
                                 f": {fail_reason(code)}")
         elif type(a) is Outcome:
             outcomes.append((now, a))
-    station.observer = observe
+    station.add_observer(observe)
 
     def submit(box: list[Any], ev: threading.Event) -> None:
         # box and ev are this request's own: a request the runner's thread takes only after
@@ -277,7 +273,7 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
             rtt.append((replies[n_rep][0] - t_sub) * 1000 / TICK_HZ)
         if progress is not None:
             progress(i + 1)
-    station.observer = prev
+    station.remove_observer(observe)
     return LatencyResult(sent, len(rtt), rtt, ack, failed, refusals)
 
 

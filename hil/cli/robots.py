@@ -125,7 +125,7 @@ def submodules_summary(nodes: dict) -> str:
 
 
 def cmd_father(a: argparse.Namespace) -> int:
-    from ..bench.orders import OrderBook, chain
+    from ..bench.orders import OrderBook, book_keeper
     from ..bench.runner import (Runner, RunError, build_father, feed_orders, summary_line,
                                 take_order)
     from ..view.father import FatherConsole
@@ -184,13 +184,8 @@ def cmd_father(a: argparse.Namespace) -> int:
 
     def head() -> str:                            # the app's header
         return father_head(station.mac, a.radio, book)
-    ring_view = station.observer
-
-    def observe(st, act, now: int) -> None:
-        if ring_view is not None:
-            ring_view(st, act, now)
-        console.ring(st, act, now)
-    station.observer = chain(observe, book)
+    station.add_observer(book_keeper(book), first=True)   # the book first, as orders end
+    station.add_observer(console.ring)
     role = "standby PC" if a.standby else "PC"
     how = ("orders given here are refused until it takes over" if a.standby else
            "type orders like '2 movex(10)' or '1 act(1,0)' (DST COMMANDS)")

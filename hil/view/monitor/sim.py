@@ -61,7 +61,7 @@ class SimMonitorApp(MonitorApp):
         """What stopped the run when one of its outputs could not be written (a full disk):
         :func:`run_monitor_sim` raises it once the terminal is restored."""
         for st in self.world.stations.values():
-            st.observer = self._chain(st.observer)
+            st.add_observer(self._received_by, first=True)
 
     def on_mount(self) -> None:
         self._wall = self.clock()            # wall time before the first refresh is not owed
@@ -69,16 +69,11 @@ class SimMonitorApp(MonitorApp):
 
     # -- the world's side ------------------------------------------------------------------
 
-    def _chain(self, prev):
-        received = self.received
-
-        def observe(st, a, now):
-            if type(a) is Deliver:
-                text = format_content(a.commands).decode("ascii", "replace")
-                received[st.id].append(Received(now, a.src, a.num, a.dst, a.type, text))
-            if prev is not None:
-                prev(st, a, now)
-        return observe
+    def _received_by(self, st, a, now: int) -> None:
+        """Every message delivered, for the robot's pane (told before the world's own)."""
+        if type(a) is Deliver:
+            text = format_content(a.commands).decode("ascii", "replace")
+            self.received[st.id].append(Received(now, a.src, a.num, a.dst, a.type, text))
 
     def _on_event(self, ev: dict) -> None:
         if self._also is not None:

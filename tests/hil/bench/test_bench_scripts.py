@@ -55,6 +55,23 @@ def test_the_sniffer_discards_what_waited_in_the_port_before_it_started():
     assert res.garbage == 2 and res.failed == 0       # between the good frames
 
 
+class _Station:
+    """What ``latency`` uses of a station: its ID, ``submit`` and its list of observers."""
+
+    def __init__(self, submit=None) -> None:
+        self.id, self.submit, self.observers = 0, submit, []
+
+    def add_observer(self, fn, first: bool = False) -> None:
+        self.observers.insert(0 if first else len(self.observers), fn)
+
+    def remove_observer(self, fn) -> None:
+        self.observers.remove(fn)
+
+    def tell(self, a, now: int) -> None:
+        for fn in self.observers:
+            fn(self, a, now)
+
+
 def test_latency_tells_a_refusal_from_a_status_reply_and_skips_broadcasts():
     """A radio-only child answers status() with fail(42)status(): that was once counted as
     "3/3 status replies"; and an act(n,1) broadcast from the robot counted as a reply."""
@@ -64,7 +81,7 @@ def test_latency_tells_a_refusal_from_a_status_reply_and_skips_broadcasts():
     from firmware_model.radio.frame import BROADCAST
     from firmware_model.radio.mac import Deliver, Outcome
 
-    station = SimpleNamespace(id=0, observer=None)
+    station = _Station()
     sched = SimpleNamespace(now=0)
     answers = iter([(cmd("fail", 42), cmd("status")),
                     (cmd("joint", 1, 0), cmd("joint", 2, 45))])
@@ -72,15 +89,16 @@ def test_latency_tells_a_refusal_from_a_status_reply_and_skips_broadcasts():
     def submit(dst, commands, type_):
         msg = SimpleNamespace(state="delivered")
         sched.now += 10 * MS
-        station.observer(station, Deliver(2, BROADCAST, 9, 3, (cmd("act", 1, 1),)), sched.now)
-        station.observer(station, Outcome(msg, True, ""), sched.now)
-        station.observer(station, Deliver(2, 0, 1, 3, next(answers)), sched.now)
+        station.tell(Deliver(2, BROADCAST, 9, 3, (cmd("act", 1, 1),)), sched.now)
+        station.tell(Outcome(msg, True, ""), sched.now)
+        station.tell(Deliver(2, 0, 1, 3, next(answers)), sched.now)
         return msg
     sched.post = lambda fn, *args: fn(*args)
     station.submit = submit
     r = bench.latency(SimpleNamespace(sched=sched), station, 2, 2, 1.0)
     assert (r.sent, r.replies) == (2, 2)
     assert r.refusals == ["fail(42)status(): the child has no CAN side"]
+    assert station.observers == []           # it stopped watching when it was done
 
 
 def test_a_listener_whose_port_goes_away_stops_and_says_so(capsys, monkeypatch):
@@ -118,7 +136,7 @@ def test_latency_stops_asking_once_the_runner_has_stopped():
 
     finished = threading.Event()
     finished.set()
-    station = SimpleNamespace(id=0, observer=None, submit=None)
+    station = _Station()
     runner = SimpleNamespace(sched=SimpleNamespace(now=0, post=lambda fn, *a: None),
                              finished=finished)
     r = bench.latency(runner, station, 1, 200, 10.0)
@@ -153,7 +171,7 @@ def test_a_request_the_runner_takes_late_does_not_answer_for_the_next_one():
         if isinstance(a, Exception):
             raise a
         return a
-    station = SimpleNamespace(id=0, observer=None, submit=submit)
+    station = _Station(submit)
     runner = SimpleNamespace(sched=SimpleNamespace(now=0, post=post))
     th = threading.Thread(target=runner_thread, daemon=True)
     th.start()
