@@ -5,12 +5,9 @@ order they were scheduled (FIFO), which makes every run with the same inputs ide
 Cancelling is lazy: a cancelled entry stays in the heap and is skipped when it comes up, so
 re-arming a timer costs one heap push and nothing else.
 
-A part of the world may run as a *domain* (the simulator runs a child's CAN side so): its
-events, scheduled with :meth:`Scheduler.at_first`, run before every other event of the same
-tick (FIFO among themselves). That makes the order of simultaneous events in independent parts
-a rule rather than an accident of when each was scheduled, so a domain can be taken out of
-the heap (:meth:`Scheduler.take`) and put back (:meth:`Scheduler.put_back`) without changing
-what runs first.
+A simulator may run a part of the world as a *domain* whose events come first at their tick
+and that it can take out of the heap and put back: hil/sim/domains.py's ``SimScheduler`` adds
+that to this kernel, which the firmware and the bench need no more of.
 
 A physical step of a model (a wheel's 1 ms control step) may be scheduled with
 :meth:`Scheduler.at_top`: it runs before every other event of its tick, so whatever looks at
@@ -25,9 +22,9 @@ from typing import Any, Callable, Protocol
 
 
 _FIRST = 1 << 62
-"""Subtracted from a domain event's sequence number once per rank: rank 1 (a domain's event)
-sorts before every rank-0 event at its tick, rank 2 (a step, :meth:`Scheduler.at_top`)
-before every rank-1 and rank-0 event."""
+"""Subtracted from an event's sequence number once per rank: rank 1 (a simulator domain's
+event, hil/sim/domains.py) sorts before every rank-0 event at its tick, rank 2 (a step,
+:meth:`Scheduler.at_top`) before every rank-1 and rank-0 event."""
 
 
 class Event:
@@ -83,16 +80,6 @@ class Scheduler:
         heapq.heappush(self._heap, (when, self._seq, ev))
         return ev
 
-    def at_first(self, owner: object, when: int, fn: Callable[..., Any], *args: Any) -> Event:
-        """Like :meth:`at`, for an event of the domain ``owner``: at its tick it runs before
-        every event scheduled with :meth:`at` (module docstring)."""
-        if when < self.now:
-            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
-        ev = Event(when, fn, args, owner, 1)
-        self._seq += 1
-        heapq.heappush(self._heap, (when, self._seq - _FIRST, ev))
-        return ev
-
     def at_top(self, when: int, fn: Callable[..., Any], *args: Any,
                owner: object = None) -> Event:
         """Like :meth:`at`, for a model's physical step: at its tick it runs before every
@@ -104,45 +91,6 @@ class Scheduler:
         self._seq += 1
         heapq.heappush(self._heap, (when, self._seq - 2 * _FIRST, ev))
         return ev
-
-    def pending(self, owner: object) -> list[Event]:
-        """``owner``'s live events, in the order they will run."""
-        return [e[2] for e in self._mine(owner)]
-
-    def _mine(self, owner: object) -> list[tuple[int, int, Event]]:
-        return sorted((e for e in self._heap if e[2].owner is owner and not e[2].cancelled),
-                      key=lambda e: (e[0], e[1]))
-
-    def take(self, owner: object) -> list[Event]:
-        """Remove ``owner``'s live events from the heap; they come back in the order they
-        would have run."""
-        mine = self._mine(owner)
-        if mine:
-            # in place: run_until holds the list
-            self._heap[:] = [e for e in self._heap if e[2].owner is not owner]
-            heapq.heapify(self._heap)
-        return [e[2] for e in mine]
-
-    def put_back(self, events: list[Event]) -> None:
-        """Schedule events of a domain again (after :meth:`take`), at their ``when``, in the
-        given order among events of the same rank."""
-        for ev in events:
-            if ev.when < self.now:
-                raise ValueError(f"cannot put back an event at tick {ev.when}: now is "
-                                 f"tick {self.now}")
-            self._seq += 1
-            heapq.heappush(self._heap, (ev.when, self._seq - ev.rank * _FIRST, ev))
-
-    def skip_to(self, tick: int) -> None:
-        """Move ``now`` on to ``tick`` without running anything: for a model that took its
-        events out (:meth:`take`), moved itself and them on by whole periods of a state that
-        only repeats itself, and puts them back after (hil/sim/quiet_ring.py). Refused if a
-        live event would be left behind in the past."""
-        nxt = self.next_time()
-        if tick < self.now or (nxt is not None and nxt < tick):
-            raise ValueError(f"cannot skip from tick {self.now} to {tick}: "
-                             f"an event is due at tick {nxt}")
-        self.now = tick
 
     def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
         """Run ``fn(*args)`` ``delay`` ticks from now."""

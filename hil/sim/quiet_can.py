@@ -8,8 +8,8 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
 
 * Its parts (bus, 82C250, controller, CAN driver, dispatcher timer, submodules) are built on a
   :class:`DomainClock`. Their events run before the other events of the same tick
-  (``Scheduler.at_first``), which makes the order of simultaneous radio and CAN events a rule
-  (CAN first) instead of an accident of when each was scheduled.
+  (``SimScheduler.at_first``, hil/sim/domains.py), which makes the order of simultaneous
+  radio and CAN events a rule (CAN first) instead of an accident of when each was scheduled.
 * Once a period (at the phase the status grid started on) a probe takes a snapshot of the
   domain (hil/sim/state_walk.py: every attribute of every part, and the domain's pending
   events). If nothing outside listens to the bus (no trace, capture, sniffer) and two
@@ -46,7 +46,9 @@ from typing import Any, Callable
 
 from can_bus.submodules import STATUS_PERIOD_TICKS
 from firmware_model.dispatcher import NodeView
-from firmware_model.mcu.scheduler import Event, Scheduler
+from firmware_model.mcu.scheduler import Event
+
+from .domains import SimScheduler
 
 from .steady import CAN_PARTS, counters, records
 from .state_walk import (Snapshot, Unwalkable, advance, latest_moved, on_orbit, period_steps,
@@ -85,16 +87,16 @@ class DomainClock:
 
     __slots__ = ("world", "owner", "private", "at", "at_top")
 
-    def __init__(self, world: Scheduler, owner: object) -> None:
+    def __init__(self, world: SimScheduler, owner: object) -> None:
         self.world = world
         self.owner = owner
-        self.private: Scheduler | None = None
+        self.private: SimScheduler | None = None
         self.at: Callable[..., Event] = partial(world.at_first, owner)
         """``at(when, fn, *args)``: schedule on whichever scheduler runs the domain now."""
         self.at_top: Callable[..., Event] = partial(world.at_top, owner=owner)
         """``at_top(when, fn, *args)``: a step of a domain's part (``Scheduler.at_top``)."""
 
-    def use(self, private: Scheduler | None) -> None:
+    def use(self, private: SimScheduler | None) -> None:
         """Run the domain on ``private`` (None: on the world's scheduler again)."""
         self.private = private
         sched = private if private is not None else self.world
@@ -117,7 +119,7 @@ class QuietCan:
     (the radio station); ``may_sleep()``: False while something outside watches the bus or
     the domain is plainly busy (a job running), which saves the snapshot."""
 
-    def __init__(self, world: Scheduler, name: str = "CAN") -> None:
+    def __init__(self, world: SimScheduler, name: str = "CAN") -> None:
         self.name = name
         self.world = world
         self.clock = DomainClock(world, self)
@@ -255,7 +257,7 @@ class QuietCan:
             self.replays += 1
         advance(self._moved, k)       # the pending events' ticks are among the moved ints
         self.periods_skipped += k
-        private = Scheduler(self._since + k * PERIOD)
+        private = SimScheduler(self._since + k * PERIOD)
         private.put_back(self._events)
         self._events = []
         self.clock.use(private)

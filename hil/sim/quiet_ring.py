@@ -71,7 +71,9 @@ import math
 from collections import deque
 from typing import TYPE_CHECKING, Any
 
-from firmware_model.mcu.scheduler import Event, Scheduler
+from firmware_model.mcu.scheduler import Event
+
+from .domains import SimScheduler
 from firmware_model.radio.mac import PC2_CHECK_EVERY
 
 from .state_walk import Unwalkable, advance, period_steps, snapshot, writable
@@ -311,7 +313,7 @@ def _carry(ring: QuietRing, deaf: list["RadioStation"], clocked: set[int],
     if not mine:
         return taken
     ids = {id(e) for e in mine}
-    private = Scheduler(start)
+    private = SimScheduler(start)
     private.put_back(mine)
     selves = {id(getattr(e.fn, "__self__", None)) for e in mine}
     owners = [st for st in deaf if any(id(p) in selves for p in st.clocked_parts())]
@@ -327,7 +329,7 @@ def _carry(ring: QuietRing, deaf: list["RadioStation"], clocked: set[int],
     return [e for e in taken if id(e) not in ids] + private.take(None)
 
 
-def _run_alone(st: "RadioStation", private: Scheduler, end: int, ring: QuietRing) -> int:
+def _run_alone(st: "RadioStation", private: SimScheduler, end: int, ring: QuietRing) -> int:
     """Run a lone deaf station on ``private`` toward tick ``end``, leaping over its own
     cycles. After every frame it sends (to nobody), a snapshot of the station and its pending
     events is compared with those after each of its last :data:`_ALONE_HISTORY` frames (its

@@ -31,8 +31,9 @@ import threading
 import time
 from typing import Any, Callable
 
-from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.timing import TICK_HZ
+
+from .domains import SimScheduler
 
 _NS_PER_TICK_NUM = TICK_HZ          # ticks = ns * TICK_HZ / 1e9
 
@@ -54,7 +55,7 @@ turn too little of its margin (docs/guarantees.md, "What the host must give").""
 LATES_KEPT = 1024
 
 
-class RealTimeScheduler(Scheduler):
+class RealTimeScheduler(SimScheduler):
     """Runs events at their wall-clock tick; ``post`` is the thread-safe way in."""
 
     __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started", "epoch_ns",

@@ -22,7 +22,6 @@ from firmware_model.child import ChildFirmware
 from firmware_model.kinematics import HOME
 from firmware_model.mcu.can_controller import CanController
 from firmware_model.mcu.cpu import Cpu
-from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.sequence import ACTION_NAMES
 from firmware_model.radio.content import Command, frame_kind
 from firmware_model.radio.mac import (
@@ -44,6 +43,7 @@ from .ledger import Ledger, Tally, summary
 from .load import Load
 from .quiet_can import PERIOD as CAN_PERIOD, QuietCan
 from .quiet_ring import QuietRing
+from .domains import SimScheduler
 from .realtime import RealTimeScheduler
 from .trace import TRACE_VERSION, TraceWriter
 
@@ -70,7 +70,7 @@ class World:
                  on_event: Callable[[dict], None] | None = None) -> None:
         config.validate()
         self.cfg = config
-        self.sched = RealTimeScheduler() if config.realtime else Scheduler()
+        self.sched = RealTimeScheduler() if config.realtime else SimScheduler()
         self.trace = trace
         self.on_event = on_event
         self.quiet_ring: QuietRing | None = None

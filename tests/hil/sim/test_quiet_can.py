@@ -14,7 +14,7 @@ import pytest
 
 from can_bus.submodules import STATUS_STAGGER_TICKS
 from firmware_model.cycle_costs import DEFAULT_COSTS
-from firmware_model.mcu.scheduler import Scheduler
+from hil.sim.domains import SimScheduler
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import FrameType
 from firmware_model.radio.mac import Deliver, MacConfig
@@ -29,7 +29,7 @@ from paths import ROOT
 # -- the scheduler's domain events -----------------------------------------------------------
 
 def test_domain_events_run_first_at_their_tick_and_in_order_among_themselves():
-    s = Scheduler()
+    s = SimScheduler()
     out: list[str] = []
     owner = object()
     s.at(10, out.append, "world a")
@@ -42,7 +42,7 @@ def test_domain_events_run_first_at_their_tick_and_in_order_among_themselves():
 
 
 def test_take_and_put_back_keep_the_order_and_work_while_running():
-    s = Scheduler()
+    s = SimScheduler()
     owner = object()
     out: list[str] = []
     for name in "abc":
@@ -61,7 +61,7 @@ def test_take_and_put_back_keep_the_order_and_work_while_running():
 def test_steps_run_before_domain_events_and_keep_their_rank_when_put_back():
     """``at_top`` (a wheel's 1 ms step): first at its tick, before the domains' events and the
     world's, whenever each was scheduled; taking a domain out and putting it back keeps it so."""
-    s = Scheduler()
+    s = SimScheduler()
     owner = object()
     out: list[str] = []
     s.at_first(owner, 50, out.append, "domain")
@@ -79,7 +79,7 @@ def test_steps_run_before_domain_events_and_keep_their_rank_when_put_back():
 
 
 def test_put_back_refuses_the_past():
-    s = Scheduler()
+    s = SimScheduler()
     owner = object()
     ev = s.at_first(owner, 5, lambda: None)
     s.take(owner)

@@ -16,7 +16,7 @@ from dataclasses import replace
 import pytest
 
 from firmware_model.cycle_costs import DEFAULT_COSTS
-from firmware_model.mcu.scheduler import Scheduler
+from hil.sim.domains import SimScheduler
 from firmware_model.radio.mac import MacConfig
 from firmware_model.radio.content import cmd
 from firmware_model.timing import s_to_ticks
@@ -371,7 +371,7 @@ def test_a_leap_moves_ticks_inside_tuples():
 
 
 def test_scheduler_refuses_to_skip_over_an_event():
-    s = Scheduler()
+    s = SimScheduler()
     s.at(100, lambda: None)
     with pytest.raises(ValueError, match="event is due at tick 100"):
         s.skip_to(101)
