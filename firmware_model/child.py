@@ -276,32 +276,6 @@ class ChildFirmware:
         body = 0 if self.cpu.ideal else message_cycles(d.commands, self.costs or DEFAULT_COSTS)
         self.cpu.task(DISPATCH_TASK, body, self._dispatch, d, end)
 
-    def notes_only(self, d: Deliver) -> bool:
-        """Would handling ``d`` only note it? True for information (Types '3' and '4': a
-        reply, a ``done()`` or ``fail()`` notice, docs/protocol.md §3) reaching a child with
-        :meth:`nothing_under_way`: the dispatcher appends it to its log and counts a call, and
-        nothing else changes, whatever the tick of its CAN side (hil/sim/quiet_can.py: a
-        sleeping CAN domain need not wake for it)."""
-        return d.type not in REQUEST_TYPES and self.nothing_under_way()
-
-    def refuses_only(self, d: Deliver) -> bool:
-        """Would handling ``d`` only refuse it? True for a request whose every order the
-        dispatcher refuses at once (``Dispatcher.refuses_all``: out of reach, outside a
-        joint's limits, out of range) reaching a child with :meth:`nothing_under_way`: the
-        dispatcher logs and answers each order with its failure, which goes to the radio, and
-        nothing of the CAN side is read or changed (a sleeping CAN domain need not wake)."""
-        return (self.dispatcher.refuses_all(d.dst, d.commands, d.type)
-                and self.nothing_under_way())
-
-    def nothing_under_way(self) -> bool:
-        """No job (so no job deadline), no output waiting, no CAN supervision pending, the
-        dispatcher's timer stopped, no action sequence, and the ideal CPU (the CPU model runs
-        a message on its own clock)."""
-        disp = self.dispatcher
-        return (self.sequence is None and self.cpu.ideal and not disp.jobs
-                and not disp.has_output() and self.timer.expiry is None
-                and self.can.deadline() is None)
-
     def _dispatch(self, d: Deliver, end: int | None) -> None:
         now = self.sched.now
         self.dispatcher.on_message(d.src, d.dst, d.commands, now, d.type)

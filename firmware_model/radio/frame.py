@@ -156,7 +156,7 @@ def frame_codec():
     """``FRAME_FORMAT`` compiled by construct (``Struct.compile``: the declaration turned into
     Python code once, on first use, ~40 ms), which :meth:`Frame.encode` and :func:`parse_frame`
     run: the same bytes and fields as the declaration (tests/firmware_model/radio/test_frame.py),
-    parse about 5x and build about 2x faster (~15 and ~30 us a frame; docs/performance.md,
+    parse about 5x and build about 2x faster (~15 and ~30 us a frame; docs/fast-paths.md,
     "Caches")."""
     return FRAME_FORMAT.compile()
 

@@ -23,10 +23,10 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
   period to the next, or may change later (a cruising wheel), the last whole period runs on
   the private scheduler too, and rewrites it as the skipped periods would have.
 * News (a reply, a ``done()`` or ``fail()`` notice) reaching a child that has nothing under
-  way is only noted, in the dispatcher's log (``ChildFirmware.notes_only``): it reads nothing a
+  way is only noted, in the dispatcher's log (``notes_only``): it reads nothing a
   period changes and changes nothing a period moves, so it does not wake the domain. Nor does
   an order message the dispatcher refuses whole at once, from the order and the commanded pose
-  alone (out of reach, outside a joint's limits: ``ChildFirmware.refuses_only``): the log and
+  alone (out of reach, outside a joint's limits: ``refuses_only``): the log and
   the failure replies, which go to the radio, are all it changes.
 * At the first probe after a wake, if what woke it left the domain exactly on the orbit it
   slept on, moved on by whole periods (ticks moved by their steps, counters up, logs of any
@@ -42,10 +42,10 @@ and load, part by part).
 from __future__ import annotations
 
 from functools import partial
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from can_bus.submodules import STATUS_PERIOD_TICKS
-from firmware_model.dispatcher import NodeView
+from firmware_model.dispatcher import REQUEST_TYPES, NodeView
 from firmware_model.mcu.scheduler import Event
 
 from .domains import SimScheduler
@@ -54,7 +54,12 @@ from .steady import CAN_PARTS, counters, records
 from .state_walk import (Snapshot, Unwalkable, advance, latest_moved, on_orbit, period_steps,
                          snapshot, writable)
 
-__all__ = ["COUNTERS", "LATEST", "PERIOD", "RECORDS", "DomainClock", "QuietCan"]
+if TYPE_CHECKING:
+    from firmware_model.child import ChildFirmware
+    from firmware_model.radio.mac import Deliver
+
+__all__ = ["COUNTERS", "LATEST", "PERIOD", "RECORDS", "DomainClock", "QuietCan",
+           "nothing_under_way", "notes_only", "refuses_only"]
 
 PERIOD = STATUS_PERIOD_TICKS
 """1,600,000 ticks (100 ms): the submodules' status period, the domain's period."""
@@ -150,10 +155,10 @@ class QuietCan:
         """Sleeps refused because an event of the domain was not moved by the period."""
         self.noted = 0
         """Messages the child only noted while the domain slept, without waking it (news:
-        ``ChildFirmware.notes_only``)."""
+        ``notes_only``)."""
         self.refused = 0
         """Messages whose every order the child refused at once while the domain slept,
-        without waking it (``ChildFirmware.refuses_only``)."""
+        without waking it (``refuses_only``)."""
         self._since = 0
         self._events: list[Event] = []
         self._misses = 0          # probes in a row that found the domain not periodic
@@ -266,3 +271,37 @@ class QuietCan:
         finally:
             self.clock.use(None)
         self.world.put_back(private.take(self))
+
+
+# -- what reaches a sleeping child without waking it -------------------------------------------
+# Questions the simulator asks of a child's firmware (firmware_model/child.py), which need not
+# know them: each reads the child's state and changes nothing.
+
+def notes_only(child: "ChildFirmware", d: "Deliver") -> bool:
+    """Would handling ``d`` only note it? True for information (Types '3' and '4': a reply, a
+    ``done()`` or ``fail()`` notice, docs/protocol.md §3) reaching a child with
+    :func:`nothing_under_way`: the dispatcher appends it to its log and counts a call, and
+    nothing else changes, whatever the tick of its CAN side (a sleeping domain need not wake
+    for it)."""
+    return d.type not in REQUEST_TYPES and nothing_under_way(child)
+
+
+def refuses_only(child: "ChildFirmware", d: "Deliver") -> bool:
+    """Would handling ``d`` only refuse it? True for a request whose every order the
+    dispatcher refuses at once (``Dispatcher.refuses_all``: out of reach, outside a joint's
+    limits, out of range) reaching a child with :func:`nothing_under_way`: the dispatcher
+    logs and answers each order with its failure, which goes to the radio, and nothing of the
+    CAN side is read or changed (a sleeping domain need not wake)."""
+    return (child.dispatcher.refuses_all(d.dst, d.commands, d.type)
+            and nothing_under_way(child))
+
+
+def nothing_under_way(child: "ChildFirmware") -> bool:
+    """No job (so no job deadline), no output waiting, no CAN supervision pending, the
+    dispatcher's timer stopped, no action sequence, and the ideal CPU (the CPU model runs a
+    message on its own clock)."""
+    disp = child.dispatcher
+    return (child.sequence is None and child.cpu.ideal and not disp.jobs
+            and not disp.has_output() and child.timer.expiry is None
+            and child.can.deadline() is None)
+

@@ -41,7 +41,7 @@ from .config import ConfigError, SimConfig
 from .faults import Fault, schedule as schedule_fault, skewed_mac
 from .ledger import Ledger, Tally, summary
 from .load import Load
-from .quiet_can import PERIOD as CAN_PERIOD, QuietCan
+from .quiet_can import PERIOD as CAN_PERIOD, QuietCan, notes_only, refuses_only
 from .quiet_ring import QuietRing
 from .domains import SimScheduler
 from .realtime import RealTimeScheduler
@@ -251,9 +251,9 @@ class World:
 
         def app_awake(d, now: int) -> None:
             quiet.touched()
-            if quiet.asleep and child.notes_only(d):
+            if quiet.asleep and notes_only(child, d):
                 quiet.noted += 1             # news only noted: the CAN side sleeps on
-            elif quiet.asleep and child.refuses_only(d):
+            elif quiet.asleep and refuses_only(child, d):
                 quiet.refused += 1           # orders refused at once: it sleeps on too
             else:
                 quiet.wake()

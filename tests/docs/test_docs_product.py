@@ -7,6 +7,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from hil.cli.trace_digests import RUNS
 from paths import ROOT
 
@@ -77,14 +79,16 @@ def test_the_glossary_is_linked_and_its_references_exist():
         assert (DOCS / page).exists(), page
 
 
-def test_every_named_section_of_the_performance_page_exists():
-    """Code and docs point into docs/performance.md by a section's title: each one is there."""
-    perf = (DOCS / "performance.md").read_text(encoding="utf-8")
+@pytest.mark.parametrize("page", ["performance.md", "fast-paths.md"])
+def test_every_named_section_of_the_performance_pages_exists(page):
+    """Code and docs point into docs/performance.md and docs/fast-paths.md by a section's
+    title: each one is there."""
+    text_of_page = (DOCS / page).read_text(encoding="utf-8")
     missing = []
     for path in _files():
         text = path.read_text(encoding="utf-8")
-        for section in re.findall(r'performance\.md\)?,\s*(?:#\s*)?"([^"]+)"', text):
+        for section in re.findall(rf'{re.escape(page)}\)?,\s*(?:#\s*)?"([^"]+)"', text):
             section = " ".join(section.split())
-            if not re.search(rf"^#+ {re.escape(section)}$", perf, re.M):
+            if not re.search(rf"^#+ {re.escape(section)}$", text_of_page, re.M):
                 missing.append(f"{path.relative_to(ROOT)}: {section!r}")
     assert not missing, missing

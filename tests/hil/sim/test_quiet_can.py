@@ -19,7 +19,7 @@ from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import FrameType
 from firmware_model.radio.mac import Deliver, MacConfig
 from hil.sim.faults import parse_fault
-from hil.sim.quiet_can import PERIOD
+from hil.sim.quiet_can import PERIOD, notes_only, refuses_only
 from hil.sim.state_walk import (Unwalkable, advance, latest_moved, on_orbit, period_delta,
                                 period_steps, snapshot)
 from hil.sim.world import SimConfig, World
@@ -474,11 +474,11 @@ def test_only_news_to_a_child_with_nothing_under_way_is_only_noted(condition):
     child = _child_with(condition)
     notice = Deliver(0, 1, 5, int(FrameType.BROADCAST_INFO), (cmd("done"), cmd("movex", 8)))
     order = Deliver(0, 1, 6, int(FrameType.INSTRUCTION), (cmd("movex", 8),))
-    assert child.notes_only(notice) is (condition == "nothing")
-    assert not child.notes_only(order)
+    assert notes_only(child, notice) is (condition == "nothing")
+    assert not notes_only(child, order)
     refused = Deliver(0, 1, 7, int(FrameType.INSTRUCTION), (cmd("movex", 123456789),))
-    assert child.refuses_only(refused) is (condition == "nothing")
-    assert not child.refuses_only(order) and not child.refuses_only(notice)
+    assert refuses_only(child, refused) is (condition == "nothing")
+    assert not refuses_only(child, order) and not refuses_only(child, notice)
 
 
 def _random_ring(seed: int) -> tuple[SimConfig, list[int]]:
