@@ -241,11 +241,6 @@ def _id0_failed_paths() -> None:
         assert _state(mac) == "SWITCH", state
 
 
-def _turn(mac: M.RotationalMac) -> int:
-    """Our turn, from SWITCH: the frame goes out; the tick its End left (the next step)."""
-    return _sent(mac)
-
-
 def _run_until_listen(mac: M.RotationalMac, limit: int = 40) -> None:
     """Nothing heard any more: the MAC takes every deadline and sends in its turns until it
     leaves the ring (the cut-off, clause 40)."""
