@@ -24,7 +24,9 @@ libpython's symbols were stripped nothing would be counted, and the script says 
 * ``saturated``: the 7-robot ring with every child's CAN side, ``load=saturate``, 60 s;
 * ``soak``: ``run_soak(0.05 h, seed 11)``, the whole soak (faults, traffic, CAN sides);
 * ``soak-0.1``: ``run_soak(0.1 h, seed 11)``, the same with a larger share of traffic (not
-  run unless named in ``--only``: 20-60 min under callgrind).
+  run unless named in ``--only``: 20-60 min under callgrind);
+* ``loaded`` and ``loaded-every-frame``: 2 robots, a message a second, 960 s, in the default
+  mode and with every fast path off: the default must not cost more (only with ``--only``).
 
 ``--base COMMIT`` counts the same workloads in a temporary worktree of that commit too
 (benchmarks/base_tree.py) and prints the ratio base / this tree. Needs valgrind (Debian's
@@ -69,6 +71,22 @@ from hil.sim.soak import run_soak
 out = []
 run = lambda: out.append(run_soak(0.05, 11))
 done = lambda: (0.05 * 3600, out[0].summary["occupations"])
+""",
+    # the default mode against --every-frame where a ring is loaded (docs/performance.md,
+    # "Targets": the default never slower): 2 robots, a message a second, 960 s
+    "loaded": """
+from hil.sim.world import SimConfig, World
+w = World(SimConfig(robots=(1, 2), duration=960.0, load=1.0, seed=1))
+run = w.run
+done = lambda: (960.0, w.air.occupations)
+""",
+    "loaded-every-frame": """
+from hil.sim.world import SimConfig, World
+every = {"fast_paths": False} if "fast_paths" in SimConfig.__dataclass_fields__ else \
+    {"ring_sleep": False}
+w = World(SimConfig(robots=(1, 2), duration=960.0, load=1.0, seed=1, **every))
+run = w.run
+done = lambda: (960.0, w.air.occupations)
 """,
     # twice as long: 240 s of traffic and faults, 110 s of drain (the 0.05 h soak has 70 s
     # of traffic and 110 s of drain, which a ring that leaps over idle stretches runs cheaply)
@@ -144,7 +162,9 @@ def table(rows: list[tuple[str, int, float, int, int | None]], base: str | None)
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--base", help="also count a commit's tree and give the ratio")
-    p.add_argument("--only", default=",".join(w for w in WORKLOADS if w != "soak-0.1"),
+    p.add_argument("--only", default=",".join(w for w in WORKLOADS
+                                              if w not in ("soak-0.1", "loaded",
+                                                           "loaded-every-frame")),
                    help="comma-separated workloads (default: %(default)s)")
     a = p.parse_args(argv)
     names = [w for w in a.only.split(",") if w]
