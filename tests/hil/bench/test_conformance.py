@@ -22,6 +22,7 @@ from hil.bench.conformance import (BYTE, MS, TMAX, TSLOT, TTRANS, Check, Conform
                                    Report, Tester)
 
 from hostload import SchedulingLatency
+from processes import ATTEMPTS
 import paper_robot
 from paper_robot import PaperRobot
 from paths import ROOT
@@ -847,11 +848,34 @@ def test_a_child_stopped_for_a_second_misses_turns_and_the_run_still_passes(air,
     turn"), and judged clause 24 on the one takeover before the second stall. As a ring
     member it now takes the missed turns over and carries on, brings the robot back after
     the stall in its silence and falls silent again, and passes every clause, saying which
-    turns were missed."""
+    turns were missed. A run that fails while the child stalled more often than the two
+    stops make it (the host starved it besides: it said ``stalled`` more than twice) was
+    disturbed and is run again, up to ``ATTEMPTS`` runs; an undisturbed failure fails at once."""
+    for attempt in range(1, ATTEMPTS + 1):
+        junit = tmp_path / f"verdicts-{attempt}.xml"
+        code, out, progress, child_err = _stopped_twice(air, junit)
+        stalls = child_err.count("stalled")
+        why = f"{out}{progress}\nthe child's stderr:\n{child_err[-2000:]}"
+        ok = code == 0 and all(_cases(junit).values())
+        if ok or stalls <= 2 or attempt == ATTEMPTS:
+            break
+    assert code == 0, why
+    cases = _cases(junit)
+    assert all(cases.values()), why
+    assert {"23", "24", "25", "26", "36", "41", "44", "47", "48"} <= \
+        {c.split()[1] for c, _ in cases}, out
+    assert re.search(r"turns missed: [1-9]\d* of the robot's", out), out
+    assert "stopped sending after" in progress, progress
+    assert stalls >= 2, child_err                                   # it did stall, twice
+
+
+def _stopped_twice(air: Path, junit: Path) -> tuple[int, str, str, str]:
+    """One run of the kit against a child stopped for a second twice: the kit's exit status,
+    its stdout and progress lines, and the child's stderr."""
     import signal
     child = _spawn("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1")
-    junit = tmp_path / "verdicts.xml"
     kit = None
+    out, progress = "", []
     try:
         first = child.stderr.readline()
         assert first.startswith("running "), first + child.stderr.read()
@@ -861,7 +885,6 @@ def test_a_child_stopped_for_a_second_misses_turns_and_the_run_still_passes(air,
                                 "--tolerance-ms", str(LOADED_TOLERANCE_MS), "--junit",
                                 str(junit)], cwd=ROOT, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
-        progress = []
         for line in kit.stderr:                    # the kit's progress, as it goes
             progress.append(line)
             # in the rotation, and as the kit falls silent (its last check before)
@@ -877,14 +900,8 @@ def test_a_child_stopped_for_a_second_misses_turns_and_the_run_still_passes(air,
             kit.wait()
         child.send_signal(signal.SIGCONT)
         _, child_err = _stop(child)[0]
-    assert kit.returncode == 0, out + "".join(progress)
-    cases = _cases(junit)
-    assert all(cases.values()), out
-    assert {"23", "24", "25", "26", "36", "41", "44", "47", "48"} <= \
-        {c.split()[1] for c, _ in cases}, out
-    assert re.search(r"turns missed: [1-9]\d* of the robot's", out), out
-    assert "stopped sending after" in "".join(progress), "".join(progress)
-    assert child_err.count("stalled") >= 2, child_err           # it did stall, twice
+    assert kit is not None and kit.returncode is not None
+    return kit.returncode, out, "".join(progress), child_err
 
 
 # ------------------------------------------------------- the project's child with one bug each
