@@ -1,4 +1,4 @@
-"""Digests of the simulator's traces for a fixed set of seeded runs (hil/cli/trace_digests.py).
+"""Digests of the simulator's traces for a fixed set of seeded runs (tests/trace_digests.py).
 
     python scripts/trace_digest.py            # print them, and say which differ from the record
     python scripts/trace_digest.py --write    # record them (tests/data/trace_digests.txt)
@@ -13,9 +13,19 @@ if __name__ == "__main__":     # a Python without the project says so in one lin
     import _needs_project  # noqa: F401    (scripts/ is sys.path[0] here)
 
 import argparse
+import importlib.util
 import sys
+from pathlib import Path
 
-from hil.cli.trace_digests import RECORDED, RUNS, digest, read_recorded
+# the runs are test data (tests/trace_digests.py), loaded by its path: tests/ on sys.path would
+# shadow the packages it mirrors (tests/firmware_model/, ...)
+_spec = importlib.util.spec_from_file_location(
+    "trace_digests", Path(__file__).resolve().parent.parent / "tests" / "trace_digests.py")
+assert _spec is not None and _spec.loader is not None
+_digests = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_digests)
+RECORDED, RUNS, digest, read_recorded = (_digests.RECORDED, _digests.RUNS, _digests.digest,
+                                         _digests.read_recorded)
 
 
 def main() -> int:

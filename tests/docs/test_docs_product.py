@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.cli.trace_digests import RUNS
+from trace_digests import RUNS
 from paths import ROOT
 
 DOCS = ROOT / "docs"

@@ -1,7 +1,7 @@
 """The MAC's fast path for the turn owner's heartbeat (RotationalMac.on_frame) does what the
 general path does. It once did not: it skipped the checksum check with the extension on, and
 kept a robot it had heard BOOT among the booting ones after its first heartbeat. Here every
-heartbeat of the turn owner heard in the seeded runs of hil/cli/trace_digests.py is also given
+heartbeat of the turn owner heard in the seeded runs of tests/trace_digests.py is also given
 to a copy of the MAC with the fast path switched off: the actions and the whole state after
 must be equal."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ import random
 import pytest
 
 from firmware_model.radio.mac import RotationalMac
-from hil.cli.trace_digests import RUNS, digest, read_recorded
+from trace_digests import RUNS, digest, read_recorded
 
 
 def _value(v):

@@ -1,10 +1,10 @@
 """Seeded traces stay byte-identical (issue 14: every speed-up keeps them): each run of
-hil/cli/trace_digests.py against the digest recorded in tests/data/trace_digests.txt."""
+tests/trace_digests.py against the digest recorded in tests/data/trace_digests.txt."""
 from __future__ import annotations
 
 import pytest
 
-from hil.cli.trace_digests import RUNS, digest, read_recorded
+from trace_digests import RUNS, digest, read_recorded
 
 
 @pytest.mark.parametrize("name", list(RUNS))

@@ -1,8 +1,8 @@
-"""Digests of the simulator's traces for a fixed set of seeded runs, through ``rprs sim``
-(not a command: the runs a user would type, kept beside the commands).
+"""Digests of the simulator's traces for a fixed set of seeded runs, through ``rprs sim`` (the
+runs a user would type): test data, shared by the tests and scripts/trace_digest.py.
 
-A change meant to leave behaviour alone (a restructuring, a speed-up: issue 14's "traces
-byte-identical for the same seeds") must leave every digest as it was.
+A change meant to leave behaviour alone (a restructuring, a speed-up: traces byte-identical
+for the same seeds) must leave every digest as it was.
 ``tests/hil/sim/test_trace_digests.py`` compares them with the ones recorded in
 ``tests/data/trace_digests.txt``; ``python scripts/trace_digest.py`` prints them, ``--write``
 records them again when a change of behaviour is meant (say why in the commit).
@@ -44,13 +44,13 @@ RUNS = {
 }
 """Name: the ``rprs sim`` options of the run (``--trace`` is added)."""
 
-RECORDED = Path(__file__).resolve().parents[2] / "tests" / "data" / "trace_digests.txt"
+RECORDED = Path(__file__).resolve().parent / "data" / "trace_digests.txt"
 """The digests recorded at the last change of behaviour: ``<sha256>  <name>`` a line."""
 
 
 def digest(args: str) -> str:
     """SHA-256 of the trace ``rprs sim <args> --trace FILE`` writes (run in this process)."""
-    from . import main
+    from hil.cli import main
 
     with tempfile.TemporaryDirectory() as d:
         path = os.path.join(d, "trace.jsonl")
