@@ -5,58 +5,62 @@ import argparse
 
 from firmware_model.timing import TICK_HZ, ticks_to_s
 
+from ..sim import events as E
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, SimConfig, World
 from .common import (Parser, UserError, auth_option, checked_mac_config, digit, positive,
                      probability, profile_option)
 from .sim import add_sim_options, cmd_sim
 
-STORY_EVENTS = frozenset({"mode", "join", "rejoin", "disable", "miss", "fault", "collision"})
+STORY_EVENTS = (E.Mode, E.Join, E.Rejoin, E.Disable, E.Miss, E.FaultEdge, E.Collision)
+"""The kinds of event the ring demo tells (hil/sim/events.py)."""
 
 
 def _name(r: int) -> str:
     return "father 0" if r == 0 else f"R{r}"
 
 
-def ring_story(events: list[dict]) -> list[str]:
+def ring_story(events: list[E.TraceEvent]) -> list[str]:
     """The run told in lines, one a happening: faults, misses, drops, claims, invitations,
     joins, collisions (each observer's view of the same happening is one line)."""
     lines: list[str] = []
     cut: set[int] = set()                   # robots whose radio a fault has cut off
     seen: dict[tuple, list[int]] = {}
     for ev in events:
-        k = ev["ev"]
+        k = type(ev)
         if k not in STORY_EVENTS:
             continue
-        t = ev["t"] / TICK_HZ
-        if k == "collision":
-            who = " and ".join(_name(x) for x in ev["robots"] if x >= 0) or "a foreign radio"
+        t = ev.t / TICK_HZ
+        if isinstance(ev, E.Collision):
+            who = " and ".join(_name(x) for x in ev.robots if x >= 0) or "a foreign radio"
             lines.append(f"{t:8.3f} s  collision: {who} sent at once")
             continue
-        r = ev.get("robot")
+        r = getattr(ev, "robot", None)
         if r is None:
             continue                        # a fault on the whole channel (noise, a burst)
-        if k == "miss" and ev["by"] in cut:
+        by = getattr(ev, "by", None)
+        if isinstance(ev, E.Miss) and by in cut:
             continue                        # a robot that hears nothing counts everyone out
-        if k in ("join", "rejoin", "disable", "miss"):
-            key = (ev["t"], k, r)
+        if by is not None:                  # miss, disable, join, rejoin
+            key = (ev.t, ev.KIND, r)
             if key in seen:
-                seen[key].append(ev["by"])
+                seen[key].append(by)
                 continue
-            seen[key] = [ev["by"]]
-        if k == "fault" and ev.get("phase") == "start" and ev["kind"] in ("fail", "recover"):
-            (cut.add if ev["kind"] == "fail" else cut.discard)(r)
-            text = "its radio goes silent" if ev["kind"] == "fail" else "its radio comes back"
-            lines.append(f"{t:8.3f} s  {_name(r)}: {text}")
-        elif k == "miss":
+            seen[key] = [by]
+        if isinstance(ev, E.FaultEdge):
+            if ev.phase == "start" and ev.kind in ("fail", "recover"):
+                (cut.add if ev.kind == "fail" else cut.discard)(r)
+                text = "its radio goes silent" if ev.kind == "fail" else "its radio comes back"
+                lines.append(f"{t:8.3f} s  {_name(r)}: {text}")
+        elif isinstance(ev, E.Miss):
             lines.append(f"{t:8.3f} s  {_name(r)} misses its turn")
-        elif k == "disable":
+        elif isinstance(ev, E.Disable):
             lines.append(f"{t:8.3f} s  {_name(r)} is dropped after three missed turns")
-        elif k in ("join", "rejoin"):
-            again = " again" if k == "rejoin" else ""
+        elif isinstance(ev, (E.Join, E.Rejoin)):
+            again = " again" if isinstance(ev, E.Rejoin) else ""
             lines.append(f"{t:8.3f} s  {_name(r)} is in the ring{again}")
-        elif k == "mode" and ev["mode"] == "member":
-            reason = ev["reason"]
+        elif isinstance(ev, E.Mode) and ev.mode == "member":
+            reason = ev.reason
             if r in cut and reason == "claimed the silent channel":
                 lines.append(f"{t:8.3f} s  {_name(r)}, alone with its radio cut off, hears "
                              f"nobody and claims the channel for itself")
@@ -67,8 +71,8 @@ def ring_story(events: list[dict]) -> list[str]:
                              f"{_name(int(reason.rsplit(' ', 1)[1]))}'s invitation")
             else:
                 lines.append(f"{t:8.3f} s  {_name(r)}: {reason}")
-        elif k == "mode":
-            lines.append(f"{t:8.3f} s  {_name(r)} goes to {ev['mode'].upper()}: {ev['reason']}")
+        elif isinstance(ev, E.Mode):
+            lines.append(f"{t:8.3f} s  {_name(r)} goes to {ev.mode.upper()}: {ev.reason}")
     return lines
 
 
@@ -95,7 +99,7 @@ def cmd_demo_ring(a: argparse.Namespace) -> int:
                      f"(invited back)")
         print(what + ".\n")
 
-    def story(events: list[dict]) -> None:
+    def story(events: list[E.TraceEvent]) -> None:
         if a.json:
             return
         print("What happened:")
@@ -133,19 +137,19 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
     letters = "abcdefghijklmnopqrstuvwxyz"
     done = [0]
 
-    def show(ev: dict) -> None:
-        if ev.get("ev") != "action":
+    def show(ev: E.TraceEvent) -> None:
+        if type(ev) is not E.Action:
             return
-        t = ticks_to_s(ev["t"])
-        if ev["phase"] == "done":
+        t = ticks_to_s(ev.t)
+        if ev.phase == "done":
             tag = f"({letters[done[0] % 26]})"
             done[0] += 1
         else:
             tag = "   "
-        print(f"  {t:8.3f} s  {tag} R{ev['robot']} {ev['phase']:5s} {ev['name']}", flush=True)
+        print(f"  {t:8.3f} s  {tag} R{ev.robot} {ev.phase:5s} {ev.name}", flush=True)
 
     try:
-        world = World(cfg, trace, on_event=show)
+        world = World(cfg, trace, listeners=[show])
         step = TICK_HZ // 10
         while world.now < world.end_tick and done[0] < steps:
             world.run(world.now + step)

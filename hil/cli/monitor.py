@@ -69,7 +69,7 @@ def _monitor(a: argparse.Namespace) -> int:
     ok = False
     try:
         code, world = run_monitor_sim(cfg, a.speed, trace=trace,
-                                      on_event=vcd.write if vcd is not None else None,
+                                      listeners=[vcd.write] if vcd is not None else (),
                                       capture=None if capture is None else capture.f)
         ok = True
     except OSError as exc:               # an output filled the disk: one line, none left

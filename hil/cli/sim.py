@@ -5,9 +5,11 @@ import argparse
 import json
 import sys
 import time
+from typing import Iterable
 
 from firmware_model.timing import TICK_HZ, ms_to_ticks, ticks_to_ms, ticks_to_s
 
+from ..sim.events import Listener, TraceEvent
 from ..sim.trace import OutputFile, TraceWriter
 from ..sim.config import ConfigError, SimConfig
 from ..sim.faults import Fault
@@ -245,12 +247,12 @@ def write_failed(exc: OSError, **paths: str | None) -> UserError:
 
 
 def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
-              vcd_path: str | None = None, on_event=None,
+              vcd_path: str | None = None, listeners: Iterable[Listener] = (),
               pcap_path: str | None = None) -> tuple[World, float]:
-    """Run the world to its end, with its trace, waveform and capture files; ``on_event``
-    gets every event too. An output that cannot be written during the run (a full disk) is a
-    UserError naming that output, and no output is left; one that cannot be finished at the
-    end, a UserError too, and the others are kept (:func:`close_outputs`)."""
+    """Run the world to its end, with its trace, waveform and capture files; ``listeners``
+    get every event too (hil/sim/events.py). An output that cannot be written during the run
+    (a full disk) is a UserError naming that output, and no output is left; one that cannot
+    be finished at the end, a UserError too, and the others are kept (:func:`close_outputs`)."""
     distinct_outputs(trace=trace_path, vcd=vcd_path, pcap=pcap_path)
     trace, vcd = open_writers(trace_path, vcd_path)
     try:
@@ -258,14 +260,9 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
     except UserError:
         close_writers(trace, vcd, ok=False)
         raise
-    sinks = [f for f in (vcd.write if vcd is not None else None, on_event) if f is not None]
-
-    def to_sinks(ev: dict) -> None:
-        for f in sinks:
-            f(ev)
     try:
-        world = World(cfg, trace, on_event=sinks[0] if len(sinks) == 1 else
-                      to_sinks if sinks else None)
+        world = World(cfg, trace,
+                      listeners=[*([vcd.write] if vcd is not None else []), *listeners])
         if pcap_file is not None:
             from ..sim.pcap import PcapWriter
             world.capture(PcapWriter(pcap_file.f, *world.capture_interfaces()))
@@ -279,11 +276,8 @@ def run_world(cfg: SimConfig, trace_path: str | None, progress: bool,
             with Progress(*cols, transient=True, console=stderr_console()) as bar:
                 task = bar.add_task("sim", total=ticks_to_s(end))
                 # a hundred updates at most: each step ends the ring's leaps (quiet_ring.py)
-                step = max(TICK_HZ, end // 100)
-                while world.now < end:
-                    world.run(world.now + step, wake_can=False)  # the bar reads the clock only
-                    bar.update(task, completed=ticks_to_s(world.now))
-                world.wake_can()
+                for now in world.run_in_steps(max(TICK_HZ, end // 100)):
+                    bar.update(task, completed=ticks_to_s(now))
         else:
             world.run()
         wall = time.perf_counter() - t0
@@ -434,9 +428,9 @@ def cmd_sim(a: argparse.Namespace, demo: bool = False, before_summary=None) -> i
     except ConfigError as exc:
         raise UserError(str(exc)) from None
     progress = not a.no_progress and sys.stderr.isatty() and cfg.duration >= 60
-    events: list[dict] = []
+    events: list[TraceEvent] = []
     world, wall = run_world(cfg, a.trace, progress, getattr(a, "vcd", None),
-                            on_event=events.append if before_summary else None,
+                            listeners=[events.append] if before_summary else (),
                             pcap_path=getattr(a, "pcap", None))
     if before_summary is not None:
         before_summary(events)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TMAX_TICKS, TTRANS_TICKS, \
     s_to_ticks
 from hil.sim.air import FOREIGN_BYTE_TICKS
+from hil.sim.events import Collision, Disable, FrameOnAir, TraceEvent
 from hil.sim.world import SimConfig, World
 
 __all__ = ["FOREIGN_BYTE_TICKS", "Case", "Verdict", "formed_world", "idle_cycle_ticks",
@@ -65,8 +66,8 @@ def idle_cycle_ticks(robots: tuple[int, ...]) -> int:
 
 def formed_world(robots: tuple[int, ...], seed: int = 0) -> World:
     """An idle ring of ``robots``, run until every member has every other in its ring."""
-    events: list[dict] = []
-    w = World(SimConfig(robots=robots, duration=3600.0, seed=seed), on_event=events.append)
+    events: list[TraceEvent] = []
+    w = World(SimConfig(robots=robots, duration=3600.0, seed=seed), listeners=[events.append])
     limit = s_to_ticks(30.0)
 
     def formed() -> bool:
@@ -82,7 +83,7 @@ def formed_world(robots: tuple[int, ...], seed: int = 0) -> World:
 def run_case(base: World | bytes, case: Case) -> Verdict:
     """One burst on a copy of ``base`` (a formed world, or its pickle)."""
     w = pickle.loads(base if isinstance(base, bytes) else pickle.dumps(base, PICKLE))
-    evs = w.on_event.__self__                      # the copy's own event list
+    evs = w.listeners[0].__self__                  # the copy's own event list
     evs.clear()
     t0 = w.now + case.offset * FOREIGN_BYTE_TICKS
     data = random.Random(f"{case.seed}:{case.offset}:{case.length}").randbytes(case.length)
@@ -90,11 +91,10 @@ def run_case(base: World | bytes, case: Case) -> Verdict:
     t_end = t0 + case.length * FOREIGN_BYTE_TICKS
     bound = TMAX_TICKS + idle_cycle_ticks(case.robots)
     w.run(t_end + bound + 2 * idle_cycle_ticks(case.robots) + TMAX_TICKS)
-    cols = [e for e in evs if e["ev"] == "collision" and e["t"] > t_end and
-            -1 not in e["robots"]]
-    dropped = tuple(sorted({e["robot"] for e in evs if e["ev"] == "disable"}))
-    good = [e["start"] for e in evs if e["ev"] == "frame" and e["start"] >= t_end and
-            not e["collided"]]
+    cols = [e for e in evs if type(e) is Collision and e.t > t_end and -1 not in e.robots]
+    dropped = tuple(sorted({e.robot for e in evs if type(e) is Disable}))
+    good = [e.start for e in evs if type(e) is FrameOnAir and e.start >= t_end and
+            not e.collided]
     return Verdict(case, len(cols), dropped, (good[0] - t_end) if good else None, bound)
 
 

@@ -99,9 +99,10 @@ MODULAR = modular(RING_PARTS)
 the standby PC2's checks, mac_turns.py): a period must move them by a multiple. Without a
 standby PC nothing reads ``turns``: it is one of the counters then."""
 
-TICK_KEYS = frozenset({"t", "start", "end", "sof"})
-"""Keys of a trace event that hold ticks (docs/trace.md): moved on by the period when the
-events of a cycle leapt over are written."""
+TICK_KEYS = frozenset({"end"})
+"""Keys of a capture's packet (``PcapWriter.radio``'s arguments) that hold ticks: moved on by
+the period when the packets of a cycle leapt over are written (a trace event moves its own:
+``TraceEvent.shifted``)."""
 
 GRAIN = 2
 """Ticks a period must be a multiple of: the MAC's reload timer and the stall timer count the
@@ -172,11 +173,12 @@ class QuietRing:
         self.until = None
         self._rec, self._rec_from = [], None
 
-    def note(self, ev: dict, sink: str = "trace") -> None:
-        """Something the world wrote out: an event to its trace or event callback (``sink``
-        "trace"), or a packet to its capture ("pcap": the arguments of ``PcapWriter.radio``)."""
+    def note(self, ev: Any, sink: str = "trace") -> None:
+        """Something the world wrote out: an event to its listeners (``sink`` "trace", a
+        TraceEvent), or a packet to its capture ("pcap": the arguments of
+        ``PcapWriter.radio``)."""
         if self.until is not None:
-            self._rec.append((sink, tuple(ev.items())))
+            self._rec.append((sink, ev if sink == "trace" else tuple(ev.items())))
 
     def heard(self, tx: "Transmission") -> None:
         """A transmission ended (the air's ``on_transmission``); probe after every
@@ -280,7 +282,7 @@ class QuietRing:
             return
         self._misses = 0
         w = self.world
-        traced = w.trace is not None or w.on_event is not None or w.pcap is not None
+        traced = bool(w.listeners) or w.pcap is not None
         if traced and (carried or not (rec_from == at and before[0] == at - period and
                                     _shifted(before[1], period) == recorded)):
             # the events do not repeat (yet), or a deaf station's would be written twice
@@ -295,8 +297,8 @@ class QuietRing:
         sched.put_back(taken)
         if traced:
             for j in range(1, k + 1):
-                for sink, items in _shifted(recorded, j * period):
-                    w.replay(dict(items), sink)
+                for sink, item in _shifted(recorded, j * period):
+                    w.replay(item if sink == "trace" else dict(item), sink)
         self._rec_from = sched.now
         self.leaps += 1
         self.ticks_skipped += k * period
@@ -395,6 +397,8 @@ def _run_alone(st: "RadioStation", private: SimScheduler, end: int, ring: QuietR
 
 
 def _shifted(events: list[tuple], by: int) -> list[tuple]:
-    """``events`` (each (sink, a tuple of its items)) with their ticks moved on by ``by``."""
-    return [(sink, tuple((k, v + by) if k in TICK_KEYS and type(v) is int else (k, v)
-                         for k, v in items)) for sink, items in events]
+    """``events`` (each (sink, a TraceEvent or a packet's items)) with their ticks moved on
+    by ``by``."""
+    return [(sink, item.shifted(by) if sink == "trace" else
+             tuple((k, v + by) if k in TICK_KEYS and type(v) is int else (k, v)
+                   for k, v in item)) for sink, item in events]

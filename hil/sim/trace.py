@@ -13,7 +13,12 @@ import json
 import os
 import stat
 import zlib
-from typing import IO, Any, Iterator
+from typing import IO, TYPE_CHECKING, Any, Iterator
+
+from .events import TraceError, typed
+
+if TYPE_CHECKING:
+    from .events import Meta, OtherEvent, TraceEvent
 
 TRACE_VERSION = 1
 
@@ -106,8 +111,9 @@ class TraceWriter:
         self._dumps = json.JSONEncoder(separators=(",", ":"), ensure_ascii=True).encode
         self.count = 0
 
-    def write(self, ev: dict[str, Any]) -> None:
-        self._f.write(self._dumps(ev))
+    def write(self, ev: "TraceEvent | Meta") -> None:
+        """Write one event (hil/sim/events.py) as its JSON line: a world's listener."""
+        self._f.write(self._dumps(ev.record()))
         self._f.write("\n")
         self.count += 1
 
@@ -118,8 +124,6 @@ class TraceWriter:
         self._out.discard()
 
 
-class TraceError(ValueError):
-    """A trace file that cannot be read: says which line and why."""
 
 
 def read_trace(path: str) -> Iterator[dict[str, Any]]:
@@ -149,3 +153,10 @@ def read_trace(path: str) -> Iterator[dict[str, Any]]:
             raise TraceError(f"{path}: unreadable after line {n}: {exc}") from None
         if n == 0:
             raise TraceError(f"{path}: empty trace (no meta line)")
+
+
+def read_events(path: str) -> Iterator["TraceEvent | OtherEvent"]:
+    """The events of a trace file, typed (hil/sim/events.py): the meta first, then each
+    line read back with every field's type checked; TraceError names the line that is not
+    an event."""
+    return typed(read_trace(path))

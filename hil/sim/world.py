@@ -11,7 +11,7 @@ accounting and the summary in ledger.py, the air in air.py, the faults in faults
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any, Callable, Iterable, cast
+from typing import Any, Callable, Iterable, Iterator, cast
 
 from can_bus.bits import BitTiming
 from can_bus.bus import CanBus
@@ -44,6 +44,8 @@ from .load import Load
 from .quiet_can import PERIOD as CAN_PERIOD, QuietCan, notes_only, refuses_only
 from .quiet_ring import QuietRing
 from .domains import SimScheduler
+from . import events as E
+from .events import Listener, RecordListener
 from .realtime import RealTimeScheduler
 from .trace import TRACE_VERSION, TraceWriter
 
@@ -67,12 +69,23 @@ class World:
     """Counts only (reports): the fast paths may move it on by any amount (hil/sim/steady.py)."""
 
     def __init__(self, config: SimConfig, trace: TraceWriter | None = None,
-                 on_event: Callable[[dict], None] | None = None) -> None:
+                 on_event: Callable[[dict], None] | None = None,
+                 listeners: Iterable[Listener] = ()) -> None:
+        """``trace`` writes the run's events to its file; ``listeners`` get each event
+        (hil/sim/events.py), the meta first; ``on_event`` gets each as its record, the JSON
+        line's object (:class:`hil.sim.events.RecordListener`)."""
         config.validate()
         self.cfg = config
         self.sched = RealTimeScheduler() if config.realtime else SimScheduler()
         self.trace = trace
-        self.on_event = on_event
+        self.listeners: list[Listener] = []
+        """Called with every event, in order (python-can's ``Notifier`` is the model): the
+        trace writer first, then ``on_event``'s, then ``listeners``; :meth:`add_listener`."""
+        if trace is not None:
+            self.listeners.append(trace.write)
+        if on_event is not None:
+            self.listeners.append(RecordListener(on_event))
+        self.listeners.extend(listeners)
         self.quiet_ring: QuietRing | None = None
         self.pcap = None
         # On the CPU model every received byte is its own interrupt: the air hands each byte
@@ -133,7 +146,7 @@ class World:
                 from firmware_model.radio.peer_macs import make_mac
                 st.mac = make_mac(config.mac_kind, r, st.mac.cfg, seed=config.seed,
                                   peer=config.peer)
-            st.report_io = trace is not None or on_event is not None
+            st.report_io = bool(self.listeners)
             self.air.attach(radio)
             if r in skew:
                 self.air.set_skew(radio, skew[r])   # its PTR2000 switches as the part does
@@ -168,7 +181,7 @@ class World:
                 cfg = replace(cfg, team=frozenset(team))
             st, radio = build_station(r, self.sched, byte_ticks=bt, config=cfg,
                                       observer=self._observe)
-            st.report_io = trace is not None or on_event is not None
+            st.report_io = bool(self.listeners)
             self.air.attach(radio)
             radio.alive = False
             self.extra_stations[EXTRA + k] = st
@@ -189,7 +202,7 @@ class World:
         # cycles leapt over); none with the CPU model or on the wall's clock, nor with CAN
         # sides that a trace keeps awake (QuietCan.may_sleep): it could never leap there;
         # nor with the authenticated profile, whose frames never repeat (a new freshness each).
-        watched = trace is not None or on_event is not None
+        watched = bool(self.listeners)
         if config.ring_sleep and config.fast_paths and config.mac_kind == "rotational" \
                 and not config.realtime \
                 and base.auth is None \
@@ -198,16 +211,17 @@ class World:
                                                config.father_standby)
             for q in self.quiet.values():
                 ring.boundary += [q, q.clock, *q.roots]
-        self._emit({"ev": "meta", "version": TRACE_VERSION, "tick_hz": TICK_HZ,
-                    "byte_ticks": {str(r): self.byte_ticks[r] for r in sorted(config.robots)},
-                    "ttrans": base.ttrans, "tmax": base.tmax, "twin": base.twin,
-                    "tslot": base.tslot, "miss_limit": base.miss_limit,
-                    "robots": sorted(config.robots), "seed": config.seed,
-                    "mac": config.mac_kind,
-                    "ber": config.ber, "noise": config.noise,
-                    "load": config.load, "duration_ticks": self.end_tick,
-                    **({"can_bitrate": CAN_TIMING.bitrate and int(CAN_TIMING.bitrate)}
-                       if config.can else {})}, meta=True)
+        self.meta = E.Meta(
+            version=TRACE_VERSION, tick_hz=TICK_HZ,
+            byte_ticks={str(r): self.byte_ticks[r] for r in sorted(config.robots)},
+            ttrans=base.ttrans, tmax=base.tmax, twin=base.twin, tslot=base.tslot,
+            miss_limit=base.miss_limit, robots=tuple(sorted(config.robots)), seed=config.seed,
+            mac=config.mac_kind, ber=config.ber, noise=config.noise, load=config.load,
+            duration_ticks=self.end_tick,
+            can_bitrate=CAN_TIMING.bitrate and int(CAN_TIMING.bitrate) if config.can else None)
+        """The run's settings, the trace's first line (given to the listeners first)."""
+        for fn in self.listeners:
+            fn(self.meta)
 
     def _build_can_side(self, r: int, st: RadioStation) -> None:
         quiet = QuietCan(self.sched, name=f"R{r} CAN") if self.cfg.cpu is None else None
@@ -241,7 +255,7 @@ class World:
         quiet.enabled = (self.cfg.can_sleep and self.cfg.fast_paths and not self.cfg.realtime
                          and self.cfg.sequence is None)
         quiet.may_sleep = lambda: (
-            self.trace is None and self.on_event is None and self.pcap is None
+            not self.listeners and self.pcap is None
             and bus.trace is world_trace and bus.error_trace is None
             and not child.dispatcher.jobs
             and all(n.state != STATE_MOVING or n.cruising for n in nodes.values()))
@@ -299,14 +313,16 @@ class World:
         for r, cpu in sorted(self.cpus.items()):
             busy = cpu.busy - self._cpu_busy.get(r, 0)
             self._cpu_busy[r] = cpu.busy
-            self._emit({"ev": "cpu", "robot": r, "load": round(busy / TICK_HZ, 6)})
+            if self.listeners:
+                self._emit(E.CpuLoad(t=self.sched.now, robot=r, load=round(busy / TICK_HZ, 6)))
         self.sched.after(TICK_HZ, self._cpu_second, 0)
 
     def _on_action(self, robot: int, action: int, phase: str, now: int) -> None:
         self.actions.append((now, robot, action, phase))
         self.action_turns.append(self.transmissions)
-        self._emit({"ev": "action", "robot": robot, "phase": phase,
-                    "name": ACTION_NAMES.get(action, str(action))})
+        if self.listeners:
+            self._emit(E.Action(t=self.sched.now, robot=robot, phase=phase,
+                                name=ACTION_NAMES.get(action, str(action))))
 
     def _on_can(self, r: int, tally: Tally, frame, start: int, end: int) -> None:
         tally.frames += 1
@@ -319,21 +335,36 @@ class World:
             assert child is not None               # (lat is its latency_from)
             cause, child.latency_from = lat[0], None
             self.dispatch_latency.append((r, cause, start))
-            self._emit({"ev": "dispatch", "robot": r, "end": cause, "sof": start,
-                        "latency": start - cause})
-        if self.trace is None and self.on_event is None:
-            return
-        self._emit({"ev": "can", "bus": r, "id": frame.id, "data": frame.data.hex(),
-                    "start": start, "end": end})
+            if self.listeners:
+                self._emit(E.Dispatch(t=self.sched.now, robot=r, end=cause, sof=start,
+                                      latency=start - cause))
+        if self.listeners:
+            self._emit(E.CanFrameOnBus(t=self.sched.now, bus=r, id=frame.id,
+                                       data=frame.data.hex(), start=start, end=end))
 
     # -- running --------------------------------------------------------------------------
 
-    def run(self, until: int | None = None, wake_can: bool = True) -> None:
-        """Advance to tick ``until`` (default: the configured duration). ``wake_can``: bring
-        every child's CAN side up to the tick (so that its parts may be read at once); a
-        caller that reads only the radio side between steps (a progress bar, the soak's ring
-        check) passes False and lets a sleeping CAN side sleep on (:meth:`wake_can`,
-        :meth:`summary` and whatever touches it still wake it)."""
+    def run(self, until: int | None = None) -> None:
+        """Advance to tick ``until`` (default: the configured duration), every child's CAN
+        side brought up to that tick, so that any part may be read at once."""
+        self._advance(until)
+        self.wake_can()
+
+    def run_in_steps(self, step: int) -> Iterator[int]:
+        """Run to the end ``step`` ticks at a time, yielding the tick reached after each (for
+        a progress bar, which reads only the clock); at the end as :meth:`run` leaves it.
+        Between steps a sleeping CAN side sleeps on (hil/sim/quiet_can.py): a step costs no
+        more than the stretch it runs."""
+        while self.now < self.end_tick:
+            self._advance(self.now + step)
+            yield self.now
+        self.wake_can()
+
+    def _advance(self, until: int | None = None) -> None:
+        """Advance to tick ``until`` without waking a sleeping CAN side (the radio side and
+        the clock are up to date; :meth:`wake_can`, :meth:`summary` and whatever reads a CAN
+        part wake it): for callers in this package that read only the radio side between
+        steps (the soak's ring check)."""
         end = self.end_tick if until is None else min(until, self.end_tick)
         ring = self.quiet_ring
         if ring is not None:
@@ -344,8 +375,6 @@ class World:
         finally:
             if ring is not None:
                 ring.end_run()
-        if wake_can:
-            self.wake_can()
 
     @property
     def now(self) -> int:
@@ -363,80 +392,99 @@ class World:
 
     # -- events from the parts ------------------------------------------------------------
 
-    def _emit(self, ev: dict, meta: bool = False) -> None:
-        trace, on_event = self.trace, self.on_event
-        if trace is None and on_event is None:
-            return
-        if not meta:
-            ev = {"t": self.sched.now, **ev}
-        if trace is not None:
-            trace.write(ev)
-        if on_event is not None:
-            on_event(ev)
+    def add_listener(self, fn: Listener) -> None:
+        """Call ``fn`` with every event from now on (after those already listening). It
+        misses the meta event, given at construction: a listener that needs it (a waveform
+        writer) is one of the constructor's ``listeners``, or reads :attr:`meta`."""
+        self.listeners.append(fn)
+        self._io_reported()
+
+    def _io_reported(self) -> None:
+        """The stations report their radio's switching (TXEN) only while someone listens."""
+        sb = self.standby_station
+        for st in [*self.stations.values(), *self.extra_stations.values(),
+                   *([sb] if sb is not None else [])]:
+            st.report_io = bool(self.listeners)
+
+    def remove_listener(self, fn: Listener) -> None:
+        """Stop calling ``fn`` (ValueError if it is not listening)."""
+        self.listeners.remove(fn)
+        self._io_reported()
+
+    def _emit(self, ev: E.TraceEvent) -> None:
+        """Give ``ev`` to every listener; callers build it only when there is one."""
+        for fn in self.listeners:
+            fn(ev)
         ring = self.quiet_ring
-        if ring is not None and not meta:
+        if ring is not None:
             ring.note(ev)
 
-    def replay(self, ev: dict, sink: str = "trace") -> None:
-        """Write an event the ring did not run but whose place it knows (a cycle it leapt
-        over, shifted: hil/sim/quiet_ring.py) to the trace and the event callback, or with
-        ``sink`` "pcap" a packet to the capture (``ev``: ``PcapWriter.radio``'s arguments)."""
+    def replay(self, ev: Any, sink: str = "trace") -> None:
+        """Give the listeners an event the ring did not run but whose place it knows (a cycle
+        it leapt over, shifted: hil/sim/quiet_ring.py), or with ``sink`` "pcap" write a packet
+        to the capture (``ev``: ``PcapWriter.radio``'s arguments)."""
         if sink == "pcap":
             assert self.pcap is not None           # (a packet is replayed only to a capture)
             self.pcap.radio(**ev)
             return
-        if self.trace is not None:
-            self.trace.write(ev)
-        if self.on_event is not None:
-            self.on_event(ev)
+        for fn in self.listeners:
+            fn(ev)
 
     def _power_on(self, r: int) -> None:
         radio = self.radios[r]
         self.air.revive(radio, self.sched.now)
-        self._emit({"ev": "power", "robot": r})
+        if self.listeners:
+            self._emit(E.Power(t=self.sched.now, robot=r))
         self.stations[r].power_on()
         self.load.start(r)
 
     def _power_on_extra(self, k: int) -> None:
         self.air.revive(self.radios[EXTRA + k], self.sched.now)
-        self._emit({"ev": "power", "robot": self.extra_stations[EXTRA + k].id, "extra": k})
+        if self.listeners:
+            self._emit(E.Power(t=self.sched.now, robot=self.extra_stations[EXTRA + k].id,
+                               extra=k))
         self.extra_stations[EXTRA + k].power_on()
 
     def _observe_extra(self, st: RadioStation, k: int, a: Any) -> None:
-        """An event of an ``extra`` robot: traced with ``"extra": k``, counted nowhere (the
+        """An event of an ``extra`` robot: traced with ``extra`` k, counted nowhere (the
         run's statistics are the ring's)."""
         t = type(a)
         r = st.id
+        now = self.sched.now
         self.observed += 1
-        if t is ModeChange:
-            ev = {"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason}
-        elif t is Deliver:
-            intact = self.ledger.intact(a)
-            ev = {"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num, "type": a.type,
-                  "to": r, "intact": intact}
-        elif t is Join:
-            ev = {"ev": "rejoin" if a.again else "join", "robot": a.robot, "by": r}
-        elif t is Disable:
-            ev = {"ev": "disable", "robot": a.robot, "by": r}
-        elif t is Refused:
-            ev = {"ev": "refused", "src": a.src, "num": a.num, "to": r, "reason": a.reason}
-        elif t is NumberBehind:
-            ev = {"ev": "behind", "src": a.src, "num": a.num, "last": a.last, "to": r,
-                  "refused": a.refused}
-        elif t is DuplicateId:
-            ev = {"ev": "duplicate_id", "robot": r, "yielding": a.yielding}
-            self.identity.append({"t": self.sched.now, **ev, "extra": k})
+        ev: E.TraceEvent
+        if t is DuplicateId:
+            ev = E.DuplicateId(t=now, robot=r, yielding=a.yielding, extra=k)
+            self.identity.append(ev.record())
         elif t is ForeignRing:
-            ev = {"ev": "foreign_ring", "robot": r, "robots": list(a.robots),
-                  "member": a.member}
-            self.identity.append({"t": self.sched.now, **ev, "extra": k})
+            ev = E.ForeignRing(t=now, robot=r, robots=tuple(a.robots), member=a.member,
+                               extra=k)
+            self.identity.append(ev.record())
+        elif not self.listeners:
+            return
+        elif t is ModeChange:
+            ev = E.Mode(t=now, robot=r, mode=a.mode, reason=a.reason, extra=k)
+        elif t is Deliver:
+            ev = E.Delivery(t=now, src=a.src, dst=a.dst, num=a.num, type=a.type, to=r,
+                            intact=self.ledger.intact(a), extra=k)
+        elif t is Join:
+            ev = (E.Rejoin if a.again else E.Join)(t=now, robot=a.robot, by=r, extra=k)
+        elif t is Disable:
+            ev = E.Disable(t=now, robot=a.robot, by=r, extra=k)
+        elif t is Refused:
+            ev = E.Refused(t=now, src=a.src, num=a.num, to=r, reason=a.reason, extra=k)
+        elif t is NumberBehind:
+            ev = E.Behind(t=now, src=a.src, num=a.num, last=a.last, to=r, refused=a.refused,
+                          extra=k)
         else:
             return
-        self._emit({**ev, "extra": k})
+        if self.listeners:
+            self._emit(ev)
 
     def _power_on_standby(self) -> None:
         self.air.revive(self.radios[STANDBY], self.sched.now)
-        self._emit({"ev": "power", "robot": 0, "pc": 2})
+        if self.listeners:
+            self._emit(E.Power(t=self.sched.now, robot=0, pc=2))
         assert self.standby_station is not None   # (scheduled only when there is one)
         self.standby_station.power_on()
 
@@ -462,36 +510,38 @@ class World:
             self.pcap.radio(**packet)
             if self.quiet_ring is not None:
                 self.quiet_ring.note(packet, "pcap")
-        if self.trace is None and self.on_event is None:
+        if not self.listeners:
             return
         if r < 0:                      # injected bytes or interference, not a robot
-            self._emit({"ev": "interference", "start": tx.t0, "end": tx.end,
-                        "bytes": (tx.end - tx.t0) // tx.bt, "collided": tx.collided})
+            self._emit(E.Interference(t=self.sched.now, start=tx.t0, end=tx.end,
+                                      bytes=(tx.end - tx.t0) // tx.bt, collided=tx.collided))
             return
         d = tx.data
-        ev: dict[str, Any] = {"ev": "frame", "src": r}
+        dst: int | None
+        num: int | None
+        typ: int | None
+        n: int | None
+        kind: str | None
         try:
-            ev.update(dst=d[3] - 48, num=int(d[5:7]), type=d[7] - 48, len=int(d[8:12]))
-            ev["kind"] = frame_kind(ev["type"], d[12:12 + ev["len"]])
+            dst, num, typ, n = d[3] - 48, int(d[5:7]), d[7] - 48, int(d[8:12])
+            kind = frame_kind(typ, d[12:12 + n])
         except (IndexError, ValueError):
-            ev.update(dst=None, num=None, type=None, len=None, kind=None)
-        ev.update(start=tx.t0, end=tx.end, bytes=len(d) if not tx.aborted else
-                  (tx.end - tx.t0) // tx.bt, collided=tx.collided, aborted=tx.aborted)
+            dst = num = typ = n = kind = None
+        pc = extra = None
         if tx.radio is self.radios.get(STANDBY):
-            ev["pc"] = 2
+            pc = 2
         elif self._extra_of and tx.radio.robot in self.cfg.robots:
-            k = self._extra_radio.get(id(tx.radio))
-            if k is not None:
-                ev["extra"] = k          # a twin's frame: the same src as a robot of the ring
-        self._emit(ev)
+            extra = self._extra_radio.get(id(tx.radio))  # a twin's: the src of a ring robot
+        self._emit(E.FrameOnAir(
+            t=self.sched.now, src=r, dst=dst, num=num, type=typ, len=n, kind=kind,
+            start=tx.t0, end=tx.end,
+            bytes=len(d) if not tx.aborted else (tx.end - tx.t0) // tx.bt,
+            collided=tx.collided, aborted=tx.aborted, pc=pc, extra=extra))
 
     def _on_collision(self, t0: int, robots: list[int]) -> None:
         self.collisions += 1
-        self._emit({"ev": "collision", "robots": robots})
-
-    def _emit_pc2(self, ev: dict) -> None:
-        """An event of the father's standby PC: it carries ``"pc": 2`` (docs/trace.md)."""
-        self._emit({**ev, "pc": 2})
+        if self.listeners:
+            self._emit(E.Collision(t=self.sched.now, robots=tuple(robots)))
 
     def activity(self) -> tuple[int, ...]:
         """Changes whenever a MAC reports something (any action but its own I/O), two
@@ -513,93 +563,111 @@ class World:
     def _observe(self, st: RadioStation, a: Any, now: int) -> None:
         """``a``: any action of a MAC (firmware_model/radio/mac_events.py), told apart by its
         exact type in a chain of ``is``: the simulator's hot path, so ``a`` is typed Any
-        rather than narrowed branch by branch."""
+        rather than narrowed branch by branch. The accounting comes first; the event is built
+        only when someone listens."""
         r = st.id
-        emit: Callable[[dict], None] = self._emit
         if self._extra_of:
             k = self._extra_of.get(id(st))
             if k is not None:
                 if type(a) is not Transmit and type(a) is not TxEnable:
                     self._observe_extra(st, k, a)
                 return
+        pc = None                      # both PCs are ID 0: the tag tells them apart
         if st is self.standby_station:
             if type(a) is ModeChange:
                 self.observed += 1
-                self._emit({"ev": "mode", "robot": 0, "pc": 2, "mode": a.mode,
-                            "reason": a.reason})
+                if self.listeners:
+                    self._emit(E.Mode(t=self.sched.now, robot=0, pc=2, mode=a.mode,
+                                      reason=a.reason))
                 return
-            emit = self._emit_pc2  # both PCs are ID 0: the tag tells them apart
+            pc = 2
         t = type(a)
         if t is Transmit:
             return
+        listened = bool(self.listeners)
         if t is TxEnable:
-            if self.trace is not None or self.on_event is not None:
-                emit({"ev": "txen", "robot": r, "on": a.on})
+            if listened:
+                self._emit(E.TxenEdge(t=self.sched.now, robot=r, on=a.on, pc=pc))
             return
         self.observed += 1
+        ev: E.TraceEvent | None = None
         if t is Miss:
             # Counted once per turn, and only by observers that can hear the air (PC2 by its
             # own radio: it once went by PC1's, both being robot 0).
             if self.radios[STANDBY if st is self.standby_station else r].alive:
                 self.ledger.missed(now, a.robot)
-            emit({"ev": "miss", "robot": a.robot, "by": r})
+            if listened:
+                ev = E.Miss(t=self.sched.now, robot=a.robot, by=r, pc=pc)
         elif t is Disable:
             self.ledger.membership_change("disable", a.robot, now)
-            emit({"ev": "disable", "robot": a.robot, "by": r})
+            if listened:
+                ev = E.Disable(t=self.sched.now, robot=a.robot, by=r, pc=pc)
         elif t is Join:
-            kind = "rejoin" if a.again else "join"
-            self.ledger.membership_change(kind, a.robot, now)
-            emit({"ev": kind, "robot": a.robot, "by": r})
+            self.ledger.membership_change("rejoin" if a.again else "join", a.robot, now)
+            if listened:
+                ev = (E.Rejoin if a.again else E.Join)(t=self.sched.now, robot=a.robot, by=r,
+                                                       pc=pc)
         elif t is ModeChange:
             self.ledger.membership_change(a.mode, r, now)
-            emit({"ev": "mode", "robot": r, "mode": a.mode, "reason": a.reason})
+            if listened:
+                ev = E.Mode(t=self.sched.now, robot=r, mode=a.mode, reason=a.reason)
         elif t is Deliver:
             intact = self.ledger.delivered_to(a, r)
-            emit({"ev": "deliver", "src": a.src, "dst": a.dst, "num": a.num,
-                  "type": a.type, "to": r, "intact": intact})
+            if listened:
+                ev = E.Delivery(t=self.sched.now, src=a.src, dst=a.dst, num=a.num,
+                                type=a.type, to=r, intact=intact, pc=pc)
         elif t is Duplicate:
             self.stats[r].duplicates += 1
-            emit({"ev": "duplicate", "src": a.src, "num": a.num, "to": r})
+            if listened:
+                ev = E.Duplicate(t=self.sched.now, src=a.src, num=a.num, to=r, pc=pc)
         elif t is Refused:
             self.stats[r].refused_frames += 1
-            emit({"ev": "refused", "src": a.src, "num": a.num, "to": r,
-                  "reason": a.reason})
+            if listened:
+                ev = E.Refused(t=self.sched.now, src=a.src, num=a.num, to=r, reason=a.reason,
+                               pc=pc)
         elif t is NumberBehind:
             self.stats[r].numbers_behind += 1
-            emit({"ev": "behind", "src": a.src, "num": a.num, "last": a.last, "to": r,
-                  "refused": a.refused})
+            if listened:
+                ev = E.Behind(t=self.sched.now, src=a.src, num=a.num, last=a.last, to=r,
+                              refused=a.refused, pc=pc)
         elif t is DuplicateId:
-            self.identity.append({"t": now, "ev": "duplicate_id", "robot": r,
-                                  "yielding": a.yielding})
-            emit({"ev": "duplicate_id", "robot": r, "yielding": a.yielding})
+            said = E.DuplicateId(t=self.sched.now, robot=r, yielding=a.yielding)
+            self.identity.append(said.record())
+            ev = said if pc is None else replace(said, pc=pc)
         elif t is ForeignRing:
-            self.identity.append({"t": now, "ev": "foreign_ring", "robot": r,
-                                  "robots": list(a.robots), "member": a.member})
-            emit({"ev": "foreign_ring", "robot": r, "robots": list(a.robots),
-                  "member": a.member})
+            heard = E.ForeignRing(t=self.sched.now, robot=r, robots=tuple(a.robots),
+                                  member=a.member)
+            self.identity.append(heard.record())
+            ev = heard if pc is None else replace(heard, pc=pc)
         elif t is FrameFailed:
             self.stats[r].bad_frames += 1
-            if self.trace is not None or self.on_event is not None:
-                emit({"ev": "bad_frame", "to": r, "field": a.error.field,
-                      "reason": str(a.error)})
+            if listened:
+                ev = E.BadFrame(t=self.sched.now, to=r, field=a.error.field,
+                                reason=str(a.error), pc=pc)
         elif t is BadContent:
-            emit({"ev": "bad_content", "src": a.src, "num": a.num, "to": r,
-                  "reason": str(a.error)})
+            if listened:
+                ev = E.BadContent(t=self.sched.now, src=a.src, num=a.num, to=r,
+                                  reason=str(a.error), pc=pc)
         elif t is Outcome:
             m = a.message
             ended = self.ledger.ended(a)
-            if ended == "delivered":
-                emit({"ev": "delivered", "src": m.src, "dst": m.dst, "num": m.num,
-                      "attempts": m.attempts})
+            if not listened:
+                pass
+            elif ended == "delivered":
+                ev = E.Delivered(t=self.sched.now, src=m.src, dst=m.dst, num=m.num,
+                                 attempts=m.attempts, pc=pc)
             else:                              # sent (unacknowledged) or fail
-                emit({"ev": ended, "src": m.src, "dst": m.dst, "num": m.num,
-                      "reason": a.reason})
+                ev = (E.Sent if ended == "sent" else E.Failed)(
+                    t=self.sched.now, src=m.src, dst=m.dst, num=m.num, reason=a.reason, pc=pc)
             if self.cfg.load == "saturate":
                 self.load.refill(r)
         elif t is Message:
             self.ledger.submitted(a)
-            emit({"ev": "submit", "src": a.src, "dst": a.dst, "num": a.num,
-                  "type": a.type, "len": len(a.content)})
+            if listened:
+                ev = E.Submit(t=self.sched.now, src=a.src, dst=a.dst, num=a.num, type=a.type,
+                              len=len(a.content), pc=pc)
+        if ev is not None and listened:
+            self._emit(ev)
 
     # -- the world's parts ----------------------------------------------------------------
 

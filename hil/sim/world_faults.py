@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 from firmware_model.timing import TICK_HZ
 
 from .config import ConfigError
+from .events import FaultEdge
 from .faults import AIR_KINDS, KINDS, Fault, apply_air_fault
 
 if TYPE_CHECKING:
@@ -16,13 +17,15 @@ if TYPE_CHECKING:
 
 def _fault(self: World, f: Fault) -> None:
     self.fault_count[f.kind] = self.fault_count.get(f.kind, 0) + 1
-    self._emit({"ev": "fault", "robot": f.robot, "kind": f.kind, "phase": "start",
-                **({"spec": f.spec()} if f.kind not in ("fail", "recover", "steal")
-                   else {})})
+    if self.listeners:
+        self._emit(FaultEdge(t=self.sched.now, robot=f.robot, kind=f.kind, phase="start",
+                             spec=f.spec() if f.kind not in ("fail", "recover", "steal")
+                             else None))
     self._fault_act(f, "start")
 
 def _fault_end(self: World, f: Fault) -> None:
-    self._emit({"ev": "fault", "robot": f.robot, "kind": f.kind, "phase": "end"})
+    if self.listeners:
+        self._emit(FaultEdge(t=self.sched.now, robot=f.robot, kind=f.kind, phase="end"))
     self._fault_act(f, "end")
 
 def _fault_act(self: World, f: Fault, phase: str) -> None:

@@ -26,7 +26,8 @@ from collections import deque
 from typing import Any, Iterable
 
 from ..sim.trace import OutputFile, TraceError
-from .vcd import TickReorder, checked_events, need, need_int
+from ..sim.events import (Disable, FaultEdge, FrameOnAir, Interference, Meta, Miss, Rejoin)
+from .vcd import TickReorder, checked_events
 
 __all__ = ["PlotError", "plot_trace", "FORMATS", "MAX_TURNS"]
 
@@ -64,13 +65,13 @@ class _Collector:
     """One pass over the events: utilisation bins for the whole trace and the drawable items
     of one window (given, or chosen around the first interesting event)."""
 
-    def __init__(self, meta: dict, start: int | None, end: int | None, max_turns: int) -> None:
+    def __init__(self, meta: Meta, start: int | None, end: int | None, max_turns: int) -> None:
         self.meta = meta
-        self.hz = meta["tick_hz"]
-        self.tmax, self.ttrans = meta["tmax"], meta["ttrans"]
-        self.robots = sorted(meta["robots"])
+        self.hz = meta.tick_hz
+        self.tmax, self.ttrans = meta.tmax, meta.ttrans
+        self.robots = sorted(meta.robots)
         self.q = TickReorder(2 * self.tmax + 2 * self.ttrans)
-        dur = meta.get("duration_ticks")
+        dur = meta.duration_ticks
         self.duration = dur if isinstance(dur, int) and dur > 0 else None
         self.bin = _nice_bin(self.duration or self.hz * 10, self.hz)
         self.busy: list[int] = []
@@ -98,21 +99,21 @@ class _Collector:
 
     # -- intake -------------------------------------------------------------------------
 
-    def feed(self, n: int, ev: dict) -> None:
-        t = ev["t"]
+    def feed(self, n: int, ev: Any) -> None:
+        """Take event number ``n`` (hil/sim/events.py; kinds the figure does not draw pass)."""
+        t = ev.t
         self.last_tick = t
-        k = ev["ev"]
+        k = type(ev)
         q = self.q
-        if k == "frame":
-            s, e = need_int(ev, n, "start"), need_int(ev, n, "end")
+        if k is FrameOnAir:
+            s, e = ev.start, ev.end
             if s > e:
                 raise TraceError(f"event {n} (frame): start {s} is after end {e}")
             self.totals["frames"] += 1
-            self.totals["collided"] += bool(ev.get("collided"))
-            q.push(s, ("frame", s, e, need_int(ev, n, "src"), bool(ev.get("collided")),
-                       bool(ev.get("aborted")), ev.get("bytes"), ev.get("dst")), 0, n)
-        elif k == "miss":
-            r, by = need_int(ev, n, "robot"), need_int(ev, n, "by")
+            self.totals["collided"] += ev.collided
+            q.push(s, ("frame", s, e, ev.src, ev.collided, ev.aborted, ev.bytes, ev.dst), 0, n)
+        elif k is Miss:
+            r, by = ev.robot, ev.by
             key = (r, t)
             item = self.miss_items.get(key)
             if item is None:
@@ -125,26 +126,25 @@ class _Collector:
             item[4].add(by)
             if by not in self.dead:
                 item[5].add(by)
-        elif k in ("disable", "rejoin"):
-            r = need_int(ev, n, "robot")
-            if (k, r, t) not in self.marks_seen:
+        elif k is Disable or k is Rejoin:
+            r = ev.robot
+            name = ev.KIND
+            if (name, r, t) not in self.marks_seen:
                 self.marks_seen = {m for m in self.marks_seen if m[2] == t}
-                self.marks_seen.add((k, r, t))
-                self.totals[k + "s"] += 1
-                q.push(t, ("mark", t, k, r, k), 2, n)
-        elif k == "fault":
-            need(ev, n, "kind")
-            hit = None if ev.get("robot") is None else need_int(ev, n, "robot")
-            kind, phase = ev["kind"], ev.get("phase", "start")
+                self.marks_seen.add((name, r, t))
+                self.totals[name + "s"] += 1
+                q.push(t, ("mark", t, name, r, name), 2, n)
+        elif k is FaultEdge:
+            hit, kind, phase = ev.robot, ev.kind, ev.phase
             if hit is not None and kind in ("fail", "recover"):
                 if (kind == "fail") == (phase != "end"):
                     self.dead.add(hit)
                 else:
                     self.dead.discard(hit)
-            label = str(ev.get("spec") or kind) + (" ends" if phase == "end" else "")
+            label = str(ev.spec or kind) + (" ends" if phase == "end" else "")
             q.push(t, ("mark", t, kind if phase != "end" else "fault_end", hit, label), 2, n)
-        elif k == "interference":
-            s, e = need_int(ev, n, "start"), need_int(ev, n, "end")
+        elif k is Interference:
+            s, e = ev.start, ev.end
             if s > e:
                 raise TraceError(f"event {n} (interference): start {s} is after end {e}")
             self.totals["interference"] += 1
@@ -402,10 +402,10 @@ def _number_clip_paths(data: bytes) -> bytes:
     return data
 
 
-def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
+def plot_trace(events: Iterable[Any], out: str, start_s: float | None = None,
                end_s: float | None = None, max_turns: int = MAX_TURNS) -> dict:
-    """Draw the paper's Fig. 7 from a trace's events (meta first) into ``out`` (.png, .svg or
-    .pdf).
+    """Draw the paper's Fig. 7 from a trace's events (records or typed, meta first) into
+    ``out`` (.png, .svg or .pdf).
 
     ``start_s``/``end_s`` bound the timeline (seconds); by default it shows at most
     ``max_turns`` turns, starting a little before the first miss, collision, fault, disable
@@ -432,7 +432,7 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
         raise PlotError(f"max_turns must be at least 1, got {max_turns}")
 
     meta, rest = checked_events(events)
-    hz = meta["tick_hz"]
+    hz = meta.tick_hz
     w0 = None if start_s is None else round(start_s * hz)
     w1 = None if end_s is None else round(end_s * hz)
     col = _Collector(meta, w0, w1, max_turns)
@@ -458,7 +458,7 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
         starts = [it[1] for it in items]
         ends = [it[2] if it[0] in ("frame", "miss", "noise") else it[1] for it in items]
         x0t, x1t = min(starts), max(ends)
-        pad = max((x1t - x0t) // 50, meta["ttrans"])
+        pad = max((x1t - x0t) // 50, meta.ttrans)
         x0t, x1t = max(0, x0t - pad), x1t + pad
     unit, div = _unit(x1t - x0t, hz)
 
@@ -471,13 +471,13 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
     ax = fig.add_subplot(gs[0])
     ring = " ".join(f"R{r}" for r in robots)
     fig.suptitle(f"Rotational transfer series (paper Fig. 7) — ring {ring}, seed "
-                 f"{meta.get('seed')}, load {meta.get('load')}", fontsize=13, x=0.01,
+                 f"{meta.seed}, load {meta.load}", fontsize=13, x=0.01,
                  ha="left")
     handles = _draw_rows(ax, items, robots, div, x0t / div, x1t / div)
     ax.set_xlabel(f"time ({unit})")
     ax.set_title(f"turns {x0t / hz:.3f}–{x1t / hz:.3f} s ({len(frames)} frames); "
-                 f"Tmax = {meta['tmax'] * 1000 / hz:g} ms, Ttrans = "
-                 f"{meta['ttrans'] * 1000 / hz:g} ms", fontsize=10, loc="left", pad=30)
+                 f"Tmax = {meta.tmax * 1000 / hz:g} ms, Ttrans = "
+                 f"{meta.ttrans * 1000 / hz:g} ms", fontsize=10, loc="left", pad=30)
     legend = list(handles.values())
     if legend:
         fig.legend(handles=legend, loc="upper right", fontsize=8, frameon=False,
@@ -485,12 +485,12 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
 
     # zoom at the turn scale
     axz = fig.add_subplot(gs[1])
-    zs = _zoom_span(items, robots, meta["ttrans"], *((x0t, x1t) if col.given else ()))
+    zs = _zoom_span(items, robots, meta.ttrans, *((x0t, x1t) if col.given else ()))
     zoom_robots: list[int] = []
     if zs is not None:
         z0, z1 = zs
         r0, r1 = zs
-        zpad = max((z1 - z0) // 40, meta["ttrans"])
+        zpad = max((z1 - z0) // 40, meta.ttrans)
         z0, z1 = z0 - zpad, z1 + zpad
         zdiv = hz / 1000
         zitems = [it for it in items if it[0] != "mark" and it[2] >= z0 and it[1] <= z1]
@@ -500,7 +500,7 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
         zf = [it for it in zitems if it[0] == "frame"]
         for a, b in zip(zf, zf[1:]):
             gap = b[1] - a[2]
-            if (0 < gap <= 2 * meta["ttrans"] and a[3] in row and b[3] in row
+            if (0 < gap <= 2 * meta.ttrans and a[3] in row and b[3] in row
                     and a[2] >= r0 and b[1] <= r1):
                 y = (row[a[3]] + row[b[3]]) / 2
                 _dimension(axz, a[2] / zdiv, b[1] / zdiv, y,
@@ -527,13 +527,13 @@ def plot_trace(events: Iterable[dict], out: str, start_s: float | None = None,
     frac = [min(1.0, busy[i] / min(bw, max(1, end_tick - i * bw))) for i in range(nb)]
     axu.stairs(frac, xs, fill=True, color="#4c72b0", alpha=0.35)
     axu.stairs(frac, xs, color="#4c72b0", linewidth=1.0, label="measured")
-    bts = meta.get("byte_ticks") or {}
+    bts = meta.byte_ticks or {}
     given = [bts.get(str(r)) for r in robots]
     bt = [v for v in given if isinstance(v, int)]
     if bt and len(bt) == len(given):
-        theory = sum(14 * v for v in bt) / sum(14 * v + meta["ttrans"] for v in bt)
+        theory = sum(14 * v for v in bt) / sum(14 * v + meta.ttrans for v in bt)
         if len(set(bt)) == 1:
-            label = (f"idle ring: 14×{bt[0]} / (14×{bt[0]} + {meta['ttrans']}) = "
+            label = (f"idle ring: 14×{bt[0]} / (14×{bt[0]} + {meta.ttrans}) = "
                      f"{theory:.3f}")
         else:
             label = f"idle ring (heartbeats only) = {theory:.3f}"

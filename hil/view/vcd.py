@@ -31,7 +31,9 @@ from typing import Any, Iterable, Iterator
 
 from vcd import VCDWriter
 
-from ..sim.trace import OutputFile, TraceError
+from ..sim.events import (CanFrameOnBus, FaultEdge, FrameOnAir, Interference, Meta, Miss,
+                          OtherEvent, TraceError, TxenEdge, typed)
+from ..sim.trace import OutputFile
 
 __all__ = ["VcdError", "VcdTraceWriter", "write_vcd", "TIMESCALE", "checked_events",
            "TickReorder"]
@@ -63,64 +65,28 @@ def timescale_for(tick_hz: int) -> tuple[str, int]:
 
 # -- input checking shared with hil.view.plot ---------------------------------------------------
 
-def _int(ev: dict, key: str, n: int) -> int:
-    try:
-        v = ev[key]
-    except KeyError:
-        raise TraceError(f"event {n} ({ev.get('ev')}): missing '{key}'") from None
-    if not isinstance(v, int) or isinstance(v, bool):
-        raise TraceError(f"event {n} ({ev.get('ev')}): '{key}' is {v!r}, not an integer")
-    return v
+def checked_events(events: Iterable[Any]) -> tuple[Meta, Iterator[tuple[int, Any]]]:
+    """Read ``events`` (records or typed events, hil/sim/events.py: the meta first) and
+    return the meta and an iterator of ``(number, event)`` for the rest that checks the ticks
+    do not go back (event 1 is the meta). TraceError for anything unreadable."""
+    it = typed(events)
+    meta = next(it)
+    assert isinstance(meta, Meta)              # (typed() gives the meta first)
 
-
-def need(ev: dict, n: int, *keys: str) -> None:
-    """Raise TraceError unless ``ev`` has every key."""
-    for k in keys:
-        if k not in ev:
-            raise TraceError(f"event {n} ({ev.get('ev')}): missing '{k}'")
-
-
-def need_int(ev: dict, n: int, key: str) -> int:
-    return _int(ev, key, n)
-
-
-def check_meta(meta: Any) -> dict:
-    """Check the meta event (the first of a trace) has what the tools need; return it."""
-    if not isinstance(meta, dict) or meta.get("ev") != "meta":
-        raise TraceError("the first event must be the meta event")
-    robots = meta.get("robots")
-    if (not isinstance(robots, list) or not robots
-            or not all(isinstance(r, int) and 0 <= r <= 6 for r in robots)):
-        raise TraceError(f"meta: robots is {robots!r}, not a list of IDs 0-6")
-    for k in ("tick_hz", "tmax", "ttrans"):
-        if _int(meta, k, 1) <= 0:
-            raise TraceError(f"meta: {k} must be positive, got {meta[k]}")
-    return meta
-
-
-def checked_events(events: Iterable[dict]) -> tuple[dict, Iterator[tuple[int, dict]]]:
-    """Check the meta event comes first; return it and an iterator of ``(number, event)`` for
-    the rest that checks ``t`` is an integer tick, non-decreasing (event 1 is the meta)."""
-    it = iter(events)
-    try:
-        meta = next(it)
-    except StopIteration:
-        raise TraceError("empty trace: no meta line") from None
-    meta = check_meta(meta)
-
-    def rest() -> Iterator[tuple[int, dict]]:
+    def rest() -> Iterator[tuple[int, Any]]:
         last = 0
         for n, ev in enumerate(it, 2):
-            if not isinstance(ev, dict) or "ev" not in ev:
-                raise TraceError(f"event {n}: not a trace event (no 'ev')")
-            t = _int(ev, "t", n)
-            if t < last:
-                raise TraceError(f"event {n} ({ev['ev']}): tick {t} is before tick {last} "
+            if ev.t < last:
+                raise TraceError(f"event {n} ({_kind(ev)}): tick {ev.t} is before tick {last} "
                                  f"of the event before (events out of order)")
-            last = t
+            last = ev.t
             yield n, ev
 
     return meta, rest()
+
+
+def _kind(ev: Any) -> str:
+    return ev.kind if isinstance(ev, OtherEvent) else ev.KIND
 
 
 class TickReorder:
@@ -175,20 +141,19 @@ class VcdTraceWriter:
         self._closed = False
 
     # state, set up by the meta event
-    def _start(self, meta: dict) -> None:
-        meta = check_meta(meta)
+    def _start(self, meta: Meta) -> None:
         self.meta = meta
-        self.tick_hz = meta["tick_hz"]
+        self.tick_hz = meta.tick_hz
         timescale, self.units = timescale_for(self.tick_hz)
         self.timescale = timescale
-        self.robots: list[int] = sorted(meta["robots"])
-        self.buses = [r for r in self.robots if r != 0] if "can_bitrate" in meta else []
-        self.lookback = 2 * meta["tmax"] + 2 * meta["ttrans"]
+        self.robots: list[int] = sorted(meta.robots)
+        self.buses = [r for r in self.robots if r != 0] if meta.can_bitrate is not None else []
+        self.lookback = 2 * meta.tmax + 2 * meta.ttrans
         self._q = TickReorder(self.lookback)
         ring = ",".join(str(r) for r in self.robots)
         w = VCDWriter(self._f, timescale=timescale, date="(simulated)",
                       version="rprs hil.view.vcd",
-                      comment=f"RPRS ring {ring} seed {meta.get('seed')} "
+                      comment=f"RPRS ring {ring} seed {meta.seed} "
                               f"tick {10**9 / self.tick_hz:g} ns = {self.units} units")
         self._w = w
         self.v_owner = w.register_var("rprs", "owner", "integer", size=3, init="x")
@@ -216,65 +181,62 @@ class VcdTraceWriter:
         self.frames = self.collided = self.can_frames = self.misses = self.interference = 0
         self.last_tick = 0
 
-    def write(self, ev: dict) -> None:
-        """Add one event (the meta event first)."""
+    def write(self, ev: Any) -> None:
+        """Add one event (hil/sim/events.py; the meta event first): a world's listener."""
         if self._closed:
             raise VcdError("VCD writer already closed")
         self._n += 1
-        if self._n == 1:
+        n = self._n
+        if n == 1:
+            if not isinstance(ev, Meta):
+                raise TraceError("the first event must be the meta event")
             self._start(ev)
             return
-        n = self._n
-        if not isinstance(ev, dict) or "ev" not in ev:
-            raise TraceError(f"event {n}: not a trace event (no 'ev')")
-        t = _int(ev, "t", n)
+        t = ev.t
         if t < self.last_tick:
-            raise TraceError(f"event {n} ({ev['ev']}): tick {t} is before tick "
+            raise TraceError(f"event {n} ({_kind(ev)}): tick {t} is before tick "
                              f"{self.last_tick} of the event before (events out of order)")
         self.last_tick = t
-        kind = ev["ev"]
+        kind = type(ev)
         q = self._q
-        if kind == "frame":
-            src = self._robot(ev, "src", n)
-            start, end = _int(ev, "start", n), _int(ev, "end", n)
+        if kind is FrameOnAir:
+            src = self._robot(ev.src, "frame", n)
+            start, end = ev.start, ev.end
             if not start <= end:
                 raise TraceError(f"event {n} (frame): start {start} is after end {end}")
             self._fid += 1
             self.frames += 1
-            self.collided += bool(ev.get("collided"))
+            self.collided += ev.collided
             q.push(start, ("fs", self._fid, src), 1, n)
             q.push(end, ("fe", self._fid, src), 0, n)
-        elif kind == "txen":
-            r = self._robot(ev, "robot", n)
-            need(ev, n, "on")
-            q.push(t, ("txen", (r, 2 if ev.get("pc") == 2 and r == 0 else 1), bool(ev["on"])),
-                   2, n)
-        elif kind == "fault":
-            need(ev, n, "kind")
-            hit = None if ev.get("robot") is None else self._robot(ev, "robot", n)
-            if hit is not None and ev["kind"] in ("fail", "recover"):
-                down = (ev["kind"] == "fail") == (ev.get("phase", "start") != "end")
+        elif kind is TxenEdge:
+            r = self._robot(ev.robot, "txen", n)
+            q.push(t, ("txen", (r, 2 if ev.pc == 2 and r == 0 else 1), ev.on), 2, n)
+        elif kind is FaultEdge:
+            hit = None if ev.robot is None else self._robot(ev.robot, "fault", n)
+            if hit is not None and ev.kind in ("fail", "recover"):
+                down = (ev.kind == "fail") == (ev.phase != "end")
                 q.push(t, ("dead", hit, down), 2, n)
-        elif kind == "interference":
-            start, end = _int(ev, "start", n), _int(ev, "end", n)
+        elif kind is Interference:
+            start, end = ev.start, ev.end
             if not start <= end:
                 raise TraceError(f"event {n} (interference): start {start} is after end {end}")
             self._fid += 1
             self.interference += 1
             q.push(start, ("fs", self._fid, -1), 1, n)
             q.push(end, ("fe", self._fid, -1), 0, n)
-        elif kind == "miss":
-            r = self._robot(ev, "robot", n)
+        elif kind is Miss:
+            r = self._robot(ev.robot, "miss", n)
             if (r, t) not in self._misses:       # reported once per observer
                 self._misses.add((r, t))
                 self.misses += 1
                 q.push(t, ("miss", r), 2, n)
-        elif kind == "can":
-            b = _int(ev, "bus", n)
+        elif kind is CanFrameOnBus:
+            b = ev.bus
             if b not in self.v_can:
                 raise TraceError(f"event {n} (can): bus {b} is not a child of the ring "
                                  f"{self.robots} (or the meta line lacks can_bitrate)")
-            cid, start, end = _int(ev, "id", n), _int(ev, "start", n), _int(ev, "end", n)
+            cid, start, end = ev.id, ev.start, ev.end
             if not 0 <= cid < 2048:
                 raise TraceError(f"event {n} (can): id {cid} is not an 11-bit identifier")
             if not start <= end:
@@ -284,10 +246,9 @@ class VcdTraceWriter:
             q.push(end, ("ce", b, cid), 0, n)
         self._flush(t)
 
-    def _robot(self, ev: dict, key: str, n: int) -> int:
-        r = _int(ev, key, n)
+    def _robot(self, r: int, kind: str, n: int) -> int:
         if r not in self.v_tx:
-            raise TraceError(f"event {n} ({ev['ev']}): robot {r} is not in the ring "
+            raise TraceError(f"event {n} ({kind}): robot {r} is not in the ring "
                              f"{self.robots} of the meta line")
         return r
 
@@ -361,7 +322,7 @@ class VcdTraceWriter:
             if self._n == 0:
                 raise TraceError("empty trace: no meta line")
             self._flush(None)
-            end = max(self.last_tick, int(self.meta.get("duration_ticks") or 0))
+            end = max(self.last_tick, int(self.meta.duration_ticks or 0))
             assert self._w is not None          # (the meta line came first)
             self._w.close(end * self.units)
             self._out.commit()
@@ -381,8 +342,9 @@ class VcdTraceWriter:
         self._out.discard()
 
 
-def write_vcd(events: Iterable[dict], path: str) -> dict:
-    """Write the VCD waveform of a trace's events (meta first) to ``path``, atomically.
+def write_vcd(events: Iterable[Any], path: str) -> dict:
+    """Write the VCD waveform of a trace's events (records or typed events, the meta first)
+    to ``path``, atomically.
 
     Returns a summary: ``path``, ``timescale``, ``units_per_tick``, ``robots``, ``frames``,
     ``collided_frames``, ``misses`` (deduplicated), ``can_frames``, ``interference``,
@@ -392,7 +354,7 @@ def write_vcd(events: Iterable[dict], path: str) -> dict:
     """
     w = VcdTraceWriter(path)
     try:
-        for ev in events:
+        for ev in typed(events):
             w.write(ev)
     except BaseException:
         w.discard()

@@ -11,6 +11,7 @@ import pytest
 
 from firmware_model.cycle_costs import DEFAULT_COSTS
 from firmware_model.radio.mac import MacConfig
+from hil.sim.events import KINDS as EVENT_KINDS, from_record, meta_from_record
 from hil.sim.faults import KINDS, parse_fault
 from hil.sim.world import SimConfig, World
 from paths import ROOT
@@ -145,3 +146,28 @@ def test_an_extra_robots_events_carry_extra_and_the_text_says_so(events):
     assert {"power", "frame", "mode", "duplicate_id", "foreign_ring"} <= {e["ev"] for e in tagged}
     assert all(e["extra"] >= 1 for e in tagged)
     assert 'carry `"extra": k`' in DOC.read_text(encoding="utf-8")
+
+
+def test_each_kind_in_the_table_has_its_typed_event_with_those_fields():
+    """hil/sim/events.py declares one class a kind, its fields those of the table's row in
+    the same order (``pc`` and ``extra`` where the row does not list them: tags)."""
+    doc = table()
+    assert set(EVENT_KINDS) - {"meta"} == set(doc), sorted(set(EVENT_KINDS) ^ set(doc))
+    for kind, cls in EVENT_KINDS.items():
+        if kind == "meta":
+            continue
+        declared = [name for name, _tag in cls._KEYS
+                    if name in doc[kind] or name not in ("pc", "extra")]
+        assert declared == doc[kind], (kind, declared, doc[kind])
+
+
+def test_every_record_written_reads_back_as_the_event_that_wrote_it():
+    """The typed events of every run: each record read back (from_record, every field's type
+    checked) is the same event, and the meta's too."""
+    for cfg in RUNS.values():
+        evs: list = []
+        w = World(cfg, listeners=[evs.append])
+        w.run()
+        meta, rest = evs[0], evs[1:]
+        assert meta_from_record(meta.record()) == meta == w.meta
+        assert rest and all(from_record(e.record(), n) == e for n, e in enumerate(rest, 2))

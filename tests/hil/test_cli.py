@@ -349,7 +349,7 @@ def test_demo_ring_tells_the_story_of_its_run(capsys):
 
 def test_the_progress_bar_run_is_the_same_run():
     """With a progress bar the world runs in one-second steps that leave sleeping CAN sides
-    asleep (``World.run(wake_can=False)``); the summary is the one-go run's."""
+    asleep (``World.run_in_steps``); the summary is the one-go run's."""
     from hil.cli.sim import run_world
     from hil.sim.world import SimConfig
     cfg = SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=3, load=1)

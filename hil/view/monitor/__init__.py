@@ -47,8 +47,9 @@ The rooms: ``app`` (the view both share: its screen, widgets, timer, keys and qu
 """
 from __future__ import annotations
 
-from typing import IO, Any, Callable
+from typing import IO, Any, Iterable
 
+from ...sim.events import Listener
 from ...sim.world import SimConfig, World
 from .app import SPEED_MAX, SPEED_MIN, MonitorApp, _speed_text, quit_signals
 from .radio import MonitorSniffer, RadioMonitorApp
@@ -59,13 +60,13 @@ from .sim import SimMonitorApp
 
 
 def run_monitor_sim(config: SimConfig, speed: float = 1.0, trace: Any = None,
-                    on_event: Callable[[dict], None] | None = None,
+                    listeners: Iterable[Listener] = (),
                     capture: IO[bytes] | None = None) -> tuple[int, World]:
     """``rprs monitor [sim options] [--speed X]``: run the TUI on a simulated world until q.
     The world stops at ``config.duration`` (the header then says FINISHED). Returns the exit
     status and the world as it was when the view closed. An output that could not be written
     during the run ends the view, and its OSError is raised once the terminal is back."""
-    app = SimMonitorApp(config, speed=speed, trace=trace, on_event=on_event, capture=capture)
+    app = SimMonitorApp(config, speed=speed, trace=trace, listeners=listeners, capture=capture)
     app.run()
     if app.write_error is not None:
         raise app.write_error

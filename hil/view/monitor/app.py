@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import TYPE_CHECKING, Any, Iterable
 
 from rich.text import Text
 from textual.app import App, ComposeResult
@@ -17,6 +17,9 @@ from textual.widgets import Footer, Static
 
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.timing import s_to_ticks
+
+if TYPE_CHECKING:
+    from ...sim.events import FaultEdge
 
 
 RATE_HZ = 10.0
@@ -93,15 +96,15 @@ def _cut(s: str, width: int) -> str:
     return s if len(s) <= width else s[:width - 1] + "…"
 
 
-def _fault_line(ev: dict) -> str:
+def _fault_line(ev: FaultEdge) -> str:
     """An events line for a world's ``fault`` event: the monitor's own keys in words, any
     other ``--fault`` by its spec as it starts and by its kind and robot as it ends."""
-    kind, robot = ev["kind"], ev["robot"]
-    if ev.get("phase") == "end":
+    kind, robot = ev.kind, ev.robot
+    if ev.phase == "end":
         return f"fault {kind}{'' if robot is None else f' on robot {robot}'} ends"
     own = {"fail": "radio of robot {} killed", "recover": "radio of robot {} revived",
            "steal": "robot {} steals the turn"}.get(kind)
-    return own.format(robot) if own else f"fault {ev.get('spec', kind)} starts"
+    return own.format(robot) if own else f"fault {ev.spec or kind} starts"
 
 
 def _speed_text(speed: float) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections import Counter, deque
 from dataclasses import replace
-from typing import IO, Any, Callable
+from typing import IO, Any, Iterable
 
 from rich.text import Text
 from textual.binding import Binding
@@ -13,6 +13,8 @@ from firmware_model.radio.content import format_content
 from firmware_model.radio.mac import Deliver, RotationalMac
 from firmware_model.timing import TICK_HZ, s_to_ticks
 
+from ...sim import events as E
+from ...sim.events import Listener
 from ...sim.pcap import PcapWriter
 from ...sim.world import SimConfig, World
 
@@ -35,15 +37,14 @@ class SimMonitorApp(MonitorApp):
 
     def __init__(self, config: SimConfig, speed: float = 1.0, paused: bool = False,
                  rate: float = RATE_HZ, keep: int = KEEP, trace: Any = None,
-                 on_event: Callable[[dict], None] | None = None,
+                 listeners: Iterable[Listener] = (),
                  capture: IO[bytes] | None = None) -> None:
-        """``trace`` (a TraceWriter) and ``on_event`` also get the world's events, and
+        """``trace`` (a TraceWriter) and ``listeners`` also get the world's events, and
         ``capture`` (a binary file) its traffic as pcapng (hil/sim/pcap.py), as in ``rprs
         sim`` (the caller closes them)."""
         if config.realtime:
             config = replace(config, realtime=False)   # the monitor paces the world itself
-        self._also = on_event
-        self.world = World(config, trace, on_event=self._on_event)
+        self.world = World(config, trace, listeners=[*listeners, self._on_event])
         if capture is not None:
             self.world.capture(PcapWriter(capture, *self.world.capture_interfaces()))
         super().__init__(config.robots, rate)
@@ -75,41 +76,35 @@ class SimMonitorApp(MonitorApp):
             text = format_content(a.commands).decode("ascii", "replace")
             self.received[st.id].append(Received(now, a.src, a.num, a.dst, a.type, text))
 
-    def _on_event(self, ev: dict) -> None:
-        if self._also is not None:
-            self._also(ev)
-        k = ev["ev"]
-        if k == "frame":
-            self.last_sender = ev["src"]
+    def _on_event(self, ev: E.TraceEvent) -> None:
+        """The world's events that make the log pane's lines (typed: hil/sim/events.py)."""
+        k = type(ev)
+        if k is E.FrameOnAir:
+            self.last_sender = ev.src
             return
-        if k in ("txen", "deliver", "submit", "delivered", "miss", "can", "duplicate",
-                 "meta", "action"):
-            return
-        t = ev.get("t", 0) / TICK_HZ
-        if k in ("disable", "join", "rejoin"):
-            key = (ev["t"], k, ev["robot"])
+        t = ev.t / TICK_HZ
+        if k is E.Disable or k is E.Join or k is E.Rejoin:
+            key = (ev.t, ev.KIND, ev.robot)
             if key in self._seen:
                 return
             self._seen.add(key)
             if len(self._seen) > 1000:
                 self._seen.clear()
             verb = {"disable": "dropped from the ring", "join": "joined the ring",
-                    "rejoin": "rejoined the ring"}[k]
-            line = f"robot {ev['robot']} {verb} (first seen by {ev['by']})"
-        elif k == "mode":
-            line = f"robot {ev['robot']}{' PC2' if ev.get('pc') else ''} -> {ev['mode']} " \
-                   f"({ev['reason']})"
-        elif k == "fault":
+                    "rejoin": "rejoined the ring"}[ev.KIND]
+            line = f"robot {ev.robot} {verb} (first seen by {ev.by})"
+        elif k is E.Mode:
+            line = f"robot {ev.robot}{' PC2' if ev.pc else ''} -> {ev.mode} ({ev.reason})"
+        elif k is E.FaultEdge:
             line = _fault_line(ev)
-        elif k == "collision":
-            line = f"collision between robots {_ids(ev['robots'])}"
-        elif k == "fail":
-            line = f"message {ev['src']}#{ev['num']:02d}->{_dst(ev['dst'])} failed: " \
-                   f"{ev['reason']}"
-        elif k == "power":
-            line = f"robot {ev['robot']}{' PC2' if ev.get('pc') else ''} powered on"
-        elif k == "bad_content":
-            line = f"robot {ev['to']}: bad Content from {ev['src']}: {ev['reason']}"
+        elif k is E.Collision:
+            line = f"collision between robots {_ids(ev.robots)}"
+        elif k is E.Failed:
+            line = f"message {ev.src}#{ev.num:02d}->{_dst(ev.dst)} failed: {ev.reason}"
+        elif k is E.Power:
+            line = f"robot {ev.robot}{' PC2' if ev.pc else ''} powered on"
+        elif k is E.BadContent:
+            line = f"robot {ev.to}: bad Content from {ev.src}: {ev.reason}"
         else:
             return
         self.events.append(f"{t:9.3f} s  {line}")

@@ -88,7 +88,8 @@ class MacUnderFaults(RuleBasedStateMachine):
     def __init__(self) -> None:
         super().__init__()
         self.w = formed_ring()
-        self.evs: list[dict] = self.w.on_event.__self__
+        # the copy's own record list: what its on_event (a RecordListener) appends to
+        self.evs: list[dict] = self.w.listeners[0].fn.__self__
         self.evs.clear()
         self.t0 = self.w.now
         self.down: dict[int, int] = {}                 # robot -> tick its radio died

@@ -46,12 +46,12 @@ def test_a_pickled_world_runs_as_the_original():
     from hil.sim.lockstep import formed_world
 
     def collisions(w):
-        evs = w.on_event.__self__
+        evs = w.listeners[0].__self__             # the copy's own event list (typed)
         evs.clear()
         t0 = w.now + 4 * FOREIGN_BYTE_TICKS
         w.inject_bytes(random.Random(4).randbytes(1), t0)
         w.run(t0 + 3 * TMAX_TICKS)
-        return [(e["ev"], e["t"]) for e in evs if e["ev"] in ("collision", "frame")]
+        return [(e.KIND, e.t) for e in evs if e.KIND in ("collision", "frame")]
 
     base = formed_world((1, 2))
     copy_ = pickle.loads(pickle.dumps(base, pickle.HIGHEST_PROTOCOL))

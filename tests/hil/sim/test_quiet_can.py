@@ -322,15 +322,15 @@ def test_woken_at_awkward_ticks_it_is_still_the_same_run(name):
 
 def test_stepping_without_waking_leaves_it_asleep_and_the_same_run():
     """The soak and the progress bar run in steps and read only the radio side between them
-    (``World.run(wake_can=False)``): a sleeping CAN side sleeps on across the steps."""
+    (``World.run_in_steps``): a sleeping CAN side sleeps on across the steps."""
     slow, fast = _pair(SCENARIOS["cruising wheels"])
     _orders(slow, "cruising wheels"), _orders(fast, "cruising wheels")
     asleep_at_steps = 0
-    while fast.now < fast.end_tick:
-        slow.run(slow.now + PERIOD * 5 // 2, wake_can=False)
-        fast.run(fast.now + PERIOD * 5 // 2, wake_can=False)
+    for now in fast.run_in_steps(PERIOD * 5 // 2):
+        slow.run(now)
         asleep_at_steps += sum(q.asleep for q in fast.quiet.values())
     assert asleep_at_steps > 50
+    assert not any(q.asleep for q in fast.quiet.values())   # woken at the end, as run()
     assert _summary(fast) == _summary(slow)
     assert _state(fast) == _state(slow)
 
@@ -404,7 +404,7 @@ def test_news_reaching_a_sleeping_child_is_noted_and_it_sleeps_on():
                        lambda w=w, c=commands, ty=type_: w.submit(0, 1, c, int(ty)))
     q = fast.quiet[1]
     for until in (5.0, 7.5):            # each notice delivered by then
-        fast.run(round(until * 16_000_000), wake_can=False)
+        fast._advance(round(until * 16_000_000))
         asleep_after.append(q.asleep)
     slow.run()
     fast.run()
@@ -430,7 +430,7 @@ def test_orders_refused_at_once_leave_a_sleeping_child_asleep():
     q = fast.quiet[1]
     asleep_after, sleeps = [], []
     for until in (6.0, 8.5, 11.0):      # each message delivered by then
-        fast.run(round(until * 16_000_000), wake_can=False)
+        fast._advance(round(until * 16_000_000))
         asleep_after.append(q.asleep)
         sleeps.append(q.sleeps)
     slow.run()

@@ -78,7 +78,7 @@ def _stepwise(w, faults) -> tuple[list[float], int]:
     starts = [(f.at, f.end) for f in faults]
     reform, not_reformed, pending, i = [], 0, None, 0
     while w.now < w.end_tick:
-        w.run(w.now + s_to_ticks(SAMPLE_S), wake_can=False)
+        w._advance(w.now + s_to_ticks(SAMPLE_S))
         now_s = w.now / TICK_HZ
         while i < len(ends) and ends[i] <= now_s:
             if not any(a <= now_s < e for a, e in starts):

@@ -340,7 +340,7 @@ def test_the_monitor_writes_the_trace_and_waveform_it_shows(tmp_path):
     cfg = dict(robots=(1, 2, 3), seed=5, load=2.0)
     trace, vcd = TraceWriter(str(tmp_path / "m.jsonl")), VcdTraceWriter(str(tmp_path / "m.vcd"))
     app = SimMonitorApp(SimConfig(duration=600.0, **cfg), paused=True, trace=trace,
-                        on_event=vcd.write)
+                        listeners=[vcd.write])
 
     async def go():
         async with app.run_test(size=SIZE) as pilot:

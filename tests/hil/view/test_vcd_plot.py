@@ -14,6 +14,7 @@ pytest.importorskip("matplotlib")
 from vcd.reader import TokenKind, tokenize  # noqa: E402
 
 from hil.view.plot import PlotError, plot_trace  # noqa: E402
+from hil.sim.events import typed  # noqa: E402
 from hil.sim.trace import TraceError, TraceWriter, read_trace  # noqa: E402
 from hil.view.vcd import VcdError, VcdTraceWriter, timescale_for, write_vcd  # noqa: E402
 from hil.sim.world import Fault, SimConfig, World  # noqa: E402
@@ -175,8 +176,8 @@ def test_vcd_can_ids(fault_run, tmp_path):
 def test_vcd_is_deterministic_and_streams(fault_run, tmp_path):
     a, b = tmp_path / "a.vcd", tmp_path / "b.vcd"
     write_vcd(fault_run, str(a))
-    w = VcdTraceWriter(str(b))            # as World(on_event=w.write) would use it
-    for ev in fault_run:
+    w = VcdTraceWriter(str(b))            # as World(listeners=[w.write]) uses it
+    for ev in typed(fault_run):
         w.write(ev)
     w.close()
     assert a.read_bytes() == b.read_bytes()
@@ -195,7 +196,7 @@ def test_gtkwave_reads_the_vcd(fault_run, tmp_path):
 def test_vcd_from_a_trace_file(idle_run, tmp_path):
     tr = tmp_path / "t.jsonl"
     w = TraceWriter(str(tr))
-    for ev in idle_run:
+    for ev in typed(idle_run):
         w.write(ev)
     w.close()
     s = write_vcd(read_trace(str(tr)), str(tmp_path / "t.vcd"))
