@@ -234,7 +234,7 @@ class ChildFirmware:
         timer_cycles = (costs or DEFAULT_COSTS).dispatcher_timer.cycles
         self.timer = ReloadTimer(self.sched, lambda now: self.cpu.irq(
             TMR1, timer_cycles, self._on_timer_isr), name="TMR1")
-        station.app = self._on_message
+        station.add_app(self._on_message)
         self.sequence: ActionSequence | None = None
         self.on_action: Callable[[int, int, str, int], None] | None = None
         self.dispatcher.on_notice = self._on_notice
@@ -350,7 +350,7 @@ class RadioOnlyChild:
     def __init__(self, station: RadioStation) -> None:
         self.station = station
         self.refused = 0
-        station.app = self._on_message
+        station.add_app(self._on_message)
 
     def _on_message(self, d: Deliver, now: int) -> None:
         if d.dst == BROADCAST or d.type not in REQUEST_TYPES:

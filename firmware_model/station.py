@@ -68,8 +68,9 @@ class RadioStation:
         self.report_io = True
         """Pass TxEnable/Transmit actions to the observer too (a trace wants them; a fast
         simulation without a trace does not)."""
-        self.app: Callable[[Deliver, int], None] | None = None
-        """The application (the child's dispatcher) gets every message delivered to it."""
+        self._apps: tuple[Callable[[Deliver, int], None], ...] = ()
+        """The application side (the child's dispatcher; ``add_app``): told every message
+        delivered to this robot, in order, before the observers."""
         self.garbage_bytes = 0
         self.frames_heard = 0
         self.frames_failed = 0
@@ -289,6 +290,22 @@ class RadioStation:
 
     # -- the application side --------------------------------------------------------------
 
+    @property
+    def apps(self) -> tuple[Callable[[Deliver, int], None], ...]:
+        """Who is told each message delivered here, ``app(deliver, now)``, in this order."""
+        return self._apps
+
+    def add_app(self, fn: Callable[[Deliver, int], None], first: bool = False) -> None:
+        """Tell ``fn`` each message delivered, after those already told (``first``: before
+        them: the simulator wakes a sleeping CAN side before the firmware acts)."""
+        self._apps = (fn, *self._apps) if first else (*self._apps, fn)
+
+    def remove_app(self, fn: Callable[[Deliver, int], None]) -> None:
+        """Stop telling ``fn`` (ValueError if it is not told)."""
+        apps = list(self._apps)
+        apps.remove(fn)
+        self._apps = tuple(apps)
+
     def submit(self, dst: int, commands, type: int = 2):
         """Queue a message for the radio (see RotationalMac.submit)."""
         msg = self.mac.submit(dst, commands, self.sched.now, type)
@@ -330,8 +347,9 @@ class RadioStation:
                 if obs is not None and self.report_io:
                     obs(self, a, now)
             else:
-                if t is Deliver and self.app is not None:
-                    self.app(a, now)
+                if t is Deliver:
+                    for app in self._apps:
+                        app(a, now)
                 elif t is Refused:
                     k = a.kind or "ring"
                     self.refused[k] = self.refused.get(k, 0) + 1

@@ -296,7 +296,7 @@ def test_a_radio_only_child_answers_orders_with_a_failure():
     sent = []
     station.submit = lambda dst, commands, type_: sent.append((dst, commands, type_))
     child = RadioOnlyChild(station)
-    deliver = station.app
+    (deliver,) = station.apps
     deliver(Deliver(0, 2, 5, 2, (cmd("joint", 1, 12),)), 0)
     deliver(Deliver(0, 2, 6, 2, (cmd("status"),)), 0)
     deliver(Deliver(0, 7, 7, 2, (cmd("act", 1, 0),)), 0)             # broadcast

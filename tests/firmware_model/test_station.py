@@ -46,3 +46,25 @@ def test_a_removed_observer_is_told_nothing_and_the_notifier_is_stable_until_a_c
     assert told == []
     with pytest.raises(ValueError):
         st.remove_observer(mine)
+
+
+def test_the_application_side_is_a_list_told_each_delivery_in_order_before_the_observers():
+    from firmware_model.radio.mac import Deliver
+    from hil.sim.world import SimConfig, World
+    w = World(SimConfig(robots=(0, 1), duration=4.0, seed=1, load=3.0, can=True))
+    st = w.stations[1]
+    wake, child = st.apps        # the simulator's CAN-side wake first, then the dispatcher
+    assert child == w.children[1]._on_message
+    told = []
+    st.add_app(lambda d, now: told.append(("front", d.num)), first=True)
+    st.add_app(lambda d, now: told.append(("back", d.num)))
+    st.add_observer(lambda s, a, now: told.append(("observer", a.num))
+                    if type(a) is Deliver else None)
+    w.run()
+    nums = [n for who, n in told if who == "front"]
+    assert len(nums) > 3
+    assert told == [(who, n) for n in nums for who in ("front", "back", "observer")]
+    st.remove_app(child)
+    assert len(st.apps) == 3 and child not in st.apps and st.apps[1] is wake
+    with pytest.raises(ValueError):
+        st.remove_app(child)
