@@ -260,6 +260,12 @@ class RotationalMac:
 
     # -- events in ---------------------------------------------------------------------------
 
+    def general_path_only(self) -> None:
+        """From now on every frame takes the general path (as ``MacConfig.fast_path`` False
+        would have built it): how the fast path's check gets its reference MAC from a copy
+        (tests/firmware_model/radio/test_mac_fast_path.py)."""
+        self._hb_len = -1               # no Content has this length: never the fast path
+
     def power_on(self, now: int) -> list:
         """Start in LISTEN; claim after ``claim_ticks`` of silence (docs/protocol.md §4.3,
         clause 28). In the paper profile: a member of the static ring of the whole team at
