@@ -100,7 +100,7 @@ def _kind(name: str, ticks: tuple[str, ...] = ("t",)) -> Callable[[E], E]:
         cls._KEYS = tuple((f.name, bool(f.metadata.get("tag"))) for f in own)  # type: ignore
         cls._TYPES = tuple((f.name, str(f.type), bool(f.metadata.get("tag")))   # type: ignore
                            for f in own)
-        KINDS[name] = cls                                             # type: ignore[assignment]
+        KINDS[name] = cls
         return cls
     return register
 

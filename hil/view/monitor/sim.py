@@ -78,12 +78,11 @@ class SimMonitorApp(MonitorApp):
 
     def _on_event(self, ev: E.TraceEvent) -> None:
         """The world's events that make the log pane's lines (typed: hil/sim/events.py)."""
-        k = type(ev)
-        if k is E.FrameOnAir:
+        if isinstance(ev, E.FrameOnAir):
             self.last_sender = ev.src
             return
         t = ev.t / TICK_HZ
-        if k is E.Disable or k is E.Join or k is E.Rejoin:
+        if isinstance(ev, (E.Disable, E.Join, E.Rejoin)):
             key = (ev.t, ev.KIND, ev.robot)
             if key in self._seen:
                 return
@@ -93,17 +92,17 @@ class SimMonitorApp(MonitorApp):
             verb = {"disable": "dropped from the ring", "join": "joined the ring",
                     "rejoin": "rejoined the ring"}[ev.KIND]
             line = f"robot {ev.robot} {verb} (first seen by {ev.by})"
-        elif k is E.Mode:
+        elif isinstance(ev, E.Mode):
             line = f"robot {ev.robot}{' PC2' if ev.pc else ''} -> {ev.mode} ({ev.reason})"
-        elif k is E.FaultEdge:
+        elif isinstance(ev, E.FaultEdge):
             line = _fault_line(ev)
-        elif k is E.Collision:
+        elif isinstance(ev, E.Collision):
             line = f"collision between robots {_ids(ev.robots)}"
-        elif k is E.Failed:
+        elif isinstance(ev, E.Failed):
             line = f"message {ev.src}#{ev.num:02d}->{_dst(ev.dst)} failed: {ev.reason}"
-        elif k is E.Power:
+        elif isinstance(ev, E.Power):
             line = f"robot {ev.robot}{' PC2' if ev.pc else ''} powered on"
-        elif k is E.BadContent:
+        elif isinstance(ev, E.BadContent):
             line = f"robot {ev.to}: bad Content from {ev.src}: {ev.reason}"
         else:
             return
