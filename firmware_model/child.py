@@ -38,7 +38,7 @@ from can_bus.frames import CanFrame
 from .cycle_costs import DEFAULT_COSTS, CycleCosts, message_cycles
 from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, REQUEST_TYPES, Dispatcher
 from .mcu.can_controller import AMS_AMR0, AMS_AMR1, CSR_NIE, CSR_NT, CanController
-from .interrupts import CAN_RX, CAN_STATUS, CAN_TX, DISPATCH_TASK, TMR1
+from .interrupts import CAN0_RX, CAN0_TX_NS, DISPATCH_TASK, TMR1
 from .mcu.cpu import Cpu
 from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Clock
@@ -99,10 +99,12 @@ class CanDriver:
         mask_rx = sum(1 << b for b in RX_EVENT + RX_STATUS)
         c.enable_irq(tx=mask_tx, rx=mask_rx)
         cpu, cyc = self.cpu, self._cycles
-        c.on_rx_irq = lambda buf: cpu.irq(CAN_RX, cyc["rx"], self._rx_body,
+        c.on_rx_irq = lambda buf: cpu.irq(CAN0_RX, cyc["rx"], self._rx_body,
                                           enter=lambda: self._rx_read(buf))
-        c.on_tx_irq = lambda buf: cpu.irq(CAN_TX, cyc["tx"], self._tx_irq, buf)
-        c.on_status_irq = lambda ns: cpu.irq(CAN_STATUS, cyc["status"], self._status_irq, ns)
+        # one vector for a finished transmission and a node status transition (interrupts.py):
+        # its handler serves one cause an entry, at that cause's cost
+        c.on_tx_irq = lambda buf: cpu.irq(CAN0_TX_NS, cyc["tx"], self._tx_irq, buf)
+        c.on_status_irq = lambda ns: cpu.irq(CAN0_TX_NS, cyc["status"], self._status_irq, ns)
         c.CSR = c.CSR | CSR_NIE
         c.start()
 

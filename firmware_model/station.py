@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Callable, NamedTuple
 
+from .interrupts import AUTH_TASK
 from .mcu.gpio import OutputPin
 from .mcu.ptr2000 import Ptr2000
 from .mcu.reload_timer import ReloadTimer
@@ -132,7 +133,7 @@ class RadioStation:
         if self._block_cycles:
             from .radio.auth import covered_len, sha256_blocks
             assert self.cpu is not None                   # _block_cycles is set with it
-            self.cpu.task("auth_tag", self._block_cycles *
+            self.cpu.task(AUTH_TASK, self._block_cycles *
                           sha256_blocks(covered_len(len(frame.content))), _nothing)
 
     def _on_timer_isr(self) -> None:

@@ -448,7 +448,7 @@ def print_summary_and_report(world: World, wall: float, a: argparse.Namespace,
         from ..view.cpu_report import cpu_budget
         assert cfg.cpu is not None              # (--cpu-report runs the CPU model)
         extra = {"cpu_report": {r: cpu_budget(
-            c, cfg.cpu.sample_wait_max.cycles, world.byte_ticks[r], world.sched.now)
+            c, cfg.cpu.sample_wait_max.cycles, world.byte_ticks[r], world.sched.now, cfg.cpu)
             for r, c in sorted(world.cpus.items())}}
     print_summary(world, wall, a.json, membership=membership, extra=extra)
     if report and not a.json:

@@ -9,6 +9,8 @@ set against the deadline, one byte time (a later read loses the next byte: ORE).
 """
 from __future__ import annotations
 
+from firmware_model.cycle_costs import DEFAULT_COSTS, CycleCosts
+from firmware_model.interrupts import COSTED_BY, VECTORS, icr_of
 from firmware_model.mcu.cpu import MAIN_LEVEL, Cpu
 from firmware_model.timing import TICK_HZ
 
@@ -29,7 +31,19 @@ def _pct(counts, q: float) -> int:
     return value
 
 
-def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int) -> dict:
+def costed_by(name: str, costs: CycleCosts = DEFAULT_COSTS) -> dict:
+    """Where handler ``name``'s cycles come from: its vector and ICR (none for main-loop
+    work) and its rows of the cycle-cost table, each with its cycles and its source's kind
+    (``manual``, ``soft-float``, ``estimate``, or the file that changed it)."""
+    v = VECTORS.get(name)
+    return {"vector": v.number if v else None, "icr": icr_of(v.number) if v else None,
+            "costs": {row: {"cycles": getattr(costs, row).cycles,
+                            "source": getattr(costs, row).source.split(":")[0]}
+                      for row in COSTED_BY.get(name, ())}}
+
+
+def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int,
+               costs: CycleCosts = DEFAULT_COSTS) -> dict:
     """The report of one CPU as plain data (JSON-ready): ``span`` ticks of simulated time."""
     rows = []
     for s in sorted(cpu.stats.values(), key=lambda s: (s.level, s.name)):
@@ -47,6 +61,7 @@ def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int) -> dict:
             "worst_case_us": round(worst * US, 1),
             **({"deadline_us": round(byte_ticks * US, 1)} if s.name.startswith("UART0 RX")
                else {}),
+            **costed_by(s.name, costs),
         })
     return {"load": round(cpu.busy / span, 6) if span else 0.0, "handlers": rows}
 
@@ -62,7 +77,7 @@ def print_cpu_report(world, costs, console=None) -> dict:
     span = world.sched.now
     out = {}
     for r, cpu in sorted(world.cpus.items()):
-        rep = cpu_budget(cpu, costs.sample_wait_max.cycles, world.byte_ticks[r], span)
+        rep = cpu_budget(cpu, costs.sample_wait_max.cycles, world.byte_ticks[r], span, costs)
         out[r] = rep
         uart = world.stations[r].uart
         con.print(f"[bold]R{r} CPU budget[/bold] (MB90F549 at 16 MHz, cycle costs: "
@@ -72,14 +87,15 @@ def print_cpu_report(world, costs, console=None) -> dict:
         deadline = None
         t = Table(box=box.SIMPLE_HEAD, show_edge=False, padding=(0, 1),
                   collapse_padding=True)
-        for col in ("handler", "lvl", "calls/s", "cycles", "load %", "latency us",
+        for col in ("handler", "vec", "lvl", "calls/s", "cycles", "load %", "latency us",
                     "response us", "worst us"):
             t.add_column(col, justify="left" if col == "handler" else "right", no_wrap=True)
         for h in rep["handlers"]:
             worst = f"{h['worst_case_us']:g}"
             if "deadline_us" in h:
                 deadline = (h["handler"], h["worst_case_us"], h["deadline_us"])
-            t.add_row(h["handler"], "-" if h["level"] == MAIN_LEVEL else str(h["level"]),
+            t.add_row(h["handler"], "-" if h["vector"] is None else str(h["vector"]),
+                      "-" if h["level"] == MAIN_LEVEL else str(h["level"]),
                       f"{h['per_second']:g}", str(h["cycles_per_call"]),
                       f"{h['load'] * 100:.2f}", "/".join(f"{v:g}" for v in h["latency_us"]),
                       "/".join(f"{v:g}" for v in h["response_us"]), worst)
@@ -90,4 +106,13 @@ def print_cpu_report(world, costs, console=None) -> dict:
     con.print("cycles: entry + body + RETI of one call; latency: request to acceptance; "
               "response: request to the handler's effects (p50/p99/max); worst adds the longest "
               f"instruction ({costs.sample_wait_max.cycles} cycles), which is not simulated")
+    con.print(f"vec: the MB90540/545 vector (ICR = (vec - 11) // 2; firmware_model/interrupts.py)"
+              f"; each call costs entry {costs.entry.cycles} + RETI {costs.reti.cycles} "
+              f"({costs.entry.source.split(':')[0]}) and its body, from these rows of the "
+              f"cycle-cost table (docs/cpu.md; docs/fidelity.md says which are sourced):")
+    named = sorted({h["handler"]: h for rep in out.values() for h in rep["handlers"]}.items(),
+                   key=lambda kv: (kv[1]["level"], kv[0]))
+    for name, h in named:
+        rows = ", ".join(f"{row} {c['cycles']} ({c['source']})" for row, c in h["costs"].items())
+        con.print(f"  {name}: {rows or 'none'}")
     return out

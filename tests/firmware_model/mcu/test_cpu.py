@@ -313,15 +313,22 @@ def rprs(*args):
 
 
 def test_cpu_report_as_json():
-    p = rprs("sim", "--robots", "0,1", "--duration", "5", "--can", "--cpu-report", "--json",
-             "--no-progress")
+    p = rprs("sim", "--robots", "0,1", "--duration", "5", "--can", "--load", "1",
+             "--cpu-report", "--json", "--no-progress")
     assert p.returncode == 0, p.stderr
     summary = report = json.loads(p.stdout)         # one JSON document (json.load reads it)
     assert "cpu_load" in summary
     names = [h["handler"] for h in report["cpu_report"]["1"]["handlers"]]
-    assert "UART0 RX" in names and "CAN RX" in names
+    assert "UART0 RX" in names and "CAN0 RX" in names
     uart = next(h for h in report["cpu_report"]["1"]["handlers"] if h["handler"] == "UART0 RX")
     assert uart["worst_case_us"] < uart["deadline_us"]
+    # each handler's vector, ICR and the cost rows its cycles come from, with their sources
+    assert (uart["vector"], uart["icr"]) == (37, 13)
+    assert uart["costs"] == {"uart_rx_byte": {"cycles": 160, "source": "estimate"},
+                             "mac_frame": {"cycles": 1200, "source": "estimate"}}
+    main = next(h for h in report["cpu_report"]["1"]["handlers"] if h["handler"] == "main loop")
+    assert main["vector"] is None and main["costs"]["mul16"]["source"] == "manual"
+    assert main["costs"]["f_sin"]["source"] == "soft-float"
 
 
 def test_cpu_options_refuse_nonsense(tmp_path):
