@@ -119,8 +119,8 @@ class Store:
             import pyarrow as pa
             import pyarrow.parquet as pq
         except ImportError:
-            raise StoreError("Parquet needs pyarrow (pip install pyarrow, or the project's "
-                             "'test' extra); --csv needs nothing more") from None
+            raise StoreError("Parquet needs pyarrow, which comes with the 'campaign' extra: "
+                             "pip install 'rprs[campaign]'; --csv needs nothing more") from None
         rows = self.flat_rows()
         names = sorted({k for r in rows for k in r}, key=lambda k: (
             COLUMNS.index(k) if k in COLUMNS else len(COLUMNS), k))

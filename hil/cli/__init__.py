@@ -25,6 +25,23 @@ from typing import Sequence
 
 from .common import Parser, Terminated, UserError, stdout_gone
 
+EXTRA_OF = {"matplotlib": "plot", "textual": "ui", "dask": "campaign", "distributed": "campaign",
+            "numpy": "campaign", "pyarrow": "campaign"}
+"""The libraries the core install leaves out (pyproject.toml), by the extra that brings each:
+the firmware model, the simulator, the bench and the captures need none of them."""
+
+
+def missing_extra(exc: ModuleNotFoundError, command: str | None) -> str | None:
+    """The one line for a command that needs a library of an extra not installed, or None
+    when the missing module is none of those (a real error, raised as it is)."""
+    top = (exc.name or "").split(".")[0]
+    extra = EXTRA_OF.get(top)
+    if extra is None:
+        return None
+    what = f"'rprs {command}'" if command else "this command"
+    return (f"{what} needs {top}, which comes with the '{extra}' extra: "
+            f"pip install 'rprs[{extra}]' (or 'rprs[all]' for every extra)")
+
 __all__ = ["build_parser", "main", "UserError"]
 
 COMMANDS = ("sim", "demo", "robots", "plot", "monitor", "soak", "campaign", "hub", "inject",
@@ -164,6 +181,12 @@ def _main(argv: list[str]) -> int:
         return a.func(a)
     except UserError as exc:
         print(f"rprs: error: {exc}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as exc:
+        line = missing_extra(exc, argv[0] if argv else None)
+        if line is None:
+            raise
+        print(f"rprs: error: {line}", file=sys.stderr)
         return 2
     except Terminated:
         print("rprs: terminated", file=sys.stderr)

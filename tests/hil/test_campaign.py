@@ -400,7 +400,7 @@ def test_an_export_that_cannot_be_written_names_its_file_and_leaves_it(tmp_path,
     failed to write: as root, ``--parquet /dev/full`` deleted /dev/full."""
     from hil.cli import main
     if fmt == "--parquet":
-        pytest.importorskip("pyarrow", reason="pyarrow not installed (the 'test' extra has it)")
+        pytest.importorskip("pyarrow", reason="pyarrow not installed (the 'campaign' extra has it)")
     full = full_device
     db = tmp_path / "r.sqlite"
     Store(db).close()
