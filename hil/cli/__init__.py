@@ -40,7 +40,8 @@ def missing_extra(exc: ModuleNotFoundError, command: str | None) -> str | None:
         return None
     what = f"'rprs {command}'" if command else "this command"
     return (f"{what} needs {top}, which comes with the '{extra}' extra: "
-            f"pip install 'rprs[{extra}]' (or 'rprs[all]' for every extra)")
+            f"pip install 'rprs[{extra}]' (in a checkout: pip install -e '.[{extra}]'; "
+            f"'all' for every extra)")
 
 __all__ = ["build_parser", "main", "UserError"]
 

@@ -76,6 +76,13 @@ class Load:
         self.rngs = {r: random.Random(f"{cfg.seed}:load:{r}") for r in cfg.robots}
         robots = sorted(cfg.robots)
         self.others = {r: [x for x in robots if x != r] for r in robots}
+        self.due: dict[int, int] = {}
+        """Each robot's next message arrival (tick): what the quiet ring's probe asks before
+        it pays for a snapshot (hil/sim/quiet_ring.py)."""
+
+    def next_arrival(self) -> int | None:
+        """The tick of the next message arrival of any robot, None if none is due (ticks)."""
+        return min(self.due.values()) if self.due else None
 
     def start(self, r: int) -> None:
         """Robot ``r`` has powered on: its first messages, or its first arrival."""
@@ -113,9 +120,11 @@ class Load:
 
     def _schedule_arrival(self, r: int) -> None:
         dt = max(1, round(self.rngs[r].expovariate(float(self.load)) * TICK_HZ))
+        self.due[r] = self.sched.now + dt
         self.sched.after(dt, self._arrival, r)
 
     def _arrival(self, r: int) -> None:
+        del self.due[r]
         if not self.on():
             return
         rng = self.rngs[r]

@@ -74,7 +74,6 @@ from typing import TYPE_CHECKING, Any
 from firmware_model.mcu.scheduler import Event
 
 from .domains import SimScheduler
-from .load import Load
 from firmware_model.radio.mac import PC2_CHECK_EVERY
 
 from .state_walk import Unwalkable, advance, period_steps, snapshot, writable
@@ -114,9 +113,6 @@ MIN_LEAP_TICKS = 2 * 16_000_000
 """A leap shorter than this (2 s) is not taken (ticks): the snapshots that found the period cost
 more than running that stretch frame by frame (a 2-robot ring runs a simulated second in
 about 3 ms; a snapshot of it takes about 5 ms, more as the run's records grow)."""
-_ARRIVAL = Load._arrival
-"""The load's next message (hil/sim/load.py): an event no period moves, so one due within
-MIN_LEAP_TICKS rules a leap out before any snapshot is taken."""
 _ALONE_HISTORY = 4 * 7 * 3
 """Frames of a deaf station a snapshot is compared back over: its cycle is ``poll_every`` (4)
 times the rounds of the ring it believes in (up to 7 turns each), and its polling position."""
@@ -224,15 +220,15 @@ class QuietRing:
         if self._skip:
             self._skip -= 1
             return
+        due = self.world.load.next_arrival()
+        if due is not None and due < now + MIN_LEAP_TICKS:
+            # a message arrives (the load's next draw, never part of a cycle) before a leap
+            # could reach MIN_LEAP_TICKS: no snapshot, whose cost the leap could not repay
+            self._last = None
+            return
         sched = self.world.sched
         events = sched.pending(None)
         if len(events) != len(sched):          # another owner's events (a domain): not ours
-            self._last = None
-            return
-        soon = now + MIN_LEAP_TICKS
-        if any(e.when < soon and getattr(e.fn, "__func__", None) is _ARRIVAL for e in events):
-            # a message arrives (the load's next draw, never part of a cycle) before a leap
-            # could reach MIN_LEAP_TICKS: no snapshot, whose cost the leap could not repay
             self._last = None
             return
         deaf = self.world.deaf_stations()

@@ -484,3 +484,27 @@ def test_a_loaded_rings_snapshots_leave_its_records_out_and_back_off():
     # entries, is all that grew in the first)
     assert max(sizes) <= 1.1 * max(early), (max(early), max(sizes))
     assert len(sizes) < 100, len(sizes)                    # about one in 64 probes, at most
+
+
+def test_a_probe_takes_no_snapshot_while_the_loads_next_message_is_near():
+    """The load's next arrival (``Load.next_arrival``) is no event a period moves: while it
+    is due within ``MIN_LEAP_TICKS`` no leap could pay for a snapshot, so the probe takes none
+    (and asks the load, not the scheduler's whole heap)."""
+    from hil.sim import quiet_ring as qr
+
+    w = World(SimConfig(robots=(1, 2), duration=240, seed=1, load=1.0))
+    taken: list[tuple[int, int | None]] = []
+    real = qr.snapshot
+
+    def watched(*args, **kw):
+        taken.append((w.sched.now, w.load.next_arrival()))
+        return real(*args, **kw)
+    qr.snapshot = watched
+    try:
+        w.run()
+    finally:
+        qr.snapshot = real
+    probes_met = w.quiet_ring.probes
+    assert taken and len(taken) == probes_met
+    assert all(due is None or due >= now + qr.MIN_LEAP_TICKS for now, due in taken), taken
+    assert len(taken) < 20                       # a 2-robot ring at 1/s: rarely 2 s of quiet
