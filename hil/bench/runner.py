@@ -13,6 +13,7 @@ prints what it receives.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import signal
 import sys
@@ -31,7 +32,7 @@ from firmware_model.radio.content import parse_content
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.mac import (
     UNACKNOWLEDGED, Deliver, Disable, DuplicateId, ForeignRing, Join, MacConfig, Message, Miss,
-    ModeChange, NumberBehind, Outcome, Refused, RotationalMac, SubmitError, Transmit,
+    ModeChange, NumberBehind, Outcome, Refused, RotationalMac, SubmitError, Transmit, TxEnable,
 )
 from firmware_model.radio.auth import clock_freshness
 from firmware_model.station import RadioStation, Stalled, build_station
@@ -39,6 +40,18 @@ from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
 
 from ..sim.realtime import RealTimeScheduler
 from .serial_radio import PortError, SerialChannel, open_port
+
+LOG = logging.getLogger("rprs.bench")
+"""The bench processes' log (``rprs child -v``: what was opened; ``-vv``: every frame sent and
+heard and every action of the MAC, stamped with the station's tick)."""
+
+
+def _log_actions(st: RadioStation, a: object, now: int) -> None:
+    """A station's observer at debug level: each action of its MAC, one line."""
+    if isinstance(a, Transmit):
+        LOG.debug("t=%d robot %d sends %s", now, st.id, a.frame)
+    elif type(a) is not TxEnable:
+        LOG.debug("t=%d robot %d: %s", now, st.id, a)
 
 
 REALTIME_MARGINS = {
@@ -275,6 +288,11 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
         port.close()
         raise RunError(str(exc)) from None
     channel.attach(radio)
+    LOG.info("robot %d: radio on %s, TXEN %s, %d ticks a byte; margins twin %d, tslot %d, "
+             "quiet gap %d, stall gap %d ticks", robot, port_spec, txen, byte_ticks,
+             config.twin, config.tslot, config.quiet_gap, config.stall_gap)
+    if LOG.isEnabledFor(logging.DEBUG):
+        station.add_observer(_log_actions)
     channel.on_lost = lambda why: runner.fail(f"the radio port {port_spec} went away ({why})")
     channel.on_error = runner.warn       # a frame that could not be written: lost, said
     channel.start()
@@ -320,6 +338,7 @@ def _can_bus(runner: Runner, spec: str, log: str | None) -> PythonCanBus:
         raise RunError(f"cannot write CAN log {log}: {exc}") from None
     bus.on_lost = runner.fail        # the interface removed: it cannot go on (status 1)
     runner.on_close(bus.close)
+    LOG.info("CAN bus %s open%s", spec, f", logging to {log}" if log else "")
     return bus
 
 

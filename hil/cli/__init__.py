@@ -78,7 +78,42 @@ def build_parser(modules: Sequence[str] = COMMANDS) -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for name in modules:
         importlib.import_module(f"{__name__}.{name}").add(sub)
+    _add_logging_options(p)
     return p
+
+
+LOG_LEVELS = ("debug", "info", "warning", "error", "critical")
+
+
+def _add_logging_options(p: argparse.ArgumentParser) -> None:
+    """``-v``/``--verbose`` and ``--log-level`` on ``p`` and on every command under it (before
+    or after the command's name). SUPPRESS: a subcommand's unset option leaves the value its
+    parent parsed."""
+    g = p.add_argument_group("logging")
+    g.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                   help="log more on stderr: -v info, -vv debug (python-can, the bench)")
+    g.add_argument("--log-level", choices=LOG_LEVELS, default=argparse.SUPPRESS,
+                   metavar="LEVEL", help=f"the log level, one of {', '.join(LOG_LEVELS)} "
+                   f"(default: warning)")
+    for action in p._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in set(action.choices.values()):
+                _add_logging_options(child)
+
+
+def configure_logging(a: argparse.Namespace) -> int:
+    """Python's logging, configured once for the command: to stderr, one line a record, at
+    ``--log-level`` or by ``-v`` count (warning, info, debug). Returns the level."""
+    import logging
+    name = getattr(a, "log_level", None)
+    if name is not None:
+        level = getattr(logging, name.upper())
+    else:
+        level = {0: logging.WARNING, 1: logging.INFO}.get(getattr(a, "verbose", 0),
+                                                        logging.DEBUG)
+    logging.basicConfig(level=level, stream=sys.stderr,
+                        format="rprs: %(levelname)s %(name)s: %(message)s", force=True)
+    return level
 
 
 def _parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
@@ -179,6 +214,7 @@ def _main(argv: list[str]) -> int:
         if extra:              # the command's own help lists what it takes
             raise UserError(f"unrecognized arguments: {' '.join(extra)} "
                             f"(see 'rprs {a.command} --help')")
+        configure_logging(a)
         return a.func(a)
     except UserError as exc:
         print(f"rprs: error: {exc}", file=sys.stderr)

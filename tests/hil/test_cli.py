@@ -938,3 +938,56 @@ def test_output_to_a_terminal_is_still_rich():
     os.close(master)
     assert p.returncode == 0
     assert b"\x1b[1mRPRS ring" in out, bytes(out[:300])
+
+
+@pytest.mark.parametrize("args, level", [
+    ([], "WARNING"),
+    (["-v"], "INFO"),
+    (["-vv"], "DEBUG"),
+    (["--log-level", "error"], "ERROR"),
+    (["-vv", "--log-level", "warning"], "WARNING"),      # the level named wins
+])
+def test_logging_is_configured_once_from_v_or_log_level(capsys, args, level):
+    import logging
+    before = logging.getLogger().level
+    try:
+        code, _, _ = rprs(capsys, "sim", "--robots", "1,2", "--duration", "1", "--no-progress",
+                          *args)
+        assert code == 0
+        assert logging.getLevelName(logging.getLogger().level) == level
+        code, _, _ = rprs(capsys, *args, "sim", "--robots", "1,2", "--duration", "1",
+                          "--no-progress")                 # before the command's name too
+        assert code == 0
+        assert logging.getLevelName(logging.getLogger().level) == level
+    finally:
+        logging.getLogger().setLevel(before)
+
+
+def test_every_command_takes_the_logging_options():
+    from hil.cli import build_parser
+    p = build_parser()
+    for argv in (["sim", "-v"], ["campaign", "run", "x.toml", "--log-level", "debug"],
+                 ["bench", "cycle", "--radio", "/dev/null", "-vv"],
+                 ["decode", "-v", "--hex", "00"]):
+        a, _ = p.parse_known_args(argv)
+        assert getattr(a, "verbose", None) or getattr(a, "log_level", None), argv
+
+
+def test_a_bench_process_logs_what_it_opened_at_v(tmp_path):
+    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "1",
+                            "--link-dir", str(tmp_path / "air")], cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 20
+        while not (tmp_path / "air" / "node0").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        p = subprocess.run([sys.executable, "-m", "hil.cli", "child", "-v", "--id", "1",
+                            "--radio", str(tmp_path / "air" / "node0"), "--duration", "1"],
+                           cwd=ROOT, capture_output=True, text=True, timeout=60)
+    finally:
+        hub.terminate()
+        hub.communicate(timeout=10)
+    assert p.returncode == 0, p.stderr
+    assert re.search(r"rprs: INFO rprs\.bench: robot 1: radio on .*node0, TXEN none, 16640 "
+                     r"ticks a byte", p.stderr), p.stderr
+    assert "DEBUG" not in p.stderr
