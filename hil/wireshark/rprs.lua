@@ -39,6 +39,20 @@ f.auth_fresh = ProtoField.uint32("rprs.auth.fresh", "Freshness value carried by 
                                  base.HEX)
 f.auth_tag = ProtoField.uint32("rprs.auth.tag", "Tag carried by auth() (HMAC-SHA256, 4 bytes)",
                                base.HEX)
+-- the analysis of a capture (as tcp.analysis.* does for TCP): the message a frame carries, its
+-- sendings and its acknowledgement (docs/protocol.md clause 47), and what the air did to it
+f.retrans = ProtoField.bool("rprs.analysis.retransmission", "Retransmission")
+f.retrans_of = ProtoField.framenum("rprs.analysis.retransmission_of",
+                                   "Retransmission of the message first sent in frame",
+                                   base.NONE, frametype.REQUEST)
+f.acked_in = ProtoField.framenum("rprs.analysis.acked_in", "Acknowledged in frame",
+                                 base.NONE, frametype.ACK)
+f.ack_rtt = ProtoField.relative_time("rprs.analysis.ack_rtt",
+                                     "Time from the first sending to the acknowledgement")
+f.acks = ProtoField.framenum("rprs.analysis.acks",
+                             "Acknowledges the message sent in frame", base.NONE, frametype.ACK)
+f.collided = ProtoField.bool("rprs.analysis.collided", "Collided with another transmission")
+f.aborted = ProtoField.bool("rprs.analysis.aborted", "Cut short: the sender's radio died")
 
 local e_header = ProtoExpert.new("rprs.header.bad", "No Header 0F 0A 05: garbage or a cut frame",
                                  expert.group.MALFORMED, expert.severity.ERROR)
@@ -50,7 +64,40 @@ local e_end = ProtoExpert.new("rprs.end.bad", "End is not 17 19",
                               expert.group.MALFORMED, expert.severity.ERROR)
 local e_crc = ProtoExpert.new("rprs.crc.bad", "crc() does not match the frame's bytes",
                               expert.group.CHECKSUM, expert.severity.ERROR)
-rprs.experts = { e_header, e_digit, e_length, e_end, e_crc }
+local e_retrans = ProtoExpert.new("rprs.analysis.retransmission.expert",
+                                  "Retransmission: this message was sent before",
+                                  expert.group.SEQUENCE, expert.severity.WARN)
+local e_collided = ProtoExpert.new("rprs.analysis.collided.expert",
+                                   "Collided: the air carried another transmission at once, "
+                                   .. "so receivers heard garbage", expert.group.MALFORMED,
+                                   expert.severity.ERROR)
+local e_aborted = ProtoExpert.new("rprs.analysis.aborted.expert",
+                                  "Cut short: the sender's radio died mid-frame",
+                                  expert.group.MALFORMED, expert.severity.ERROR)
+rprs.experts = { e_header, e_digit, e_length, e_end, e_crc, e_retrans, e_collided, e_aborted }
+
+-- the packet comment the simulator and the hub write on a collided or cut transmission
+local comment_field = Field.new("frame.comment")
+
+-- MAC-layer commands (docs/protocol.md §4): a frame with nothing else carries no message
+local mac_commands = { ack = true, crc = true, poll = true, ring = true, auth = true }
+
+-- robot names for the Source and Destination columns
+local function robot_name(id)
+    if id == nil then return "?" end
+    if id == 0 then return "father 0" end
+    if id == 7 then return "all" end
+    return "R" .. id
+end
+
+-- per capture, filled on the first pass: message key -> its first sending (frame, time);
+-- (src, num) -> that first sending; frame -> the first sending it repeats; (src, num) -> the
+-- first frame that acknowledged it; frame -> the (src, num) it acknowledges. A field that
+-- looks ahead (acknowledged in) needs a second pass: tshark -2, or the GUI
+local first_sent, sent_as, repeats, acked, ack_of = {}, {}, {}, {}, {}
+function rprs.init()
+    first_sent, sent_as, repeats, acked, ack_of = {}, {}, {}, {}, {}
+end
 
 -- CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final XOR), protocol clause 20
 local function crc16(bytes)
@@ -113,6 +160,9 @@ function rprs.dissector(tvb, pinfo, tree)
     local len = number(tvb, 8, 4, t, f.len, "Length")
     local info = string.format("%s -> %s #%s %s", src or "?", dst or "?", num or "?",
                                type_names[typ] or ("type " .. (typ or "?")))
+    pinfo.cols.src = robot_name(src)
+    pinfo.cols.dst = robot_name(dst)
+    local app = {}          -- the application commands: the message this frame carries
     local clen = len
     if len == nil or 12 + len + 2 > n then
         t:add_proto_expert_info(e_length)
@@ -129,6 +179,19 @@ function rprs.dissector(tvb, pinfo, tree)
             local item = ct:add(f.cmd, tvb(12 + s - 1, e - s + 1), name)
             item:add(f.args, tvb(12 + s - 1 + #name + 1, #args > 0 and #args or 0), args)
             info = info .. " " .. name .. "(" .. args .. ")"
+            if not mac_commands[name] then
+                app[#app + 1] = name .. "(" .. args .. ")"
+            elseif name == "ack" and not pinfo.visited then
+                local a_src, a_num = args:match("^(%d+),(%d+)$")
+                if a_src then
+                    local k = tonumber(a_src) .. ":" .. tonumber(a_num)
+                    if acked[k] == nil then
+                        acked[k] = { frame = pinfo.number, time = pinfo.abs_ts }
+                    end
+                    ack_of[pinfo.number] = ack_of[pinfo.number] or {}
+                    table.insert(ack_of[pinfo.number], k)
+                end
+            end
             pos = e + 1
         end
         -- the checksum extension: crc(NNNNN) ends Content and covers Destination up to the
@@ -163,6 +226,63 @@ function rprs.dissector(tvb, pinfo, tree)
         end
         if 12 + len + 2 < n then
             t:add_proto_expert_info(e_length, "bytes after End")
+        end
+    end
+    -- the analysis: retransmissions and acknowledgements of the message (src, num)
+    local a = t:add(rprs, tvb(), "Analysis")
+    a:set_generated()
+    if src ~= nil and num ~= nil and #app > 0 then
+        local key = src .. ":" .. (dst or "?") .. ":" .. num .. ":" .. (typ or "?") .. ":" ..
+                    table.concat(app)
+        if not pinfo.visited then
+            local first = first_sent[key]
+            if first == nil then
+                first_sent[key] = { frame = pinfo.number, time = pinfo.abs_ts }
+                sent_as[src .. ":" .. num] = first_sent[key]
+            elseif first.frame ~= pinfo.number then
+                repeats[pinfo.number] = first
+            end
+        end
+        local first = repeats[pinfo.number]
+        if first ~= nil then
+            a:add(f.retrans, true):set_generated()
+            local item = a:add(f.retrans_of, first.frame)
+            item:set_generated()
+            item:add_proto_expert_info(e_retrans)
+            info = "[retransmission] " .. info
+        end
+        local ack = acked[src .. ":" .. num]
+        local sent = first or first_sent[key]
+        if ack ~= nil and sent ~= nil and ack.frame > pinfo.number then
+            a:add(f.acked_in, ack.frame):set_generated()
+            if first == nil then
+                local d = ack.time - sent.time
+                local whole = math.floor(d)
+                a:add(f.ack_rtt, NSTime.new(whole, math.floor((d - whole) * 1e9 + 0.5)))
+                    :set_generated()
+            end
+        end
+    end
+    for _, k in ipairs(ack_of[pinfo.number] or {}) do
+        local sent = sent_as[k]
+        if sent ~= nil and sent.frame < pinfo.number then
+            a:add(f.acks, sent.frame):set_generated()
+        end
+    end
+    local comment = comment_field()
+    if comment ~= nil then
+        local text = tostring(comment.value)
+        if text:find("collided") then
+            local item = a:add(f.collided, true)
+            item:set_generated()
+            item:add_proto_expert_info(e_collided)
+            info = "[collided] " .. info
+        end
+        if text:find("aborted") then
+            local item = a:add(f.aborted, true)
+            item:set_generated()
+            item:add_proto_expert_info(e_aborted)
+            info = "[cut short] " .. info
         end
     end
     pinfo.cols.info = info
@@ -294,7 +414,16 @@ for id, m in pairs(dbc_messages) do
     for i, s in ipairs(m.signals) do
         local key = m.name:lower() .. "." .. s.name
         local label = s.name .. (s.unit ~= "" and (" (" .. s.unit .. ")") or "")
-        local fld = ProtoField.double("rprs_can." .. key, label)
+        local fld
+        if s.choices and s.scale == 1 and s.offset == 0 then
+            -- an enumeration: an integer field with its value names, so that a filter may
+            -- name the value (rprs_can.status1.state == "idle")
+            fld = (s.signed and ProtoField.int32 or ProtoField.uint32)(
+                "rprs_can." .. key, label, base.DEC, s.choices)
+            s.enum = true
+        else
+            fld = ProtoField.double("rprs_can." .. key, label)
+        end
         sig_fields[id][i] = fld
         cf[key] = fld
     end
@@ -322,7 +451,11 @@ function rcan.dissector(tvb, pinfo, tree)
             local name = s.choices and s.choices[raw]
             local shown = text .. (s.unit ~= "" and (" " .. s.unit) or "") ..
                           (name and (" (" .. name .. ")") or "")
-            t:add(sig_fields[id][i], r, v):set_text(s.name .. ": " .. shown)
+            if s.enum then
+                t:add(sig_fields[id][i], r, raw):set_text(s.name .. ": " .. shown)
+            else
+                t:add(sig_fields[id][i], r, v):set_text(s.name .. ": " .. shown)
+            end
             parts[#parts + 1] = s.name .. "=" .. (name or text)
         end
     end

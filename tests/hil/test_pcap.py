@@ -425,3 +425,88 @@ def test_tshark_decodes_the_authenticated_profiles_freshness_and_tag(tmp_path):
            for r in (x.split("|") for x in out.stdout.splitlines())]
     assert len(got) == len(want) > 15 and got == want
     assert ("foreign transmitters", 0xBEEF, 0x12345678) in got
+
+
+RETRY_ARGS = ("--robots", "0,1,2", "--duration", "20", "--seed", "4", "--load", "2",
+              "--ber", "0.002", "--no-progress")
+"""Byte errors under load: frames lost, messages sent again, acknowledgements late."""
+
+
+@pytest.fixture(scope="module")
+def retries(tmp_path_factory):
+    d = tmp_path_factory.mktemp("retries")
+    p = rprs("sim", *RETRY_ARGS, "--pcap", str(d / "run.pcapng"), "--trace",
+             str(d / "run.jsonl"))
+    assert p.returncode == 0, p.stderr
+    trace = [json.loads(x) for x in (d / "run.jsonl").read_text().splitlines()]
+    return d / "run.pcapng", trace
+
+
+def _tshark_rows(path, *args):
+    out = subprocess.run([TSHARK, "-X", f"lua_script:{plugin_path()}", "-r", str(path),
+                          *args], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.splitlines()
+
+
+@needs_tshark
+def test_tshark_names_the_robots_in_the_source_and_destination_columns(run):
+    path, _ = run
+    lines = _tshark_rows(path, "-Y", "rprs")
+    assert all(("→" in x) for x in lines)
+    assert any("father 0 → all" in x for x in lines)
+    assert any(" R1 → " in x or " R2 → " in x for x in lines)
+
+
+@needs_tshark
+def test_every_retransmission_on_the_air_is_flagged_and_every_ack_found(retries):
+    """The simulator's ground truth: a message delivered after ``attempts`` sendings was on
+    the air ``attempts`` times, so ``attempts - 1`` of its frames repeat it; the dissector must
+    flag exactly those, each pointing at the message's first sending."""
+    path, trace = retries
+    ended = {(e["src"], e["num"]): e["attempts"] for e in trace if e["ev"] == "delivered"}
+    failed = {(e["src"], e["num"]) for e in trace if e["ev"] == "fail"}
+    rows = [r.split("|") for r in _tshark_rows(
+        path, "-2", "-T", "fields", "-E", "separator=|", "-e", "frame.number", "-e",
+        "rprs.src", "-e", "rprs.num", "-e", "rprs.analysis.retransmission_of", "-e",
+        "rprs.analysis.acked_in", "-e", "rprs.content", "-e", "rprs.analysis.collided")]
+    by_number = {r[0]: r for r in rows}
+    flagged: dict[tuple[int, int], int] = {}
+    for n, src, num, of, acked, content, collided in rows:
+        if of and not collided:
+            key = (int(src), int(num))
+            flagged[key] = flagged.get(key, 0) + 1
+            first = by_number[of]
+            assert (first[1], first[2]) == (src, num) and int(of) < int(n)
+    expected = {k: a - 1 for k, a in ended.items() if a > 1 and k not in failed}
+    assert expected, "the run sent nothing twice: no check"
+    assert {k: v for k, v in flagged.items() if k in expected} == expected
+    assert not {k for k in flagged if k not in expected and k not in failed}
+    acked = [r for r in rows if r[4]]
+    assert len(acked) > 20
+    for r in acked:
+        ack = by_number[r[4]]
+        assert f"ack({r[1]},{int(r[2])})" in ack[5] and int(ack[0]) > int(r[0])
+
+
+@needs_tshark
+def test_collided_frames_are_flagged_as_errors(run):
+    path, trace = run
+    collided = [e for e in trace if e["ev"] in ("frame", "interference") and e["collided"]]
+    rows = _tshark_rows(path, "-Y", "rprs.analysis.collided", "-T", "fields", "-e",
+                        "frame.number")
+    assert collided and len(rows) == len(collided)
+    experts = _tshark_rows(path, "-Y", "rprs.analysis.collided.expert", "-T", "fields", "-e",
+                           "frame.number")
+    assert experts == rows
+
+
+@needs_tshark
+def test_a_can_enumeration_filters_by_its_value_name(run):
+    path, _ = run
+    def states(name):
+        return _tshark_rows(path, "-Y", f'rprs_can.joint1_status.state == "{name}"', "-T",
+                            "fields", "-e", "rprs_can.joint1_status.state")
+    moving, idle = states("moving"), states("idle")
+    assert moving and idle
+    assert set(moving) == {"1"} and set(idle) == {"0"}      # can_bus/rprs.dbc's VAL_
