@@ -10,9 +10,13 @@ from .common import UserError
 
 
 def personal_plugins_dir() -> Path:
-    """Wireshark's personal Lua plugins folder on Linux and macOS:
+    """Wireshark's personal Lua plugins folder: on Linux and macOS
     ``$XDG_CONFIG_HOME/wireshark/plugins`` (``~/.config/wireshark/plugins``) when that
-    folder exists, else ``~/.local/lib/wireshark/plugins``."""
+    folder exists, else ``~/.local/lib/wireshark/plugins``; on Windows
+    ``%APPDATA%\\Wireshark\\plugins``."""
+    if os.name == "nt":                    # Windows: %APPDATA%\Wireshark\plugins
+        return Path(os.environ.get("APPDATA") or Path.home() / "AppData" / "Roaming") \
+            / "Wireshark" / "plugins"
     config = Path(os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config")
     if (config / "wireshark" / "plugins").is_dir():
         return config / "wireshark" / "plugins"

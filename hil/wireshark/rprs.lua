@@ -13,6 +13,13 @@
 -- rprs.crc.ok == 0, rprs.auth.fresh > 0x100, rprs_can.msg == "JOINT3_CMD",
 -- rprs_can.joint3_cmd.angle > 50.
 
+-- Installed (rprs wireshark --install) and also given with -X lua_script:PATH, the file runs
+-- twice in Wireshark's one Lua state: the second time it stops here, rather than failing to
+-- register the protocols again (a Lua traceback on every run, an error dialog in the GUI).
+for _, name in ipairs(Dissector.list()) do
+    if name == "rprs" then return end
+end
+
 local rprs = Proto("rprs", "RPRS radio frame")
 
 local type_names = {

@@ -510,3 +510,22 @@ def test_a_can_enumeration_filters_by_its_value_name(run):
     moving, idle = states("moving"), states("idle")
     assert moving and idle
     assert set(moving) == {"1"} and set(idle) == {"0"}      # can_bus/rprs.dbc's VAL_
+
+
+@needs_tshark
+def test_the_installed_plugin_and_the_documented_x_option_together_load_it_once(run, tmp_path):
+    """docs/wireshark.md installs the dissector, then runs tshark with -X lua_script:PATH:
+    the file runs twice, and once failed to register its protocols again (a Lua traceback on
+    every run)."""
+    import os
+    path, _ = run
+    env = dict(os.environ, HOME=str(tmp_path), XDG_CONFIG_HOME=str(tmp_path / ".config"))
+    inst = subprocess.run([sys.executable, "-m", "hil.cli", "wireshark", "--install"], env=env,
+                          capture_output=True, text=True, timeout=60)
+    assert inst.returncode == 0, inst.stderr
+    assert (tmp_path / ".local" / "lib" / "wireshark" / "plugins" / "rprs.lua").exists()
+    for extra in ([], ["-X", f"lua_script:{plugin_path()}"]):
+        out = subprocess.run([TSHARK, *extra, "-r", str(path), "-Y", "rprs.src == 1"], env=env,
+                             capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0 and "Lua" not in out.stderr, out.stderr
+        assert "R1 → " in out.stdout
