@@ -33,10 +33,14 @@ class BenchCapture:
     (None: no radio); ``can``: the CAN bus's name (None: no CAN bus)."""
 
     def __init__(self, sched: Any, stream: BinaryIO, robot: int | None, radio: bool,
-                 can: str | None) -> None:
+                 can: str | None, listener: str | None = None) -> None:
+        """``listener``: a listen-only capture (``rprs capture``): one interface,
+        ``<listener>, heard``, and no robot of its own."""
         self.sched = sched
         radios: dict[object, str] = {} if not radio else {"sent": f"R{robot} radio, sent",
                                        "heard": f"R{robot} radio, heard"}
+        if listener is not None:
+            radios = {"heard": f"{listener}, heard"}
         buses = {} if can is None else {0: f"CAN {can}"}
         self.writer = PcapWriter(stream, radios, buses, tsresol=9)
         self.writer.follow(sched)       # stamps: the wall clock of the scheduler's tick 0

@@ -46,12 +46,13 @@ def missing_extra(exc: ModuleNotFoundError, command: str | None) -> str | None:
 __all__ = ["build_parser", "main", "UserError"]
 
 COMMANDS = ("sim", "demo", "robots", "plot", "monitor", "soak", "campaign", "hub", "inject",
-            "bench", "conformance", "codec", "wireshark")
+            "bench", "capture", "conformance", "codec", "wireshark")
 """The command modules; each adds its subcommands in this order (the order of ``rprs --help``)."""
 
 MODULE_OF = {"sim": "sim", "demo": "demo", "child": "robots", "submodules": "robots",
              "father": "robots", "plot": "plot", "monitor": "monitor", "soak": "soak",
              "campaign": "campaign", "radio-hub": "hub", "inject": "inject", "bench": "bench",
+             "capture": "capture",
              "conformance": "conformance", "encode": "codec", "decode": "codec",
              "wireshark": "wireshark"}
 """The module that adds each command: ``rprs NAME ...`` imports that module only, so that a

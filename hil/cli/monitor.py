@@ -43,7 +43,7 @@ def _monitor(a: argparse.Namespace) -> int:
                                 ("--json", a.json)) if v]
         if given:
             raise UserError(f"{', '.join(given)}: only for the simulated ring, not with --radio "
-                            f"(record a radio with rprs bench or the hub)")
+                            f"(capture a radio with rprs capture --radio PORT --pcap FILE)")
         _need_a_terminal("listen with rprs bench link --radio PORT")
         try:
             return run_monitor_radio(a.radio)

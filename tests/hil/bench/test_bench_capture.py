@@ -93,3 +93,64 @@ def test_stamps_are_the_wall_clock_when_the_scheduler_runs_not_when_it_was_built
     # stamped at the event's tick on the scheduler's clock: within the event's lateness of
     # the wall clock then, not 0.3 s before it (the sleep above)
     assert -50_000_000 < stamp - written[0] <= 0
+
+
+def test_rprs_capture_listens_on_a_hub_node_and_writes_the_ring_it_hears(tmp_path):
+    """``rprs capture``: a listen-only station on a radio's port, here a hub node beside a
+    father and a child: every packet it writes is a whole frame of theirs (or flagged noise),
+    stamped on the wall clock, to a file or to stdout for a pipe."""
+    import subprocess
+    import sys
+
+    from firmware_model.radio.frame import parse_frame
+    from paths import ROOT
+
+    def rprs(*args, **kw):
+        return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT, **kw)
+    air = tmp_path / "air"
+    hub = rprs("radio-hub", "--nodes", "3", "--link-dir", str(air),
+               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    procs = []
+    try:
+        deadline = time.monotonic() + 20
+        while not (air / "node2").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        procs = [rprs("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
+                      "--duration", "8", stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL),
+                 rprs("father", "--plain", "--no-input", "--radio", str(air / "node1"),
+                      "--team", "0,1", "--duration", "8", stdout=subprocess.DEVNULL,
+                      stderr=subprocess.DEVNULL)]
+        t0 = time.time_ns()
+        to_file = subprocess.run([sys.executable, "-m", "hil.cli", "capture", "--radio",
+                                  str(air / "node2"), "--pcap", str(tmp_path / "air.pcapng"),
+                                  "--duration", "3"], cwd=ROOT, capture_output=True,
+                                 text=True, timeout=60)
+        to_pipe = subprocess.run([sys.executable, "-m", "hil.cli", "capture", "--radio",
+                                  str(air / "node2"), "--pcap", "-", "--duration", "2"],
+                                 cwd=ROOT, capture_output=True, timeout=60)
+    finally:
+        for p in procs:
+            p.wait(timeout=30)
+        hub.terminate()
+        hub.wait(timeout=10)
+    assert to_file.returncode == 0, to_file.stderr
+    assert "listen only" in to_file.stderr
+    pkts = _packets(_Stream((tmp_path / "air.pcapng").read_bytes()))
+    assert {p[0] for p in pkts} == {f"radio on {air / 'node2'}, heard"}
+    frames = [parse_frame(data) for _, _, data in pkts if data[:3] == b"\x0f\x0a\x05"]
+    assert len(frames) > 20 and {f.src for f in frames} == {0, 1}
+    assert all(t0 < ns < time.time_ns() for _, ns, _ in pkts)
+    assert to_pipe.returncode == 0, to_pipe.stderr
+    piped = _packets(_Stream(to_pipe.stdout))
+    assert len([p for p in piped if p[2][:3] == b"\x0f\x0a\x05"]) > 10
+
+
+def test_rprs_capture_refuses_a_port_that_is_not_there(tmp_path):
+    import subprocess
+    import sys
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "capture", "--radio",
+                        str(tmp_path / "nothing"), "--pcap", str(tmp_path / "c.pcapng")],
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.strip() == f"rprs: error: serial port {tmp_path / 'nothing'} does not exist"
+    assert not (tmp_path / "c.pcapng").exists()

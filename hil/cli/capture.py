@@ -1,0 +1,78 @@
+"""``rprs capture``: a listen-only station on a radio's serial port (a USB radio, a hub node)
+that writes what it hears as pcapng for Wireshark (docs/wireshark.md): the same link type and
+the same cut into frames as a bench process's ``--pcap`` (hil/bench/capture.py)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from types import SimpleNamespace
+from typing import Any
+
+from firmware_model.timing import PC_BYTE_TICKS
+
+from .common import UserError
+
+
+class _Ears:
+    """The radio model a listen-only channel feeds: always listening, sending nothing; the
+    capture (the channel's tap) is what hears."""
+
+    def __init__(self, byte_ticks: int) -> None:
+        self.uart = SimpleNamespace(byte_ticks=byte_ticks)
+        self.channel: Any = None
+
+    def listening(self, now: int) -> bool:
+        return True
+
+    def deliver(self, data: bytes, t0: int, bt: int) -> None:
+        pass
+
+
+def cmd_capture(a: argparse.Namespace) -> int:
+    from ..bench.capture import BenchCapture
+    from ..bench.runner import Runner
+    from ..bench.serial_radio import PortError, SerialChannel, open_port
+    if a.duration is not None and not a.duration > 0:
+        raise UserError(f"--duration must be a number of seconds > 0, got {a.duration:g}")
+    try:
+        port = open_port(a.radio)
+    except PortError as exc:
+        raise UserError(str(exc)) from None
+    runner = Runner()
+    try:
+        stream = sys.stdout.buffer if a.pcap == "-" else open(a.pcap, "wb")
+    except OSError as exc:
+        port.close()
+        raise UserError(f"cannot write capture {a.pcap}: {exc.strerror or exc}") from None
+    cap = BenchCapture(runner.sched, stream, None, True, None, listener=f"radio on {a.radio}")
+    channel = SerialChannel(runner.sched, port, "none")
+    channel.attach(_Ears(PC_BYTE_TICKS))               # type: ignore[arg-type]
+    channel.tap = cap
+    channel.on_lost = lambda why: runner.fail(f"the radio port {a.radio} went away ({why})")
+    runner.sched.on_start(channel.flush)
+    runner.on_close(channel.close)
+    runner.on_close(cap.close, last=True)
+    channel.start()
+    where = "stdout" if a.pcap == "-" else a.pcap
+    runner.run(a.duration, ready=lambda: print(
+        f"capturing {a.radio} to {where} (listen only: nothing is sent); Ctrl-C stops",
+        file=sys.stderr, flush=True))
+    print(f"capture: {channel.bytes_in} bytes heard in {runner.sched.now / 16e6:.1f} s"
+          + (f"; {cap.error}" if cap.error else ""), file=sys.stderr)
+    if runner.failure is not None:
+        print(f"rprs: error: {runner.failure}", file=sys.stderr)
+        return 1
+    return 1 if cap.error else 0
+
+
+def add(sub) -> None:
+    c = sub.add_parser("capture", help="listen on a radio's serial port and write what it hears "
+                       "as pcapng for Wireshark (nothing is sent)")
+    c.add_argument("--radio", required=True, metavar="PORT",
+                   help="the serial port of a radio (/dev/ttyUSB0, a hub node, socket://...)")
+    c.add_argument("--pcap", required=True, metavar="FILE",
+                   help="the capture: a file, a FIFO (mkfifo f; wireshark -k -i f), or - for "
+                        "stdout (rprs capture ... --pcap - | wireshark -k -i -)")
+    c.add_argument("--duration", type=float, metavar="SECONDS",
+                   help="stop after this long (default: until Ctrl-C or SIGTERM)")
+    c.set_defaults(func=cmd_capture)
