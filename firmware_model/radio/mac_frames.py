@@ -18,6 +18,10 @@ from .mac_events import Message
 if TYPE_CHECKING:
     from .mac import RotationalMac
 
+HB_CACHE_MAX = 256
+"""Heartbeat frames a MAC keeps built, by (Number, MAC Content, type): a bounded cache (the
+simulator's snapshots walk it: hil/sim/quiet_ring.py)."""
+
 
 @lru_cache(maxsize=2048)
 def _layers(content: bytes) -> tuple[tuple[Command, ...], tuple[Command, ...]]:
@@ -202,7 +206,7 @@ def _build_frame(self: RotationalMac, now: int, out: list) -> tuple[Frame, bytes
     if hit is None:
         frame = self._frame(BROADCAST, num, kind, content)
         hit = (frame, frame.encode())
-        if len(self._hb_cache) < 256:
+        if len(self._hb_cache) < HB_CACHE_MAX:
             self._hb_cache[key] = hit
     return hit
 

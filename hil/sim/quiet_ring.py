@@ -113,6 +113,13 @@ MIN_LEAP_TICKS = 2 * 16_000_000
 """A leap shorter than this (2 s) is not taken (ticks): the snapshots that found the period cost
 more than running that stretch frame by frame (a 2-robot ring runs a simulated second in
 about 3 ms; a snapshot of it takes about 5 ms, more as the run's records grow)."""
+LOADED_LEAP_TICKS = 8 * 16_000_000
+"""The load's next message must be at least this far (8 s, ticks) for a probe to take a
+snapshot: a leap ends at that message, needs two snapshots a period apart first (about 10 ms
+for a 2-robot ring, the cost of running 3.3 simulated s of it), so a shorter one costs more
+than it saves. Measured: a 2-robot ring at a message a second cost 13 % more instructions
+with its probes taking snapshots on a 2 s horizon than without the quiet ring at all
+(benchmarks/instructions.py, ``loaded``)."""
 _ALONE_HISTORY = 4 * 7 * 3
 """Frames of a deaf station a snapshot is compared back over: its cycle is ``poll_every`` (4)
 times the rounds of the ring it believes in (up to 7 turns each), and its polling position."""
@@ -152,6 +159,9 @@ class QuietRing:
         self._last_at = 0
         self._misses = 0
         self._skip = 0
+        self._hold_until = 0
+        """No probe before this tick (the load's next message, while it was too near for a
+        leap to pay: only its arrival can move the next one further off)."""
         self._activity: tuple[int, ...] = ()
         self._own_hooks = world.hooks()      # the world's own wiring, as built
         # trace events since the last probe (only while a World.run is under way), and those
@@ -190,7 +200,8 @@ class QuietRing:
         self._count += 1
         if self._count % self.every == 0 and self.until is not None:
             sched = self.world.sched
-            sched.at(sched.now, self._probe)
+            if sched.now >= self._hold_until:
+                sched.at(sched.now, self._probe)
 
     def _watched(self) -> bool:
         """Does anything outside the world see frames or actions one by one (but the trace,
@@ -221,10 +232,11 @@ class QuietRing:
             self._skip -= 1
             return
         due = self.world.load.next_arrival()
-        if due is not None and due < now + MIN_LEAP_TICKS:
+        if due is not None and due < now + LOADED_LEAP_TICKS:
             # a message arrives (the load's next draw, never part of a cycle) before a leap
-            # could reach MIN_LEAP_TICKS: no snapshot, whose cost the leap could not repay
+            # could repay its snapshots: none taken, nor any probe until it has arrived
             self._last = None
+            self._hold_until = due
             return
         sched = self.world.sched
         events = sched.pending(None)

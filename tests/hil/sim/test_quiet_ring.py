@@ -471,28 +471,33 @@ def test_a_loaded_rings_snapshots_leave_its_records_out_and_back_off():
         snap = real(*args, **kw)
         sizes.append(len(snap.shape))
         return snap
-    w = World(SimConfig(robots=(1, 2), duration=480, seed=1, load=1.0))
+    # a message each 10 s a robot on average: the probes snapshot between messages (8 s
+    # of quiet: LOADED_LEAP_TICKS)
+    w = World(SimConfig(robots=(1, 2), duration=960, seed=1, load=0.1))
+    import firmware_model.radio.mac_frames as frames
+    cache_max, frames.HB_CACHE_MAX = frames.HB_CACHE_MAX, 8    # bounded: full early on
     qr.snapshot = counted
     try:
-        w.run(s_to_ticks(240))
+        w.run(s_to_ticks(480))
         early = list(sizes)
         w.run()
     finally:
         qr.snapshot = real
-    assert len(w.messages) > 400 and early and len(sizes) > len(early)   # records grew all run
-    # the second half of the run: the same size (a MAC's heartbeat cache, at most 256
-    # entries, is all that grew in the first)
+        frames.HB_CACHE_MAX = cache_max
+    assert len(w.messages) > 150 and early and len(sizes) > len(early)   # records grew all run
+    # the second half of the run: the same size (a MAC's heartbeat cache, bounded, is all
+    # that grew in the first)
     assert max(sizes) <= 1.1 * max(early), (max(early), max(sizes))
     assert len(sizes) < 100, len(sizes)                    # about one in 64 probes, at most
 
 
 def test_a_probe_takes_no_snapshot_while_the_loads_next_message_is_near():
     """The load's next arrival (``Load.next_arrival``) is no event a period moves: while it
-    is due within ``MIN_LEAP_TICKS`` no leap could pay for a snapshot, so the probe takes none
-    (and asks the load, not the scheduler's whole heap)."""
+    is due within ``LOADED_LEAP_TICKS`` no leap could pay for its snapshots, so the probe
+    takes none (and asks the load, not the scheduler's whole heap)."""
     from hil.sim import quiet_ring as qr
 
-    w = World(SimConfig(robots=(1, 2), duration=240, seed=1, load=1.0))
+    w = World(SimConfig(robots=(1, 2), duration=480, seed=1, load=0.1))
     taken: list[tuple[int, int | None]] = []
     real = qr.snapshot
 
@@ -504,7 +509,6 @@ def test_a_probe_takes_no_snapshot_while_the_loads_next_message_is_near():
         w.run()
     finally:
         qr.snapshot = real
-    probes_met = w.quiet_ring.probes
-    assert taken and len(taken) == probes_met
-    assert all(due is None or due >= now + qr.MIN_LEAP_TICKS for now, due in taken), taken
-    assert len(taken) < 20                       # a 2-robot ring at 1/s: rarely 2 s of quiet
+    assert taken and len(taken) == w.quiet_ring.probes
+    assert all(due is None or due >= now + qr.LOADED_LEAP_TICKS for now, due in taken), taken
+    assert w.quiet_ring.leaps > 0
