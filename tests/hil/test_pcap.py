@@ -472,7 +472,7 @@ def test_every_retransmission_on_the_air_is_flagged_and_every_ack_found(retries)
         "rprs.analysis.acked_in", "-e", "rprs.content", "-e", "rprs.analysis.collided")]
     by_number = {r[0]: r for r in rows}
     flagged: dict[tuple[int, int], int] = {}
-    for n, src, num, of, acked, content, collided in rows:
+    for n, src, num, of, _acked, _content, collided in rows:
         if of and not collided:
             key = (int(src), int(num))
             flagged[key] = flagged.get(key, 0) + 1

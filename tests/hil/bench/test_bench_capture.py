@@ -102,6 +102,7 @@ def test_rprs_capture_listens_on_a_hub_node_and_writes_the_ring_it_hears(tmp_pat
     import subprocess
     import sys
 
+    from firmware_model.radio.errors import FrameError
     from firmware_model.radio.frame import parse_frame
     from paths import ROOT
 
@@ -137,8 +138,15 @@ def test_rprs_capture_listens_on_a_hub_node_and_writes_the_ring_it_hears(tmp_pat
     assert "listen only" in to_file.stderr
     pkts = _packets(_Stream((tmp_path / "air.pcapng").read_bytes()))
     assert {p[0] for p in pkts} == {f"radio on {air / 'node2'}, heard"}
-    frames = [parse_frame(data) for _, _, data in pkts if data[:3] == b"\x0f\x0a\x05"]
-    assert len(frames) > 20 and {f.src for f in frames} == {0, 1}
+    frames, cut = [], 0
+    for _, _, data in pkts:
+        if data[:3] == b"\x0f\x0a\x05":
+            try:
+                frames.append(parse_frame(data))
+            except FrameError:      # begun or ended inside a frame; or, on a loaded host,
+                cut += 1            # bytes late past the quiet time (hil/bench/capture.py)
+    assert len(frames) > 20 and {f.src for f in frames} == {0, 1}, len(frames)
+    assert cut <= 2 + len(frames) // 10, (len(frames), cut)
     assert all(t0 < ns < time.time_ns() for _, ns, _ in pkts)
     assert to_pipe.returncode == 0, to_pipe.stderr
     piped = _packets(_Stream(to_pipe.stdout))
