@@ -55,6 +55,11 @@ class Outcome:
     task_s: float
     chunks: int
     workers: int = 1
+    lost: int = 0
+    """Runs the cluster lost (a worker's death, a scheduler restart) on every try: stored as
+    ``lost``, not as results; the next ``campaign run`` runs them again."""
+    retried: int = 0
+    """Runs whose task was lost and sent again."""
 
     @property
     def overhead(self) -> float:
@@ -104,13 +109,22 @@ def local_cluster(workers: int, processes: bool = True, threads_per_worker: int 
                         silence_logs=logging.CRITICAL)
 
 
+RETRIES = 2
+"""How many times a task the cluster lost is sent again before its runs are stored lost."""
+
+
 def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
                  workers: int | None = None, allow_dirty: bool = False,
                  measure: Callable[[Any], dict] = metrics_of,
                  on_progress: Callable[[int, int], None] | None = None,
-                 client: Any = None) -> Outcome:
-    """Run every missing run of ``spec`` into ``store``. StoreError when results would mix
-    commits or come from a dirty tree (unless ``allow_dirty``)."""
+                 client: Any = None, retries: int = RETRIES) -> Outcome:
+    """Run every missing (or lost) run of ``spec`` into ``store``. StoreError when results
+    would mix commits or come from a dirty tree (unless ``allow_dirty``).
+
+    A run that raises is a result (``crashed``, with its traceback). A task that fails
+    instead (its worker died, the scheduler lost it: Dask's ``KilledWorker``) is no result:
+    it is sent again up to ``retries`` times, then its runs are stored ``lost``, which the
+    report leaves out and the next run of the campaign runs again."""
     commit, dirty = source_state()
     if not allow_dirty:
         if dirty:
@@ -146,21 +160,29 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
         t0 = time.perf_counter()             # the runs' wall time, not the cluster's start
         chunks = chunked(items, nworkers, spec.chunk)
         futures = client.map(run_chunk, chunks, measure=measure, pure=False)
-        ran = crashed = 0
+        ran = crashed = lost = retried = 0
         task_s = 0.0
-        todo = {f.key: c for f, c in zip(futures, chunks)}
-        for fut in as_completed(futures):
-            chunk = todo[fut.key]
+        todo = {f.key: (c, 0) for f, c in zip(futures, chunks)}
+        pending = as_completed(futures)
+        for fut in pending:
+            chunk, tries = todo.pop(fut.key)
             try:
                 rows = fut.result()
-            except Exception as e:    # noqa: BLE001 - a lost worker: its runs are recorded
+            except Exception as e:    # noqa: BLE001 - the cluster lost the task, not a run
+                if tries < retries:
+                    again = client.submit(run_chunk, chunk, measure=measure, pure=False)
+                    todo[again.key] = (chunk, tries + 1)
+                    pending.add(again)
+                    retried += len(chunk)
+                    continue
                 rows = [{"run_key": k, "point_key": pk, "args": list(a), "seed_index": i,
-                         "seed": s, "status": "crashed", "metrics": None, "wall_s": 0.0,
-                         "worker": "?", "error": f"the task failed: {type(e).__name__}: {e}"}
-                        for k, pk, a, i, s in chunk]
+                         "seed": s, "status": "lost", "metrics": None, "wall_s": 0.0,
+                         "worker": "?", "error": f"the cluster lost the task {tries + 1} "
+                         f"time(s): {type(e).__name__}: {e}"} for k, pk, a, i, s in chunk]
             store.add(rows, commit, dirty)
             ran += len(rows)
-            crashed += sum(1 for r in rows if r["status"] != "ok")
+            crashed += sum(1 for r in rows if r["status"] == "crashed")
+            lost += sum(1 for r in rows if r["status"] == "lost")
             task_s += sum(r["wall_s"] for r in rows)
             if on_progress is not None:
                 on_progress(ran, len(items))
@@ -170,4 +192,5 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
             if cluster is not None:
                 cluster.close()
     wall = time.perf_counter() - t0
-    return Outcome(spec.runs, skipped, ran, crashed, wall, task_s, len(chunks), nworkers)
+    return Outcome(spec.runs, skipped, ran, crashed, wall, task_s, len(chunks), nworkers,
+                   lost, retried)

@@ -62,7 +62,8 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     bootstrap intervals, and the failing runs' commands."""
     by_point: dict[str, list[dict]] = defaultdict(list)
     for r in rows:
-        by_point[r["point_key"]].append(r)
+        if r["status"] != "lost":        # the cluster lost it: no result (store.py)
+            by_point[r["point_key"]].append(r)
     out = []
     for key in sorted(by_point):
         runs = by_point[key]

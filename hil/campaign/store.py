@@ -2,7 +2,8 @@
 
 Table ``runs``: ``run_key`` (primary key: a run is stored once), ``point_key`` (the grid
 point's canonical parameters, JSON), ``args`` (its ``rprs sim`` arguments, JSON), ``seed_index``,
-``seed``, ``status`` (``ok`` or ``crashed``), ``error`` (the traceback of a crashed run),
+``seed``, ``status`` (``ok``; ``crashed``: the model raised; ``lost``: the cluster lost the task,
+no result, run again by the next ``campaign run``), ``error`` (the traceback of a crashed run),
 ``metrics`` (JSON), ``wall_s``, ``worker``, ``commit_id`` and ``dirty`` (the source the run
 was made with), ``finished_at`` (UTC). Table ``meta``: the campaign's name and root seed.
 """
@@ -64,13 +65,26 @@ class Store:
 
     # -- runs -------------------------------------------------------------------------------
     def done(self) -> set[str]:
-        return {k for (k,) in self.db.execute("SELECT run_key FROM runs")}
+        """The runs with a result (ok or crashed): a lost run is to be run again."""
+        return {k for (k,) in self.db.execute("SELECT run_key FROM runs WHERE status != 'lost'")}
+
+    def counts(self) -> dict[str, int]:
+        """Stored runs by status: ``ok``, ``crashed`` (the model raised), ``lost`` (the cluster
+        lost the task: no result)."""
+        out = {"ok": 0, "crashed": 0, "lost": 0}
+        for status, n in self.db.execute("SELECT status, COUNT(*) FROM runs GROUP BY status"):
+            out[status] = n
+        return out
 
     def commits(self) -> set[tuple[str, int]]:
         return set(self.db.execute("SELECT DISTINCT commit_id, dirty FROM runs"))
 
     def add(self, rows: Iterable[dict[str, Any]], commit_id: str, dirty: bool) -> int:
-        """Store rows (a run already stored is kept as it was); returns how many were new."""
+        """Store rows (a run already stored is kept as it was, unless it was lost); returns
+        how many were new."""
+        rows = list(rows)
+        self.db.executemany("DELETE FROM runs WHERE run_key = ? AND status = 'lost'",
+                            [(r["run_key"],) for r in rows if r["status"] != "lost"])
         now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
         cur = self.db.executemany(
             "INSERT OR IGNORE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?)",

@@ -65,7 +65,8 @@ def cmd_run(a: argparse.Namespace) -> int:
         bar.start()
     try:
         out = run_campaign(spec, store, scheduler=a.scheduler, workers=a.workers,
-                           allow_dirty=a.allow_dirty, on_progress=progress)
+                           allow_dirty=a.allow_dirty, on_progress=progress,
+                           retries=a.retries)
     except StoreError as e:
         raise UserError(str(e)) from None
     except OSError as e:
@@ -78,6 +79,38 @@ def cmd_run(a: argparse.Namespace) -> int:
           f"{out.ran} run now ({out.crashed} crashed) in {out.wall_s:.1f} s on "
           f"{out.workers} worker(s), {out.chunks} chunks; time not in runs "
           f"{out.overhead * 100:.1f} %")
+    if out.retried or out.lost:
+        print(f"the cluster lost tasks: {out.retried} run(s) sent again, {out.lost} lost on "
+              f"every try (stored as lost, not as results: run the campaign again to run "
+              f"them)")
+    return 1 if out.lost else 0
+
+
+def cmd_status(a: argparse.Namespace) -> int:
+    """What a campaign's results file holds against its file, running nothing."""
+    from ..campaign.runs import check_args
+    from ..campaign.seeds import run_key
+    from ..campaign.spec import SpecError, load_spec
+    from ..campaign.store import Store, StoreError
+    try:
+        spec = load_spec(a.spec, check=check_args)
+    except SpecError as e:
+        raise UserError(str(e)) from None
+    db = _db_for(a.spec, a.db)
+    if not Path(db).is_file():
+        print(f"campaign {spec.name}: {spec.runs} runs, none done yet (no {db})")
+        return 0
+    try:
+        store = Store(db)
+        counts, done = store.counts(), store.done()
+        store.close()
+    except StoreError as e:
+        raise UserError(str(e)) from None
+    mine = {run_key(p.key, i) for p in spec.points for i in range(spec.seeds)}
+    missing = len(mine - done)
+    print(f"campaign {spec.name} in {db}: {spec.runs} runs; done {counts['ok']}, crashed "
+          f"{counts['crashed']} (the model raised: results), lost {counts['lost']} (the "
+          f"cluster lost them: to run again), missing {missing}")
     return 0
 
 
@@ -103,8 +136,11 @@ def cmd_report(a: argparse.Namespace) -> int:
         print(json.dumps({"points": points, "plots": files}, indent=1))
         return 0
     meta = store.meta()
+    lost = sum(1 for r in rows if r["status"] == "lost")
     print(f"campaign {meta.get('name', '?')} (root seed {meta.get('root_seed', '?')}): "
-          f"{len(rows)} runs, {sum(p['crashed'] for p in points)} crashed")
+          f"{len(rows) - lost} runs, {sum(p['crashed'] for p in points)} crashed"
+          + (f"; {lost} lost by the cluster, left out (campaign run runs them again)"
+             if lost else ""))
     for p in points:
         print(f"\n{json.dumps(p['point'], sort_keys=True)}: {p['runs']} runs")
         if p["failed_rate"] is not None:
@@ -160,7 +196,15 @@ def add(sub) -> None:
     r.add_argument("--allow-dirty", action="store_true", help="run from a tree with "
                    "uncommitted changes, or add to results of another commit")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.add_argument("--retries", type=int, default=2, metavar="N",
+                   help="send a task the cluster lost (a worker died) again up to N times "
+                        "before its runs are stored as lost (default: 2)")
     r.set_defaults(func=cmd_run)
+    st = csub.add_parser("status", help="done, crashed, lost and missing runs of a campaign, "
+                         "running nothing")
+    st.add_argument("spec", metavar="SPEC.toml", help="the campaign file")
+    st.add_argument("--db", metavar="FILE", help="the results file (default: SPEC.sqlite)")
+    st.set_defaults(func=cmd_status)
     rep = csub.add_parser("report", help="per grid point: rates with Wilson intervals, "
                           "re-formation quantiles, the failing runs as commands")
     rep.add_argument("db", metavar="RESULTS.sqlite")

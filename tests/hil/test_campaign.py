@@ -320,8 +320,14 @@ def test_the_real_source_state_is_a_commit_of_this_checkout():
 # ---------------------------------------------------------------- the command line
 def test_cli_run_report_and_export(spec_file, tmp_path):
     db = tmp_path / "cli.sqlite"
+    st = rprs("campaign", "status", str(spec_file), "--db", str(db))
+    assert st.returncode == 0 and "4 runs, none done yet" in st.stdout, st.stderr
     r = run_cli(spec_file, db)
     assert "4 runs planned, 0 already in" in r.stdout and "0 crashed" in r.stdout
+    st = rprs("campaign", "status", str(spec_file), "--db", str(db))
+    assert st.returncode == 0, st.stderr
+    assert "4 runs; done 4, crashed 0" in st.stdout and "lost 0" in st.stdout and \
+        "missing 0" in st.stdout
     rep = rprs("campaign", "report", str(db), "--json", "--plots", str(tmp_path / "plots"))
     assert rep.returncode == 0, rep.stderr
     data = json.loads(rep.stdout)
@@ -335,8 +341,8 @@ def test_cli_run_report_and_export(spec_file, tmp_path):
         table = list(csv.DictReader(fh))
     assert len(table) == 4 and {r["status"] for r in table} == {"ok"}
     assert {r["param_robots"] for r in table} == {"1,2", "0,1,2"}
-    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow not installed (the 'test' "
-                             "extra has it)")
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow not installed (the "
+                             "'campaign' extra has it)")
     t = pq.read_table(tmp_path / "runs.parquet").to_pylist()
     assert sorted((r["run_key"], r["m_submitted"]) for r in t) == \
         sorted((r["run_key"], int(r["m_submitted"])) for r in table)
@@ -409,3 +415,114 @@ def test_an_export_that_cannot_be_written_names_its_file_and_leaves_it(tmp_path,
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
     assert err.startswith(f"rprs: error: cannot write {full}: No space left on device"), err
     assert full.is_char_device()
+
+
+def _results(store):
+    return {r["run_key"]: (r["status"], r["metrics"]) for r in store.rows()}
+
+
+def _undisturbed(spec, tmp_path):
+    from dask.distributed import Client
+    store = Store(tmp_path / "clean.sqlite")
+    cluster = engine.local_cluster(1, processes=False, threads_per_worker=2)
+    client = Client(cluster)
+    try:
+        run_campaign(spec, store, client=client)
+    finally:
+        client.close()
+        cluster.close()
+    return _results(store)
+
+
+def test_a_task_the_cluster_loses_is_sent_again_or_stored_lost_never_as_a_result(
+        spec_file, tmp_path, monkeypatch):
+    """A task that fails (its worker died: Dask's KilledWorker) is no result: sent again
+    (``retries``), and if lost every time stored ``lost``, left out of the report, shown by
+    ``campaign status`` and run again by the next ``campaign run``, which then holds what an
+    undisturbed campaign holds."""
+    import functools
+
+    from dask.distributed import Client
+
+    from campaign_faults import lose_always, lose_first
+    spec = load_spec(spec_file, check=check_args)
+    clean = _undisturbed(spec, tmp_path)
+    cluster = engine.local_cluster(1, processes=False, threads_per_worker=1)
+    client = Client(cluster)
+    try:                                 # (functions of a module: pickled by reference)
+        monkeypatch.setattr(engine, "run_chunk",
+                            functools.partial(lose_first, str(tmp_path / "lost")))
+        retried = run_campaign(spec, Store(tmp_path / "r.sqlite"), client=client)
+        monkeypatch.setattr(engine, "run_chunk", lose_always)
+        store = Store(tmp_path / "l.sqlite")
+        gone = run_campaign(spec, store, client=client, retries=1)
+        assert store.counts() == {"ok": 0, "crashed": 0, "lost": 4}
+        assert summarize(store.rows()) == []                 # no result to report
+        monkeypatch.undo()
+        monkeypatch.setattr(engine, "source_state", lambda root=None: ("c0ffee", False))
+        again = run_campaign(spec, store, client=client)     # the lost runs, run again
+    finally:
+        client.close()
+        cluster.close()
+    assert (retried.lost, retried.crashed, retried.ran) == (0, 0, 4) and retried.retried > 0
+    assert _results(Store(tmp_path / "r.sqlite")) == clean
+    assert (gone.lost, gone.crashed) == (4, 0)
+    assert again.skipped == 0 and again.ran == 4 and again.lost == 0
+    assert _results(store) == clean and store.counts()["lost"] == 0
+
+
+KILLED_DRIVER = """
+import functools, json, sys
+
+import dask
+from dask.distributed import Client
+
+from campaign_faults import die_once
+from hil.campaign import engine
+from hil.campaign.engine import run_campaign
+from hil.campaign.runs import check_args
+from hil.campaign.spec import load_spec
+from hil.campaign.store import Store
+
+
+def main(spec_path, db, marker):
+    engine.source_state = lambda root=None: ("c0ffee", False)
+    spec = load_spec(spec_path, check=check_args)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        cluster = engine.local_cluster(2)
+        client = Client(cluster)
+        try:
+            out = run_campaign(spec, Store(db), client=client,
+                               measure=functools.partial(die_once, marker))
+        finally:
+            client.close()
+            cluster.close()
+    print(json.dumps({"retried": out.retried, "lost": out.lost, "crashed": out.crashed}))
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:])
+"""
+
+
+@pytest.mark.slow  # a LocalCluster of worker processes, one killed: about 15 s
+def test_a_worker_killed_mid_campaign_changes_no_count_of_the_report(spec_file, tmp_path):
+    """A worker process dies mid-run (os._exit, as the OOM killer would) and the scheduler
+    gives up on its task at once (allowed-failures 0): the engine sends the task again, and
+    the report's counts are the undisturbed campaign's. (In a process of its own: the
+    worker processes' multiprocessing resource tracker outlives the cluster.)"""
+    spec = load_spec(spec_file, check=check_args)
+    clean = _undisturbed(spec, tmp_path)
+    driver = tmp_path / "killed.py"
+    driver.write_text(KILLED_DRIVER)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
+    p = subprocess.run([sys.executable, str(driver), str(spec_file), str(tmp_path / "k.sqlite"),
+                        str(tmp_path / "died")], capture_output=True, text=True, timeout=300,
+                       env=env, preexec_fn=_nice)
+    assert p.returncode == 0, p.stderr[-3000:]
+    out = json.loads(p.stdout.strip().splitlines()[-1])
+    assert (tmp_path / "died").exists()                  # a worker did die
+    assert out["retried"] > 0 and out["lost"] == 0 and out["crashed"] == 0
+    store = Store(tmp_path / "k.sqlite")
+    assert _results(store) == clean
+    assert summarize(store.rows()) == summarize(list(Store(tmp_path / "clean.sqlite").rows()))
