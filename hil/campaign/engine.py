@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from .code import code_identity
 from .runs import metrics_of, run_chunk
 from .seeds import run_key, run_seed
 from .spec import Spec
@@ -109,6 +110,24 @@ def local_cluster(workers: int, processes: bool = True, threads_per_worker: int 
                         silence_logs=logging.CRITICAL)
 
 
+class CodeMismatch(StoreError):
+    """A worker runs other code than the client (an edited copy, another checkout)."""
+
+
+def check_workers(client: Any) -> None:
+    """CodeMismatch unless every worker of ``client`` runs the client's code (the digest of
+    the simulator's sources, hil/campaign/code.py: Dask's own version check covers the
+    libraries, not this project)."""
+    mine = code_identity()
+    theirs = client.run(code_identity)
+    other = {addr: digest for addr, digest in theirs.items() if digest != mine}
+    if other:
+        raise CodeMismatch(
+            f"{len(other)} of {len(theirs)} worker(s) run other code than this client "
+            f"(sources {', '.join(sorted(set(other.values())))} against {mine}): "
+            + ", ".join(sorted(other)) + "; start them from this checkout")
+
+
 RETRIES = 2
 """How many times a task the cluster lost is sent again before its runs are stored lost."""
 
@@ -157,6 +176,7 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
         elif workers:                        # a real cluster: wait until that many joined
             client.wait_for_workers(workers, timeout=300)
         nworkers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
+        check_workers(client)
         t0 = time.perf_counter()             # the runs' wall time, not the cluster's start
         chunks = chunked(items, nworkers, spec.chunk)
         futures = client.map(run_chunk, chunks, measure=measure, pure=False)

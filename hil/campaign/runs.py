@@ -13,6 +13,7 @@ import time
 import traceback
 from typing import Any, Callable, NoReturn, Sequence
 
+from .code import code_identity
 from ..sim.soak import run_timing_reformations
 from ..sim.config import SimConfig
 from ..sim.world import World
@@ -88,7 +89,8 @@ def run_one(item: Item, measure: Callable[[SimConfig], dict] = metrics_of) -> di
     t0 = time.perf_counter()
     row: dict[str, Any] = {"run_key": key, "point_key": point_key, "args": list(args),
                            "seed_index": index, "seed": seed,
-                           "worker": f"{socket.gethostname()}:{os.getpid()}"}
+                           "worker": f"{socket.gethostname()}:{os.getpid()}",
+                           "code": code_identity()}
     try:
         row.update(status="ok", error=None, metrics=measure(sim_config_for(args, seed)))
     except Exception:   # noqa: BLE001 - a crashed run is a result, recorded with its cause

@@ -5,7 +5,8 @@ point's canonical parameters, JSON), ``args`` (its ``rprs sim`` arguments, JSON)
 ``seed``, ``status`` (``ok``; ``crashed``: the model raised; ``lost``: the cluster lost the task,
 no result, run again by the next ``campaign run``), ``error`` (the traceback of a crashed run),
 ``metrics`` (JSON), ``wall_s``, ``worker``, ``commit_id`` and ``dirty`` (the source the run
-was made with), ``finished_at`` (UTC). Table ``meta``: the campaign's name and root seed.
+was made with), ``finished_at`` (UTC), ``code`` (the digest of the simulator's sources the
+worker ran: hil/campaign/code.py). Table ``meta``: the campaign's name and root seed.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 COLUMNS = ("run_key", "point_key", "args", "seed_index", "seed", "status", "error", "metrics",
-           "wall_s", "worker", "commit_id", "dirty", "finished_at")
+           "wall_s", "worker", "commit_id", "dirty", "finished_at", "code")
 
 
 class StoreError(ValueError):
@@ -39,7 +40,10 @@ class Store:
                 "CREATE TABLE IF NOT EXISTS runs (run_key TEXT PRIMARY KEY, point_key TEXT, "
                 "args TEXT, seed_index INTEGER, seed INTEGER, status TEXT, error TEXT, "
                 "metrics TEXT, wall_s REAL, worker TEXT, commit_id TEXT, dirty INTEGER, "
-                "finished_at TEXT)")
+                "finished_at TEXT, code TEXT)")
+            have = {row[1] for row in self.db.execute("PRAGMA table_info(runs)")}
+            if "code" not in have:          # a file from before the column: its rows' is NULL
+                self.db.execute("ALTER TABLE runs ADD COLUMN code TEXT")
             self.db.commit()
         except sqlite3.DatabaseError as e:
             raise StoreError(f"{path}: not a campaign results file ({e})") from None
@@ -87,10 +91,11 @@ class Store:
                             [(r["run_key"],) for r in rows if r["status"] != "lost"])
         now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
         cur = self.db.executemany(
-            "INSERT OR IGNORE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?)",
+            f"INSERT OR IGNORE INTO runs ({', '.join(COLUMNS)}) "
+            "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
             [(r["run_key"], r["point_key"], json.dumps(r["args"]), r["seed_index"], r["seed"],
               r["status"], r["error"], json.dumps(r["metrics"]), r["wall_s"], r["worker"],
-              commit_id, int(dirty), now) for r in rows])
+              commit_id, int(dirty), now, r.get("code")) for r in rows])
         self.db.commit()
         return cur.rowcount
 

@@ -189,6 +189,59 @@ def test_a_real_scheduler_and_two_workers_give_the_same_rows(spec_file, tmp_path
     assert _rows(tmp_path / "remote.sqlite") == _rows(tmp_path / "local.sqlite")
 
 
+@pytest.mark.slow  # a real scheduler and a worker from an edited copy: about 15 s
+def test_a_worker_running_other_code_is_refused_before_any_run(spec_file, tmp_path):
+    """A worker started from an edited copy of the packages (one comment added) runs other
+    code than the client: the campaign refuses it before it sends a run, naming it, and
+    stores nothing; rows record the digest of the code that made them."""
+    import shutil
+
+    from hil.campaign.code import PACKAGES, code_identity
+    copy = tmp_path / "copy"
+    for pkg in PACKAGES:
+        shutil.copytree(ROOT / pkg, copy / pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    with open(copy / "hil" / "campaign" / "runs.py", "a") as fh:
+        fh.write("# an edit the client does not have\n")
+    assert code_identity(str(copy)) != code_identity()
+    port = _free_port()
+    addr = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "dask"]
+    env = dict(os.environ, PYTHONPATH=str(copy))
+    procs = [subprocess.Popen([*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, preexec_fn=_nice)]
+    try:
+        procs.append(subprocess.Popen([*dask, "worker", addr, "--nthreads", "1",
+                                       "--no-dashboard"], cwd=copy, env=env,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                      preexec_fn=_nice))
+        r = rprs("campaign", "run", str(spec_file), "--db", str(tmp_path / "m.sqlite"),
+                 "--scheduler", addr, "--workers", "1", "--allow-dirty", "--no-progress")
+    finally:
+        stop(procs)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    assert "1 of 1 worker(s) run other code than this client" in r.stderr, r.stderr
+    assert code_identity(str(copy)) in r.stderr and "start them from this checkout" in r.stderr
+    assert Store(tmp_path / "m.sqlite").rows() == []
+
+
+def test_every_row_records_the_code_that_made_it(spec_file, tmp_path):
+    from dask.distributed import Client
+
+    from hil.campaign.code import code_identity
+    spec = load_spec(spec_file, check=check_args)
+    store = Store(tmp_path / "c.sqlite")
+    cluster = engine.local_cluster(1, processes=False, threads_per_worker=2)
+    client = Client(cluster)
+    try:
+        run_campaign(spec, store, client=client)
+    finally:
+        client.close()
+        cluster.close()
+    assert {r["code"] for r in store.rows()} == {code_identity()}
+    assert len(code_identity()) == 16
+
+
 @pytest.mark.slow  # 24 runs killed mid-way and resumed: about 23 s
 def test_a_killed_campaign_resumes_losing_nothing_and_repeating_nothing(tmp_path):
     spec = tmp_path / "k.toml"
