@@ -57,6 +57,16 @@ def _broke(row: dict[str, Any]) -> list[str]:
     return broken(row["metrics"] if row["status"] == "ok" else None, row["args"])
 
 
+QUANTILES = ((0.5, "p50"), (0.99, "p99"), (0.999, "p99.9"))
+
+
+def runs_for(q: float) -> int:
+    """The fewest runs a ``q`` quantile is reported from: 1 / (1 - q) (2 for the median, 100
+    for p99, 1000 for p99.9). With fewer, the quantile is the sample's largest value and a
+    bootstrap of it is no interval: the report says how many runs it needs instead."""
+    return math.ceil(round(1 / (1 - q), 6))
+
+
 def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per grid point: counts, rates with Wilson intervals, re-formation quantiles with
     bootstrap intervals, and the failing runs' commands."""
@@ -83,10 +93,13 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "corrupted_acted_on": sum(r["metrics"]["corrupted_acted_on"] for r in ok),
             "failing": [{"command": command(r), "broke": _broke(r)} for r in bad],
         }
-        for q, name in ((0.5, "p50"), (0.99, "p99"), (0.999, "p99.9")):
-            if reform:
+        point["duplicates"] = sum(r["metrics"]["duplicates"] for r in ok)
+        for q, name in QUANTILES:
+            if reform and len(reform) >= runs_for(q):
                 est, lo, hi = bootstrap_quantile(reform, q)
                 point[f"reform_{name}_s"] = [round(est, 3), round(lo, 3), round(hi, 3)]
+            elif reform:
+                point[f"reform_{name}_s"] = None          # too few runs: no estimate
         out.append(point)
     return out
 

@@ -152,9 +152,20 @@ def cmd_report(a: argparse.Namespace) -> int:
         lo, hi = p["runs_broken_ci95"]
         print(f"  runs that broke an invariant or crashed: {p['runs_broken']}/{p['runs']} "
               f"(95 % CI {lo:.3f}-{hi:.3f})")
-        for name in ("p50", "p99", "p99.9"):
-            v = p.get(f"reform_{name}_s")
-            if v:
+        if p.get("duplicates"):
+            print(f"  messages delivered twice: {p['duplicates']}"
+                  + ("" if p["point"].get("checksum") else " (without the checksum no "
+                     "invariant promises none: docs/guarantees.md)"))
+        from ..campaign.report import QUANTILES, runs_for
+        for q, name in QUANTILES:
+            key = f"reform_{name}_s"
+            if key not in p:
+                continue
+            v = p[key]
+            if v is None:
+                print(f"  longest re-formation {name}: needs {runs_for(q)} runs with a "
+                      f"re-formation, the point has {p['reform_runs']}")
+            else:
                 print(f"  longest re-formation {name}: {v[0]} s (95 % CI {v[1]}-{v[2]}, "
                       f"{p['reform_runs']} runs)")
         for f in p["failing"]:

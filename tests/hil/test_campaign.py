@@ -579,3 +579,51 @@ def test_a_worker_killed_mid_campaign_changes_no_count_of_the_report(spec_file, 
     store = Store(tmp_path / "k.sqlite")
     assert _results(store) == clean
     assert summarize(store.rows()) == summarize(list(Store(tmp_path / "clean.sqlite").rows()))
+
+
+def _row(point_key, i, **metrics):
+    m = {"submitted": 10, "delivered": 10, "failed": 0, "pending": 0, "duplicates": 0,
+         "misdelivered": 0, "corrupted_acted_on": 0, "collisions": 0, "membership_changes": 0,
+         "reformations": 1, "reform_max_s": 1.0 + i / 100, "not_reformed": 0}
+    m.update(metrics)
+    return {"run_key": f"{point_key}/{i}", "point_key": point_key, "args": ["--robots", "1,2"],
+            "seed_index": i, "seed": i, "status": "ok", "metrics": m, "error": None,
+            "wall_s": 0.1, "worker": "w"}
+
+
+def test_a_duplicate_breaks_an_invariant_only_with_the_checksum():
+    """docs/guarantees.md promises nothing delivered twice only with the checksum extension:
+    without it a duplicate is counted, not a broken run."""
+    from hil.campaign.runs import broken
+    m = _row('{"x":1}', 0, duplicates=2)["metrics"]
+    assert broken(m, ["--robots", "1,2"]) == []
+    assert broken(m, ["--robots", "1,2", "--checksum"]) == ["delivered twice"]
+    assert broken({**m, "duplicates": 0, "misdelivered": 1}, []) == \
+        ["delivered to the wrong robot"]
+    (p,) = summarize([_row('{"checksum":false}', i, duplicates=i % 2) for i in range(6)])
+    assert p["runs_broken"] == 0 and p["duplicates"] == 3
+
+
+def test_a_quantile_is_reported_only_from_enough_runs():
+    """p99 from 100 runs or more, p99.9 from 1000: with fewer the estimate would be the
+    sample's maximum, and its bootstrap no interval. The report says what it needs."""
+    few = summarize([_row('{"x":1}', i) for i in range(16)])[0]
+    assert few["reform_p50_s"] is not None
+    assert few["reform_p99_s"] is None and few["reform_p99.9_s"] is None
+    many = summarize([_row('{"x":1}', i) for i in range(120)])[0]
+    assert many["reform_p99_s"] is not None and many["reform_p99.9_s"] is None
+    est, lo, hi = many["reform_p99_s"]
+    assert lo <= est <= hi <= 2.2
+
+
+def test_the_report_says_a_quantile_needs_more_runs(tmp_path, capsys):
+    from hil.cli import main
+    store = Store(tmp_path / "q.sqlite")
+    store.add([_row('{"x":1}', i) for i in range(16)], "c0ffee", False)
+    store.close()
+    assert main(["campaign", "report", str(tmp_path / "q.sqlite")]) == 0
+    out = capsys.readouterr().out
+    assert "longest re-formation p50: " in out
+    assert "longest re-formation p99: needs 100 runs with a re-formation, the point has 16" \
+        in out
+    assert "p99.9: needs 1000 runs" in out
