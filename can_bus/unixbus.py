@@ -123,8 +123,11 @@ class UnixDatagramBus(BusABC):
             raise CanInitializationError(
                 f"rprs_unix channel {directory}: its parent directory {parent} does not exist "
                 f"(the bus makes only the last directory)")
+        self._made_directory = False
+        """This bus made the directory: it removes it at shutdown if no other bus is in it."""
         try:
             os.mkdir(directory, mode=0o700)
+            self._made_directory = True
         except FileExistsError:
             pass
         except OSError as exc:
@@ -185,6 +188,7 @@ class UnixDatagramBus(BusABC):
         pid = os.getpid()
         name = ""
         retake = False
+        remade = 0
         while True:
             if not retake:
                 with _counter_lock:
@@ -194,6 +198,15 @@ class UnixDatagramBus(BusABC):
                 self._sock.bind(self._prefix + name)
                 break
             except OSError as exc:
+                remade += 1
+                if exc.errno == errno.ENOENT and self._dirfd is None and remade <= 3:
+                    # the bus that made the directory removed it as it shut down: again
+                    try:
+                        os.mkdir(self.directory, mode=0o700)
+                        self._made_directory = True
+                    except FileExistsError:
+                        pass
+                    continue
                 if exc.errno != errno.EADDRINUSE:
                     raise
                 # a socket left by a dead process that had our pid: take its name over once
@@ -240,6 +253,11 @@ class UnixDatagramBus(BusABC):
         if name is not None:
             try:
                 os.unlink(os.path.join(self.directory, name))
+            except OSError:
+                pass
+        if getattr(self, "_made_directory", False):
+            try:
+                os.rmdir(self.directory)           # only if empty: no other bus is in it
             except OSError:
                 pass
         try:

@@ -389,3 +389,27 @@ def test_python_can_entry_point(busdir):
         assert isinstance(a, UnixDatagramBus)
         a.send(FRAMES[5])
         assert same_frame(b.recv(timeout=2), FRAMES[5])
+
+
+def test_the_bus_that_made_the_directory_removes_it_if_it_leaves_last(tmp_path):
+    """``rprs_unix:DIR`` makes DIR if it is not there; the bus that made it removes it at
+    shutdown when no other bus is in it (it used to stay behind); a directory the user made,
+    or one another bus is still in, is left as it is."""
+    import can
+    made = tmp_path / "bus"
+    a = can.Bus(interface="rprs_unix", channel=str(made))
+    b = can.Bus(interface="rprs_unix", channel=str(made))
+    b.shutdown()
+    a.shutdown()                                  # its maker, the last to leave: removed
+    assert not made.exists()
+    a = can.Bus(interface="rprs_unix", channel=str(made))
+    b = can.Bus(interface="rprs_unix", channel=str(made))
+    a.shutdown()                                  # b is still in it: it stays
+    assert made.is_dir()
+    b.shutdown()
+    assert made.is_dir() and list(made.iterdir()) == []     # b did not make it
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    d = can.Bus(interface="rprs_unix", channel=str(mine))
+    d.shutdown()
+    assert mine.is_dir()                          # the user's own directory stays
