@@ -31,6 +31,9 @@ if kind == "simpy":
     wall, frames = r["wall"], r["frames"]
 else:
     from hil.sim.world import SimConfig, World
+    if kw.get("cpu") == "estimated":         # the CPU model with the default cost table
+        from firmware_model.cycle_costs import DEFAULT_COSTS
+        kw["cpu"] = DEFAULT_COSTS
     w = World(SimConfig(robots=robots, duration=seconds, can=can, **kw))
     gc.collect()
     t0 = time.perf_counter()
@@ -43,7 +46,8 @@ print(json.dumps([wall, frames]))
 def timed(robots: tuple[int, ...], seconds: float, can: bool = False, simpy: bool = False,
           **kw) -> tuple[float, int]:
     """(wall s, radio frames) of one run of ``robots`` for ``seconds`` simulated seconds
-    (``kw``: more SimConfig fields), or of the SimPy peer (benchmarks/simpy_ring.py)."""
+    (``kw``: more SimConfig fields; ``cpu="estimated"``: the CPU model with the default cost
+    table), or of the SimPy peer (benchmarks/simpy_ring.py)."""
     code = _RUN.format(here=HERE, args=("simpy" if simpy else "ours", robots, seconds, can, kw))
     # started in the checkout: ``python -c`` puts its working directory first on sys.path,
     # so a run started elsewhere could import another tree's hil
