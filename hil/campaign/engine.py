@@ -61,6 +61,8 @@ class Outcome:
     ``lost``, not as results; the next ``campaign run`` runs them again."""
     retried: int = 0
     """Runs whose task was lost and sent again."""
+    workers_end: int = 1
+    """Workers connected when the last run came back (one that died is not counted)."""
 
     @property
     def overhead(self) -> float:
@@ -206,6 +208,7 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
             task_s += sum(r["wall_s"] for r in rows)
             if on_progress is not None:
                 on_progress(ran, len(items))
+        workers_end = len(client.scheduler_info().get("workers", {}))
     finally:
         if own:
             client.close()
@@ -213,4 +216,4 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
                 cluster.close()
     wall = time.perf_counter() - t0
     return Outcome(spec.runs, skipped, ran, crashed, wall, task_s, len(chunks), nworkers,
-                   lost, retried)
+                   lost, retried, workers_end)
