@@ -505,17 +505,22 @@ def take_order(runner: Runner, station: RadioStation, book: Any, line: str, pati
 
 
 def feed_orders(runner: Runner, station: RadioStation, book: Any, stream: TextIO,
-                on_eof: Callable[[], None] | None = None) -> threading.Thread:
+                on_eof: Callable[[], None] | None = None,
+                on_help: Callable[[], None] | None = None) -> threading.Thread:
     """Read ``DST COMMANDS`` lines from ``stream`` (at a terminal: with line editing and
     history) and hand each to :func:`take_order` in the runner's thread, one at a time: the
     next line is read once this one is submitted or refused, so input that is not a terminal
-    waits while the queue is full. Blank lines and ``#`` comments are skipped. ``on_eof`` runs
-    in the runner's thread when the input ends."""
+    waits while the queue is full. Blank lines and ``#`` comments are skipped; ``help`` or
+    ``?`` calls ``on_help`` instead. ``on_eof`` runs in the runner's thread when the input
+    ends."""
     def loop() -> None:
         tty = stream.isatty()
         lines = _typed_lines() if tty else stream
         for line in lines:
             if not line.strip() or line.lstrip().startswith("#"):
+                continue
+            if on_help is not None and line.strip().lower() in ("help", "?"):
+                on_help()
                 continue
             done = threading.Event()
             runner.sched.post(take_order, runner, station, book, line, not tty, done)

@@ -128,10 +128,18 @@ def cmd_father(a: argparse.Namespace) -> int:
     from ..bench.orders import OrderBook, book_keeper
     from ..bench.runner import (Runner, RunError, build_father, feed_orders, summary_line,
                                 take_order)
-    from ..view.father import FatherConsole
+    from ..view.father import HELP_WORDS, FatherConsole, Tee, order_help
     if a.json and a.quiet:
         raise UserError("--json and --quiet: choose one")
+    log = None
+    if a.log:
+        try:
+            log = open(a.log, "a", encoding="utf-8", buffering=1)
+        except OSError as exc:
+            raise UserError(f"cannot write the log {a.log}: {exc.strerror or exc}") from None
     runner = Runner()
+    if log is not None:
+        runner.on_close(log.close, last=True)
     app = None
     if not (a.plain or a.json or a.quiet or a.no_input or a.exit_when_done) and \
             sys.stdin.isatty() and sys.stdout.isatty():
@@ -139,10 +147,11 @@ def cmd_father(a: argparse.Namespace) -> int:
         from ..view.father_app import FatherApp, LinesTo
         app = FatherApp(lambda line: order(line), lambda: head(), HISTORY_FILE,
                         ended=runner.finished.is_set)
-        console = FatherConsole(LinesTo(app.post_line), "human")
+        console = FatherConsole(LinesTo(app.post_line) if log is None else
+                                Tee(LinesTo(app.post_line), log), "human")
     else:
-        console = FatherConsole(sys.stdout, "json" if a.json else "quiet" if a.quiet
-                                else "human")
+        console = FatherConsole(sys.stdout if log is None else Tee(sys.stdout, log),
+                                "json" if a.json else "quiet" if a.quiet else "human")
     try:
         station = build_father(runner, a.radio, txen=a.txen, standby=a.standby,
                                config=mac_config(a), events=sys.stdout if a.json else None,
@@ -175,6 +184,11 @@ def cmd_father(a: argparse.Namespace) -> int:
 
     def order(line: str) -> str | None:          # a typed order (the app's thread)
         from ..bench.runner import parse_order
+        if line.strip().lower() in HELP_WORDS:
+            assert app is not None                 # (typed into the live view)
+            for text in order_help():
+                app.post_line(text)
+            return None
         try:
             dst, commands = parse_order(line)
         except ValueError as exc:
@@ -191,8 +205,12 @@ def cmd_father(a: argparse.Namespace) -> int:
            "type orders like '2 movex(10)' or '1 act(1,0)' (DST COMMANDS)")
     if app is not None:
         return _father_app(a, app, runner, station, book, console)
+    def show_help() -> None:
+        for text in order_help():
+            print(text, flush=True)
     if not a.no_input:
-        feed_orders(runner, station, book, sys.stdin, on_eof=eof)
+        feed_orders(runner, station, book, sys.stdin, on_eof=eof,
+                    on_help=None if a.json else show_help)
     elif a.exit_when_done:
         runner.sched.post(maybe_exit)
     code = run_until_stopped(runner, a, f"father (ID 0, {role}) on {a.radio}; {how}; "
@@ -281,6 +299,9 @@ def add(sub) -> None:
     fa.add_argument("--plain", action="store_true", help="at a terminal, lines instead of the "
                     "live view (the view is used only when stdin and stdout are a terminal)")
     fa.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
+    fa.add_argument("--log", metavar="FILE", help="also append what the console shows (each "
+                    "order's changes, replies, the ring's news; with --json the JSON lines) "
+                    "to FILE: the session's record outlives the view")
     txen_option(fa)
     mac_options(fa)
     realtime_options(fa)

@@ -14,6 +14,40 @@ from firmware_model.timing import TICK_HZ
 from ..bench.orders import Order, describe_reply
 
 
+HELP_WORDS = ("help", "?")
+"""An order line that is one of these asks for :func:`order_help` instead."""
+
+
+def order_help() -> list[str]:
+    """The order line's form and every application command (firmware_model/radio/content.py,
+    docs/protocol.md §3.4), one line each: what ``help`` prints at the father's prompt."""
+    from firmware_model.radio.content import COMMANDS
+    out = ["an order: DST COMMANDS, DST a robot 1-6 or 7 for all, e.g. '2 movex(10)', "
+           "'1 joint(1,20)paw(1)', '7 status()'; ↑/↓ recall earlier orders; Ctrl-C quits"]
+    for name, spec in sorted(COMMANDS.items()):
+        if spec.layer != "app":
+            continue
+        params = ", ".join(p.name + (f" [{p.unit}]" if p.unit else "") for p in spec.params)
+        out.append(f"  {name}({params}): {spec.doc}")
+    return out
+
+
+class Tee:
+    """A line sink that writes to several (the screen and ``--log FILE``)."""
+
+    def __init__(self, *sinks: "LineSink") -> None:
+        self.sinks = sinks
+
+    def write(self, s: str, /) -> int:
+        for sink in self.sinks:
+            sink.write(s)
+        return len(s)
+
+    def flush(self) -> None:
+        for sink in self.sinks:
+            sink.flush()
+
+
 def _who(r: int) -> str:
     return "all" if r == BROADCAST else "father 0" if r == 0 else f"R{r}"
 

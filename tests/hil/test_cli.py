@@ -991,3 +991,29 @@ def test_a_bench_process_logs_what_it_opened_at_v(tmp_path):
     assert re.search(r"rprs: INFO rprs\.bench: robot 1: radio on .*node0, TXEN none, 16640 "
                      r"ticks a byte", p.stderr), p.stderr
     assert "DEBUG" not in p.stderr
+
+
+def test_the_father_prints_help_and_keeps_its_log(tmp_path):
+    """``help`` at the father's prompt lists the order form and every application command;
+    ``--log FILE`` appends what the console shows, so the session's record outlives it."""
+    log = tmp_path / "father.log"
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "father", "--plain", "--radio",
+                        "loop://", "--duration", "3", "--log", str(log)],
+                       input="help\n7 status()\n", capture_output=True, text=True, timeout=60)
+    assert p.returncode in (0, 1), p.stderr                    # (the order finds nobody)
+    assert "an order: DST COMMANDS" in p.stdout
+    assert "  joint(index [joint no.], angle [deg]): " in p.stdout
+    assert "  movex(" in p.stdout and "ack(" not in p.stdout    # application commands only
+    orders = [x for x in p.stdout.splitlines() if "#1 -> all status()" in x]
+    assert orders, p.stdout
+    logged = log.read_text().splitlines()
+    assert [x for x in logged if "#1 -> all status()" in x] == orders
+    assert not any("an order: DST COMMANDS" in x for x in logged)   # the story, not the help
+
+
+def test_a_log_that_cannot_be_written_is_one_line(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "father", "--plain", "--radio",
+                        "loop://", "--duration", "1", "--log", str(tmp_path)],
+                       capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.strip() == f"rprs: error: cannot write the log {tmp_path}: Is a directory"
