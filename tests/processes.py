@@ -2,9 +2,11 @@
 ``rprs`` processes, wait for a condition with a deadline, and read the ring off a sniffer."""
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 
 def spawn(*args: str, stdout=subprocess.DEVNULL) -> subprocess.Popen:
@@ -86,3 +88,20 @@ def disturbed(events, hub_lates=(), probe=None) -> list[str]:
         if lat.max_ms > HOST_LATE_MS:
             why.append(str(lat))
     return why
+
+
+@contextlib.contextmanager
+def hub_links(link_dir, nodes: int, timeout: float = 20.0):
+    """``rprs radio-hub --nodes N --link-dir DIR`` running while the block runs, its node
+    links made (AssertionError if they do not come within ``timeout`` s); stopped after."""
+    from paths import ROOT
+    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes",
+                            str(nodes), "--link-dir", str(link_dir)], cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        last = Path(link_dir) / f"node{nodes - 1}"
+        assert wait_for(last.exists, timeout), f"the hub made no {last}"
+        yield hub
+    finally:
+        hub.terminate()
+        hub.communicate(timeout=10)

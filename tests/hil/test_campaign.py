@@ -226,18 +226,10 @@ def test_a_worker_running_other_code_is_refused_before_any_run(spec_file, tmp_pa
 
 
 def test_every_row_records_the_code_that_made_it(spec_file, tmp_path):
-    from dask.distributed import Client
-
     from hil.campaign.code import code_identity
     spec = load_spec(spec_file, check=check_args)
     store = Store(tmp_path / "c.sqlite")
-    cluster = engine.local_cluster(1, processes=False, threads_per_worker=2)
-    client = Client(cluster)
-    try:
-        run_campaign(spec, store, client=client)
-    finally:
-        client.close()
-        cluster.close()
+    _run_in_process(spec, store)
     assert {r["code"] for r in store.rows()} == {code_identity()}
     assert len(code_identity()) == 16
 
@@ -296,17 +288,23 @@ def _crash_on_odd_seeds(cfg):
     return metrics_of(cfg)
 
 
-def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
+def _run_in_process(spec, store, **kw):
+    """``run_campaign`` on a cluster of one in-process worker with two threads (no worker
+    processes: quick, and functions need not be importable by a worker)."""
     from dask.distributed import Client
-    spec = load_spec(spec_file, check=check_args)
-    store = Store(tmp_path / "c.sqlite")
     cluster = engine.local_cluster(1, processes=False, threads_per_worker=2)
     client = Client(cluster)
     try:
-        out = run_campaign(spec, store, client=client, measure=_crash_on_odd_seeds)
+        return run_campaign(spec, store, client=client, **kw)
     finally:
         client.close()
         cluster.close()
+
+
+def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
+    spec = load_spec(spec_file, check=check_args)
+    store = Store(tmp_path / "c.sqlite")
+    out = _run_in_process(spec, store, measure=_crash_on_odd_seeds)
     rows = store.rows()
     odd = [r for r in rows if r["seed"] % 2]
     unexpected = [r["error"] for r in rows if r["status"] != "ok" and not r["seed"] % 2]
@@ -476,15 +474,8 @@ def _results(store):
 
 
 def _undisturbed(spec, tmp_path):
-    from dask.distributed import Client
     store = Store(tmp_path / "clean.sqlite")
-    cluster = engine.local_cluster(1, processes=False, threads_per_worker=2)
-    client = Client(cluster)
-    try:
-        run_campaign(spec, store, client=client)
-    finally:
-        client.close()
-        cluster.close()
+    _run_in_process(spec, store)
     return _results(store)
 
 

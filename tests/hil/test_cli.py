@@ -974,19 +974,11 @@ def test_every_command_takes_the_logging_options():
 
 
 def test_a_bench_process_logs_what_it_opened_at_v(tmp_path):
-    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "1",
-                            "--link-dir", str(tmp_path / "air")], cwd=ROOT,
-                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 20
-        while not (tmp_path / "air" / "node0").exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
+    from processes import hub_links
+    with hub_links(tmp_path / "air", 1):
         p = subprocess.run([sys.executable, "-m", "hil.cli", "child", "-v", "--id", "1",
                             "--radio", str(tmp_path / "air" / "node0"), "--duration", "1"],
                            cwd=ROOT, capture_output=True, text=True, timeout=60)
-    finally:
-        hub.terminate()
-        hub.communicate(timeout=10)
     assert p.returncode == 0, p.stderr
     assert re.search(r"rprs: INFO rprs\.bench: robot 1: radio on .*node0, TXEN none, 16640 "
                      r"ticks a byte", p.stderr), p.stderr

@@ -9,7 +9,6 @@ from __future__ import annotations
 import subprocess
 import sys
 import textwrap
-import time
 
 import pytest
 
@@ -59,14 +58,8 @@ def test_the_demo_and_the_simulator_with_a_capture_run_on_the_core(tmp_path):
 
 
 def test_a_child_and_the_plain_father_run_on_the_core_on_the_hub(tmp_path):
-    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
-                            "--link-dir", str(tmp_path / "air")], cwd=ROOT,
-                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 20
-        while not (tmp_path / "air" / "node1").exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert (tmp_path / "air" / "node1").exists(), "the hub made no ptys"
+    from processes import hub_links
+    with hub_links(tmp_path / "air", 2):
         child = subprocess.Popen([sys.executable, "-c", RUNNER, "child", "--id", "1",
                                   "--radio", str(tmp_path / "air" / "node0"), "--team", "0,1",
                                   "--duration", "6"], cwd=ROOT, text=True,
@@ -74,9 +67,6 @@ def test_a_child_and_the_plain_father_run_on_the_core_on_the_hub(tmp_path):
         father = core("father", "--plain", "--no-input", "--radio",
                       str(tmp_path / "air" / "node1"), "--team", "0,1", "--duration", "5")
         out, err = child.communicate(timeout=30)
-    finally:
-        hub.terminate()
-        hub.communicate(timeout=10)
     assert father.returncode == 0, father.stderr
     assert child.returncode == 0, err
     assert "robot 0: member, ring [0, 1]" in father.stderr, father.stderr

@@ -108,14 +108,9 @@ def test_rprs_capture_listens_on_a_hub_node_and_writes_the_ring_it_hears(tmp_pat
 
     def rprs(*args, **kw):
         return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT, **kw)
+    from processes import hub_links
     air = tmp_path / "air"
-    hub = rprs("radio-hub", "--nodes", "3", "--link-dir", str(air),
-               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    procs = []
-    try:
-        deadline = time.monotonic() + 20
-        while not (air / "node2").exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
+    with hub_links(air, 3):
         procs = [rprs("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
                       "--duration", "8", stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL),
                  rprs("father", "--plain", "--no-input", "--radio", str(air / "node1"),
@@ -129,11 +124,8 @@ def test_rprs_capture_listens_on_a_hub_node_and_writes_the_ring_it_hears(tmp_pat
         to_pipe = subprocess.run([sys.executable, "-m", "hil.cli", "capture", "--radio",
                                   str(air / "node2"), "--pcap", "-", "--duration", "2"],
                                  cwd=ROOT, capture_output=True, timeout=60)
-    finally:
         for p in procs:
             p.wait(timeout=30)
-        hub.terminate()
-        hub.wait(timeout=10)
     assert to_file.returncode == 0, to_file.stderr
     assert "listen only" in to_file.stderr
     pkts = _packets(_Stream((tmp_path / "air.pcapng").read_bytes()))
