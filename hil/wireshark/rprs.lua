@@ -279,17 +279,14 @@ function rprs.dissector(tvb, pinfo, tree)
     local comment = comment_field()
     if comment ~= nil then
         local text = tostring(comment.value)
-        if text:find("collided") then
-            local item = a:add(f.collided, true)
-            item:set_generated()
-            item:add_proto_expert_info(e_collided)
-            info = "[collided] " .. info
-        end
-        if text:find("aborted") then
-            local item = a:add(f.aborted, true)
-            item:set_generated()
-            item:add_proto_expert_info(e_aborted)
-            info = "[cut short] " .. info
+        for _, mark in ipairs({ { "collided", f.collided, e_collided, "[collided] " },
+                                { "aborted", f.aborted, e_aborted, "[cut short] " } }) do
+            if text:find(mark[1]) then
+                local item = a:add(mark[2], true)
+                item:set_generated()
+                item:add_proto_expert_info(mark[3])
+                info = mark[4] .. info
+            end
         end
     end
     pinfo.cols.info = info
