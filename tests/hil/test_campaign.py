@@ -619,3 +619,34 @@ def test_the_report_says_a_quantile_needs_more_runs(tmp_path, capsys):
     assert "longest re-formation p99: needs 100 runs with a re-formation, the point has 16" \
         in out
     assert "p99.9: needs 1000 runs" in out
+
+
+def test_a_points_numbers_are_what_its_runs_traces_say(spec_file, tmp_path):
+    """The report's counts for each point, recomputed by hand from the events of each of its
+    runs run again alone (the same arguments and seed, every event kept): messages submitted
+    and failed, the failure rate and its Wilson interval."""
+    from collections import defaultdict
+
+    from hil.campaign.runs import sim_config_for
+    from hil.sim import events as E
+    from hil.sim.world import World
+    spec = load_spec(spec_file, check=check_args)
+    store = Store(tmp_path / "h.sqlite")
+    _run_in_process(spec, store)
+    by_point = defaultdict(list)
+    for r in store.rows():
+        by_point[r["point_key"]].append(r)
+    report = {json.dumps(p["point"], sort_keys=True): p for p in summarize(store.rows())}
+    assert len(report) == len(by_point) == 2
+    for key, runs in by_point.items():
+        submitted = failed = 0
+        for r in runs:
+            evs: list = []
+            World(sim_config_for(r["args"], r["seed"]), listeners=[evs.append]).run()
+            submitted += sum(type(e) is E.Submit for e in evs)
+            failed += sum(type(e) is E.Failed for e in evs)
+        p = report[json.dumps(json.loads(key), sort_keys=True)]
+        assert (p["runs"], p["messages"], p["failed"]) == (len(runs), submitted, failed)
+        assert submitted > 0
+        assert p["failed_rate"] == failed / submitted
+        assert p["failed_ci95"] == wilson(failed, submitted)
