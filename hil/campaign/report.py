@@ -47,6 +47,49 @@ def bootstrap_quantile(values: list[float], q: float, n_boot: int = 2000,
     return est, float(np.quantile(boots, 0.025)), float(np.quantile(boots, 0.975))
 
 
+def pooled_quantile(hists: list[dict[str, int]], q: float) -> float:
+    """The ``q`` quantile (nearest rank) of the values counted in the histograms ``hists``
+    (value as text -> count), pooled."""
+    pooled: dict[float, int] = defaultdict(int)
+    for h in hists:
+        for text, n in h.items():
+            pooled[float(text)] += n
+    total = sum(pooled.values())
+    rank, seen = min(total - 1, int(q * total)), 0
+    for value in sorted(pooled):
+        seen += pooled[value]
+        if seen > rank:
+            return value
+    return math.nan
+
+
+def bootstrap_pooled(hists: list[dict[str, int]], q: float, n_boot: int = 500,
+                     seed: int = 0) -> tuple[float, float, float]:
+    """(pooled ``q`` quantile, 95 % bootstrap low, high), resampling whole runs (a run's
+    messages are not independent of each other)."""
+    import random
+    est = pooled_quantile(hists, q)
+    if len(hists) < 2:
+        return est, est, est
+    rng = random.Random(seed)
+    boots = sorted(pooled_quantile([rng.choice(hists) for _ in hists], q)
+                   for _ in range(n_boot))
+    return est, boots[int(0.025 * n_boot)], boots[min(n_boot - 1, int(0.975 * n_boot))]
+
+
+def bootstrap_mean(values: list[float], n_boot: int = 2000,
+                   seed: int = 0) -> tuple[float, float, float]:
+    """(mean, 95 % percentile-bootstrap low, high) of ``values``."""
+    import random
+    est = sum(values) / len(values)
+    if len(values) < 2:
+        return est, est, est
+    rng = random.Random(seed)
+    boots = sorted(sum(rng.choice(values) for _ in values) / len(values)
+                   for _ in range(n_boot))
+    return est, boots[int(0.025 * n_boot)], boots[min(n_boot - 1, int(0.975 * n_boot))]
+
+
 def command(row: dict[str, Any]) -> str:
     """The one-line ``rprs sim`` command that repeats a run exactly."""
     import shlex
@@ -94,6 +137,21 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "failing": [{"command": command(r), "broke": _broke(r)} for r in bad],
         }
         point["duplicates"] = sum(r["metrics"]["duplicates"] for r in ok)
+        # message latency, pooled over the point's runs, each quantile only from enough
+        # messages; delivered throughput, the runs' mean with its bootstrap interval
+        hists = [r["metrics"]["latency_ms"] for r in ok if r["metrics"].get("latency_ms")]
+        lat_n = sum(sum(h.values()) for h in hists)
+        point["latency_messages"] = lat_n
+        for q, name in (*QUANTILES[:1], (0.95, "p95"), QUANTILES[1]):
+            if hists and lat_n >= runs_for(q):
+                est, lo, hi = bootstrap_pooled(hists, q)
+                point[f"latency_{name}_ms"] = [est, lo, hi]
+            elif hists:
+                point[f"latency_{name}_ms"] = None
+        tput = [r["metrics"]["throughput"] for r in ok if "throughput" in r["metrics"]]
+        if tput:
+            est, lo, hi = bootstrap_mean(tput)
+            point["throughput"] = [round(est, 4), round(lo, 4), round(hi, 4)]
         for q, name in QUANTILES:
             if reform and len(reform) >= runs_for(q):
                 est, lo, hi = bootstrap_quantile(reform, q)

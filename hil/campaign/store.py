@@ -118,7 +118,8 @@ class Store:
             flat["args"] = " ".join(r["args"])
             flat.update({f"param_{k}": json.dumps(v) if isinstance(v, list) else v
                          for k, v in json.loads(r["point_key"]).items()})
-            flat.update({f"m_{k}": v for k, v in (r["metrics"] or {}).items()})
+            flat.update({f"m_{k}": json.dumps(v, sort_keys=True) if isinstance(v, dict) else v
+                         for k, v in (r["metrics"] or {}).items()})   # a histogram: JSON text
             out.append(flat)
         return out
 

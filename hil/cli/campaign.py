@@ -160,6 +160,21 @@ def cmd_report(a: argparse.Namespace) -> int:
         lo, hi = p["runs_broken_ci95"]
         print(f"  runs that broke an invariant or crashed: {p['runs_broken']}/{p['runs']} "
               f"(95 % CI {lo:.3f}-{hi:.3f})")
+        if p.get("throughput"):
+            v = p["throughput"]
+            print(f"  delivered throughput: {v[0]:g} messages/s (95 % CI {v[1]:g}-{v[2]:g}, "
+                  f"mean of {p['runs'] - p['crashed']} runs)")
+        for name, need in (("p50", 2), ("p95", 20), ("p99", 100)):
+            key = f"latency_{name}_ms"
+            if key not in p:
+                continue
+            v = p[key]
+            if v is None:
+                print(f"  message latency {name}: needs {need} delivered messages, the point "
+                      f"has {p['latency_messages']}")
+            else:
+                print(f"  message latency {name}: {v[0]:g} ms (95 % CI {v[1]:g}-{v[2]:g}, "
+                      f"{p['latency_messages']} messages)")
         if p.get("duplicates"):
             print(f"  messages delivered twice: {p['duplicates']}"
                   + ("" if p["point"].get("checksum") else " (without the checksum no "

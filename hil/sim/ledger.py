@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import UNACKNOWLEDGED, Deliver, Message, Outcome
+from firmware_model.timing import TICK_HZ
 
 if TYPE_CHECKING:
     from .world import World
@@ -62,6 +63,9 @@ class Ledger:
         self._membership_seen: set[tuple[int, str, int]] = set()
         self._miss_seen: set[tuple[int, int]] = set()
         self.outcomes: list[Outcome] = []
+        self.latency_ms: Counter = Counter()
+        """Delivered messages by latency, ms from submission to the sender's last
+        acknowledgement, rounded down: a histogram, bounded however long the run."""
         self.messages: list[Message] = []
         self.deliveries: Counter = Counter()        # (src, num, submit-serial, receiver)
         self.corrupt_deliveries = 0
@@ -114,14 +118,15 @@ class Ledger:
         ring delivered it)."""
         return self._serial(a) != 0
 
-    def ended(self, a: Outcome) -> str:
-        """A message's outcome at its sender: ``delivered``, ``sent`` (the paper profile: sent
-        once, unacknowledged) or ``fail``."""
+    def ended(self, a: Outcome, now: int) -> str:
+        """A message's outcome at its sender at tick ``now``: ``delivered``, ``sent`` (the
+        paper profile: sent once, unacknowledged) or ``fail``."""
         m = a.message
         self.outcomes.append(a)
         s = self.stats[m.src]
         if a.delivered:
             s.delivered += 1
+            self.latency_ms[(now - m.submitted) * 1000 // TICK_HZ] += 1
             return "delivered"
         if m.state == UNACKNOWLEDGED:
             s.unacknowledged += 1

@@ -113,7 +113,7 @@ def _observe(self: World, st: RadioStation, a: Any, now: int) -> None:
                               reason=str(a.error), pc=pc)
     elif t is Outcome:
         m = a.message
-        ended = self.ledger.ended(a)
+        ended = self.ledger.ended(a, now)
         if not listened:
             pass
         elif ended == "delivered":

@@ -650,3 +650,41 @@ def test_a_points_numbers_are_what_its_runs_traces_say(spec_file, tmp_path):
         assert submitted > 0
         assert p["failed_rate"] == failed / submitted
         assert p["failed_ci95"] == wilson(failed, submitted)
+
+
+def test_message_latency_and_throughput_per_point_with_their_intervals(spec_file, tmp_path):
+    """Each run records its delivered messages' latencies (a histogram, ms from submission to
+    the last acknowledgement) and its throughput; the report pools the point's histograms
+    (each quantile only from enough messages) and averages the throughput, each with a
+    bootstrap interval over runs. Checked against the runs' events by hand."""
+    from collections import defaultdict
+
+    from hil.campaign.report import pooled_quantile
+    from hil.campaign.runs import sim_config_for
+    from hil.sim import events as E
+    from hil.sim.world import World
+    spec = load_spec(spec_file, check=check_args)
+    store = Store(tmp_path / "l.sqlite")
+    _run_in_process(spec, store)
+    by_point = defaultdict(list)
+    for r in store.rows():
+        by_point[r["point_key"]].append(r)
+    report = {json.dumps(p["point"], sort_keys=True): p for p in summarize(store.rows())}
+    for key, runs in by_point.items():
+        p = report[json.dumps(json.loads(key), sort_keys=True)]
+        latencies, tputs = [], []
+        for r in runs:
+            evs: list = []
+            cfg = sim_config_for(r["args"], r["seed"])
+            World(cfg, listeners=[evs.append]).run()
+            sent = {(e.src, e.num): e.t for e in evs if type(e) is E.Submit}
+            done = [e for e in evs if type(e) is E.Delivered]
+            latencies += [(e.t - sent[(e.src, e.num)]) * 1000 // 16_000_000 for e in done]
+            tputs.append(len(done) / cfg.duration)
+        assert p["latency_messages"] == len(latencies) > 2
+        median = pooled_quantile([{str(v): 1} for v in latencies], 0.5)
+        est, lo, hi = p["latency_p50_ms"]
+        assert est == median and lo <= est <= hi
+        assert p["latency_p99_ms"] is None              # fewer than 100 messages
+        est, lo, hi = p["throughput"]
+        assert est == round(sum(tputs) / len(tputs), 4) and lo <= est <= hi

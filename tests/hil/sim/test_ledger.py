@@ -54,16 +54,18 @@ def test_how_a_message_ended_is_counted_at_its_sender():
     led = Ledger((1, 2))
     m = message(1, 2, 1, 0)
     m.state = "delivered"
-    assert led.ended(Outcome(m, True, "")) == "delivered"
+    assert led.ended(Outcome(m, True, ""), 16_000 * 37 + 15_999) == "delivered"
     u = message(1, 2, 2, 0)
     u.state = "unacknowledged"
-    assert led.ended(Outcome(u, False, "paper profile")) == "sent"
+    assert led.ended(Outcome(u, False, "paper profile"), 10**9) == "sent"
     f = message(2, 1, 1, 0)
     f.state = "failed"
-    assert led.ended(Outcome(f, False, "retries")) == "fail"
+    assert led.ended(Outcome(f, False, "retries"), 10**9) == "fail"
     s1, s2 = led.stats[1], led.stats[2]
     assert (s1.delivered, s1.unacknowledged, s1.failed, s2.failed) == (1, 1, 0, 1)
     assert len(led.outcomes) == 3
+    # submitted at tick 0: 37.999 ms later, in the 37 ms bin; only delivered ones counted
+    assert led.latency_ms == {37: 1}
 
 
 def test_a_miss_and_a_membership_change_count_once_however_many_saw_them():
