@@ -112,7 +112,11 @@ def configure_logging(a: argparse.Namespace) -> int:
     else:
         level = {0: logging.WARNING, 1: logging.INFO}.get(getattr(a, "verbose", 0),
                                                         logging.DEBUG)
-    logging.basicConfig(level=level, stream=sys.stderr,
+    # the handler's own level too: a library's logger set lower (distributed's at INFO)
+    # propagates its records to the root's handler whatever the root's level
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setLevel(level)
+    logging.basicConfig(level=level, handlers=[handler],
                         format="rprs: %(levelname)s %(name)s: %(message)s", force=True)
     return level
 

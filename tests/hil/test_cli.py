@@ -1009,3 +1009,23 @@ def test_a_log_that_cannot_be_written_is_one_line(tmp_path):
                        capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert p.stderr.strip() == f"rprs: error: cannot write the log {tmp_path}: Is a directory"
+
+
+def test_a_librarys_chatty_logger_stays_quiet_at_the_default_level(capsys):
+    """distributed sets its loggers to INFO: at the default level (warning) their records
+    reach the root's handler and must stop there (campaign run printed the scheduler's
+    'closing all comms')."""
+    import logging
+    before = logging.getLogger().level
+    chatty = logging.getLogger("chatty.library")
+    chatty.setLevel(logging.INFO)
+    try:
+        code, _, _ = rprs(capsys, "sim", "--robots", "1,2", "--duration", "1", "--no-progress")
+        assert code == 0
+        chatty.info("scheduler closing all comms")
+        chatty.warning("a real warning")
+        err = capsys.readouterr().err
+        assert "closing all comms" not in err and "a real warning" in err
+    finally:
+        chatty.setLevel(logging.NOTSET)
+        logging.getLogger().setLevel(before)
