@@ -164,38 +164,36 @@ def cmd_report(a: argparse.Namespace) -> int:
             v = p["throughput"]
             print(f"  delivered throughput: {v[0]:g} messages/s (95 % CI {v[1]:g}-{v[2]:g}, "
                   f"mean of {p['runs'] - p['crashed']} runs)")
-        for name, need in (("p50", 2), ("p95", 20), ("p99", 100)):
-            key = f"latency_{name}_ms"
-            if key not in p:
-                continue
-            v = p[key]
-            if v is None:
-                print(f"  message latency {name}: needs {need} delivered messages, the point "
-                      f"has {p['latency_messages']}")
-            else:
-                print(f"  message latency {name}: {v[0]:g} ms (95 % CI {v[1]:g}-{v[2]:g}, "
-                      f"{p['latency_messages']} messages)")
+        _quantile_lines(p, "message latency", "latency_{}_ms", "ms", "delivered messages",
+                        "messages", p.get("latency_messages", 0), (0.5, 0.95, 0.99))
         if p.get("duplicates"):
             print(f"  messages delivered twice: {p['duplicates']}"
                   + ("" if p["point"].get("checksum") else " (without the checksum no "
                      "invariant promises none: docs/guarantees.md)"))
-        from ..campaign.report import QUANTILES, runs_for
-        for q, name in QUANTILES:
-            key = f"reform_{name}_s"
-            if key not in p:
-                continue
-            v = p[key]
-            if v is None:
-                print(f"  longest re-formation {name}: needs {runs_for(q)} runs with a "
-                      f"re-formation, the point has {p['reform_runs']}")
-            else:
-                print(f"  longest re-formation {name}: {v[0]} s (95 % CI {v[1]}-{v[2]}, "
-                      f"{p['reform_runs']} runs)")
+        _quantile_lines(p, "longest re-formation", "reform_{}_s", "s", "runs with a "
+                        "re-formation", "runs", p["reform_runs"], (0.5, 0.99, 0.999))
         for f in p["failing"]:
             print(f"  FAILED ({', '.join(f['broke'])}): {f['command']}")
     for f in files:
         print(f"plot: {f}")
     return 0
+
+
+def _quantile_lines(p: dict, what: str, key: str, unit: str, of: str, samples: str,
+                    n: int, qs: tuple[float, ...]) -> None:
+    """A report's quantile lines for one point: each estimate with its interval, or how many
+    samples it needs (campaign/report.py, ``runs_for``)."""
+    from ..campaign.report import runs_for
+    for q in qs:
+        name = f"p{q * 100:g}"
+        v = p.get(key.format(name), "absent")
+        if v == "absent":
+            continue
+        if v is None:
+            print(f"  {what} {name}: needs {runs_for(q)} {of}, the point has {n}")
+        else:
+            print(f"  {what} {name}: {v[0]:g} {unit} (95 % CI {v[1]:g}-{v[2]:g}, {n} "
+                  f"{samples})")
 
 
 def cmd_export(a: argparse.Namespace) -> int:

@@ -621,22 +621,27 @@ def test_the_report_says_a_quantile_needs_more_runs(tmp_path, capsys):
     assert "p99.9: needs 1000 runs" in out
 
 
+def _report_and_runs(store):
+    """{point key: the report's point} and {point key: its runs}, keys canonical."""
+    from collections import defaultdict
+    runs = defaultdict(list)
+    for r in store.rows():
+        runs[json.dumps(json.loads(r["point_key"]), sort_keys=True)].append(r)
+    report = {json.dumps(p["point"], sort_keys=True): p for p in summarize(store.rows())}
+    return report, runs
+
+
 def test_a_points_numbers_are_what_its_runs_traces_say(spec_file, tmp_path):
     """The report's counts for each point, recomputed by hand from the events of each of its
     runs run again alone (the same arguments and seed, every event kept): messages submitted
     and failed, the failure rate and its Wilson interval."""
-    from collections import defaultdict
-
     from hil.campaign.runs import sim_config_for
     from hil.sim import events as E
     from hil.sim.world import World
     spec = load_spec(spec_file, check=check_args)
     store = Store(tmp_path / "h.sqlite")
     _run_in_process(spec, store)
-    by_point = defaultdict(list)
-    for r in store.rows():
-        by_point[r["point_key"]].append(r)
-    report = {json.dumps(p["point"], sort_keys=True): p for p in summarize(store.rows())}
+    report, by_point = _report_and_runs(store)
     assert len(report) == len(by_point) == 2
     for key, runs in by_point.items():
         submitted = failed = 0
@@ -645,7 +650,7 @@ def test_a_points_numbers_are_what_its_runs_traces_say(spec_file, tmp_path):
             World(sim_config_for(r["args"], r["seed"]), listeners=[evs.append]).run()
             submitted += sum(type(e) is E.Submit for e in evs)
             failed += sum(type(e) is E.Failed for e in evs)
-        p = report[json.dumps(json.loads(key), sort_keys=True)]
+        p = report[key]
         assert (p["runs"], p["messages"], p["failed"]) == (len(runs), submitted, failed)
         assert submitted > 0
         assert p["failed_rate"] == failed / submitted
@@ -657,8 +662,6 @@ def test_message_latency_and_throughput_per_point_with_their_intervals(spec_file
     the last acknowledgement) and its throughput; the report pools the point's histograms
     (each quantile only from enough messages) and averages the throughput, each with a
     bootstrap interval over runs. Checked against the runs' events by hand."""
-    from collections import defaultdict
-
     from hil.campaign.report import pooled_quantile
     from hil.campaign.runs import sim_config_for
     from hil.sim import events as E
@@ -666,12 +669,9 @@ def test_message_latency_and_throughput_per_point_with_their_intervals(spec_file
     spec = load_spec(spec_file, check=check_args)
     store = Store(tmp_path / "l.sqlite")
     _run_in_process(spec, store)
-    by_point = defaultdict(list)
-    for r in store.rows():
-        by_point[r["point_key"]].append(r)
-    report = {json.dumps(p["point"], sort_keys=True): p for p in summarize(store.rows())}
+    report, by_point = _report_and_runs(store)
     for key, runs in by_point.items():
-        p = report[json.dumps(json.loads(key), sort_keys=True)]
+        p = report[key]
         latencies, tputs = [], []
         for r in runs:
             evs: list = []
