@@ -100,7 +100,15 @@ def _broke(row: dict[str, Any]) -> list[str]:
     return broken(row["metrics"] if row["status"] == "ok" else None, row["args"])
 
 
-QUANTILES = ((0.5, "p50"), (0.99, "p99"), (0.999, "p99.9"))
+REFORM_QUANTILES = (0.5, 0.99, 0.999)
+"""The quantiles of a run's longest re-formation the report gives."""
+LATENCY_QUANTILES = (0.5, 0.95, 0.99)
+"""The quantiles of message latency the report gives."""
+
+
+def quantile_name(q: float) -> str:
+    """``p50``, ``p95``, ``p99.9``: a quantile as the report's keys name it."""
+    return f"p{q * 100:g}"
 
 
 def runs_for(q: float) -> int:
@@ -142,7 +150,8 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         hists = [r["metrics"]["latency_ms"] for r in ok if r["metrics"].get("latency_ms")]
         lat_n = sum(sum(h.values()) for h in hists)
         point["latency_messages"] = lat_n
-        for q, name in (*QUANTILES[:1], (0.95, "p95"), QUANTILES[1]):
+        for q in LATENCY_QUANTILES:
+            name = quantile_name(q)
             if hists and lat_n >= runs_for(q):
                 est, lo, hi = bootstrap_pooled(hists, q)
                 point[f"latency_{name}_ms"] = [est, lo, hi]
@@ -152,7 +161,8 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         if tput:
             est, lo, hi = bootstrap_mean(tput)
             point["throughput"] = [round(est, 4), round(lo, 4), round(hi, 4)]
-        for q, name in QUANTILES:
+        for q in REFORM_QUANTILES:
+            name = quantile_name(q)
             if reform and len(reform) >= runs_for(q):
                 est, lo, hi = bootstrap_quantile(reform, q)
                 point[f"reform_{name}_s"] = [round(est, 3), round(lo, 3), round(hi, 3)]

@@ -123,7 +123,7 @@ def cmd_status(a: argparse.Namespace) -> int:
 
 
 def cmd_report(a: argparse.Namespace) -> int:
-    from ..campaign.report import plot, summarize
+    from ..campaign.report import LATENCY_QUANTILES, REFORM_QUANTILES, plot, summarize
     from ..campaign.store import Store, StoreError
     if not Path(a.db).is_file():
         raise UserError(f"no results file {a.db}")
@@ -165,13 +165,13 @@ def cmd_report(a: argparse.Namespace) -> int:
             print(f"  delivered throughput: {v[0]:g} messages/s (95 % CI {v[1]:g}-{v[2]:g}, "
                   f"mean of {p['runs'] - p['crashed']} runs)")
         _quantile_lines(p, "message latency", "latency_{}_ms", "ms", "delivered messages",
-                        "messages", p.get("latency_messages", 0), (0.5, 0.95, 0.99))
+                        "messages", p.get("latency_messages", 0), LATENCY_QUANTILES)
         if p.get("duplicates"):
             print(f"  messages delivered twice: {p['duplicates']}"
                   + ("" if p["point"].get("checksum") else " (without the checksum no "
                      "invariant promises none: docs/guarantees.md)"))
         _quantile_lines(p, "longest re-formation", "reform_{}_s", "s", "runs with a "
-                        "re-formation", "runs", p["reform_runs"], (0.5, 0.99, 0.999))
+                        "re-formation", "runs", p["reform_runs"], REFORM_QUANTILES)
         for f in p["failing"]:
             print(f"  FAILED ({', '.join(f['broke'])}): {f['command']}")
     for f in files:
@@ -183,9 +183,9 @@ def _quantile_lines(p: dict, what: str, key: str, unit: str, of: str, samples: s
                     n: int, qs: tuple[float, ...]) -> None:
     """A report's quantile lines for one point: each estimate with its interval, or how many
     samples it needs (campaign/report.py, ``runs_for``)."""
-    from ..campaign.report import runs_for
+    from ..campaign.report import quantile_name, runs_for
     for q in qs:
-        name = f"p{q * 100:g}"
+        name = quantile_name(q)
         v = p.get(key.format(name), "absent")
         if v == "absent":
             continue
