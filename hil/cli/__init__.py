@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import io
+import logging
 import os
 import sys
 from typing import Sequence
@@ -102,10 +103,22 @@ def _add_logging_options(p: argparse.ArgumentParser) -> None:
                 _add_logging_options(child)
 
 
+class _StderrHandler(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is when a record comes: the handler outlives the
+    command (``main`` called in a process that goes on, a test's captured stderr closed)."""
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
+
+
 def configure_logging(a: argparse.Namespace) -> int:
     """Python's logging, configured once for the command: to stderr, one line a record, at
     ``--log-level`` or by ``-v`` count (warning, info, debug). Returns the level."""
-    import logging
     name = getattr(a, "log_level", None)
     if name is not None:
         level = getattr(logging, name.upper())
@@ -114,7 +127,7 @@ def configure_logging(a: argparse.Namespace) -> int:
                                                         logging.DEBUG)
     # the handler's own level too: a library's logger set lower (distributed's at INFO)
     # propagates its records to the root's handler whatever the root's level
-    handler = logging.StreamHandler(sys.stderr)
+    handler = _StderrHandler()
     handler.setLevel(level)
     logging.basicConfig(level=level, handlers=[handler],
                         format="rprs: %(levelname)s %(name)s: %(message)s", force=True)

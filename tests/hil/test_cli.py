@@ -1029,3 +1029,16 @@ def test_a_librarys_chatty_logger_stays_quiet_at_the_default_level(capsys):
     finally:
         chatty.setLevel(logging.NOTSET)
         logging.getLogger().setLevel(before)
+
+
+def test_the_log_goes_to_the_stderr_of_the_moment(capsys, monkeypatch):
+    """The handler ``main`` configures outlives the command: a record logged later (main
+    called in a process that goes on, as the tests call it) goes to the stderr of that
+    moment, not to a stream since closed."""
+    import logging
+    code, _, _ = rprs(capsys, "sim", "--robots", "1,2", "--duration", "1", "--no-progress")
+    assert code == 0
+    later = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", later)
+    logging.getLogger("after.the.command").warning("still heard")
+    assert "still heard" in later.getvalue()
