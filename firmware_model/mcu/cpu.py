@@ -23,6 +23,15 @@ requests) runs when its body's cycles are done, however often it was preempted i
 The running instruction's remaining cycles before a request is sampled are not simulated (the
 model runs no instructions); ``CycleCosts.sample_wait_max`` bounds them in the report.
 
+**A handler alone on the CPU** (``irq(..., alone=True)``, the UART's receive handler: its
+``enter`` only reads a register nothing else looks at before its body ends) that finds the
+CPU idle runs as one event at the end of its body, and its RETI is counted when the CPU is
+next asked anything: three events a received byte become one. Whatever touches the CPU while
+such a handler runs (a request, a task, ``extend``) first puts it on the stack as the phase
+it has reached, so what follows is the general path's to the tick (``fuse = False`` keeps
+every handler on the general path; tests/firmware_model/mcu/test_cpu_fused.py compares the
+two).
+
 ``Cpu(sched, None)`` is the ideal CPU: every handler runs in zero ticks on the tick of its
 request, exactly as the firmware model ran before there was a CPU (the paper's timing).
 """
@@ -107,6 +116,10 @@ class _Frame:
 class Cpu:
     """One F2MC-16LX core on ``sched``. ``costs`` None is the ideal (zero-time) CPU."""
 
+    fuse = True
+    """Run a lone handler on an idle CPU as one event (module docstring); False: every
+    handler on the general path (the fast-paths switch, hil/sim/config.py)."""
+
     def __init__(self, sched: Clock, costs: Any = None, name: str = "CPU") -> None:
         self.sched = sched
         self.costs = costs
@@ -122,7 +135,11 @@ class Cpu:
         self._seq = 0
         self._in_callback = False
         self.started = sched.now
-        self.busy = 0
+        self._busy = 0
+        self._alone: _Frame | None = None
+        """The lone handler running as one event (module docstring), or None."""
+        self._alone_ev: Event | None = None
+        self._alone_t = 0          # the tick it was accepted at
 
     # -- requests ------------------------------------------------------------------------
 
@@ -133,9 +150,11 @@ class Cpu:
         return s
 
     def irq(self, vector: Vector, body: int, fn: Callable[..., None], *args: Any,
-            enter: Callable[[], None] | None = None) -> None:
+            enter: Callable[[], None] | None = None, alone: bool = False) -> None:
         """The peripheral raises ``vector``'s request now; its handler's body costs ``body``
-        cycles. ``enter()`` runs when the handler starts, ``fn(*args)`` when its body ends."""
+        cycles. ``enter()`` runs when the handler starts, ``fn(*args)`` when its body ends.
+        ``alone``: nothing but this handler's body reads what ``enter`` changes, so on an idle
+        CPU both may run at the body's end, as one event (module docstring)."""
         if vector.level == MAIN_LEVEL:
             return                      # ICR level 7: the request is never accepted
         if self.ideal:
@@ -148,6 +167,18 @@ class Cpu:
             fn(*args)
             return
         now = self.sched.now
+        if self._alone is not None:
+            self._settle(now)
+        if alone and self.fuse and not self._stack and not self._pending and \
+                not self._tasks and not self._in_callback:
+            s = self._stats(vector.name, vector.level)
+            s.calls += 1
+            s.latency[0] += 1
+            f = _Frame(s, vector.level, enter, fn, args, self.entry, body, self.reti, now)
+            self._alone = f
+            self._alone_t = now
+            self._alone_ev = self.sched.at(now + f.body_end, self._alone_body)
+            return
         self._seq += 1
         self._pending.append((vector.level, vector.number, self._seq, now, vector, body,
                               enter, fn, args))
@@ -160,6 +191,8 @@ class Cpu:
             self._stats(name, MAIN_LEVEL).calls += 1
             fn(*args)
             return
+        if self._alone is not None:
+            self._settle(self.sched.now)
         self._tasks.append((name, body, fn, args, self.sched.now))
         self._dispatch()
 
@@ -252,7 +285,7 @@ class Cpu:
         if top.phase == 2 and top.done >= top.end:
             self._stack.pop()
             top.stats.busy += top.end
-            self.busy += top.end
+            self._busy += top.end
             if self._stack:
                 self._stack[-1].since = now
         elif top.atomic():
@@ -260,10 +293,102 @@ class Cpu:
             return
         self._dispatch()
 
+    # -- a lone handler as one event -------------------------------------------------------
+
+    def _alone_body(self) -> None:
+        """The lone handler's body ends: its ``enter`` and ``fn`` run now, as on the general
+        path ``fn`` does (``enter`` is the general path's at the entry's end, which nothing
+        but the body observes). Its RETI (or a body ``extend`` made longer) runs on without
+        an event while nothing else wants the CPU."""
+        f = self._alone
+        assert f is not None
+        self._alone_ev = None
+        now = self.sched.now
+        f.phase = 1
+        self._in_callback = True
+        try:
+            if f.enter is not None:
+                f.enter()
+            fn = f.fn
+            f.fn = None
+            resp = now - f.requested
+            st = f.stats
+            st.response[resp] += 1
+            if resp > st.worst_response:
+                st.worst_response = resp
+            assert fn is not None
+            fn(*f.args)
+        finally:
+            self._in_callback = False
+        if self._alone is not f:
+            # fn asked for the CPU (a request, a task): f went on the stack; from here the
+            # general path's own steps after a body's effects
+            if self._ev is not None:
+                self._ev.cancel()
+                self._ev = None
+            f.done = now - self._alone_t
+            f.since = now
+            if f.done >= f.body_end:
+                f.phase = 2
+                self._schedule()       # RETI runs on; a request now waits for its end
+            else:
+                f.phase = 1
+                self._dispatch()
+
+    def _settle(self, now: int) -> None:
+        """Before anything else touches the CPU at ``now``: a lone handler that ended by now
+        is counted; one still running goes on the stack in the phase it has reached, its next
+        milestone an event, as the general path would have it."""
+        f = self._alone
+        assert f is not None
+        t = self._alone_t
+        if f.fn is None and now >= t + f.end:
+            self._alone = None
+            f.stats.busy += f.end
+            self._busy += f.end
+            return
+        if self._alone_ev is not None:
+            self._alone_ev.cancel()
+            self._alone_ev = None
+        self._alone = None
+        done = now - t
+        if f.fn is not None:
+            if done >= f.entry:
+                f.phase = 1
+                if f.enter is not None:
+                    f.enter()          # (read by nothing before the body ends)
+                    f.enter = None
+        else:
+            f.phase = 1 if done < f.body_end else 2
+        f.since = t
+        self._stack.append(f)
+        self._schedule()
+
+    def settle(self) -> None:
+        """Count a lone handler that has ended (``busy`` and the handlers' figures are then
+        final for now); called by whoever reads them."""
+        if self._alone is not None:
+            self._settle(self.sched.now)
+
+    @property
+    def busy(self) -> int:
+        """Machine cycles spent in handlers and tasks that have ended (RETI done)."""
+        f = self._alone
+        if f is not None and f.fn is None and self.sched.now >= self._alone_t + f.end:
+            return self._busy + f.end
+        return self._busy
+
     def extend(self, cycles: int) -> None:
         """Called by a running handler: it goes on for ``cycles`` more after its effects
         (work whose outputs are not time-critical, e.g. the MAC's bookkeeping on a frame)."""
-        if self.ideal or not self._stack or cycles <= 0:
+        if self.ideal or cycles <= 0:
+            return
+        f = self._alone
+        if f is not None:
+            f.body_end += cycles      # called from its fn: the RETI moves on
+            f.end += cycles
+            return
+        if not self._stack:
             return
         top = self._stack[-1]
         top.body_end += cycles
@@ -279,4 +404,7 @@ class Cpu:
 
     @property
     def idle(self) -> bool:
+        f = self._alone
+        if f is not None and (f.fn is not None or self.sched.now < self._alone_t + f.end):
+            return False
         return not self._stack and not self._pending and not self._tasks

@@ -218,6 +218,7 @@ class Uart:
         now = self.sched.now
         cpu, vector = self.cpu, self.rx_vector
         assert vector is not None                     # attach_cpu set both
+        cpu.settle()                  # a handler running alone has read SIDR by now, or not
         for i, b in enumerate(data):
             t = t0 + i * dt
             if self.rdr and t >= now:
@@ -226,7 +227,7 @@ class Uart:
                 self.overruns += 1
                 continue
             self.rdr.append((b, t))     # more than one only for bytes handed over late
-            cpu.irq(vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr)
+            cpu.irq(vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr, alone=True)
 
     def _take_rdr(self) -> None:
         """The receive handler reads SIDR: RDRF clears, the next byte may come."""

@@ -153,6 +153,7 @@ class World:
                 self._build_can_side(r, st)
             elif config.cpu is not None and r != 0:
                 self.cpus[r] = Cpu(self.sched, config.cpu, name=f"MB90F549-R{r}")
+                self.cpus[r].fuse = config.fast_paths
                 st.run_on(self.cpus[r], config.cpu)
             self.sched.at(s_to_ticks(config.power_on.get(r, 0.0)), self._power_on, r)
         self.standby_station: RadioStation | None = None
@@ -230,6 +231,7 @@ class World:
         self.children[r] = child
         if self.cfg.cpu is not None:
             self.cpus[r] = child.cpu
+            child.cpu.fuse = self.cfg.fast_paths
         child.on_action = self._on_action
         if self.cfg.sequence is not None and r in self.cfg.sequence[0]:
             child.run_sequence(*self.cfg.sequence)

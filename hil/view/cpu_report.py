@@ -45,6 +45,7 @@ def costed_by(name: str, costs: CycleCosts = DEFAULT_COSTS) -> dict:
 def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int,
                costs: CycleCosts = DEFAULT_COSTS) -> dict:
     """The report of one CPU as plain data (JSON-ready): ``span`` ticks of simulated time."""
+    cpu.settle()
     rows = []
     for s in sorted(cpu.stats.values(), key=lambda s: (s.level, s.name)):
         lat, resp = s.latency, s.response

@@ -1,0 +1,138 @@
+"""A lone handler on an idle CPU runs as one event (firmware_model/mcu/cpu.py, ``alone=True``):
+the same ticks, effects and figures as the general path (``Cpu.fuse = False``), whatever else
+asks for the CPU while it runs, and whole rings on the CPU model give the same trace.
+"""
+from __future__ import annotations
+
+import pytest
+
+from firmware_model.cycle_costs import DEFAULT_COSTS
+from firmware_model.mcu.cpu import Cpu, Vector
+from firmware_model.mcu.scheduler import Scheduler
+
+RX = Vector("rx", level=1, number=37)
+TOP = Vector("top", level=0, number=5)
+SAME = Vector("same", level=1, number=38)
+LOW = Vector("low", level=4, number=11)
+
+BODY = 160
+"""The lone handler's body (cycles): entry 24 + 160 + RETI 11 = 195 cycles in all."""
+
+
+def _figures(cpu: Cpu) -> dict:
+    cpu.settle()
+    return {s.name: (s.calls, s.busy, sorted(s.latency.items()), sorted(s.response.items()),
+                     s.worst_latency, s.worst_response) for s in cpu.stats.values()}
+
+
+def _run(fuse: bool, other: Vector | None, at: int, task: bool = False,
+         extend: int = 0, ask_in_fn: bool = False) -> tuple[list, dict, int]:
+    """A lone handler requested at tick 1000 and, ``at`` ticks later, another request of
+    ``other`` (or a main-loop task): what happened when, each handler's figures, busy."""
+    sched = Scheduler()
+    cpu = Cpu(sched, DEFAULT_COSTS)
+    cpu.fuse = fuse
+    seen: list[tuple[str, int]] = []
+    reg = []
+
+    def enter():
+        reg.append(sched.now)
+
+    def body():
+        seen.append(("rx effect", sched.now))
+        if extend:
+            cpu.extend(extend)
+        if ask_in_fn:
+            cpu.irq(LOW, 30, lambda: seen.append(("asked by rx", sched.now)))
+
+    sched.at(1000, lambda: cpu.irq(RX, BODY, body, enter=enter, alone=True))
+    if task:
+        sched.at(1000 + at, lambda: cpu.task("main", 50, lambda: seen.append(("task",
+                                                                              sched.now))))
+    elif other is not None:
+        sched.at(1000 + at, lambda: cpu.irq(other, 40, lambda: seen.append((other.name,
+                                                                            sched.now))))
+    sched.at(1000 + at, lambda: seen.append(("idle?", int(cpu.idle))))
+    sched.run_until(5000)
+    seen.append(("idle at end", int(cpu.idle)))
+    return seen, _figures(cpu), cpu.busy
+
+
+OFFSETS = sorted({0, 1, 12, 23, 24, 25, 100, 183, 184, 185, 190, 194, 195, 196, 400})
+"""Ticks after the lone handler's request: in its entry (0-23), body (24-183), RETI (184-194)
+and after it (195 on), with each boundary and its neighbours."""
+
+
+@pytest.mark.parametrize("other", [TOP, SAME, LOW], ids=lambda v: v.name)
+@pytest.mark.parametrize("at", OFFSETS)
+def test_a_request_while_a_lone_handler_runs_is_taken_as_on_the_general_path(other, at):
+    fused = _run(True, other, at)
+    assert fused == _run(False, other, at)
+    assert ("rx effect", 1000 + 24 + BODY) in fused[0] or other is TOP
+
+
+@pytest.mark.parametrize("at", OFFSETS)
+def test_a_task_while_a_lone_handler_runs_waits_as_on_the_general_path(at):
+    assert _run(True, None, at, task=True) == _run(False, None, at, task=True)
+
+
+@pytest.mark.parametrize("at", [0, 100, 184, 200, 240, 260, 400])
+@pytest.mark.parametrize("ask", [False, True])
+def test_a_lone_handler_that_extends_itself_or_asks_for_the_cpu(at, ask):
+    """``extend`` from its body (the MAC's bookkeeping on a frame's End) makes the body longer,
+    preemptible by a higher level; a request made by its body waits for its RETI."""
+    for other in (TOP, LOW):
+        assert _run(True, other, at, extend=60, ask_in_fn=ask) == \
+            _run(False, other, at, extend=60, ask_in_fn=ask)
+
+
+def test_a_lone_handler_alone_costs_what_the_general_path_says():
+    seen, figures, busy = _run(True, None, 10_000)
+    assert seen[:1] == [("rx effect", 1184)]
+    assert figures["rx"] == (1, 195, [(0, 1)], [(184, 1)], 0, 184)
+    assert busy == 195
+
+
+def test_busy_counts_a_lone_handler_only_once_its_reti_is_done():
+    sched = Scheduler()
+    cpu = Cpu(sched, DEFAULT_COSTS)
+    cpu.irq(RX, BODY, lambda: None, alone=True)
+    marks = []
+    for t in (100, 194, 195):
+        sched.at(t, lambda: marks.append((sched.now, cpu.busy, cpu.idle)))
+    sched.run_until(1000)
+    assert marks == [(100, 0, False), (194, 0, False), (195, 195, True)]
+
+
+CASES = {
+    "5-ring, load 2, CAN": dict(robots=(0, 1, 2, 3, 4), duration=8.0, can=True, load=2.0,
+                                seed=1),
+    "radio only, byte errors": dict(robots=(1, 2, 3), duration=8.0, load=2.0, seed=3,
+                                    ber=0.002),
+    "idle noise": dict(robots=(1, 2, 3), duration=6.0, load=1.0, seed=4, noise=True),
+    "authenticated (main-loop hashing)": dict(robots=(0, 1, 2), duration=6.0, load=1.0,
+                                              seed=5, auth=True),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_whole_rings_on_the_cpu_model_give_the_same_trace_and_figures(case):
+    from hil.sim.world import SimConfig, World
+
+    def run(fuse: bool):
+        kw = dict(CASES[case])
+        if kw.pop("auth", False):
+            from firmware_model.radio.auth import RingKey
+            from firmware_model.radio.mac import MacConfig
+            kw["mac"] = MacConfig(auth=RingKey(bytes(range(16))))
+        records: list = []
+        w = World(SimConfig(cpu=DEFAULT_COSTS, **kw), listeners=[records.append])
+        for c in w.cpus.values():
+            c.fuse = fuse
+        w.run()
+        return records, {r: (c.busy, _figures(c)) for r, c in w.cpus.items()}
+
+    fused, general = run(True), run(False)
+    assert len(fused[0]) > 100
+    assert fused[0] == general[0]
+    assert fused[1] == general[1]
