@@ -99,12 +99,17 @@ class CanDriver:
         mask_rx = sum(1 << b for b in RX_EVENT + RX_STATUS)
         c.enable_irq(tx=mask_tx, rx=mask_rx)
         cpu, cyc = self.cpu, self._cycles
+        # its entry reads the buffer (RCR cleared), which only the next frame for it looks at
+        # (before_rx): it may run alone (Cpu.irq)
         c.on_rx_irq = lambda buf: cpu.irq(CAN0_RX, cyc["rx"], self._rx_body,
-                                          enter=lambda: self._rx_read(buf))
+                                          enter=lambda: self._rx_read(buf), alone=True)
+        c.before_rx = lambda: cpu.settle(read=False)
         # one vector for a finished transmission and a node status transition (interrupts.py):
         # its handler serves one cause an entry, at that cause's cost
-        c.on_tx_irq = lambda buf: cpu.irq(CAN0_TX_NS, cyc["tx"], self._tx_irq, buf)
-        c.on_status_irq = lambda ns: cpu.irq(CAN0_TX_NS, cyc["status"], self._status_irq, ns)
+        c.on_tx_irq = lambda buf: cpu.irq(CAN0_TX_NS, cyc["tx"], self._tx_irq, buf,
+                                          alone=True)
+        c.on_status_irq = lambda ns: cpu.irq(CAN0_TX_NS, cyc["status"], self._status_irq, ns,
+                                             alone=True)
         c.CSR = c.CSR | CSR_NIE
         c.start()
 

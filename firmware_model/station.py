@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Callable, NamedTuple
 
-from .interrupts import AUTH_TASK
+from .interrupts import AUTH_TASK, RXWATCH
 from .mcu.gpio import OutputPin
 from .mcu.ptr2000 import Ptr2000
 from .mcu.reload_timer import ReloadTimer
@@ -112,7 +112,7 @@ class RadioStation:
         """Run the handlers on a CPU model (mcu/cpu.py) with bodies from ``costs``
         (cycle_costs.py): UART0 reception and transmission a byte at a time, the End's
         timer, and the two timer channels, at the levels of interrupts.py."""
-        from .interrupts import RXWATCH, TMR0, TX_END, UART0_RX, UART0_TX
+        from .interrupts import TMR0, TX_END, UART0_RX, UART0_TX
         self.cpu = cpu
         self._frame_cycles = costs.mac_frame.cycles
         self._block_cycles = costs.sha256_block.cycles if self.mac.cfg.auth is not None else 0
@@ -120,8 +120,9 @@ class RadioStation:
                              costs.uart_tx_byte.cycles, TX_END, costs.uart_tx_done.cycles)
         timer_cycles = costs.mac_timer.cycles
         self.timer.on_expiry = lambda now: cpu.irq(TMR0, timer_cycles, self._on_timer_isr)
-        self.stall_timer.on_expiry = lambda now: cpu.irq(RXWATCH, timer_cycles,
-                                                         self._on_stall_isr)
+        self.stall_timer.on_expiry = lambda now: self._stall_expired(now, timer_cycles)
+        self.stall_timer.guard = self._stall_guard
+        self.uart.rx_quiet = self.deframer.quiet_for
 
     def _hash(self, frame) -> None:
         """The authenticated profile's tag of ``frame`` on the CPU model: its SHA-256 blocks
@@ -136,6 +137,24 @@ class RadioStation:
             self.cpu.task(AUTH_TASK, self._block_cycles *
                           sha256_blocks(covered_len(len(frame.content))), _nothing)
 
+    def _stall_guard(self, now: int) -> int | None:
+        """The stall timer is due, a frame in progress: if the air is still to hand over
+        bytes of it that came late (a good frame's, each of which re-armed the timer on its
+        own tick), look again when the last of them has come (ReloadTimer.guard)."""
+        if not self.deframer.in_frame:
+            return None
+        late_until = getattr(self.uart.line, "late_until", None)
+        until = late_until(now) if late_until is not None else None
+        return until if until is not None and until > now else None
+
+    def _stall_expired(self, now: int, cycles: int) -> None:
+        """The stall timer's compare matched: its interrupt, unless bytes handed over late
+        (Uart.receive's ``late_ok``) re-armed it first, as each had on its own tick."""
+        self.uart.sync(now)
+        if self.stall_timer.expiry is None:
+            assert self.cpu is not None
+            self.cpu.irq(RXWATCH, cycles, self._on_stall_isr)
+
     def _on_timer_isr(self) -> None:
         self._on_timer(self.sched.now)
 
@@ -147,8 +166,11 @@ class RadioStation:
     def power_on(self) -> None:
         self._apply(self.mac.power_on(self.sched.now))
 
-    def _on_rx(self, data: bytes, t0: int, dt: int) -> None:
-        now = self.sched.now
+    def _on_rx(self, data: bytes, t0: int, dt: int, now: int | None = None) -> None:
+        """Bytes from the UART, byte i's stop bit at ``t0 + i * dt``; ``now``: the tick of
+        their handler's effects when earlier than the scheduler's (Uart._replay)."""
+        if now is None:
+            now = self.sched.now
         mac = self.mac
         d = self.deframer
         end = t0 + (len(data) - 1) * dt
@@ -195,7 +217,11 @@ class RadioStation:
             stall = last + self._stall + 1
             promise = self._promise
             if d.in_frame or (promise is not None and stall < promise):
-                self.stall_timer.arm_at(stall + (stall & 1))   # the timer's clock / 2
+                # programmed by the last byte's handler: on the ideal CPU at that byte's tick
+                # (bytes that came in a burst too), else at its effects (``now``); the timer
+                # counts machine clock / 2, so the tick it is programmed at rounds the expiry
+                self.stall_timer.arm_at(stall + (stall & 1), now if self.cpu is not None
+                                        else last)
                 return
             self._promise = None       # the promised End comes first
         if self.stall_timer.expiry is not None:

@@ -2,7 +2,7 @@
 (hil/sim/quiet_can.py) and ring leaps (hil/sim/quiet_ring.py) against the same world with both
 off, on random rings, faults, loads, byte errors and run segments.
 
-    python scripts/sleep_hunt.py [--seed 0] [--runs 100]
+    python scripts/sleep_hunt.py [--seed 0] [--runs 100] [--cpu]
 
 Each run draws a world from its seed (robots, duration, CAN sides, the standby father, the
 soak's random faults at a random spacing, a load that may stop half-way, byte errors, the
@@ -12,7 +12,9 @@ compares the summaries and the whole state (every part, every pending event, the
 generators). A difference prints the world and makes the exit status 1. Two inexact sleeps were
 found this way (a message noted between a probe's two snapshots, a cruising wheel whose
 odometer did not change for three periods); tests/hil/sim/test_quiet_can.py keeps both as named
-scenarios and runs a few seeds of this hunt.
+scenarios and runs a few seeds of this hunt. With ``--cpu`` each world runs on the CPU
+model, its fast paths (lone handlers, bytes late on an idle CPU) against every byte at its
+tick on the general path: events, summary and every handler's figures.
 """
 from __future__ import annotations
 
@@ -89,16 +91,46 @@ def same_run(cfg: SimConfig, cuts: list[tuple[int, bool]], traced: bool = False)
             and fast_events == slow_events)
 
 
+def cpu_figures(w: World) -> dict:
+    """Every child's CPU figures on the CPU model: busy cycles and each handler's calls, busy
+    cycles, latency and response counts."""
+    return {r: (c.busy, sorted((s.name, s.calls, s.busy, sorted(s.latency.items()),
+                                sorted(s.response.items()), s.worst_latency, s.worst_response)
+                               for s in c.stats.values()))
+            for r, c in sorted(w.cpus.items())}
+
+
+def same_cpu_run(cfg: SimConfig, cuts: list[tuple[int, bool]]) -> bool:
+    """On the CPU model: does the run with the fast paths (lone handlers, late bytes on an
+    idle CPU: docs/fast-paths.md), cut at ``cuts``, give the events, summary and CPU figures
+    of the run with every byte at its tick and every handler on the general path? (Their
+    states differ in form: pending events and the lone handler's record.)"""
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    cfg = replace(cfg, cpu=DEFAULT_COSTS)
+    slow_events: list[dict] = []
+    fast_events: list[dict] = []
+    slow = World(replace(cfg, fast_paths=False), on_event=slow_events.append)
+    slow.run()
+    fast = World(cfg, on_event=fast_events.append)
+    for tick, wake in cuts:
+        (fast.run if wake else fast._advance)(tick)
+    fast.run()
+    return (summary(fast) == summary(slow) and fast_events == slow_events
+            and cpu_figures(fast) == cpu_figures(slow))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0, help="first world's seed (default 0)")
     ap.add_argument("--runs", type=int, default=100, help="worlds to draw (default 100)")
+    ap.add_argument("--cpu", action="store_true", help="the CPU model's fast paths instead: "
+                    "each world on --cpu estimated with and without the fast paths")
     a = ap.parse_args(argv)
     bad = 0
     for seed in range(a.seed, a.seed + a.runs):
         cfg, cuts, traced = random_world(seed)
         t = time.perf_counter()
-        ok = same_run(cfg, cuts, traced)
+        ok = same_cpu_run(cfg, cuts) if a.cpu else same_run(cfg, cuts, traced)
         bad += not ok
         print(f"seed {seed}: {'same run' if ok else 'DIFFERENT'} ({time.perf_counter() - t:.1f} s)"
               + ("" if ok else f"\n  {cfg!r}\n  cuts {cuts}, traced {traced}"), flush=True)

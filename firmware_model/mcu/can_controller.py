@@ -179,7 +179,7 @@ class CanController(CanNode):
         return not self._csr & CSR_HALT
 
     __slots__ = (
-        "sched", "name", "transceiver", "on_rx_irq", "on_tx_irq", "on_status_irq",
+        "sched", "name", "transceiver", "on_rx_irq", "on_tx_irq", "on_status_irq", "before_rx",
         "_csr", "_leir", "_btr", "_timing",
         "_bval", "_txdir", "_treq", "_tcan", "_tc", "_rc", "_rovr", "_rrtr", "_trtr",
         "TIER", "RIER", "_amsr", "_amr0", "_amr1",
@@ -193,6 +193,10 @@ class CanController(CanNode):
         self.name = name
         self.transceiver: Any = None
         self.on_rx_irq: Callable[[int], None] | None = None
+        self.before_rx: Callable[[], None] | None = None
+        """Called before a received frame looks for a free buffer (RCR): a receive handler
+        that reads its buffer on entry and may run alone (Cpu.irq) has done so by then, or
+        not, as on the general path (Cpu.settle)."""
         self.on_tx_irq: Callable[[int], None] | None = None
         self.on_status_irq: Callable[[int], None] | None = None
         self._csr = CSR_HALT
@@ -627,6 +631,8 @@ class CanController(CanNode):
             self._set_ns(_ns_of(*self._status()))
         if self._csr & CSR_HALT:
             return
+        if self.before_rx is not None:
+            self.before_rx()
         fid = frame.id
         first = -1
         last = -1

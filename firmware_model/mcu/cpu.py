@@ -23,14 +23,15 @@ requests) runs when its body's cycles are done, however often it was preempted i
 The running instruction's remaining cycles before a request is sampled are not simulated (the
 model runs no instructions); ``CycleCosts.sample_wait_max`` bounds them in the report.
 
-**A handler alone on the CPU** (``irq(..., alone=True)``, the UART's receive handler: its
-``enter`` only reads a register nothing else looks at before its body ends) that finds the
-CPU idle runs as one event at the end of its body, and its RETI is counted when the CPU is
-next asked anything: three events a received byte become one. Whatever touches the CPU while
-such a handler runs (a request, a task, ``extend``) first puts it on the stack as the phase
-it has reached, so what follows is the general path's to the tick (``fuse = False`` keeps
-every handler on the general path; tests/firmware_model/mcu/test_cpu_fused.py compares the
-two).
+**A handler alone on the CPU** (``irq(..., alone=True)``: its ``enter`` only reads what
+nothing but its own body looks at) that finds the CPU idle runs without the dispatcher: an
+event at its entry's end and one at its body's end, scheduled when the general path schedules
+its milestones, and its RETI counted when the CPU is next asked anything. Whatever touches
+the CPU while it runs (a request, a task, ``extend``) first puts it on the stack in the phase
+it has reached, so what follows is the general path's to the tick. Bytes received while the
+CPU is idle may be handled late, all at once (``lone_past``, Uart.receive's ``late_ok``).
+``fuse = False`` keeps every handler on the general path (docs/fast-paths.md; the two are
+compared by tests/firmware_model/mcu/test_cpu_fused.py).
 
 ``Cpu(sched, None)`` is the ideal CPU: every handler runs in zero ticks on the tick of its
 request, exactly as the firmware model ran before there was a CPU (the paper's timing).
@@ -140,6 +141,15 @@ class Cpu:
         """The lone handler running as one event (module docstring), or None."""
         self._alone_ev: Event | None = None
         self._alone_t = 0          # the tick it was accepted at
+        self.on_touch: Callable[[int, bool], None] | None = None
+        """Set by a UART whose received bytes may be handed over late (``lone_past``):
+        ``on_touch(now, busy)`` runs before anything asks the CPU for something (``busy``:
+        a request or a task, so bytes must come at their ticks from now on) or reads its
+        figures (``busy`` False)."""
+        self._touching = False
+        self.entered = 0
+        """The tick the entry sequence of the handler whose ``enter`` runs ended (for an
+        ``enter`` that notes the time: it may run later, ``alone``)."""
 
     # -- requests ------------------------------------------------------------------------
 
@@ -150,11 +160,13 @@ class Cpu:
         return s
 
     def irq(self, vector: Vector, body: int, fn: Callable[..., None], *args: Any,
-            enter: Callable[[], None] | None = None, alone: bool = False) -> None:
+            enter: Callable[[], None] | None = None, alone: bool = False,
+            at: int | None = None) -> None:
         """The peripheral raises ``vector``'s request now; its handler's body costs ``body``
         cycles. ``enter()`` runs when the handler starts, ``fn(*args)`` when its body ends.
         ``alone``: nothing but this handler's body reads what ``enter`` changes, so on an idle
-        CPU both may run at the body's end, as one event (module docstring)."""
+        CPU both may run at the body's end, as one event (module docstring). ``at``: the
+        request came at that earlier tick, the CPU idle since (``lone_past``'s last byte)."""
         if vector.level == MAIN_LEVEL:
             return                      # ICR level 7: the request is never accepted
         if self.ideal:
@@ -166,19 +178,29 @@ class Cpu:
                 enter()
             fn(*args)
             return
+        if self.on_touch is not None and not self._touching:
+            self._touch(True)
         now = self.sched.now
         if self._alone is not None:
             self._settle(now)
         if alone and self.fuse and not self._stack and not self._pending and \
                 not self._tasks and not self._in_callback:
+            t = now if at is None else at
             s = self._stats(vector.name, vector.level)
             s.calls += 1
             s.latency[0] += 1
-            f = _Frame(s, vector.level, enter, fn, args, self.entry, body, self.reti, now)
+            f = _Frame(s, vector.level, enter, fn, args, self.entry, body, self.reti, t)
             self._alone = f
-            self._alone_t = now
-            self._alone_ev = self.sched.at(now + f.body_end, self._alone_body)
+            self._alone_t = t
+            # the entry's end, then the body's, each scheduled when the general path would
+            # schedule its milestone, so that events due at the same tick keep their order
+            if t + f.entry > now:
+                self._alone_ev = self.sched.at(t + f.entry, self._alone_entry)
+            else:
+                f.phase = 1
+                self._alone_ev = self.sched.at(t + f.body_end, self._alone_body)
             return
+        assert at is None, "a request in the past needs an idle CPU (lone_past)"
         self._seq += 1
         self._pending.append((vector.level, vector.number, self._seq, now, vector, body,
                               enter, fn, args))
@@ -191,6 +213,8 @@ class Cpu:
             self._stats(name, MAIN_LEVEL).calls += 1
             fn(*args)
             return
+        if self.on_touch is not None and not self._touching:
+            self._touch(True)
         if self._alone is not None:
             self._settle(self.sched.now)
         self._tasks.append((name, body, fn, args, self.sched.now))
@@ -267,6 +291,7 @@ class Cpu:
             if top.phase == 0:
                 top.phase = 1
                 if top.enter is not None:
+                    self.entered = now
                     top.enter()
             elif top.phase == 1:
                 fn = top.fn
@@ -295,6 +320,13 @@ class Cpu:
 
     # -- a lone handler as one event -------------------------------------------------------
 
+    def _alone_entry(self) -> None:
+        """The lone handler's entry sequence ends (its ``enter`` waits for the body's end)."""
+        f = self._alone
+        assert f is not None
+        f.phase = 1
+        self._alone_ev = self.sched.at(self._alone_t + f.body_end, self._alone_body)
+
     def _alone_body(self) -> None:
         """The lone handler's body ends: its ``enter`` and ``fn`` run now, as on the general
         path ``fn`` does (``enter`` is the general path's at the entry's end, which nothing
@@ -304,10 +336,10 @@ class Cpu:
         assert f is not None
         self._alone_ev = None
         now = self.sched.now
-        f.phase = 1
         self._in_callback = True
         try:
             if f.enter is not None:
+                self.entered = self._alone_t + f.entry
                 f.enter()
             fn = f.fn
             f.fn = None
@@ -335,46 +367,104 @@ class Cpu:
                 f.phase = 1
                 self._dispatch()
 
-    def _settle(self, now: int) -> None:
-        """Before anything else touches the CPU at ``now``: a lone handler that ended by now
-        is counted; one still running goes on the stack in the phase it has reached, its next
-        milestone an event, as the general path would have it."""
+    def _settle(self, now: int, final: bool = False) -> None:
+        """Before anything else touches the CPU at ``now``: a lone handler that ended before
+        now is counted; one still running goes on the stack in the phase it has reached, its
+        next milestone an event, as the general path would have it. One whose RETI ends at
+        ``now`` is still running, as the general path's RETI event (scheduled at the body's
+        end) runs after whatever was scheduled earlier for this tick; ``final``: the run
+        stops at ``now``, and every event of the tick has run (World._advance)."""
         f = self._alone
         assert f is not None
         t = self._alone_t
-        if f.fn is None and now >= t + f.end:
+        if f.fn is None and (now > t + f.end or (final and now == t + f.end)):
             self._alone = None
             f.stats.busy += f.end
             self._busy += f.end
             return
-        if self._alone_ev is not None:
-            self._alone_ev.cancel()
-            self._alone_ev = None
+        ev = self._alone_ev
+        self._alone_ev = None
         self._alone = None
-        done = now - t
-        if f.fn is not None:
-            if done >= f.entry:
-                f.phase = 1
-                if f.enter is not None:
-                    f.enter()          # (read by nothing before the body ends)
-                    f.enter = None
-        else:
-            f.phase = 1 if done < f.body_end else 2
         f.since = t
         self._stack.append(f)
-        self._schedule()
+        if f.fn is not None:
+            # before its effects: its pending event is the general path's milestone (the
+            # entry's end in phase 0, the body's in phase 1), scheduled when that path
+            # schedules it, so it becomes that milestone and keeps its place among the
+            # events due at its tick
+            if f.phase == 1 and f.enter is not None:
+                self.entered = t + f.entry
+                f.enter()              # (read by nothing before the body ends)
+                f.enter = None
+            assert ev is not None
+            ev.fn = self._milestone
+            self._ev = ev
+        else:
+            f.phase = 1 if now - t < f.body_end else 2
+            self._schedule()
 
-    def settle(self) -> None:
+    def settle(self, read: bool = True, final: bool = False) -> None:
         """Count a lone handler that has ended (``busy`` and the handlers' figures are then
-        final for now); called by whoever reads them."""
+        final for now); called by whoever reads them (``read``: the bytes handed over late
+        first) or a register a lone handler's entry reads (``read`` False); ``final``: the
+        run stops now, every event of this tick done (``_settle``)."""
+        if read and self.on_touch is not None and not self._touching:
+            self._touch(False)
         if self._alone is not None:
-            self._settle(self.sched.now)
+            self._settle(self.sched.now, final)
+
+    def _touch(self, busy: bool) -> None:
+        assert self.on_touch is not None
+        self._touching = True
+        try:
+            self.on_touch(self.sched.now, busy)
+        finally:
+            self._touching = False
+
+    def quiescent(self, now: int) -> bool:
+        """Nothing runs or waits on the CPU at ``now`` (a lone handler's RETI done too): a
+        reception that begins now may hand its bytes over late (``lone_past``)."""
+        f = self._alone
+        if f is not None and (f.fn is not None or now <= self._alone_t + f.end):
+            return False
+        return not self._stack and not self._pending and not self._tasks
+
+    def lone_past(self, vector: Vector, body: int, t0: int, dt: int, n: int) -> None:
+        """Count ``n`` lone handlers of ``vector`` requested at ``t0 + i * dt`` (i < n), each
+        on an idle CPU, whose effects (at ``entry + body`` cycles after each request) are due
+        by now: the bytes of a reception handed over late, nothing having asked the CPU for
+        anything since before ``t0`` (the caller's invariant). The last one's RETI may still
+        be running: it is then the lone handler, counted when it ends (``_settle``)."""
+        now = self.sched.now
+        if self._alone is not None:
+            self._settle(t0)           # the previous byte's handler ended before this one
+        assert self._alone is None and self.quiescent(t0), "lone_past needs an idle CPU"
+        s = self._stats(vector.name, vector.level)
+        e = self.entry + body
+        whole = e + self.reti
+        s.calls += n
+        s.latency[0] += n
+        s.response[e] += n
+        if e > s.worst_response:
+            s.worst_response = e
+        last = t0 + (n - 1) * dt
+        assert last + e <= now
+        done = n if last + whole < now else n - 1
+        s.busy += done * whole
+        self._busy += done * whole
+        if done < n:
+            f = _Frame(s, vector.level, None, None, (), self.entry, body, self.reti, last)
+            f.fn = None
+            self._alone = f
+            self._alone_t = last
 
     @property
     def busy(self) -> int:
         """Machine cycles spent in handlers and tasks that have ended (RETI done)."""
+        if self.on_touch is not None and not self._touching:
+            self._touch(False)
         f = self._alone
-        if f is not None and f.fn is None and self.sched.now >= self._alone_t + f.end:
+        if f is not None and f.fn is None and self.sched.now > self._alone_t + f.end:
             return self._busy + f.end
         return self._busy
 
@@ -404,7 +494,9 @@ class Cpu:
 
     @property
     def idle(self) -> bool:
+        if self.on_touch is not None and not self._touching:
+            self._touch(False)
         f = self._alone
-        if f is not None and (f.fn is not None or self.sched.now < self._alone_t + f.end):
+        if f is not None and (f.fn is not None or self.sched.now <= self._alone_t + f.end):
             return False
         return not self._stack and not self._pending and not self._tasks

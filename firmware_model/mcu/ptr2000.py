@@ -99,7 +99,22 @@ class Ptr2000:
         query = getattr(ch, "rx_started", None)
         return query(self, now) if query is not None else None
 
-    def deliver(self, data: bytes, t0: int, dt: int) -> None:
-        """Bytes heard from the air (called by the channel)."""
+    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
+        """Bytes heard from the air (called by the channel; ``late_ok``: Uart.receive's)."""
         if self.uart is not None:
-            self.uart.receive(data, t0, dt)
+            if late_ok:
+                self.uart.receive(data, t0, dt, True)
+            else:
+                self.uart.receive(data, t0, dt)
+
+    def late_until(self, now: int) -> int | None:
+        """The tick by which the bytes of the reception under way that may still come late
+        have all completed, if any (hil/sim/air.py, ``Reception.quiet``), else None."""
+        query = getattr(self.channel, "late_until", None)
+        return query(self, now) if query is not None else None
+
+    def on_time(self, now: int) -> None:
+        """The bytes still to come each at its tick (the CPU has work: Uart._cpu_touched)."""
+        on_time = getattr(self.channel, "on_time", None)
+        if on_time is not None:
+            on_time(self, now)

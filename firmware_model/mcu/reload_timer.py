@@ -45,13 +45,17 @@ def plan_delay(ticks: int, prescaler: int = 2) -> tuple[int, int, int]:
 class ReloadTimer:
     """One reload timer channel; ``on_expiry(now)`` runs at the exact expiry tick."""
 
-    __slots__ = ("sched", "on_expiry", "expiry", "_ev", "delay", "name")
+    __slots__ = ("sched", "on_expiry", "expiry", "_ev", "delay", "name", "guard")
 
     def __init__(self, sched: Clock, on_expiry: Callable[[int], None],
                  name: str = "TMR0") -> None:
         self.sched = sched
         self.on_expiry = on_expiry
         self.name = name
+        self.guard: Callable[[int], int | None] | None = None
+        """Asked when the timer is due: a later tick if the firmware is known to re-arm it
+        past now in effects not yet given (bytes handed over late: firmware_model/station.py),
+        to look again then; None to expire now."""
         self.expiry: int | None = None
         self._ev: Event | None = None
         self.delay = 0
@@ -61,9 +65,12 @@ class ReloadTimer:
         """(prescaler, first TMRLR, full periods) the firmware wrote for the current delay."""
         return plan_delay(self.delay) if self.delay >= 2 else (2, 0, 0)
 
-    def arm_at(self, when: int) -> None:
-        """Expire at tick ``when`` (programming the delay from now with ``plan_delay``)."""
-        now = self.sched.now
+    def arm_at(self, when: int, now: int | None = None) -> None:
+        """Expire at tick ``when`` (programming the delay from now with ``plan_delay``).
+        ``now``: the tick the firmware programs it at, if earlier than the scheduler's (a
+        handler's effects given late, Uart._replay); ``when`` is later than both."""
+        if now is None:
+            now = self.sched.now
         ev = self._ev
         if ev is not None and ev.when <= when and when > now and not ev.cancelled:
             # Common case (re-armed later every turn): keep the pending event.
@@ -104,6 +111,11 @@ class ReloadTimer:
         if now < exp:
             self._ev = self.sched.at(exp, self._fire)
             return
+        if self.guard is not None:
+            later = self.guard(now)
+            if later is not None and later > now:
+                self._ev = self.sched.at(later, self._fire)
+                return
         self._ev = None
         self.expiry = None
         self.on_expiry(now)

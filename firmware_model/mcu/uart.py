@@ -54,14 +54,15 @@ class SerialLine(Protocol):
 class Uart:
     """One UART channel. Set ``line`` (TX side), ``on_rx`` and ``on_tx_done`` before use."""
 
-    STEADY_COUNTERS = ("bytes_sent", "bytes_received")
+    STEADY_COUNTERS = ("bytes_sent", "bytes_received", "bytes_late")
     """Count only (reports; hil/sim/steady.py)."""
 
     __slots__ = ("sched", "bit_ticks", "byte_ticks", "line", "on_rx", "on_tx_done",
                  "busy_until", "bytes_sent", "bytes_received", "name", "cpu", "rx_vector",
                  "rx_cycles", "tx_vector", "tx_cycles", "end_vector", "end_cycles", "rdr",
                  "overruns", "_read", "gaps", "gap_ticks", "_tx", "_tx_len", "_tx_next",
-                 "_sodr", "_shift", "_tdre_entry", "_gap_from")
+                 "_sodr", "_shift", "_tdre_entry", "_gap_from", "rx_quiet",
+                 "bytes_late")
 
     def __init__(self, sched: Scheduler, baud: int = 9600, byte_ticks: int | None = None,
                  name: str = "UART0") -> None:
@@ -77,7 +78,14 @@ class Uart:
             self.bit_ticks = byte_ticks / BITS_PER_BYTE_8N1
         self.byte_ticks = byte_ticks
         self.line: SerialLine | None = None
-        self.on_rx: Callable[[bytes, int, int], None] | None = None
+        self.on_rx: Callable[..., None] | None = None
+        self.bytes_late = 0
+        """Bytes handed over late on an idle CPU and counted as handled at their ticks
+        (``_replay``)."""
+        self.rx_quiet: Callable[[bytes], bool] | None = None
+        """Set by the receiving firmware: True if handing it all but the last byte of these
+        bytes, in any chunks, makes it report nothing (a good frame, nothing held): then
+        they may come late on an idle CPU (``receive``'s ``late_ok``, hil/sim/air.py)."""
         self.on_tx_done: Callable[[int], None] | None = None
         self.busy_until = 0
         self.bytes_sent = 0
@@ -107,6 +115,7 @@ class Uart:
         transmit interrupt (TDRE, ``tx_cycles`` a byte) and the timer that marks the End's
         stop bit (``end_cycles``: TXEN low and the MAC's end-of-frame rules)."""
         self.cpu = cpu
+        cpu.on_touch = self._cpu_touched
         self.rx_vector, self.rx_cycles = rx_vector, rx_cycles
         self.tx_vector, self.tx_cycles = tx_vector, tx_cycles
         self.end_vector, self.end_cycles = end_vector, end_cycles
@@ -159,10 +168,14 @@ class Uart:
             # (``pause``) where the shift register runs dry
             assert self._tx is not None                           # the frame being sent
             self.line.transmit(self._tx[k:], now, bt)
-        cpu.irq(self.tx_vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter)
+        cpu.irq(self.tx_vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter,
+                alone=True)
 
     def _tdre_enter(self) -> None:
-        self._tdre_entry = self.sched.now
+        """The handler's entry has ended (the End's timer counts from there; only its body
+        reads it, so it may run alone)."""
+        assert self.cpu is not None
+        self._tdre_entry = self.cpu.entered
 
     def _tdre_isr(self) -> None:
         """The transmit handler's write: the next byte to SODR, or, after the last, TIE off
@@ -207,8 +220,12 @@ class Uart:
             assert self.cpu is not None and self.end_vector is not None   # set with the timer
             self.cpu.irq(self.end_vector, self.end_cycles, _nothing, enter=lambda: done(end))
 
-    def receive(self, data: bytes, t0: int, dt: int) -> None:
-        """Bytes from the line: byte i's stop bit ended at tick ``t0 + i * dt``."""
+    def receive(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
+        """Bytes from the line: byte i's stop bit ended at tick ``t0 + i * dt``. ``late_ok``:
+        the bytes whose stop bit ended before now are a clean prefix of a frame handed over
+        late, the CPU idle since before the first (the air's lazy reception, hil/sim/air.py):
+        their handlers are counted as they ran (``Cpu.lone_past``) and their effects happen
+        now, in one burst, as the ideal CPU's do."""
         self.bytes_received += len(data)
         if self.on_rx is None:
             return
@@ -218,7 +235,12 @@ class Uart:
         now = self.sched.now
         cpu, vector = self.cpu, self.rx_vector
         assert vector is not None                     # attach_cpu set both
-        cpu.settle()                  # a handler running alone has read SIDR by now, or not
+        if late_ok and t0 < now:
+            k = min(len(data), (now - t0 - 1) // dt + 1)     # stop bits before now
+            self._replay(data[:k], t0, dt)
+            data = data[k:]
+            t0 += k * dt
+        cpu.settle(read=False)        # a handler running alone has read SIDR by now, or not
         for i, b in enumerate(data):
             t = t0 + i * dt
             if self.rdr and t >= now:
@@ -228,6 +250,49 @@ class Uart:
                 continue
             self.rdr.append((b, t))     # more than one only for bytes handed over late
             cpu.irq(vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr, alone=True)
+
+    def may_come_late(self, data: bytes, dt: int) -> bool:
+        """Could ``data``, a byte every ``dt`` ticks, be handed over late (``receive``'s
+        ``late_ok``)? Only if the receiving firmware reports nothing before its last byte
+        (``rx_quiet``) and each byte's handler, run alone, is over before the next byte
+        comes; the caller knows the CPU is idle now."""
+        cpu = self.cpu
+        return cpu is not None and self.rx_quiet is not None and \
+            cpu.entry + self.rx_cycles + cpu.reti < dt and self.rx_quiet(data)
+
+    def _replay(self, chunk: bytes, t0: int, dt: int) -> None:
+        """Bytes handed over late with an idle CPU (``receive``'s ``late_ok``): each byte's
+        handler ran alone at its stop bit; those whose effects are due by now give them now,
+        in one call, at the tick the last of them had them; a last byte whose body is still
+        running becomes the lone handler and gives its effects at its body's end."""
+        cpu, vector = self.cpu, self.rx_vector
+        assert cpu is not None and vector is not None and self.on_rx is not None
+        now = self.sched.now
+        e = cpu.entry + self.rx_cycles
+        n = len(chunk)
+        last = t0 + (n - 1) * dt
+        due = n if last + e <= now else n - 1
+        if due:
+            self.bytes_late += due
+            cpu.lone_past(vector, self.rx_cycles, t0, dt, due)
+            self.on_rx(chunk[:due], t0, dt, t0 + (due - 1) * dt + e)
+        if due < n:
+            self.rdr.append((chunk[-1], last))
+            cpu.irq(vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr, alone=True,
+                    at=last)
+
+    def _cpu_touched(self, now: int, busy: bool) -> None:
+        """The CPU is asked for something (``busy``) or read: the bytes heard by now first
+        (``Cpu.on_touch``); a request or task means the bytes still to come must each come at
+        its tick (``on_time``), as their handlers now meet others."""
+        line = self.line
+        if line is None:
+            return
+        line.sync(now)
+        if busy:
+            on_time = getattr(line, "on_time", None)
+            if on_time is not None:
+                on_time(now)
 
     def _take_rdr(self) -> None:
         """The receive handler reads SIDR: RDRF clears, the next byte may come."""

@@ -309,6 +309,15 @@ class Deframer:
         self.last_tick = end
         return frame
 
+    def quiet_for(self, data: bytes) -> bool:
+        """True if feeding all but the last byte of ``data``, in any chunks, reports nothing:
+        nothing is held (no partial Header, no garbage pending) and ``data`` is exactly one
+        good frame for this receiver (its Length fits). Changes nothing."""
+        if self._pos or self._g_count:
+            return False
+        return data in _WHOLE[self.max_content] or \
+            built_frame(data, self.max_content) is not None
+
     def feed(self, data: bytes, t0: int, dt: int) -> list[DeframerEvent]:
         """Bytes ``data``, byte i completed at tick ``t0 + i*dt``; garbage is flushed at the end.
 

@@ -56,7 +56,9 @@ class AirRadio(Protocol):
 
     def listening(self, t: int) -> bool: ...
 
-    def deliver(self, data: bytes, t0: int, dt: int) -> None: ...
+    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
+        """Bytes heard (``late_ok``: a clean prefix handed over late to a CPU model's UART,
+        Uart.receive; never for a radio without one)."""
 
 
 HEADER = b"\x0f\x0a\x05"
@@ -115,11 +117,11 @@ class Reception:
 
     ``data`` is None for collision garbage (drawn from the radio's garbage stream)."""
 
-    __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream", "holes")
+    __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream", "holes", "quiet", "lazy")
 
     def __init__(self, data: bytes | None, t0: int, bt: int, n: int,
                  tx: Transmission | None = None, stream: ByteStream | None = None,
-                 holes: frozenset[int] | None = None) -> None:
+                 holes: frozenset[int] | None = None, quiet: int = 0) -> None:
         self.data = data
         self.t0 = t0
         self.bt = bt
@@ -128,6 +130,12 @@ class Reception:
         self.tx = tx
         self.stream = stream
         self.holes = holes            # byte indices the receiver's UART lost (overrun)
+        self.quiet = quiet
+        """Bytes before this index are received as sent and the receiver's CPU model had
+        nothing to do since the reception began: they may be handed over late (``late_ok``,
+        Uart.receive). ``Air.on_time`` ends that while the CPU has work."""
+        self.lazy = quiet
+        """The clean prefix's end: how far ``quiet`` may reach again once the CPU is idle."""
 
     def flush(self, radio: AirRadio, now: int) -> None:
         """Deliver every byte whose stop bit ended by ``now``."""
@@ -144,6 +152,14 @@ class Reception:
                 data = self.stream.take(k - pos)
             holes = self.holes
             if holes is None:
+                q = self.quiet
+                if q > pos:                   # a clean prefix, the CPU idle: late is fine
+                    m = q if q < k else k
+                    radio.deliver(data[:m - pos], self.t0 + (pos + 1) * self.bt, self.bt,
+                                  True)
+                    if k > m:
+                        radio.deliver(data[m - pos:], self.t0 + (m + 1) * self.bt, self.bt)
+                    return
                 radio.deliver(data, self.t0 + (pos + 1) * self.bt, self.bt)
                 return
             start = None                      # deliver the runs between lost bytes
@@ -160,9 +176,13 @@ class Reception:
         """Deliver every byte not delivered yet, the transmission being over: ``flush`` at the
         tick its last stop bit ends, in one hand-over of the whole ``data`` when no byte went
         before and none was lost (most receptions)."""
-        if self.pos == 0 and self.holes is None and self.data is not None:
+        if self.pos == 0 and self.holes is None and self.data is not None and \
+                self.quiet in (0, self.n):
             self.pos = self.n
-            radio.deliver(self.data, self.t0 + self.bt, self.bt)
+            if self.quiet:
+                radio.deliver(self.data, self.t0 + self.bt, self.bt, True)
+            else:
+                radio.deliver(self.data, self.t0 + self.bt, self.bt)
         else:
             self.flush(radio, self.t0 + self.n * self.bt)
 
@@ -316,8 +336,17 @@ class Air:
                 if noise:
                     self._noise_upto(r, t0)
                     self._noise_gen[r.idx] += 1
-                r.rx = Reception(data, t0, bt, tx.n, tx) if clean is not None and clean[r.idx] \
-                    else self._reception(r, tx)
+                if clean is not None and clean[r.idx]:
+                    cpu = getattr(r.uart, "cpu", None)
+                    if cpu is None or cpu.ideal:
+                        r.rx = Reception(data, t0, bt, tx.n, tx)
+                    elif cpu.fuse and cpu.quiescent(t0) and r.uart.may_come_late(data, bt):
+                        r.rx = Reception(data, t0, bt, tx.n, tx, quiet=tx.n)
+                    else:
+                        r.rx = Reception(data, t0, bt, tx.n, tx)
+                        self._bytewise(r, r.rx, 0, tx.n - 1)
+                else:
+                    r.rx = self._reception(r, tx)
         self.sched.at(tx.end, self._end, tx)
 
     def sync(self, radio: AirRadio, now: int) -> None:
@@ -465,8 +494,52 @@ class Air:
             first_bad = min(first_bad, bad)
             data = bytes(out)
         rx = Reception(data, tx.t0 + k * tx.bt, tx.bt, n, tx, holes=holes)
-        self._bytewise(r, rx, 0 if self.byte_by_byte or bytewise else first_bad, n - 1)
+        lo = 0 if self.byte_by_byte or bytewise else first_bad
+        cpu = getattr(r.uart, "cpu", None)
+        if lo and cpu is not None and not cpu.ideal:
+            if cpu.fuse and holes is None and k == 0 and cpu.quiescent(self.sched.now) and \
+                    r.uart.may_come_late(tx.data, tx.bt):
+                rx.quiet = rx.lazy = lo       # the clean prefix may come late (Uart.receive)
+            else:
+                lo = 0                        # every handler at its byte's tick
+        self._bytewise(r, rx, lo, n - 1)
         return rx
+
+    def late_until(self, radio: AirRadio, now: int) -> int | None:
+        """The tick the last byte of ``radio``'s reception that may still come late completes
+        (its last byte always comes at its tick), if any bytes are still to come late."""
+        rx = radio.rx
+        if rx is None or rx.quiet <= rx.pos:
+            return None
+        return rx.t0 + min(rx.quiet, rx.n - 1) * rx.bt
+
+    def on_time(self, radio: AirRadio, now: int) -> None:
+        """``radio``'s CPU model has work from ``now`` (Uart._cpu_touched, after a sync): the
+        bytes of its reception still to come go one by one at their ticks, as their
+        receive handlers may now meet other handlers."""
+        rx = radio.rx
+        if rx is not None and rx.quiet > rx.pos:
+            rx.quiet = rx.pos
+            self._on_time_next(radio, rx)
+
+    def _on_time_next(self, r: AirRadio, rx: Reception) -> None:
+        """The next byte of ``rx``'s clean prefix at its tick (not its last byte: the end
+        event delivers that)."""
+        if rx.pos < min(rx.lazy, rx.n - 1):
+            self.sched.at(rx.t0 + (rx.pos + 1) * rx.bt, self._on_time_byte, r, rx)
+
+    def _on_time_byte(self, r: AirRadio, rx: Reception) -> None:
+        """A byte of a clean prefix completes now: at its tick if the receiver's CPU is still
+        busy; on an idle CPU it and the rest may come late again (``Reception.quiet``)."""
+        if r.rx is not rx:
+            return
+        now = self.sched.now
+        cpu = r.uart.cpu              # (a lazy reception's receiver has a CPU model)
+        if cpu.quiescent(now):
+            rx.quiet = rx.lazy
+            return
+        rx.flush(r, now)
+        self._on_time_next(r, rx)
 
     def _bytewise(self, r: AirRadio, rx: Reception, lo: int, hi: int) -> None:
         """Deliver bytes lo..hi-1 (0-based) each at its own tick; the last byte of a reception

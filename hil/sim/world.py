@@ -85,9 +85,12 @@ class World:
         self.quiet_ring: QuietRing | None = None
         self.pcap = None
         # On the CPU model every received byte is its own interrupt: the air hands each byte
-        # over on its stop-bit tick (the same trace as bursts, tests/hil/sim/test_air.py)
+        # over on its stop-bit tick, or, while the receiver's CPU has nothing else to do, a
+        # clean prefix late (docs/fast-paths.md, "Late bytes on an idle CPU"); with the fast
+        # paths off, every byte at its tick
         self.air = Air(self.sched, seed=config.seed, ber=config.ber, noise=config.noise,
-                       byte_by_byte=config.byte_by_byte or config.cpu is not None)
+                       byte_by_byte=config.byte_by_byte or
+                       (config.cpu is not None and not config.fast_paths))
         self.air.on_transmission = self._on_transmission
         self.air.on_collision = self._on_collision
         base = config.mac or MacConfig()
@@ -371,6 +374,8 @@ class World:
         finally:
             if ring is not None:
                 ring.end_run()
+        for cpu in self.cpus.values():   # every event of tick ``end`` has run (Cpu._settle)
+            cpu.settle(final=True)
 
     @property
     def now(self) -> int:

@@ -1,6 +1,9 @@
-"""A lone handler on an idle CPU runs as one event (firmware_model/mcu/cpu.py, ``alone=True``):
-the same ticks, effects and figures as the general path (``Cpu.fuse = False``), whatever else
-asks for the CPU while it runs, and whole rings on the CPU model give the same trace.
+"""The CPU model's fast paths (docs/fast-paths.md): a lone handler on an idle CPU runs without
+the general path's dispatch (firmware_model/mcu/cpu.py, ``alone=True``), and the bytes of a
+good frame come late while the receiver's CPU has nothing else to do (hil/sim/air.py,
+``Reception.quiet``). Against the general path (``Cpu.fuse = False``, every byte at its tick):
+the same ticks, effects and figures whatever else asks for the CPU meanwhile, and whole rings
+give the same trace, event for event.
 """
 from __future__ import annotations
 
@@ -93,15 +96,19 @@ def test_a_lone_handler_alone_costs_what_the_general_path_says():
     assert busy == 195
 
 
-def test_busy_counts_a_lone_handler_only_once_its_reti_is_done():
+@pytest.mark.parametrize("fuse", [True, False])
+def test_busy_counts_a_lone_handler_once_its_reti_event_would_have_run(fuse):
+    """Readers scheduled before the body ended see the handler running at the tick its RETI
+    ends (the general path's RETI event comes after them); after that tick it is counted."""
     sched = Scheduler()
     cpu = Cpu(sched, DEFAULT_COSTS)
+    cpu.fuse = fuse
     cpu.irq(RX, BODY, lambda: None, alone=True)
     marks = []
-    for t in (100, 194, 195):
+    for t in (100, 194, 195, 196):
         sched.at(t, lambda: marks.append((sched.now, cpu.busy, cpu.idle)))
     sched.run_until(1000)
-    assert marks == [(100, 0, False), (194, 0, False), (195, 195, True)]
+    assert marks == [(100, 0, False), (194, 0, False), (195, 0, False), (196, 195, True)]
 
 
 CASES = {
@@ -112,27 +119,47 @@ CASES = {
     "idle noise": dict(robots=(1, 2, 3), duration=6.0, load=1.0, seed=4, noise=True),
     "authenticated (main-loop hashing)": dict(robots=(0, 1, 2), duration=6.0, load=1.0,
                                               seed=5, auth=True),
+    "7-ring saturated, CAN": dict(robots=(0, 1, 2, 3, 4, 5, 6), duration=6.0, can=True,
+                                  load="saturate", seed=9),
+    "bursts, foreign frames, bus-off, lost bytes": dict(
+        robots=(0, 1, 2, 3), duration=10.0, can=True, load=1.0, seed=5,
+        faults=("burst@3:0.05", "foreign@4.5:40", "foreign@6:x0f0a05", "busoff:1@5",
+                "drop@7-9:0.01")),
+    "a robot fails and recovers, a stolen turn": dict(robots=(1, 2, 3, 4), duration=12.0,
+                                                      load=2.0, seed=6,
+                                                      faults=("fail:2@3", "recover:2@6",
+                                                              "steal:3@9")),
 }
+
+
+def _world(case: str, fast: bool):
+    from hil.sim.faults import parse_fault
+    from hil.sim.world import SimConfig, World
+    kw = dict(CASES[case])
+    if kw.pop("auth", False):
+        from firmware_model.radio.auth import RingKey
+        from firmware_model.radio.mac import MacConfig
+        kw["mac"] = MacConfig(auth=RingKey(bytes(range(16))))
+    kw["faults"] = tuple(parse_fault(f) for f in kw.get("faults", ()))
+    records: list = []
+    w = World(SimConfig(cpu=DEFAULT_COSTS, fast_paths=fast, **kw), listeners=[records.append])
+    w.run()
+    return w, records
 
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_whole_rings_on_the_cpu_model_give_the_same_trace_and_figures(case):
-    from hil.sim.world import SimConfig, World
-
-    def run(fuse: bool):
-        kw = dict(CASES[case])
-        if kw.pop("auth", False):
-            from firmware_model.radio.auth import RingKey
-            from firmware_model.radio.mac import MacConfig
-            kw["mac"] = MacConfig(auth=RingKey(bytes(range(16))))
-        records: list = []
-        w = World(SimConfig(cpu=DEFAULT_COSTS, **kw), listeners=[records.append])
-        for c in w.cpus.values():
-            c.fuse = fuse
-        w.run()
-        return records, {r: (c.busy, _figures(c)) for r, c in w.cpus.items()}
-
-    fused, general = run(True), run(False)
-    assert len(fused[0]) > 100
-    assert fused[0] == general[0]
-    assert fused[1] == general[1]
+    """With the fast paths (lone handlers, late bytes) and without (``--every-frame``: every
+    byte at its tick, every handler on the general path): the same events in the same order,
+    the same summary, the same figures for every handler."""
+    fast, fast_records = _world(case, True)
+    slow, slow_records = _world(case, False)
+    assert len(fast_records) > 100
+    assert fast_records == slow_records
+    assert fast.summary() == slow.summary()
+    assert {r: (c.busy, _figures(c)) for r, c in fast.cpus.items()} == \
+        {r: (c.busy, _figures(c)) for r, c in slow.cpus.items()}
+    late = sum(st.uart.bytes_late for st in fast.stations.values())
+    assert sum(st.uart.bytes_late for st in slow.stations.values()) == 0
+    # late bytes need a receiver holding nothing: idle noise keeps every deframer busy
+    assert (late == 0) if CASES[case].get("noise") else (late > 0)

@@ -23,7 +23,7 @@ from hil.sim.quiet_can import PERIOD, notes_only, refuses_only
 from hil.sim.state_walk import (Unwalkable, advance, latest_moved, on_orbit, period_delta,
                                 period_steps, snapshot)
 from hil.sim.world import SimConfig, World
-from paths import ROOT
+from hunt import sleep_hunt
 
 
 # -- the scheduler's domain events -----------------------------------------------------------
@@ -212,16 +212,7 @@ def test_a_random_generator_is_state_a_snapshot_cannot_see():
 
 # -- the world, sleeping or not --------------------------------------------------------------
 
-def _sleep_hunt():
-    import importlib.util
-    path = ROOT / "scripts" / "sleep_hunt.py"
-    spec = importlib.util.spec_from_file_location("sleep_hunt", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-HUNT = _sleep_hunt()
+HUNT = sleep_hunt()
 """scripts/sleep_hunt.py: its whole-world state and summary are what these tests compare."""
 _state = HUNT.state
 _summary = HUNT.summary

@@ -305,6 +305,26 @@ def test_batched_delivery_equals_byte_by_byte(ber, noise):
     assert fast == slow
 
 
+def test_batched_delivery_equals_byte_by_byte_when_a_frame_stops_in_a_random_world():
+    """A world of scripts/sleep_hunt.py (7 robots with CAN sides, the standby father, fail and
+    recover, noise, bursts, byte errors) where a frame's bytes stop and the stall timer ends
+    it: the timer is programmed by its last byte's handler, which the ideal CPU runs at that
+    byte's tick, also when the byte came in a burst; programmed at the burst's tick instead, it
+    rounded its expiry (machine clock / 2) the other way and a miss 57 s in came a tick late."""
+    from dataclasses import replace as _replace
+    from hunt import sleep_hunt
+    cfg, _, _ = sleep_hunt().random_world(20)
+    cfg = _replace(cfg, duration=60)
+
+    def trace(bb):
+        evs: list[dict] = []
+        World(_replace(cfg, byte_by_byte=bb), on_event=evs.append).run()
+        return evs
+    fast, slow = trace(False), trace(True)
+    assert any(e["ev"] == "miss" and e["t"] == 910_939_482 for e in slow)
+    assert fast == slow
+
+
 def test_father_failover_takes_id0s_turn_without_a_miss():
     """Paper §III.A: PC1 and PC2 back each other up. PC2 (hot standby) takes ID 0's turn when
     PC1 dies, before anyone misses it; PC1, back, becomes the standby."""
