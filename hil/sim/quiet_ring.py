@@ -82,7 +82,7 @@ from .steady import RING_PARTS, counters, modular
 if TYPE_CHECKING:
     from firmware_model.station import RadioStation
 
-    from .air import Transmission
+    from .reception import Transmission
     from .world import World
 
 __all__ = ["COUNTERS", "MODULAR", "GRAIN", "TICK_KEYS", "QuietRing"]

@@ -31,7 +31,8 @@ from firmware_model.radio.station_mac import StationMac
 from firmware_model.station import RadioStation, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ, s_to_ticks
 
-from .air import Air, Transmission
+from .air import Air
+from .reception import Transmission
 from . import world_faults, world_observe
 from .world_observe import STANDBY
 from .collector import fewer_collections

@@ -722,7 +722,7 @@ def test_finishing_a_reception_is_flushing_it_at_its_last_stop_bit(data, t0, bt,
     ``flush`` at the tick the last stop bit ends would, whatever went before (a sync part-way:
     ``pos``) and whatever the UART lost (``holes``); when nothing went before and nothing was
     lost, in one hand-over."""
-    from hil.sim.air import Reception
+    from hil.sim.reception import Reception
     n = len(data)
     pos = min(pos, n)
     holes = None if holes is None else frozenset(i for i in holes if i < n) or None

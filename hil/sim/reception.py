@@ -1,0 +1,170 @@
+"""What one radio hears of one transmission on the virtual air (hil/sim/air.py): the radio's
+side of the air (``AirRadio``), a transmission on air, a reception and its delivery to the
+radio's UART, a seeded stream of random bytes (garbage, noise), and where a UART that starts
+listening in the middle of a transmission picks it up. Ticks throughout (16 MHz)."""
+from __future__ import annotations
+
+import random
+from typing import Any, Protocol
+
+
+class AirRadio(Protocol):
+    """What the air drives of a radio: a PTR2000 model (``firmware_model.mcu.ptr2000``), the
+    hub's pty node, the conformance kit's tester. The air owns ``idx``, ``rx``,
+    ``noise_from`` and ``rx_from``; ``uart.byte_ticks`` is the radio's byte time (ticks)."""
+
+    robot: int
+    idx: int
+    alive: bool
+    rx_from: int
+    rx: Any
+    noise_from: int
+    uart: Any
+    channel: Any
+
+    def listening(self, t: int) -> bool: ...
+
+    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
+        """Bytes heard (``late_ok``: a clean prefix handed over late to a CPU model's UART,
+        Uart.receive; never for a radio without one)."""
+
+
+class ByteStream:
+    """A seeded source of random bytes, consumed in order whatever the request sizes."""
+
+    __slots__ = ("rng", "buf", "pos")
+
+    def __init__(self, rng: random.Random) -> None:
+        self.rng = rng
+        self.buf = b""
+        self.pos = 0
+
+    def _fill(self, n: int) -> None:
+        if len(self.buf) - self.pos < n:
+            need = max(4096, n)
+            self.buf = self.buf[self.pos:] + self.rng.randbytes(need)
+            self.pos = 0
+
+    def peek(self, n: int) -> bytes:
+        self._fill(n)
+        return self.buf[self.pos:self.pos + n]
+
+    def take(self, n: int) -> bytes:
+        self._fill(n)
+        out = self.buf[self.pos:self.pos + n]
+        self.pos += n
+        return out
+
+
+class Transmission:
+    """One burst on air from ``radio``: byte i occupies [t0 + i*bt, t0 + (i+1)*bt)."""
+
+    __slots__ = ("radio", "data", "t0", "bt", "end", "collided", "aborted", "n")
+
+    def __init__(self, radio: AirRadio, data: bytes, t0: int, bt: int) -> None:
+        self.radio = radio
+        self.data = data
+        self.t0 = t0
+        self.bt = bt
+        self.n = len(data)
+        self.end = t0 + len(data) * bt
+        self.collided = False
+        self.aborted = False
+
+
+class Reception:
+    """Bytes one radio hears, byte i complete at ``t0 + (i+1)*bt``; ``pos`` delivered so far.
+
+    ``data`` is None for collision garbage (drawn from the radio's garbage stream)."""
+
+    __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream", "holes", "quiet", "lazy")
+
+    def __init__(self, data: bytes | None, t0: int, bt: int, n: int,
+                 tx: Transmission | None = None, stream: ByteStream | None = None,
+                 holes: frozenset[int] | None = None, quiet: int = 0) -> None:
+        self.data = data
+        self.t0 = t0
+        self.bt = bt
+        self.pos = 0
+        self.n = n
+        self.tx = tx
+        self.stream = stream
+        self.holes = holes            # byte indices the receiver's UART lost (overrun)
+        self.quiet = quiet
+        """Bytes before this index are received as sent and the receiver's CPU model had
+        nothing to do since the reception began: they may be handed over late (``late_ok``,
+        Uart.receive). ``Air.on_time`` ends that while the CPU has work."""
+        self.lazy = quiet
+        """The clean prefix's end: how far ``quiet`` may reach again once the CPU is idle."""
+
+    def flush(self, radio: AirRadio, now: int) -> None:
+        """Deliver every byte whose stop bit ended by ``now``."""
+        pos = self.pos
+        k = (now - self.t0) // self.bt
+        if k > self.n:
+            k = self.n
+        if k > pos:
+            self.pos = k
+            if self.data is not None:
+                data = self.data[pos:k]
+            else:
+                assert self.stream is not None      # (garbage comes with its stream)
+                data = self.stream.take(k - pos)
+            holes = self.holes
+            if holes is None:
+                q = self.quiet
+                if q > pos:                   # a clean prefix, the CPU idle: late is fine
+                    m = q if q < k else k
+                    radio.deliver(data[:m - pos], self.t0 + (pos + 1) * self.bt, self.bt,
+                                  True)
+                    if k > m:
+                        radio.deliver(data[m - pos:], self.t0 + (m + 1) * self.bt, self.bt)
+                    return
+                radio.deliver(data, self.t0 + (pos + 1) * self.bt, self.bt)
+                return
+            start = None                      # deliver the runs between lost bytes
+            for i in range(pos, k + 1):
+                if i < k and i not in holes:
+                    if start is None:
+                        start = i
+                elif start is not None:
+                    radio.deliver(data[start - pos:i - pos], self.t0 + (start + 1) * self.bt,
+                                  self.bt)
+                    start = None
+
+    def finish(self, radio: AirRadio) -> None:
+        """Deliver every byte not delivered yet, the transmission being over: ``flush`` at the
+        tick its last stop bit ends, in one hand-over of the whole ``data`` when no byte went
+        before and none was lost (most receptions)."""
+        if self.pos == 0 and self.holes is None and self.data is not None and \
+                self.quiet in (0, self.n):
+            self.pos = self.n
+            if self.quiet:
+                radio.deliver(self.data, self.t0 + self.bt, self.bt, True)
+            else:
+                radio.deliver(self.data, self.t0 + self.bt, self.bt)
+        else:
+            self.flush(radio, self.t0 + self.n * self.bt)
+
+
+def first_byte_heard(t0: int, bt: int, when: int, rx_bt: int) -> int:
+    """Index of the first byte a UART that starts listening at ``when`` decodes, of bytes
+    sent back to back from ``t0``, ``bt`` ticks each (8N1, 10 bits).
+
+    The UART takes the line's first low level as a start-bit edge and samples each bit in
+    the middle of its own bit time (``rx_bt / 10``) from there. A byte already under way is
+    decoded if every sample still falls inside its bit cell: for bit m (start 0 .. stop 9),
+    ``t0 + m*B < when + (m + 1/2)*Brx < t0 + (m+1)*B``. Joining a little late in a start
+    bit (less than half a bit at equal rates) still gets the byte; later, the model takes the
+    next whole byte (the resynchronisation a UART finds after a framing error)."""
+    k = (when - t0) // bt                 # the byte under way at ``when``
+    s = t0 + k * bt
+    if s == when:
+        return k
+    d = when - s
+    for m in range(10):
+        # everything times 20 to stay in integers: bit cell [m*bt*2, (m+1)*bt*2) of 20*...
+        sample = 20 * d + (2 * m + 1) * rx_bt
+        if not (2 * m * bt <= sample < 2 * (m + 1) * bt):
+            return k + 1
+    return k
