@@ -84,6 +84,12 @@ class HandlerStats:
         self.worst_latency = 0
         self.worst_response = 0
 
+    def responded(self, ticks: int, n: int = 1) -> None:
+        """``n`` calls whose effects came ``ticks`` after their request."""
+        self.response[ticks] += n
+        if ticks > self.worst_response:
+            self.worst_response = ticks
+
 
 class _Frame:
     """A handler (or main-loop task) on the CPU: its milestones in cycles of its own work."""
@@ -297,11 +303,7 @@ class Cpu:
                 fn = top.fn
                 if fn is not None:
                     top.fn = None
-                    resp = now - top.requested
-                    s = top.stats
-                    s.response[resp] += 1
-                    if resp > s.worst_response:
-                        s.worst_response = resp
+                    top.stats.responded(now - top.requested)
                     fn(*top.args)
                 if top.done >= top.body_end:     # extend() may have moved the body's end
                     top.phase = 2
@@ -343,11 +345,7 @@ class Cpu:
                 f.enter()
             fn = f.fn
             f.fn = None
-            resp = now - f.requested
-            st = f.stats
-            st.response[resp] += 1
-            if resp > st.worst_response:
-                st.worst_response = resp
+            f.stats.responded(now - f.requested)
             assert fn is not None
             fn(*f.args)
         finally:
@@ -444,9 +442,7 @@ class Cpu:
         whole = e + self.reti
         s.calls += n
         s.latency[0] += n
-        s.response[e] += n
-        if e > s.worst_response:
-            s.worst_response = e
+        s.responded(e, n)
         last = t0 + (n - 1) * dt
         assert last + e <= now
         done = n if last + whole < now else n - 1
