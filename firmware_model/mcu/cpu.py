@@ -444,7 +444,7 @@ class Cpu:
         s.latency[0] += n
         s.responded(e, n)
         last = t0 + (n - 1) * dt
-        assert last + e <= now
+        assert last + e < now
         done = n if last + whole < now else n - 1
         s.busy += done * whole
         self._busy += done * whole

@@ -62,7 +62,7 @@ class Uart:
                  "rx_cycles", "tx_vector", "tx_cycles", "end_vector", "end_cycles", "rdr",
                  "overruns", "_read", "gaps", "gap_ticks", "_tx", "_tx_len", "_tx_next",
                  "_sodr", "_shift", "_tdre_entry", "_gap_from", "rx_quiet",
-                 "bytes_late")
+                 "bytes_late", "_late_tdre")
 
     def __init__(self, sched: Scheduler, baud: int = 9600, byte_ticks: int | None = None,
                  name: str = "UART0") -> None:
@@ -108,6 +108,9 @@ class Uart:
         self._sodr: int | None = None    # index of the byte waiting in SODR
         self._shift: tuple[int, int] | None = None   # (index, stop-bit end) shifting out
         self._tdre_entry = 0
+        self._late_tdre: int | None = None
+        """The TDRE tick of the byte in the shift register if its handler runs late (on an
+        idle CPU: ``_may_send_late``), else None."""
 
     def attach_cpu(self, cpu: Cpu, rx_vector: Vector, rx_cycles: int, tx_vector: Vector,
                    tx_cycles: int, end_vector: Vector, end_cycles: int) -> None:
@@ -202,17 +205,66 @@ class Uart:
         now = self.sched.now
         assert self._shift is not None                # _shift_in scheduled this
         k = self._shift[0]
+        if self._late_tdre is not None:       # its handler ran late: over by now
+            self._late_tdre_done(k)
         self._shift = None
         j = self._sodr
         if j is not None:                     # SODR was written in time: back to back
             self._sodr = None
-            self._shift_in(j, now, False)
+            if j + 1 < self._tx_len and self._may_send_late(now):
+                # TDRE of a byte but the last: its handler runs late (the last's arms the
+                # End's timer at its tick)
+                bt = self.byte_ticks
+                self._shift = (j, now + bt)
+                self.sched.at(now + bt, self._shift_done)
+                self._late_tdre = now
+            else:
+                self._shift_in(j, now, False)
         elif k + 1 < self._tx_len:            # written late: the line idles, a gap
             self.gaps += 1
             self._gap_from = now
             pause = getattr(self.line, "pause", None)
             if pause is not None:
                 pause(now)
+
+    # -- transmit handlers counted late while the CPU has nothing else to do -------------
+
+    def _may_send_late(self, now: int) -> bool:
+        """May the transmit handler of the byte whose TDRE is now run late? Only on an idle
+        CPU whose handler, run alone, is over before the next TDRE: it then writes SODR in
+        time and nothing else looks at it (docs/fast-paths.md, "Late bytes on an idle CPU")."""
+        cpu = self.cpu
+        assert cpu is not None
+        return cpu.fuse and cpu.entry + self.tx_cycles + cpu.reti < self.byte_ticks and \
+            cpu.quiescent(now)
+
+    def _late_tdre_done(self, k: int) -> None:
+        """The late handler of byte ``k`` (its TDRE at ``_late_tdre``) is over: counted as
+        run alone, and its write done: byte ``k + 1`` in SODR."""
+        t = self._late_tdre
+        cpu, vector = self.cpu, self.tx_vector
+        assert t is not None and cpu is not None and vector is not None
+        self._late_tdre = None
+        cpu.lone_past(vector, self.tx_cycles, t, self.byte_ticks, 1)
+        self._tdre_entry = t + cpu.entry
+        self._sodr, self._tx_next = k + 1, k + 2
+
+    def _tx_touched(self, now: int) -> None:
+        """The CPU is asked for something while a late transmit handler runs or has run:
+        counted and its write done if its effects came before now, else it goes on as a lone
+        handler (Cpu.irq's ``at``)."""
+        t = self._late_tdre
+        cpu, vector = self.cpu, self.tx_vector
+        assert t is not None and cpu is not None and vector is not None and \
+            self._shift is not None
+        k = self._shift[0]
+        if t + cpu.entry + self.tx_cycles < now:
+            self._late_tdre_done(k)
+            return
+        self._late_tdre = None
+        self._sodr, self._tx_next = None, k + 1
+        cpu.irq(vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter, alone=True,
+                at=t)
 
     def _end_timer(self, end: int) -> None:
         done = self.on_tx_done
@@ -271,7 +323,7 @@ class Uart:
         e = cpu.entry + self.rx_cycles
         n = len(chunk)
         last = t0 + (n - 1) * dt
-        due = n if last + e <= now else n - 1
+        due = n if last + e < now else n - 1     # effects due now: after what came first
         if due:
             self.bytes_late += due
             cpu.lone_past(vector, self.rx_cycles, t0, dt, due)
@@ -285,6 +337,8 @@ class Uart:
         """The CPU is asked for something (``busy``) or read: the bytes heard by now first
         (``Cpu.on_touch``); a request or task means the bytes still to come must each come at
         its tick (``on_time``), as their handlers now meet others."""
+        if self._late_tdre is not None:
+            self._tx_touched(now)
         line = self.line
         if line is None:
             return

@@ -111,6 +111,69 @@ def test_busy_counts_a_lone_handler_once_its_reti_event_would_have_run(fuse):
     assert marks == [(100, 0, False), (194, 0, False), (195, 0, False), (196, 195, True)]
 
 
+class _Line:
+    """The UART's TX line, noting what reaches it: (tick, what, detail)."""
+
+    def __init__(self, sched, log):
+        self.sched, self.log = sched, log
+
+    def transmit(self, data, t0, bt):
+        self.log.append((self.sched.now, "on air", (len(data), t0)))
+
+    def pause(self, now):
+        self.log.append((self.sched.now, "pause", now))
+
+    def sync(self, now):
+        pass
+
+    def rx_started(self, now):
+        return None
+
+
+def _send(fuse: bool, at: int | None, level: Vector = LOW) -> tuple[list, dict, int]:
+    """A UART on the CPU model sends 8 bytes from tick 1000; at ``at`` another handler asks
+    for the CPU: what reached the line, the End's handler, every handler's figures."""
+    from firmware_model.interrupts import TX_END, UART0_RX, UART0_TX
+    from firmware_model.mcu.uart import Uart
+    sched = Scheduler()
+    cpu = Cpu(sched, DEFAULT_COSTS)
+    cpu.fuse = fuse
+    log: list = []
+    u = Uart(sched)
+    u.line = _Line(sched, log)
+    u.attach_cpu(cpu, UART0_RX, 160, UART0_TX, 48, TX_END, 200)
+    u.on_tx_done = lambda end: log.append((sched.now, "TX done", end))
+    sched.at(1000, u.send, bytes(range(8)))
+    if at is not None:
+        sched.at(at, lambda: cpu.irq(level, 300, lambda: log.append((sched.now, level.name,
+                                                                        None))))
+    sched.run_until(400_000)
+    return log, _figures(cpu), cpu.busy
+
+
+def _tdre(k: int) -> int:
+    """Tick byte k of the frame moves into the shift register (its TDRE)."""
+    return 1000 + k * 16640
+
+
+@pytest.mark.parametrize("at", sorted({_tdre(k) + d for k in range(8)
+                                       for d in (-1, 0, 1, 23, 24, 71, 72, 82, 83, 500)}))
+@pytest.mark.parametrize("level", [TOP, LOW], ids=lambda v: v.name)
+def test_a_request_while_transmit_handlers_run_late_is_taken_as_on_the_general_path(at,
+                                                                                   level):
+    """A frame's transmit handlers (entry 24 + 48 + RETI 11 cycles each) counted late while
+    the CPU is idle: a request at and around every TDRE, before and after each handler's
+    effects and RETI, finds the CPU, SODR and the shift register as the general path has
+    them; the line and the End's handler see the same ticks."""
+    fused = _send(True, at, level)
+    assert fused == _send(False, at, level)
+    assert any(what == "TX done" for _, what, _ in fused[0])
+
+
+def test_a_frame_sent_on_an_idle_cpu_is_counted_as_on_the_general_path():
+    assert _send(True, None) == _send(False, None)
+
+
 CASES = {
     "5-ring, load 2, CAN": dict(robots=(0, 1, 2, 3, 4), duration=8.0, can=True, load=2.0,
                                 seed=1),
