@@ -172,6 +172,21 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+def fixed_and_varying(points: list[dict[str, Any]]) -> tuple[dict[str, Any], list[str]]:
+    """The grid keys that have one value at every point (with it) and the sorted keys whose
+    values differ between points: the report names the first once and tabulates the second."""
+    keys = sorted({k for p in points for k in p["point"]})
+    fixed: dict[str, Any] = {}
+    varying = []
+    for k in keys:
+        values = {json.dumps(p["point"].get(k), sort_keys=True) for p in points}
+        if len(values) == 1 and all(k in p["point"] for p in points):
+            fixed[k] = points[0]["point"][k]
+        else:
+            varying.append(k)
+    return fixed, varying
+
+
 def point_label(point: dict[str, Any]) -> str:
     """A grid point (or the rest of one) as a legend label: ``checksum=true load=1
     robots=1,2``, every key, sorted, values as the campaign file writes them."""

@@ -123,7 +123,8 @@ def cmd_status(a: argparse.Namespace) -> int:
 
 
 def cmd_report(a: argparse.Namespace) -> int:
-    from ..campaign.report import LATENCY_QUANTILES, REFORM_QUANTILES, plot, summarize
+    from ..campaign.report import (LATENCY_QUANTILES, REFORM_QUANTILES, fixed_and_varying,
+                                   plot, point_label, summarize)
     from ..campaign.store import Store, StoreError
     if not Path(a.db).is_file():
         raise UserError(f"no results file {a.db}")
@@ -149,8 +150,15 @@ def cmd_report(a: argparse.Namespace) -> int:
           f"{len(rows) - lost} runs, {sum(p['crashed'] for p in points)} crashed"
           + (f"; {lost} lost by the cluster, left out (campaign run runs them again)"
              if lost else ""))
+    fixed, varying = fixed_and_varying(points)
+    if fixed:
+        print(f"every point: {point_label(fixed)}")
+    if points:
+        _report_table(points, varying)
     for p in points:
-        print(f"\n{json.dumps(p['point'], sort_keys=True)}: {p['runs']} runs")
+        label = point_label({k: p["point"].get(k) for k in varying}) if varying else \
+            "the point"
+        print(f"\n{label}: {p['runs']} runs")
         if p["failed_rate"] is not None:
             lo, hi = p["failed_ci95"]
             print(f"  messages failed: {p['failed']}/{p['messages']} = "
@@ -177,6 +185,43 @@ def cmd_report(a: argparse.Namespace) -> int:
     for f in files:
         print(f"plot: {f}")
     return 0
+
+
+def _report_table(points: list[dict], varying: list[str]) -> None:
+    """One row a point: the grid keys that vary, then its runs, the runs that broke an
+    invariant or crashed, the failure rate, throughput, message latency p50/p95 and the
+    longest re-formation's p50, each with its 95 % interval ("-": no sample; "needs N": too
+    few for the quantile). The lines after it give every figure in words."""
+    from rich import box
+    from rich.table import Table
+
+    from ..campaign.report import runs_for
+    from .common import stdout_console
+
+    def est(v, q: float | None = None, fmt: str = "{:g}") -> str:
+        if v is None:
+            return f"needs {runs_for(q)}" if q is not None else "-"
+        return f"{fmt.format(v[0])} ({fmt.format(v[1])}-{fmt.format(v[2])})"
+
+    t = Table(box=box.SIMPLE, show_edge=False)
+    for k in varying:
+        t.add_column(k)
+    for name in ("runs", "broken", "failed rate", "messages/s", "latency p50 ms",
+                 "latency p95 ms", "re-formation p50 s"):
+        t.add_column(name, justify="right")
+    for p in points:
+        lo, hi = p["failed_ci95"]
+        failed = "-" if p["failed_rate"] is None else \
+            f"{p['failed_rate']:.4f} ({lo:.4f}-{hi:.4f})"
+        blo, bhi = p["runs_broken_ci95"]
+        t.add_row(*[json.dumps(p["point"].get(k)) if not isinstance(p["point"].get(k), str)
+                    else p["point"][k] for k in varying],
+                  str(p["runs"]), f"{p['runs_broken']} ({blo:.3f}-{bhi:.3f})", failed,
+                  est(p.get("throughput")),
+                  est(p.get("latency_p50_ms"), 0.5) if "latency_p50_ms" in p else "-",
+                  est(p.get("latency_p95_ms"), 0.95) if "latency_p95_ms" in p else "-",
+                  est(p.get("reform_p50_s"), 0.5) if "reform_p50_s" in p else "-")
+    stdout_console().print(t)
 
 
 def _quantile_lines(p: dict, what: str, key: str, unit: str, of: str, samples: str,

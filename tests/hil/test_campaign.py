@@ -621,6 +621,30 @@ def test_the_report_says_a_quantile_needs_more_runs(tmp_path, capsys):
     assert "p99.9: needs 1000 runs" in out
 
 
+def test_the_report_names_the_fixed_keys_once_and_tabulates_the_varying_ones(tmp_path,
+                                                                            capsys):
+    """Two points that differ only in ``ber``: ``robots`` and ``load`` are said once, the
+    table has a ``ber`` column with one row a point (its runs, the failure rate with its
+    interval), and each point's lines are headed by its ``ber`` alone."""
+    from hil.cli import main
+    store = Store(tmp_path / "t.sqlite")
+    a, b = '{"ber":0.0,"load":1.0,"robots":"1,2"}', '{"ber":0.001,"load":1.0,"robots":"1,2"}'
+    store.add([_row(a, i) for i in range(5)] + [_row(b, i, failed=2) for i in range(5)],
+              "c0ffee", False)
+    store.close()
+    assert main(["campaign", "report", str(tmp_path / "t.sqlite")]) == 0
+    out = capsys.readouterr().out
+    assert out.count('load=1.0 robots=1,2') == 1 and "every point: " in out
+    head = next(ln for ln in out.splitlines() if "failed rate" in ln)
+    assert head.split()[0] == "ber" and "robots" not in head
+    rows = [ln.split() for ln in out.splitlines() if ln.split()[:2] in (["0.0", "5"],
+                                                                         ["0.001", "5"])]
+    assert [r[0] for r in rows] == ["0.0", "0.001"]
+    assert rows[1][4] == "0.2000"                       # 10 of 50 messages failed
+    assert "\nber=0.001: 5 runs" in out and "\nber=0.0: 5 runs" in out
+    assert '{"ber"' not in out
+
+
 def _report_and_runs(store):
     """{point key: the report's point} and {point key: its runs}, keys canonical."""
     from collections import defaultdict
