@@ -5,9 +5,9 @@
   member), and its orders still open;
 * the story below it: one line for each change of an order's state and of the ring (the same
   lines as the plain console, hil/view/father.py), replies decoded;
-* an order line at the bottom (``DST COMMANDS``), with the usual editing keys and a history:
-  up and down walk through the orders typed before, in this run and earlier ones (kept in the
-  same file as the plain console's readline history).
+* an order line at the bottom (``DST COMMANDS``), with the usual editing keys, a history (up
+  and down walk through the orders typed before, in this run and earlier ones, kept in the
+  same file as the plain console's readline history) and the command names completed (Tab).
 
 The firmware runs in the runner's thread; the app only reads what it shows and hands typed
 orders to ``submit`` (which the caller makes thread-safe). Ctrl-C or ``ctrl+q`` quits, and
@@ -21,21 +21,55 @@ from typing import Callable
 
 from textual.app import App, ComposeResult
 from textual.binding import Binding
+from textual.suggester import Suggester
 from textual.widgets import Input, RichLog, Static
 
 HISTORY_LIMIT = 1000
 
 
+class CommandSuggester(Suggester):
+    """Completes the command being typed (after the destination, or after another command's
+    ``)``) from the command table (firmware_model/radio/content.py): ``1 jo`` suggests
+    ``1 joint(``. One name only: none while two or more start with what is typed."""
+
+    def __init__(self) -> None:
+        super().__init__(use_cache=False, case_sensitive=True)
+        from firmware_model.radio.content import COMMANDS
+        self.names = sorted(COMMANDS)
+
+    async def get_suggestion(self, value: str) -> str | None:
+        head, _, word = value.rpartition(" ")
+        if ")" in word:
+            head, word = value[:value.rindex(")") + 1], value[value.rindex(")") + 1:]
+        elif not head:
+            return None                   # the destination comes first
+        if not word or not word.isalpha():
+            return None
+        found = [n for n in self.names if n.startswith(word)]
+        if len(found) != 1 or found[0] == word:
+            return None
+        return value + found[0][len(word):] + "("
+
+
 class OrderInput(Input):
-    """An order line with a history: up/down recall earlier orders."""
+    """An order line with a history (up/down recall earlier orders) and the command names
+    completed: the suggestion shows in grey, Tab (or right arrow at the end) takes it."""
 
     BINDINGS = [Binding("up", "older", "older order", show=False),
-                Binding("down", "newer", "newer order", show=False)]
+                Binding("down", "newer", "newer order", show=False),
+                Binding("tab", "complete", "complete", show=False)]
 
     def __init__(self, history: list[str], **kw) -> None:
-        super().__init__(placeholder="DST COMMANDS, e.g. 1 joint(2,60) or 1 status()", **kw)
+        super().__init__(placeholder="DST COMMANDS, e.g. 1 joint(2,60) or 1 status() "
+                         "(Tab completes a command)", suggester=CommandSuggester(), **kw)
         self.history = history
         self._at = len(history)
+
+    def action_complete(self) -> None:
+        """Take the suggestion, if any (Tab does not move the focus: the view has one field)."""
+        if self._suggestion:
+            self.value = self._suggestion
+            self.cursor_position = len(self.value)
 
     def remember(self, line: str) -> None:
         if line and (not self.history or self.history[-1] != line):

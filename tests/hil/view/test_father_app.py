@@ -57,6 +57,31 @@ def test_typed_orders_history_refusals_and_the_story(tmp_path):
                                              "1 status()"]
 
 
+def test_tab_completes_a_command_name_after_the_destination_or_another_command(tmp_path):
+    """``1 jo`` + Tab gives ``1 joint(``; after a command's ``)`` the next one completes too;
+    a prefix of two names (``st``: status, stop) or the destination alone gets nothing."""
+    sent: list[str] = []
+    app = FatherApp(lambda line: sent.append(line), lambda: "head", str(tmp_path / "h"),
+                    rate=10.0)
+
+    async def go():
+        async with app.run_test(size=SIZE) as pilot:
+            box = app.query_one("#order")
+            await pilot.press(*"1 jo", "tab")
+            assert box.value == "1 joint("
+            await pilot.press(*"2,60)whe", "tab")
+            assert box.value == "1 joint(2,60)wheel("
+            await pilot.press(*"100)", "enter")
+            assert sent == ["1 joint(2,60)wheel(100)"]
+            await pilot.press(*"1 st", "tab")
+            assert box.value == "1 st"                 # status or stop: no single name
+            await pilot.press("ctrl+u")
+            await pilot.press(*"1", "tab")
+            assert box.value == "1"
+            await pilot.press("ctrl+q")
+    asyncio.run(go())
+
+
 def test_the_view_quits_once_the_firmware_has_stopped_by_itself(tmp_path):
     """A lost radio port (or --duration) stops the firmware's thread; the view then quits
     instead of showing a ring that no longer runs."""
