@@ -93,12 +93,31 @@ def chunked(items: list, workers: int, chunk: int = 0) -> list[list]:
     return [items[i:i + n] for i in range(0, len(items), n)]
 
 
+def dashboard_available() -> bool:
+    """Dask's dashboard needs bokeh (the ``campaign`` extra installs it)."""
+    import importlib.util
+    return importlib.util.find_spec("bokeh") is not None
+
+
+def dashboard_link(client: Any) -> str | None:
+    """The dashboard's address as the client gives it; for a scheduler in this process
+    (``inproc://``) Dask names the machine's address, but the server listens on loopback
+    (``local_cluster``)."""
+    from urllib.parse import urlsplit, urlunsplit
+    link = getattr(client, "dashboard_link", None)
+    if link and str(getattr(client.scheduler, "address", "")).startswith("inproc://"):
+        u = urlsplit(link)
+        link = urlunsplit(u._replace(netloc=f"127.0.0.1:{u.port}"))
+    return link
+
+
 def local_cluster(workers: int, processes: bool = True, threads_per_worker: int = 1) -> Any:
-    """The embedded ``LocalCluster``: no dashboard, and its scheduler's HTTP server (health and
-    metrics only) on a free loopback port. ``dashboard_address=None`` alone still put that
-    server on 0.0.0.0:8787, so a second cluster on the machine (two campaigns, or the tests'
-    beside each other) found it taken: "Port 8787 is already in use" and a socket left open
-    (ResourceWarning) by the failed bind.
+    """The embedded ``LocalCluster``: its scheduler's HTTP server (the dashboard when bokeh is
+    installed, else health and metrics only) on a free loopback port, never 8787: a fixed
+    port (``dashboard_address=None`` alone still put the server on 0.0.0.0:8787) made a
+    second cluster on the machine (two campaigns, or the tests' beside each other) find it
+    taken: "Port 8787 is already in use" and a socket left open (ResourceWarning) by the
+    failed bind.
 
     Its own logs are silenced up to CRITICAL: at shutdown a worker's heartbeat in flight when
     the scheduler closes logs "Failed to communicate with scheduler" at ERROR with two
@@ -107,7 +126,8 @@ def local_cluster(workers: int, processes: bool = True, threads_per_worker: int 
     import logging
     from dask.distributed import LocalCluster
     return LocalCluster(n_workers=workers, threads_per_worker=threads_per_worker,
-                        processes=processes, dashboard_address=None,
+                        processes=processes,
+                        dashboard_address="127.0.0.1:0" if dashboard_available() else None,
                         scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                         silence_logs=logging.CRITICAL)
 
@@ -138,14 +158,17 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
                  workers: int | None = None, allow_dirty: bool = False,
                  measure: Callable[[Any], dict] = metrics_of,
                  on_progress: Callable[[int, int], None] | None = None,
-                 client: Any = None, retries: int = RETRIES) -> Outcome:
+                 client: Any = None, retries: int = RETRIES,
+                 on_dashboard: Callable[[str], None] | None = None) -> Outcome:
     """Run every missing (or lost) run of ``spec`` into ``store``. StoreError when results
     would mix commits or come from a dirty tree (unless ``allow_dirty``).
 
     A run that raises is a result (``crashed``, with its traceback). A task that fails
     instead (its worker died, the scheduler lost it: Dask's ``KilledWorker``) is no result:
     it is sent again up to ``retries`` times, then its runs are stored ``lost``, which the
-    report leaves out and the next run of the campaign runs again."""
+    report leaves out and the next run of the campaign runs again. ``on_dashboard(link)``:
+    the cluster's dashboard, once its workers are there (the embedded cluster's only with
+    bokeh installed; an external scheduler's as it gives it)."""
     commit, dirty = source_state()
     if not allow_dirty:
         if dirty:
@@ -179,6 +202,10 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
             client.wait_for_workers(workers, timeout=300)
         nworkers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
         check_workers(client)
+        if on_dashboard is not None and (cluster is None or dashboard_available()):
+            link = dashboard_link(client)
+            if link:
+                on_dashboard(link)
         t0 = time.perf_counter()             # the runs' wall time, not the cluster's start
         chunks = chunked(items, nworkers, spec.chunk)
         futures = client.map(run_chunk, chunks, measure=measure, pure=False)

@@ -72,7 +72,10 @@ def cmd_run(a: argparse.Namespace) -> int:
     try:
         out = run_campaign(spec, store, scheduler=a.scheduler, workers=a.workers,
                            allow_dirty=a.allow_dirty, on_progress=progress,
-                           retries=a.retries)
+                           retries=a.retries,
+                           on_dashboard=lambda link: print(f"campaign {spec.name}: Dask "
+                                                           f"dashboard {link}",
+                                                           file=sys.stderr, flush=True))
     except StoreError as e:
         raise UserError(str(e)) from None
     except OSError as e:

@@ -143,6 +143,8 @@ def test_a_campaign_on_a_local_cluster_of_two_workers(spec_file, tmp_path):
     r = run_cli(spec_file, db)
     assert "4 runs planned, 0 already in" in r.stdout and "(0 crashed)" in r.stdout
     assert "on 2 worker(s)" in r.stdout
+    if engine.dashboard_available():
+        assert "Dask dashboard http://127.0.0.1:" in r.stderr, r.stderr
     store = Store(db)
     rows = store.rows()
     assert len(rows) == 4 and {r["status"] for r in rows} == {"ok"}
@@ -299,6 +301,24 @@ def _run_in_process(spec, store, **kw):
     finally:
         client.close()
         cluster.close()
+
+
+def test_the_dashboard_link_is_given_and_serves_the_dashboard(spec_file, tmp_path):
+    """With bokeh installed (the ``campaign`` extra) the embedded cluster serves Dask's
+    dashboard on a free loopback port, and the campaign gives its link while it runs."""
+    import urllib.request
+    pytest.importorskip("bokeh", reason="bokeh (the campaign extra) serves the dashboard")
+    spec = load_spec(spec_file, check=check_args)
+    seen = []
+
+    def fetch(link: str) -> None:
+        with urllib.request.urlopen(link, timeout=20) as r:
+            seen.append((link, r.status, b"bokeh" in r.read().lower()))
+    _run_in_process(spec, Store(tmp_path / "d.sqlite"), on_dashboard=fetch)
+    assert len(seen) == 1
+    link, status, bokeh_page = seen[0]
+    assert link.startswith("http://127.0.0.1:") and link.endswith("/status")
+    assert status == 200 and bokeh_page
 
 
 def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
