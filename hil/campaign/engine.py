@@ -132,6 +132,48 @@ def local_cluster(workers: int, processes: bool = True, threads_per_worker: int 
                         silence_logs=logging.CRITICAL)
 
 
+class WorkerWatch:
+    """Says when a cluster has no worker left (``on_change(0)``), and when workers are back
+    (``on_change(n)``): with every worker gone a campaign waits for one to join and its
+    progress stops, which without a word looks like a hang. Looks at the client's view of the
+    scheduler (``scheduler_info()``, which Dask refreshes every few seconds) every
+    ``every_s`` s, in a thread of its own, until ``stop()``."""
+
+    def __init__(self, client: Any, on_change: Callable[[int], None],
+                 every_s: float = 2.0) -> None:
+        import threading
+        self.client = client
+        self.on_change = on_change
+        self.every_s = every_s
+        self.none = False
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="rprs-worker-watch",
+                                        daemon=True)
+
+    def start(self) -> "WorkerWatch":
+        self._thread.start()
+        return self
+
+    def check(self) -> None:
+        """One look: tell a change between no worker and some."""
+        try:
+            n = len(self.client.scheduler_info().get("workers", {}))
+        except Exception:      # noqa: BLE001 - the client is closing: nothing to say
+            return
+        if (n == 0) != self.none:
+            self.none = n == 0
+            self.on_change(n)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.every_s):
+            self.check()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5)
+
+
 class CodeMismatch(StoreError):
     """A worker runs other code than the client (an edited copy, another checkout)."""
 
@@ -159,7 +201,8 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
                  measure: Callable[[Any], dict] = metrics_of,
                  on_progress: Callable[[int, int], None] | None = None,
                  client: Any = None, retries: int = RETRIES,
-                 on_dashboard: Callable[[str], None] | None = None) -> Outcome:
+                 on_dashboard: Callable[[str], None] | None = None,
+                 on_workers: Callable[[int], None] | None = None) -> Outcome:
     """Run every missing (or lost) run of ``spec`` into ``store``. StoreError when results
     would mix commits or come from a dirty tree (unless ``allow_dirty``).
 
@@ -168,7 +211,8 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
     it is sent again up to ``retries`` times, then its runs are stored ``lost``, which the
     report leaves out and the next run of the campaign runs again. ``on_dashboard(link)``:
     the cluster's dashboard, once its workers are there (the embedded cluster's only with
-    bokeh installed; an external scheduler's as it gives it)."""
+    bokeh installed; an external scheduler's as it gives it). ``on_workers(n)``: the
+    cluster has no worker left (n = 0) or has some again (``WorkerWatch``)."""
     commit, dirty = source_state()
     if not allow_dirty:
         if dirty:
@@ -187,6 +231,7 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
         return Outcome(spec.runs, skipped, 0, 0, 0.0, 0.0, 0)
     own = client is None
     cluster = None
+    watch: WorkerWatch | None = None
     if own:
         from dask.distributed import Client
         if scheduler:
@@ -209,6 +254,7 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
         t0 = time.perf_counter()             # the runs' wall time, not the cluster's start
         chunks = chunked(items, nworkers, spec.chunk)
         futures = client.map(run_chunk, chunks, measure=measure, pure=False)
+        watch = WorkerWatch(client, on_workers).start() if on_workers is not None else None
         ran = crashed = lost = retried = 0
         task_s = 0.0
         todo = {f.key: (c, 0) for f, c in zip(futures, chunks)}
@@ -237,6 +283,8 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
                 on_progress(ran, len(items))
         workers_end = len(client.scheduler_info().get("workers", {}))
     finally:
+        if watch is not None:
+            watch.stop()
         if own:
             client.close()
             if cluster is not None:

@@ -75,7 +75,13 @@ def cmd_run(a: argparse.Namespace) -> int:
                            retries=a.retries,
                            on_dashboard=lambda link: print(f"campaign {spec.name}: Dask "
                                                            f"dashboard {link}",
-                                                           file=sys.stderr, flush=True))
+                                                           file=sys.stderr, flush=True),
+                           on_workers=lambda n: print(
+                               f"campaign {spec.name}: " + (
+                                   "no worker is connected: the runs wait until one joins "
+                                   "(Ctrl-C stops; campaign run again goes on from there)"
+                                   if n == 0 else f"{n} worker(s) connected again"),
+                               file=sys.stderr, flush=True))
     except StoreError as e:
         raise UserError(str(e)) from None
     except OSError as e:

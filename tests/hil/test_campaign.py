@@ -321,6 +321,22 @@ def test_the_dashboard_link_is_given_and_serves_the_dashboard(spec_file, tmp_pat
     assert status == 200 and bokeh_page
 
 
+def test_the_worker_watch_says_when_no_worker_is_left_and_when_workers_are_back():
+    """With every worker gone a campaign waits and its progress stops: ``WorkerWatch`` tells
+    the change (0 workers, then some again), once each, never while workers come and go."""
+    seen_workers = iter([2, 1, 0, 0, 0, 1, 3, 0, 2])
+
+    class Client:
+        def scheduler_info(self):
+            return {"workers": {f"w{i}": {} for i in range(next(seen_workers))}}
+
+    told: list[int] = []
+    w = engine.WorkerWatch(Client(), told.append)
+    for _ in range(9):
+        w.check()
+    assert told == [0, 1, 0, 2]
+
+
 def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
     spec = load_spec(spec_file, check=check_args)
     store = Store(tmp_path / "c.sqlite")
