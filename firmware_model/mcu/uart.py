@@ -26,6 +26,10 @@ interrupt, arms a timer channel for the End's stop bit: one byte time from the T
 which it takes to be its own entry less the entry cycles. That timer's handler (``end
 vector``) lowers TXEN and runs the MAC's end-of-frame rules (``on_tx_done`` with that tick),
 so a transmit handler that was preempted before its entry drops TXEN late by as much.
+
+On an idle CPU the simulator may count the receive handlers of a good frame's bytes late
+(``receive``'s ``late_ok``) and a transmit handler at the next TDRE (``_late_tdre``), each as
+it ran, to the tick (docs/fast-paths.md, "Late bytes on an idle CPU").
 """
 from __future__ import annotations
 
