@@ -213,6 +213,9 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
     the cluster's dashboard, once its workers are there (the embedded cluster's only with
     bokeh installed; an external scheduler's as it gives it). ``on_workers(n)``: the
     cluster has no worker left (n = 0) or has some again (``WorkerWatch``)."""
+    if spec.metrics and measure is metrics_of:      # the campaign's own metrics too
+        import functools
+        measure = functools.partial(metrics_of, hook=spec.metrics)
     commit, dirty = source_state()
     if not allow_dirty:
         if dirty:

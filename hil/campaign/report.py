@@ -157,6 +157,13 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 point[f"latency_{name}_ms"] = [est, lo, hi]
             elif hists:
                 point[f"latency_{name}_ms"] = None
+        custom: dict[str, list[float]] = defaultdict(list)
+        for r in ok:
+            for name, v in (r["metrics"].get("custom") or {}).items():
+                custom[name].append(v)
+        if custom:          # the campaign's own metrics: each a mean with its interval
+            point["custom"] = {name: [round(x, 6) for x in bootstrap_mean(vs)] + [len(vs)]
+                               for name, vs in sorted(custom.items())}
         tput = [r["metrics"]["throughput"] for r in ok if "throughput" in r["metrics"]]
         if tput:
             est, lo, hi = bootstrap_mean(tput)

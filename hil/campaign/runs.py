@@ -49,12 +49,48 @@ def check_args(args: Sequence[str]) -> None:
     sim_config_for(args, 0)
 
 
-def metrics_of(cfg: SimConfig) -> dict[str, Any]:
-    """Run the world of ``cfg`` to its end; the campaign's metrics."""
-    w = World(cfg)
+class MetricsHookError(ValueError):
+    """A ``metrics`` hook that cannot be used; the message says why."""
+
+
+def metrics_hook(spec: str) -> Callable[[list, Any], dict]:
+    """The function a campaign file's ``metrics = "module:function"`` names, imported (on
+    the worker as in the client: the module must be importable on both)."""
+    import importlib
+    mod_name, sep, fn_name = spec.partition(":")
+    if not sep or not mod_name or not fn_name.isidentifier():
+        raise MetricsHookError(f"{spec!r}: give 'module:function'")
+    try:
+        mod = importlib.import_module(mod_name)
+    except ImportError as e:
+        raise MetricsHookError(f"{spec!r}: cannot import {mod_name}: {e}") from None
+    fn = getattr(mod, fn_name, None)
+    if not callable(fn):
+        raise MetricsHookError(f"{spec!r}: {mod_name} has no function {fn_name}")
+    return fn
+
+
+def custom_metrics(hook: str, events: list, world: Any) -> dict[str, float]:
+    """A run's own metrics: ``hook``'s function called with the run's typed trace events
+    (hil/sim/events.py, in order) and its finished world; it returns {name: number}. A value
+    that is no number (or a name that is no string) makes the run crash, with that reason."""
+    out = metrics_hook(hook)(events, world)
+    if not isinstance(out, dict) or not all(
+            isinstance(k, str) and isinstance(v, (int, float)) and not isinstance(v, bool)
+            for k, v in out.items()):
+        raise MetricsHookError(f"{hook} must return {{name: number}}, got {out!r:.200}")
+    return {k: float(v) for k, v in out.items()}
+
+
+def metrics_of(cfg: SimConfig, hook: str | None = None) -> dict[str, Any]:
+    """Run the world of ``cfg`` to its end; the campaign's metrics (``hook``: the campaign's
+    own, ``custom_metrics``, under ``custom``)."""
+    events: list = []
+    w = World(cfg, listeners=[events.append] if hook else ())
     reform, not_reformed = run_timing_reformations(w, cfg.faults)
     s = w.summary()
-    return {
+    extra = {"custom": custom_metrics(hook, events, w)} if hook else {}
+    return {**extra,
         "submitted": s["submitted"], "delivered": s["delivered"], "failed": s["failed"],
         "pending": s["pending"], "duplicates": s["duplicate_deliveries"],
         "misdelivered": s["wrong_robot_deliveries"],

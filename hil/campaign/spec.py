@@ -63,6 +63,9 @@ class Spec:
     root_seed: int
     points: tuple[Point, ...]
     chunk: int
+    metrics: str | None = None
+    """``module:function`` computing a run's own metrics from its trace events and world
+    (``hil.campaign.runs.custom_metrics``), or None."""
 
     @property
     def runs(self) -> int:
@@ -112,7 +115,7 @@ def load_spec(path: str | Path, check=None) -> Spec:
     grid = data.get("grid", {})
     if not isinstance(camp, dict) or not isinstance(grid, dict):
         raise SpecError(f"{path}: [campaign] and [grid] must be tables")
-    extra = set(camp) - {"name", "seeds", "root_seed", "duration", "chunk"}
+    extra = set(camp) - {"name", "seeds", "root_seed", "duration", "chunk", "metrics"}
     if extra:
         raise SpecError(f"{path}: unknown [campaign] key(s) {', '.join(sorted(extra))}")
     name = camp.get("name", Path(path).stem)
@@ -136,6 +139,15 @@ def load_spec(path: str | Path, check=None) -> Spec:
         if k in REPEATABLE and not all(isinstance(x, list) for x in v):
             raise SpecError(f"{path}: [grid] {k}: each value is a list of {k} specs, e.g. "
                             f"{k} = [[], [\"...\"]]")
+    metrics = camp.get("metrics")
+    if metrics is not None:
+        from .runs import MetricsHookError, metrics_hook
+        if not isinstance(metrics, str):
+            raise SpecError(f"{path}: [campaign] metrics must be a string 'module:function'")
+        try:
+            metrics_hook(metrics)
+        except MetricsHookError as e:
+            raise SpecError(f"{path}: [campaign] metrics: {e}") from None
     points = points_of(grid, base)
     if check is not None:
         for p in points:
@@ -143,4 +155,4 @@ def load_spec(path: str | Path, check=None) -> Spec:
                 check(p.args)
             except ValueError as e:
                 raise SpecError(f"{path}: grid point {p.key}: {e}") from None
-    return Spec(name, seeds, root, points, chunk)
+    return Spec(name, seeds, root, points, chunk, metrics)

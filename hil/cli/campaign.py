@@ -181,6 +181,8 @@ def cmd_report(a: argparse.Namespace) -> int:
             v = p["throughput"]
             print(f"  delivered throughput: {v[0]:g} messages/s (95 % CI {v[1]:g}-{v[2]:g}, "
                   f"mean of {p['runs'] - p['crashed']} runs)")
+        for name, (est, lo, hi, n) in p.get("custom", {}).items():
+            print(f"  {name}: {est:g} (95 % CI {lo:g}-{hi:g}, mean of {n} runs)")
         _quantile_lines(p, "message latency", "latency_{}_ms", "ms", "delivered messages",
                         "messages", p.get("latency_messages", 0), LATENCY_QUANTILES)
         if p.get("duplicates"):

@@ -337,6 +337,59 @@ def test_the_worker_watch_says_when_no_worker_is_left_and_when_workers_are_back(
     assert told == [0, 1, 0, 2]
 
 
+def test_a_campaigns_own_metrics_from_each_runs_trace_are_stored_and_reported(tmp_path,
+                                                                            capsys):
+    """``[campaign] metrics = "module:function"``: each run's trace events and world go to
+    the function; what it returns is stored with the run (``custom``), equal to the same
+    count made by hand from the run alone, and the report gives each metric's mean with its
+    interval per point."""
+    from hil.campaign.runs import sim_config_for
+    from hil.cli import main
+    from hil.sim import events as E
+    from hil.sim.world import World
+    f = tmp_path / "m.toml"
+    f.write_text(SPEC.replace('duration = 3\n', 'duration = 3\nmetrics = '
+                              '"campaign_metrics:frames"\n'))
+    spec = load_spec(f, check=check_args)
+    assert spec.metrics == "campaign_metrics:frames"
+    store = Store(tmp_path / "m.sqlite")
+    _run_in_process(spec, store)
+    rows = store.rows()
+    assert rows and all(r["status"] == "ok" for r in rows)
+    for r in rows[:2]:
+        evs: list = []
+        w = World(sim_config_for(r["args"], r["seed"]), listeners=[evs.append])
+        w.run()
+        n = sum(type(e) is E.FrameOnAir for e in evs)
+        assert r["metrics"]["custom"]["frames on air"] == n > 0
+        assert r["metrics"]["custom"]["occupations"] == w.air.occupations
+    store.close()
+    assert main(["campaign", "report", str(tmp_path / "m.sqlite")]) == 0
+    out = capsys.readouterr().out
+    assert out.count("  frames on air: ") == 2 and "mean of 2 runs" in out
+
+
+@pytest.mark.parametrize("hook,says", [("nosuch_module:f", "cannot import nosuch_module"),
+                                       ("campaign_metrics:nope", "no function nope"),
+                                       ("campaign_metrics", "give 'module:function'")])
+def test_a_metrics_hook_that_cannot_be_used_is_refused_with_the_file(tmp_path, hook, says):
+    f = tmp_path / "bad.toml"
+    f.write_text(SPEC.replace('duration = 3\n', f'duration = 3\nmetrics = "{hook}"\n'))
+    with pytest.raises(SpecError, match=says):
+        load_spec(f, check=check_args)
+
+
+def test_a_metric_that_is_no_number_crashes_its_run_with_the_reason(tmp_path):
+    f = tmp_path / "nan.toml"
+    f.write_text(SPEC.replace('duration = 3\n', 'duration = 3\nmetrics = '
+                              '"campaign_metrics:not_a_number"\n'))
+    store = Store(tmp_path / "n.sqlite")
+    _run_in_process(load_spec(f, check=check_args), store)
+    rows = store.rows()
+    assert rows and all(r["status"] == "crashed" and "must return {name: number}" in r["error"]
+                        for r in rows)
+
+
 def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
     spec = load_spec(spec_file, check=check_args)
     store = Store(tmp_path / "c.sqlite")
