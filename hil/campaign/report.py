@@ -201,14 +201,17 @@ def point_label(point: dict[str, Any]) -> str:
                     for k, v in sorted(point.items())) or "(one point)"
 
 
-def ber_series(points: list[dict[str, Any]]) -> dict[str, list[tuple[float, ...]]]:
+def ber_series(points: list[dict[str, Any]],
+               fixed: Any = ()) -> dict[str, list[tuple[float, ...]]]:
     """The lines of the failure-vs-BER plot: {label: [(ber, rate, ci low, ci high), ...]
     sorted by ber}, one line per rest-of-point (every grid key but ``ber``), so points that
-    differ in any other key (robots, load, checksum, ...) are never drawn as one line."""
+    differ in any other key (robots, load, checksum, ...) are never drawn as one line. Keys in
+    ``fixed`` (one value at every point: the plot's title names them) stay out of the
+    labels."""
     series: dict[str, list] = defaultdict(list)
     for p in points:
         if p["failed_rate"] is not None:
-            rest = {k: v for k, v in p["point"].items() if k != "ber"}
+            rest = {k: v for k, v in p["point"].items() if k != "ber" and k not in fixed}
             series[point_label(rest)].append(
                 (p["point"].get("ber", 0.0), p["failed_rate"], *p["failed_ci95"]))
     return {label: sorted(pts) for label, pts in sorted(series.items())}
@@ -224,10 +227,14 @@ def plot(points: list[dict[str, Any]], rows: list[dict[str, Any]], directory) ->
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     written = []
+    fixed, varying = fixed_and_varying(points)
+    title = f"every point: {point_label(fixed)}" if fixed else None
     bers = {p["point"].get("ber", 0.0) for p in points}
     if len(bers) > 1:
         fig, ax = plt.subplots(figsize=(6, 4))
-        for label, pts in ber_series(points).items():
+        if title:
+            ax.set_title(title, fontsize=8)
+        for label, pts in ber_series(points, fixed).items():
             x = [a[0] for a in pts]
             y = [a[1] for a in pts]
             err = [[max(0.0, a[1] - a[2]) for a in pts], [max(0.0, a[3] - a[1]) for a in pts]]
@@ -248,10 +255,14 @@ def plot(points: list[dict[str, Any]], rows: list[dict[str, Any]], directory) ->
             by_point[r["point_key"]].append(r["metrics"]["reform_max_s"])
     for key, vals in sorted(by_point.items()):
         vals.sort()
+        point = json.loads(key)
         ax.step(vals, [(i + 1) / len(vals) for i in range(len(vals))], where="post",
-                label=point_label(json.loads(key)))
+                label=point_label({k: point.get(k) for k in varying}) if varying
+                else "the point")
         any_line = True
     if any_line:
+        if title:
+            ax.set_title(title, fontsize=8)
         ax.set_xlabel("longest ring re-formation of a run (s)")
         ax.set_ylabel("share of runs")
         ax.legend(fontsize=6)

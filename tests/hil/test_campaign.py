@@ -75,8 +75,8 @@ def test_wilson_interval_matches_published_values():
         assert wilson(k, n) == pytest.approx((lo, hi), abs=5e-5)
 
 
-def test_the_ber_plot_draws_one_line_per_rest_of_point_labelled_with_all_of_it(tmp_path,
-                                                                              monkeypatch):
+def test_the_ber_plot_draws_one_line_per_rest_of_point_labelled_with_what_varies(tmp_path,
+                                                                                monkeypatch):
     # robots and load both vary besides ber: four lines, none merging two loads of one ring
     points = [{"point": {"robots": r, "load": ld, "checksum": True, "ber": b},
                "failed_rate": 0.1 * b, "failed_ci95": (0.0, 0.2)}
@@ -91,10 +91,18 @@ def test_the_ber_plot_draws_one_line_per_rest_of_point_labelled_with_all_of_it(t
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     seen, legend = [], plt.Axes.legend
+    titles, set_title = [], plt.Axes.set_title
     monkeypatch.setattr(plt.Axes, "legend", lambda ax, *a, **k: (
         seen.append(ax.get_legend_handles_labels()[1]), legend(ax, *a, **k))[1])
+    monkeypatch.setattr(plt.Axes, "set_title", lambda ax, t, *a, **k: (
+        titles.append(t), set_title(ax, t, *a, **k))[1])
     assert plot(points, [], tmp_path) == [str(tmp_path / "failure_vs_ber.png")]
-    assert seen == [list(series)]                    # the labels drawn, in order
+    # the labels drawn, in order: what varies; checksum, the same at every point, is named
+    # once, in the title
+    assert seen == [list(ber_series(points, {"checksum": True}))]
+    assert seen[0] == ["load=1 robots=0,1,2", "load=1 robots=1,2", "load=saturate robots=0,1,2",
+                       "load=saturate robots=1,2"]
+    assert titles == ["every point: checksum=true"]
 
 
 def test_seeds_depend_on_the_point_and_index_only():
