@@ -23,7 +23,7 @@ from hil.campaign.runs import check_args
 from hil.campaign.seeds import run_key, run_seed
 from hil.campaign.spec import SpecError, load_spec
 from hil.campaign.store import Store, StoreError
-from processes import stop
+from processes import stop, wait_for
 from paths import ROOT
 
 REAL_SOURCE_STATE = engine.source_state
@@ -197,6 +197,72 @@ def test_a_real_scheduler_and_two_workers_give_the_same_rows(spec_file, tmp_path
         stop(procs)
     assert "4 run now (0 crashed)" in remote.stdout and "on 2 worker(s)" in remote.stdout
     assert _rows(tmp_path / "remote.sqlite") == _rows(tmp_path / "local.sqlite")
+
+
+@pytest.mark.slow  # a real scheduler, its worker killed and another started: about 40 s
+def test_campaign_run_says_when_no_worker_is_left_and_when_one_is_back(tmp_path):
+    """A campaign on a real scheduler whose only worker is killed mid-way (SIGKILL to the
+    worker and its nanny): ``campaign run`` says on stderr that no worker is connected, says
+    so again when a new worker joins, and ends with every run stored, none lost."""
+    import threading
+    spec = tmp_path / "w.toml"
+    spec.write_text(SPEC.replace("seeds = 2", "seeds = 12\nchunk = 1")
+                    .replace("duration = 3", "duration = 120"))
+    db = tmp_path / "w.sqlite"
+    port = _free_port()
+    addr = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "dask"]
+
+    def worker():
+        return subprocess.Popen([*dask, "worker", addr, "--nthreads", "1", "--no-dashboard"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                start_new_session=True, preexec_fn=_nice)
+    procs = [subprocess.Popen([*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, preexec_fn=_nice)]
+    lines: list[str] = []
+    workers = [worker()]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "campaign", "run", str(spec),
+                          "--db", str(db), "--scheduler", addr, "--workers", "1",
+                          "--allow-dirty", "--no-progress"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, env=env, preexec_fn=_nice)
+
+    def read():
+        with p.stderr:
+            lines.extend(p.stderr)
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        def stored() -> int:
+            try:
+                with sqlite3.connect(db) as c:
+                    return c.execute("SELECT count(*) FROM runs").fetchone()[0]
+            except sqlite3.Error:
+                return 0
+        assert wait_for(lambda: db.exists() and stored() >= 2, 120.0), "".join(lines)
+        os.killpg(workers[0].pid, signal.SIGKILL)
+        assert wait_for(lambda: any("no worker is connected" in ln for ln in lines), 40.0), \
+            "".join(lines)
+        workers.append(worker())
+        assert wait_for(lambda: any("worker(s) connected again" in ln for ln in lines), 60.0), \
+            "".join(lines)
+        p.wait(timeout=300)
+        with p.stdout:
+            out = p.stdout.read()
+    finally:
+        for w in workers:
+            if w.poll() is None:
+                os.killpg(w.pid, signal.SIGKILL)
+            w.wait(timeout=30)
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=30)
+        stop(procs)
+    reader.join(10)
+    assert p.returncode == 0, "".join(lines)
+    assert "24 runs planned" in out and "lost" not in out
+    assert len(_rows(db)) == 24
 
 
 @pytest.mark.slow  # a real scheduler and a worker from an edited copy: about 15 s
