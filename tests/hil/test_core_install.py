@@ -88,3 +88,54 @@ def test_a_command_whose_extra_is_missing_says_which_in_one_line(args, extra, tm
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in p.stderr, p.stderr
     assert f"'{extra}' extra" in lines[0] and f"rprs[{extra}]" in lines[0], lines[0]
+
+
+EXTRA_DISTS = {"numpy", "matplotlib", "dask", "distributed", "textual", "pyarrow", "bokeh"}
+"""The distributions the extras bring that a core install must not have."""
+
+
+@pytest.mark.slow  # a venv of its own with the project installed from its files: about 40 s
+def test_a_real_core_venv_has_no_extra_and_runs_the_demo_the_simulator_and_the_bench(
+        tmp_path):
+    """``pip install .`` (no extra) into a fresh venv: none of the extras' libraries come
+    with it, and there ``rprs demo``, ``rprs sim --pcap``, ``rprs child`` and ``rprs father
+    --plain`` (on a hub the same venv runs) work."""
+    venv = tmp_path / "core"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    py, rprs = venv / "bin" / "python", str(venv / "bin" / "rprs")
+    got = subprocess.run([str(py), "-m", "pip", "install", "-q", str(ROOT)], text=True,
+                         capture_output=True, timeout=900)
+    assert got.returncode == 0, got.stderr[-3000:]
+    frozen = subprocess.run([str(py), "-m", "pip", "freeze"], text=True, capture_output=True,
+                            check=True).stdout
+    installed = {ln.split("==")[0].split(" @ ")[0].strip().lower()
+                 for ln in frozen.splitlines() if ln.strip()}
+    assert "rprs" in installed and not installed & EXTRA_DISTS, sorted(installed)
+
+    def run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+        return subprocess.run([rprs, *args], cwd=tmp_path, text=True, capture_output=True,
+                              timeout=timeout)
+    p = run("demo")                                   # the README's main job
+    assert p.returncode == 0 and "cycle(s) done" in p.stdout, p.stderr
+    p = run("sim", "--robots", "0,1,2", "--duration", "5", "--can", "--load", "1", "--pcap",
+            "run.pcapng", "--no-progress")
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "run.pcapng").stat().st_size > 1000
+    air = tmp_path / "air"
+    hub = subprocess.Popen([rprs, "radio-hub", "--nodes", "2", "--link-dir", str(air)],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        from processes import wait_for
+        assert wait_for((air / "node1").exists, 30.0), "the hub made no node links"
+        child = subprocess.Popen([rprs, "child", "--id", "1", "--radio", str(air / "node0"),
+                                  "--team", "0,1", "--duration", "6"], text=True,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        father = run("father", "--plain", "--no-input", "--radio", str(air / "node1"),
+                     "--team", "0,1", "--duration", "5")
+        out, err = child.communicate(timeout=30)
+    finally:
+        hub.terminate()
+        hub.communicate(timeout=10)
+    assert father.returncode == 0, father.stderr
+    assert child.returncode == 0, err
+    assert "robot 0: member, ring [0, 1]" in father.stderr, father.stderr
