@@ -124,8 +124,8 @@ class Cpu:
     """One F2MC-16LX core on ``sched``. ``costs`` None is the ideal (zero-time) CPU."""
 
     fuse = True
-    """Run a lone handler on an idle CPU as one event (module docstring); False: every
-    handler on the general path (the fast-paths switch, hil/sim/config.py)."""
+    """Run a lone handler on an idle CPU without the dispatcher (module docstring); False:
+    every handler on the general path (the fast-paths switch, hil/sim/config.py)."""
 
     def __init__(self, sched: Clock, costs: Any = None, name: str = "CPU") -> None:
         self.sched = sched
@@ -144,7 +144,7 @@ class Cpu:
         self.started = sched.now
         self._busy = 0
         self._alone: _Frame | None = None
-        """The lone handler running as one event (module docstring), or None."""
+        """The lone handler running without the dispatcher (module docstring), or None."""
         self._alone_ev: Event | None = None
         self._alone_t = 0          # the tick it was accepted at
         self.on_touch: Callable[[int, bool], None] | None = None
@@ -171,7 +171,7 @@ class Cpu:
         """The peripheral raises ``vector``'s request now; its handler's body costs ``body``
         cycles. ``enter()`` runs when the handler starts, ``fn(*args)`` when its body ends.
         ``alone``: nothing but this handler's body reads what ``enter`` changes, so on an idle
-        CPU both may run at the body's end, as one event (module docstring). ``at``: the
+        CPU both may run at the body's end, without the dispatcher (module docstring). ``at``: the
         request came at that earlier tick, the CPU idle since (``lone_past``'s last byte)."""
         if vector.level == MAIN_LEVEL:
             return                      # ICR level 7: the request is never accepted
@@ -184,8 +184,7 @@ class Cpu:
                 enter()
             fn(*args)
             return
-        if self.on_touch is not None and not self._touching:
-            self._touch(True)
+        self._touch(True)
         now = self.sched.now
         if self._alone is not None:
             self._settle(now)
@@ -219,8 +218,7 @@ class Cpu:
             self._stats(name, MAIN_LEVEL).calls += 1
             fn(*args)
             return
-        if self.on_touch is not None and not self._touching:
-            self._touch(True)
+        self._touch(True)
         if self._alone is not None:
             self._settle(self.sched.now)
         self._tasks.append((name, body, fn, args, self.sched.now))
@@ -320,7 +318,7 @@ class Cpu:
             return
         self._dispatch()
 
-    # -- a lone handler as one event -------------------------------------------------------
+    # -- a lone handler, without the dispatcher --------------------------------------------
 
     def _alone_entry(self) -> None:
         """The lone handler's entry sequence ends (its ``enter`` waits for the body's end)."""
@@ -375,7 +373,7 @@ class Cpu:
         f = self._alone
         assert f is not None
         t = self._alone_t
-        if f.fn is None and (now > t + f.end or (final and now == t + f.end)):
+        if self._alone_over(now) or (final and f.fn is None and now == t + f.end):
             self._alone = None
             f.stats.busy += f.end
             self._busy += f.end
@@ -406,24 +404,37 @@ class Cpu:
         final for now); called by whoever reads them (``read``: the bytes handed over late
         first) or a register a lone handler's entry reads (``read`` False); ``final``: the
         run stops now, every event of this tick done (``_settle``)."""
-        if read and self.on_touch is not None and not self._touching:
+        if read:
             self._touch(False)
         if self._alone is not None:
             self._settle(self.sched.now, final)
 
     def _touch(self, busy: bool) -> None:
-        assert self.on_touch is not None
+        """``on_touch``, if set, unless it is running already (it may ask the CPU itself)."""
+        if self.on_touch is None or self._touching:
+            return
         self._touching = True
         try:
             self.on_touch(self.sched.now, busy)
         finally:
             self._touching = False
 
+    def fits_alone(self, body: int, ticks: int) -> bool:
+        """Would a handler of ``body`` cycles, run alone, be over (RETI done) within ``ticks``
+        of its request, with the lone handlers on (``fuse``)? Then its handlers may be counted
+        late, one every ``ticks`` (Uart: bytes and TDREs)."""
+        return self.fuse and self.entry + body + self.reti < ticks
+
+    def _alone_over(self, now: int) -> bool:
+        """The lone handler's effects came and its RETI ended before ``now`` (at ``now`` it
+        still runs: ``_settle``)."""
+        f = self._alone
+        return f is not None and f.fn is None and now > self._alone_t + f.end
+
     def quiescent(self, now: int) -> bool:
         """Nothing runs or waits on the CPU at ``now`` (a lone handler's RETI done too): a
         reception that begins now may hand its bytes over late (``lone_past``)."""
-        f = self._alone
-        if f is not None and (f.fn is not None or now <= self._alone_t + f.end):
+        if self._alone is not None and not self._alone_over(now):
             return False
         return not self._stack and not self._pending and not self._tasks
 
@@ -457,10 +468,9 @@ class Cpu:
     @property
     def busy(self) -> int:
         """Machine cycles spent in handlers and tasks that have ended (RETI done)."""
-        if self.on_touch is not None and not self._touching:
-            self._touch(False)
+        self._touch(False)
         f = self._alone
-        if f is not None and f.fn is None and self.sched.now > self._alone_t + f.end:
+        if f is not None and self._alone_over(self.sched.now):
             return self._busy + f.end
         return self._busy
 
@@ -490,9 +500,5 @@ class Cpu:
 
     @property
     def idle(self) -> bool:
-        if self.on_touch is not None and not self._touching:
-            self._touch(False)
-        f = self._alone
-        if f is not None and (f.fn is not None or self.sched.now <= self._alone_t + f.end):
-            return False
-        return not self._stack and not self._pending and not self._tasks
+        self._touch(False)
+        return self.quiescent(self.sched.now)

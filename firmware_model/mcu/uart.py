@@ -175,8 +175,14 @@ class Uart:
             # (``pause``) where the shift register runs dry
             assert self._tx is not None                           # the frame being sent
             self.line.transmit(self._tx[k:], now, bt)
-        cpu.irq(self.tx_vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter,
-                alone=True)
+        self._tdre_request()
+
+    def _tdre_request(self, at: int | None = None) -> None:
+        """TDRE requests the transmit interrupt (``at``: it did at that earlier tick, the CPU
+        idle since: a late handler the CPU is now asked past)."""
+        assert self.cpu is not None and self.tx_vector is not None
+        self.cpu.irq(self.tx_vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter,
+                     alone=True, at=at)
 
     def _tdre_enter(self) -> None:
         """The handler's entry has ended (the End's timer counts from there; only its body
@@ -239,8 +245,7 @@ class Uart:
         time and nothing else looks at it (docs/fast-paths.md, "Late bytes on an idle CPU")."""
         cpu = self.cpu
         assert cpu is not None
-        return cpu.fuse and cpu.entry + self.tx_cycles + cpu.reti < self.byte_ticks and \
-            cpu.quiescent(now)
+        return cpu.fits_alone(self.tx_cycles, self.byte_ticks) and cpu.quiescent(now)
 
     def _late_tdre_done(self, k: int) -> None:
         """The late handler of byte ``k`` (its TDRE at ``_late_tdre``) is over: counted as
@@ -257,18 +262,15 @@ class Uart:
         """The CPU is asked for something while a late transmit handler runs or has run:
         counted and its write done if its effects came before now, else it goes on as a lone
         handler (Cpu.irq's ``at``)."""
-        t = self._late_tdre
-        cpu, vector = self.cpu, self.tx_vector
-        assert t is not None and cpu is not None and vector is not None and \
-            self._shift is not None
+        t, cpu = self._late_tdre, self.cpu
+        assert t is not None and cpu is not None and self._shift is not None
         k = self._shift[0]
         if t + cpu.entry + self.tx_cycles < now:
             self._late_tdre_done(k)
             return
         self._late_tdre = None
         self._sodr, self._tx_next = None, k + 1
-        cpu.irq(vector, self.tx_cycles, self._tdre_isr, enter=self._tdre_enter, alone=True,
-                at=t)
+        self._tdre_request(at=t)
 
     def _end_timer(self, end: int) -> None:
         done = self.on_tx_done
@@ -289,8 +291,7 @@ class Uart:
             self.on_rx(data, t0, dt)
             return
         now = self.sched.now
-        cpu, vector = self.cpu, self.rx_vector
-        assert vector is not None                     # attach_cpu set both
+        cpu = self.cpu
         if late_ok and t0 < now:
             k = min(len(data), (now - t0 - 1) // dt + 1)     # stop bits before now
             self._replay(data[:k], t0, dt)
@@ -305,16 +306,16 @@ class Uart:
                 self.overruns += 1
                 continue
             self.rdr.append((b, t))     # more than one only for bytes handed over late
-            cpu.irq(vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr, alone=True)
+            self._rx_request(dt)
 
-    def may_come_late(self, data: bytes, dt: int) -> bool:
-        """Could ``data``, a byte every ``dt`` ticks, be handed over late (``receive``'s
-        ``late_ok``)? Only if the receiving firmware reports nothing before its last byte
-        (``rx_quiet``) and each byte's handler, run alone, is over before the next byte
-        comes; the caller knows the CPU is idle now."""
+    def may_come_late(self, data: bytes, dt: int, now: int) -> bool:
+        """Could ``data``, a byte every ``dt`` ticks from a reception beginning ``now``, be
+        handed over late (``receive``'s ``late_ok``)? Only on a CPU with nothing to do now,
+        whose receive handler, run alone, is over before the next byte comes, and if the
+        receiving firmware reports nothing before the last byte (``rx_quiet``)."""
         cpu = self.cpu
         return cpu is not None and self.rx_quiet is not None and \
-            cpu.entry + self.rx_cycles + cpu.reti < dt and self.rx_quiet(data)
+            cpu.fits_alone(self.rx_cycles, dt) and cpu.quiescent(now) and self.rx_quiet(data)
 
     def _replay(self, chunk: bytes, t0: int, dt: int) -> None:
         """Bytes handed over late with an idle CPU (``receive``'s ``late_ok``): each byte's
@@ -334,8 +335,14 @@ class Uart:
             self.on_rx(chunk[:due], t0, dt, t0 + (due - 1) * dt + e)
         if due < n:
             self.rdr.append((chunk[-1], last))
-            cpu.irq(vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr, alone=True,
-                    at=last)
+            self._rx_request(dt, at=last)
+
+    def _rx_request(self, dt: int, at: int | None = None) -> None:
+        """RDRF requests the receive interrupt (``at``: it did at that earlier tick, the CPU
+        idle since: ``_replay``'s last byte)."""
+        assert self.cpu is not None and self.rx_vector is not None
+        self.cpu.irq(self.rx_vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr,
+                     alone=True, at=at)
 
     def _cpu_touched(self, now: int, busy: bool) -> None:
         """The CPU is asked for something (``busy``) or read: the bytes heard by now first

@@ -204,7 +204,7 @@ class Air:
                     cpu = getattr(r.uart, "cpu", None)
                     if cpu is None or cpu.ideal:
                         r.rx = Reception(data, t0, bt, tx.n, tx)
-                    elif cpu.fuse and cpu.quiescent(t0) and r.uart.may_come_late(data, bt):
+                    elif r.uart.may_come_late(data, bt, t0):
                         r.rx = Reception(data, t0, bt, tx.n, tx, quiet=tx.n)
                     else:
                         r.rx = Reception(data, t0, bt, tx.n, tx)
@@ -361,8 +361,8 @@ class Air:
         lo = 0 if self.byte_by_byte or bytewise else first_bad
         cpu = getattr(r.uart, "cpu", None)
         if lo and cpu is not None and not cpu.ideal:
-            if cpu.fuse and holes is None and k == 0 and cpu.quiescent(self.sched.now) and \
-                    r.uart.may_come_late(tx.data, tx.bt):
+            if holes is None and k == 0 and r.uart.may_come_late(tx.data, tx.bt,
+                                                                 self.sched.now):
                 rx.quiet = rx.lazy = lo       # the clean prefix may come late (Uart.receive)
             else:
                 lo = 0                        # every handler at its byte's tick
