@@ -68,8 +68,9 @@ class HandlerStats:
     included), latency (request to acceptance) and response (request to its effects): ticks,
     counted per value (a few distinct values however long the run)."""
 
-    STEADY_COUNTERS = ("calls",)
-    """Handler calls: counts only (hil/sim/steady.py)."""
+    STEADY_COUNTERS = ("calls", "busy", "latency", "response")
+    """Handler calls, their cycles and their latency and response counts: counts only
+    (hil/sim/steady.py); the worst figures are values, which a steady ring no longer moves."""
 
     __slots__ = ("name", "level", "calls", "busy", "latency", "response", "worst_latency",
                  "worst_response")
@@ -123,6 +124,9 @@ class _Frame:
 class Cpu:
     """One F2MC-16LX core on ``sched``. ``costs`` None is the ideal (zero-time) CPU."""
 
+    STEADY_COUNTERS = ("_busy", "_requests")
+    """Busy cycles and the requests numbered so far: counts only (hil/sim/steady.py)."""
+
     fuse = True
     """Run a lone handler on an idle CPU without the dispatcher (module docstring); False:
     every handler on the general path (the fast-paths switch, hil/sim/config.py)."""
@@ -139,7 +143,7 @@ class Cpu:
         self._stack: list[_Frame] = []
         self._tasks: list[tuple[str, int, Any, tuple, int]] = []
         self._ev: Event | None = None
-        self._seq = 0
+        self._requests = 0
         self._in_callback = False
         self.started = sched.now
         self._busy = 0
@@ -206,8 +210,8 @@ class Cpu:
                 self._alone_ev = self.sched.at(t + f.body_end, self._alone_body)
             return
         assert at is None, "a request in the past needs an idle CPU (lone_past)"
-        self._seq += 1
-        self._pending.append((vector.level, vector.number, self._seq, now, vector, body,
+        self._requests += 1
+        self._pending.append((vector.level, vector.number, self._requests, now, vector, body,
                               enter, fn, args))
         self._dispatch()
 

@@ -66,7 +66,7 @@ class Uart:
                  "rx_cycles", "tx_vector", "tx_cycles", "end_vector", "end_cycles", "rdr",
                  "overruns", "_read", "gaps", "gap_ticks", "_tx", "_tx_len", "_tx_next",
                  "_sodr", "_shift", "_tdre_entry", "_gap_from", "rx_quiet",
-                 "bytes_late", "_late_tdre")
+                 "bytes_late", "_late_tdre", "_end_at")
 
     def __init__(self, sched: Scheduler, baud: int = 9600, byte_ticks: int | None = None,
                  name: str = "UART0") -> None:
@@ -86,6 +86,7 @@ class Uart:
         self.bytes_late = 0
         """Bytes handed over late on an idle CPU and counted as handled at their ticks
         (``_replay``)."""
+        self._end_at = 0          # the End's stop-bit tick, as the TX END timer reckoned it
         self.rx_quiet: Callable[[bytes], bool] | None = None
         """Set by the receiving firmware: True if handing it all but the last byte of these
         bytes, in any chunks, makes it report nothing (a good frame, nothing held): then
@@ -273,10 +274,17 @@ class Uart:
         self._tdre_request(at=t)
 
     def _end_timer(self, end: int) -> None:
-        done = self.on_tx_done
-        if done is not None:
+        if self.on_tx_done is not None:
             assert self.cpu is not None and self.end_vector is not None   # set with the timer
-            self.cpu.irq(self.end_vector, self.end_cycles, _nothing, enter=lambda: done(end))
+            self._end_at = end
+            self.cpu.irq(self.end_vector, self.end_cycles, _nothing, enter=self._end_entered)
+
+    def _end_entered(self) -> None:
+        """TX END's handler begins: TXEN falls (``on_tx_done``), given the End's stop-bit tick
+        as the timer reckoned it. (A method, not a closure over the tick: a ring's snapshot
+        sees and moves ``_end_at``, hil/sim/quiet_ring.py.)"""
+        assert self.on_tx_done is not None
+        self.on_tx_done(self._end_at)
 
     def receive(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
         """Bytes from the line: byte i's stop bit ended at tick ``t0 + i * dt``. ``late_ok``:

@@ -47,10 +47,18 @@ of the whole radio side:
   itself first: the events and packets of the last period must be those of the period before
   it, ticks moved on by the period and nothing else changed; otherwise no leap. So a traced
   or captured run writes the frame-by-frame run's trace and capture, byte for byte.
-* Nothing else may be watching the frames: no CPU model, and no hook of someone
-  else's on the air's transmissions or collisions or on a station's actions (each would
-  miss the frames leapt over); the MAC must be the rotational one. A snapshot with an object whose
-  inside it cannot see (anything but this project's
+* Nothing else may be watching the frames: no hook of someone else's on the air's
+  transmissions or collisions or on a station's actions (each would miss the frames leapt
+  over); the MAC must be the rotational one.
+* On the CPU model (firmware_model/mcu/cpu.py) the CPUs are parts like the rest: what a
+  handler costs is counted (``Cpu._busy``, each handler's calls, cycles and latency and
+  response counts: counters the leap moves on), a handler running at the probe is a frame
+  with ticks. Not with CAN sides there (they never sleep on the CPU the radio shares) nor
+  with a listener (the world's per-second CPU loads, World._cpu_second, never repeat with
+  the ring). A run's end settles the CPUs (``Cpu.settle``), which hands a UART the bytes of
+  a reception it would have had late, a count (``Uart.bytes_late``) no period repeats: the
+  next snapshot is then compared with none (:meth:`QuietRing.forget`).
+* A snapshot with an object whose inside it cannot see (anything but this project's
   classes, plain values and containers, bytearrays and random generators) never leads to a
   leap.
 
@@ -178,6 +186,13 @@ class QuietRing:
         """It ended: no leap, and no event noted, until the next one."""
         self.until = None
         self._rec, self._rec_from = [], None
+
+    def forget(self) -> None:
+        """Compare the next snapshot with none before it: something no period repeats
+        happened since the last (World._advance: a run's end that hands a CPU model's UART
+        the bytes of a reception it would have had late, which moves ``Uart.bytes_late``
+        by other amounts than a period does)."""
+        self._last = None
 
     def note(self, ev: Any, sink: str = "trace") -> None:
         """Something the world wrote out: an event to its listeners (``sink`` "trace", a

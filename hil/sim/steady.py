@@ -26,7 +26,7 @@ from can_bus.bus import CanBus
 from can_bus.submodules.node import _Submodule
 from firmware_model.dispatcher import Dispatcher
 from firmware_model.mcu.can_controller import CanController
-from firmware_model.mcu.cpu import HandlerStats
+from firmware_model.mcu.cpu import Cpu, HandlerStats
 from firmware_model.mcu.uart import Uart
 from firmware_model.radio.mac import RotationalMac
 from firmware_model.station import RadioStation
@@ -36,7 +36,7 @@ from .ledger import Tally
 
 __all__ = ["CAN_PARTS", "RING_PARTS", "counters", "modular", "records"]
 
-RING_PARTS: tuple[type, ...] = (Air, RotationalMac, RadioStation, Uart)
+RING_PARTS: tuple[type, ...] = (Air, RotationalMac, RadioStation, Uart, Cpu, HandlerStats)
 """The classes of a ring leap's snapshot that declare a contract (and ``World``: its
 module imports this one, so hil/sim/quiet_ring.py adds it)."""
 

@@ -22,6 +22,7 @@ from firmware_model.child import ChildFirmware
 from firmware_model.kinematics import HOME
 from firmware_model.mcu.can_controller import CanController
 from firmware_model.mcu.cpu import Cpu
+from firmware_model.mcu.scheduler import Event
 from firmware_model.sequence import ACTION_NAMES
 from firmware_model.radio.content import Command, frame_kind
 from firmware_model.radio.mac import (
@@ -191,8 +192,8 @@ class World:
             self.radios[EXTRA + k] = radio
             self.sched.at(s_to_ticks(t), self._power_on_extra, k)
         self._cpu_busy: dict[int, int] = {}
-        if self.cpus:
-            self.sched.at(TICK_HZ, self._cpu_second, 0)
+        self._cpu_clock: Event | None = None
+        self._io_reported()                    # (the CPU loads, while someone listens)
         self.fault_count: dict[str, int] = {}
         for f in config.faults:
             if f.kind != "skew":
@@ -200,14 +201,17 @@ class World:
         self.end_tick = s_to_ticks(config.duration)
         # The radio side as a whole, moved on in whole cycles while it only repeats itself
         # (hil/sim/quiet_ring.py; the trace and the event callback get the events of the
-        # cycles leapt over); none with the CPU model or on the wall's clock, nor with CAN
-        # sides that a trace keeps awake (QuietCan.may_sleep): it could never leap there;
-        # nor with the authenticated profile, whose frames never repeat (a new freshness each).
+        # cycles leapt over); none on the wall's clock, nor with CAN sides that a trace keeps
+        # awake (QuietCan.may_sleep): it could never leap there; nor with the authenticated
+        # profile, whose frames never repeat (a new freshness each). On the CPU model, only
+        # without CAN sides (they never sleep there: every handler is timed on the CPU the
+        # radio shares) and untraced (the per-second CPU loads never repeat with the ring).
         watched = bool(self.listeners)
         if config.ring_sleep and config.fast_paths and config.mac_kind == "rotational" \
                 and not config.realtime \
                 and base.auth is None \
-                and config.cpu is None and not (watched and self.quiet) and not config.extra:
+                and not (config.cpu is not None and (config.can or watched)) \
+                and not (watched and self.quiet) and not config.extra:
             ring = self.quiet_ring = QuietRing(self, min(config.robots), base.poll_every,
                                                config.father_standby)
             for q in self.quiet.values():
@@ -307,15 +311,21 @@ class World:
         radios["foreign"] = "foreign transmitters"
         return radios, {r: f"R{r} CAN" for r in self.can_buses}
 
-    def _cpu_second(self, _: int) -> None:
-        """Each simulated second: every child's CPU load over that second (the share of its
-        machine cycles spent in handlers and main-loop work), in the trace."""
+    def _cpu_second(self, first: bool) -> None:
+        """Each simulated second while someone listens: every child's CPU load over that
+        second (the share of its machine cycles spent in handlers and main-loop work), in the
+        trace. ``first``: the clock started during the second now ending, which gives only
+        the figures the next second is counted from. Nobody listening, no clock: the figures
+        a leap over an idle ring moves on are the CPU's own (``Cpu.busy``, its handlers'
+        counts), and a second's tick, never a multiple of the ring's period, would keep
+        it from leaping (hil/sim/quiet_ring.py)."""
         for r, cpu in sorted(self.cpus.items()):
-            busy = cpu.busy - self._cpu_busy.get(r, 0)
-            self._cpu_busy[r] = cpu.busy
-            if self.listeners:
-                self._emit(E.CpuLoad(t=self.sched.now, robot=r, load=round(busy / TICK_HZ, 6)))
-        self.sched.after(TICK_HZ, self._cpu_second, 0)
+            busy = cpu.busy
+            if not first:
+                self._emit(E.CpuLoad(t=self.sched.now, robot=r,
+                                     load=round((busy - self._cpu_busy[r]) / TICK_HZ, 6)))
+            self._cpu_busy[r] = busy
+        self._cpu_clock = self.sched.after(TICK_HZ, self._cpu_second, False)
 
     def _on_action(self, robot: int, action: int, phase: str, now: int) -> None:
         self.actions.append((now, robot, action, phase))
@@ -375,6 +385,11 @@ class World:
         finally:
             if ring is not None:
                 ring.end_run()
+        if not self.cpus:
+            return
+        if ring is not None and any(self.air.late_until(radio, end) is not None
+                                    for radio in self.radios.values()):
+            ring.forget()                # the settling below hands those bytes over now
         for cpu in self.cpus.values():   # every event of tick ``end`` has run (Cpu._settle)
             cpu.settle(final=True)
 
@@ -402,11 +417,26 @@ class World:
         self._io_reported()
 
     def _io_reported(self) -> None:
-        """The stations report their radio's switching (TXEN) only while someone listens."""
+        """The stations report their radio's switching (TXEN), and the CPUs their load each
+        second (:meth:`_cpu_second`: from the start, or from the first whole second after the
+        first listener came), only while someone listens."""
         sb = self.standby_station
         for st in [*self.stations.values(), *self.extra_stations.values(),
                    *([sb] if sb is not None else [])]:
             st.report_io = bool(self.listeners)
+        if not self.cpus:
+            return
+        if self.listeners and self._cpu_clock is None:
+            now = self.sched.now
+            if now == 0:
+                self._cpu_busy = {r: 0 for r in self.cpus}
+                self._cpu_clock = self.sched.at(TICK_HZ, self._cpu_second, False)
+            else:
+                self._cpu_clock = self.sched.at(-(-now // TICK_HZ) * TICK_HZ,
+                                                self._cpu_second, True)
+        elif not self.listeners and self._cpu_clock is not None:
+            self._cpu_clock.cancel()
+            self._cpu_clock = None
 
     def remove_listener(self, fn: Listener) -> None:
         """Stop calling ``fn`` (ValueError if it is not listening)."""

@@ -270,6 +270,46 @@ def test_a_ring_on_the_cpu_model_keeps_every_member_and_delivers():
     assert all(0 < v < 0.05 for v in s["cpu_load"].values())
 
 
+def _loads(events) -> dict[int, dict[int, float]]:
+    """CpuLoad events (or their records): robot -> {second's end (s) -> load}."""
+    from hil.sim import events as E
+    out: dict[int, dict[int, float]] = {}
+    for ev in events:
+        if isinstance(ev, dict):
+            if ev.get("ev") != "cpu":
+                continue
+            ev = E.from_record(ev)
+        if type(ev) is E.CpuLoad:
+            assert ev.t % 16_000_000 == 0
+            out.setdefault(ev.robot, {})[ev.t // 16_000_000] = ev.load
+    return out
+
+
+def test_each_second_traced_is_the_cpu_load_over_it_and_a_late_listener_gets_whole_seconds():
+    """Listened from the start: one CpuLoad a child a second, which add up to its busy
+    cycles. A listener added at 2.5 s gets the seconds from the fourth on, the same figures;
+    nobody listening, no clock ticks the seconds (it would keep an idle ring from leaping)."""
+    seen: list = []
+    w = _world(DEFAULT_COSTS, on_event=seen.append, duration=6)
+    w.run()
+    full = _loads(seen)
+    assert sorted(full) == [1, 2] and all(sorted(v) == [1, 2, 3, 4, 5, 6] for v in full.values())
+    for r, per in full.items():
+        assert min(per[s] for s in (3, 4, 5, 6)) > 0          # (joined by the third)
+        assert abs(sum(per.values()) * 16_000_000 - w.cpus[r].busy) < 16_000_000 * 1e-5
+    late: list = []
+    w2 = _world(DEFAULT_COSTS, duration=6)
+    w2.run(until=40_000_000)
+    assert w2._cpu_clock is None
+    w2.add_listener(late.append)
+    w2.run()
+    got = _loads(late)
+    assert {r: sorted(v) for r, v in got.items()} == {1: [4, 5, 6], 2: [4, 5, 6]}
+    assert got == {r: {s: v for s, v in per.items() if s >= 4} for r, per in full.items()}
+    w2.remove_listener(late.append)
+    assert w2._cpu_clock is None
+
+
 def test_a_receive_handler_slower_than_a_byte_overruns_and_loses_bytes():
     slow = replace(DEFAULT_COSTS, uart_rx_byte=Cost(20_000, "test", "test"))
     w = _world(slow, robots=(0, 1), duration=6)

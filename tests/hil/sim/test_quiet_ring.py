@@ -56,6 +56,23 @@ SCENARIOS = {
     "byte errors for a while": (
         SimConfig(robots=(0, 1, 2), duration=40, seed=9, faults=F("ber@10-20:0.002")),
         (40,), 0.3),
+    # on the CPU model (without CAN sides: a child's CAN side never sleeps there), the
+    # handlers' figures and the UARTs' late bytes moved on with the rest
+    "idle ring on the CPU model": (SimConfig(robots=RING, duration=60, seed=1, cpu=DEFAULT_COSTS),
+                                   (7.3, 30.0, 60), 0.7),
+    # a child the anchor: its probes come with its TX END handler running
+    "no father on the CPU model": (
+        SimConfig(robots=(1, 2, 3, 4, 5, 6), duration=40, seed=5, cpu=DEFAULT_COSTS), (40,),
+        0.5),
+    "a robot fails and comes back on the CPU model": (
+        SimConfig(robots=(0, 1, 2, 3), duration=60, seed=2, cpu=DEFAULT_COSTS,
+                  faults=F("fail:2@15", "recover:2@31.5")), (14.0, 15.2, 40.0, 60), 0.7),
+    "standby father on the CPU model": (
+        SimConfig(robots=(0, 1, 2, 3), duration=60, seed=3, father_standby=True,
+                  cpu=DEFAULT_COSTS, faults=F("fail:0@20")), (19.0, 60), 0.5),
+    "steal and burst on the CPU model": (
+        SimConfig(robots=(0, 1, 2, 3), duration=40, seed=8, cpu=DEFAULT_COSTS,
+                  faults=F("steal:1@12", "burst@25:0.3", "foreign@30:20")), (12.0, 40), 0.3),
     "idle ring with CAN sides": (SimConfig(robots=RING, duration=60, seed=15, can=True),
                                  (10.0, 33.3, 60), 0.5),
     "CAN faults": (
@@ -117,7 +134,8 @@ def test_leaping_ring_is_the_frame_by_frame_ring(name):
 
 def _random_config(rng: random.Random) -> SimConfig:
     """A seeded ring of 1-7 robots with a few faults of the air, perhaps CAN sides, the
-    standby father, the paper's profile, the checksum, light load and late power-on."""
+    standby father, the paper's profile, the checksum, light load, late power-on and the CPU
+    model."""
     robots = tuple(sorted(rng.sample(range(7), rng.randint(1, 7))))
     dur = rng.choice([30, 60, 90])
     specs: list[str] = []
@@ -150,7 +168,8 @@ def _random_config(rng: random.Random) -> SimConfig:
         faults=tuple(sorted(F(*specs), key=lambda f: (f.at, f.kind))),
         load=rng.choice(["idle", "idle", "idle", 0.05]),
         power_on={r: round(rng.uniform(0, dur / 2), 2) for r in robots if rng.random() < 0.2},
-        mac=MacConfig(checksum=profile == "rprs" and rng.random() < 0.4, profile=profile))
+        mac=MacConfig(checksum=profile == "rprs" and rng.random() < 0.4, profile=profile),
+        cpu=DEFAULT_COSTS if rng.random() < 0.3 else None)
 
 
 @pytest.mark.parametrize("seed", range(16))
@@ -299,14 +318,18 @@ def test_a_captured_run_leaps_and_writes_the_same_capture(cfg, least, tmp_path):
     assert plain.transmissions > 100
 
 
-def test_no_leap_while_the_cpu_model_times_every_frame():
-    """The CPU model times every handler, and a trace keeps the CAN sides awake: no ring."""
+def test_no_ring_where_it_could_never_leap():
+    """On the wall's clock; on the CPU model with CAN sides (which never sleep there) or a
+    trace (its per-second CPU loads never repeat with the ring); and where a trace keeps the
+    CAN sides awake: no ring. The CPU model alone leaps."""
     cfg = SimConfig(robots=(0, 1, 2), duration=20, seed=14)
-    idle = World(cfg)
-    idle.run()
-    assert idle.quiet_ring.leaps >= 1
+    for ok in (cfg, replace(cfg, cpu=DEFAULT_COSTS)):
+        idle = World(ok)
+        idle.run()
+        assert idle.quiet_ring.leaps >= 1
     for other in (replace(cfg, realtime=True), replace(cfg, can=True, cpu=DEFAULT_COSTS)):
         assert World(other).quiet_ring is None
+    assert World(replace(cfg, cpu=DEFAULT_COSTS), on_event=lambda ev: None).quiet_ring is None
     # a trace keeps the CAN sides awake (QuietCan.may_sleep): the ring could never leap
     assert World(replace(cfg, can=True), on_event=lambda ev: None).quiet_ring is None
     assert World(replace(cfg, can=True)).quiet_ring is not None
