@@ -335,6 +335,17 @@ def test_no_ring_where_it_could_never_leap():
     assert World(replace(cfg, can=True)).quiet_ring is not None
 
 
+def test_on_the_cpu_model_a_childs_can_and_radio_handlers_meet():
+    """Why no ring (and no sleeping CAN side) on the CPU model with CAN sides: a child's CAN
+    receive handlers and its radio handlers share one CPU and meet there, each meeting moving
+    the latencies of both, so neither side repeats on its own (docs/performance.md)."""
+    w = World(SimConfig(robots=RING, duration=20, seed=1, can=True, cpu=DEFAULT_COSTS))
+    w.run()
+    met = {r: sum(n for lat, n in cpu.stats["CAN0 RX"].latency.items() if lat > 0)
+           for r, cpu in w.cpus.items()}
+    assert sum(met.values()) >= 20, met       # about 0.6 a second a child: some 70 expected
+
+
 def test_no_leap_while_a_hook_of_someone_elses_sees_the_frames():
     """A hook on the air's transmissions or on a station's actions (a benchmark's, a test's)
     would miss the frames leapt over: it sees every one of them instead."""
