@@ -34,7 +34,8 @@ def run(auth: bool, seconds: float, seed: int, payload: int | None) -> tuple[flo
     evs: list[dict] = []
     w = World(SimConfig(robots=ROBOTS, duration=seconds, seed=seed,
                         load="saturate" if payload else "idle", payload=payload,
-                        mac=MacConfig(auth=KEY if auth else None)), on_event=evs.append)
+                        mac=MacConfig(auth=KEY if auth else None), keep_records=True),
+              on_event=evs.append)
     w.run(s_to_ticks(START))
     t0 = w.now
     before = sum(len(o.message.content) for o in w.outcomes if o.delivered)

@@ -29,7 +29,8 @@ TTRANS_BYTES = TTRANS_TICKS / CHILD_BYTE_TICKS
 
 
 def goodput(robots, payload: int, seconds: float) -> float:
-    w = World(SimConfig(robots=robots, duration=seconds, load="saturate", payload=payload))
+    w = World(SimConfig(robots=robots, duration=seconds, load="saturate", payload=payload,
+                        keep_records=True))
     w.run(s_to_ticks(10.0))                       # the ring has formed and filled
     t0 = w.now
     before = sum(len(o.message.content) for o in w.outcomes if o.delivered)

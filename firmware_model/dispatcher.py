@@ -127,6 +127,17 @@ class Dispatcher:
     """What it noticed, in words: appended to, never read by the model (tests and the monitor
     read it; hil/sim/steady.py)."""
 
+    LOG_KEEP = 1024
+    """The log keeps its latest entries, between this many and twice as many: a tail for a
+    person or a test to read, not a record that grows with a day's run."""
+
+    def _note(self, entry: tuple[int, str]) -> None:
+        """Append ``entry`` (tick, words) to the log, dropping its oldest half when full."""
+        log = self.log
+        log.append(entry)
+        if len(log) >= 2 * self.LOG_KEEP:
+            del log[:self.LOG_KEEP]
+
     def __init__(self, robot_id: int) -> None:
         self.id = robot_id
         self.nodes = {n: NodeView() for n in range(1, 7)}
@@ -173,7 +184,7 @@ class Dispatcher:
         for c in commands:
             if not request or (dst == BROADCAST and c.name in ("act", "fail")):
                 if c.name in ("act", "fail", "done"):
-                    self.log.append((now, f"robot {src}: {c.text()}"))
+                    self._note((now, f"robot {src}: {c.text()}"))
                     if c.name == "act" and c.args[1] == 1 and self.on_notice is not None:
                         self.on_notice(src, int(c.args[0]), now)
                 if not request and c.name in ("done", "fail"):
@@ -217,7 +228,7 @@ class Dispatcher:
                 else:
                     self._job_failed(job, CODE_REFUSED + n, now)
             if kind == 2:
-                self.log.append((now, f"submodule {n} fault code {code}"))
+                self._note((now, f"submodule {n} fault code {code}"))
         self._update_deadline()
 
     def on_stall(self, late: int) -> None:
@@ -400,7 +411,7 @@ class Dispatcher:
     def _refuse(self, src: int, c: Command, now: int, code: int, reason: str | None) -> None:
         """Answer ``c`` with failure ``code``; a move's ``reason`` goes to the log."""
         if reason is not None:
-            self.log.append((now, f"{c.text()}: {reason}"))
+            self._note((now, f"{c.text()}: {reason}"))
         self._fail(src, code, c)
 
     def _move(self, src: int, c: Command, now: int) -> None:
@@ -451,7 +462,7 @@ class Dispatcher:
                 del job.waiting[n]
                 if not job.waiting:
                     self.jobs.remove(job)
-                    self.log.append((job.started, f"{job.command.text()}: superseded"))
+                    self._note((job.started, f"{job.command.text()}: superseded"))
         return seq
 
     def _job_done(self, job: Job, now: int) -> None:

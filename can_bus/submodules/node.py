@@ -23,6 +23,9 @@ from can_bus.clock import Cancellable as Event, Clock as Scheduler
 
 from .params import STALL_DETECT_TICKS, STATUS_PERIOD_TICKS, STATUS_STAGGER_TICKS
 
+EVENTS_KEEP = 1024
+"""A submodule's ``events`` keep the latest, between this many and twice as many."""
+
 
 class _Submodule(FrameSource, FrameSink):
     """Queue, status timer, EVENTs, silence, ESTOP and fault bookkeeping shared by all nodes."""
@@ -136,7 +139,10 @@ class _Submodule(FrameSource, FrameSink):
     def _event(self, kind: int, seq: int, code: int = 0) -> None:
         if self._silent:
             return
-        self.events.append((self.sched.now, kind, seq, code))
+        events = self.events
+        events.append((self.sched.now, kind, seq, code))
+        if len(events) >= 2 * EVENTS_KEEP:  # a tail to read, not a record of a day's run
+            del events[:EVENTS_KEEP]
         self._push(dbc.encode_raw(self.event_name, kind=kind, seq=seq, code=code))
 
     def _refuse(self, seq: int, code: int) -> None:

@@ -52,6 +52,12 @@ class SimConfig:
     """A child's CAN side that only repeats itself is moved on in whole periods instead of
     frame by frame (hil/sim/quiet_can.py). The run is the same to the tick either way;
     False (or ``fast_paths=False``) is slower and exists to show that."""
+    keep_records: bool = False
+    """Keep every message submitted, every outcome, every delivery and every dispatcher
+    latency (``World.messages``, ``outcomes``, ``deliveries``, ``dispatch_latency``), for a
+    program that reads them after the run. Without it the run keeps counts and histograms
+    (hil/sim/ledger.py), so its memory does not grow with simulated time; the summary is the
+    same either way."""
     ring_sleep: bool = True
     """A ring that only repeats itself (idle, nothing watching its frames) is moved on in whole
     cycles instead of frame by frame (hil/sim/quiet_ring.py). The run is the same to the tick

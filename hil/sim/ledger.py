@@ -5,7 +5,7 @@ twice, to the wrong robot, corrupted), the membership changes, what the robots s
 identity. The world (hil/sim/world.py) feeds it from the MACs' reports."""
 from __future__ import annotations
 
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -19,6 +19,11 @@ if TYPE_CHECKING:
 KEYED = 8
 """The latest messages kept per (Source, Number) to check a delivery against: Numbers wrap,
 and the father's two PCs number their own queues."""
+
+RETIRE_TICKS = 2 * TICK_HZ
+"""How long after its outcome a message is still kept to check deliveries against (2 s,
+ticks): more than a frame can last (Tmax, 600 ms), so whatever frame of it a robot delivers
+has ended by then."""
 
 
 @dataclass
@@ -48,38 +53,97 @@ class Tally:
         self.frames = 0
 
 
-def spread(values: list[int]) -> dict:
-    """count, min, median and max of ``values`` (ticks)."""
-    v = sorted(values)
-    return {"count": len(v), "min": v[0], "median": v[len(v) // 2], "max": v[-1]}
+def spread(counts: Counter) -> dict:
+    """count, min, median and max of the values ``counts`` holds (value -> how many; ticks):
+    the median is the value at index count // 2 of them sorted."""
+    n = sum(counts.values())
+    half, seen = n // 2, 0
+    median = None
+    for v in sorted(counts):
+        seen += counts[v]
+        if seen > half:
+            median = v
+            break
+    return {"count": n, "min": min(counts), "median": median, "max": max(counts)}
 
 
 class Ledger:
-    """The run's accounting for the robots of the ring ``robots``."""
+    """The run's accounting for the robots of the ring ``robots``. ``keep``: keep every
+    message submitted and every outcome (``messages``, ``outcomes``, ``deliveries`` whole);
+    otherwise only what the summary and the invariants need: counts, histograms, and the
+    messages a delivery may still be checked against (the open ones, and those ended less
+    than :data:`RETIRE_TICKS` ago), so a day's run holds what an hour's does."""
 
-    def __init__(self, robots) -> None:
+    def __init__(self, robots, keep: bool = False) -> None:
         self.stats: dict[int, RobotStats] = {r: RobotStats() for r in robots}
         self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
         self._membership_seen: set[tuple[int, str, int]] = set()
-        self._miss_seen: set[tuple[int, int]] = set()
-        self.outcomes: list[Outcome] = []
+        self._miss_seen: set[int] = set()     # robots counted missing at ``_miss_tick``
+        self._miss_tick = -1
+        self.keep = keep
+        self.outcomes: list[Outcome] | None = [] if keep else None
         self.latency_ms: Counter = Counter()
         """Delivered messages by latency, ms from submission to the sender's last
         acknowledgement, rounded down: a histogram, bounded however long the run."""
-        self.messages: list[Message] = []
-        self.deliveries: Counter = Counter()        # (src, num, submit-serial, receiver)
+        self.messages: list[Message] | None = [] if keep else None
+        self.deliveries: Counter | None = Counter() if keep else None
+        """(src, num, submit-serial, receiver) -> deliveries, kept whole with ``keep``."""
+        self.submitted_count = 0
+        self.ended_count = 0
         self.corrupt_deliveries = 0
         self.wrong_deliveries = 0
         self._by_key: dict[tuple[int, int], list[int]] = {}
+        self._live: dict[int, Message] = {}
+        """Serial -> message, for the messages a delivery may still be checked against."""
+        self._received: dict[int, Counter] = {}
+        """Serial -> receiver -> deliveries, for those messages."""
+        self._retiring: deque[tuple[int, int]] = deque()    # (tick it ended, serial)
+        self._serial_of: dict[int, int] = {}   # id(message) -> serial, until it ends
+        self._duplicates_retired = 0
         self.identity: list[dict] = []
         """Every duplicate_id and foreign_ring said, by any robot (the summary lists them)."""
+
+    def message(self, serial: int) -> Message | None:
+        """The message submitted ``serial``-th (1 on), while it may still be delivered (any,
+        with ``keep``)."""
+        if self.messages is not None:
+            return self.messages[serial - 1]
+        return self._live.get(serial)
+
+    @property
+    def duplicate_deliveries(self) -> int:
+        """Deliveries of a message to a robot that had delivered it already (docs/guarantees.md:
+        never)."""
+        return self._duplicates_retired + sum(
+            c - 1 for per in self._received.values() for c in per.values() if c > 1)
+
+    def _retire(self, now: int) -> None:
+        """Forget the messages that ended more than :data:`RETIRE_TICKS` before ``now``: no
+        frame of theirs can still be on the air (a frame lasts at most Tmax), so no robot can
+        deliver them again; their duplicate deliveries become a count."""
+        q = self._retiring
+        while q and q[0][0] + RETIRE_TICKS < now:
+            _, serial = q.popleft()
+            m = self._live.pop(serial, None)
+            per = self._received.pop(serial, None)
+            if per is not None:
+                self._duplicates_retired += sum(c - 1 for c in per.values() if c > 1)
+            if m is not None:
+                key = (m.src, m.num)
+                keyed = self._by_key.get(key)
+                if keyed is not None and serial in keyed:
+                    keyed.remove(serial)
+                    if not keyed:
+                        del self._by_key[key]
 
     def missed(self, now: int, robot: int) -> None:
         """``robot`` missed its turn, as one robot that hears the air saw it: counted once per
         turn however many saw it."""
-        key = (now, robot)
-        if key not in self._miss_seen:
-            self._miss_seen.add(key)
+        if now != self._miss_tick:          # every robot that saw it reports it at this tick
+            self._miss_tick = now
+            self._miss_seen.clear()
+        if robot not in self._miss_seen:
+            self._miss_seen.add(robot)
             if robot in self.stats:
                 self.stats[robot].missed += 1
 
@@ -94,8 +158,9 @@ class Ledger:
         """The serial (1 on) of the latest message submitted that ``a`` delivers whole, 0 if
         none: a delivery the sender's message does not match is corrupted."""
         for cand in reversed(self._by_key.get((a.src, a.num), ())):
-            m = self.messages[cand - 1]
-            if m.dst == a.dst and m.type == a.type and m.commands == a.commands:
+            m = self.message(cand)
+            if m is not None and m.dst == a.dst and m.type == a.type and \
+                    m.commands == a.commands:
                 return cand
         return 0
 
@@ -106,7 +171,12 @@ class Ledger:
         serial = self._serial(a)
         intact = serial != 0
         if intact:
-            self.deliveries[(a.src, a.num, serial, r)] += 1
+            per = self._received.get(serial)
+            if per is None:
+                per = self._received[serial] = Counter()
+            per[r] += 1
+            if self.deliveries is not None:
+                self.deliveries[(a.src, a.num, serial, r)] += 1
         else:
             self.corrupt_deliveries += 1
         if a.dst not in (r, BROADCAST):
@@ -122,7 +192,12 @@ class Ledger:
         """A message's outcome at its sender at tick ``now``: ``delivered``, ``sent`` (the
         paper profile: sent once, unacknowledged) or ``fail``."""
         m = a.message
-        self.outcomes.append(a)
+        self.ended_count += 1
+        if self.outcomes is not None:
+            self.outcomes.append(a)
+        serial = self._serial_of.pop(id(m), None)
+        if serial is not None:
+            self._retiring.append((now, serial))
         s = self.stats[m.src]
         if a.delivered:
             s.delivered += 1
@@ -136,12 +211,23 @@ class Ledger:
 
     def submitted(self, a: Message) -> None:
         """A message was queued at its sender."""
+        self._retire(a.submitted)
         self.stats[a.src].submitted += 1
-        self.messages.append(a)
+        self.submitted_count += 1
+        serial = self.submitted_count
+        if self.messages is not None:
+            self.messages.append(a)
+        self._live[serial] = a
+        self._serial_of[id(a)] = serial
         keyed = self._by_key.setdefault((a.src, a.num), [])
-        keyed.append(len(self.messages))
+        keyed.append(serial)
         if len(keyed) > KEYED:
-            del keyed[0]
+            gone = keyed.pop(0)
+            if self.messages is None:       # never matched again: forget it now
+                self._live.pop(gone, None)
+                per = self._received.pop(gone, None)
+                if per is not None:
+                    self._duplicates_retired += sum(c - 1 for c in per.values() if c > 1)
 
 
 def summary(world: World) -> dict:
@@ -164,7 +250,7 @@ def summary(world: World) -> dict:
                      "bad_frames": s.bad_frames, "mode": st.mac.mode,
                      "ring": list(st.mac.ring)}
     total = lambda k: sum(v[k] for v in robots.values())  # noqa: E731
-    dup_deliveries = sum(c - 1 for c in world.deliveries.values() if c > 1)
+    dup_deliveries = world.ledger.duplicate_deliveries
     return {"duration_ticks": world.sched.now, "robots": robots,
             "occupations": world.air.occupations, "collisions": world.collisions,
             "membership_changes": [{"t": t, "ev": k, "robot": r}
@@ -179,8 +265,8 @@ def summary(world: World) -> dict:
                                  for r in sorted(world.cpus)},
                 "cpu_tx_gaps": {r: world.stations[r].uart.gaps
                                 for r in sorted(world.cpus)}} if world.cpus else {}),
-            **({"dispatch_latency_ticks": spread([s - e for _, e, s in world.dispatch_latency])}
-               if world.dispatch_latency else {}),
+            **({"dispatch_latency_ticks": spread(world.dispatch_latency_ticks)}
+               if world.dispatch_latency_ticks else {}),
             "duplicate_deliveries": dup_deliveries,
             "corrupt_deliveries": world.ledger.corrupt_deliveries,
             "wrong_robot_deliveries": world.ledger.wrong_deliveries}

@@ -10,6 +10,7 @@ accounting and the summary in ledger.py, the air in air.py, the faults in faults
 """
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import replace
 from typing import Any, Callable, Iterable, Iterator, cast
 
@@ -26,7 +27,7 @@ from firmware_model.mcu.scheduler import Event
 from firmware_model.sequence import ACTION_NAMES
 from firmware_model.radio.content import Command, frame_kind
 from firmware_model.radio.mac import (
-    MacConfig, RotationalMac, SubmitError,
+    MacConfig, Message, Outcome, RotationalMac, SubmitError,
 )
 from firmware_model.radio.station_mac import StationMac
 from firmware_model.station import RadioStation, build_station
@@ -49,7 +50,13 @@ from .events import Listener, RecordListener
 from .realtime import RealTimeScheduler
 from .trace import TRACE_VERSION, TraceWriter
 
-__all__ = ["World", "SimConfig", "ConfigError", "Fault", "CAN_TIMING", "STANDBY", "EXTRA"]
+__all__ = ["World", "SimConfig", "ConfigError", "Fault", "CAN_TIMING", "STANDBY", "EXTRA",
+           "RecordsNotKept"]
+
+
+class RecordsNotKept(RuntimeError):
+    """A run record read from a world that does not keep them (``SimConfig.keep_records``)."""
+
 """The world, and the names its users take from here: the config, its error, a fault."""
 
 CAN_TIMING = BitTiming()
@@ -105,7 +112,11 @@ class World:
         self.stations: dict[int, RadioStation] = {}
         self.children: dict[int, ChildFirmware] = {}
         self.cpus: dict[int, Cpu] = {}
-        self.dispatch_latency: list[tuple[int, int, int]] = []   # (robot, End tick, SOF tick)
+        self._dispatch_latency: list[tuple[int, int, int]] | None = \
+            [] if config.keep_records else None       # (robot, End tick, SOF tick)
+        self.dispatch_latency_ticks: Counter[int] = Counter()
+        """The dispatcher latencies (ticks from a radio End to its order's first CAN SOF),
+        counted per value."""
         self.can_buses: dict[int, CanBus] = {}
         self.submodules: dict[int, dict] = {}
         self._can_tally: dict[int, Tally] = {}
@@ -118,11 +129,9 @@ class World:
         self.action_turns: list[int] = []
         """``transmissions`` when each entry of ``actions`` happened."""
         self.radios = {}
-        self.ledger = ledger = Ledger(config.robots)
+        self.ledger = ledger = Ledger(config.robots, keep=config.keep_records)
         """The run's accounting (hil/sim/ledger.py); its parts are the world's too."""
-        self.stats, self.membership, self.outcomes = ledger.stats, ledger.membership, \
-            ledger.outcomes
-        self.messages, self.deliveries, self.identity = ledger.messages, ledger.deliveries, \
+        self.stats, self.membership, self.identity = ledger.stats, ledger.membership, \
             ledger.identity
         self.collisions = 0
         self.observed = 0
@@ -344,7 +353,9 @@ class World:
             # an order's first CAN frame on the bus: the dispatcher's latency
             assert child is not None               # (lat is its latency_from)
             cause, child.latency_from = lat[0], None
-            self.dispatch_latency.append((r, cause, start))
+            self.dispatch_latency_ticks[start - cause] += 1
+            if self._dispatch_latency is not None:
+                self._dispatch_latency.append((r, cause, start))
             if self.listeners:
                 self._emit(E.Dispatch(t=self.sched.now, robot=r, end=cause, sof=start,
                                       latency=start - cause))
@@ -544,8 +555,8 @@ class World:
         transmissions collide, bytes are injected or a run record grows (:meth:`records`): a
         ring that only repeats itself leaves it as it was (hil/sim/quiet_ring.py)."""
         led = self.ledger
-        return (self.observed, self.air.collisions, self.air.bursts, len(led.messages),
-                len(led.outcomes), len(led.membership), len(self.dispatch_latency))
+        return (self.observed, self.air.collisions, self.air.bursts, led.submitted_count,
+                led.ended_count, len(led.membership), self.dispatch_latency_ticks.total())
 
     def records(self) -> list[object]:
         """The run's records: the accounting (hil/sim/ledger.py) and the dispatcher latencies.
@@ -553,8 +564,35 @@ class World:
         part of the model reads them to act: a snapshot of the ring leaves them out, so its
         cost stays that of the ring's state, however long the run."""
         led = self.ledger
-        return [led, led.messages, led.outcomes, led.deliveries, led.membership, led.identity,
-                self.dispatch_latency]
+        return [x for x in (led, led.membership, led.identity, self.dispatch_latency_ticks,
+                            self._dispatch_latency) if x is not None]
+
+    def _kept(self, records: Any, name: str) -> Any:
+        if records is None:
+            raise RecordsNotKept(f"this run keeps no {name}: SimConfig(keep_records=True) keeps "
+                                 f"every message, outcome, delivery and dispatcher latency")
+        return records
+
+    @property
+    def messages(self) -> list[Message]:
+        """Every message submitted, in order (``keep_records``; else RecordsNotKept)."""
+        return self._kept(self.ledger.messages, "messages")
+
+    @property
+    def outcomes(self) -> list[Outcome]:
+        """Every message's outcome, in order (``keep_records``)."""
+        return self._kept(self.ledger.outcomes, "outcomes")
+
+    @property
+    def deliveries(self) -> Counter:
+        """(src, num, submit serial, receiver) -> deliveries (``keep_records``)."""
+        return self._kept(self.ledger.deliveries, "deliveries")
+
+    @property
+    def dispatch_latency(self) -> list[tuple[int, int, int]]:
+        """(robot, End tick, SOF tick) of every order's first CAN frame (``keep_records``;
+        the summary's figures come from :attr:`dispatch_latency_ticks`)."""
+        return self._kept(self._dispatch_latency, "dispatcher latencies")
 
     _observe = world_observe._observe
     _observe_extra = world_observe._observe_extra

@@ -15,7 +15,8 @@ START = s_to_ticks(4.0)        # the ring has formed by then
 
 def child_world(duration=14.0, robots=(0, 1)):
     evs: list[dict] = []
-    w = World(SimConfig(robots=robots, duration=duration, can=True), on_event=evs.append)
+    w = World(SimConfig(robots=robots, duration=duration, can=True, keep_records=True),
+              on_event=evs.append)
     w.run(START)
     return w, evs
 
@@ -446,3 +447,22 @@ def test_a_full_queue_ends_the_childs_replies_for_the_moment():
     child._pump()
     assert mac.pending == before and len(offered) == 1      # one refused, the rest not offered
     assert not child.dispatcher.has_output()
+
+
+def test_the_logs_keep_a_tail_not_a_days_record(monkeypatch):
+    """The dispatcher's log and each submodule's events keep their latest entries (between
+    the bound and twice it), so a day's loaded run does not grow them without end."""
+    from can_bus.submodules import node
+    from firmware_model.dispatcher import Dispatcher
+    d = Dispatcher(1)
+    for i in range(3 * Dispatcher.LOG_KEEP + 5):
+        d._note((i, "x"))
+    assert Dispatcher.LOG_KEEP <= len(d.log) < 2 * Dispatcher.LOG_KEEP
+    assert d.log[-1] == (3 * Dispatcher.LOG_KEEP + 4, "x")
+    monkeypatch.setattr(node, "EVENTS_KEEP", 4)
+    w = World(SimConfig(robots=(0, 1, 2), duration=40, seed=3, can=True, load=2.0))
+    w.run()
+    events = [ev for nodes in w.submodules.values() for n in nodes.values() for ev in n.events]
+    assert events and all(len(n.events) < 8 for nodes in w.submodules.values()
+                          for n in nodes.values())
+    assert max(t for t, *_ in events) > 30 * 16_000_000      # the latest kept

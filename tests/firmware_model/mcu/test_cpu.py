@@ -232,7 +232,7 @@ def test_every_row_names_its_source():
 def _world(costs, on_event=None, **kw):
     from hil.sim.world import SimConfig, World
     return World(SimConfig(robots=kw.pop("robots", (0, 1, 2)), duration=kw.pop("duration", 8),
-                           cpu=costs, **kw), on_event=on_event)
+                           cpu=costs, keep_records=True, **kw), on_event=on_event)
 
 
 def test_dispatcher_latency_is_the_radio_handler_then_the_main_loop():

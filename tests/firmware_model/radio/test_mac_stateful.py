@@ -72,7 +72,8 @@ def formed_ring() -> World:
     global _BASE
     if _BASE is None:
         w = World(SimConfig(robots=ROBOTS, duration=3600.0, seed=5, load=LOAD,
-                            mac=MacConfig(checksum=True, max_age=s_to_ticks(MAX_AGE_S))),
+                            mac=MacConfig(checksum=True, max_age=s_to_ticks(MAX_AGE_S)),
+                            keep_records=True),
                   on_event=[].append)
         def formed() -> bool:        # (before power-on nobody is alive: "complete" too)
             return w.ring_complete() and all(v == ROBOTS for v in w.ring_views().values())

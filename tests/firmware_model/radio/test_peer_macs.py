@@ -34,7 +34,7 @@ _spec.loader.exec_module(bench)
 def _world(kind, robots=(0, 1, 2), seed=4, load=1.0, load_until=16.0, duration=24.0, **kw):
     """A world with the usual random load, its stations switched to ``kind``."""
     w = World(SimConfig(robots=robots, duration=duration, seed=seed, load=load,
-                        load_until=load_until, **kw))
+                        load_until=load_until, keep_records=True, **kw))
     install(w, kind)
     return w
 

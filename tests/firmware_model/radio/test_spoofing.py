@@ -17,7 +17,7 @@ def ring_with_silent_r1(extra_ms=100, **kw):
     probe.run()
     e1 = [e for e in probe_evs if e["ev"] == "frame" and e["src"] == 1][-1]["end"]
     evs: list[dict] = []
-    w = World(SimConfig(robots=(1, 2, 3, 4), duration=9.0, can=True, **kw),
+    w = World(SimConfig(robots=(1, 2, 3, 4), duration=9.0, can=True, keep_records=True, **kw),
               on_event=evs.append)
     w.inject("fail", 1, e1 + 1)
     w.run(e1 + 1)

@@ -4,10 +4,15 @@ it was not for), a missed turn is counted once however many robots saw it, and a
 change is listed once."""
 from __future__ import annotations
 
+import dataclasses
+import json
+
+import pytest
+
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver, Message, Outcome
-from hil.sim.ledger import KEYED, Ledger
+from hil.sim.ledger import KEYED, RETIRE_TICKS, Ledger
 
 
 def message(src: int, dst: int, num: int, x: int) -> Message:
@@ -18,15 +23,17 @@ def deliver(m: Message, commands=None) -> Deliver:
     return Deliver(m.src, m.dst, m.num, m.type, m.commands if commands is None else commands)
 
 
-def test_a_delivery_is_checked_against_what_its_sender_submitted():
-    led = Ledger((1, 2, 3))
+@pytest.mark.parametrize("keep", [True, False])
+def test_a_delivery_is_checked_against_what_its_sender_submitted(keep):
+    led = Ledger((1, 2, 3), keep=keep)
     first, again = message(1, 2, 5, 10), message(1, 2, 5, 20)   # Number 5 again (it wrapped)
     led.submitted(first)
     led.submitted(again)
     assert led.delivered_to(deliver(again), 2)
     assert led.delivered_to(deliver(again), 2)                  # the same message twice
     assert led.delivered_to(deliver(first), 2)
-    assert led.deliveries == {(1, 5, 2, 2): 2, (1, 5, 1, 2): 1}
+    assert led.duplicate_deliveries == 1
+    assert led.deliveries == ({(1, 5, 2, 2): 2, (1, 5, 1, 2): 1} if keep else None)
     assert not led.delivered_to(deliver(first, (cmd("movex", 11),)), 2)   # corrupted
     assert led.corrupt_deliveries == 1 and led.wrong_deliveries == 0
     assert led.delivered_to(deliver(first), 3)                  # not for robot 3
@@ -51,7 +58,7 @@ def test_only_the_latest_messages_of_a_number_are_kept():
 
 
 def test_how_a_message_ended_is_counted_at_its_sender():
-    led = Ledger((1, 2))
+    led = Ledger((1, 2), keep=True)
     m = message(1, 2, 1, 0)
     m.state = "delivered"
     assert led.ended(Outcome(m, True, ""), 16_000 * 37 + 15_999) == "delivered"
@@ -78,3 +85,74 @@ def test_a_miss_and_a_membership_change_count_once_however_many_saw_them():
     led.membership_change("join", 2, 300)
     assert led.stats[2].missed == 2
     assert led.membership == [(100, "disable", 2), (300, "join", 2)]
+
+
+def test_a_streaming_ledger_forgets_what_ended_long_enough_ago_and_keeps_its_counts():
+    """Without ``keep`` a message is checked against until RETIRE_TICKS after its outcome,
+    then forgotten, its duplicate deliveries kept as a count: 10,000 messages leave a few."""
+    led = Ledger((1, 2))
+    step = RETIRE_TICKS // 20
+    for i in range(10_000):
+        m = message(1, 2, i % 65536, i)
+        m.submitted = i * step
+        led.submitted(m)
+        assert led.delivered_to(deliver(m), 2)
+        if i % 1000 == 0:
+            assert led.delivered_to(deliver(m), 2)              # a duplicate delivery
+        m.state = "delivered"
+        led.ended(Outcome(m, True, ""), i * step + 1)
+    assert led.duplicate_deliveries == 10
+    assert led.stats[2].received == 10_010 and led.corrupt_deliveries == 0
+    assert len(led._live) <= 22 and len(led._received) <= 22 and len(led._by_key) <= 22
+    last = m
+    assert led.intact(deliver(last))                      # ended 1 tick ago: still checked
+    assert led.messages is None and led.outcomes is None and led.deliveries is None
+
+
+def _summary(cfg) -> str:
+    from hil.sim.world import World
+    w = World(cfg)
+    w.run()
+    return json.dumps(w.summary(), sort_keys=True), w
+
+
+@pytest.mark.parametrize("name", ["faults", "standby father", "can", "aloha", "paper"])
+def test_a_run_that_keeps_no_records_has_the_summary_of_one_that_keeps_them(name):
+    """The summary (deliveries checked, duplicates, latencies, dispatcher latency) is the same
+    with and without ``keep_records``, and the streaming run holds only the messages still
+    open or ended less than RETIRE_TICKS ago."""
+    from hil.sim.config import SimConfig
+    from hil.sim.faults import parse_fault
+    from firmware_model.radio.mac import MacConfig
+    F = lambda *s: tuple(parse_fault(x) for x in s)  # noqa: E731
+    cfg = {
+        "faults": SimConfig(robots=(0, 1, 2, 3), duration=120, seed=3, load=2.0,
+                            faults=F("ber@10-40:0.003", "drop@50-60:0.01", "fail:2@70",
+                                     "recover:2@90", "burst@100:0.3")),
+        "standby father": SimConfig(robots=(0, 1, 2), duration=90, seed=4, load=1.0,
+                                    father_standby=True, faults=F("fail:0@40")),
+        "can": SimConfig(robots=(0, 1, 2), duration=40, seed=5, load=1.0, can=True),
+        "aloha": SimConfig(robots=(1, 2, 3), duration=60, seed=6, load=2.0, mac_kind="aloha"),
+        "paper": SimConfig(robots=(0, 1, 2), duration=60, seed=7, load=1.0,
+                           mac=MacConfig(profile="paper")),
+    }[name]
+    kept, _ = _summary(dataclasses.replace(cfg, keep_records=True))
+    streamed, w = _summary(cfg)
+    assert streamed == kept
+    s = json.loads(streamed)
+    assert s["delivered"] + s["failed"] + s["unacknowledged"] > 50
+    open_now = s["pending"] + 8 * len(w.stations)
+    assert len(w.ledger._live) <= open_now + 40, len(w.ledger._live)
+
+
+def test_a_record_the_run_does_not_keep_says_how_to_keep_it():
+    from hil.sim.config import SimConfig
+    from hil.sim.world import RecordsNotKept, World
+    w = World(SimConfig(robots=(0, 1), duration=2, seed=1))
+    w.run()
+    for name in ("messages", "outcomes", "deliveries", "dispatch_latency"):
+        with pytest.raises(RecordsNotKept, match="keep_records=True"):
+            getattr(w, name)
+    kept = World(SimConfig(robots=(0, 1), duration=2, seed=1, keep_records=True))
+    kept.run()
+    assert kept.messages == [] and kept.dispatch_latency == []

@@ -387,7 +387,8 @@ def test_news_reaching_a_sleeping_child_is_noted_and_it_sleeps_on():
     """A done() or fail() notice (the soak's children get about one a second, half of what
     woke them) only goes into the dispatcher's log: the child's CAN side sleeps on through
     it, and the run is still the frame-by-frame run. An order wakes it."""
-    slow, fast = _pair(SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=6))
+    slow, fast = _pair(SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=6,
+                                 keep_records=True))
     asleep_after: list[bool] = []
     for w in (slow, fast):
         for t, commands, type_ in _news():
@@ -414,7 +415,8 @@ def test_orders_refused_at_once_leave_a_sleeping_child_asleep():
     orders = ((4.0, (cmd("movex", 123456789), cmd("joint", 2, 500))),
               (6.5, (cmd("moveto", 900, 0, 0),)),
               (9.0, (cmd("movex", 123456789), cmd("joint", 1, 20))))
-    slow, fast = _pair(SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=6))
+    slow, fast = _pair(SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=6,
+                                 keep_records=True))
     for w in (slow, fast):
         for t, commands in orders:
             w.sched.at(round(t * 16_000_000), lambda w=w, c=commands: w.submit(0, 1, c))

@@ -507,7 +507,7 @@ def test_a_loaded_rings_snapshots_leave_its_records_out_and_back_off():
         return snap
     # a message each 10 s a robot on average: the probes snapshot between messages (8 s
     # of quiet: LOADED_LEAP_TICKS)
-    w = World(SimConfig(robots=(1, 2), duration=960, seed=1, load=0.1))
+    w = World(SimConfig(robots=(1, 2), duration=960, seed=1, load=0.1, keep_records=True))
     import firmware_model.radio.mac_frames as frames
     cache_max, frames.HB_CACHE_MAX = frames.HB_CACHE_MAX, 8    # bounded: full early on
     qr.snapshot = counted

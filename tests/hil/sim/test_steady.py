@@ -28,6 +28,8 @@ READS = {
     ("Air", "_noise_gen"): "a generation number: compared only with its own copies",
     ("World", "transmissions"): "copied into the action sequence's report (action_turns), "
                                 "which nothing in the model reads",
+    ("Dispatcher", "log"): "its length, to drop the oldest half of a full log (a tail kept)",
+    ("_Submodule", "events"): "its length, to drop the oldest half when full (a tail kept)",
     ("Cpu", "_busy"): "the figure Cpu.busy reports (loads, the CPU report), never a decision",
     ("Cpu", "_requests"): "a waiting request's tie-break: compared only with its own values",
 }
