@@ -83,6 +83,14 @@ local e_aborted = ProtoExpert.new("rprs.analysis.aborted.expert",
                                   expert.group.MALFORMED, expert.severity.ERROR)
 rprs.experts = { e_header, e_digit, e_length, e_end, e_crc, e_retrans, e_collided, e_aborted }
 
+-- Preferences (Edit > Preferences > Protocols > RPRS; tshark -o rprs.NAME:VALUE)
+rprs.prefs.check_crc = Pref.bool("Verify crc() checksums", true,
+    "Compute CRC-16/CCITT-FALSE over Destination..Content and flag a crc() that differs "
+    .. "(rprs.crc.computed, rprs.crc.ok); off, the carried value alone is shown")
+rprs.prefs.analyze = Pref.bool("Analyse retransmissions and acknowledgements", true,
+    "Mark each sending of a message after the first (rprs.analysis.retransmission) and link "
+    .. "messages and their acknowledgements (rprs.analysis.acked_in, ack_rtt, acks)")
+
 -- the packet comment the simulator and the hub write on a collided or cut transmission
 local comment_field = Field.new("frame.comment")
 
@@ -206,9 +214,13 @@ function rprs.dissector(tvb, pinfo, tree)
         local digits = content:match("crc%((%d%d%d%d%d)%)$")
         if digits and len ~= nil and clen == len then
             local carried = tonumber(digits)
-            local computed = crc16(tvb:bytes(3, 9 + clen - 10))
             local crange = tvb(12 + clen - 10, 10)
             t:add(f.crc, crange, carried)
+        end
+        if digits and len ~= nil and clen == len and rprs.prefs.check_crc then
+            local carried = tonumber(digits)
+            local computed = crc16(tvb:bytes(3, 9 + clen - 10))
+            local crange = tvb(12 + clen - 10, 10)
             t:add(f.crc_calc, crange, computed):set_generated()
             local ok = t:add(f.crc_ok, crange, carried == computed)
             ok:set_generated()
@@ -238,7 +250,7 @@ function rprs.dissector(tvb, pinfo, tree)
     -- the analysis: retransmissions and acknowledgements of the message (src, num)
     local a = t:add(rprs, tvb(), "Analysis")
     a:set_generated()
-    if src ~= nil and num ~= nil and #app > 0 then
+    if src ~= nil and num ~= nil and #app > 0 and rprs.prefs.analyze then
         local key = src .. ":" .. (dst or "?") .. ":" .. num .. ":" .. (typ or "?") .. ":" ..
                     table.concat(app)
         if not pinfo.visited then
@@ -270,7 +282,7 @@ function rprs.dissector(tvb, pinfo, tree)
             end
         end
     end
-    for _, k in ipairs(ack_of[pinfo.number] or {}) do
+    for _, k in ipairs(rprs.prefs.analyze and ack_of[pinfo.number] or {}) do
         local sent = sent_as[k]
         if sent ~= nil and sent.frame < pinfo.number then
             a:add(f.acks, sent.frame):set_generated()
@@ -295,6 +307,112 @@ end
 
 local encaps = wtap_encaps or wtap
 DissectorTable.get("wtap_encap"):add(encaps.USER0, rprs)
+
+-- Statistics ------------------------------------------------------------------------------
+-- Per robot (endpoints) and per Source -> Destination pair (conversations) of the radio
+-- frames: tshark -q -z rprs,robots and -z rprs,conv; in the GUI, Statistics > RPRS.
+local x_src, x_dst = Field.new("rprs.src"), Field.new("rprs.dst")
+local x_retrans, x_collided = Field.new("rprs.analysis.retransmission"),
+                              Field.new("rprs.analysis.collided")
+
+local function median(v)
+    if #v == 0 then return nil end
+    table.sort(v)
+    return v[math.floor(#v / 2) + 1]
+end
+
+local function ms(x) return x and string.format("%.1f", x * 1000) or "-" end
+
+-- a tap on the radio frames; report(robots, pairs) gives the text when the capture is read
+local function frame_tap(report, show)
+    local robots, pairs_ = {}, {}
+    local tap = Listener.new(nil, "rprs")
+    function tap.reset() robots, pairs_ = {}, {} end
+    function tap.packet(pinfo, tvb)
+        local src, dst = x_src(), x_dst()
+        if src == nil then return end
+        src = src.value
+        local r = robots[src] or { frames = 0, bytes = 0, to = 0, retrans = 0, collided = 0,
+                                   gaps = {}, last = nil }
+        robots[src] = r
+        r.frames = r.frames + 1
+        r.bytes = r.bytes + tvb:len()
+        if x_retrans() ~= nil then r.retrans = r.retrans + 1 end
+        if x_collided() ~= nil then r.collided = r.collided + 1 end
+        local t = pinfo.abs_ts
+        if r.last ~= nil then table.insert(r.gaps, t - r.last) end
+        r.last = t
+        if dst ~= nil then
+            dst = dst.value
+            local d = robots[dst] or { frames = 0, bytes = 0, to = 0, retrans = 0,
+                                       collided = 0, gaps = {}, last = nil }
+            robots[dst] = d
+            d.to = d.to + 1
+            local k = src .. ">" .. dst
+            local c = pairs_[k] or { src = src, dst = dst, frames = 0, bytes = 0,
+                                     first = t, last = t }
+            pairs_[k] = c
+            c.frames, c.bytes, c.last = c.frames + 1, c.bytes + tvb:len(), t
+        end
+    end
+    function tap.draw() show(report(robots, pairs_)) end
+    return tap
+end
+
+local function sorted_keys(t, less)
+    local keys = {}
+    for k in pairs(t) do table.insert(keys, k) end
+    table.sort(keys, less)
+    return keys
+end
+
+local function robots_report(robots)
+    local lines = { "RPRS robots (endpoints): frames each robot sent, and to it",
+        string.format("%-9s %7s %8s %7s %8s %9s %12s", "robot", "frames", "bytes", "to it",
+                      "retrans", "collided", "turn ms p50") }
+    for _, id in ipairs(sorted_keys(robots)) do
+        local r = robots[id]
+        lines[#lines + 1] = string.format("%-9s %7d %8d %7d %8d %9d %12s", robot_name(id),
+            r.frames, r.bytes, r.to, r.retrans, r.collided, ms(median(r.gaps)))
+    end
+    return table.concat(lines, "\n")
+end
+
+local function conv_report(_, pairs_)
+    local lines = { "RPRS conversations: frames from Source to Destination",
+        string.format("%-9s %-9s %7s %8s %10s %10s", "source", "dest", "frames", "bytes",
+                      "first s", "last s") }
+    local first
+    for _, c in pairs(pairs_) do
+        if first == nil or c.first < first then first = c.first end
+    end
+    local keys = sorted_keys(pairs_, function(a, b)
+        local x, y = pairs_[a], pairs_[b]
+        if x.src ~= y.src then return x.src < y.src end
+        return x.dst < y.dst
+    end)
+    for _, k in ipairs(keys) do
+        local c = pairs_[k]
+        lines[#lines + 1] = string.format("%-9s %-9s %7d %8d %10.3f %10.3f", robot_name(c.src),
+            robot_name(c.dst), c.frames, c.bytes, c.first - first, c.last - first)
+    end
+    return table.concat(lines, "\n")
+end
+
+for name, report in pairs({ robots = robots_report, conv = conv_report }) do
+    register_stat_cmd_arg("rprs," .. name, function()
+        frame_tap(function(robots, pairs_) return report(robots, pairs_) end,
+                  function(text) print(text) end)
+    end)
+    if gui_enabled() then
+        register_menu("RPRS/" .. (name == "robots" and "Robots" or "Conversations"), function()
+            local win = TextWindow.new("RPRS " .. name)
+            local tap = frame_tap(report, function(text) win:set(text) end)
+            win:set_atclose(function() tap:remove() end)
+            retap_packets()
+        end, MENU_STAT_UNSORTED)
+    end
+end
 
 -- CAN payloads ---------------------------------------------------------------------------
 -- Each identifier of can_bus/rprs.dbc is registered in Wireshark's can.id table; the payload

@@ -529,3 +529,57 @@ def test_the_installed_plugin_and_the_documented_x_option_together_load_it_once(
                              capture_output=True, text=True, timeout=120)
         assert out.returncode == 0 and "Lua" not in out.stderr, out.stderr
         assert "R1 → " in out.stdout
+
+
+def _stat_table(lines: list[str], title: str) -> list[list[str]]:
+    """The rows of the ``-z rprs,...`` table whose first line starts with ``title`` (its
+    header line skipped), each split on whitespace, a robot's name kept whole."""
+    i = next(k for k, x in enumerate(lines) if x.startswith(title))
+    rows = []
+    for x in lines[i + 2:]:
+        if not x.strip() or x.startswith("RPRS "):
+            break
+        rows.append(x.replace("father 0", "father-0").split())
+    return rows
+
+
+@needs_tshark
+def test_statistics_per_robot_and_per_conversation_are_the_captures(retries):
+    """``-z rprs,robots`` (endpoints) and ``-z rprs,conv`` (conversations) count what the
+    capture's own fields give: frames and retransmissions by Source, frames by Destination and
+    by Source -> Destination pair; each robot's turn (its frames' spacing) about a cycle."""
+    path, trace = retries
+    fields = [r.split("|") for r in _tshark_rows(
+        path, "-Y", "rprs.src", "-T", "fields", "-E", "separator=|", "-e", "rprs.src", "-e",
+        "rprs.dst", "-e", "rprs.analysis.retransmission")]
+    lines = _tshark_rows(path, "-q", "-z", "rprs,robots", "-z", "rprs,conv")
+    name = lambda r: "father-0" if r == "0" else "all" if r == "7" else f"R{r}"  # noqa: E731
+    robots = {row[0]: row[1:] for row in _stat_table(lines, "RPRS robots")}
+    for r in {f[0] for f in fields}:
+        frames, _bytes, to_it, retrans, _collided, turn = robots[name(r)]
+        assert int(frames) == sum(f[0] == r for f in fields)
+        assert int(to_it) == sum(f[1] == r for f in fields)
+        assert int(retrans) == sum(f[0] == r and f[2] != "" for f in fields)
+        assert 50 < float(turn) < 200             # three robots, a turn each in a cycle
+    assert sum(int(v[3]) for v in robots.values()) > 0, "no retransmission: no check"
+    conv = _stat_table(lines, "RPRS conversations")
+    pairs = {(name(f[0]), name(f[1])) for f in fields}
+    assert {(c[0], c[1]) for c in conv} == pairs
+    for src, dst, frames, *_ in conv:
+        assert int(frames) == sum((name(f[0]), name(f[1])) == (src, dst) for f in fields)
+    sent = [e for e in trace if e["ev"] == "frame"]
+    assert sum(int(c[2]) for c in conv) == len(fields) <= len(sent)
+
+
+@needs_tshark
+def test_preferences_turn_the_checksum_check_and_the_analysis_off(checksummed, retries):
+    crc_path, _ = checksummed
+    on = _tshark_rows(crc_path, "-Y", "rprs.crc.computed")
+    off = _tshark_rows(crc_path, "-o", "rprs.check_crc:FALSE", "-Y", "rprs.crc.computed")
+    carried = _tshark_rows(crc_path, "-o", "rprs.check_crc:FALSE", "-Y", "rprs.crc")
+    assert len(on) > 50 and off == [] and len(carried) == len(on)
+    assert _tshark_rows(crc_path, "-o", "rprs.check_crc:FALSE", "-Y", "rprs.crc.ok == 0") == []
+    path, _ = retries
+    assert _tshark_rows(path, "-Y", "rprs.analysis.retransmission")
+    assert _tshark_rows(path, "-o", "rprs.analyze:FALSE", "-Y",
+                        "rprs.analysis.retransmission || rprs.analysis.acks") == []
