@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from can_bus import dbc
 from hil.wireshark import plugin_path
@@ -32,15 +33,35 @@ def _number(x: float) -> str:
     return repr(int(x)) if float(x).is_integer() else repr(float(x))
 
 
-def lua_table() -> str:
-    """The table's Lua source, marker lines included."""
-    lines = [BEGIN, "local dbc_messages = {"]
-    for m in sorted(dbc.load().messages, key=lambda m: m.frame_id):
+def load_dbc(path: Path) -> Any:
+    """A user's DBC file (``rprs wireshark --install --dbc FILE``), loaded strictly by
+    cantools; a file that cannot be read or is not a DBC is a ValueError saying why."""
+    import cantools
+    try:
+        db = cantools.database.load_file(str(path), database_format="dbc", strict=True)
+    except OSError as exc:
+        raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except Exception as exc:       # cantools' parse and strict-check errors have no common base
+        raise ValueError(f"{path} is not a DBC cantools can load: {exc}") from None
+    if not db.messages:
+        raise ValueError(f"{path} defines no message")
+    return db
+
+
+def lua_table(db: Any = None, origin: str | None = None) -> str:
+    """The table's Lua source, marker lines included: of can_bus/rprs.dbc, or of the cantools
+    database ``db`` (read from ``origin``, named in a comment)."""
+    lines = [BEGIN]
+    if origin is not None:
+        lines.append(f"-- this copy's table: from {origin}")
+    lines.append("local dbc_messages = {")
+    for m in sorted((db or dbc.load()).messages, key=lambda m: m.frame_id):
         sigs = []
         for s in m.signals:
-            if s.byte_order != "little_endian" or s.start % 8 or s.length not in (8, 16, 32):
+            if s.byte_order != "little_endian" or s.start % 8 or s.length not in (8, 16, 32) \
+                    or s.is_float or s.is_multiplexer or s.multiplexer_ids:
                 raise ValueError(f"{m.name}.{s.name}: the dissector decodes byte-aligned "
-                                 f"little-endian signals of 8, 16 or 32 bits only")
+                                 f"little-endian integer signals of 8, 16 or 32 bits only")
             choices = ""
             if s.choices:
                 items = ", ".join(f"[{int(k)}] = {_lua_string(str(v))}"
@@ -65,6 +86,11 @@ def section(text: str) -> str:
     if i < 0 or j < i:
         raise ValueError("the plugin has no DBC table between the marker lines")
     return text[i:j + len(END)] + "\n"
+
+
+def with_table(text: str, db: Any, origin: str) -> str:
+    """The plugin ``text`` with its table made from the cantools database ``db``."""
+    return text.replace(section(text), lua_table(db, origin))
 
 
 def write(path: Path | None = None) -> bool:

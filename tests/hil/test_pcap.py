@@ -583,3 +583,62 @@ def test_preferences_turn_the_checksum_check_and_the_analysis_off(checksummed, r
     assert _tshark_rows(path, "-Y", "rprs.analysis.retransmission")
     assert _tshark_rows(path, "-o", "rprs.analyze:FALSE", "-Y",
                         "rprs.analysis.retransmission || rprs.analysis.acks") == []
+
+
+MY_DBC = '''VERSION ""
+
+NS_ :
+
+BS_:
+
+BU_: SENSOR MCU
+
+BO_ 768 MY_SENSOR: 3 SENSOR
+ SG_ temp : 0|16@1- (0.1,0) [-100|100] "degC" MCU
+ SG_ state : 16|8@1+ (1,0) [0|2] "" MCU
+
+VAL_ 768 state 0 "off" 1 "warming" 2 "ready" ;
+'''
+
+
+@needs_tshark
+def test_install_with_a_users_own_dbc_decodes_its_frames(tmp_path):
+    """``rprs wireshark --install --dbc FILE``: the installed dissector decodes the CAN
+    payloads with the user's DBC (signals scaled, signed, value names)."""
+    from hil.sim.pcap import PcapWriter
+    (tmp_path / "my.dbc").write_text(MY_DBC)
+    p = rprs("wireshark", "--install", "--dir", str(tmp_path / "plugins"), "--dbc",
+             str(tmp_path / "my.dbc"))
+    assert p.returncode == 0, p.stderr
+    assert "my.dbc" in p.stdout
+    plugin = tmp_path / "plugins" / "rprs.lua"
+    with open(tmp_path / "c.pcapng", "wb") as fh:
+        w = PcapWriter(fh, {}, {1: "R1 CAN"})
+        w.can(1, 16_000, 0x300, bytes([0xD7, 0x00, 2]))       # 215 x 0.1 = 21.5, ready
+        w.can(1, 32_000, 0x300, bytes([0x9C, 0xFF, 0]))       # -100 x 0.1 = -10.0, off
+    out = subprocess.run([TSHARK, "-X", f"lua_script:{plugin}", "-r",
+                          str(tmp_path / "c.pcapng"), "-T", "fields", "-E", "separator=|",
+                          "-e", "rprs_can.msg", "-e", "rprs_can.my_sensor.temp", "-e",
+                          "rprs_can.my_sensor.state"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines() == ["MY_SENSOR|21.5|2", "MY_SENSOR|-10|0"]
+    ready = subprocess.run([TSHARK, "-X", f"lua_script:{plugin}", "-r",
+                            str(tmp_path / "c.pcapng"), "-Y",
+                            'rprs_can.my_sensor.state == "ready"'],
+                           capture_output=True, text=True, timeout=120)
+    assert ready.returncode == 0 and len(ready.stdout.splitlines()) == 1
+
+
+def test_a_dbc_that_cannot_be_used_is_one_line(tmp_path):
+    (tmp_path / "bad.dbc").write_text("BO_ what\n")
+    (tmp_path / "float.dbc").write_text(MY_DBC.replace("0|16@1-", "0|12@1-"))
+    for args, says in ((["--install", "--dbc", str(tmp_path / "none.dbc")], "cannot read"),
+                       (["--install", "--dbc", str(tmp_path / "bad.dbc")], "not a DBC"),
+                       (["--install", "--dbc", str(tmp_path / "float.dbc")], "byte-aligned"),
+                       (["--dbc", str(tmp_path / "bad.dbc")], "give --install too")):
+        p = rprs("wireshark", "--dir", str(tmp_path / "p"), *args) if args[0] == "--install" \
+            else rprs("wireshark", *args)
+        assert p.returncode == 2 and says in p.stderr, (args, p.stderr)
+        assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "p" / "rprs.lua").exists()
