@@ -42,7 +42,7 @@ class BenchCapture:
         if listener is not None:
             radios = {"heard": f"{listener}, heard"}
         buses = {} if can is None else {0: f"CAN {can}"}
-        self.writer = PcapWriter(stream, radios, buses, tsresol=9)
+        self.writer = PcapWriter(stream, radios, buses, tsresol=9, live=True)
         self.writer.follow(sched)       # stamps: the wall clock of the scheduler's tick 0
         self.stream = stream
         self._deframer = Deframer()

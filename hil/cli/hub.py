@@ -51,6 +51,16 @@ STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SI
 """The signals that stop ``rprs radio-hub`` cleanly (links removed, summary, status 0)."""
 
 
+def is_fifo(path: str) -> bool:
+    """Is ``path`` a FIFO (a live reader at its other end: flush each packet)?"""
+    import os
+    import stat
+    try:
+        return stat.S_ISFIFO(os.stat(path).st_mode)
+    except OSError:
+        return False
+
+
 def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
                 seed: int = 0, link_dir: str | None = None,
                 drops: Sequence[tuple[int, float, float]] = (),
@@ -84,7 +94,7 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
         if stream is not None:
             from ..sim.pcap import PcapWriter
             hub.capture(PcapWriter(stream, *hub.capture_interfaces(), tsresol=9,
-                                   live=pcap == "-"))
+                                   live=pcap == "-" or is_fifo(pcap)))
         # SIGHUP too: a closed terminal must not leave links to ptys the next one is given
         old = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
         try:

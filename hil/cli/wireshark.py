@@ -23,9 +23,59 @@ def personal_plugins_dir() -> Path:
     return Path.home() / ".local" / "lib" / "wireshark" / "plugins"
 
 
+def personal_extcap_dir() -> Path:
+    """Wireshark's personal extcap folder: ``$XDG_CONFIG_HOME/wireshark/extcap`` before
+    Wireshark 4.2 (the one ``tshark``/``wireshark -v`` on the PATH says), else
+    ``~/.local/lib/wireshark/extcap``."""
+    import re
+    import subprocess
+    for tool in ("tshark", "wireshark"):
+        exe = shutil.which(tool)
+        if exe is None:
+            continue
+        try:
+            out = subprocess.run([exe, "-v"], capture_output=True, text=True, timeout=20).stdout
+        except (OSError, subprocess.SubprocessError):
+            continue
+        m = re.search(r"\b(\d+)\.(\d+)\.\d+", out)
+        if m and (int(m.group(1)), int(m.group(2))) < (4, 2):
+            config = Path(os.environ.get("XDG_CONFIG_HOME") or Path.home() / ".config")
+            return config / "wireshark" / "extcap"
+        break
+    return Path.home() / ".local" / "lib" / "wireshark" / "extcap"
+
+
+def install_extcap(where: str | None) -> int:
+    """``--install-extcap``: a launcher of hil.wireshark.extcap, run by this Python, in the
+    personal extcap folder (or ``where``)."""
+    import shlex
+    import sys
+    if os.name == "nt":
+        raise UserError("the extcap launcher is a POSIX shell script; on Windows capture with "
+                        "rprs capture --radio PORT --pcap - | wireshark -k -i -")
+    dest_dir = Path(where) if where else personal_extcap_dir()
+    dest = dest_dir / "rprs-radio"
+    script = (f"#!/bin/sh\n# RPRS radio capture for Wireshark (rprs wireshark --install-extcap)\n"
+              f"exec {shlex.quote(sys.executable)} -m hil.wireshark.extcap \"$@\"\n")
+    try:
+        dest_dir.mkdir(parents=True, exist_ok=True)
+        dest.write_text(script, encoding="utf-8")
+        dest.chmod(0o755)
+    except OSError as exc:
+        raise UserError(f"cannot install the extcap launcher in {dest_dir}: "
+                        f"{exc.strerror or exc}") from None
+    print(f"installed {dest}: Wireshark lists the interface rprs-radio (restart it); "
+          f"give it the radio's port in its options")
+    return 0
+
+
 def cmd_wireshark(a: argparse.Namespace) -> int:
     from ..wireshark import plugin_path
     src = plugin_path()
+    if a.install_extcap:
+        if a.dbc:
+            raise UserError("--dbc is for --install (the dissector), not --install-extcap")
+        return install_extcap(a.dir)
     for opt in ("dir", "dbc"):
         if getattr(a, opt) and not a.install:
             raise UserError(f"--{opt} is for --install (where the dissector goes, and whose DBC "
@@ -65,7 +115,10 @@ def add(sub) -> None:
                    "default), e.g. for tshark -X lua_script:PATH")
     g.add_argument("--install", action="store_true", help="copy it to Wireshark's personal "
                    "plugins folder")
-    w.add_argument("--dir", metavar="DIR", help="with --install: this folder instead")
+    g.add_argument("--install-extcap", action="store_true", help="put a launcher of the live "
+                   "radio capture (interface rprs-radio) in Wireshark's personal extcap folder")
+    w.add_argument("--dir", metavar="DIR", help="with --install or --install-extcap: this "
+                   "folder instead")
     w.add_argument("--dbc", metavar="FILE", help="with --install: decode the CAN payloads with "
                    "this DBC (your own submodules') instead of can_bus/rprs.dbc")
     w.set_defaults(func=cmd_wireshark)

@@ -4,6 +4,7 @@ it) and by python-pcapng everywhere. Every packet is compared with the run's own
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -642,3 +643,65 @@ def test_a_dbc_that_cannot_be_used_is_one_line(tmp_path):
         assert p.returncode == 2 and says in p.stderr, (args, p.stderr)
         assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "p" / "rprs.lua").exists()
+
+
+@pytest.mark.slow   # a live capture on the wall clock through Wireshark's extcap: about 6 s
+@pytest.mark.skipif(TSHARK is None or shutil.which("socat") is None,
+                    reason="tshark or socat not installed (Debian packages; .ci/run installs "
+                           "them)")
+def test_wireshark_captures_live_from_a_radio_port_through_the_extcap(tmp_path):
+    """``rprs wireshark --install-extcap``: tshark lists the interface rprs-radio and, given a
+    port (here one end of a socat pty pair, frames written to the other), captures and decodes
+    the frames as they come."""
+    import threading
+    import time
+    from firmware_model.radio.frame import Frame
+    env = dict(os.environ, HOME=str(tmp_path), XDG_CONFIG_HOME=str(tmp_path / ".config"))
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "wireshark", "--install-extcap"],
+                       capture_output=True, text=True, timeout=60, env=env)
+    assert p.returncode == 0, p.stderr
+    listed = subprocess.run([TSHARK, "-D"], capture_output=True, text=True, timeout=60,
+                            env=env)
+    assert "rprs-radio" in listed.stdout, listed.stdout
+    a, b = tmp_path / "a", tmp_path / "b"
+    socat = subprocess.Popen(["socat", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"])
+    stop = threading.Event()
+
+    def send() -> None:
+        n = 0
+        while not a.exists() and not stop.is_set():
+            time.sleep(0.05)
+        with open(a, "wb", buffering=0) as port:
+            while not stop.wait(0.3):
+                n += 1
+                port.write(Frame(dst=7, src=2, num=n % 100, type=2, content=b"poll()").encode())
+    writer = threading.Thread(target=send, daemon=True)
+    writer.start()
+    try:
+        while not b.exists():
+            time.sleep(0.05)
+        out = subprocess.run([TSHARK, "-i", "rprs-radio", "-o", f"extcap.rprs_radio.port:{b}",
+                              "-c", "5", "-X", f"lua_script:{plugin_path()}", "-T", "fields",
+                              "-e", "rprs.src", "-e", "rprs.dst", "-e", "rprs.cmd"],
+                             capture_output=True, text=True, timeout=60, env=env)
+    finally:
+        stop.set()
+        socat.terminate()
+        socat.wait(timeout=10)
+        writer.join(timeout=10)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines() == ["2\t7\tpoll"] * 5, out.stdout
+
+
+def test_the_extcap_answers_wiresharks_questions_and_refuses_what_it_cannot_do(capsys):
+    from hil.wireshark import extcap
+    assert extcap.main(["--extcap-interfaces"]) == 0
+    assert "interface {value=rprs-radio}" in capsys.readouterr().out
+    assert extcap.main(["--extcap-interface", "rprs-radio", "--extcap-dlts"]) == 0
+    assert "dlt {number=147}{name=USER0}" in capsys.readouterr().out
+    assert extcap.main(["--extcap-interface", "rprs-radio", "--extcap-config"]) == 0
+    assert "{call=--port}" in capsys.readouterr().out
+    assert extcap.main(["--extcap-interface", "eth9", "--extcap-dlts"]) == 2
+    assert "no interface 'eth9'" in capsys.readouterr().err
+    assert extcap.main(["--extcap-interface", "rprs-radio", "--capture", "--fifo", "f"]) == 2
+    assert "needs --fifo and --port" in capsys.readouterr().err
