@@ -94,7 +94,7 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
         if stream is not None:
             from ..sim.pcap import PcapWriter
             hub.capture(PcapWriter(stream, *hub.capture_interfaces(), tsresol=9,
-                                   live=pcap == "-" or is_fifo(pcap)))
+                                   live=pcap == "-" or is_fifo(pcap or "")))
         # SIGHUP too: a closed terminal must not leave links to ptys the next one is given
         old = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
         try:

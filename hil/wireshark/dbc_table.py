@@ -43,8 +43,8 @@ def load_dbc(path: Path) -> Any:
         raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
     except Exception as exc:       # cantools' parse and strict-check errors have no common base
         raise ValueError(f"{path} is not a DBC cantools can load: {exc}") from None
-    if not db.messages:
-        raise ValueError(f"{path} defines no message")
+    if not isinstance(db, cantools.database.can.Database) or not db.messages:
+        raise ValueError(f"{path} defines no CAN message")
     return db
 
 
