@@ -48,6 +48,7 @@ f.auth_tag = ProtoField.uint32("rprs.auth.tag", "Tag carried by auth() (HMAC-SHA
                                base.HEX)
 -- the analysis of a capture (as tcp.analysis.* does for TCP): the message a frame carries, its
 -- sendings and its acknowledgement (docs/protocol.md clause 47), and what the air did to it
+f.auth_ok = ProtoField.bool("rprs.auth.ok", "Tag correct under the ring key (preference)")
 f.retrans = ProtoField.bool("rprs.analysis.retransmission", "Retransmission")
 f.retrans_of = ProtoField.framenum("rprs.analysis.retransmission_of",
                                    "Retransmission of the message first sent in frame",
@@ -71,6 +72,9 @@ local e_end = ProtoExpert.new("rprs.end.bad", "End is not 17 19",
                               expert.group.MALFORMED, expert.severity.ERROR)
 local e_crc = ProtoExpert.new("rprs.crc.bad", "crc() does not match the frame's bytes",
                               expert.group.CHECKSUM, expert.severity.ERROR)
+local e_auth = ProtoExpert.new("rprs.auth.bad", "auth() tag does not match the ring key: "
+                               .. "forged, or another ring's", expert.group.SECURITY,
+                               expert.severity.ERROR)
 local e_retrans = ProtoExpert.new("rprs.analysis.retransmission.expert",
                                   "Retransmission: this message was sent before",
                                   expert.group.SEQUENCE, expert.severity.WARN)
@@ -81,12 +85,16 @@ local e_collided = ProtoExpert.new("rprs.analysis.collided.expert",
 local e_aborted = ProtoExpert.new("rprs.analysis.aborted.expert",
                                   "Cut short: the sender's radio died mid-frame",
                                   expert.group.MALFORMED, expert.severity.ERROR)
-rprs.experts = { e_header, e_digit, e_length, e_end, e_crc, e_retrans, e_collided, e_aborted }
+rprs.experts = { e_header, e_digit, e_length, e_end, e_crc, e_auth, e_retrans, e_collided,
+                 e_aborted }
 
 -- Preferences (Edit > Preferences > Protocols > RPRS; tshark -o rprs.NAME:VALUE)
 rprs.prefs.check_crc = Pref.bool("Verify crc() checksums", true,
     "Compute CRC-16/CCITT-FALSE over Destination..Content and flag a crc() that differs "
     .. "(rprs.crc.computed, rprs.crc.ok); off, the carried value alone is shown")
+rprs.prefs.auth_key = Pref.string("Ring key (authenticated profile)", "",
+    "The ring key, 32 hex digits (a key file's key = line): each auth() tag is checked with "
+    .. "it (rprs.auth.ok, rprs.auth.bad); empty, tags are shown, not checked")
 rprs.prefs.analyze = Pref.bool("Analyse retransmissions and acknowledgements", true,
     "Mark each sending of a message after the first (rprs.analysis.retransmission) and link "
     .. "messages and their acknowledgements (rprs.analysis.acked_in, ack_rtt, acks)")
@@ -103,6 +111,81 @@ local function robot_name(id)
     if id == 0 then return "father 0" end
     if id == 7 then return "all" end
     return "R" .. id
+end
+
+-- HMAC-SHA256 (FIPS 180-4, RFC 2104) on Lua 5.2's bit32, to check auth() tags with the ring
+-- key given as a preference: Wireshark's Lua has no hash of its own. The round constants are
+-- the first 32 bits of the fractional parts of the cube roots of the first 64 primes.
+local band, bxor, bnot = bit32.band, bit32.bxor, bit32.bnot
+local rrot, rsh = bit32.rrotate, bit32.rshift
+local K256 = {
+    0x428a2f98, 0x71374491, 0xb5c0fbcf, 0xe9b5dba5, 0x3956c25b, 0x59f111f1, 0x923f82a4, 0xab1c5ed5,
+    0xd807aa98, 0x12835b01, 0x243185be, 0x550c7dc3, 0x72be5d74, 0x80deb1fe, 0x9bdc06a7, 0xc19bf174,
+    0xe49b69c1, 0xefbe4786, 0x0fc19dc6, 0x240ca1cc, 0x2de92c6f, 0x4a7484aa, 0x5cb0a9dc, 0x76f988da,
+    0x983e5152, 0xa831c66d, 0xb00327c8, 0xbf597fc7, 0xc6e00bf3, 0xd5a79147, 0x06ca6351, 0x14292967,
+    0x27b70a85, 0x2e1b2138, 0x4d2c6dfc, 0x53380d13, 0x650a7354, 0x766a0abb, 0x81c2c92e, 0x92722c85,
+    0xa2bfe8a1, 0xa81a664b, 0xc24b8b70, 0xc76c51a3, 0xd192e819, 0xd6990624, 0xf40e3585, 0x106aa070,
+    0x19a4c116, 0x1e376c08, 0x2748774c, 0x34b0bcb5, 0x391c0cb3, 0x4ed8aa4a, 0x5b9cca4f, 0x682e6ff3,
+    0x748f82ee, 0x78a5636f, 0x84c87814, 0x8cc70208, 0x90befffa, 0xa4506ceb, 0xbef9a3f7, 0xc67178f2
+}
+
+local function sha256(msg)
+    local h = { 0x6a09e667, 0xbb67ae85, 0x3c6ef372, 0xa54ff53a,
+                0x510e527f, 0x9b05688c, 0x1f83d9ab, 0x5be0cd19 }
+    local bits = #msg * 8
+    msg = msg .. "\128" .. string.rep("\0", (55 - #msg) % 64) .. string.char(0, 0, 0, 0,
+        math.floor(bits / 16777216) % 256, math.floor(bits / 65536) % 256,
+        math.floor(bits / 256) % 256, bits % 256)
+    local w = {}
+    for i = 1, #msg, 64 do
+        for j = 1, 16 do
+            local a, b, c, d = msg:byte(i + 4 * j - 4, i + 4 * j - 1)
+            w[j] = ((a * 256 + b) * 256 + c) * 256 + d
+        end
+        for j = 17, 64 do
+            local x, y = w[j - 15], w[j - 2]
+            local s0 = bxor(rrot(x, 7), rrot(x, 18), rsh(x, 3))
+            local s1 = bxor(rrot(y, 17), rrot(y, 19), rsh(y, 10))
+            w[j] = band(w[j - 16] + s0 + w[j - 7] + s1, 0xffffffff)
+        end
+        local a, b, c, d, e, f, g, hh = h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]
+        for j = 1, 64 do
+            local S1 = bxor(rrot(e, 6), rrot(e, 11), rrot(e, 25))
+            local ch = bxor(band(e, f), band(bnot(e), g))
+            local t1 = hh + S1 + ch + K256[j] + w[j]
+            local S0 = bxor(rrot(a, 2), rrot(a, 13), rrot(a, 22))
+            local maj = bxor(band(a, b), band(a, c), band(b, c))
+            hh, g, f, e, d, c, b, a = g, f, e, band(d + t1, 0xffffffff), c, b, a,
+                                      band(t1 + S0 + maj, 0xffffffff)
+        end
+        h[1], h[2], h[3], h[4] = band(h[1] + a, 0xffffffff), band(h[2] + b, 0xffffffff),
+                                 band(h[3] + c, 0xffffffff), band(h[4] + d, 0xffffffff)
+        h[5], h[6], h[7], h[8] = band(h[5] + e, 0xffffffff), band(h[6] + f, 0xffffffff),
+                                 band(h[7] + g, 0xffffffff), band(h[8] + hh, 0xffffffff)
+    end
+    local out = {}
+    for j = 1, 8 do
+        local v = h[j]
+        out[j] = string.char(math.floor(v / 16777216) % 256, math.floor(v / 65536) % 256,
+                             math.floor(v / 256) % 256, v % 256)
+    end
+    return table.concat(out)
+end
+
+local function hmac_sha256_hex(key, msg)
+    key = key .. string.rep("\0", 64 - #key)
+    local ipad = key:gsub(".", function(ch) return string.char(bxor(ch:byte(), 0x36)) end)
+    local opad = key:gsub(".", function(ch) return string.char(bxor(ch:byte(), 0x5c)) end)
+    local digest = sha256(opad .. sha256(ipad .. msg))
+    return (digest:gsub(".", function(ch) return string.format("%02x", ch:byte()) end))
+end
+
+-- the ring key from the preference: 32 hex digits (a key file's key = line), else nil
+local function ring_key()
+    local hex = rprs.prefs.auth_key or ""
+    hex = hex:gsub("%s", ""):lower()
+    if not hex:match("^" .. string.rep("%x", 32) .. "$") then return nil end
+    return (hex:gsub("%x%x", function(xx) return string.char(tonumber(xx, 16)) end))
 end
 
 -- per capture, filled on the first pass: message key -> its first sending (frame, time);
@@ -230,11 +313,22 @@ function rprs.dissector(tvb, pinfo, tree)
             end
         end
         -- the authenticated profile (protocol clause 52): auth(FFFFFFFF,TTTTTTTT) ends Content,
-        -- 8 lowercase hex digits each. The tag is shown, not checked: it needs the ring's key.
+        -- 8 lowercase hex digits each; the tag is checked when the ring key is a preference
         local fresh, tag = content:match("auth%(([0-9a-f]+),([0-9a-f]+)%)$")
         if fresh and #fresh == 8 and #tag == 8 and len ~= nil and clen == len then
             t:add(f.auth_fresh, tvb(12 + clen - 18, 8), tonumber(fresh, 16))
             t:add(f.auth_tag, tvb(12 + clen - 9, 8), tonumber(tag, 16))
+            local key = ring_key()
+            if key ~= nil then
+                -- the tag covers Destination up to the comma after the freshness value
+                local want = hmac_sha256_hex(key, tvb:raw(3, clen)):sub(1, 8)
+                local ok = t:add(f.auth_ok, tvb(12 + clen - 9, 8), want == tag)
+                ok:set_generated()
+                if want ~= tag then
+                    ok:add_proto_expert_info(e_auth)
+                    info = info .. " [bad tag]"
+                end
+            end
         end
     end
     if len ~= nil and 12 + len + 2 <= n then

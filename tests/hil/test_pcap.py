@@ -705,3 +705,28 @@ def test_the_extcap_answers_wiresharks_questions_and_refuses_what_it_cannot_do(c
     assert "no interface 'eth9'" in capsys.readouterr().err
     assert extcap.main(["--extcap-interface", "rprs-radio", "--capture", "--fifo", "f"]) == 2
     assert "needs --fifo and --port" in capsys.readouterr().err
+
+
+@needs_tshark
+def test_the_ring_key_as_a_preference_checks_every_tag(tmp_path):
+    """The authenticated profile with ``rprs.auth_key``: every robot's tag is right under the
+    ring's key, a forged frame's made-up tag is flagged, and under another key every tag is."""
+    key = "000102030405060708090a0b0c0d0e0f"
+    (tmp_path / "ring.key").write_text(f"key = {key}\n")
+    c = b"movex(5)auth(00000001,deadbeef)"
+    forged = b"\x0f\x0a\x05" + b"12%02d%d%04d" % (3, 2, len(c)) + c + b"\x17\x19"
+    p = rprs("sim", "--robots", "0,1,2", "--duration", "10", "--seed", "3", "--load", "1",
+             "--auth-key", str(tmp_path / "ring.key"), "--fault", f"foreign@6:x{forged.hex()}",
+             "--no-progress", "--pcap", str(tmp_path / "auth.pcapng"))
+    assert p.returncode == 0, p.stderr
+    path = tmp_path / "auth.pcapng"
+
+    def rows(k: str, flt: str) -> list[str]:
+        return _tshark_rows(path, "-o", f"rprs.auth_key:{k}", "-Y", flt, "-T", "fields",
+                            "-e", "frame.interface_name")
+    tagged = _tshark_rows(path, "-Y", "rprs.auth.tag", "-T", "fields", "-e", "frame.number")
+    good, bad = rows(key, "rprs.auth.ok == 1"), rows(key, "rprs.auth.bad")
+    assert len(tagged) > 100 and len(good) == len(tagged) - 1
+    assert bad == ["foreign transmitters"]
+    assert len(rows("f" * 32, "rprs.auth.bad")) == len(tagged)
+    assert _tshark_rows(path, "-Y", "rprs.auth.ok") == []          # no key: not checked
