@@ -59,6 +59,10 @@ f.ack_rtt = ProtoField.relative_time("rprs.analysis.ack_rtt",
                                      "Time from the first sending to the acknowledgement")
 f.acks = ProtoField.framenum("rprs.analysis.acks",
                              "Acknowledges the message sent in frame", base.NONE, frametype.ACK)
+f.gap = ProtoField.relative_time("rprs.analysis.gap",
+                                 "Time since the previous frame ended (to this one's start)")
+f.early = ProtoField.bool("rprs.analysis.early",
+                          "Sent before Ttrans had passed since the previous frame ended")
 f.collided = ProtoField.bool("rprs.analysis.collided", "Collided with another transmission")
 f.aborted = ProtoField.bool("rprs.analysis.aborted", "Cut short: the sender's radio died")
 
@@ -78,6 +82,10 @@ local e_auth = ProtoExpert.new("rprs.auth.bad", "auth() tag does not match the r
 local e_retrans = ProtoExpert.new("rprs.analysis.retransmission.expert",
                                   "Retransmission: this message was sent before",
                                   expert.group.SEQUENCE, expert.severity.WARN)
+local e_early = ProtoExpert.new("rprs.analysis.early.expert",
+                                "sent less than Ttrans after the previous frame ended: the "
+                                .. "turn-taking guard broken", expert.group.SEQUENCE,
+                                expert.severity.WARN)
 local e_collided = ProtoExpert.new("rprs.analysis.collided.expert",
                                    "Collided: the air carried another transmission at once, "
                                    .. "so receivers heard garbage", expert.group.MALFORMED,
@@ -85,8 +93,8 @@ local e_collided = ProtoExpert.new("rprs.analysis.collided.expert",
 local e_aborted = ProtoExpert.new("rprs.analysis.aborted.expert",
                                   "Cut short: the sender's radio died mid-frame",
                                   expert.group.MALFORMED, expert.severity.ERROR)
-rprs.experts = { e_header, e_digit, e_length, e_end, e_crc, e_auth, e_retrans, e_collided,
-                 e_aborted }
+rprs.experts = { e_header, e_digit, e_length, e_end, e_crc, e_auth, e_retrans, e_early,
+                 e_collided, e_aborted }
 
 -- Preferences (Edit > Preferences > Protocols > RPRS; tshark -o rprs.NAME:VALUE)
 rprs.prefs.check_crc = Pref.bool("Verify crc() checksums", true,
@@ -95,9 +103,16 @@ rprs.prefs.check_crc = Pref.bool("Verify crc() checksums", true,
 rprs.prefs.auth_key = Pref.string("Ring key (authenticated profile)", "",
     "The ring key, 32 hex digits (a key file's key = line): each auth() tag is checked with "
     .. "it (rprs.auth.ok, rprs.auth.bad); empty, tags are shown, not checked")
-rprs.prefs.analyze = Pref.bool("Analyse retransmissions and acknowledgements", true,
-    "Mark each sending of a message after the first (rprs.analysis.retransmission) and link "
-    .. "messages and their acknowledgements (rprs.analysis.acked_in, ack_rtt, acks)")
+rprs.prefs.ttrans_us = Pref.uint("Ttrans (us)", 5000,
+    "The hand-over guard: a frame that starts sooner after the previous one ended is early "
+    .. "(rprs.analysis.early); the paper's 5 ms")
+rprs.prefs.tolerance_us = Pref.uint("Early-frame tolerance (us)", 500,
+    "How much sooner than Ttrans a frame may start before it is called early (a bench's "
+    .. "wall-clock stamps are late by up to a millisecond or so)")
+rprs.prefs.analyze = Pref.bool("Analyse retransmissions, acknowledgements and hand-overs",
+    true, "Mark each sending of a message after the first (rprs.analysis.retransmission), link "
+    .. "messages and their acknowledgements (rprs.analysis.acked_in, ack_rtt, acks), and time "
+    .. "each hand-over (rprs.analysis.gap, early)")
 
 -- the packet comment the simulator and the hub write on a collided or cut transmission
 local comment_field = Field.new("frame.comment")
@@ -193,8 +208,18 @@ end
 -- first frame that acknowledged it; frame -> the (src, num) it acknowledges. A field that
 -- looks ahead (acknowledged in) needs a second pass: tshark -2, or the GUI
 local first_sent, sent_as, repeats, acked, ack_of = {}, {}, {}, {}, {}
+-- frame -> seconds from the previous radio frame's end to its start; the last frame's end
+local gaps, last_end = {}, nil
 function rprs.init()
     first_sent, sent_as, repeats, acked, ack_of = {}, {}, {}, {}, {}
+    gaps, last_end = {}, nil
+end
+
+-- a byte on air, seconds: the father PC's UART at 9600 exactly, a child's MB90F549 at
+-- 16 MHz / 1664 a bit (docs/protocol.md clause 3)
+local function byte_time(src)
+    if src == 0 then return 10 / 9600 end
+    return 16640 / 16e6
 end
 
 -- CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no final XOR), protocol clause 20
@@ -380,6 +405,26 @@ function rprs.dissector(tvb, pinfo, tree)
         local sent = sent_as[k]
         if sent ~= nil and sent.frame < pinfo.number then
             a:add(f.acks, sent.frame):set_generated()
+        end
+    end
+    -- the hand-over: from the previous frame's end (packets are stamped at their last stop
+    -- bit) to this one's first bit
+    if not pinfo.visited then
+        local t = pinfo.abs_ts
+        if last_end ~= nil then
+            gaps[pinfo.number] = t - n * byte_time(src) - last_end
+        end
+        last_end = t
+    end
+    local gap = gaps[pinfo.number]
+    if gap ~= nil and rprs.prefs.analyze then
+        local whole = math.floor(gap)
+        a:add(f.gap, NSTime.new(whole, math.floor((gap - whole) * 1e9 + 0.5))):set_generated()
+        if gap < (rprs.prefs.ttrans_us - rprs.prefs.tolerance_us) / 1e6 then
+            local item = a:add(f.early, true)
+            item:set_generated()
+            item:add_proto_expert_info(e_early)
+            info = "[early] " .. info
         end
     end
     local comment = comment_field()

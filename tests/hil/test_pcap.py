@@ -730,3 +730,32 @@ def test_the_ring_key_as_a_preference_checks_every_tag(tmp_path):
     assert bad == ["foreign transmitters"]
     assert len(rows("f" * 32, "rprs.auth.bad")) == len(tagged)
     assert _tshark_rows(path, "-Y", "rprs.auth.ok") == []          # no key: not checked
+
+
+@needs_tshark
+def test_the_hand_over_gap_is_the_traces_and_a_frame_sent_too_soon_is_early(run, retries):
+    """``rprs.analysis.gap``: from the previous frame's end to this one's start, as the trace
+    has them (the dissector takes the father's byte as a PC's 10/9600 s, the simulator as
+    16,667 ticks: 21 ns a byte apart);
+    ``rprs.analysis.early`` where that is under Ttrans less the tolerance: none in a ring
+    that takes turns (byte errors and all), the stealing robot's frame in one that does not."""
+    path, trace = retries
+    frames = [e for e in trace if e["ev"] == "frame"]
+    rows = [r.split("|") for r in _tshark_rows(
+        path, "-Y", "rprs", "-T", "fields", "-E", "separator=|", "-e", "rprs.analysis.gap",
+        "-e", "rprs.analysis.early")]
+    assert len(rows) == len(frames) > 200 and rows[0][0] == ""
+    for (gap, early), before, e in zip(rows[1:], frames, frames[1:]):
+        want = (e["start"] - before["end"]) / 16e6
+        assert abs(float(gap) - want) < 1e-7 + 25e-9 * e["bytes"], (gap, want, e)
+        assert early == ""
+    path, trace = run
+    early = _tshark_rows(path, "-Y", "rprs.analysis.early", "-T", "fields", "-e", "rprs.src",
+                         "-e", "rprs.analysis.collided")
+    assert early and all(x.split("\t")[1] in ("1", "True") for x in early)
+    assert "1" in {x.split("\t")[0] for x in early}                  # steal:1@3
+    # the preferences: with Ttrans taken as 6 ms, every hand-over under 5.5 ms is early
+    path, _ = retries
+    strict = _tshark_rows(path, "-o", "rprs.ttrans_us:6000", "-Y", "rprs.analysis.early")
+    assert len(strict) == sum(e["start"] - b["end"] < 5.5e-3 * 16e6
+                              for b, e in zip(frames, frames[1:])) > 100
