@@ -59,6 +59,9 @@ f.ack_rtt = ProtoField.relative_time("rprs.analysis.ack_rtt",
                                      "Time from the first sending to the acknowledgement")
 f.acks = ProtoField.framenum("rprs.analysis.acks",
                              "Acknowledges the message sent in frame", base.NONE, frametype.ACK)
+f.dup_ack = ProtoField.framenum("rprs.analysis.duplicate_ack",
+                                "Duplicate acknowledgement: this robot acknowledged the message "
+                                .. "in frame")
 f.gap = ProtoField.relative_time("rprs.analysis.gap",
                                  "Time since the previous frame ended (to this one's start)")
 f.early = ProtoField.bool("rprs.analysis.early",
@@ -210,9 +213,12 @@ end
 local first_sent, sent_as, repeats, acked, ack_of = {}, {}, {}, {}, {}
 -- frame -> seconds from the previous radio frame's end to its start; the last frame's end
 local gaps, last_end = {}, nil
+-- "(src, num) > acknowledging robot" -> its first acknowledging frame; frame -> those it repeats
+local acked_by, dup_acks = {}, {}
 function rprs.init()
     first_sent, sent_as, repeats, acked, ack_of = {}, {}, {}, {}, {}
     gaps, last_end = {}, nil
+    acked_by, dup_acks = {}, {}
 end
 
 -- a byte on air, seconds: the father PC's UART at 9600 exactly, a child's MB90F549 at
@@ -313,6 +319,14 @@ function rprs.dissector(tvb, pinfo, tree)
                     end
                     ack_of[pinfo.number] = ack_of[pinfo.number] or {}
                     table.insert(ack_of[pinfo.number], k)
+                    -- the same robot acknowledging the same message again
+                    local by = k .. ">" .. tostring(src)
+                    if acked_by[by] == nil then
+                        acked_by[by] = pinfo.number
+                    elseif acked_by[by] ~= pinfo.number then
+                        dup_acks[pinfo.number] = dup_acks[pinfo.number] or {}
+                        table.insert(dup_acks[pinfo.number], acked_by[by])
+                    end
                 end
             end
             pos = e + 1
@@ -406,6 +420,12 @@ function rprs.dissector(tvb, pinfo, tree)
         if sent ~= nil and sent.frame < pinfo.number then
             a:add(f.acks, sent.frame):set_generated()
         end
+    end
+    for _, first in ipairs(rprs.prefs.analyze and dup_acks[pinfo.number] or {}) do
+        a:add(f.dup_ack, first):set_generated()
+    end
+    if rprs.prefs.analyze and dup_acks[pinfo.number] ~= nil then
+        info = "[dup ack] " .. info
     end
     -- the hand-over: from the previous frame's end (packets are stamped at their last stop
     -- bit) to this one's first bit

@@ -13,6 +13,7 @@ import pcapng
 import pytest
 
 from firmware_model.radio.frame import parse_frame
+from firmware_model.radio.errors import FrameError
 from hil.sim.pcap import CAN_ERR_FLAG, UNITS_PER_TICK
 from hil.wireshark import plugin_path
 
@@ -759,3 +760,30 @@ def test_the_hand_over_gap_is_the_traces_and_a_frame_sent_too_soon_is_early(run,
     strict = _tshark_rows(path, "-o", "rprs.ttrans_us:6000", "-Y", "rprs.analysis.early")
     assert len(strict) == sum(e["start"] - b["end"] < 5.5e-3 * 16e6
                               for b, e in zip(frames, frames[1:])) > 100
+
+
+@needs_tshark
+def test_a_robot_acknowledging_a_message_again_is_a_duplicate_ack(retries):
+    """``rprs.analysis.duplicate_ack``: the frames (of those that parse) in which a robot
+    acknowledges a message it acknowledged in an earlier frame, as Python finds them in the
+    same capture's bytes."""
+    import re
+    path, _ = retries
+    _, packets = _packets(path)
+    seen: set[tuple[bytes, int]] = set()
+    want, parsed = [], []
+    for number, ((link, _name), _t, data, _c) in enumerate(packets, 1):
+        try:
+            frame = parse_frame(data) if link == 147 else None
+        except FrameError:
+            frame = None
+        if frame is None:
+            continue
+        parsed.append(str(number))
+        acks = {(m.group(0), frame.src) for m in re.finditer(rb"ack\(\d+,\d+\)", frame.content)}
+        if acks & seen:
+            want.append(str(number))
+        seen |= acks
+    got = _tshark_rows(path, "-Y", "rprs.analysis.duplicate_ack", "-T", "fields", "-e",
+                       "frame.number")
+    assert want and [n for n in got if n in set(parsed)] == want
