@@ -198,6 +198,16 @@ local function hmac_sha256_hex(key, msg)
     return (digest:gsub(".", function(ch) return string.format("%02x", ch:byte()) end))
 end
 
+-- a generated check of ``range`` into ``field``; failed, its expert info ``e``: the text the
+-- Info column gets (" [mark]" when it failed)
+local function verdict(t, field, range, good, e, mark)
+    local item = t:add(field, range, good)
+    item:set_generated()
+    if good then return "" end
+    item:add_proto_expert_info(e)
+    return " [" .. mark .. "]"
+end
+
 -- the ring key from the preference: 32 hex digits (a key file's key = line), else nil
 local function ring_key()
     local hex = rprs.prefs.auth_key or ""
@@ -338,17 +348,10 @@ function rprs.dissector(tvb, pinfo, tree)
             local carried = tonumber(digits)
             local crange = tvb(12 + clen - 10, 10)
             t:add(f.crc, crange, carried)
-        end
-        if digits and len ~= nil and clen == len and rprs.prefs.check_crc then
-            local carried = tonumber(digits)
-            local computed = crc16(tvb:bytes(3, 9 + clen - 10))
-            local crange = tvb(12 + clen - 10, 10)
-            t:add(f.crc_calc, crange, computed):set_generated()
-            local ok = t:add(f.crc_ok, crange, carried == computed)
-            ok:set_generated()
-            if carried ~= computed then
-                ok:add_proto_expert_info(e_crc)
-                info = info .. " [bad crc]"
+            if rprs.prefs.check_crc then
+                local computed = crc16(tvb:bytes(3, 9 + clen - 10))
+                t:add(f.crc_calc, crange, computed):set_generated()
+                info = info .. verdict(t, f.crc_ok, crange, carried == computed, e_crc, "bad crc")
             end
         end
         -- the authenticated profile (protocol clause 52): auth(FFFFFFFF,TTTTTTTT) ends Content,
@@ -361,12 +364,8 @@ function rprs.dissector(tvb, pinfo, tree)
             if key ~= nil then
                 -- the tag covers Destination up to the comma after the freshness value
                 local want = hmac_sha256_hex(key, tvb:raw(3, clen)):sub(1, 8)
-                local ok = t:add(f.auth_ok, tvb(12 + clen - 9, 8), want == tag)
-                ok:set_generated()
-                if want ~= tag then
-                    ok:add_proto_expert_info(e_auth)
-                    info = info .. " [bad tag]"
-                end
+                info = info .. verdict(t, f.auth_ok, tvb(12 + clen - 9, 8), want == tag, e_auth,
+                                       "bad tag")
             end
         end
     end
