@@ -46,7 +46,7 @@ def personal_extcap_dir() -> Path:
 
 
 def install_extcap(where: str | None) -> int:
-    """``--install-extcap``: a launcher of hil.wireshark.extcap, run by this Python, in the
+    """``--install-extcap``: a launcher of hil.cli.extcap, run by this Python, in the
     personal extcap folder (or ``where``)."""
     import shlex
     import sys
@@ -56,7 +56,7 @@ def install_extcap(where: str | None) -> int:
     dest_dir = Path(where) if where else personal_extcap_dir()
     dest = dest_dir / "rprs-radio"
     script = (f"#!/bin/sh\n# RPRS radio capture for Wireshark (rprs wireshark --install-extcap)\n"
-              f"exec {shlex.quote(sys.executable)} -m hil.wireshark.extcap \"$@\"\n")
+              f"exec {shlex.quote(sys.executable)} -m hil.cli.extcap \"$@\"\n")
     try:
         dest_dir.mkdir(parents=True, exist_ok=True)
         dest.write_text(script, encoding="utf-8")

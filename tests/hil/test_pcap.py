@@ -695,7 +695,7 @@ def test_wireshark_captures_live_from_a_radio_port_through_the_extcap(tmp_path):
 
 
 def test_the_extcap_answers_wiresharks_questions_and_refuses_what_it_cannot_do(capsys):
-    from hil.wireshark import extcap
+    from hil.cli import extcap
     assert extcap.main(["--extcap-interfaces"]) == 0
     assert "interface {value=rprs-radio}" in capsys.readouterr().out
     assert extcap.main(["--extcap-interface", "rprs-radio", "--extcap-dlts"]) == 0

@@ -7,9 +7,9 @@ and settings, and then for a capture into a FIFO; this one offers one interface,
 station: nothing is sent). ``rprs wireshark --install-extcap`` puts a launcher for it in
 Wireshark's personal extcap folder:
 
-    python -m hil.wireshark.extcap --extcap-interfaces
-    python -m hil.wireshark.extcap --extcap-interface rprs-radio --extcap-config
-    python -m hil.wireshark.extcap --extcap-interface rprs-radio --capture --fifo F --port P
+    python -m hil.cli.extcap --extcap-interfaces
+    python -m hil.cli.extcap --extcap-interface rprs-radio --extcap-config
+    python -m hil.cli.extcap --extcap-interface rprs-radio --capture --fifo F --port P
 """
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         import contextlib
         import io
-        from hil.cli import main as rprs_main
+        from . import main as rprs_main
         args = ["capture", "--radio", a.port, "--pcap", a.fifo]
         if a.duration:
             args += ["--duration", str(a.duration)]
