@@ -78,8 +78,8 @@ class Ledger:
         self.stats: dict[int, RobotStats] = {r: RobotStats() for r in robots}
         self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
         self._membership_seen: set[tuple[int, str, int]] = set()
-        self._miss_seen: set[int] = set()     # robots counted missing at ``_miss_tick``
-        self._miss_tick = -1
+        self._miss_seen: set[tuple[int, int]] = set()     # (tick, robot) counted
+        self._miss_order: deque[tuple[int, int]] = deque()  # the same, oldest first
         self.keep = keep
         self.outcomes: list[Outcome] | None = [] if keep else None
         self.latency_ms: Counter = Counter()
@@ -139,11 +139,15 @@ class Ledger:
     def missed(self, now: int, robot: int) -> None:
         """``robot`` missed its turn, as one robot that hears the air saw it: counted once per
         turn however many saw it."""
-        if now != self._miss_tick:          # every robot that saw it reports it at this tick
-            self._miss_tick = now
-            self._miss_seen.clear()
-        if robot not in self._miss_seen:
-            self._miss_seen.add(robot)
+        key = (now, robot)
+        if key not in self._miss_seen:
+            self._miss_seen.add(key)
+            order = self._miss_order
+            order.append(key)
+            # every robot that saw the miss reports it within a frame's time (a CPU model's
+            # late bytes included): older keys are forgotten, so the set stays small
+            while order[0][0] + RETIRE_TICKS < now:
+                self._miss_seen.discard(order.popleft())
             if robot in self.stats:
                 self.stats[robot].missed += 1
 
