@@ -98,7 +98,9 @@ class Ledger:
         self._received: dict[int, Counter] = {}
         """Serial -> receiver -> deliveries, for those messages."""
         self._retiring: deque[tuple[int, int]] = deque()    # (tick it ended, serial)
-        self._serial_of: dict[int, int] = {}   # id(message) -> serial, until it ends
+        self._serial_of: dict[int, tuple[Message, int]] = {}
+        """id(message) -> (the message, its serial), until it ends (the message held: a
+        message dropped unended cannot lend its id to a new one)."""
         self._duplicates_retired = 0
         self.identity: list[dict] = []
         """Every duplicate_id and foreign_ring said, by any robot (the summary lists them)."""
@@ -123,18 +125,22 @@ class Ledger:
         deliver them again; their duplicate deliveries become a count."""
         q = self._retiring
         while q and q[0][0] + RETIRE_TICKS < now:
-            _, serial = q.popleft()
-            m = self._live.pop(serial, None)
-            per = self._received.pop(serial, None)
-            if per is not None:
-                self._duplicates_retired += sum(c - 1 for c in per.values() if c > 1)
-            if m is not None:
-                key = (m.src, m.num)
-                keyed = self._by_key.get(key)
-                if keyed is not None and serial in keyed:
-                    keyed.remove(serial)
-                    if not keyed:
-                        del self._by_key[key]
+            self._forget(q.popleft()[1])
+
+    def _forget(self, serial: int) -> None:
+        """Check no delivery against message ``serial`` any more; its duplicate deliveries
+        become a count."""
+        m = self._live.pop(serial, None)
+        per = self._received.pop(serial, None)
+        if per is not None:
+            self._duplicates_retired += sum(c - 1 for c in per.values() if c > 1)
+        if m is not None:
+            key = (m.src, m.num)
+            keyed = self._by_key.get(key)
+            if keyed is not None and serial in keyed:
+                keyed.remove(serial)
+                if not keyed:
+                    del self._by_key[key]
 
     def missed(self, now: int, robot: int) -> None:
         """``robot`` missed its turn, as one robot that hears the air saw it: counted once per
@@ -199,9 +205,9 @@ class Ledger:
         self.ended_count += 1
         if self.outcomes is not None:
             self.outcomes.append(a)
-        serial = self._serial_of.pop(id(m), None)
-        if serial is not None:
-            self._retiring.append((now, serial))
+        entry = self._serial_of.pop(id(m), None)
+        if entry is not None:
+            self._retiring.append((now, entry[1]))
         s = self.stats[m.src]
         if a.delivered:
             s.delivered += 1
@@ -222,16 +228,11 @@ class Ledger:
         if self.messages is not None:
             self.messages.append(a)
         self._live[serial] = a
-        self._serial_of[id(a)] = serial
+        self._serial_of[id(a)] = (a, serial)
         keyed = self._by_key.setdefault((a.src, a.num), [])
         keyed.append(serial)
         if len(keyed) > KEYED:
-            gone = keyed.pop(0)
-            if self.messages is None:       # never matched again: forget it now
-                self._live.pop(gone, None)
-                per = self._received.pop(gone, None)
-                if per is not None:
-                    self._duplicates_retired += sum(c - 1 for c in per.values() if c > 1)
+            self._forget(keyed[0])          # never matched again
 
 
 def summary(world: World) -> dict:

@@ -52,12 +52,12 @@ from .trace import TRACE_VERSION, TraceWriter
 
 __all__ = ["World", "SimConfig", "ConfigError", "Fault", "CAN_TIMING", "STANDBY", "EXTRA",
            "RecordsNotKept"]
+"""The world, and the names its users take from here: the config, its error, a fault."""
 
 
 class RecordsNotKept(RuntimeError):
     """A run record read from a world that does not keep them (``SimConfig.keep_records``)."""
 
-"""The world, and the names its users take from here: the config, its error, a fault."""
 
 CAN_TIMING = BitTiming()
 """500 kbit/s: 2 ticks a time quantum, 16 quanta a bit (docs/can.md)."""
