@@ -13,7 +13,8 @@ both alike, and every run's JSON, without its wall time, must be the same as eve
 ``--checksum both`` measures the README's soak (``rprs soak --hours 2 --seed 11 --checksum
 both``) as each tree runs it: its two soaks one after the other where the tree does that, side
 by side on two CPUs where it can (hil/sim/soak.py ``run_soaks``); the wall time is what the
-user waits, not the CPU time of one run.
+user waits, not the CPU time of one run. Both trees run the ideal CPU (``--cpu ideal`` where
+the tree has the choice): the soak the earlier trees ran.
 """
 from __future__ import annotations
 
@@ -46,13 +47,24 @@ def accounting(out: str) -> str:
                           .encode()).hexdigest()[:16]
 
 
-def run_in(tree: str, hours: float, seed: int, checksum: str = "on") -> tuple[float, str]:
-    """(wall s of the whole process, accounting digest) of one soak run from ``tree``."""
+def cpu_choice(tree: str) -> list[str]:
+    """``--cpu ideal`` where ``tree``'s soak has a choice of CPU (it runs the MB90F549 model by
+    default, docs/cpu.md): the same zero-time CPU as a tree from before the choice."""
     env = dict(os.environ, PYTHONPATH=tree)
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "soak", "--help"], cwd=tree, env=env,
+                       capture_output=True, text=True)
+    return ["--cpu", "ideal"] if "--cpu" in p.stdout else []
+
+
+def run_in(tree: str, hours: float, seed: int, checksum: str = "on") -> tuple[float, str]:
+    """(wall s of the whole process, accounting digest) of one soak run from ``tree``, on the
+    ideal CPU (:func:`cpu_choice`)."""
+    env = dict(os.environ, PYTHONPATH=tree)
+    cpu = cpu_choice(tree)
     t0 = time.perf_counter()
     p = subprocess.run([sys.executable, "-m", "hil.cli", "soak", "--hours", str(hours),
-                        "--seed", str(seed), "--checksum", checksum, "--json"], cwd=tree,
-                       env=env,
+                        "--seed", str(seed), "--checksum", checksum, "--json", *cpu],
+                       cwd=tree, env=env,
                        capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if p.returncode != 0:

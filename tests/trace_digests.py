@@ -11,7 +11,7 @@ Each run covers a different part of the firmware and the air: a loaded ring with
 every child's CAN side with CAN faults and a cruising wheel, byte errors with idle noise, a
 forced collision and a foreign burst with the checksum, a father failover, a father with no
 standby back from a short outage (no probation: MacConfig.paired), power-on order with
-clock skew and dropped bytes, and the peer MACs.
+clock skew and dropped bytes, and the peer MACs; each on both CPUs.
 """
 from __future__ import annotations
 
@@ -42,7 +42,10 @@ RUNS = {
                                "--power 1@0.7 --fault skew:2:0.02 --fault drop@5-9:0.002",
     "csma peer": "--robots 1,2,3 --duration 10 --seed 7 --mac csma --load 5",
 }
-"""Name: the ``rprs sim`` options of the run (``--trace`` is added)."""
+"""Name: the ``rprs sim`` options of the run (``--trace`` is added). Each runs on the command
+line's default CPU, the MB90F549 model (docs/cpu.md), and again with ``--cpu ideal`` (the
+paper's zero-time CPU, the Python API's default): the runs below with ", ideal CPU"."""
+RUNS.update({f"{name}, ideal CPU": f"{args} --cpu ideal" for name, args in list(RUNS.items())})
 
 RECORDED = Path(__file__).resolve().parent / "data" / "trace_digests.txt"
 """The digests recorded at the last change of behaviour: ``<sha256>  <name>`` a line."""

@@ -10,7 +10,7 @@ from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, SimConfig, World
 from .common import (Parser, UserError, auth_option, checked_mac_config, digit, positive,
                      probability, profile_option)
-from .sim import add_sim_options, cmd_sim
+from .sim import add_sim_options, cmd_sim, cpu_costs, cpu_option, dispatch_latency_lines
 
 STORY_EVENTS = (E.Mode, E.Join, E.Rejoin, E.Disable, E.Miss, E.FaultEdge, E.Collision)
 """The kinds of event the ring demo tells (hil/sim/events.py)."""
@@ -117,7 +117,7 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
     robots = ((0,) if a.father else ()) + order
     limit = a.timeout
     cfg = SimConfig(robots=robots, duration=limit, seed=a.seed, ber=a.ber, noise=a.noise,
-                    can=True, sequence=(order, cycles), realtime=a.realtime,
+                    can=True, sequence=(order, cycles), realtime=a.realtime, cpu=cpu_costs(a),
                     mac=checked_mac_config(profile=a.profile, auth=a.auth_key))
     try:
         cfg.validate()
@@ -175,6 +175,8 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
           f"action cycle and the communication cycle ran asynchronously.")
     print(f"channel occupations {frames}, collisions {world.collisions}, CAN frames "
           f"{world.can_frames}")
+    for line in dispatch_latency_lines(world.summary()):
+        print(line)
     return 0
 
 
@@ -194,6 +196,7 @@ def add_action_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=positive, default=300.0, metavar="SECONDS",
                    help="give up after this much (simulated) time")
     p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+    cpu_option(p)
     profile_option(p)
     auth_option(p)
 

@@ -57,6 +57,7 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
     auth_option(p)
     p.add_argument("--father-standby", action="store_true",
                    help="a second father PC as hot standby for ID 0")
+    cpu_option(p)
     profile_option(p)
     if not demo:
         p.add_argument("--can", action="store_true", help="simulate every child's CAN side "
@@ -76,10 +77,6 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        help="peer MACs: frame size of the load (default 80)")
         p.add_argument("--vcd", type=output_path, metavar="FILE",
                        help="write a waveform (GTKWave) here")
-        p.add_argument("--cpu", choices=("ideal", "estimated"), default=None,
-                       help="the children's CPU: ideal (every handler in zero time, the "
-                       "paper's timing; the default) or estimated (the MB90F549 model with "
-                       "the cycle-cost table, docs/cpu.md)")
         p.add_argument("--cpu-costs", metavar="FILE", help="a TOML file of cycle costs "
                        "([costs] name = cycles) over the default table; implies --cpu "
                        "estimated")
@@ -178,15 +175,46 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
                      radio_switch=switch)
 
 
+DEFAULT_CPU = "estimated"
+"""The children's CPU when no ``--cpu`` is given: the MB90F549 model (docs/cpu.md, "The
+default"); ``--cpu ideal`` is the paper's zero-time idealisation."""
+
+
+def dispatch_latency_lines(s: dict) -> list[str]:
+    """The summary's dispatcher latency (radio End to the first CAN frame's SOF) as text, and
+    with the ideal CPU a line saying what it leaves out; none if no order reached a CAN bus."""
+    if "dispatch_latency_ticks" not in s:
+        return []
+    d = {k: (round(ticks_to_ms(v) * 1000, 1) if k != "count" else v)
+         for k, v in s["dispatch_latency_ticks"].items()}
+    lines = [f"dispatcher latency, radio End to the first CAN frame's SOF, over {d['count']} "
+             f"orders: min {d['min']:g} us, median {d['median']:g} us, max {d['max']:g} us"]
+    if "cpu_load" not in s:
+        # --cpu ideal: the handlers and the main loop run in zero time (docs/cpu.md)
+        lines.append("  (the ideal CPU, --cpu ideal: the firmware takes no time, so this is "
+                     "only the wait for a free CAN bus; the default CPU model adds its cycles)")
+    return lines
+
+
+def cpu_option(p: argparse.ArgumentParser) -> None:
+    """``--cpu ideal|estimated`` (``rprs sim``, ``demo``, ``soak``; a campaign's grid)."""
+    p.add_argument("--cpu", choices=("ideal", "estimated"), default=None,
+                   help="the children's CPU: estimated (the default: the MB90F549 model, "
+                   "every handler and the main loop take their cycles, docs/cpu.md) or ideal "
+                   "(every handler in zero time, the paper's idealisation; faster with --can "
+                   "over long runs: an idle child's CAN side sleeps)")
+
+
 def cpu_costs(a: argparse.Namespace):
-    """The cycle-cost table the options ask for, or None for the ideal CPU."""
-    choice = getattr(a, "cpu", None)
+    """The cycle-cost table the options ask for (the CPU model unless ``--cpu ideal``), or
+    None for the ideal CPU."""
+    choice = getattr(a, "cpu", None) or DEFAULT_CPU
     path = getattr(a, "cpu_costs", None)
     report = getattr(a, "cpu_report", False)
     if choice == "ideal" and (path or report):
         raise UserError("--cpu ideal charges no cycles: --cpu-costs and --cpu-report need "
                         "--cpu estimated")
-    if choice != "estimated" and not path and not report:
+    if choice == "ideal":
         return None
     from firmware_model.cycle_costs import DEFAULT_COSTS, load_costs
     if not path:
@@ -391,16 +419,8 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
         gaps = sum(s["cpu_tx_gaps"].values())
         con.print(f"CPU load (MB90F549 model): {loads}; UART overruns: {lost}; "
                   f"gaps in frames sent: {gaps}")
-    if "dispatch_latency_ticks" in s:
-        d = {k: (round(ticks_to_ms(v) * 1000, 1) if k != "count" else v)
-             for k, v in s["dispatch_latency_ticks"].items()}
-        con.print(f"dispatcher latency, radio End to the first CAN frame's SOF, over "
-                  f"{d['count']} orders: min {d['min']:g} us, median {d['median']:g} us, "
-                  f"max {d['max']:g} us")
-        if "cpu_load" not in s:
-            # --cpu ideal: the handlers and the main loop run in zero time (docs/cpu.md)
-            con.print("  (the ideal CPU, --cpu ideal: the firmware takes no time, so this is "
-                      "only the wait for a free CAN bus; --cpu estimated adds its cycles)")
+    for line in dispatch_latency_lines(s):
+        con.print(line)
     for e in s.get("identity", ()):
         who = f"R{e['robot']}" if e["robot"] else "father 0"
         if e.get("extra"):

@@ -6,6 +6,7 @@ import argparse
 import json
 
 from .common import positive, progress_bars, robot_list
+from .sim import cpu_costs, cpu_option
 
 def _hours(text: str) -> float:
     from ..sim.soak import DRAIN_S, MIN_HOURS
@@ -25,7 +26,7 @@ def cmd_soak(a: argparse.Namespace) -> int:
                                                     for ck in modes])
     try:
         results = run_soaks(a.hours, a.seed, modes, robots=a.robots, can=not a.no_can,
-                            load=a.rate, progress=None if updates is None else
+                            load=a.rate, cpu=cpu_costs(a), progress=None if updates is None else
                             (lambda i, s: updates[i](s)))
     finally:
         close()
@@ -60,5 +61,6 @@ def add(sub) -> None:
                     "status 1 if a run broke what it promises (without the checksum: not "
                     "'nothing twice' nor 'no corrupted command')")
     so.add_argument("--no-can", action="store_true", help="radio only (faster; no CAN faults)")
+    cpu_option(so)
     so.add_argument("--json", action="store_true", help="print the summary as JSON")
     so.set_defaults(func=cmd_soak)

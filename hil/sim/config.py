@@ -81,7 +81,8 @@ class SimConfig:
     cpu: CycleCosts | None = None
     """A cycle-cost table (firmware_model.cycle_costs.CycleCosts): every child's firmware runs
     on the MB90F549 CPU model, its handlers taking the time the table gives. None: the ideal
-    CPU, every handler in zero time (the paper's timing)."""
+    CPU, every handler in zero time (the paper's timing). The command line's default is the
+    model with ``DEFAULT_COSTS`` (``--cpu ideal`` gives None; docs/cpu.md)."""
     radio_switch: dict[int, tuple[int, int]] = field(default_factory=dict)
     """Per robot ID, its PTR2000's (TX-ready, RX-ready) switch times in ticks; robots not named
     get the nRF401 data sheet's, 1 ms and 3 ms (firmware_model/mcu/ptr2000.py). Not the MAC's

@@ -23,6 +23,7 @@ import signal
 import time
 from dataclasses import dataclass, field
 from functools import partial
+from typing import TYPE_CHECKING
 
 from firmware_model.radio.mac import MacConfig
 from firmware_model.timing import TICK_HZ, s_to_ticks
@@ -30,6 +31,9 @@ from firmware_model.timing import TICK_HZ, s_to_ticks
 from .faults import NODES, Fault
 from .quiet_can import PERIOD
 from .world import SimConfig, World
+
+if TYPE_CHECKING:
+    from firmware_model.cycle_costs import CycleCosts
 
 REFORM_BOUND_S = 15.0
 """Documented bound (docs/guarantees.md): the ring is whole again within this long after the
@@ -193,10 +197,11 @@ def _step_seeing(now: int, step: int, end_s: float | None, last: int) -> int:
 def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
              checksum: bool = True, can: bool = True, load: float = 0.5,
              progress=None, faults: list[Fault] | None = None,
-             can_sleep: bool = True) -> SoakResult:
+             can_sleep: bool = True, cpu: CycleCosts | None = None) -> SoakResult:
     """Run the soak; ``progress(simulated_s)`` is called as it goes. ``can_sleep``: see
-    SimConfig (the result is the same either way). ``hours`` below :data:`MIN_HOURS`: a
-    ValueError."""
+    SimConfig (the result is the same either way); ``cpu``: the children's cycle costs (None:
+    the ideal CPU; ``rprs soak`` gives the CPU model unless ``--cpu ideal``). ``hours`` below
+    :data:`MIN_HOURS`: a ValueError."""
     if not hours >= MIN_HOURS:
         raise ValueError(f"a soak lasts at least {MIN_HOURS:g} h ({MIN_HOURS * 3600:g} s): "
                          f"faults begin {SETTLE_S:g} s in and stop {DRAIN_S:g} s before the "
@@ -208,7 +213,7 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
     duration = hours * 3600.0
     cfg = SimConfig(robots=robots, duration=duration, seed=seed, load=load,
                     load_until=duration - DRAIN_S + SETTLE_S, can=can, can_sleep=can_sleep,
-                    father_standby=standby,
+                    father_standby=standby, cpu=cpu,
                     faults=tuple(faults), mac=MacConfig(checksum=checksum,
                                                         max_age=s_to_ticks(60)))
     t0 = time.perf_counter()

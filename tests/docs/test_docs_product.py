@@ -24,7 +24,8 @@ REAL_DATES = {
 }
 """Dates that are part of the product: the authenticated profile's freshness epoch."""
 
-NUMBERS = {"seven": 7, "eight": 8, "nine": 9, "ten": 10, "eleven": 11, "twelve": 12}
+NUMBERS = {"seven": 7, "eight": 8, "nine": 9, "ten": 10, "eleven": 11, "twelve": 12,
+           "sixteen": 16}
 
 
 def _files() -> list[Path]:

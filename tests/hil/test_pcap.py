@@ -374,13 +374,13 @@ def test_a_radio_that_dies_in_its_first_byte_leaves_an_empty_packet(tmp_path):
     from firmware_model.timing import TICK_HZ
     from hil.sim.world import SimConfig, World
 
-    cfg = SimConfig(robots=(0, 1, 2), duration=5, seed=1)
+    cfg = SimConfig(robots=(0, 1, 2), duration=5, seed=1)     # the ideal CPU, as --cpu ideal
     evs: list = []
     World(cfg, on_event=evs.append).run()
     start = [e for e in evs if e.get("ev") == "frame" and e["src"] == 1][3]["start"]
     path = tmp_path / "c.pcapng"
     r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1,2",
-                        "--duration", "5", "--seed", "1", "--no-progress",
+                        "--duration", "5", "--seed", "1", "--no-progress", "--cpu", "ideal",
                         "--fail", f"1@{(start + 100) / TICK_HZ!r}", "--pcap", str(path)],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr

@@ -727,7 +727,8 @@ def test_rprs_sim_says_who_refused_what(capsys):
     from hil.cli import main
     forged = "0f0a053130353032303031316a6f696e7428312c3333291719"
     assert main(["sim", "--robots", "0,1,2,3", "--power", "3@9.9", "--duration", "10",
-                 "--seed", "1", "--every-frame", "--fault", f"foreign@7.478132:x{forged}"]) == 0
+                 "--seed", "1", "--every-frame", "--cpu", "ideal",
+                 "--fault", f"foreign@7.478132:x{forged}"]) == 0
     out = capsys.readouterr().out
     assert "frames refused (docs/mac.md): father 0 1 (own ID 1); R1 1 (out of turn 1); " \
         "R2 1 (out of turn 1)" in out, out

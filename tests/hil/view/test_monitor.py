@@ -17,6 +17,7 @@ import pytest
 
 pytest.importorskip("textual")
 
+from firmware_model.cycle_costs import DEFAULT_COSTS  # noqa: E402
 from firmware_model.radio.frame import Frame  # noqa: E402
 from firmware_model.timing import TICK_HZ, TMAX_TICKS  # noqa: E402
 from hil.bench.scripts import HeardFrame  # noqa: E402
@@ -337,7 +338,8 @@ def test_the_monitor_writes_the_trace_and_waveform_it_shows(tmp_path):
     from hil.cli import main
     from hil.sim.trace import TraceWriter, read_trace
     from hil.view.vcd import VcdTraceWriter
-    cfg = dict(robots=(1, 2, 3), seed=5, load=2.0)
+    # on the CPU model, as ``rprs monitor`` and ``rprs sim`` run by default
+    cfg = dict(robots=(1, 2, 3), seed=5, load=2.0, cpu=DEFAULT_COSTS)
     trace, vcd = TraceWriter(str(tmp_path / "m.jsonl")), VcdTraceWriter(str(tmp_path / "m.vcd"))
     app = SimMonitorApp(SimConfig(duration=600.0, **cfg), paused=True, trace=trace,
                         listeners=[vcd.write])
@@ -542,7 +544,8 @@ def test_the_monitor_captures_what_it_shows(tmp_path):
     from hil.cli import main
     with open(tmp_path / "m.pcapng", "wb") as f:
         app = SimMonitorApp(SimConfig(robots=(1, 2, 3), seed=5, load=2.0, duration=600.0,
-                                      can=True), paused=True, capture=f)
+                                      can=True, cpu=DEFAULT_COSTS),
+                            paused=True, capture=f)
 
         async def go():
             async with app.run_test(size=SIZE) as pilot:
