@@ -116,7 +116,8 @@ def _message(self: Tester, h: Heard) -> Heard:
     t0 = self._secs()
     self.num = (self.num + 1) % 100
     before = list(seen["replies"])
-    h = self._turns(h, 6, (b"status()", {"dst": self.robot, "type_": 2}), watch)
+    h = self._turns(h, 6, (b"status()", {"dst": self.robot, "type_": 2, "num": self.num}),
+                    watch, until_acked=f"ack({self.me},{self.num})".encode())
     h = self._until(h, lambda: seen["replies"][len(before):], watch)
     new = seen["replies"][len(before):]
     ok = len(before) == 1 and len(new) == 1 and new[0] == (before[0] + 1) % 100

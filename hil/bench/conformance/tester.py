@@ -483,15 +483,22 @@ class Tester:
             self.acks.append((f.src, f.num))
 
     def _turns(self, h: Heard, n: int, first: tuple[bytes, dict] | None = None,
-               on_frame: Callable[[Heard, int], None] | None = None) -> Heard:
+               on_frame: Callable[[Heard, int], None] | None = None,
+               until_acked: bytes | None = None) -> Heard:
         """``n`` hand-overs from the robot's frame ``h``: our frame (the first one carrying
         ``first``: Content and fields), then its next; ``on_frame(h, i)`` sees each of its
-        frames. Returns its last frame, not yet answered."""
+        frames. ``until_acked``: ``first`` (a message with its Number in its fields) goes out
+        again in each of our turns until a frame of the robot carries these bytes (its
+        acknowledgement), as a station retransmits a message whose frame the robot did not
+        hear (a busy host loses one now and then). Returns its last frame, not yet
+        answered."""
+        pending = first is not None
         for i in range(n):
             self._note_acks(h)
-            content, kw = first if (first and i == 0) else (b"", {})
+            content, kw = first if (first and pending) else (b"", {})
             content += self._acks_content()
             h, _, self.after_miss = self._exchange(h, partial(self._encoded, content, **kw))
+            pending = until_acked is not None and until_acked not in h.frame.content
             if on_frame is not None:
                 on_frame(h, i)
         return h

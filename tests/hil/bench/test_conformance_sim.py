@@ -579,3 +579,31 @@ def test_a_robot_without_the_checksum_fails_clause_20_by_name():
     refusal, frames = [c for c in rep.checks if c.clause == "20"]
     assert "frames acting on it: 1" in refusal.figure, why        # it obeyed it
     assert re.match(r"(\d+) frames, \1 not: Number 00: no crc\(NNNNN\)", frames.figure), why
+
+
+def test_the_kit_sends_its_new_message_again_when_the_robot_lost_its_frame():
+    """A busy host loses a frame now and then. The kit's new message of clause 45 (our
+    Number '00' after '99') went out once, so a frame the robot did not take left it without
+    a reply and failed a robot that did nothing wrong (seen once on the pty hub). Here the
+    first frame carrying it breaks on the air (its Type digit): the kit sends the message
+    again, with its Number, until the robot acknowledges it, and every clause passes."""
+    link = SimLink(1, "rprs", (0, 1))
+    real, copies = link.write, []
+
+    def write(data: bytes) -> int:
+        if b"status()" in data and data[5:7] == b"00":
+            if not copies:
+                data = data[:7] + b"x" + data[8:]      # a bad Type digit: not acted on
+            copies.append(data)
+        return real(data)
+    link.write = write                                   # type: ignore[method-assign]
+    t = Tester(link, 1, "rprs", team=(0, 1))
+    try:
+        rep, stopped = t.run(), None
+    except ConformanceError as exc:
+        rep, stopped = t.report, str(exc)
+    why = _table(rep, stopped, link)
+    assert stopped is None and rep.passed, why
+    assert "to our 99 and 00" in _figure(rep, "45"), why
+    # the broken frame, then the same message whole (later clauses send theirs too)
+    assert copies[0][7:8] == b"x" and copies[1] == copies[0][:7] + b"2" + copies[0][8:], why
