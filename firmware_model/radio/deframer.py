@@ -42,6 +42,9 @@ __all__ = ["FrameReceived", "Garbage", "FrameFailed", "DeframerEvent", "Deframer
 
 _H0, _H1, _H2 = HEADER
 _E0, _E1 = 0x17, 0x19
+_E1_BYTE = bytes((_E1,))
+_PRINTABLE = bytes(range(0x20, 0x7F))
+"""The bytes a Content may hold (0x20-0x7E, docs/protocol.md §3.1)."""
 
 _WHOLE: dict[int, dict[bytes, Frame]] = {}
 """Per Length limit: byte strings known to be exactly one good frame (the fast path's cache).
@@ -257,6 +260,48 @@ class Deframer:
             return
         self._fail(b, t, out)
 
+    def _all_but_last(self, data: bytes, t0: int, end: int) -> bool:
+        """The second fast door: nothing held, and ``data`` is a known good frame (as
+        :meth:`known_frame` knows them) but its last byte, as a receiver on a CPU model gets
+        it (the End byte's handler runs apart: firmware_model/mcu/uart.py). Takes the bytes
+        as :meth:`_step` would, one by one (the frame in progress, nothing reported; byte
+        ``i`` completed at ``t0 + i*dt``, the last at ``end``) and returns True; else changes
+        nothing and returns False."""
+        if self._pos or self._g_count:
+            return False
+        whole = data + _E1_BYTE
+        frame = _WHOLE[self.max_content].get(whole) or built_frame(whole, self.max_content)
+        if frame is None:
+            return False
+        self.in_frame = True
+        self.first = self._hdr_t = t0
+        self._raw = bytearray(data)
+        self._pos = len(data)
+        self._src = frame.src
+        self._len = self._partial = len(frame.content)
+        self.last_tick = end
+        return True
+
+    def _content_run(self, data: bytes, i: int, t0: int, dt: int) -> int:
+        """In a frame's Content (``_pos`` past the Length field): the bytes of ``data`` from
+        ``i`` up to the Content's end, if all printable, taken at once as :meth:`_step` takes
+        each (byte ``j`` completed at ``t0 + j*dt``). Returns the index of the next byte to
+        step: ``i`` if there is less than two bytes of Content left or one is not printable
+        (:meth:`_step` then fails the frame at it)."""
+        pos = self._pos
+        m = CONTENT_OFFSET + self._len - pos        # type: ignore[operator]
+        if m > len(data) - i:
+            m = len(data) - i
+        if m < 2:
+            return i
+        run = data[i:i + m]
+        if run.translate(None, _PRINTABLE):
+            return i
+        self._raw += run
+        self._pos = pos + m
+        self.last_tick = t0 + (i + m - 1) * dt
+        return i + m
+
     def _complete(self, t: int, out: list) -> None:
         raw = bytes(self._raw)
         first = self.first
@@ -334,6 +379,8 @@ class Deframer:
         frame = self.known_frame(data, end)
         if frame is not None:
             return [FrameReceived(frame, t0, end)]
+        if n > CONTENT_OFFSET and data[-1] == _E0 and self._all_but_last(data, t0, end):
+            return []
         clean = not self._pos and not self._g_count
         out: list[DeframerEvent] = []
         i = 0
@@ -342,6 +389,11 @@ class Deframer:
         max_content = self.max_content
         while i < n:
             if self._pos:
+                if self._pos >= CONTENT_OFFSET:
+                    j = self._content_run(data, i, t0, dt)
+                    if j > i:
+                        i = j
+                        continue
                 step(data[i], t0 + i * dt, out)
                 i += 1
                 continue
@@ -378,6 +430,11 @@ class Deframer:
                             continue
             # Slow path: byte by byte until the machine is hunting with nothing held again.
             while i < n:
+                if self._pos >= CONTENT_OFFSET:
+                    j = self._content_run(data, i, t0, dt)
+                    if j > i:
+                        i = j
+                        continue
                 step(data[i], t0 + i * dt, out)
                 i += 1
                 if not self._pos:
