@@ -1,11 +1,12 @@
 """Campaign throughput: runs per second on 1 and 2 local workers, the scaling efficiency, and
 the share of the workers' time not spent in runs (scheduling, transfers, the database).
 
-    python benchmarks/campaign_scaling.py [--runs 40] [--duration 60]
+    python benchmarks/campaign_scaling.py [--runs 40] [--duration 60] [--cpu ideal]
 
 One grid point (the idle 5-robot ring with the father and the checksum, 1 message/s per
 robot) and ``--runs`` seeds, run into a fresh results file for each worker count, with the
-engine's default chunking (docs/campaigns.md).
+engine's default chunking (docs/campaigns.md). The children run on the CPU model, as a
+campaign does by default; ``--cpu ideal`` puts ``cpu = ["ideal"]`` in the grid.
 """
 from __future__ import annotations
 
@@ -31,13 +32,16 @@ def main() -> None:
     p.add_argument("--runs", type=int, default=40)
     p.add_argument("--duration", type=float, default=60.0)
     p.add_argument("--max-workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--cpu", choices=("ideal", "estimated"), default="estimated",
+                   help="the children's CPU (default: the CPU model, a campaign's default)")
     a = p.parse_args()
     engine.source_state = lambda root=None: ("benchmark", False)   # results are thrown away
     with tempfile.TemporaryDirectory() as d:
         spec_file = Path(d) / "bench.toml"
         spec_file.write_text(f'[campaign]\nname = "bench"\nseeds = {a.runs}\n'
                              f'duration = {a.duration}\n[grid]\nrobots = ["0,1,2,3,4"]\n'
-                             'load = ["1"]\nchecksum = [true]\n')
+                             'load = ["1"]\nchecksum = [true]\n'
+                             + (f'cpu = ["{a.cpu}"]\n' if a.cpu == "ideal" else ""))
         spec = load_spec(spec_file, check=check_args)
         print("| workers | runs | wall s | runs/s | efficiency | time not in runs |")
         print("|---|---|---|---|---|---|")
