@@ -177,7 +177,7 @@ def sim_config(a: argparse.Namespace) -> SimConfig:
 
 DEFAULT_CPU = "estimated"
 """The children's CPU when no ``--cpu`` is given: the MB90F549 model (docs/cpu.md, "The
-default"); ``--cpu ideal`` is the paper's zero-time idealisation."""
+default, and what it costs"); ``--cpu ideal`` is the paper's zero-time idealisation."""
 
 
 def dispatch_latency_lines(s: dict) -> list[str]:
