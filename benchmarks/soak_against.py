@@ -23,6 +23,7 @@ if __name__ == "__main__":     # a Python without the project says so in one lin
     require_project()
 
 import argparse
+import functools
 import hashlib
 import json
 import os
@@ -47,13 +48,14 @@ def accounting(out: str) -> str:
                           .encode()).hexdigest()[:16]
 
 
-def cpu_choice(tree: str) -> list[str]:
+@functools.cache
+def cpu_choice(tree: str) -> tuple[str, ...]:
     """``--cpu ideal`` where ``tree``'s soak has a choice of CPU (it runs the MB90F549 model by
     default, docs/cpu.md): the same zero-time CPU as a tree from before the choice."""
     env = dict(os.environ, PYTHONPATH=tree)
     p = subprocess.run([sys.executable, "-m", "hil.cli", "soak", "--help"], cwd=tree, env=env,
                        capture_output=True, text=True)
-    return ["--cpu", "ideal"] if "--cpu" in p.stdout else []
+    return ("--cpu", "ideal") if "--cpu" in p.stdout else ()
 
 
 def run_in(tree: str, hours: float, seed: int, checksum: str = "on") -> tuple[float, str]:

@@ -264,9 +264,9 @@ class Deframer:
         """The second fast door: nothing held, and ``data`` is a known good frame (as
         :meth:`known_frame` knows them) but its last byte, as a receiver on a CPU model gets
         it (the End byte's handler runs apart: firmware_model/mcu/uart.py). Takes the bytes
-        as :meth:`_step` would, one by one (the frame in progress, nothing reported; byte
-        ``i`` completed at ``t0 + i*dt``, the last at ``end``) and returns True; else changes
-        nothing and returns False."""
+        as :meth:`_step` would, one by one (the frame in progress, nothing reported; the first
+        completed at tick ``t0``, the last at ``end``) and returns True; else changes nothing
+        and returns False."""
         if self._pos or self._g_count:
             return False
         whole = data + _E1_BYTE
@@ -282,25 +282,25 @@ class Deframer:
         self.last_tick = end
         return True
 
-    def _content_run(self, data: bytes, i: int, t0: int, dt: int) -> int:
-        """In a frame's Content (``_pos`` past the Length field): the bytes of ``data`` from
-        ``i`` up to the Content's end, if all printable, taken at once as :meth:`_step` takes
-        each (byte ``j`` completed at ``t0 + j*dt``). Returns the index of the next byte to
-        step: ``i`` if there is less than two bytes of Content left or one is not printable
-        (:meth:`_step` then fails the frame at it)."""
+    def _advance(self, data: bytes, i: int, t0: int, dt: int, out: list) -> int:
+        """Take ``data[i]`` as :meth:`_step` does (byte ``j`` completed at ``t0 + j*dt``), or,
+        in a frame's Content, every byte from ``i`` up to the Content's end at once if all
+        are printable (what :meth:`_step` does with each, without a call a byte). Returns the
+        index of the next byte."""
         pos = self._pos
-        m = CONTENT_OFFSET + self._len - pos        # type: ignore[operator]
-        if m > len(data) - i:
-            m = len(data) - i
-        if m < 2:
-            return i
-        run = data[i:i + m]
-        if run.translate(None, _PRINTABLE):
-            return i
-        self._raw += run
-        self._pos = pos + m
-        self.last_tick = t0 + (i + m - 1) * dt
-        return i + m
+        if pos >= CONTENT_OFFSET:
+            m = CONTENT_OFFSET + self._len - pos        # type: ignore[operator]
+            if m > len(data) - i:
+                m = len(data) - i
+            if m > 1:
+                run = data[i:i + m]
+                if not run.translate(None, _PRINTABLE):
+                    self._raw += run
+                    self._pos = pos + m
+                    self.last_tick = t0 + (i + m - 1) * dt
+                    return i + m
+        self._step(data[i], t0 + i * dt, out)
+        return i + 1
 
     def _complete(self, t: int, out: list) -> None:
         raw = bytes(self._raw)
@@ -385,17 +385,12 @@ class Deframer:
         out: list[DeframerEvent] = []
         i = 0
         step = self._step
+        advance = self._advance
         find = data.find
         max_content = self.max_content
         while i < n:
             if self._pos:
-                if self._pos >= CONTENT_OFFSET:
-                    j = self._content_run(data, i, t0, dt)
-                    if j > i:
-                        i = j
-                        continue
-                step(data[i], t0 + i * dt, out)
-                i += 1
+                i = advance(data, i, t0, dt, out)
                 continue
             j = find(HEADER, i)
             if j < 0:
@@ -430,13 +425,7 @@ class Deframer:
                             continue
             # Slow path: byte by byte until the machine is hunting with nothing held again.
             while i < n:
-                if self._pos >= CONTENT_OFFSET:
-                    j = self._content_run(data, i, t0, dt)
-                    if j > i:
-                        i = j
-                        continue
-                step(data[i], t0 + i * dt, out)
-                i += 1
+                i = advance(data, i, t0, dt, out)
                 if not self._pos:
                     break
         if n:
