@@ -1,9 +1,9 @@
 """The cycle-cost table of the child firmware on the MB90F549: every figure the CPU model
 (firmware_model/mcu/cpu.py) charges, where it comes from, and the range it is good for.
 
-One machine cycle is one 62.5 ns tick at 16 MHz. These are **estimates**: the firmware is a
-model, not compiled F2MC-16LX code, so a handler's body is costed as a count of the work it
-does times a cost per unit of that work. Three kinds of source, named in each row:
+One machine cycle is one 62.5 ns tick at 16 MHz. The robots' firmware is not published, so a
+handler's body is the model firmware's own: written as an F2MC-16LX instruction listing, one
+path through the handler, and counted. Four kinds of source, named in each row:
 
 * ``manual``: F2MC-16LX hardware manuals, "Interrupts" (MB90420/5 §6.4.5; MB90560 §6.7,
   Table 6.7-3) and the instruction tables (MB90560 Appendix B, Table B.8-6).
@@ -13,9 +13,12 @@ does times a cost per unit of that work. Three kinds of source, named in each ro
   F2MC-16LX library figures were to be had; an 8-bit core with a one-cycle 8x8 multiply
   and a 16-bit core with a 16x16 multiply in 11 cycles (MULUW) are within a factor of two
   of each other on this work, so the figures are good for 0.5x-2x.
-* ``estimate``: an instruction count of the handler's work, at 4 cycles an instruction (the
-  F2MC-16LX register and RAM moves take 1-6 cycles; the manual's Table B.8 rows), good for
-  0.5x-2x.
+* ``listing``: a handler body, ``firmware_model/isa/listings/NAME.asm`` summed by
+  firmware_model/isa/listing.py from the instruction table firmware_model/isa/cycles.py
+  (each form's cycles from MAME's F2MC-16 core, checked against the manual's rows where they
+  are at hand). Exact for that listing and path; its worst case (fetch and CAN buffer waits)
+  is in the row's range.
+* ``estimate``: one SHA-256 compression, scaled from a published figure on another core.
 
 Change any row with ``--cpu-costs FILE`` (TOML, ``name = cycles`` under ``[costs]``);
 ``rprs sim --cpu-report`` prints the table in use with the load it caused.
@@ -27,6 +30,8 @@ import sys
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
+from .isa.listing import count
+
 
 @dataclass(frozen=True)
 class Cost:
@@ -35,6 +40,14 @@ class Cost:
     cycles: int
     source: str
     good_for: str
+
+
+def _listed(name: str, note: str = "") -> Cost:
+    """A handler body's row: its listing's count (firmware_model/isa/listing.py)."""
+    c = count(name)
+    return Cost(c.cycles, f"listing: firmware_model/isa/listings/{name}.asm, {c.instructions} "
+                f"instructions, cycles from firmware_model/isa/cycles.py{note}",
+                f"that path; worst {c.worst} with fetch and CAN buffer waits")
 
 
 @dataclass(frozen=True)
@@ -62,33 +75,19 @@ class CycleCosts:
     f_hypot: Cost = Cost(866, "soft-float: hypot (1.234, 5.678)", "0.5x-2x")
     f_round: Cost = Cost(150, "soft-float: round (1.2345)", "0.5x-2x")
 
-    # -- handler bodies (estimate: instructions x 4 cycles) ---------------------------------
-    uart_rx_byte: Cost = Cost(160, "estimate: read SSR0/SIDR0, check ORE/FRE, one step of the "
-                              "deframer (field state, checksum, bounds): ~40 instructions",
-                              "0.5x-2x")
-    mac_frame: Cost = Cost(1200, "estimate: the MAC's rules on a whole frame (ring update, "
-                           "turn order, ack and duplicate tables): ~300 instructions",
-                           "0.5x-2x")
-    mac_timer: Cost = Cost(600, "estimate: the MAC's timer rules (miss count, takeover, "
-                           "reload timer programme): ~150 instructions", "0.5x-2x")
-    uart_tx_byte: Cost = Cost(48, "estimate: TDRE: write the next byte of the frame buffer "
-                              "to SODR0, advance the index; after the last, clear TIE and "
-                              "arm the End's timer: ~12 instructions", "0.5x-2x")
-    uart_tx_done: Cost = Cost(200, "estimate: the End's timer: TXEN low, the MAC's "
-                              "end-of-frame rules: ~50 instructions", "0.5x-2x")
-    content_byte: Cost = Cost(40, "estimate: Content parser per byte (name and number "
-                              "scanning): ~10 instructions", "0.5x-2x")
-    command: Cost = Cost(400, "estimate: one command's dispatch, range checks and job "
-                         "bookkeeping: ~100 instructions", "0.5x-2x")
-    can_frame_out: Cost = Cost(220, "estimate: pack one CAN command and write IDR/DLC/DTR, "
-                               "request TREQR: ~55 instructions (its scaling, 2 MULUW and a "
-                               "DIVUW, is charged from those rows)", "0.5x-2x")
-    can_rx: Cost = Cost(320, "estimate: read a receive buffer (IDR, DLC, 8 data bytes), clear "
-                        "RCR, decode the status or event signals: ~80 instructions", "0.5x-2x")
-    can_tx: Cost = Cost(120, "estimate: clear TCR, pop the buffer's software queue, reload: "
-                        "~30 instructions", "0.5x-2x")
-    can_status: Cost = Cost(160, "estimate: read CSR/RTEC, note bus-off, arm the restart: ~40 "
-                            "instructions", "0.5x-2x")
+    # -- handler bodies (listing: firmware_model/isa/listings/NAME.asm, counted) -----------
+    uart_rx_byte: Cost = _listed("uart_rx_byte")
+    mac_frame: Cost = _listed("mac_frame")
+    mac_timer: Cost = _listed("mac_timer")
+    uart_tx_byte: Cost = _listed("uart_tx_byte")
+    uart_tx_done: Cost = _listed("uart_tx_done")
+    content_byte: Cost = _listed("content_byte")
+    command: Cost = _listed("command")
+    can_frame_out: Cost = _listed("can_frame_out", "; its scaling, 2 MULUW and a DIVUW, is "
+                                  "charged from those rows")
+    can_rx: Cost = _listed("can_rx")
+    can_tx: Cost = _listed("can_tx")
+    can_status: Cost = _listed("can_status")
     sha256_block: Cost = Cost(75_000, "estimate: one SHA-256 compression (64 rounds of 32-bit "
                               "adds, rotations and logic), scaled from a published figure: "
                               "SHA-512's compression in hand-written MSP430 assembler takes "
@@ -98,8 +97,7 @@ class CycleCosts:
                               "(C) on the MSP430; the F2MC-16LX's long-word instructions take "
                               "2-8 cycles where the MSP430's register moves take 1-2: 2x, "
                               "75k cycles (4.7 ms) compiled C", "0.5x-2x")
-    dispatcher_timer: Cost = Cost(200, "estimate: TMR1 ISR, job deadlines and CAN "
-                                  "supervision: ~50 instructions", "0.5x-2x")
+    dispatcher_timer: Cost = _listed("dispatcher_timer")
 
     def names(self) -> list[str]:
         return [f.name for f in fields(self)]

@@ -1,7 +1,7 @@
 """The ``rprs`` command line, one module per command (as cantools and python-can lay out
 theirs): ``sim``, ``demo``, ``encode``/``decode`` (codec), ``child``/``submodules``/``father``
 (robots), ``radio-hub`` (hub), ``inject``, ``bench``, ``conformance``, ``plot``, ``monitor``,
-``soak``. Option
+``soak``, ``listing``. Option
 types and shared options live in ``common``; ``trace_digests`` holds seeded ``rprs sim`` runs
 whose traces must not change by accident (tests/hil/sim/test_trace_digests.py).
 
@@ -47,7 +47,7 @@ def missing_extra(exc: ModuleNotFoundError, command: str | None) -> str | None:
 __all__ = ["build_parser", "main", "UserError"]
 
 COMMANDS = ("sim", "demo", "robots", "plot", "monitor", "soak", "campaign", "hub", "inject",
-            "bench", "capture", "conformance", "codec", "wireshark")
+            "bench", "capture", "conformance", "codec", "wireshark", "listing")
 """The command modules; each adds its subcommands in this order (the order of ``rprs --help``)."""
 
 MODULE_OF = {"sim": "sim", "demo": "demo", "child": "robots", "submodules": "robots",
@@ -55,7 +55,7 @@ MODULE_OF = {"sim": "sim", "demo": "demo", "child": "robots", "submodules": "rob
              "campaign": "campaign", "radio-hub": "hub", "inject": "inject", "bench": "bench",
              "capture": "capture",
              "conformance": "conformance", "encode": "codec", "decode": "codec",
-             "wireshark": "wireshark"}
+             "wireshark": "wireshark", "listing": "listing"}
 """The module that adds each command: ``rprs NAME ...`` imports that module only, so that a
 light command (``encode``, ``decode``, ``--version``) does not pay for the simulator's imports
 (python-can, cantools: about 0.4 s)."""

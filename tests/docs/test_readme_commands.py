@@ -47,6 +47,7 @@ GROUPS = {
     "codec": ("rprs encode", "rprs decode", "cat examples/capture.bin"),
     "soak": ("rprs soak",),
     "campaign": ("rprs campaign",),
+    "listing": ("rprs listing",),
 }
 """Groups of commands run in one shell, in the README's order (a group's later commands read
 what its earlier ones wrote), each a test of its own; every ``python ...`` command is a
@@ -161,6 +162,8 @@ def test_the_readme_commands_run_as_written(shell_dir, group):
     elif group == "campaign":
         assert (shell_dir / "study.sqlite").exists()
         assert "runs" in results[cmds[1]].stdout
+    elif group == "listing":
+        assert results[cmds[0]].stdout.splitlines()[-1].startswith("can_rx: ")
     elif _planned(group).endswith("--help"):
         assert results[group].stdout.startswith("usage:"), group
 
