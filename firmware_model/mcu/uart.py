@@ -12,6 +12,8 @@ bit sets RDRF and requests the receive interrupt; the handler reads the byte (cl
 when its entry sequence ends. A byte whose stop bit ends while RDRF is still set is an
 overrun: SSR.ORE is set and the byte is lost (MB90F549 UART, "reception": the data register
 is not overwritten). Without a CPU model the bytes go to ``on_rx`` as they come, in bursts.
+MAME's model of the F2MC-16 UART sets RDRF (or ORE) at the stop bit's sample, in the middle
+of its cell: half a bit (832 ticks) before the tick this model uses (docs/fidelity.md).
 
 Transmission with a CPU model is what the part does too. The UART has an output data
 register (SODR) in front of its shift register, and one transmit flag, TDRE (SSR0 bit 3;
