@@ -20,7 +20,8 @@ path through the handler, and counted. Four kinds of source, named in each row:
   is in the row's range.
 * ``estimate``: one SHA-256 compression, scaled from a published figure on another core.
 
-Change any row with ``--cpu-costs FILE`` (TOML, ``name = cycles`` under ``[costs]``);
+Change any row with ``--cpu-costs FILE`` (TOML: ``name = cycles`` under ``[costs]``, or
+``name = "mine.asm"`` under ``[listings]`` for a listing of your own);
 ``rprs sim --cpu-report`` prints the table in use with the load it caused.
 """
 from __future__ import annotations
@@ -30,7 +31,7 @@ import sys
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
-from .isa.listing import count
+from .isa.listing import ListingError, count
 
 
 @dataclass(frozen=True)
@@ -129,8 +130,10 @@ def ops_cycles(ops: dict[str, int], costs: CycleCosts = DEFAULT_COSTS) -> int:
 
 
 def load_costs(path: str | Path, base: CycleCosts = DEFAULT_COSTS) -> CycleCosts:
-    """``base`` with the rows a TOML file's ``[costs]`` table sets (``name = cycles``).
-    Raises ValueError with the file, the row and what is wrong."""
+    """``base`` with the rows a TOML file sets: ``name = cycles`` under ``[costs]``, or
+    ``name = "FILE.asm"`` under ``[listings]``, a listing of your own counted as the handler
+    rows are (firmware_model/isa/listing.py; FILE relative to the TOML file). Raises
+    ValueError with the file, the row and what is wrong."""
     if sys.version_info >= (3, 11):
         import tomllib
     else:                                # Python 3.10
@@ -142,10 +145,12 @@ def load_costs(path: str | Path, base: CycleCosts = DEFAULT_COSTS) -> CycleCosts
         raise ValueError(f"cannot read the cost table {p}: {exc.strerror or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{p} is not TOML: {exc}") from None
-    table = data.get("costs")
-    if not isinstance(table, dict) or not table:
+    table = data.get("costs", {})
+    listed = data.get("listings", {})
+    if not isinstance(table, dict) or not isinstance(listed, dict) or not (table or listed):
         raise ValueError(f"{p}: put the rows under a [costs] table, e.g. "
-                         f"[costs]\\nuart_rx_byte = 200")
+                         f"[costs]\\nuart_rx_byte = 200, or listings under [listings], e.g. "
+                         f"[listings]\\nuart_rx_byte = \"mine.asm\"")
     known = set(base.names())
     changes = {}
     for name, value in table.items():
@@ -157,6 +162,24 @@ def load_costs(path: str | Path, base: CycleCosts = DEFAULT_COSTS) -> CycleCosts
                              f"got {value!r}")
         old = getattr(base, name)
         changes[name] = Cost(value, f"{p.name} (was {old.cycles}: {old.source})", "as given")
+    for name, value in listed.items():
+        if name not in known:
+            raise ValueError(f"{p}: no cost named {name!r}; the rows are "
+                             f"{', '.join(sorted(known))}")
+        if name in changes:
+            raise ValueError(f"{p}: {name} is set under [costs] and under [listings]")
+        if not isinstance(value, str) or not value.endswith(".asm"):
+            raise ValueError(f"{p}: [listings] {name} must name a listing, "
+                             f"\"FILE.asm\", got {value!r}")
+        asm = p.parent / value
+        try:
+            c = count(asm.stem, asm.parent)
+        except ListingError as exc:
+            raise ValueError(f"{p}: [listings] {name}: {exc}") from None
+        old = getattr(base, name)
+        changes[name] = Cost(c.cycles, f"listing: {value}, {c.instructions} instructions "
+                             f"(was {old.cycles}: {old.source})",
+                             f"that path; worst {c.worst} with fetch and CAN buffer waits")
     return replace(base, **changes)
 
 

@@ -55,3 +55,20 @@ def test_mistakes_are_one_line_and_status_2(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith("rprs: error: ") and says in err, err
         assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_rprs_sim_runs_a_handler_listing_of_your_own(tmp_path, capsys):
+    (tmp_path / "rx.asm").write_text("MOV A, I:SIDR0\n.repeat 20\nMULUW A\n.endr\n")
+    costs = tmp_path / "mine.toml"
+    costs.write_text('[listings]\nuart_rx_byte = "rx.asm"\n')
+    argv = ["sim", "--robots", "1,2", "--duration", "3", "--seed", "1", "--cpu-report",
+            "--json", "--no-progress"]
+    assert main([*argv, "--cpu-costs", str(costs)]) == 0
+    report = json.loads(capsys.readouterr().out)["cpu_report"]["1"]
+    rx = next(h for h in report["handlers"] if h["handler"] == "UART0 RX")
+    assert rx["costs"]["uart_rx_byte"] == {"cycles": 3 + 20 * 11, "source": "listing"}
+    (tmp_path / "rx.asm").write_text("BNE away\n")
+    assert main([*argv, "--cpu-costs", str(costs)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("rprs: error: ") and "rx.asm:1: BNE away" in err
+    assert "Traceback" not in err

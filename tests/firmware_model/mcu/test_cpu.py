@@ -199,7 +199,23 @@ def test_a_cost_file_overrides_rows(tmp_path):
     assert f"was {DEFAULT_COSTS.uart_rx_byte.cycles}" in c.uart_rx_byte.source
 
 
+def test_a_cost_file_takes_a_listing_of_your_own(tmp_path):
+    (tmp_path / "enter.asm").write_text("MOV RP, #1\n")
+    (tmp_path / "rx.asm").write_text(".include enter\nMOV A, I:SIDR0\nMULUW A\n")
+    p = tmp_path / "costs.toml"
+    p.write_text('[costs]\nf_sin = 900\n[listings]\nuart_rx_byte = "rx.asm"\n')
+    c = load_costs(p)
+    assert c.uart_rx_byte.cycles == 2 + 3 + 11 and c.f_sin.cycles == 900
+    assert c.uart_rx_byte.source.startswith("listing: rx.asm, 3 instructions (was ")
+    assert c.can_rx == DEFAULT_COSTS.can_rx
+
+
 @pytest.mark.parametrize("text, words", [
+    ('[listings]\nuart_rx_byte = "nowhere.asm"\n', "no listing nowhere.asm"),
+    ('[listings]\nuart_rx_byte = 3\n', "must name a listing"),
+    ('[listings]\nuart_rx = "a.asm"\n', "no cost named 'uart_rx'"),
+    ('[costs]\nuart_rx_byte = 3\n[listings]\nuart_rx_byte = "a.asm"\n', "under [costs] and"),
+    ('[listings]\nuart_rx_byte = "bad.asm"\n', "bad.asm:1: BNE x: BNE is a conditional"),
     ("[costs]\nuart_rx = 3\n", "no cost named 'uart_rx'"),
     ("[costs]\nentry = -1\n", "whole number of cycles"),
     ("[costs]\nentry = 2.5\n", "whole number of cycles"),
@@ -207,6 +223,7 @@ def test_a_cost_file_overrides_rows(tmp_path):
     ("[costs\n", "not TOML"),
 ])
 def test_a_bad_cost_file_says_what_is_wrong(tmp_path, text, words):
+    (tmp_path / "bad.asm").write_text("BNE x\n")
     p = tmp_path / "c.toml"
     p.write_text(text)
     with pytest.raises(ValueError, match=None) as exc:
