@@ -3,17 +3,15 @@
 
 One machine cycle is one 62.5 ns tick at 16 MHz. The robots' firmware is not published, so a
 handler's body is the model firmware's own: written as an F2MC-16LX instruction listing, one
-path through the handler, and counted. Four kinds of source, named in each row:
+path through the handler, and counted. Three kinds of source, named in each row:
 
 * ``manual``: F2MC-16LX hardware manuals, "Interrupts" (MB90420/5 §6.4.5; MB90560 §6.7,
   Table 6.7-3) and the instruction tables (MB90560 Appendix B, Table B.8-6).
-* ``soft-float``: the MB90F549 has no FPU, so C ``float`` arithmetic runs in a library. The
-  cost per operation is the avr-libc 2.0.0 manual's "Benchmarks" table (Math functions,
-  column Avr4: an 8-bit AVR with a hardware multiplier, MCU clocks per call). No
-  F2MC-16LX library figures were to be had; an 8-bit core with a one-cycle 8x8 multiply
-  and a 16-bit core with a 16x16 multiply in 11 cycles (MULUW) are within a factor of two
-  of each other on this work, so the figures are good for 0.5x-2x.
-* ``listing``: a handler body, ``firmware_model/isa/listings/NAME.asm`` summed by
+* ``listing``: a handler body or a routine of the float library (the MB90F549 has no FPU:
+  C ``float`` runs in software; the routines are IEEE single, the transcendental ones
+  composed of the others as the algorithm each header names makes its calls, charged for
+  the operands of avr-libc's benchmark, whose 8-bit figures each row quotes),
+  ``firmware_model/isa/listings/NAME.asm`` summed by
   firmware_model/isa/listing.py from the instruction table firmware_model/isa/cycles.py
   (each form's cycles from MAME's F2MC-16 core, checked against the manual's rows where they
   are at hand). Exact for that listing and path; its worst case (fetch and CAN buffer waits)
@@ -43,12 +41,13 @@ class Cost:
     good_for: str
 
 
-def _listed(name: str, note: str = "") -> Cost:
-    """A handler body's row: its listing's count (firmware_model/isa/listing.py)."""
+def _listed(name: str, note: str = "", path: str = "that path") -> Cost:
+    """A row from its listing's count (firmware_model/isa/listing.py): the listing's file, its
+    instructions, ``note``; good for ``path`` (the path or operands it charges)."""
     c = count(name)
     return Cost(c.cycles, f"listing: firmware_model/isa/listings/{name}.asm, {c.instructions} "
                 f"instructions, cycles from firmware_model/isa/cycles.py{note}",
-                f"that path; worst {c.worst} with fetch and CAN buffer waits")
+                f"{path}; worst {c.worst} with fetch and CAN buffer waits")
 
 
 @dataclass(frozen=True)
@@ -65,16 +64,16 @@ class CycleCosts:
     mul16: Cost = Cost(11, "manual: Table B.8-6, MULUW A, word x word, non-zero", "exact")
     div32: Cost = Cost(22, "manual: Table B.8-6, DIVUW A,ear, long / word, normal", "exact")
 
-    # -- soft-float (avr-libc Benchmarks, Avr4) -----------------------------------------
-    f_add: Cost = Cost(108, "soft-float: __addsf3 (1.234, 5.678)", "0.5x-2x")
-    f_mul: Cost = Cost(138, "soft-float: __mulsf3 (1.234, 5.678)", "0.5x-2x")
-    f_div: Cost = Cost(465, "soft-float: __divsf3 (1.234, 5.678)", "0.5x-2x")
-    f_sin: Cost = Cost(1653, "soft-float: sin (1.2345)", "0.5x-2x")
-    f_cos: Cost = Cost(1671, "soft-float: cos (1.2345)", "0.5x-2x")
-    f_atan2: Cost = Cost(2857, "soft-float: atan2 (1.234, 5.678)", "0.5x-2x")
-    f_acos: Cost = Cost(2455, "soft-float: acos (0.54321)", "0.5x-2x")
-    f_hypot: Cost = Cost(866, "soft-float: hypot (1.234, 5.678)", "0.5x-2x")
-    f_round: Cost = Cost(150, "soft-float: round (1.2345)", "0.5x-2x")
+    # -- soft-float (listing: the model firmware's float library, counted) --------------------
+    f_add: Cost = _listed("f_add", " (avr-libc's 8-bit figure: 108)", "1.234 + 5.678")
+    f_mul: Cost = _listed("f_mul", " (avr-libc: 138)", "1.234 x 5.678")
+    f_div: Cost = _listed("f_div", " (avr-libc: 465)", "1.234 / 5.678")
+    f_sin: Cost = _listed("f_sin", " (avr-libc: 1653)", "sin(1.2345)")
+    f_cos: Cost = _listed("f_cos", " (avr-libc: 1671)", "cos(1.2345)")
+    f_atan2: Cost = _listed("f_atan2", " (avr-libc: 2857)", "atan2(1.234, 5.678)")
+    f_acos: Cost = _listed("f_acos", " (avr-libc: 2455)", "acos(0.54321)")
+    f_hypot: Cost = _listed("f_hypot", " (avr-libc: 866)", "hypot(1.234, 5.678)")
+    f_round: Cost = _listed("f_round", " (avr-libc: 150)", "round(1.2345)")
 
     # -- handler bodies (listing: firmware_model/isa/listings/NAME.asm, counted) -----------
     uart_rx_byte: Cost = _listed("uart_rx_byte")

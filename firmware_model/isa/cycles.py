@@ -38,16 +38,19 @@ MAME = "MAME f2mc16.cpp"
 class Form:
     """One instruction form: ``cycles`` (machine cycles; a conditional branch's when not
     taken), ``taken`` (a conditional branch's when taken, else None), ``per_register``
-    (added for each register of a PUSHW/POPW list), and the source."""
+    (added for each register of a PUSHW/POPW list), ``per_bit`` (added for each bit of a
+    shift by a count, which the listing gives as ``{bits N}``), and the source."""
 
     cycles: int
     source: str
     taken: int | None = None
     per_register: int = 0
+    per_bit: int = 0
 
 
-def _m(cycles: int, case: str, taken: int | None = None, per_register: int = 0) -> Form:
-    return Form(cycles, f"{MAME}, case {case}", taken, per_register)
+def _m(cycles: int, case: str, taken: int | None = None, per_register: int = 0,
+       per_bit: int = 0) -> Form:
+    return Form(cycles, f"{MAME}, case {case}", taken, per_register, per_bit)
 
 
 FETCH_WORST = 2
@@ -79,9 +82,16 @@ FORMS: dict[str, Form] = {
     "MOV @RWi+disp8,A": _m(5, "0x72 0xB0-0xB7 // MOV @RWx + disp8, A"),
     "MOV A,@RWj+": _m(7, "0x72 0x8C-0x8F // MOV A, @RWx+"),
     "MOV @RWj+,A": _m(7, "0x72 0xAC-0xAF // MOV @RWx+, A"),
+    "MOVX A,#imm": _m(2, "0x43 // MOVX A, #imm8"),
+    "MOVX A,Ri": _m(2, "0xB0-0xB7 // MOVX A, Rx"),
     # word and long transfers
     "MOVW A,#imm": _m(2, "0x4A // MOVW A, #imm16"),
     "MOVL A,#imm": _m(3, "0x4B // MOVL A, #imm32"),
+    "MOVL A,RLi": _m(4, "0x71 0x80-0x87 // MOVL A, RLx"),
+    "MOVL RLi,A": _m(4, "0x71 0xA0-0xA7 // MOVL RLx, A"),
+    "MOVL A,@RWi+disp8": _m(7, "0x71 0x90-0x97 // MOVL A, @RWx + disp8"),
+    "MOVL @RWi+disp8,A": _m(7, "0x71 0xB0-0xB7 // MOVL @RWx + disp8, A"),
+    "MOVW RWi,RWi": _m(4, "0x7B 0x00-0xE7 (bits 4-3 clear) // MOVW RWx, RWy"),
     "MOVW A,dir": _m(3, "0x48 // MOVW A, dir"),
     "MOVW dir,A": _m(3, "0x49 // MOVW dir, A"),
     "MOVW A,io": _m(3, "0x58 // MOVW A, io"),
@@ -98,6 +108,7 @@ FORMS: dict[str, Form] = {
     "MOVW @RWj,A": _m(5, "0x73 0xA8-0xAB // MOVW @RWx, A"),
     "MOVW A,@RWj+": _m(7, "0x73 0x8C-0x8F // MOVW A, @RWx+"),
     "MOVW @RWj+,A": _m(7, "0x73 0xAC-0xAF // MOVW @RWx+, A"),
+    "MOVW A,@RWj+disp16": _m(5, "0x73 0x98-0x9B // MOVW A, @RWx + disp16"),
     "MOVW A,SP": _m(1, "0x46 // MOVW A, SP"),
     # arithmetic and logic
     "ADD A,#imm": _m(2, "0x30 // ADD A, #imm8"),
@@ -111,10 +122,30 @@ FORMS: dict[str, Form] = {
     "CMP A": _m(1, "0x23 // CMP A"),
     "CMPW A": _m(1, "0x2B // CMPW A"),
     "XORW A": _m(2, "0x2E // XORW A"),
+    "ANDW A": _m(2, "0x2C // ANDW A"),
+    "ORW A": _m(2, "0x2D // ORW A"),
+    "NEG A": _m(2, "0x03 // NEG A"),
+    "NEGW A": _m(2, "0x0B // NEGW A"),
+    "NOTW A": _m(2, "0x3F // NOTW A"),
     "ADDW A,#imm": _m(2, "0x38 // ADDW A, #imm16"),
     "CMPW A,#imm": _m(2, "0x3B // CMPW A, #imm16"),
     "ANDW A,#imm": _m(2, "0x3C // ANDW A, #imm16"),
     "ORW A,#imm": _m(2, "0x3D // ORW A, #imm16"),
+    "XORW A,#imm": _m(2, "0x3E // XORW A, #imm16"),
+    "SUBW A,#imm": _m(2, "0x39 // SUBW A, #imm16"),
+    "SUBW A,RWi": _m(3, "0x76 0x20-0x27 // SUBW A, RWx"),
+    "SUBW RWi,A": _m(3, "0x77 0x20-0x27 // SUBW RWx, A"),
+    "ADDCW A,RWi": _m(3, "0x76 0x40-0x47 // ADDCW A, RWx"),
+    "SUBCW A,RWi": _m(3, "0x77 0x40-0x47 // SUBCW A, RWx"),
+    "ANDW A,RWi": _m(3, "0x76 0x80-0x87 // ANDW A, RWx"),
+    "ORW A,RWi": _m(3, "0x76 0xA0-0xA7 // ORW A, RWx"),
+    "XORW A,RWi": _m(3, "0x76 0xC0-0xC7 // XORW A, RWx"),
+    "ADDL A,#imm": _m(4, "0x18 // ADDL A, #imm32"),
+    "SUBL A,#imm": _m(4, "0x19 // SUBL A, #imm32"),
+    "CMPL A,#imm": _m(3, "0x1B // CMPL A, #imm32"),
+    "ADDL A,RLi": _m(6, "0x70 0x00-0x07 // ADDL A, RLx"),
+    "SUBL A,RLi": _m(6, "0x70 0x20-0x27 // SUBL A, RLx"),
+    "CMPL A,RLi": _m(6, "0x70 0x60-0x67 // CMPL A, RLx"),
     "ADDW A,RWi": _m(3, "0x76 0x00-0x07 // ADDW A, RWx"),
     "ADDW A,@RWi+disp8": _m(6, "0x76 0x10-0x17 // ADDW A, @RWx + disp8"),
     "ADDW RWi,A": _m(3, "0x77 0x00-0x07 // ADDW RWx, A"),
@@ -128,6 +159,8 @@ FORMS: dict[str, Form] = {
     "LSLW A": _m(2, "0x0C // LSLW A"),
     "LSRW A": _m(2, "0x0F // LSRW A"),
     "ASRW A": _m(2, "0x0E // ASRW A"),
+    "LSRL A,Ri": _m(6, "0x6F 0x1F // LSRL A, R0: 6 + 1 a bit shifted", per_bit=1),
+    "ROLC A": _m(2, "0x6F 0x07 // ROLC A (AL's low byte)"),
     "SWAP": _m(3, "0x16 // SWAP"),
     "SWAPW": _m(2, "0x1E // SWAPW"),
     "EXT": _m(1, "0x14 // EXT"),

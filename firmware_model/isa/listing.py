@@ -14,6 +14,7 @@ assembler:
   ``@RWj+disp16``, ``@RW0+RW7``, ``@RW1+RW7``, ``@PC+disp16`` the ea modes; a list
   ``(RW0,RW1)`` for PUSHW/POPW; a label for a branch;
 * a conditional branch says which way the path goes: ``{taken}`` or ``{not taken}``;
+* a shift by a count in R0 says the count: ``{bits N}``;
 * ``{can}`` marks an access to a CAN message buffer, which may wait while the controller uses
   it (counted in the worst case only);
 * ``.repeat N`` ... ``.endr`` runs the lines between N times; ``.include NAME`` counts another
@@ -157,6 +158,13 @@ def _step(text: str) -> Step:
     if not conditional and notes & {"taken", "not taken"}:
         raise ValueError(f"{mnemonic} is no conditional branch")
     n = form.taken if "taken" in notes and form.taken is not None else form.cycles
+    bits = [n for n in notes if n.startswith("bits ")]
+    if form.per_bit:
+        if len(bits) != 1 or not bits[0][5:].strip().isdigit():
+            raise ValueError(f"{mnemonic} shifts by a count: say {{bits N}}")
+        n += form.per_bit * int(bits[0][5:])
+    elif bits:
+        raise ValueError(f"{mnemonic} takes no {{bits N}}")
     if form.per_register:
         regs = [r for r in ops[-1].strip("()").split(",") if r.strip()]
         n += form.per_register * len(regs)

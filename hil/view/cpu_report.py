@@ -34,7 +34,7 @@ def _pct(counts, q: float) -> int:
 def costed_by(name: str, costs: CycleCosts = DEFAULT_COSTS) -> dict:
     """Where handler ``name``'s cycles come from: its vector and ICR (none for main-loop
     work) and its rows of the cycle-cost table, each with its cycles and its source's kind
-    (``manual``, ``soft-float``, ``estimate``, or the file that changed it)."""
+    (``manual``, ``listing``, ``estimate``, or the file that changed it)."""
     v = VECTORS.get(name)
     return {"vector": v.number if v else None, "icr": icr_of(v.number) if v else None,
             "costs": {row: {"cycles": getattr(costs, row).cycles,

@@ -19,17 +19,18 @@
         MOVW  A, S:cmd_speed
         MOVW  @RW2+2, A {can}
         MOV   A, S:cmd_seq
-        MOV   A, S:cmd_mode
-        SWAP
+        MOV   A, S:cmd_mode             ; AH: seq, AL: mode
+        SWAP                            ; AL: mode << 8
+        ORW   A                         ; AL = AH | AL: seq | mode << 8
         MOVW  @RW2+4, A {can}
         MOVW  A, #0
         MOVW  @RW2+6, A {can}
         MOVW  A, RW0
         LSLW  A
         ADDW  A, #DLCR_BASE
-        MOVW  RW3, A
+        MOVW  RW4, A                    ; (RW3 is the frame pointer)
         MOVW  A, #8
-        MOVW  @RW3+0, A {can}           ; DLC 8
+        MOVW  @RW4+0, A {can}           ; DLC 8
         MOVW  A, TREQR                  ; request it
         ORW   A, #TREQ_BIT
         MOVW  TREQR, A

@@ -11,6 +11,9 @@ from firmware_model.isa.listing import LISTINGS, ListingError, count, operand_ki
 HANDLER_ROWS = ("uart_rx_byte", "mac_frame", "mac_timer", "uart_tx_byte", "uart_tx_done",
                 "content_byte", "command", "can_frame_out", "can_rx", "can_tx", "can_status",
                 "dispatcher_timer")
+FLOAT_ROWS = ("f_add", "f_mul", "f_div", "f_sin", "f_cos", "f_atan2", "f_acos", "f_hypot",
+              "f_round")
+LISTED_ROWS = HANDLER_ROWS + FLOAT_ROWS
 
 
 def write(tmp_path, name, text):
@@ -33,17 +36,21 @@ start:
         PUSHW (RW0, RW1, RW2)           ; 29 + 3 x 3
         POPW  (RW0, RW1, RW2)           ; 3 x 3
         MULUW A                         ; 11
+        LSRL  A, R0 {bits 3}            ; 6 + 3
 """)
     c = count("body", tmp_path)
-    assert c.cycles == 2 + 3 + 3 + 3 * (5 + 7) + 4 + 38 + 9 + 11
-    assert c.instructions == 13
+    assert c.cycles == 2 + 3 + 3 + 3 * (5 + 7) + 4 + 38 + 9 + 11 + 9
+    assert c.instructions == 14
     # the worst case: +2 a fetch across a word boundary, +64 a CAN buffer access
-    assert c.worst == c.cycles + 2 * 13 + 64 * 3
+    assert c.worst == c.cycles + 2 * 14 + 64 * 3
     assert [s.form for s in c.steps[:3]] == ["MOV RP,#imm", "MOV A,io", "BNE rel"]
 
 
 @pytest.mark.parametrize("text, says", [
     ("BNE away", "say {taken} or {not taken}"),
+    ("LSRL A, R0", "shifts by a count: say {bits N}"),
+    ("LSRL A, R0 {bits two}", "shifts by a count: say {bits N}"),
+    ("LSRW A {bits 2}", "takes no {bits N}"),
     ("MOVW A, RW0 {taken}", "no conditional branch"),
     ("MOVW A, @RW9+2", "no addressing mode"),
     ("FROB A", "'FROB A' is not in the instruction table"),
@@ -87,8 +94,8 @@ def test_every_conditional_branch_costs_at_least_as_much_taken():
             assert f.taken >= f.cycles, form
 
 
-@pytest.mark.parametrize("row", HANDLER_ROWS)
-def test_each_handler_row_is_its_listings_count(row):
+@pytest.mark.parametrize("row", LISTED_ROWS)
+def test_each_listed_row_is_its_listings_count(row):
     c = count(row)
     cost = getattr(DEFAULT_COSTS, row)
     assert cost.cycles == c.cycles > 0
@@ -99,8 +106,10 @@ def test_each_handler_row_is_its_listings_count(row):
 
 
 def test_every_listing_file_is_a_row_or_included():
+    assert {n for n, c in DEFAULT_COSTS.rows() if c.source.startswith("listing:")} == \
+        set(LISTED_ROWS)
     names = {p.stem for p in LISTINGS.glob("*.asm")}
-    assert names == set(HANDLER_ROWS) | {"isr_enter"}
+    assert names == set(LISTED_ROWS) | {"isr_enter", "f_sqrt"}
 
 
 INTERRUPT_HANDLERS = {"uart_rx_byte", "uart_tx_byte", "uart_tx_done", "mac_timer", "can_rx",

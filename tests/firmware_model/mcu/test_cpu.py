@@ -186,8 +186,9 @@ def test_the_kinematics_op_counts_match_the_code(monkeypatch):
 def test_a_move_costs_more_than_a_joint_order():
     move = message_cycles((cmd("movex", 10),))
     joint = message_cycles((cmd("joint", 1, 20),))
-    trig = FORWARD_OPS["f_sin"] * 1653 + FORWARD_OPS["f_cos"] * 1671
-    assert move > joint + trig        # the soft-float trigonometry alone is > 13k cycles
+    trig = (FORWARD_OPS["f_sin"] * DEFAULT_COSTS.f_sin.cycles
+            + FORWARD_OPS["f_cos"] * DEFAULT_COSTS.f_cos.cycles)
+    assert move > joint + trig        # the float library's trigonometry alone
 
 
 def test_a_cost_file_overrides_rows(tmp_path):
@@ -239,7 +240,7 @@ def test_a_missing_cost_file_is_a_clear_error(tmp_path):
 def test_every_row_names_its_source():
     for name, row in DEFAULT_COSTS.rows():
         assert isinstance(row, Cost) and row.cycles >= 0
-        assert row.source.split(":")[0] in ("manual", "soft-float", "listing", "estimate"), name
+        assert row.source.split(":")[0] in ("manual", "listing", "estimate"), name
         assert row.good_for, name
 
 
@@ -386,7 +387,7 @@ def test_cpu_report_as_json():
         "mac_frame": {"cycles": DEFAULT_COSTS.mac_frame.cycles, "source": "listing"}}
     main = next(h for h in report["cpu_report"]["1"]["handlers"] if h["handler"] == "main loop")
     assert main["vector"] is None and main["costs"]["mul16"]["source"] == "manual"
-    assert main["costs"]["f_sin"]["source"] == "soft-float"
+    assert main["costs"]["f_sin"]["source"] == "listing"
 
 
 def test_cpu_options_refuse_nonsense(tmp_path):
