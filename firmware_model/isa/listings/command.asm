@@ -169,36 +169,7 @@ same:
         MOVW  RW2, #jobs
         MOV   A, S:n_jobs
         MOVW  RW5, A
-        MOVW  A, @RW2+6                 ; its deadline
-        CMPW  A, RW7
-        BLO   earlier1 {taken}
-earlier1:
-        MOVW  RW7, A
-        MOVW  A, @RW2+4
-        MOVW  RW6, A
-; its nodes: a bit each (bit n, node n), node 2's
-        MOV   A, @RW2+0
-        MOVW  RW3, A
-        MOVW  RW1, #nodes
-        .repeat 2
-next_node:
-        MOVW  A, RW3
-        LSRW  A
-        MOVW  RW3, A
-        BC    waits {not taken}         ; nodes 0 (none) and 1: not waited for
-        MOVW  A, RW1
-        ADDW  A, #16
-        MOVW  RW1, A
-        MOVW  A, RW3
-        BNE   next_node {taken}
-        .endr
-        MOVW  A, RW3
-        LSRW  A
-        MOVW  RW3, A
-        BC    waits {taken}             ; node 2
-waits:
-        MOV   A, @RW1+12
-        BEQ   never_heard {not taken}
+        .include job_deadline           ; its deadline and its first node (job_deadline.asm)
         MOVW  A, @RW1+2                 ; last_seen against the start: the later
         CMPW  A, @RW2+10
         BHI   seen_later {not taken}

@@ -31,36 +31,7 @@ next_job:
         BHI   late {not taken}
         BNE   not_due {taken}
 not_due:
-        MOVW  A, @RW2+6                 ; the earliest: its deadline
-        CMPW  A, RW7
-        BLO   earlier1 {taken}
-earlier1:
-        MOVW  RW7, A
-        MOVW  A, @RW2+4
-        MOVW  RW6, A
-; its nodes: a bit each (bit n, node n), node 2's
-        MOV   A, @RW2+0
-        MOVW  RW3, A
-        MOVW  RW1, #nodes
-        .repeat 2
-next_node:
-        MOVW  A, RW3
-        LSRW  A
-        MOVW  RW3, A
-        BC    waits {not taken}         ; nodes 0 (none) and 1: not waited for
-        MOVW  A, RW1
-        ADDW  A, #16
-        MOVW  RW1, A
-        MOVW  A, RW3
-        BNE   next_node {taken}
-        .endr
-        MOVW  A, RW3
-        LSRW  A
-        MOVW  RW3, A
-        BC    waits {taken}             ; node 2
-waits:
-        MOV   A, @RW1+12
-        BEQ   never_heard {not taken}
+        .include job_deadline           ; its deadline and its first node (job_deadline.asm)
 ; silent? now - last_seen >= SILENCE (32 bits; then now - start too)
         MOVW  A, S:now_lo
         MOVW  A, @RW1+0
