@@ -34,11 +34,14 @@ from .isa.listing import ListingError, count
 
 @dataclass(frozen=True)
 class Cost:
-    """One row: ``cycles`` (machine cycles), where the figure comes from, its valid range."""
+    """One row: ``cycles`` (machine cycles), where the figure comes from, its valid range, and
+    ``worst_extra``: the cycles its worst case adds (a listing's program-fetch and CAN buffer
+    waits, which the CPU model does not charge; 0 for a figure given whole)."""
 
     cycles: int
     source: str
     good_for: str
+    worst_extra: int = 0
 
 
 def _listed(name: str, note: str = "", path: str = "that path") -> Cost:
@@ -47,7 +50,7 @@ def _listed(name: str, note: str = "", path: str = "that path") -> Cost:
     c = count(name)
     return Cost(c.cycles, f"listing: firmware_model/isa/listings/{name}.asm, {c.instructions} "
                 f"instructions, cycles from firmware_model/isa/cycles.py{note}",
-                f"{path}; worst {c.worst} with fetch and CAN buffer waits")
+                f"{path}; worst {c.worst} with fetch and CAN buffer waits", c.worst - c.cycles)
 
 
 @dataclass(frozen=True)
@@ -178,7 +181,8 @@ def load_costs(path: str | Path, base: CycleCosts = DEFAULT_COSTS) -> CycleCosts
         old = getattr(base, name)
         changes[name] = Cost(c.cycles, f"listing: {value}, {c.instructions} instructions "
                              f"(was {old.cycles}: {old.source})",
-                             f"that path; worst {c.worst} with fetch and CAN buffer waits")
+                             f"that path; worst {c.worst} with fetch and CAN buffer waits",
+                             c.worst - c.cycles)
     return replace(base, **changes)
 
 

@@ -3,9 +3,12 @@
 Per handler: how often it ran (calls a second), what one call costs (machine cycles: entry,
 body and RETI), its share of the CPU, its latency (request to acceptance) and response (request
 to its effects) in microseconds: median, 99th percentile and the worst seen. "worst case" adds
-the one thing the model does not simulate, the instruction under way when the request comes
-(at most ``sample_wait_max`` cycles), to the worst response seen; for UART0 reception it is
-set against the deadline, one byte time (a later read loses the next byte: ORE).
+to an interrupt handler's worst response seen what the model does not simulate: the
+instruction under way when the request comes (at most ``sample_wait_max`` cycles) and the
+waits its rows' listings count in their worst case (each instruction fetched across a word
+boundary, each CAN buffer access waiting; summed over the handler's rows, a bound where one
+call runs one of them). For UART0 reception it is set against the deadline, one byte time (a
+later read loses the next byte: ORE).
 """
 from __future__ import annotations
 
@@ -49,7 +52,10 @@ def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int,
     rows = []
     for s in sorted(cpu.stats.values(), key=lambda s: (s.level, s.name)):
         lat, resp = s.latency, s.response
-        worst = s.worst_response + (sample_wait if s.level < MAIN_LEVEL else 0)
+        worst = s.worst_response
+        if s.level < MAIN_LEVEL:
+            worst += sample_wait + sum(getattr(costs, row).worst_extra
+                                       for row in COSTED_BY.get(s.name, ()))
         rows.append({
             "handler": s.name, "level": s.level, "calls": s.calls,
             "per_second": round(s.calls * TICK_HZ / span, 1) if span else 0.0,
@@ -106,7 +112,8 @@ def print_cpu_report(world, costs, console=None) -> dict:
                       f"one byte: {deadline[2]:g} us")
     con.print("cycles: entry + body + RETI of one call; latency: request to acceptance; "
               "response: request to the handler's effects (p50/p99/max); worst adds the longest "
-              f"instruction ({costs.sample_wait_max.cycles} cycles), which is not simulated")
+              f"instruction ({costs.sample_wait_max.cycles} cycles) and its listings' fetch and "
+              f"CAN buffer waits (rprs listing), which are not simulated")
     con.print(f"vec: the MB90540/545 vector (ICR = (vec - 11) // 2; firmware_model/interrupts.py)"
               f"; each call costs entry {costs.entry.cycles} + RETI {costs.reti.cycles} "
               f"({costs.entry.source.split(':')[0]}) and its body, from these rows of the "

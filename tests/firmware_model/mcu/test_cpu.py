@@ -17,6 +17,7 @@ from firmware_model import kinematics
 from firmware_model.cycle_costs import (
     DEFAULT_COSTS, FORWARD_OPS, INVERSE_OPS, Cost, load_costs, message_cycles, replace,
 )
+from firmware_model.isa.listing import count
 from firmware_model.mcu.cpu import Cpu, Vector
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.radio.content import cmd
@@ -380,6 +381,13 @@ def test_cpu_report_as_json():
     assert "UART0 RX" in names and "CAN0 RX" in names
     uart = next(h for h in report["cpu_report"]["1"]["handlers"] if h["handler"] == "UART0 RX")
     assert uart["worst_case_us"] < uart["deadline_us"]
+    # the worst case adds what is not simulated: the instruction under way, and the fetch and
+    # CAN buffer waits its listings count in their worst case
+    extra = DEFAULT_COSTS.uart_rx_byte.worst_extra + DEFAULT_COSTS.mac_frame.worst_extra
+    assert extra == (count("uart_rx_byte").worst - count("uart_rx_byte").cycles
+                     + count("mac_frame").worst - count("mac_frame").cycles) > 0
+    unsimulated = (DEFAULT_COSTS.sample_wait_max.cycles + extra) / 16
+    assert abs(uart["worst_case_us"] - uart["response_us"][2] - unsimulated) <= 0.1
     # each handler's vector, ICR and the cost rows its cycles come from, with their sources
     assert (uart["vector"], uart["icr"]) == (37, 13)
     assert uart["costs"] == {
@@ -388,6 +396,7 @@ def test_cpu_report_as_json():
     main = next(h for h in report["cpu_report"]["1"]["handlers"] if h["handler"] == "main loop")
     assert main["vector"] is None and main["costs"]["mul16"]["source"] == "manual"
     assert main["costs"]["f_sin"]["source"] == "listing"
+    assert main["worst_case_us"] == main["response_us"][2]      # no instruction to wait for
 
 
 def test_cpu_options_refuse_nonsense(tmp_path):
