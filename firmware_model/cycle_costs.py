@@ -29,7 +29,7 @@ import sys
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
-from .isa.listing import ListingError, count
+from .isa.listing import Count, ListingError, count
 
 
 @dataclass(frozen=True)
@@ -44,13 +44,17 @@ class Cost:
     worst_extra: int = 0
 
 
-def _listed(name: str, note: str = "", path: str = "that path") -> Cost:
-    """A row from its listing's count (firmware_model/isa/listing.py): the listing's file, its
-    instructions, ``note``; good for ``path`` (the path or operands it charges)."""
-    c = count(name)
-    return Cost(c.cycles, f"listing: firmware_model/isa/listings/{name}.asm, {c.instructions} "
-                f"instructions, cycles from firmware_model/isa/cycles.py{note}",
+def listing_cost(c: Count, file: str, note: str, path: str = "that path") -> Cost:
+    """A row from a listing's count (firmware_model/isa/listing.py): its ``file``, its
+    instructions and ``note``; good for ``path`` (the path or operands it charges)."""
+    return Cost(c.cycles, f"listing: {file}, {c.instructions} instructions{note}",
                 f"{path}; worst {c.worst} with fetch and CAN buffer waits", c.worst - c.cycles)
+
+
+def _listed(name: str, note: str = "", path: str = "that path") -> Cost:
+    """The row of the model firmware's listing ``name``."""
+    return listing_cost(count(name), f"firmware_model/isa/listings/{name}.asm",
+                        f", cycles from firmware_model/isa/cycles.py{note}", path)
 
 
 @dataclass(frozen=True)
@@ -179,10 +183,7 @@ def load_costs(path: str | Path, base: CycleCosts = DEFAULT_COSTS) -> CycleCosts
         except ListingError as exc:
             raise ValueError(f"{p}: [listings] {name}: {exc}") from None
         old = getattr(base, name)
-        changes[name] = Cost(c.cycles, f"listing: {value}, {c.instructions} instructions "
-                             f"(was {old.cycles}: {old.source})",
-                             f"that path; worst {c.worst} with fetch and CAN buffer waits",
-                             c.worst - c.cycles)
+        changes[name] = listing_cost(c, value, f" (was {old.cycles}: {old.source})")
     return replace(base, **changes)
 
 

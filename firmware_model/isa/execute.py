@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import cycles
-from .listing import LISTINGS, _lines, _split, _step
+from .listing import LISTINGS, expand, split_line, step
 
 MASK16 = 0xFFFF
 STACK_TOP = 0x1000
@@ -397,31 +397,12 @@ HANDLERS: dict[str, Handler] = {
 """The instruction table's forms (:data:`cycles.FORMS` keys) the model runs."""
 
 
-def _labels(directory: Path, names: set[str]) -> dict[tuple[str, int], set[str]]:
-    """For each instruction line of these files, the labels just above it (those after the
-    previous instruction or ``.include``)."""
-    labels: dict[tuple[str, int], set[str]] = {}
-    for fname in names:
-        pending: set[str] = set()
-        text_lines = (directory / fname).read_text(encoding="utf-8").splitlines()
-        for no, line in enumerate(text_lines, 1):
-            text = line.split(";", 1)[0].strip()
-            if text.endswith(":"):
-                pending.add(text[:-1].strip())
-            elif text and text.split()[0].lower() not in (".repeat", ".endr"):
-                if not text.lower().startswith(".include"):
-                    labels[(fname, no)] = pending
-                pending = set()
-    return labels
-
-
 def execute(name: str, regs: Mapping[str, int], directory: Path = LISTINGS) -> State:
     """Run the listing ``name`` (``NAME.asm`` in ``directory``) from the registers ``regs``
     (``RW0``-``RW7``, ``RL0``-``RL3``; the rest and A 0; SP at :data:`STACK_TOP`), checking
     every branch's annotation and that a taken branch lands where the path goes on."""
     directory = Path(directory)
-    path = _lines(name, directory)
-    labels = _labels(directory, {fname for fname, _, _ in path})
+    path = expand(name, directory)
     s = State()
     s.memory.update({address + 2 * k: word for address, words in ROM_TABLES.values()
                      for k, word in enumerate(words)})
@@ -429,21 +410,20 @@ def execute(name: str, regs: Mapping[str, int], directory: Path = LISTINGS) -> S
         if not (_RW.match(reg) or _RL.match(reg)):
             raise ValueError(f"no register {reg!r} to set (RW0-RW7, RL0-RL3)")
         _write(s, reg, 32 if reg.startswith("RL") else 16, value)
-    for step, (fname, no, text) in enumerate(path):
+    for i, (fname, no, text, _) in enumerate(path):
         where = f"{fname}:{no}: {text}"
-        mnemonic, ops, notes = _split(text)
+        mnemonic, ops, notes = split_line(text)
         try:
-            form = _step(text).form
+            counted = step(text)
         except ValueError as exc:
             raise ExecutionError(f"{where}: {exc}") from None
+        form = counted.form
         run = HANDLERS.get(form)
         if run is None:
             raise ExecutionError(f"{where}: the executor has no model of {form!r}")
-        if cycles.FORMS[form].per_bit:
-            charged = int(next(n for n in notes if n.startswith("bits "))[5:])
-            if s.r(0) != charged:
-                raise ExecutionError(f"{where}: R0 is {s.r(0)}, the listing charges "
-                                     f"{{bits {charged}}}")
+        if counted.bits is not None and s.r(0) != counted.bits:
+            raise ExecutionError(f"{where}: R0 is {s.r(0)}, the listing charges "
+                                 f"{{bits {counted.bits}}}")
         try:
             taken = run(s, mnemonic, ops)
         except _Fault as exc:
@@ -457,9 +437,9 @@ def execute(name: str, regs: Mapping[str, int], directory: Path = LISTINGS) -> S
                 f"{where}: the listing says {said}, the data says "
                 f"{'taken' if taken else 'not taken'} (N={s.n:d} Z={s.z:d} V={s.v:d} "
                 f"C={s.c:d}, AL=0x{s.al:04X})")
-        if taken and step + 1 < len(path):
-            target, (nfile, nno, ntext) = ops[-1], path[step + 1]
-            if target not in labels[(nfile, nno)]:
+        if taken and i + 1 < len(path):
+            target, (nfile, nno, ntext, labels) = ops[-1], path[i + 1]
+            if target not in labels:
                 raise ExecutionError(
                     f"{where}: taken to {target}, but the path goes on at {nfile}:{nno} "
                     f"({ntext}), which is not at {target}: it would not run")

@@ -29,7 +29,9 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
+from typing import NamedTuple
 
 from . import cycles as table
 
@@ -56,12 +58,24 @@ class ListingError(ValueError):
 @dataclass(frozen=True)
 class Step:
     """One instruction of a listing as counted: the line, its form in the instruction table,
-    its cycles (machine cycles) and the worst case's extra cycles."""
+    its cycles (machine cycles), the worst case's extra cycles, and the shift count it is
+    charged for (``{bits N}``; None for a form without one)."""
 
     text: str
     form: str
     cycles: int
     extra_worst: int
+    bits: int | None = None
+
+
+class Line(NamedTuple):
+    """An instruction line of an expanded listing: its file, line number, text (comment
+    stripped) and the labels just above it (after the previous instruction or include)."""
+
+    file: str
+    no: int
+    text: str
+    labels: frozenset[str]
 
 
 @dataclass
@@ -125,7 +139,8 @@ def _form(mnemonic: str, kinds: list[str]) -> str:
     return key
 
 
-def _split(line: str) -> tuple[str, list[str], set[str]]:
+def split_line(line: str) -> tuple[str, list[str], set[str]]:
+    """An instruction line's mnemonic (upper case), operands and ``{...}`` notes."""
     notes = set(n.strip() for n in re.findall(r"\{([^}]*)\}", line))
     line = re.sub(r"\{[^}]*\}", "", line).strip()
     if " " not in line:
@@ -144,8 +159,12 @@ def _split(line: str) -> tuple[str, list[str], set[str]]:
     return mnemonic.upper(), [o for o in ops if o], notes
 
 
-def _step(text: str) -> Step:
-    mnemonic, ops, notes = _split(text)
+@lru_cache(maxsize=None)
+def step(text: str) -> Step:
+    """One instruction line as counted (a pure function of the line and the table: cached,
+    as repeats and includes count the same lines many times). ValueError says what is
+    wrong with it."""
+    mnemonic, ops, notes = split_line(text)
     kinds = [operand_kind(o) for o in ops]
     key = _form(mnemonic, kinds)
     form = table.FORMS.get(key)
@@ -158,11 +177,13 @@ def _step(text: str) -> Step:
     if not conditional and notes & {"taken", "not taken"}:
         raise ValueError(f"{mnemonic} is no conditional branch")
     n = form.taken if "taken" in notes and form.taken is not None else form.cycles
-    bits = [n for n in notes if n.startswith("bits ")]
+    bits = [note[5:].strip() for note in notes if note.startswith("bits ")]
+    count_bits = None
     if form.per_bit:
-        if len(bits) != 1 or not bits[0][5:].strip().isdigit():
+        if len(bits) != 1 or not bits[0].isdigit():
             raise ValueError(f"{mnemonic} shifts by a count: say {{bits N}}")
-        n += form.per_bit * int(bits[0][5:])
+        count_bits = int(bits[0])
+        n += form.per_bit * count_bits
     elif bits:
         raise ValueError(f"{mnemonic} takes no {{bits N}}")
     if form.per_register:
@@ -171,12 +192,12 @@ def _step(text: str) -> Step:
     extra = table.FETCH_WORST
     if "can" in notes:
         extra += table.CAN_BUFFER_WAIT_MAX
-    return Step(text, key, n, extra)
+    return Step(text, key, n, extra, count_bits)
 
 
-def _lines(name: str, directory: Path,
-           seen: tuple[str, ...] = ()) -> list[tuple[str, int, str]]:
-    """The listing's instruction lines, includes expanded, as (file, line number, text)."""
+def expand(name: str, directory: Path = LISTINGS, seen: tuple[str, ...] = ()) -> list[Line]:
+    """The listing's instruction lines in the order its path runs them: includes expanded,
+    repeats unrolled."""
     if name in seen:
         raise ListingError(f"{name}.asm includes itself through {' -> '.join(seen)}")
     path = directory / f"{name}.asm"
@@ -184,10 +205,13 @@ def _lines(name: str, directory: Path,
         raw = path.read_text(encoding="utf-8").splitlines()
     except OSError as exc:
         raise ListingError(f"no listing {path.name}: {exc.strerror or exc}") from None
-    out: list[tuple[str, int, str]] = []
-    stack: list[tuple[int, list[tuple[str, int, str]]]] = []
+    out: list[Line] = []
+    stack: list[tuple[int, list[Line]]] = []
+    labels: set[str] = set()
     for no, line in enumerate(raw, 1):
         text = line.split(";", 1)[0].strip()
+        if text.endswith(":"):
+            labels.add(text[:-1].strip())
         if not text or text.endswith(":"):
             continue
         target = stack[-1][1] if stack else out
@@ -204,9 +228,11 @@ def _lines(name: str, directory: Path,
             times, body = stack.pop()
             (stack[-1][1] if stack else out).extend(body * times)
         elif word == ".include":
-            target.extend(_lines(text.split()[1], directory, seen + (name,)))
+            target.extend(expand(text.split()[1], directory, seen + (name,)))
+            labels = set()
         else:
-            target.append((path.name, no, text))
+            target.append(Line(path.name, no, text, frozenset(labels)))
+            labels = set()
     if stack:
         raise ListingError(f"{path.name}: .repeat without .endr")
     return out
@@ -216,9 +242,9 @@ def count(name: str, directory: Path = LISTINGS) -> Count:
     """Count the listing ``name`` (``NAME.asm`` in ``directory``, by default the model
     firmware's listings)."""
     total = Count(name)
-    for fname, no, text in _lines(name, Path(directory)):
+    for line in expand(name, Path(directory)):
         try:
-            total.add(_step(text))
+            total.add(step(line.text))
         except ValueError as exc:
-            raise ListingError(f"{fname}:{no}: {text}: {exc}") from None
+            raise ListingError(f"{line.file}:{line.no}: {line.text}: {exc}") from None
     return total
