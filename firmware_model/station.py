@@ -86,6 +86,11 @@ class RadioStation:
         """The End a failed frame's Length promised, while its turn is to close there: if its
         bytes stop for the stall gap before it, the frame is over then (clause 41)."""
         self._resync_after_tx = False
+        self._edge_cleared = -1
+        """Tick the receive handler last cleared INT0's edge flag (EIRR bit 0), having read a
+        byte: a falling edge on SIN0 after it means a byte has begun (Uart.rx_fall)."""
+        self._edge_seen: int | None = None
+        """The edge the flag showed at the MAC timer's last look, no Header byte in yet."""
         self.cpu: Cpu | None = None          # run_on: the handlers run on the CPU model
         self._frame_cycles = 0
         self._block_cycles = 0
@@ -174,6 +179,9 @@ class RadioStation:
         mac = self.mac
         d = self.deframer
         end = t0 + (len(data) - 1) * dt
+        # the last byte's handler clears INT0's edge flag: on the ideal CPU at that byte's
+        # tick (bytes handed over in a burst too), else at its effects
+        self._edge_cleared = end if self.cpu is None else now
         frame = d.known_frame(data, end)
         if frame is not None:
             self._promise = None
@@ -239,7 +247,19 @@ class RadioStation:
         hs = d.header_since
         if hs is not None and (d.last_tick is None or now - d.last_tick > self._stall):
             hs = None          # a partial Header whose next byte never came is no Header
-        began = hs - self.uart.byte_ticks if hs is not None else self.uart.rx_started(now)
+        if hs is not None:
+            # the Header's first byte is in: its start bit began a byte before it, as far as
+            # this UART's byte time tells; or at the edge the flag showed at the last look, if
+            # that byte is this one (a foreign 9600 byte is 27 ticks longer than ours)
+            began: int | None = hs - self.uart.byte_ticks
+            seen = self._edge_seen
+            if seen is not None and seen < hs <= seen + 2 * self.uart.byte_ticks:
+                began = seen
+        else:
+            # INT0's edge flag: a falling edge on SIN0 since the last byte was read, so a
+            # byte has begun (at that edge's tick: docs/fidelity.md says what the part adds)
+            began = self.uart.rx_fall(self._edge_cleared, now)
+        self._edge_seen = began
         self._apply(self.mac.on_timer(now, busy, d.last_tick, began))
 
     def _on_stall(self, now: int) -> None:

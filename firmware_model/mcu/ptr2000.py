@@ -92,12 +92,12 @@ class Ptr2000:
         if self.channel is not None:
             self.channel.sync(self, now)
 
-    def rx_started(self, now: int) -> int | None:
-        """Start tick of a byte this module is putting out on its data pin right now, if any
-        (the air knows; a channel without that knowledge says None)."""
-        ch = self.channel
-        query = getattr(ch, "rx_started", None)
-        return query(self, now) if query is not None else None
+    def rx_fall(self, after: int, now: int) -> int | None:
+        """First falling edge in ticks (``after``, ``now``] on this module's data pin, inside
+        the byte it is putting out at ``now`` (the air knows; a channel without that
+        knowledge says None)."""
+        query = getattr(self.channel, "rx_fall", None)
+        return query(self, after, now) if query is not None else None
 
     def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
         """Bytes heard from the air (called by the channel; ``late_ok``: Uart.receive's)."""

@@ -54,7 +54,7 @@ class SerialLine(Protocol):
 
     def sync(self, now: int) -> None: ...
 
-    def rx_started(self, now: int) -> int | None: ...
+    def rx_fall(self, after: int, now: int) -> int | None: ...
 
 
 class Uart:
@@ -384,13 +384,36 @@ class Uart:
         if self.line is not None:
             self.line.sync(now)
 
-    def rx_started(self, now: int) -> int | None:
-        """Tick at which the start bit of a byte still being received began, else None.
+    def rx_fall(self, after: int, now: int) -> int | None:
+        """First falling edge on SIN0 in ticks (``after``, ``now``] inside the byte still
+        being received at ``now``, else None (a line that cannot tell says None).
 
-        The firmware sees it as the falling edge on SIN0 (wired to an external-interrupt pin
-        as well), before the byte is complete; a line that cannot tell returns None."""
-        query = getattr(self.line, "rx_started", None)
-        return query(now) if query is not None else None
+        The firmware sees it as INT0's edge flag (EIRR bit 0): SIN0 is wired to the INT0 pin
+        as well, falling-edge detection on, its interrupt off, so the flag is only polled;
+        the receive handler clears it once it has read a byte (``after``: that tick).
+        Falling edges are the start bit's and any 1-to-0 step between data bits
+        (:func:`first_fall`)."""
+        query = getattr(self.line, "rx_fall", None)
+        return query(after, now) if query is not None else None
+
+
+def first_fall(value: int, start: int, byte_ticks: int, after: int, now: int) -> int | None:
+    """First falling edge in ticks (``after``, ``now``] of the 8N1 byte ``value`` whose start
+    bit begins at tick ``start``, ``byte_ticks`` ticks a byte, else None. The line is high
+    before the start bit (idle, or the previous byte's stop bit), so the start bit's edge is
+    always one; bit cell ``i`` (0 the start bit, 1-8 the data bits LSB first) begins at
+    ``start + i * byte_ticks // 10``."""
+    prev = 1
+    for i in range(9):
+        level = 0 if i == 0 else (value >> (i - 1)) & 1
+        if prev and not level:
+            t = start + i * byte_ticks // 10
+            if t > now:
+                return None
+            if t > after:
+                return t
+        prev = level
+    return None
 
 
 def _nothing() -> None:

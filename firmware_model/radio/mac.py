@@ -535,9 +535,10 @@ class RotationalMac:
     def on_timer(self, now: int, rx_busy: bool = False, last_rx: int | None = None,
                  rx_began: int | None = None) -> list:
         """The deadline expired. ``rx_busy``: a frame is being received right now;
-        ``last_rx``: tick of the last byte heard (any byte); ``rx_began``: tick at which the
-        start bit of a Header still being received began (one or two Header bytes, or a
-        byte whose stop bit has not come yet), else None.
+        ``last_rx``: tick of the last byte heard (any byte); ``rx_began``: tick at which a
+        Header still being received began (one or two Header bytes in), or a byte whose
+        stop bit has not come yet did, as the receiver tells it (a station: the first
+        falling edge on its RX pin since it last read a byte, Uart.rx_fall), else None.
 
         What a deadline means depends on the state: one handler per state, looked up in
         ``DEADLINE_HANDLERS`` (the rows of ``mac_table.TRANSITIONS`` with event "deadline")."""

@@ -36,7 +36,7 @@ import random
 from typing import Callable
 
 from firmware_model.mcu.ptr2000 import NEVER, Ptr2000
-from firmware_model.mcu.uart import rates_agree, sample_byte
+from firmware_model.mcu.uart import first_fall, rates_agree, sample_byte
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.timing import PC_BYTE_TICKS
 
@@ -221,17 +221,33 @@ class Air:
         elif self.noise and radio.listening(now):
             self._noise_upto(radio, now)
 
-    def rx_started(self, radio: AirRadio, now: int) -> int | None:
-        """Start tick of the byte ``radio`` is receiving at ``now`` (its start bit has begun,
-        its stop bit has not ended), else None: the falling edge the firmware can see on its
-        RX pin before the byte is complete (the miss rule asks whether a Header has *begun*).
-        Idle noise is not reported."""
+    def rx_fall(self, radio: AirRadio, after: int, now: int) -> int | None:
+        """First falling edge in ticks (``after``, ``now``] on ``radio``'s data output inside
+        the byte it is receiving at ``now`` (its start bit begun, its stop bit not over): a
+        transmission's byte as sent, collision garbage or idle noise; else None. What the
+        firmware sees of a byte before it is complete (Uart.rx_fall: INT0's edge flag): the
+        miss rule asks whether a Header has *begun*. Bits a bit error flips are not looked
+        at: the edges are the sent byte's."""
         rx = radio.rx
-        if rx is None:
+        if rx is not None:
+            k = (now - rx.t0) // rx.bt           # bytes complete by now
+            if not 0 <= k < rx.n:
+                return None
+            if rx.data is not None:
+                value = rx.data[k]
+            else:                                # garbage: byte k of its stream, not taken
+                assert rx.stream is not None
+                rx.flush(radio, now)
+                value = rx.stream.peek(k - rx.pos + 1)[-1]
+            return first_fall(value, rx.t0 + k * rx.bt, rx.bt, after, now)
+        if not (self.noise and not self.carrier and radio.listening(now)):
             return None
-        k = (now - rx.t0) // rx.bt          # bytes complete by now
-        start = rx.t0 + k * rx.bt
-        return start if 0 <= k < rx.n and start <= now else None
+        self._noise_upto(radio, now)
+        start = max(radio.noise_from, radio.rx_from)
+        if start > now:
+            return None
+        return first_fall(self._noise[radio.idx].peek(1)[0], start, radio.uart.byte_ticks,
+                          after, now)
 
     def deafen(self, radio: AirRadio, now: int) -> None:
         """``radio`` stops hearing at ``now`` (TXEN raised or radio dead). A dead radio heard

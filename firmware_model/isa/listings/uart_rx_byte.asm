@@ -7,6 +7,8 @@
         BNE   rx_error {not taken}
         MOV   A, I:SIDR0                ; the byte (the read clears RDRF)
         MOV   R0, A
+        CLRB  I:EIRR:0                  ; INT0's edge flag (SIN0's falling edges): the next
+                                        ; edge is the next byte's (read by mac_timer)
 ; the receive watch: output compare 1 at now + the stall gap
         MOVW  A, I:TCDT
         ADDW  A, #STALL_GAP

@@ -126,7 +126,7 @@ class _Line:
     def sync(self, now):
         pass
 
-    def rx_started(self, now):
+    def rx_fall(self, after, now):
         return None
 
 

@@ -11,7 +11,7 @@ import random
 
 import pytest
 
-from firmware_model.mcu.uart import rates_agree, sample_byte
+from firmware_model.mcu.uart import first_fall, rates_agree, sample_byte
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS
 
 
@@ -120,3 +120,37 @@ def test_a_clock_far_off_garbles_that_robots_frames():
     s = _summary("skew:2:0.09")
     assert s["robots"][2]["mode"] == "listen" or s["robots"][2]["received"] == 0
     assert 2 not in s["robots"][1]["ring"]
+
+
+# -- the falling edges INT0's flag sees (Uart.rx_fall) ------------------------------------
+
+BT = CHILD_BYTE_TICKS
+
+
+@pytest.mark.parametrize("value, edges", [
+    (0x00, [0]),                         # start bit, then all zeros: one falling edge
+    (0xFF, [0]),                         # all ones: the start bit's only
+    (0x55, [0, 2, 4, 6, 8]),             # 1,0,1,0... LSB first: a fall before each 0
+    (0x01, [0, 2]),                      # d0 = 1, d1 = 0
+    (0x80, [0]),                         # a 1 only in the last data bit: no fall after it
+    (0x0F, [0, 5]),                      # d3 = 1, d4 = 0
+])
+def test_the_falling_edges_of_a_byte_are_its_start_bit_and_each_one_to_zero_step(value, edges):
+    start = 1000
+    ticks = [start + i * BT // 10 for i in edges]
+    got, after = [], -1
+    while (t := first_fall(value, start, BT, after, start + BT)) is not None:
+        got.append(t)
+        after = t
+    assert got == ticks
+
+
+def test_an_edge_is_reported_only_inside_the_window_after_the_flag_was_cleared():
+    start = 5000
+    assert first_fall(0x00, start, BT, start - 1, start - 1) is None      # not begun by now
+    assert first_fall(0x00, start, BT, start - 1, start) == start
+    assert first_fall(0x00, start, BT, start, start + BT) is None         # cleared on its tick
+    # the previous byte's handler cleared the flag after this start bit (back to back bytes):
+    # the next edge the flag takes is a data bit's, and a byte with none sets no flag
+    assert first_fall(0x55, start, BT, start + 10, start + BT) == start + 2 * BT // 10
+    assert first_fall(0xFF, start, BT, start + 10, start + BT) is None

@@ -736,3 +736,31 @@ def test_finishing_a_reception_is_flushing_it_at_its_last_stop_bit(data, t0, bt,
     assert ra.got == rb.got and a.pos == b.pos == n
     if pos == 0 and holes is None:
         assert ra.got == [(data, t0 + bt, bt)]
+
+
+# -- a byte begun, not complete: INT0's edge flag (Air.rx_fall) --------------------------
+
+def test_the_air_reports_the_byte_being_received_not_one_over_or_not_yet_begun():
+    net = Net(2)
+    t0 = 1_000_000
+    net.send(0, b"\x00\x55", t0)
+    net.run(t0 + 100)
+    r1 = net.radios[1]
+    assert r1.rx_fall(-1, t0 + 100) == t0                   # byte 0's start bit
+    net.run(t0 + BT + 3 * BT // 10)
+    now = net.s.now
+    assert r1.rx_fall(-1, now) == t0 + BT                   # byte 1's start bit
+    assert r1.rx_fall(t0 + BT, now) == t0 + BT + 2 * BT // 10   # its first data bit's fall
+    net.run(t0 + 3 * BT)
+    assert r1.rx_fall(-1, net.s.now) is None                # over: no byte on the pin
+
+
+def test_idle_noise_sets_the_flag_and_a_quiet_channel_does_not():
+    quiet, noisy = Net(2), Net(2, noise=True)
+    for net in (quiet, noisy):
+        net.run(1_000_000)
+        net.sync_all()
+    now = 1_000_000
+    assert quiet.radios[1].rx_fall(-1, now) is None
+    edge = noisy.radios[1].rx_fall(-1, now)
+    assert edge is not None and now - BT < edge <= now      # the noise byte under way

@@ -124,16 +124,16 @@ def test_a_station_never_sends_more_than_the_protocol_bound():
 
 # -- finding 4: a Header that has begun by E + Tmax is not a miss ----------------------------
 
-def header_near_the_deadline(offset_ticks):
+def header_near_the_deadline(offset_ticks, cpu=None):
     """R2 dies after its turn; R3's slot then opens at R2's End E. A frame from R3 is put on
     air so that its first start bit begins at E + Tmax - ``offset_ticks`` (R3 itself is
     silent: this is R3's frame arriving late)."""
     probe_evs: list[dict] = []
-    probe = World(SimConfig(robots=(1, 2, 3), duration=5.0), on_event=probe_evs.append)
+    probe = World(SimConfig(robots=(1, 2, 3), duration=5.0, cpu=cpu), on_event=probe_evs.append)
     probe.run()
     e3 = [e for e in probe_evs if e["ev"] == "frame" and e["src"] == 3][-1]["end"]
     evs: list[dict] = []
-    w = World(SimConfig(robots=(1, 2, 3), duration=8.0), on_event=evs.append)
+    w = World(SimConfig(robots=(1, 2, 3), duration=8.0, cpu=cpu), on_event=evs.append)
     w.inject("fail", 3, e3 + 1)
     w.run(e3 + s_to_ticks(0.05))
     e2 = [e for e in evs if e["ev"] == "frame" and e["src"] == 2][-1]["end"]
@@ -164,6 +164,44 @@ def test_a_header_beginning_after_e_plus_tmax_is_a_miss_and_the_takeover_is_on_t
     assert {e["t"] for e in misses} == {e2 + TMAX_TICKS}
     nxt = [f for f in _frames(evs, e2 + 1) if f["src"] == 1]
     assert nxt[0]["start"] == e2 + TMAX_TICKS + TTRANS_TICKS
+
+
+def _late_header_on_the_cpu_model(offset):
+    """header_near_the_deadline with every robot on the CPU model (SimConfig's default is the
+    ideal CPU)."""
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    return header_near_the_deadline(offset, cpu=DEFAULT_COSTS)
+
+
+@pytest.mark.parametrize("offset", [B, B // 2, 1])
+def test_on_the_cpu_model_a_header_begun_by_the_deadline_is_not_a_miss(offset):
+    """The timer handler runs some microseconds after E + Tmax (its latency and body); the
+    flag it polls was set by the start bit before the deadline."""
+    assert SimConfig().cpu is None                           # the Python API's ideal CPU
+    evs, e2, t = _late_header_on_the_cpu_model(offset)
+    assert not [e for e in evs if e["ev"] == "miss" and e["robot"] == 3 and e["t"] > e2]
+    nxt = [f for f in _frames(evs, t) if f["src"] == 1]
+    late = nxt[0]["start"] - (t + 14 * B + TTRANS_TICKS)
+    assert 0 <= late < 2_000          # R1's turn after R3's frame, late by R1's handlers
+
+
+@pytest.mark.parametrize("offset", [-1, -B])
+def test_on_the_cpu_model_a_header_begun_after_the_deadline_is_a_miss(offset):
+    evs, e2, t = _late_header_on_the_cpu_model(offset)
+    misses = [e for e in evs if e["ev"] == "miss" and e["robot"] == 3 and e["t"] > e2]
+    assert misses and all(e2 + TMAX_TICKS < e["t"] < t + B for e in misses)
+    nxt = [f for f in _frames(evs, e2 + 1) if f["src"] == 1]
+    assert nxt and nxt[0]["start"] > e2 + TMAX_TICKS + TTRANS_TICKS
+
+
+def test_a_header_begun_one_tick_before_the_deadline_by_a_9600_sender_is_not_a_miss():
+    """The father's byte (16 667 ticks) is 27 ticks longer than a child's: reckoned back from
+    the Header's first byte with the child's own byte time, its start bit came after
+    E + Tmax. The edge the flag showed at the deadline is what counts (the ideal CPU)."""
+    evs, e2, t = header_near_the_deadline(1)
+    assert not [e for e in evs if e["ev"] == "miss" and e["robot"] == 3 and e["t"] > e2]
+    nxt = [f for f in _frames(evs, t) if f["src"] == 1]
+    assert nxt and nxt[0]["start"] == t + 14 * B + TTRANS_TICKS
 
 
 # -- finding 5: a rebooted robot whose BOOT frame is lost -----------------------------------
