@@ -119,11 +119,11 @@ def measure(hours: float, seed: int) -> Breakdown:
         if end > self.now:
             self.now = end
 
-    def timed_wake(self) -> None:
+    def timed_wake(self, work: bool = False) -> None:
         if not self.asleep:
             return
         t = clock()
-        wake(self)
+        wake(self, work)
         out.wake_s += clock() - t
         out.wakes += 1
 

@@ -64,6 +64,17 @@ __all__ = ["COUNTERS", "LATEST", "PERIOD", "RECORDS", "DomainClock", "QuietCan",
 PERIOD = STATUS_PERIOD_TICKS
 """1,600,000 ticks (100 ms): the submodules' status period, the domain's period."""
 
+PAYBACK_PERIODS = 8
+"""Periods a sleep must last to pay for the two snapshots that began it: a snapshot of a
+child's CAN side costs about what four of its periods run frame by frame do
+(docs/performance.md, "Sleeping CAN sides under load"). A domain woken sooner than this,
+sleep after sleep (orders every few periods), probes ever less often: after ``n`` short
+sleeps in a row it skips ``2**n - 1`` probes (at most :data:`SHORT_BACKOFF_MAX` - 1) after
+each wake and each job. Skipping a probe can only cost a sleep, never change the run."""
+
+SHORT_BACKOFF_MAX = 32
+"""The longest back-off after short sleeps, in periods (3.2 s)."""
+
 COUNTERS = counters(CAN_PARTS)
 """Attributes that only count what happened, as the domain's classes declare them
 (``STEADY_COUNTERS``; hil/sim/steady.py): they may grow by any amount a period without making
@@ -164,6 +175,7 @@ class QuietCan:
         self._misses = 0          # probes in a row that found the domain not periodic
         self._skip = 0            # probes left to skip (backing off while it is busy)
         self._after_busy = False  # may_sleep() said no at the last probe
+        self._short = 0           # sleeps in a row shorter than PAYBACK_PERIODS
 
     def start(self, phase: int) -> None:
         """Probe every period from tick ``phase`` on (a tick the status grid is idle at)."""
@@ -198,8 +210,10 @@ class QuietCan:
         if self._after_busy:
             # The first period after a job: its last frames (an EVENT, a command) moved the
             # last frame's ticks, so a snapshot now would rarely match the next one (191 of
-            # about 250 such comparisons failed, docs/performance.md): begin a period later.
+            # about 250 such comparisons failed, docs/performance.md): begin a period later,
+            # or later still while sleeps keep being short.
             self._after_busy = False
+            self._skip = self._short_backoff()
             return
         if self._skip:
             self._skip -= 1
@@ -249,14 +263,26 @@ class QuietCan:
         self.asleep = True
         self.sleeps += 1
 
-    def wake(self) -> None:
-        """Bring the domain up to the tick now (the world's), before anything touches it."""
+    def _short_backoff(self) -> int:
+        """Probes to skip now, after ``_short`` short sleeps in a row (``PAYBACK_PERIODS``)."""
+        if not self._short:
+            return 0
+        return min(1 << self._short, SHORT_BACKOFF_MAX) - 1
+
+    def wake(self, work: bool = False) -> None:
+        """Bring the domain up to the tick now (the world's), before anything touches it.
+        ``work``: it is woken to do something (a message, a fault), not to be read (a
+        summary, the end of a run): a sleep that ends so is weighed against
+        :data:`PAYBACK_PERIODS`."""
         if not self.asleep:
             return
         self.asleep = False
         self._last = None
         now = self.world.now
         k = (now - self._since) // PERIOD
+        if work:
+            self._short = self._short + 1 if k < PAYBACK_PERIODS else 0
+            self._skip = self._short_backoff()
         if self._replay and k:
             k -= 1                    # the last whole period runs frame by frame (LATEST)
             self.replays += 1

@@ -284,7 +284,7 @@ class World:
             elif quiet.asleep and refuses_only(child, d):
                 quiet.refused += 1           # orders refused at once: it sleeps on too
             else:
-                quiet.wake()
+                quiet.wake(work=True)
         st.add_app(wake_for, first=True)
         self.quiet[r] = quiet
         quiet.start(self.sched.now + CAN_PERIOD)

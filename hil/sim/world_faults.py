@@ -32,7 +32,7 @@ def _fault_act(self: World, f: Fault, phase: str) -> None:
     k = f.kind
     q = self.quiet.get(f.robot) if f.robot is not None else None
     if q is not None:
-        q.wake()
+        q.wake(work=True)
         q.touched()
     if k in AIR_KINDS:
         apply_air_fault(self.air, self.radios.__getitem__, f, phase, self.cfg.ber,

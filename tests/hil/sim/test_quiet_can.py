@@ -341,6 +341,36 @@ def test_an_event_a_period_does_not_move_keeps_the_domain_awake_until_it_has_run
     assert fired == [at] and q.periods_skipped > 0
 
 
+def test_a_child_woken_every_few_periods_backs_off_and_is_still_the_same_run(monkeypatch):
+    """Orders every few periods (5 robots, 2 messages a second each): sleeps shorter than
+    PAYBACK_PERIODS make a domain probe ever less often, so it takes fewer snapshots than it
+    would without the back-off (each costs about four periods run frame by frame), and the
+    run is the frame-by-frame run all the same."""
+    import hil.sim.quiet_can as quiet_can
+    cfg = SimConfig(robots=(0, 1, 2, 3, 4), duration=30, can=True, seed=1, load=2)
+    taken = {"n": 0}
+    real = quiet_can.snapshot
+
+    def counted(*a, **k):
+        taken["n"] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(quiet_can, "snapshot", counted)
+    slow, fast = _pair(cfg)
+    slow.run()
+    fast.run()
+    with_backoff = taken["n"]
+    assert _summary(fast) == _summary(slow)
+    assert _state(fast) == _state(slow)
+    assert sum(q._short for q in fast.quiet.values()) > 0      # short sleeps were seen
+    taken["n"] = 0
+    monkeypatch.setattr(quiet_can, "PAYBACK_PERIODS", 0)        # no sleep is short
+    plain = World(cfg)
+    plain.run()
+    assert _summary(plain) == _summary(slow)
+    assert with_backoff < 0.7 * taken["n"], (with_backoff, taken["n"])
+
+
 def test_an_idle_ring_sleeps_most_of_the_time():
     w = World(SimConfig(robots=(0, 1, 2, 3, 4, 5, 6), duration=30, can=True, seed=1))
     w.run()
