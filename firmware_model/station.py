@@ -4,8 +4,10 @@ This is the code a child's MB90F549 runs in its UART and reload-timer interrupt 
 the code the father PC runs: only the peripherals handed in differ (simulated on a Scheduler,
 or real ones in the bench). It knows nothing about the world it runs in.
 
-Interrupt order at one tick: UART bytes whose stop bit ended at tick t are taken before a timer
-interrupt at tick t reads any state (``on_timer`` first brings the UART up to date).
+Interrupt order at one tick: UART bytes handed over by tick t (their stop bit ended; on the CPU
+model, their RDRF set: Uart.rx_lead) are taken before a timer interrupt at tick t reads any
+state (``on_timer`` first brings the UART up to date). A byte's tick, as the MAC gets it, is
+its stop bit's end (docs/protocol.md §2).
 """
 from __future__ import annotations
 

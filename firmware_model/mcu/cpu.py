@@ -124,8 +124,8 @@ class _Frame:
 class Cpu:
     """One F2MC-16LX core on ``sched``. ``costs`` None is the ideal (zero-time) CPU."""
 
-    STEADY_COUNTERS = ("_busy", "_requests")
-    """Busy cycles and the requests numbered so far: counts only (hil/sim/steady.py)."""
+    STEADY_COUNTERS = ("_busy",)
+    """Busy cycles: a count only (hil/sim/steady.py)."""
 
     fuse = True
     """Run a lone handler on an idle CPU without the dispatcher (module docstring); False:
@@ -139,11 +139,11 @@ class Cpu:
         self.entry = 0 if costs is None else costs.entry.cycles
         self.reti = 0 if costs is None else costs.reti.cycles
         self.stats: dict[str, HandlerStats] = {}
-        self._pending: list[tuple[int, int, int, int, Vector, int, Any, Any, tuple]] = []
+        self._pending: list[tuple[int, int, int, Vector, int, Any, Any, tuple]] = []
+        """Requests waiting, in the order they came: (level, number, tick, ...)."""
         self._stack: list[_Frame] = []
         self._tasks: list[tuple[str, int, Any, tuple, int]] = []
         self._ev: Event | None = None
-        self._requests = 0
         self._in_callback = False
         self.started = sched.now
         self._busy = 0
@@ -210,9 +210,8 @@ class Cpu:
                 self._alone_ev = self.sched.at(t + f.body_end, self._alone_body)
             return
         assert at is None, "a request in the past needs an idle CPU (lone_past)"
-        self._requests += 1
-        self._pending.append((vector.level, vector.number, self._requests, now, vector, body,
-                              enter, fn, args))
+        self._pending.append((vector.level, vector.number, now, vector, body, enter, fn,
+                              args))
         self._dispatch()
 
     def task(self, name: str, body: int, fn: Callable[..., None], *args: Any) -> None:
@@ -255,10 +254,12 @@ class Cpu:
             return                     # the entry sequence / RETI ends first (its event)
         self._progress(now)
         if self._pending:
-            best = min(self._pending, key=lambda p: (p[0], p[1], p[2]))
+            # the level, then the interrupt number; of equal ones the first to come (min
+            # keeps the first of equal keys, and the list is in order of arrival)
+            best = min(self._pending, key=_rank)
             if best[0] < self.ilm:
                 self._pending.remove(best)
-                level, _, _, req, vec, body, enter, fn, args = best
+                level, _, req, vec, body, enter, fn, args = best
                 s = self._stats(vec.name, level)
                 s.calls += 1
                 lat = now - req
@@ -506,3 +507,8 @@ class Cpu:
     def idle(self) -> bool:
         self._touch(False)
         return self.quiescent(self.sched.now)
+
+
+def _rank(request: tuple) -> tuple[int, int]:
+    """A waiting request's rank: its level (0 first), then its interrupt number."""
+    return request[0], request[1]

@@ -99,11 +99,13 @@ class Ptr2000:
         query = getattr(self.channel, "rx_fall", None)
         return query(self, after, now) if query is not None else None
 
-    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
-        """Bytes heard from the air (called by the channel; ``late_ok``: Uart.receive's)."""
+    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False,
+                lead: int = 0) -> None:
+        """Bytes heard from the air (called by the channel; ``late_ok``, ``lead``:
+        Uart.receive's)."""
         if self.uart is not None:
-            if late_ok:
-                self.uart.receive(data, t0, dt, True)
+            if late_ok or lead:
+                self.uart.receive(data, t0, dt, late_ok, lead)
             else:
                 self.uart.receive(data, t0, dt)
 

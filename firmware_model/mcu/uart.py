@@ -8,12 +8,13 @@ so a frame leaves back to back: the model hands the line a whole burst and tells
 the tick at which each stop bit ended.
 
 With a CPU model attached (``attach_cpu``), reception is what the part does: each byte's stop
-bit sets RDRF and requests the receive interrupt; the handler reads the byte (clearing RDRF)
-when its entry sequence ends. A byte whose stop bit ends while RDRF is still set is an
-overrun: SSR.ORE is set and the byte is lost (MB90F549 UART, "reception": the data register
-is not overwritten). Without a CPU model the bytes go to ``on_rx`` as they come, in bursts.
-MAME's model of the F2MC-16 UART sets RDRF (or ORE) at the stop bit's sample, in the middle
-of its cell: half a bit (832 ticks) before the tick this model uses (docs/fidelity.md).
+bit, sampled in the middle of its cell (9.5 of this UART's bits after the start edge, as
+MAME's model of the F2MC-16 UART samples), sets RDRF and requests the receive interrupt
+(``rx_lead``: 832 ticks before a child's byte ends); the handler reads the byte (clearing
+RDRF) when its entry sequence ends. A byte sampled while RDRF is still set is an overrun:
+SSR.ORE is set and the byte is lost (MB90F549 UART, "reception": the data register is not
+overwritten). The firmware is given each byte's stop-bit end as its tick (docs/protocol.md
+§2). Without a CPU model the bytes go to ``on_rx`` at their ends, in bursts.
 
 Transmission with a CPU model is what the part does too. The UART has an output data
 register (SODR) in front of its shift register, and one transmit flag, TDRE (SSR0 bit 3;
@@ -288,12 +289,28 @@ class Uart:
         assert self.on_tx_done is not None
         self.on_tx_done(self._end_at)
 
-    def receive(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
-        """Bytes from the line: byte i's stop bit ended at tick ``t0 + i * dt``. ``late_ok``:
-        the bytes whose stop bit ended before now are a clean prefix of a frame handed over
-        late, the CPU idle since before the first (the air's lazy reception, hil/sim/air.py):
-        their handlers are counted as they ran (``Cpu.lone_past``) and their effects happen
-        now, in one burst, as the ideal CPU's do."""
+    def rx_lead(self, tx_byte_ticks: int) -> int:
+        """Ticks before the end of a byte's stop bit (the byte sent at ``tx_byte_ticks`` a
+        byte) at which RDRF sets: the stop bit's sample, 9.5 of this UART's own bits after the
+        start edge (the receiver counts from the edge it saw, at its own rate), so half a bit
+        (832 ticks) for a byte at its own rate and 859 for a PC's. 0 on the ideal CPU, which
+        takes each byte at its end as the protocol dates it (docs/protocol.md §2). Never
+        negative: a byte from a sender over 5 % faster than this UART (a foreign burst), whose
+        samples this UART misreads anyway, is taken at its end."""
+        cpu = self.cpu
+        if cpu is None or cpu.ideal:
+            return 0
+        return max(0, tx_byte_ticks - (19 * self.byte_ticks) // 20)
+
+    def receive(self, data: bytes, t0: int, dt: int, late_ok: bool = False,
+                lead: int = 0) -> None:
+        """Bytes from the line: byte i's stop bit ended at tick ``t0 + i * dt`` (its date,
+        what the firmware is given), RDRF set ``lead`` ticks earlier (``rx_lead``: the line
+        hands each byte over at that tick). ``late_ok``: the bytes whose RDRF came before
+        now are a clean prefix of a frame handed over late, the CPU idle since before the
+        first (the air's lazy reception, hil/sim/air.py): their handlers are counted as they
+        ran (``Cpu.lone_past``) and their effects happen now, in one burst, as the ideal
+        CPU's do."""
         self.bytes_received += len(data)
         if self.on_rx is None:
             return
@@ -302,17 +319,18 @@ class Uart:
             return
         now = self.sched.now
         cpu = self.cpu
-        if late_ok and t0 < now:
-            k = min(len(data), (now - t0 - 1) // dt + 1)     # stop bits before now
-            self._replay(data[:k], t0, dt)
+        if late_ok and t0 - lead < now:
+            k = min(len(data), (now - t0 + lead - 1) // dt + 1)     # RDRFs before now
+            self._replay(data[:k], t0, dt, lead)
             data = data[k:]
             t0 += k * dt
         cpu.settle(read=False)        # a handler running alone has read SIDR by now, or not
         for i, b in enumerate(data):
             t = t0 + i * dt
-            if self.rdr and t >= now:
-                # RDRF still set when this stop bit ends: ORE, the byte is lost. (A byte the
-                # line hands over late, idle noise delivered in a burst, cannot be judged.)
+            if self.rdr and t - lead >= now:
+                # RDRF still set at this byte's stop-bit sample: ORE, the byte is lost. (A
+                # byte the line hands over late, idle noise delivered in a burst, cannot be
+                # judged.)
                 self.overruns += 1
                 continue
             self.rdr.append((b, t))     # more than one only for bytes handed over late
@@ -327,25 +345,26 @@ class Uart:
         return cpu is not None and self.rx_quiet is not None and \
             cpu.fits_alone(self.rx_cycles, dt) and cpu.quiescent(now) and self.rx_quiet(data)
 
-    def _replay(self, chunk: bytes, t0: int, dt: int) -> None:
+    def _replay(self, chunk: bytes, t0: int, dt: int, lead: int) -> None:
         """Bytes handed over late with an idle CPU (``receive``'s ``late_ok``): each byte's
-        handler ran alone at its stop bit; those whose effects are due by now give them now,
-        in one call, at the tick the last of them had them; a last byte whose body is still
-        running becomes the lone handler and gives its effects at its body's end."""
+        handler ran alone from its RDRF (``lead`` ticks before its date); those whose effects
+        are due by now give them now, in one call, at the tick the last of them had them; a
+        last byte whose body is still running becomes the lone handler and gives its effects
+        at its body's end."""
         cpu, vector = self.cpu, self.rx_vector
         assert cpu is not None and vector is not None and self.on_rx is not None
         now = self.sched.now
         e = cpu.entry + self.rx_cycles
         n = len(chunk)
         last = t0 + (n - 1) * dt
-        due = n if last + e < now else n - 1     # effects due now: after what came first
+        due = n if last - lead + e < now else n - 1   # effects due now: after what came first
         if due:
             self.bytes_late += due
-            cpu.lone_past(vector, self.rx_cycles, t0, dt, due)
-            self.on_rx(chunk[:due], t0, dt, t0 + (due - 1) * dt + e)
+            cpu.lone_past(vector, self.rx_cycles, t0 - lead, dt, due)
+            self.on_rx(chunk[:due], t0, dt, t0 - lead + (due - 1) * dt + e)
         if due < n:
             self.rdr.append((chunk[-1], last))
-            self._rx_request(dt, at=last)
+            self._rx_request(dt, at=last - lead)
 
     def _rx_request(self, dt: int, at: int | None = None) -> None:
         """RDRF requests the receive interrupt (``at``: it did at that earlier tick, the CPU
@@ -380,7 +399,7 @@ class Uart:
             self.on_rx(bytes((b,)), t, dt)
 
     def sync(self, now: int) -> None:
-        """Take every byte whose stop bit ended by ``now`` (before a timer ISR reads state)."""
+        """Take every byte handed over by ``now`` (before a timer ISR reads state)."""
         if self.line is not None:
             self.line.sync(now)
 

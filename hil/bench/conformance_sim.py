@@ -61,7 +61,8 @@ class _PcRadio:
     def listening(self, t: int) -> bool:
         return self.alive and t >= self.rx_from
 
-    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
+    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False,
+                lead: int = 0) -> None:
         self.heard.append((data, t0, dt))
 
 

@@ -189,7 +189,8 @@ class _Node:
     def listening(self, t: int) -> bool:
         return self.alive and t >= self.rx_from
 
-    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
+    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False,
+                lead: int = 0) -> None:
         self.hub._deliver(self.robot, data)
 
 

@@ -24,7 +24,8 @@ class _Ears:
     def listening(self, now: int) -> bool:
         return True
 
-    def deliver(self, data: bytes, t0: int, bt: int, late_ok: bool = False) -> None:
+    def deliver(self, data: bytes, t0: int, bt: int, late_ok: bool = False,
+                lead: int = 0) -> None:
         pass
 
 

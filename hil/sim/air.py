@@ -2,7 +2,8 @@
 
 What a receiver hears (docs/protocol.md §1, clause 2):
 * a transmission reaches every radio that is listening when its first bit goes out, each byte
-  at the tick its stop bit ends at the sender's rate; a radio that starts listening in the
+  at the tick its stop bit ends at the sender's rate (a CPU model's UART takes it at its RDRF,
+  the stop bit's sample: ``Reception.lead``, Uart.rx_lead); a radio that starts listening in the
   middle of a transmission (its TXEN fell, or it revived) hears the rest of it from the first
   byte whose start bit comes after it listens (its UART cannot frame a byte it joined midway),
   and the garbage of a collision still on air;
@@ -74,6 +75,7 @@ class Air:
         self._garbage: list[ByteStream] = []
         self._noise: list[ByteStream] = []
         self._noise_gen: list[int] = []
+        self._noise_last: list[int] = []     # start tick of the last noise byte handed over
         self._err_rng: list[random.Random] = []
         self.drop = 0.0
         self._drop_rng: list[random.Random] = []
@@ -97,6 +99,7 @@ class Air:
         self._garbage.append(ByteStream(random.Random(f"{name}:garbage")))
         self._noise.append(ByteStream(random.Random(f"{name}:noise")))
         self._noise_gen.append(0)
+        self._noise_last.append(-1)
         self._err_rng.append(random.Random(f"{name}:ber"))
         self._drop_rng.append(random.Random(f"{name}:drop"))
         self._idle_from(radio, self.sched.now)
@@ -205,9 +208,11 @@ class Air:
                     if cpu is None or cpu.ideal:
                         r.rx = Reception(data, t0, bt, tx.n, tx)
                     elif r.uart.may_come_late(data, bt, t0):
-                        r.rx = Reception(data, t0, bt, tx.n, tx, quiet=tx.n)
+                        r.rx = Reception(data, t0, bt, tx.n, tx, quiet=tx.n,
+                                         lead=r.uart.rx_lead(bt))
+                        self._bytewise(r, r.rx, tx.n, tx.n - 1)
                     else:
-                        r.rx = Reception(data, t0, bt, tx.n, tx)
+                        r.rx = Reception(data, t0, bt, tx.n, tx, lead=r.uart.rx_lead(bt))
                         self._bytewise(r, r.rx, 0, tx.n - 1)
                 else:
                     r.rx = self._reception(r, tx)
@@ -235,19 +240,24 @@ class Air:
                 return None
             if rx.data is not None:
                 value = rx.data[k]
-            else:                                # garbage: byte k of its stream, not taken
+            else:                                # garbage: byte k of its stream
                 assert rx.stream is not None
                 rx.flush(radio, now)
-                value = rx.stream.peek(k - rx.pos + 1)[-1]
+                # taken already if handed over at its RDRF, its stop bit still on air
+                value = rx.stream.last if rx.pos > k else rx.stream.peek(k - rx.pos + 1)[-1]
             return first_fall(value, rx.t0 + k * rx.bt, rx.bt, after, now)
         if not (self.noise and not self.carrier and radio.listening(now)):
             return None
         self._noise_upto(radio, now)
+        bt = radio.uart.byte_ticks
+        last = self._noise_last[radio.idx]
+        stream = self._noise[radio.idx]
+        if last <= now < last + bt:              # handed over at its RDRF, still on air
+            return first_fall(stream.last, last, bt, after, now)
         start = max(radio.noise_from, radio.rx_from)
         if start > now:
             return None
-        return first_fall(self._noise[radio.idx].peek(1)[0], start, radio.uart.byte_ticks,
-                          after, now)
+        return first_fall(stream.peek(1)[0], start, bt, after, now)
 
     def deafen(self, radio: AirRadio, now: int) -> None:
         """``radio`` stops hearing at ``now`` (TXEN raised or radio dead). A dead radio heard
@@ -279,7 +289,8 @@ class Air:
             if n > 0:
                 self._noise_upto(r, when)
                 self._noise_gen[r.idx] += 1
-                r.rx = Reception(None, when, bt, n, None, self._garbage[r.idx])
+                r.rx = Reception(None, when, bt, n, None, self._garbage[r.idx],
+                                 lead=self._lead(r, bt))
                 self._bytewise(r, r.rx, 0, n - 1)
             return
         for tx in self.active:
@@ -373,7 +384,8 @@ class Air:
             bad = next((i for i in range(n) if out[i] != data[i]), n)
             first_bad = min(first_bad, bad)
             data = bytes(out)
-        rx = Reception(data, tx.t0 + k * tx.bt, tx.bt, n, tx, holes=holes)
+        rx = Reception(data, tx.t0 + k * tx.bt, tx.bt, n, tx, holes=holes,
+                       lead=self._lead(r, tx.bt))
         lo = 0 if self.byte_by_byte or bytewise else first_bad
         cpu = getattr(r.uart, "cpu", None)
         if lo and cpu is not None and not cpu.ideal:
@@ -391,7 +403,7 @@ class Air:
         rx = radio.rx
         if rx is None or rx.quiet <= rx.pos:
             return None
-        return rx.t0 + min(rx.quiet, rx.n - 1) * rx.bt
+        return rx.t0 + min(rx.quiet, rx.n - 1) * rx.bt - rx.lead
 
     def on_time(self, radio: AirRadio, now: int) -> None:
         """``radio``'s CPU model has work from ``now`` (Uart._cpu_touched, after a sync): the
@@ -406,7 +418,7 @@ class Air:
         """The next byte of ``rx``'s clean prefix at its tick (not its last byte: the end
         event delivers that)."""
         if rx.pos < min(rx.lazy, rx.n - 1):
-            self.sched.at(rx.t0 + (rx.pos + 1) * rx.bt, self._on_time_byte, r, rx)
+            self.sched.at(rx.t0 + (rx.pos + 1) * rx.bt - rx.lead, self._on_time_byte, r, rx)
 
     def _on_time_byte(self, r: AirRadio, rx: Reception) -> None:
         """A byte of a clean prefix completes now: at its tick if the receiver's CPU is still
@@ -423,12 +435,24 @@ class Air:
 
     def _bytewise(self, r: AirRadio, rx: Reception, lo: int, hi: int) -> None:
         """Deliver bytes lo..hi-1 (0-based) each at its own tick; the last byte of a reception
-        is delivered by the end-of-transmission event, in radio order, in every mode."""
+        is delivered by the end-of-transmission event, in radio order, in every mode, unless
+        the receiver takes it before its stop bit ends (``Reception.lead``): then by an event
+        of its own at its tick, with whatever came late before it."""
         at = self.sched.at
-        t0, bt = rx.t0, rx.bt
+        t0, bt, lead = rx.t0, rx.bt, rx.lead
         for i in range(lo + 1, hi + 1):
-            t = t0 + i * bt
+            t = t0 + i * bt - lead
             at(t, self._sync_rx, r, rx, t)
+        if lead:
+            t = t0 + (hi + 1) * bt - lead
+            at(t, self._sync_rx, r, rx, t)
+
+    @staticmethod
+    def _lead(r: AirRadio, bt: int) -> int:
+        """How long before a byte's stop bit ends (sent at ``bt`` ticks a byte) ``r``'s UART
+        takes it (Uart.rx_lead; 0 for a radio without one)."""
+        query = getattr(r.uart, "rx_lead", None)
+        return query(bt) if query is not None else 0
 
     def _sync_rx(self, r: AirRadio, rx: Reception, t: int) -> None:
         if r.rx is rx:
@@ -452,7 +476,8 @@ class Air:
         if k < 0:
             self.sched.at(start + (NOISE_LOOKAHEAD - 2) * bt, self._noise_rescan, r, gen)
         else:
-            self.sched.at(start + (k + 1) * bt, self._noise_header, r, gen)
+            self.sched.at(start + (k + 1) * bt - self._lead(r, bt), self._noise_header, r,
+                          gen)
 
     def _noise_rescan(self, r: AirRadio, gen: int) -> None:
         if gen != self._noise_gen[r.idx] or r.rx is not None or not r.listening(self.sched.now):
@@ -488,10 +513,15 @@ class Air:
         if r.rx_from > start:
             start = r.rx_from
         bt = r.uart.byte_ticks
-        n = (t - start) // bt
+        lead = self._lead(r, bt)
+        n = (t + lead - start) // bt
         if n > 0:
             r.noise_from = start + n * bt
-            r.deliver(self._noise[r.idx].take(n), start + bt, bt)
+            self._noise_last[r.idx] = start + (n - 1) * bt
+            if lead:
+                r.deliver(self._noise[r.idx].take(n), start + bt, bt, False, lead)
+            else:
+                r.deliver(self._noise[r.idx].take(n), start + bt, bt)
 
     # -- collisions and ends --------------------------------------------------------------
 
@@ -514,7 +544,9 @@ class Air:
                 old = rx.n
                 rx.n = (cend - rx.t0) // rx.bt
                 # its old last byte is no longer the last: bytes still ahead go one by one
-                self._bytewise(r, rx, max(old - 1, rx.pos), rx.n - 1)
+                # (one taken before its stop bit ended had its own event already)
+                lo = max(old if rx.lead else old - 1, rx.pos)
+                self._bytewise(r, rx, lo, rx.n - 1)
                 continue
             if not r.listening(t0):
                 continue
@@ -524,7 +556,8 @@ class Air:
                 self._noise_upto(r, t0)
             self._noise_gen[r.idx] += 1
             bt = r.uart.byte_ticks
-            g = Reception(None, t0, bt, (cend - t0) // bt, None, self._garbage[r.idx])
+            g = Reception(None, t0, bt, (cend - t0) // bt, None, self._garbage[r.idx],
+                          lead=self._lead(r, bt))
             r.rx = g
             self._bytewise(r, g, 0, g.n - 1)
         if self.on_collision is not None:

@@ -165,6 +165,10 @@ class QuietRing:
         self._others = 0                       # transmissions since the anchor's last
         self._last: Any = None
         self._last_at = 0
+        self._prev: tuple[Any, int] | None = None
+        """The snapshot taken before ``_last`` and its tick, if ``_last`` followed it: a cycle
+        of an odd number of ticks (the CPU model's handlers start at RDRF, an odd number of
+        ticks before a PC's byte ends) is compared over two (GRAIN), untraced."""
         self._misses = 0
         self._skip = 0
         self._hold_until = 0
@@ -280,12 +284,22 @@ class QuietRing:
             self.enabled = False               # something whose state it cannot see
             return
         last, at = self._last, self._last_at
+        prev = self._prev
         before = self._last_events
+        self._prev = (last, at) if last is not None else None
         self._last, self._last_at = snap, now
         self._last_events = (rec_from, recorded)
         if last is None:
             return
         period = now - at
+        w = self.world
+        traced = bool(w.listeners) or w.pcap is not None
+        if period % GRAIN and not traced:
+            if prev is None:
+                return                 # compared over two at the next probe: not a miss
+            if (now - prev[1]) % GRAIN == 0:
+                last, at = prev
+                period = now - at
         steps = period_steps(last, snap, period, self.counters, self.modular) \
             if period > 0 and period % GRAIN == 0 else None
         if steps is None:
@@ -304,8 +318,6 @@ class QuietRing:
             self._back_off()
             return
         self._misses = 0
-        w = self.world
-        traced = bool(w.listeners) or w.pcap is not None
         if traced and (carried or not (rec_from == at and before[0] == at - period and
                                     _shifted(before[1], period) == recorded)):
             # the events do not repeat (yet), or a deaf station's would be written twice

@@ -24,20 +24,24 @@ class AirRadio(Protocol):
 
     def listening(self, t: int) -> bool: ...
 
-    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False) -> None:
-        """Bytes heard (``late_ok``: a clean prefix handed over late to a CPU model's UART,
+    def deliver(self, data: bytes, t0: int, dt: int, late_ok: bool = False,
+                lead: int = 0) -> None:
+        """Bytes heard, byte i dated ``t0 + i * dt`` (its stop bit's end), handed over
+        ``lead`` ticks before that (``late_ok``, ``lead``: for a CPU model's UART,
         Uart.receive; never for a radio without one)."""
 
 
 class ByteStream:
     """A seeded source of random bytes, consumed in order whatever the request sizes."""
 
-    __slots__ = ("rng", "buf", "pos")
+    __slots__ = ("rng", "buf", "pos", "last")
 
     def __init__(self, rng: random.Random) -> None:
         self.rng = rng
         self.buf = b""
         self.pos = 0
+        self.last = 0
+        """The last byte taken (a byte handed over at its RDRF, its stop bit still on air)."""
 
     def _fill(self, n: int) -> None:
         if len(self.buf) - self.pos < n:
@@ -53,6 +57,8 @@ class ByteStream:
         self._fill(n)
         out = self.buf[self.pos:self.pos + n]
         self.pos += n
+        if n:
+            self.last = out[-1]
         return out
 
 
@@ -73,18 +79,22 @@ class Transmission:
 
 
 class Reception:
-    """Bytes one radio hears, byte i complete at ``t0 + (i+1)*bt``; ``pos`` delivered so far.
+    """Bytes one radio hears, byte i complete at ``t0 + (i+1)*bt`` and handed over ``lead``
+    ticks before (its receiver's RDRF, at the stop bit's sample: Uart.rx_lead); ``pos``
+    delivered so far.
 
     ``data`` is None for collision garbage (drawn from the radio's garbage stream)."""
 
-    __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream", "holes", "quiet", "lazy")
+    __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream", "holes", "quiet", "lazy",
+                 "lead")
 
     def __init__(self, data: bytes | None, t0: int, bt: int, n: int,
                  tx: Transmission | None = None, stream: ByteStream | None = None,
-                 holes: frozenset[int] | None = None, quiet: int = 0) -> None:
+                 holes: frozenset[int] | None = None, quiet: int = 0, lead: int = 0) -> None:
         self.data = data
         self.t0 = t0
         self.bt = bt
+        self.lead = lead
         self.pos = 0
         self.n = n
         self.tx = tx
@@ -98,9 +108,10 @@ class Reception:
         """The clean prefix's end: how far ``quiet`` may reach again once the CPU is idle."""
 
     def flush(self, radio: AirRadio, now: int) -> None:
-        """Deliver every byte whose stop bit ended by ``now``."""
+        """Deliver every byte handed over by ``now`` (its stop bit ended, less ``lead``)."""
         pos = self.pos
-        k = (now - self.t0) // self.bt
+        lead = self.lead
+        k = (now + lead - self.t0) // self.bt
         if k > self.n:
             k = self.n
         if k > pos:
@@ -116,11 +127,11 @@ class Reception:
                 if q > pos:                   # a clean prefix, the CPU idle: late is fine
                     m = q if q < k else k
                     radio.deliver(data[:m - pos], self.t0 + (pos + 1) * self.bt, self.bt,
-                                  True)
+                                  True, lead)
                     if k > m:
-                        radio.deliver(data[m - pos:], self.t0 + (m + 1) * self.bt, self.bt)
+                        self._give(radio, data[m - pos:], m)
                     return
-                radio.deliver(data, self.t0 + (pos + 1) * self.bt, self.bt)
+                self._give(radio, data, pos)
                 return
             start = None                      # deliver the runs between lost bytes
             for i in range(pos, k + 1):
@@ -128,23 +139,34 @@ class Reception:
                     if start is None:
                         start = i
                 elif start is not None:
-                    radio.deliver(data[start - pos:i - pos], self.t0 + (start + 1) * self.bt,
-                                  self.bt)
+                    self._give(radio, data[start - pos:i - pos], start)
                     start = None
 
+    def _give(self, radio: AirRadio, data: bytes, i: int) -> None:
+        """Hand over ``data``, from byte ``i`` on, at their ticks."""
+        if self.lead:
+            radio.deliver(data, self.t0 + (i + 1) * self.bt, self.bt, False, self.lead)
+        else:
+            radio.deliver(data, self.t0 + (i + 1) * self.bt, self.bt)
+
+    @property
+    def last_at(self) -> int:
+        """The tick the last byte is handed over (its stop bit's end, less ``lead``)."""
+        return self.t0 + self.n * self.bt - self.lead
+
     def finish(self, radio: AirRadio) -> None:
-        """Deliver every byte not delivered yet, the transmission being over: ``flush`` at the
-        tick its last stop bit ends, in one hand-over of the whole ``data`` when no byte went
-        before and none was lost (most receptions)."""
+        """Deliver every byte not delivered yet, the last one due now: ``flush`` at
+        ``last_at``, in one hand-over of the whole ``data`` when no byte went before and none
+        was lost (most receptions)."""
         if self.pos == 0 and self.holes is None and self.data is not None and \
                 self.quiet in (0, self.n):
             self.pos = self.n
             if self.quiet:
-                radio.deliver(self.data, self.t0 + self.bt, self.bt, True)
+                radio.deliver(self.data, self.t0 + self.bt, self.bt, True, self.lead)
             else:
-                radio.deliver(self.data, self.t0 + self.bt, self.bt)
+                self._give(radio, self.data, 0)
         else:
-            self.flush(radio, self.t0 + self.n * self.bt)
+            self.flush(radio, self.last_at)
 
 
 def first_byte_heard(t0: int, bt: int, when: int, rx_bt: int) -> int:

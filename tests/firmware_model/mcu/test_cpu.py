@@ -21,6 +21,7 @@ from firmware_model.isa.listing import count
 from firmware_model.mcu.cpu import Cpu, Vector
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.radio.content import cmd
+from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS
 from paths import ROOT
 
 HIGH = Vector("high", level=1, number=1)
@@ -254,15 +255,51 @@ def _world(costs, on_event=None, **kw):
                            cpu=costs, keep_records=True, **kw), on_event=on_event)
 
 
+def test_rdrf_comes_at_the_stop_bits_sample_half_a_bit_before_it_ends():
+    """The UART samples each bit in the middle of its own bit time from the start edge
+    (MAME's f2mc16_uart.cpp), and sets RDRF at the stop bit's sample: 9.5 of its bits after
+    the edge, 15 808 ticks for a child. So a byte from a child is taken 832 ticks (half a bit)
+    before its stop bit ends, one from the father (a PC at exact 9600 baud) 859 ticks before;
+    the firmware is still given the stop bit's end (docs/protocol.md §2). On an idle CPU the
+    handler's effects come entry + body after RDRF."""
+    from firmware_model.mcu.uart import Uart
+    from firmware_model.mcu.scheduler import Scheduler
+    u = Uart(Scheduler())
+    assert u.rx_lead(CHILD_BYTE_TICKS) == 0             # the ideal CPU: at the stop bit's end
+    w = _world(DEFAULT_COSTS, robots=(0, 1, 2), duration=5)
+    u = w.stations[2].uart
+    assert u.rx_lead(CHILD_BYTE_TICKS) == CHILD_BYTE_TICKS // 20 == 832
+    assert u.rx_lead(PC_BYTE_TICKS) == PC_BYTE_TICKS - 19 * CHILD_BYTE_TICKS // 20 == 859
+    seen: dict[int, list[int]] = {CHILD_BYTE_TICKS: [], PC_BYTE_TICKS: []}
+    real = u.on_rx
+
+    def spy(data, t0, dt, now=None):
+        at = w.sched.now if now is None else now
+        seen[dt].append(at - (t0 + (len(data) - 1) * dt))    # effects less the last date
+        return real(data, t0, dt, now)
+
+    u.on_rx = spy
+    w.run()
+    handler = DEFAULT_COSTS.entry.cycles + u.rx_cycles
+    for dt, lead in ((CHILD_BYTE_TICKS, 832), (PC_BYTE_TICKS, 859)):
+        assert len(seen[dt]) > 20
+        assert min(seen[dt]) == handler - lead       # the earliest: an idle CPU
+
+
 def test_dispatcher_latency_is_the_radio_handler_then_the_main_loop():
     """A joint order: the End byte's receive handler (entry + body), its MAC bookkeeping
-    (extend) and RETI, then the main loop's parse and plan; then the CAN frame's SOF."""
+    (extend) and RETI, then the main loop's parse and plan; then the CAN frame's SOF. The
+    handler starts at RDRF, the End's stop-bit sample: 9.5 of the child's bits after the
+    start edge, 859 ticks before the father's (9600-exact) stop bit ends, where the latency
+    is counted from."""
     w = _world(DEFAULT_COSTS, can=True, duration=6)
     w.sched.at(4 * 16_000_000, lambda: w.submit(0, 1, [cmd("joint", 1, 20)]))
     w.run()
     c = DEFAULT_COSTS
+    lead = PC_BYTE_TICKS - 19 * CHILD_BYTE_TICKS // 20
+    assert lead == 859 == w.stations[1].uart.rx_lead(PC_BYTE_TICKS)
     floor = (c.entry.cycles + c.uart_rx_byte.cycles + c.mac_frame.cycles + c.reti.cycles +
-             message_cycles((cmd("joint", 1, 20),)))
+             message_cycles((cmd("joint", 1, 20),))) - lead
     lat = [s - e for r, e, s in w.dispatch_latency if r == 1]
     assert lat, "the order produced no CAN frame"
     # the bus may be busy with a status frame (<= 135 bits at 2 us = 4320 ticks) at that tick

@@ -764,3 +764,59 @@ def test_idle_noise_sets_the_flag_and_a_quiet_channel_does_not():
     assert quiet.radios[1].rx_fall(-1, now) is None
     edge = noisy.radios[1].rx_fall(-1, now)
     assert edge is not None and now - BT < edge <= now      # the noise byte under way
+
+
+# -- a UART that takes each byte at its RDRF (the CPU model's: Uart.rx_lead) ---------------
+
+def _rdrf_net(monkeypatch, n=3, **kw):
+    """``Net`` whose UARTs take each byte at its stop bit's sample, as a CPU model's does,
+    each radio's bytes recorded as (tick handed over, date, byte). Byte by byte: a clean
+    reception takes the lead only for a receiver on the CPU model (Air.transmit)."""
+    monkeypatch.setattr(Uart, "rx_lead", lambda self, bt: bt - 19 * self.byte_ticks // 20)
+    net = Net(n, byte_by_byte=True, **kw)
+    got = [[] for _ in range(n)]
+    for i, u in enumerate(net.uarts):
+        u.on_rx = lambda data, t0, dt, i=i: got[i].extend(
+            (net.s.now, t0 + k * dt, b) for k, b in enumerate(data))
+    return net, got
+
+
+def test_a_byte_is_handed_over_at_its_stop_bits_sample_and_dated_at_its_end(monkeypatch):
+    net, got = _rdrf_net(monkeypatch, 2)
+    net.send(0, b"\x00\x55", T0)
+    net.run(T0 + BT - 833)
+    assert got[1] == []
+    net.run(T0 + BT - 832)                         # 9.5 bits of 1664 after the start edge
+    assert got[1] == [(T0 + BT - 832, T0 + BT, 0x00)]
+    net.run(T0 + 3 * BT)
+    assert got[1][1] == (T0 + 2 * BT - 832, T0 + 2 * BT, 0x55)
+
+
+def test_after_rdrf_the_edge_flag_still_sees_the_byte_whose_stop_bit_is_on_air(monkeypatch):
+    """Garbage and idle noise taken at RDRF: the air tells the edges of the byte still on
+    the pin from the byte it handed over (it cannot draw it again)."""
+    from firmware_model.mcu.uart import first_fall
+    net, got = _rdrf_net(monkeypatch, 3)
+    net.send(0, b"\x0f" * 6, T0)
+    net.send(1, b"\xf0" * 6, T0 + BT // 2)        # overlap: radio 2 hears garbage
+    t = T0 + BT // 2 + 2 * BT - 100               # garbage byte 1 sampled, its stop bit on
+    net.run(t)
+    assert len(got[2]) == 2                       # from the overlap on, at its own rate
+    when, date, value = got[2][-1]
+    start = date - BT
+    assert when == date - 832 and when <= t < date
+    cells = range(start, t, BT // 10)             # every edge of the byte, one by one
+    assert [net.radios[2].rx_fall(a, t) for a in cells] == \
+        [first_fall(value, start, BT, a, t) for a in cells]
+    noisy, heard = _rdrf_net(monkeypatch, 2, noise=True)
+    noisy.run(1_000_000)
+    noisy.sync_all()
+    t = heard[1][-1][1] + BT - 100                # the next noise byte sampled, not over
+    noisy.run(t)
+    noisy.sync_all()
+    when, date, value = heard[1][-1]
+    start = date - BT
+    assert when <= t < date                       # sampled, its stop bit not over
+    cells = range(start, t, BT // 10)
+    assert [noisy.radios[1].rx_fall(a, t) for a in cells] == \
+        [first_fall(value, start, BT, a, t) for a in cells]

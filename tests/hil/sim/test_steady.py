@@ -31,7 +31,6 @@ READS = {
     ("Dispatcher", "log"): "its length, to drop the oldest half of a full log (a tail kept)",
     ("_Submodule", "events"): "its length, to drop the oldest half when full (a tail kept)",
     ("Cpu", "_busy"): "the figure Cpu.busy reports (loads, the CPU report), never a decision",
-    ("Cpu", "_requests"): "a waiting request's tie-break: compared only with its own values",
 }
 """Reads of a declared counter that decide nothing by its amount (the only exceptions)."""
 
