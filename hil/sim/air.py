@@ -21,7 +21,8 @@ delivered in one burst at the end of the transmission, or up to ``now`` whenever
 looks at its UART first (its timer interrupt calls ``sync``). Bytes that differ from what was
 sent — corrupted by ``ber``, collision garbage, idle noise that contains a header — can make
 the firmware act at any byte, so they are delivered one by one at their own ticks. Idle noise
-without a header is delivered in bursts (it can only be discarded). Every random draw comes
+without a header is delivered in bursts (it can only be discarded), but to a UART on the CPU
+model, where each byte is an interrupt, a byte at its tick. Every random draw comes
 from a per-radio stream consumed in byte order. ``byte_by_byte=True`` delivers every byte at
 its own tick; the tests check both give the same trace.
 
@@ -468,16 +469,33 @@ class Air:
 
     def _scan_noise(self, r: AirRadio, start: int) -> None:
         """Find the next header in the noise this radio will hear from ``start`` and make sure
-        it is delivered byte by byte (it can make the firmware act); re-scan further on."""
+        it is delivered byte by byte (it can make the firmware act); re-scan further on. A
+        UART on the CPU model (``_lead``) hears every noise byte at its own tick: each is an
+        interrupt that meets the others on its CPU, and noise handed over in a burst would
+        queue a request a byte at once (a backlog the part never has)."""
         bt = r.uart.byte_ticks
+        gen = self._noise_gen[r.idx]
+        lead = self._lead(r, bt)
+        if lead:
+            self.sched.at(start + bt - lead, self._noise_each, r, gen)
+            return
         ahead = self._noise[r.idx].peek(NOISE_LOOKAHEAD)
         k = ahead.find(HEADER)
-        gen = self._noise_gen[r.idx]
         if k < 0:
             self.sched.at(start + (NOISE_LOOKAHEAD - 2) * bt, self._noise_rescan, r, gen)
         else:
-            self.sched.at(start + (k + 1) * bt - self._lead(r, bt), self._noise_header, r,
-                          gen)
+            self.sched.at(start + (k + 1) * bt, self._noise_header, r, gen)
+
+    def _noise_each(self, r: AirRadio, gen: int) -> None:
+        """A noise byte at its RDRF (a CPU model's UART), then the next one's."""
+        now = self.sched.now
+        if gen != self._noise_gen[r.idx] or r.rx is not None or not self.noise or \
+                not r.listening(now):
+            return
+        self._noise_upto(r, now)
+        bt = r.uart.byte_ticks
+        self.sched.at(max(r.noise_from, r.rx_from) + bt - self._lead(r, bt), self._noise_each,
+                      r, gen)
 
     def _noise_rescan(self, r: AirRadio, gen: int) -> None:
         if gen != self._noise_gen[r.idx] or r.rx is not None or not r.listening(self.sched.now):

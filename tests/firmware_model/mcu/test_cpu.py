@@ -375,6 +375,20 @@ def test_a_receive_handler_slower_than_a_byte_overruns_and_loses_bytes():
     assert s["robots"][1]["mode"] == "listen" or s["robots"][1]["received"] == 0
 
 
+def test_idle_noise_on_the_cpu_model_is_an_interrupt_a_byte_and_overruns_nothing():
+    """A PTR2000 with no carrier outputs noise, a byte every 16 640 ticks: on the part each
+    is a receive interrupt of 130 cycles, far inside a byte. Handed over in bursts, a second
+    of noise queued a request a byte at once and the frame byte after it overran."""
+    w = _world(DEFAULT_COSTS, robots=(1, 2, 3, 4), duration=20, noise=True, seed=0)
+    w.run()
+    assert w.summary()["cpu_overruns"] == {1: 0, 2: 0, 3: 0, 4: 0}
+    for r, st in w.stations.items():
+        rx = w.cpus[r].stats["UART0 RX"]
+        assert st.uart.bytes_received > 20 * 500               # mostly noise
+        assert rx.calls == st.uart.bytes_received
+        assert max(rx.latency) < st.uart.byte_ticks           # no backlog
+
+
 def test_a_transmit_handler_slower_than_a_byte_stretches_every_frame_it_sends():
     # 20 000 cycles a TDRE handler: each byte waits for the last one's handler, so every
     # frame a child sends has a gap after each byte; the father, a PC, sends back to back

@@ -224,5 +224,6 @@ def test_whole_rings_on_the_cpu_model_give_the_same_trace_and_figures(case):
         {r: (c.busy, _figures(c)) for r, c in slow.cpus.items()}
     late = sum(st.uart.bytes_late for st in fast.stations.values())
     assert sum(st.uart.bytes_late for st in slow.stations.values()) == 0
-    # late bytes need a receiver holding nothing: idle noise keeps every deframer busy
-    assert (late == 0) if CASES[case].get("noise") else (late > 0)
+    # late bytes need a receiver holding nothing (idle noise comes a byte at a time, and a
+    # frame after noise that left no partial Header may still come late)
+    assert late > 0
