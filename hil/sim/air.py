@@ -208,13 +208,12 @@ class Air:
                     cpu = getattr(r.uart, "cpu", None)
                     if cpu is None or cpu.ideal:
                         r.rx = Reception(data, t0, bt, tx.n, tx)
-                    elif r.uart.may_come_late(data, bt, t0):
-                        r.rx = Reception(data, t0, bt, tx.n, tx, quiet=tx.n,
-                                         lead=r.uart.rx_lead(bt))
-                        self._bytewise(r, r.rx, tx.n, tx.n - 1)
                     else:
-                        r.rx = Reception(data, t0, bt, tx.n, tx, lead=r.uart.rx_lead(bt))
-                        self._bytewise(r, r.rx, 0, tx.n - 1)
+                        late = r.uart.may_come_late(data, bt, t0)
+                        r.rx = Reception(data, t0, bt, tx.n, tx, quiet=tx.n if late else 0,
+                                         lead=r.uart.rx_lead(bt))
+                        # late: only the last byte has an event (at its RDRF)
+                        self._bytewise(r, r.rx, tx.n if late else 0, tx.n - 1)
                 else:
                     r.rx = self._reception(r, tx)
         self.sched.at(tx.end, self._end, tx)

@@ -66,7 +66,7 @@ PERIOD = STATUS_PERIOD_TICKS
 
 PAYBACK_PERIODS = 8
 """Periods a sleep must last to pay for the two snapshots that began it: a snapshot of a
-child's CAN side costs about what four of its periods run frame by frame do
+child's CAN side costs about what three of its periods run frame by frame do
 (docs/performance.md, "Sleeping CAN sides under load"). A domain woken sooner than this,
 sleep after sleep (orders every few periods), probes ever less often: after ``n`` short
 sleeps in a row it skips ``2**n - 1`` probes (at most :data:`SHORT_BACKOFF_MAX` - 1) after
