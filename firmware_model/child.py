@@ -62,12 +62,14 @@ RETRY = TICK_HZ                    # leave standby and try the bus again every 1
 
 class CanDriver:
     """The firmware's CAN driver: a software queue per transmit buffer, receive ISRs, and the
-    bus supervision. ``on_frame(frame, now)`` gets every received frame."""
+    bus supervision. ``on_frame(frame, now)`` gets every received frame. ``cpu``: what its
+    interrupts are raised on (a :class:`Cpu`, or anything with its ``irq`` and ``settle``),
+    an ideal CPU on ``sched`` if None."""
 
     def __init__(self, sched: Clock, controller: CanController, transceiver: Any,
                  on_frame: Callable[[CanFrame, int], None],
                  on_fault: Callable[[int, int], None],
-                 on_status: Callable[[], None] = lambda: None, cpu: Cpu | None = None,
+                 on_status: Callable[[], None] = lambda: None, cpu: Any = None,
                  costs: CycleCosts | None = None) -> None:
         self.sched = sched
         self.cpu = cpu if cpu is not None else Cpu(sched)
@@ -215,32 +217,41 @@ class ChildFirmware:
 
     def __init__(self, station: RadioStation, controller: CanController,
                  transceiver: Any, costs: CycleCosts | None = None,
-                 clock: Clock | None = None) -> None:
+                 clock: Clock | None = None,
+                 can_cpu: Callable[[Cpu], Any] | None = None) -> None:
         """``costs`` runs the firmware on the CPU model with that cycle-cost table (radio
         handlers included); None is the ideal CPU (every handler in zero time). ``clock``:
         what the CAN side (driver, dispatcher timer, ideal CPU) schedules on, by default the
-        station's scheduler (a caller may give the CAN side a clock of its own)."""
-        if costs is not None and clock is not None:
-            raise ValueError("the CPU model runs the radio and the CAN side on one clock")
+        station's scheduler (a caller may give the CAN side a clock of its own: it must tell
+        the station's tick, as the CPU model runs on the station's scheduler). ``can_cpu(cpu)``
+        gives what the CAN driver raises its interrupts on (``irq`` and ``settle`` as the
+        CPU's), by default the CPU itself (a simulator may stand something in between)."""
         self.station = station
         self.sched = clock if clock is not None else station.sched
         self.id = station.id
         self.costs = costs
-        self.cpu = Cpu(self.sched, costs, name=f"MB90F549-R{self.id}")
+        # the CPU model times the radio's handlers too: it runs on the station's scheduler
+        self.cpu = Cpu(self.sched if costs is None else station.sched, costs,
+                       name=f"MB90F549-R{self.id}")
         if costs is not None:
             station.run_on(self.cpu, costs)
         self.dispatcher = Dispatcher(self.id)
         # done() notices are this project's (protocol 2.1); the paper profile sends none
         self.dispatcher.report_done = station.mac.cfg.profile != "paper"
         self.can = CanDriver(self.sched, controller, transceiver, self._on_can, self._on_fault,
-                             self._pump, cpu=self.cpu, costs=costs)
+                             self._pump, costs=costs,
+                             cpu=self.cpu if can_cpu is None else can_cpu(self.cpu))
         self.latency_from: tuple[int, int, bytes] | None = None
         """(End tick of a radio order's frame, CAN id and data of the first frame the order
         produced) until that frame reaches the bus: the world measures the dispatcher's
         latency from it."""
         timer_cycles = (costs or DEFAULT_COSTS).dispatcher_timer.cycles
-        self.timer = ReloadTimer(self.sched, lambda now: self.cpu.irq(
-            TMR1, timer_cycles, self._on_timer_isr), name="TMR1")
+        self.timer = ReloadTimer(self.sched, self._raise_timer, name="TMR1")
+        self._timer_cycles = timer_cycles
+        self.cpu_work = 0
+        """Work of the CAN side's that the CPU holds and has not done yet (ticks: none):
+        messages handed to the main loop, the dispatcher timer's interrupt. A simulator
+        does not put the CAN side to sleep while there is any."""
         station.add_app(self._on_message)
         self.sequence: ActionSequence | None = None
         self.on_action: Callable[[int, int, str, int], None] | None = None
@@ -281,9 +292,11 @@ class ChildFirmware:
         end = self.station.deframer.last_tick
         # (the ideal CPU runs it in zero time: its cycles need no counting)
         body = 0 if self.cpu.ideal else message_cycles(d.commands, self.costs or DEFAULT_COSTS)
+        self.cpu_work += 1
         self.cpu.task(DISPATCH_TASK, body, self._dispatch, d, end)
 
     def _dispatch(self, d: Deliver, end: int | None) -> None:
+        self.cpu_work -= 1
         now = self.sched.now
         self.dispatcher.on_message(d.src, d.dst, d.commands, now, d.type)
         self._kickoff()
@@ -306,7 +319,12 @@ class ChildFirmware:
             self.can.last_rx += late
         self._pump()
 
+    def _raise_timer(self, now: int) -> None:
+        self.cpu_work += 1
+        self.cpu.irq(TMR1, self._timer_cycles, self._on_timer_isr)
+
     def _on_timer_isr(self) -> None:
+        self.cpu_work -= 1
         self._on_timer(self.sched.now)
 
     def _on_timer(self, now: int) -> None:

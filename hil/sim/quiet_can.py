@@ -34,6 +34,10 @@ things. Running that frame by frame costs the simulator most of a ``--can`` run
   steps, instead of comparing two snapshots a period apart (an order the dispatcher refuses
   costs one snapshot, not two).
 
+* On the CPU model (``--cpu estimated``) the CAN side's interrupts share the CPU with the
+  radio's: a sleeping domain's are raised on the CPU all the same, as ghosts that cost what
+  its handlers would (hil/sim/can_ghosts.py).
+
 The result is the run the frame-by-frame simulation gives, to the tick: the state is the same
 after k periods whether they ran or were added up, because the snapshot covers all of it
 (tests/hil/sim/test_quiet_can.py compares the two on seeded runs with orders, faults, byte errors
@@ -48,6 +52,7 @@ from can_bus.submodules import STATUS_PERIOD_TICKS
 from firmware_model.dispatcher import REQUEST_TYPES, NodeView
 from firmware_model.mcu.scheduler import Event
 
+from .can_ghosts import CanCpuPort, Footprint
 from .domains import SimScheduler
 
 from .steady import CAN_PARTS, counters, records
@@ -176,6 +181,10 @@ class QuietCan:
         self._skip = 0            # probes left to skip (backing off while it is busy)
         self._after_busy = False  # may_sleep() said no at the last probe
         self._short = 0           # sleeps in a row shorter than PAYBACK_PERIODS
+        self.port: CanCpuPort | None = None
+        """On the CPU model: the CAN driver's way to the CPU, which raises the sleeping
+        domain's interrupts as ghosts (hil/sim/can_ghosts.py)."""
+        self._footprint: Footprint = ()   # the interrupts of the orbit's period
 
     def start(self, phase: int) -> None:
         """Probe every period from tick ``phase`` on (a tick the status grid is idle at)."""
@@ -198,11 +207,17 @@ class QuietCan:
     def _probe(self) -> None:
         clock = self.clock
         clock.at(clock.now + PERIOD, self._probe)
+        # the interrupts the CAN side raised on the CPU model since the last probe
+        port = self.port
+        footprint = port.begin() if port is not None else ()
         if clock.private is not None or not self.enabled:
             self._last = None
             self._misses = self._skip = 0
             return
-        if not self.may_sleep():
+        if not self.may_sleep() or (port is not None and (port.in_flight or self.drifting())):
+            # (on the CPU model: a handler of its own still runs, or a cruising wheel's
+            # reports change from period to period, and with them their frames' stuff bits
+            # and the ticks of the interrupts they raise: ghosts would be off by a bit)
             self._last = None
             self._misses = self._skip = 0
             self._after_busy = True
@@ -233,7 +248,8 @@ class QuietCan:
             # Back on the orbit it slept on (what woke it left nothing that a period does not
             # move on): sleep again now rather than one period later.
             self.resleeps += 1
-            self._sleep(snap, steps, self._replay or latest_moved(orbit, snap, steps, periods))
+            self._sleep(snap, steps, self._replay or latest_moved(orbit, snap, steps, periods),
+                        self._footprint)
             return
         found = period_steps(last, snap, PERIOD, COUNTERS)
         if found is None:
@@ -244,9 +260,15 @@ class QuietCan:
             if self._skip:
                 self._last = None
             return
-        self._sleep(snap, found, latest_moved(last, snap, found))
+        if footprint is None:
+            return      # a CAN handler met the radio on the CPU this period: not its orbit
+        self._sleep(snap, found, latest_moved(last, snap, found), footprint)
 
-    def _sleep(self, snap: Snapshot, steps: dict[int, int], replay: bool) -> None:
+    def _sleep(self, snap: Snapshot, steps: dict[int, int], replay: bool,
+               footprint: Footprint) -> None:
+        port = self.port
+        if port is not None and (port.in_flight or self.drifting()):
+            return      # (as _probe: a handler of its own runs, or a wheel cruises)
         moved = writable(snap, steps)
         stepped = {id(holder) for holder, key, _ in moved if key == "when"}
         if any(id(ev) not in stepped for ev in self.world.pending(self)):
@@ -262,6 +284,14 @@ class QuietCan:
         self._since = self.clock.now
         self.asleep = True
         self.sleeps += 1
+        self._footprint = footprint
+        if port is not None:
+            port.sleep(footprint, self._since)
+
+    def replay_last(self) -> None:
+        """A latest value drifted while the domain sleeps (a late ghost, hil/sim/can_ghosts.py):
+        the wake runs the last whole period frame by frame, as for a drifting part."""
+        self._replay = True
 
     def _short_backoff(self) -> int:
         """Probes to skip now, after ``_short`` short sleeps in a row (``PAYBACK_PERIODS``)."""
@@ -292,11 +322,19 @@ class QuietCan:
         private.put_back(self._events)
         self._events = []
         self.clock.use(private)
+        port = self.port
+        if port is not None:
+            port.wake()
+            port.catching_up = True
         try:
             private.run_until(now)
         finally:
             self.clock.use(None)
+            if port is not None:
+                port.catching_up = False
         self.world.put_back(private.take(self))
+        if port is not None:
+            port.woken()
 
 
 # -- what reaches a sleeping child without waking it -------------------------------------------
@@ -324,8 +362,8 @@ def refuses_only(child: "ChildFirmware", d: "Deliver") -> bool:
 
 def nothing_under_way(child: "ChildFirmware") -> bool:
     """No job (so no job deadline), no output waiting, no CAN supervision pending, the
-    dispatcher's timer stopped, no action sequence, and the ideal CPU (the CPU model runs a
-    message on its own clock)."""
+    dispatcher's timer stopped, no action sequence, and the ideal CPU (the CPU model hands
+    a message to the main loop, which dispatches it later: it wakes the domain)."""
     disp = child.dispatcher
     return (child.sequence is None and child.cpu.ideal and not disp.jobs
             and not disp.has_output() and child.timer.expiry is None

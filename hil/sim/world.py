@@ -42,6 +42,7 @@ from .config import ConfigError, SimConfig
 from .faults import Fault, schedule as schedule_fault, skewed_mac
 from .ledger import Ledger, Tally, summary
 from .load import Load
+from .can_ghosts import CanCpuPort
 from .quiet_can import PERIOD as CAN_PERIOD, QuietCan, notes_only, refuses_only
 from .quiet_ring import QuietRing
 from .domains import SimScheduler
@@ -122,7 +123,8 @@ class World:
         self._can_tally: dict[int, Tally] = {}
         self.quiet: dict[int, QuietCan] = {}
         """Each child's CAN side as a domain that sleeps while it only repeats itself
-        (hil/sim/quiet_can.py); none with the CPU model, which times every handler."""
+        (hil/sim/quiet_can.py; on the CPU model its interrupts still come, as ghosts:
+        hil/sim/can_ghosts.py)."""
         self.actions: list[tuple[int, int, int, str]] = []   # (tick, robot, action, phase)
         self.transmissions = 0
         """Transmissions started on the air so far (a count: a 24-hour run keeps no list)."""
@@ -238,13 +240,16 @@ class World:
             fn(self.meta)
 
     def _build_can_side(self, r: int, st: RadioStation) -> None:
-        quiet = QuietCan(self.sched, name=f"R{r} CAN") if self.cfg.cpu is None else None
-        domain_clock = quiet.clock if quiet is not None else None
-        clock = domain_clock or self.sched
+        quiet = QuietCan(self.sched, name=f"R{r} CAN")
+        clock = quiet.clock
         bus = CanBus(clock, CAN_TIMING)
         ctrl = CanController(clock, CAN_TIMING)
         xcvr = Transceiver82C250(bus, ctrl, name=f"82C250-R{r}")
-        child = ChildFirmware(st, ctrl, xcvr, costs=self.cfg.cpu, clock=domain_clock)
+        # on the CPU model, the CAN side's interrupts go through a port that raises them as
+        # ghosts while it sleeps (hil/sim/can_ghosts.py)
+        port = quiet.port = CanCpuPort(quiet) if self.cfg.cpu is not None else None
+        child = ChildFirmware(st, ctrl, xcvr, costs=self.cfg.cpu, clock=clock,
+                              can_cpu=port.attach if port is not None else None)
         self.children[r] = child
         if self.cfg.cpu is not None:
             self.cpus[r] = child.cpu
@@ -257,8 +262,7 @@ class World:
         tally = self._can_tally[r] = Tally()
         bus.trace = lambda frame, start, end, winner, r=r, tally=tally: \
             self._on_can(r, tally, frame, start, end)
-        if quiet is not None:
-            self._make_domain(r, quiet, st, [bus, ctrl, xcvr, child, self.submodules[r], tally])
+        self._make_domain(r, quiet, st, [bus, ctrl, xcvr, child, self.submodules[r], tally])
 
     def _make_domain(self, r: int, quiet: QuietCan, st: RadioStation, parts: list) -> None:
         """Child ``r``'s CAN side sleeps while it only repeats itself; whatever reaches it
@@ -267,12 +271,14 @@ class World:
         world_trace = bus.trace
         quiet.roots = parts
         quiet.boundary = [st, self.sched]
+        if quiet.port is not None:       # the CPU model's: the radio's as much as the CAN's
+            quiet.boundary += [child.cpu, quiet.port]
         quiet.enabled = (self.cfg.can_sleep and self.cfg.fast_paths and not self.cfg.realtime
                          and self.cfg.sequence is None)
         quiet.may_sleep = lambda: (
             not self.listeners and self.pcap is None
             and bus.trace is world_trace and bus.error_trace is None
-            and not child.dispatcher.jobs
+            and not child.dispatcher.jobs and not child.cpu_work
             and all(n.state != STATE_MOVING or n.cruising for n in nodes.values()))
         quiet.drifting = lambda: any(n.cruising for n in nodes.values())
 

@@ -397,14 +397,6 @@ def test_nothing_sleeps_when_someone_watches_the_frames(tmp_path):
     assert len(frames) == 6 * 10 * 3
 
 
-def test_the_cpu_model_has_no_sleeping_can_side():
-    from firmware_model.cycle_costs import DEFAULT_COSTS
-    w = World(SimConfig(robots=(0, 1), duration=1, can=True, seed=1, cpu=DEFAULT_COSTS))
-    assert w.quiet == {}
-    w.run()
-    assert w.can_frames == 6 * 10
-
-
 # -- news: noted without waking ----------------------------------------------------------------
 
 def _news(done_at: float = 4.0) -> tuple:

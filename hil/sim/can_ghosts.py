@@ -1,0 +1,296 @@
+"""A sleeping CAN side's interrupts on the CPU model: *ghosts* that take the CPU as its real
+handlers would, so that the radio's handlers meet them to the tick.
+
+On the CPU model a child's CAN and radio handlers share one CPU (firmware_model/mcu/cpu.py):
+a CAN handler that meets a radio handler moves both. So a child's CAN side may sleep
+(hil/sim/quiet_can.py) only if its CPU still sees every request it would have raised:
+
+* **Awake**, the CAN driver raises its interrupts through a :class:`CanCpuPort`, which hands
+  them to the CPU unchanged and notes, for the period the probe compares, each request's tick,
+  vector and cycles, and whether each handler's effects came when a handler alone on the CPU
+  has them (``entry + body`` cycles after its request: *on time*).
+* **It sleeps** only if every one of that period came on time, none is still running, no
+  work of the CAN side waits on the CPU (a message for the main loop, the dispatcher timer's
+  interrupt: ``ChildFirmware.cpu_work``) and no wheel cruises (its reports, and so its
+  frames' stuff bits and the ticks of the interrupts after them, change from period to
+  period). The port then raises the same requests at the same ticks a period later and every
+  period on (an event each, first at its tick as the driver's frame end was), each with a
+  ghost handler: the same vector and cycles, so it costs the CPU what the real one would, on
+  the same path, and the CPU's figures are the real ones.
+* A ghost whose effects come on time stands for the real handler: the domain's state moves
+  on by whole periods as the probe found. When its ``enter`` ran does not matter (nothing but
+  its body reads what it takes, ``Cpu.irq``'s ``alone``).
+* A ghost whose effects come late met the radio on the CPU (a radio handler held it, or
+  preempted it). If its handler's effects are only the latest of what each period rewrites
+  (:data:`LATE_OK`) and come before the next request, the domain sleeps on: the catch-up at
+  its wake runs them at the tick they came, and the last whole period frame by frame.
+  Otherwise it wakes the domain (:meth:`QuietCan.wake`): the catch-up runs the CAN side up to
+  the tick now, and when its driver raises the request the ghost stands for, the ghost takes
+  the real handler's ``enter`` and effects, and from then on is the real handler, where the
+  CPU has it.
+* No request of a catch-up reaches the CPU (the ghosts did): a request whose ghost stood for
+  it has its effects run at their ticks on the catch-up's own scheduler.
+
+The run is the frame-by-frame one to the tick, the CPU's figures included
+(tests/hil/sim/test_can_ghosts.py; ``scripts/sleep_hunt.py --cpu``).
+"""
+from __future__ import annotations
+
+from collections import deque
+from typing import TYPE_CHECKING, Any, Callable
+
+from can_bus.submodules import STATUS_PERIOD_TICKS as PERIOD
+from firmware_model.interrupts import CAN0_RX
+from firmware_model.mcu.cpu import Cpu, Vector
+from firmware_model.mcu.scheduler import Event
+
+if TYPE_CHECKING:
+    from .quiet_can import QuietCan
+
+__all__ = ["CanCpuPort", "Footprint"]
+
+Footprint = tuple[tuple[int, Vector, int, bool], ...]
+"""A period's requests: (ticks after the period's start, vector, body cycles, alone)."""
+
+KEEP_PERIODS = 3
+"""Periods a ghost is kept for a catch-up to find: a catch-up replays at most the last whole
+period and the part of a period since (QuietCan.wake)."""
+
+
+LATE_OK = frozenset({CAN0_RX.name})
+"""Handlers whose effects on a child whose CAN side sleeps are only the latest of what every
+period rewrites, read by nothing of that side before the rewrite: the CAN receive handler,
+which there only takes a submodule's status frame (the driver's ``last_rx``, the dispatcher's
+record of the node, a ``LATEST`` type: hil/sim/quiet_can.py). Its ghost may come late (the radio
+held the CPU) and the domain sleep on: the catch-up runs its effects at the tick they came
+and, as after any drift of a latest value, the last whole period frame by frame
+(``QuietCan.replay_last``), which leaves what the skipped periods would have. It must come
+before the footprint's next request, which may read what it does (the next frame into its
+buffer); later, it wakes the domain."""
+
+
+class _Ghost:
+    """One request raised for a sleeping CAN side: ``due`` (a tick) is when a lone handler's
+    effects come, ``limit`` the tick of the footprint's next request; ``real`` the handler it
+    became once a catch-up gave it; ``entered_at`` / ``effects_at`` when its ``enter`` and
+    effects came, while it stood for the real handler."""
+
+    __slots__ = ("port", "key", "tick", "due", "limit", "late_ok", "real", "entered",
+                 "entered_at", "effects_at")
+
+    def __init__(self, port: "CanCpuPort", key: tuple[int, str], due: int, limit: int,
+                 late_ok: bool) -> None:
+        self.port = port
+        self.key = key
+        self.tick = key[0]
+        self.due = due
+        self.limit = limit
+        self.late_ok = late_ok
+        self.real: tuple[Callable[[], None] | None, Callable[..., None], tuple] | None = None
+        self.entered = False     # the real enter has run
+        self.entered_at: int | None = None
+        self.effects_at: int | None = None
+
+    @property
+    def done(self) -> bool:
+        """Its effects came while it stood for the real handler."""
+        return self.effects_at is not None
+
+    def enter(self) -> None:
+        if self.real is None:
+            self.entered_at = self.port.now()
+            return
+        self._enter_real()
+
+    def fn(self) -> None:
+        port = self.port
+        if self.real is None:
+            now = port.now()
+            if now == self.due:
+                self.effects_at = now
+                return
+            if self.late_ok and now < self.limit:
+                # late, its effects only the latest of what each period rewrites: the catch-up
+                # runs them at this tick (LATE_OK)
+                self.effects_at = now
+                port.late += 1
+                port.quiet.replay_last()
+                return
+            port.meet(self)
+        self._enter_real()
+        assert self.real is not None
+        _, fn, args = self.real
+        port.in_flight -= 1
+        fn(*args)
+
+    def _enter_real(self) -> None:
+        if not self.entered:
+            self.entered = True
+            assert self.real is not None
+            enter = self.real[0]
+            if enter is not None:
+                enter()
+
+
+class CanCpuPort:
+    """The CAN driver's way to its child's CPU (``irq`` and ``settle`` as the CPU's): hands
+    requests over while the domain is awake, raises ghosts while it sleeps (module
+    docstring)."""
+
+    def __init__(self, quiet: "QuietCan") -> None:
+        self.quiet = quiet
+        self.cpu: Cpu | None = None
+        self.catching_up = False
+        self.in_flight = 0
+        """Requests handed over (or ghosts become real) whose effects have not come yet."""
+        self.meetings = 0
+        """Ghosts that met the radio on the CPU and woke the domain."""
+        self.ghosts_raised = 0
+        self.late = 0
+        """Ghosts whose effects came late (the radio held the CPU) without waking the domain
+        (LATE_OK)."""
+        self._log: list[tuple[int, Vector, int, bool]] = []
+        self._clean = True
+        self._mark = 0
+        self._guards: list[Event] = []
+        self._footprint: Footprint = ()
+        self._gaps: list[int] = []
+        self._ghosts: dict[tuple[int, str], _Ghost] = {}
+        self._order: deque[_Ghost] = deque()
+
+    def attach(self, cpu: Cpu) -> "CanCpuPort":
+        """Stand between ``cpu`` and the CAN driver (ChildFirmware's ``can_cpu``)."""
+        self.cpu = cpu
+        return self
+
+    def now(self) -> int:
+        assert self.cpu is not None
+        return self.cpu.sched.now
+
+    # -- the CPU's interface, as the CAN driver uses it -----------------------------------
+
+    def irq(self, vector: Vector, body: int, fn: Callable[..., None], *args: Any,
+            enter: Callable[[], None] | None = None, alone: bool = False) -> None:
+        cpu = self.cpu
+        assert cpu is not None
+        if self.catching_up:
+            self._replayed(vector, body, fn, args, enter)
+            return
+        t = cpu.sched.now
+        due = t + cpu.entry + body
+        self._log.append((t, vector, body, alone))
+        self.in_flight += 1
+
+        def effects(*a: Any) -> None:
+            self.in_flight -= 1
+            if cpu.sched.now != due:
+                self._clean = False
+            fn(*a)
+        cpu.irq(vector, body, effects, *args, enter=enter, alone=alone)
+
+    def settle(self, read: bool = True, final: bool = False) -> None:
+        if not self.catching_up:
+            assert self.cpu is not None
+            self.cpu.settle(read, final)
+
+    # -- the probe's questions -------------------------------------------------------------
+
+    def begin(self) -> Footprint | None:
+        """A probe's snapshot now: the requests since the last one as a footprint (None if a
+        handler's effects came late or one still runs), and begin noting the next period's."""
+        now = self.quiet.clock.now
+        fp = None
+        if self._clean and not self.in_flight:
+            fp = tuple((t - self._mark, v, b, a) for t, v, b, a in self._log)
+        self._log = []
+        self._clean = True
+        self._mark = now
+        return fp
+
+    # -- asleep ----------------------------------------------------------------------------
+
+    def sleep(self, footprint: Footprint, start: int) -> None:
+        """The domain sleeps at tick ``start``, a probe's, the period before it having raised
+        ``footprint``: raise those requests from ``start`` on, every period."""
+        world = self.quiet.world
+        self._footprint = footprint
+        self._guards = [world.at_first(self, start + off, self._raise, i)
+                        for i, (off, _, _, _) in enumerate(footprint)]
+        # how long after each request the next one comes (ticks): a ghost whose effects
+        # come later than that must wake the domain (the next frame may read what they do)
+        offs = sorted(off for off, _, _, _ in footprint)
+        self._gaps = [min(((o - off) % PERIOD or PERIOD) for o in offs)
+                      for off, _, _, _ in footprint]
+
+    def _raise(self, i: int) -> None:
+        """A ghost's request, at the tick the driver's would come (an event first at it)."""
+        cpu = self.cpu
+        assert cpu is not None
+        _, vector, body, alone = self._footprint[i]
+        world = self.quiet.world
+        now = world.now
+        self._guards[i] = world.at_first(self, now + PERIOD, self._raise, i)
+        order = self._order
+        while order and order[0].tick < now - KEEP_PERIODS * PERIOD:
+            old = order.popleft()
+            del self._ghosts[old.key]
+        g = _Ghost(self, (now, vector.name), now + cpu.entry + body, now + self._gaps[i],
+                   vector.name in LATE_OK)
+        self._ghosts[g.key] = g
+        order.append(g)
+        self.ghosts_raised += 1
+        cpu.irq(vector, body, g.fn, enter=g.enter, alone=alone)
+
+    def meet(self, ghost: _Ghost) -> None:
+        """``ghost`` met the radio on the CPU: wake the domain, whose catch-up makes it real."""
+        self.meetings += 1
+        self.quiet.wake()
+        if ghost.real is None:
+            raise RuntimeError(f"{self.quiet.name}: the catch-up raised no request for the "
+                               f"ghost of tick {ghost.key[0]} ({ghost.key[1]})")
+
+    def wake(self) -> None:
+        """The domain wakes: no more ghosts; the catch-up that follows runs with
+        ``catching_up`` set (:meth:`_replayed`)."""
+        for ev in self._guards:
+            ev.cancel()
+        self._guards = []
+
+    def woken(self) -> None:
+        """The catch-up is over: every ghost raised up to now stood for a request it raised."""
+        now = self.now()
+        for g in self._order:
+            if g.real is None and g.effects_at is None and g.key[0] <= now:
+                raise RuntimeError(f"{self.quiet.name}: the catch-up raised no request for "
+                                   f"the ghost of tick {g.key[0]} ({g.key[1]})")
+        self._ghosts.clear()
+        self._order.clear()
+
+    def _replayed(self, vector: Vector, body: int, fn: Callable[..., None], args: tuple,
+                  enter: Callable[[], None] | None) -> None:
+        """The catch-up's driver raised a request: its ghost's by now."""
+        clock = self.quiet.clock
+        t = clock.now
+        g = self._ghosts.get((t, vector.name))
+        if g is None:
+            raise RuntimeError(f"{self.quiet.name}: the catch-up raised {vector.name} at tick "
+                               f"{t}, which no ghost stood for")
+        if g.effects_at is not None:
+            # it stood for the real handler: its effects at their ticks, on the catch-up's
+            # scheduler
+            private = clock.private
+            assert private is not None
+            at = g.effects_at
+            if g.entered_at is not None and g.entered_at < at and enter is not None:
+                private.at(g.entered_at, enter)
+                enter = None
+            private.at(at, _effects, enter, fn, args)
+        else:
+            g.real = (enter, fn, args)
+            self.in_flight += 1
+
+
+def _effects(enter: Callable[[], None] | None, fn: Callable[..., None], args: tuple) -> None:
+    if enter is not None:
+        enter()
+    fn(*args)

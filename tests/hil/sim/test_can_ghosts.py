@@ -1,0 +1,86 @@
+"""A sleeping CAN side on the CPU model raises its interrupts as ghosts (hil/sim/can_ghosts.py):
+the run is the one whose CAN sides never sleep, to the tick and to every handler's figure."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from firmware_model.cycle_costs import DEFAULT_COSTS
+from hil.sim import can_ghosts
+from hil.sim.config import SimConfig
+from hil.sim.world import World
+from hunt import sleep_hunt
+
+HUNT = sleep_hunt()
+
+
+def _same(cfg: SimConfig, cuts=()) -> tuple[World, World]:
+    """The world whose CAN sides sleep and the one whose never do, both run (cut alike)."""
+    slow = World(replace(cfg, can_sleep=False))
+    fast = World(cfg)
+    for w in (slow, fast):
+        for tick in cuts:
+            w.run(tick)
+        w.run()
+    assert HUNT.summary(fast) == HUNT.summary(slow)
+    assert HUNT.cpu_figures(fast) == HUNT.cpu_figures(slow)
+    assert HUNT.cpu_state(fast) == HUNT.cpu_state(slow)
+    return fast, slow
+
+
+IDLE = SimConfig(robots=(0, 1, 2, 3), duration=40, can=True, seed=1, cpu=DEFAULT_COSTS)
+
+
+def test_an_idle_childs_can_side_sleeps_on_the_cpu_model_and_its_cpu_sees_every_interrupt():
+    fast, slow = _same(IDLE, cuts=(123_456_789, 400_000_001))
+    for r, q in fast.quiet.items():
+        # asleep nearly all the run (it first sleeps after two periods of probing)
+        assert q.periods_skipped >= 390, (r, q.periods_skipped)
+        # six status frames a period, each a CAN receive interrupt: raised as ghosts
+        assert q.port.ghosts_raised >= 6 * 390
+    rx = {r: c.stats["CAN0 RX"].calls for r, c in fast.cpus.items()}
+    assert rx == {r: 6 * 400 for r in (1, 2, 3)}
+    # the radio met them on the CPU: late ghosts, their effects run at the wake
+    assert sum(q.port.late for q in fast.quiet.values()) > 0
+
+
+def test_ghosts_that_meet_the_radio_wake_the_can_side_and_it_is_still_the_same_run(
+        monkeypatch):
+    """Every late ghost waking its CAN side (no handler's effects taken as only the latest):
+    the catch-up makes each the real handler where the CPU holds it."""
+    monkeypatch.setattr(can_ghosts, "LATE_OK", frozenset())
+    fast, _ = _same(IDLE)
+    assert sum(q.port.meetings for q in fast.quiet.values()) > 0
+    assert sum(q.port.late for q in fast.quiet.values()) == 0
+    assert all(q.periods_skipped > 200 for q in fast.quiet.values())
+
+
+@pytest.mark.parametrize("seed", [
+    4,     # a cruising wheel: its reports' stuff bits move the interrupts, so it stays awake
+    11,    # an order waiting for the main loop when a probe comes: it stays awake
+])
+def test_named_worlds_of_the_hunt_run_alike_asleep_or_not(seed):
+    cfg, cuts, _ = HUNT.random_world(seed)
+    assert HUNT.same_sleeping_cpu_run(cfg, cuts), (cfg, cuts)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(12, 18))
+def test_random_worlds_run_alike_asleep_or_not_on_the_cpu_model(seed):
+    """A few more seeds of ``scripts/sleep_hunt.py --cpu``."""
+    cfg, cuts, _ = HUNT.random_world(seed)
+    assert HUNT.same_sleeping_cpu_run(cfg, cuts), (cfg, cuts)
+
+
+def test_an_order_waiting_for_the_main_loop_keeps_the_can_side_awake(monkeypatch):
+    """A message handed to the main loop wakes the CAN side, but the dispatcher reads it only
+    when its task runs: a probe between the two must not put the side back to sleep (here
+    every task takes 125 ms, more than a probe's period, so a probe always comes between)."""
+    import firmware_model.child as child_module
+    monkeypatch.setattr(child_module, "message_cycles", lambda commands, costs: 2_000_000)
+    cfg = SimConfig(robots=(0, 1, 2), duration=20, can=True, seed=3, load=0.3,
+                    cpu=DEFAULT_COSTS)
+    fast, _ = _same(cfg)
+    assert sum(q.periods_skipped for q in fast.quiet.values()) > 0
+    assert sum(c.stats["main loop"].calls for c in fast.cpus.values()) > 0
