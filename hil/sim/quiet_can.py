@@ -106,12 +106,13 @@ class DomainClock:
     the world's scheduler, with the domain's events first at a tick, or, while the domain
     catches up, a private scheduler."""
 
-    __slots__ = ("world", "owner", "private", "at", "at_top")
+    __slots__ = ("world", "owner", "private", "at", "at_top", "_sched")
 
     def __init__(self, world: SimScheduler, owner: object) -> None:
         self.world = world
         self.owner = owner
         self.private: SimScheduler | None = None
+        self._sched = world                     # the scheduler that runs the domain now
         self.at: Callable[..., Event] = partial(world.at_first, owner)
         """``at(when, fn, *args)``: schedule on whichever scheduler runs the domain now."""
         self.at_top: Callable[..., Event] = partial(world.at_top, owner=owner)
@@ -120,14 +121,13 @@ class DomainClock:
     def use(self, private: SimScheduler | None) -> None:
         """Run the domain on ``private`` (None: on the world's scheduler again)."""
         self.private = private
-        sched = private if private is not None else self.world
+        sched = self._sched = private if private is not None else self.world
         self.at = partial(sched.at_first, self.owner)
         self.at_top = partial(sched.at_top, owner=self.owner)
 
     @property
     def now(self) -> int:
-        p = self.private
-        return (p if p is not None else self.world).now
+        return self._sched.now
 
     def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
         return self.at(self.now + delay, fn, *args)
@@ -189,6 +189,12 @@ class QuietCan:
     def start(self, phase: int) -> None:
         """Probe every period from tick ``phase`` on (a tick the status grid is idle at)."""
         self.clock.at(phase, self._probe)
+
+    @property
+    def comparing(self) -> bool:
+        """The next probe compares the period now running with the snapshot taken at the
+        last (the CPU model's port notes its interrupts then: hil/sim/can_ghosts.py)."""
+        return self._last is not None
 
     def touched(self) -> None:
         """Something from outside the domain reached it while it is awake (a message handed

@@ -53,8 +53,8 @@ of the whole radio side:
 * On the CPU model (firmware_model/mcu/cpu.py) the CPUs are parts like the rest: what a
   handler costs is counted (``Cpu._busy``, each handler's calls, cycles and latency and
   response counts: counters the leap moves on), a handler running at the probe is a frame
-  with ticks. Not with CAN sides there (they never sleep on the CPU the radio shares) nor
-  with a listener (the world's per-second CPU loads, World._cpu_second, never repeat with
+  with ticks. Not with CAN sides there (their interrupts, ghosts or real, meet the radio's
+  on the CPU at ticks no ring cycle repeats: hil/sim/can_ghosts.py) nor with a listener (the world's per-second CPU loads, World._cpu_second, never repeat with
   the ring). A run's end settles the CPUs (``Cpu.settle``), which hands a UART the bytes of
   a reception it would have had late, a count (``Uart.bytes_late``) no period repeats: the
   next snapshot is then compared with none (:meth:`QuietRing.forget`).

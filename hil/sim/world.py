@@ -215,8 +215,9 @@ class World:
         # cycles leapt over); none on the wall's clock, nor with CAN sides that a trace keeps
         # awake (QuietCan.may_sleep): it could never leap there; nor with the authenticated
         # profile, whose frames never repeat (a new freshness each). On the CPU model, only
-        # without CAN sides (they never sleep there: every handler is timed on the CPU the
-        # radio shares) and untraced (the per-second CPU loads never repeat with the ring).
+        # without CAN sides (their interrupts meet the radio's on the CPU at ticks no ring
+        # cycle repeats, asleep or not) and untraced (the per-second CPU loads never repeat
+        # with the ring).
         watched = bool(self.listeners)
         if config.ring_sleep and config.fast_paths and config.mac_kind == "rotational" \
                 and not config.realtime \

@@ -336,9 +336,10 @@ def test_no_ring_where_it_could_never_leap():
 
 
 def test_on_the_cpu_model_a_childs_can_and_radio_handlers_meet():
-    """Why no ring (and no sleeping CAN side) on the CPU model with CAN sides: a child's CAN
-    receive handlers and its radio handlers share one CPU and meet there, each meeting moving
-    the latencies of both, so neither side repeats on its own (docs/performance.md)."""
+    """Why no ring leap on the CPU model with CAN sides: a child's CAN receive handlers (its
+    sleeping side's ghosts too, hil/sim/can_ghosts.py) and its radio handlers share one CPU
+    and meet there, each meeting moving the latencies of both, at ticks no ring cycle repeats
+    (docs/performance.md)."""
     w = World(SimConfig(robots=RING, duration=20, seed=1, can=True, cpu=DEFAULT_COSTS))
     w.run()
     met = {r: sum(n for lat, n in cpu.stats["CAN0 RX"].latency.items() if lat > 0)
