@@ -98,9 +98,12 @@ class Ledger:
         self._received: dict[int, Counter] = {}
         """Serial -> receiver -> deliveries, for those messages."""
         self._retiring: deque[tuple[int, int]] = deque()    # (tick it ended, serial)
-        self._serial_of: dict[int, tuple[Message, int]] = {}
-        """id(message) -> (the message, its serial), until it ends (the message held: a
-        message dropped unended cannot lend its id to a new one)."""
+        self._serial_of: dict[Message, int] = {}
+        """Message -> its serial, until it ends. Keyed by the message itself (a Message
+        hashes by identity), never by ``id()``: a pickled world's copy (the stateful tests',
+        hil/sim/lockstep.py's) would keep the original's ids, stale keys that a message of the
+        copy may later share, so a message's end would retire another, still in flight, and
+        its delivery after RETIRE_TICKS would count as corrupted."""
         self._duplicates_retired = 0
         self.identity: list[dict] = []
         """Every duplicate_id and foreign_ring said, by any robot (the summary lists them)."""
@@ -205,9 +208,9 @@ class Ledger:
         self.ended_count += 1
         if self.outcomes is not None:
             self.outcomes.append(a)
-        entry = self._serial_of.pop(id(m), None)
-        if entry is not None:
-            self._retiring.append((now, entry[1]))
+        serial = self._serial_of.pop(m, None)
+        if serial is not None:
+            self._retiring.append((now, serial))
         s = self.stats[m.src]
         if a.delivered:
             s.delivered += 1
@@ -228,7 +231,7 @@ class Ledger:
         if self.messages is not None:
             self.messages.append(a)
         self._live[serial] = a
-        self._serial_of[id(a)] = (a, serial)
+        self._serial_of[a] = serial
         keyed = self._by_key.setdefault((a.src, a.num), [])
         keyed.append(serial)
         if len(keyed) > KEYED:

@@ -54,10 +54,11 @@ of the whole radio side:
   handler costs is counted (``Cpu._busy``, each handler's calls, cycles and latency and
   response counts: counters the leap moves on), a handler running at the probe is a frame
   with ticks. Not with CAN sides there (their interrupts, ghosts or real, meet the radio's
-  on the CPU at ticks no ring cycle repeats: hil/sim/can_ghosts.py) nor with a listener (the world's per-second CPU loads, World._cpu_second, never repeat with
-  the ring). A run's end settles the CPUs (``Cpu.settle``), which hands a UART the bytes of
-  a reception it would have had late, a count (``Uart.bytes_late``) no period repeats: the
-  next snapshot is then compared with none (:meth:`QuietRing.forget`).
+  on the CPU at ticks no ring cycle repeats: hil/sim/can_ghosts.py) nor with a listener
+  (the world's per-second CPU loads, World._cpu_second, never repeat with the ring). A
+  run's end settles the CPUs (``Cpu.settle``), which hands a UART the bytes of a reception
+  it would have had late, a count (``Uart.bytes_late``) no period repeats: the next
+  snapshot is then compared with none (:meth:`QuietRing.forget`).
 * A snapshot with an object whose inside it cannot see (anything but this project's
   classes, plain values and containers, bytearrays and random generators) never leads to a
   leap.

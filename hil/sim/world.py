@@ -185,8 +185,9 @@ class World:
             self.sched.at(s_to_ticks(config.power_on.get(0, 0.0)), self._power_on_standby)
         self.extra_stations: dict[int, RadioStation] = {}
         """The ``extra`` robots by ``EXTRA + k`` (k from 1), their radios in ``radios``."""
-        self._extra_of: dict[int, int] = {}
-        self._extra_radio: dict[int, int] = {}
+        # keyed by the object (identity), never by id(): a pickled world keeps no ids
+        self._extra_of: dict[RadioStation, int] = {}
+        self._extra_radio: dict[object, int] = {}
         for k, (r, t, team) in enumerate(config.extra, 1):
             bt = PC_BYTE_TICKS if r == 0 else CHILD_BYTE_TICKS
             cfg = replace(base, byte_ticks=bt, seed=base.seed + k)
@@ -198,8 +199,8 @@ class World:
             self.air.attach(radio)
             radio.alive = False
             self.extra_stations[EXTRA + k] = st
-            self._extra_of[id(st)] = k
-            self._extra_radio[id(radio)] = k
+            self._extra_of[st] = k
+            self._extra_radio[radio] = k
             self.radios[EXTRA + k] = radio
             self.sched.at(s_to_ticks(t), self._power_on_extra, k)
         self._cpu_busy: dict[int, int] = {}
@@ -313,7 +314,7 @@ class World:
         self.pcap = sink
         for q in self.quiet.values():
             q.disable()
-        self._radio_key = {id(radio): key for key, radio in self.radios.items()}
+        self._radio_key = {radio: key for key, radio in self.radios.items()}
         for r, bus in self.can_buses.items():
             bus.error_trace = (lambda kind, frame, start, now, idle, tx, r=r:
                                sink.can_error(r, now, kind, f"error frame ({kind}) in "
@@ -519,7 +520,7 @@ class World:
                                      "died", tx.aborted)) if on]
             if r < 0:
                 marks.insert(0, "a transmitter that is no robot")
-            packet = {"key": self._radio_key.get(id(tx.radio), "foreign"), "end": tx.end,
+            packet = {"key": self._radio_key.get(tx.radio, "foreign"), "end": tx.end,
                       "data": sent, "comment": "; ".join(marks) or None}
             self.pcap.radio(**packet)
             if self.quiet_ring is not None:
@@ -545,7 +546,7 @@ class World:
         if tx.radio is self.radios.get(STANDBY):
             pc = 2
         elif self._extra_of and tx.radio.robot in self.cfg.robots:
-            extra = self._extra_radio.get(id(tx.radio))  # a twin's: the src of a ring robot
+            extra = self._extra_radio.get(tx.radio)  # a twin's: the src of a ring robot
         self._emit(E.FrameOnAir(
             t=self.sched.now, src=r, dst=dst, num=num, type=typ, len=n, kind=kind,
             start=tx.t0, end=tx.end,

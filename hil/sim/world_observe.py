@@ -30,7 +30,7 @@ def _observe(self: World, st: RadioStation, a: Any, now: int) -> None:
     only when someone listens."""
     r = st.id
     if self._extra_of:
-        k = self._extra_of.get(id(st))
+        k = self._extra_of.get(st)
         if k is not None:
             if type(a) is not Transmit and type(a) is not TxEnable:
                 self._observe_extra(st, k, a)

@@ -156,3 +156,25 @@ def test_a_record_the_run_does_not_keep_says_how_to_keep_it():
     kept = World(SimConfig(robots=(0, 1), duration=2, seed=1, keep_records=True))
     kept.run()
     assert kept.messages == [] and kept.dispatch_latency == []
+
+
+def test_a_copied_ledger_retires_its_own_messages_and_no_other():
+    """A world is copied by pickling (hil/sim/lockstep.py, the stateful MAC hunt): in the
+    copy, a message that ends is retired RETIRE_TICKS later and one still open is checked
+    as before. (Keyed by ``id()``, the copy kept the original's ids: its messages were never
+    retired, and one whose new id was an old one's retired that other message instead, so its
+    delivery after RETIRE_TICKS counted as corrupted.)"""
+    import pickle
+    led = Ledger((1, 2))
+    first, second = message(1, 2, 1, 10), message(1, 2, 2, 20)
+    led.submitted(first)
+    led.submitted(second)
+    copy = pickle.loads(pickle.dumps(led))
+    done, open_ = (m for m in copy._live.values())
+    done.state = "delivered"
+    copy.ended(Outcome(done, True, ""), 1)
+    later = message(1, 2, 3, 30)
+    later.submitted = RETIRE_TICKS + 2
+    copy.submitted(later)                  # (a submission retires what ended long enough ago)
+    assert list(copy._live.values()) == [open_, later]
+    assert copy.delivered_to(deliver(open_), 2) and copy.corrupt_deliveries == 0
