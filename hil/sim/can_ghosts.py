@@ -120,7 +120,6 @@ class _Ghost:
         self._enter_real()
         assert self.real is not None
         _, fn, args = self.real
-        port.in_flight -= 1
         fn(*args)
 
     def _enter_real(self) -> None:
@@ -140,9 +139,13 @@ class CanCpuPort:
     def __init__(self, quiet: "QuietCan") -> None:
         self.quiet = quiet
         self.cpu: Cpu | None = None
-        self.catching_up = False
-        self.in_flight = 0
-        """Requests handed over (or ghosts become real) whose effects have not come yet."""
+        self.irq: Callable[..., None] = _nothing
+        """``irq(vector, body, fn, *args, enter=None, alone=False)``, as ``Cpu.irq``: the
+        CPU's own while nothing is noted, so that a busy side pays no call of the port's."""
+        self.settle: Callable[..., None] = _nothing
+        """``settle(read=True, final=False)``, as ``Cpu.settle`` (nothing in a catch-up)."""
+        self._catching_up = False
+        self._noting = False
         self.meetings = 0
         """Ghosts that met the radio on the CPU and woke the domain."""
         self.ghosts_raised = 0
@@ -161,59 +164,79 @@ class CanCpuPort:
     def attach(self, cpu: Cpu) -> "CanCpuPort":
         """Stand between ``cpu`` and the CAN driver (ChildFirmware's ``can_cpu``)."""
         self.cpu = cpu
+        self._route()
         return self
 
     def now(self) -> int:
         assert self.cpu is not None
         return self.cpu.sched.now
 
-    # -- the CPU's interface, as the CAN driver uses it -----------------------------------
-
-    def irq(self, vector: Vector, body: int, fn: Callable[..., None], *args: Any,
-            enter: Callable[[], None] | None = None, alone: bool = False) -> None:
+    def _route(self) -> None:
         cpu = self.cpu
         assert cpu is not None
-        if self.catching_up:
-            self._replayed(vector, body, fn, args, enter)
-            return
-        self.in_flight += 1
-        if self.quiet.comparing:
-            # the next probe compares this period with the last: note the request
-            t = cpu.sched.now
-            self._log.append((t, vector, body, alone))
-            cpu.irq(vector, body, self._timed, t + cpu.entry + body, fn, args, enter=enter,
-                    alone=alone)
+        if self._catching_up:
+            self.irq, self.settle = self._replayed_irq, _nothing
+        elif self._noting:
+            self.irq, self.settle = self._noted_irq, cpu.settle
         else:
-            cpu.irq(vector, body, self._untimed, fn, args, enter=enter, alone=alone)
+            self.irq, self.settle = cpu.irq, cpu.settle
+
+    @property
+    def catching_up(self) -> bool:
+        """A catch-up runs the domain: its requests reach no CPU (:meth:`_replayed`)."""
+        return self._catching_up
+
+    @catching_up.setter
+    def catching_up(self, on: bool) -> None:
+        self._catching_up = on
+        self._route()
+
+    def note(self, on: bool) -> None:
+        """Note the requests of the period now running (the next probe compares it with the
+        last: QuietCan), or stop."""
+        if on != self._noting:
+            self._noting = on
+            self._route()
+
+    def cpu_quiet(self) -> bool:
+        """Nothing runs or waits on the CPU now: none of the CAN side's handlers either."""
+        cpu = self.cpu
+        assert cpu is not None
+        return cpu.quiescent(cpu.sched.now)
+
+    # -- the CPU's interface, as the CAN driver uses it -----------------------------------
+
+    def _noted_irq(self, vector: Vector, body: int, fn: Callable[..., None], *args: Any,
+                   enter: Callable[[], None] | None = None, alone: bool = False) -> None:
+        """``irq`` in a period the next probe compares: the request noted, and whether its
+        effects come on time."""
+        cpu = self.cpu
+        assert cpu is not None
+        t = cpu.sched.now
+        self._log.append((t, vector, body, alone))
+        cpu.irq(vector, body, self._timed, t + cpu.entry + body, fn, args, enter=enter,
+                alone=alone)
 
     def _timed(self, due: int, fn: Callable[..., None], args: tuple) -> None:
-        """A noted request's effects: on time or not."""
-        self.in_flight -= 1
         if self.now() != due:
             self._clean = False
         fn(*args)
 
-    def _untimed(self, fn: Callable[..., None], args: tuple) -> None:
-        self.in_flight -= 1
-        fn(*args)
-
-    def settle(self, read: bool = True, final: bool = False) -> None:
-        if not self.catching_up:
-            assert self.cpu is not None
-            self.cpu.settle(read, final)
+    def _replayed_irq(self, vector: Vector, body: int, fn: Callable[..., None], *args: Any,
+                      enter: Callable[[], None] | None = None, alone: bool = False) -> None:
+        self._replayed(vector, body, fn, args, enter)
 
     # -- the probe's questions -------------------------------------------------------------
 
     def begin(self) -> Footprint | None:
-        """A probe's snapshot now: the requests since the last one as a footprint (None if a
-        handler's effects came late or one still runs), and begin noting the next period's."""
-        now = self.quiet.clock.now
+        """A probe now: the requests noted since the last one as a footprint (None if a
+        handler's effects came late), and begin anew."""
         fp = None
-        if self._clean and not self.in_flight:
+        if self._clean:
             fp = tuple((t - self._mark, v, b, a) for t, v, b, a in self._log)
         self._log = []
-        self._clean = not self.in_flight    # (one still running began before the period)
-        self._mark = now
+        self._clean = True
+        self._mark = self.quiet.clock.now
         return fp
 
     # -- asleep ----------------------------------------------------------------------------
@@ -296,7 +319,10 @@ class CanCpuPort:
             private.at(at, _effects, enter, fn, args)
         else:
             g.real = (enter, fn, args)
-            self.in_flight += 1
+
+
+def _nothing(*args: Any, **kwargs: Any) -> None:
+    pass
 
 
 def _effects(enter: Callable[[], None] | None, fn: Callable[..., None], args: tuple) -> None:

@@ -158,7 +158,7 @@ class QuietCan:
         self.periods_skipped = 0
         """Periods the domain did not run frame by frame (figures for docs/performance.md)."""
         self.sleeps = 0
-        self._last: Snapshot | None = None
+        self._last_snap: Snapshot | None = None
         self._moved: list[tuple[Any, Any, int]] = []
         self._orbit: Snapshot | None = None     # the snapshot it last fell asleep on
         self._steps: dict[int, int] = {}        # how a period moves that snapshot on
@@ -191,10 +191,17 @@ class QuietCan:
         self.clock.at(phase, self._probe)
 
     @property
-    def comparing(self) -> bool:
-        """The next probe compares the period now running with the snapshot taken at the
-        last (the CPU model's port notes its interrupts then: hil/sim/can_ghosts.py)."""
-        return self._last is not None
+    def _last(self) -> Snapshot | None:
+        """The snapshot the next probe compares with (None: it takes one to compare later).
+        The CPU model's port notes the domain's interrupts while there is one."""
+        return self._last_snap
+
+    @_last.setter
+    def _last(self, snap: Snapshot | None) -> None:
+        self._last_snap = snap
+        port = self.port
+        if port is not None:
+            port.note(snap is not None)
 
     def touched(self) -> None:
         """Something from outside the domain reached it while it is awake (a message handed
@@ -220,10 +227,10 @@ class QuietCan:
             self._last = None
             self._misses = self._skip = 0
             return
-        if not self.may_sleep() or (port is not None and (port.in_flight or self.drifting())):
-            # (on the CPU model: a handler of its own still runs, or a cruising wheel's
-            # reports change from period to period, and with them their frames' stuff bits
-            # and the ticks of the interrupts they raise: ghosts would be off by a bit)
+        if not self.may_sleep() or (port is not None and self.drifting()):
+            # (on the CPU model a cruising wheel's reports change from period to period, and
+            # with them their frames' stuff bits and the ticks of the interrupts they raise:
+            # ghosts would be off by a bit)
             self._last = None
             self._misses = self._skip = 0
             self._after_busy = True
@@ -238,6 +245,9 @@ class QuietCan:
             return
         if self._skip:
             self._skip -= 1
+            return
+        if port is not None and not port.cpu_quiet():
+            self._last = None     # a handler (its own, perhaps) runs: compare afresh next
             return
         try:
             snap = snapshot([*self.roots, self.world.pending(self)],
@@ -273,8 +283,6 @@ class QuietCan:
     def _sleep(self, snap: Snapshot, steps: dict[int, int], replay: bool,
                footprint: Footprint) -> None:
         port = self.port
-        if port is not None and (port.in_flight or self.drifting()):
-            return      # (as _probe: a handler of its own runs, or a wheel cruises)
         moved = writable(snap, steps)
         stepped = {id(holder) for holder, key, _ in moved if key == "when"}
         if any(id(ev) not in stepped for ev in self.world.pending(self)):
