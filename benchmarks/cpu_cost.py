@@ -11,8 +11,8 @@ taken within the run:
 * ``idle-radio``: the idle 7-robot ring, radio only, an hour (the ring leaps on both CPUs);
 * ``loaded-radio``: 4 robots with the father at ``--load 1``, radio only, 300 s;
 * ``idle-can``: the idle 7-robot ring with every child's CAN side, 60 s (the CAN sides sleep
-  on the ideal CPU; on the CPU model their handlers meet the radio's on one CPU, so neither
-  side repeats on its own and nothing sleeps or leaps);
+  on both CPUs, on the CPU model their interrupts raised as ghosts; there their handlers meet
+  the radio's on one CPU at ticks no ring cycle repeats, so the ring does not leap);
 * ``loaded-can``: the 5-robot ring with the father at ``--load 2`` with CAN sides, 30 s
   (benchmarks/can_traffic.py's ``can`` and ``can + cpu``).
 

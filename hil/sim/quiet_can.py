@@ -376,10 +376,11 @@ def refuses_only(child: "ChildFirmware", d: "Deliver") -> bool:
 
 def nothing_under_way(child: "ChildFirmware") -> bool:
     """No job (so no job deadline), no output waiting, no CAN supervision pending, the
-    dispatcher's timer stopped, no action sequence, and the ideal CPU (the CPU model hands
-    a message to the main loop, which dispatches it later: it wakes the domain)."""
+    dispatcher's timer stopped, no action sequence, and no message waiting for the main loop
+    (the CPU model hands a message to the main loop, which dispatches it later:
+    ``ChildFirmware.cpu_work``)."""
     disp = child.dispatcher
-    return (child.sequence is None and child.cpu.ideal and not disp.jobs
+    return (child.sequence is None and not child.cpu_work and not disp.jobs
             and not disp.has_output() and child.timer.expiry is None
             and child.can.deadline() is None)
 

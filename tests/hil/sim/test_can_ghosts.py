@@ -84,3 +84,37 @@ def test_an_order_waiting_for_the_main_loop_keeps_the_can_side_awake(monkeypatch
     fast, _ = _same(cfg)
     assert sum(q.periods_skipped for q in fast.quiet.values()) > 0
     assert sum(c.stats["main loop"].calls for c in fast.cpus.values()) > 0
+
+
+def test_news_and_orders_refused_at_once_leave_a_sleeping_side_asleep_on_the_cpu_model():
+    """A done() or fail() notice, and an order refused whole, reach the main loop later than
+    the radio hands them over: the CAN side sleeps on through both, and the run is the one
+    whose CAN sides never sleep. An order wakes it."""
+    from firmware_model.radio.content import cmd
+    from firmware_model.radio.frame import FrameType
+    cfg = SimConfig(robots=(0, 1, 2), duration=12, can=True, seed=6, cpu=DEFAULT_COSTS)
+    sent = ((4.0, (cmd("done"), cmd("movex", 8)), FrameType.BROADCAST_INFO),
+            (5.5, (cmd("movex", 123456789),), FrameType.INSTRUCTION),
+            (6.5, (cmd("fail", 3), cmd("moveto", 900, 0, 0)), FrameType.FAILURE),
+            (9.0, (cmd("joint", 1, 20),), FrameType.INSTRUCTION))
+    worlds = []
+    for sleep in (False, True):
+        w = World(replace(cfg, can_sleep=sleep))
+        for t, commands, type_ in sent:
+            w.sched.at(round(t * 16_000_000),
+                       lambda w=w, c=commands, ty=type_: w.submit(0, 1, c, int(ty)))
+        worlds.append(w)
+    slow, fast = worlds
+    q = fast.quiet[1]
+    asleep_after = []
+    for until in (5.0, 7.5):
+        fast._advance(round(until * 16_000_000))
+        asleep_after.append(q.asleep)
+        slow.run(round(until * 16_000_000))
+    slow.run()
+    fast.run()
+    assert asleep_after == [True, True] and q.noted == 2 and q.refused == 1
+    assert fast.children[1].dispatcher.target[0] == 20       # the order woke it and ran
+    assert HUNT.summary(fast) == HUNT.summary(slow)
+    assert HUNT.cpu_figures(fast) == HUNT.cpu_figures(slow)
+    assert HUNT.cpu_state(fast) == HUNT.cpu_state(slow)

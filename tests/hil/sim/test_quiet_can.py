@@ -462,7 +462,8 @@ def test_orders_refused_at_once_leave_a_sleeping_child_asleep():
 
 def _child_with(condition: str):
     w = World(SimConfig(robots=(0, 1), duration=5, can=True, seed=1,
-                        cpu=DEFAULT_COSTS if condition == "the CPU model" else None))
+                        cpu=DEFAULT_COSTS if "CPU model" in condition
+                        or "main loop" in condition else None))
     w.run(2 * 16_000_000)
     child, now = w.children[1], w.now
     if condition == "an order under way":
@@ -476,23 +477,30 @@ def _child_with(condition: str):
         child.can.isolate(now)
     elif condition == "an action sequence":
         child.run_sequence((2, 1), 1)      # its turn comes after robot 2's: nothing starts
+    elif condition == "a message waiting for the main loop":
+        child._on_message(Deliver(0, 1, 4, int(FrameType.BROADCAST_INFO), (cmd("done"),)),
+                          now)
+        assert child.cpu_work == 1
     return child
 
 
 @pytest.mark.parametrize("condition", ["nothing", "an order under way", "a reply waiting",
                                        "its timer armed",
                                        "CAN supervision pending", "an action sequence",
-                                       "the CPU model"])
+                                       "nothing, on the CPU model",
+                                       "a message waiting for the main loop"])
 def test_only_news_to_a_child_with_nothing_under_way_is_only_noted(condition):
     """What handling news does otherwise depends on ticks a sleeping CAN side has not moved on
-    (a job's deadline, the supervision's, the timer) or runs on the CPU model's clock."""
+    (a job's deadline, the supervision's, the timer) or on a message the main loop has not
+    dispatched yet (the CPU model's)."""
     child = _child_with(condition)
     notice = Deliver(0, 1, 5, int(FrameType.BROADCAST_INFO), (cmd("done"), cmd("movex", 8)))
     order = Deliver(0, 1, 6, int(FrameType.INSTRUCTION), (cmd("movex", 8),))
-    assert notes_only(child, notice) is (condition == "nothing")
+    idle = condition.startswith("nothing")
+    assert notes_only(child, notice) is idle
     assert not notes_only(child, order)
     refused = Deliver(0, 1, 7, int(FrameType.INSTRUCTION), (cmd("movex", 123456789),))
-    assert refuses_only(child, refused) is (condition == "nothing")
+    assert refuses_only(child, refused) is idle
     assert not refuses_only(child, order) and not refuses_only(child, notice)
 
 
