@@ -164,6 +164,11 @@ class _Submodule(FrameSource, FrameSink):
                 heapq.heapify(self._queue)
         self._status_entry = self._push(frame)
 
+    @property
+    def status_due(self) -> int:
+        """The tick its status timer next fires (a frame then, unless it is silent)."""
+        return self._status_ev.when
+
     STATUS_SIGNALS: tuple[str, ...] = ()
     """The status frame's signals in rprs.dbc's order, the order of :meth:`status_values`."""
 

@@ -94,6 +94,16 @@ class WheelNode(_Submodule):
     def status_values(self) -> tuple[int, ...]:
         return self.speed_mm_s, self.odometer_mm, self.state, self.seq
 
+    def status_values_at(self, tick: int) -> tuple[int, ...]:
+        """:meth:`status_values` at a later ``tick`` (its step done), while it cruises on
+        undisturbed: the odometer in closed form (a simulator that skips the wheel's
+        periods asks it for the frames it would send)."""
+        c = self._cruise_from
+        if c is None or tick < c:
+            raise ValueError("the status ahead of time is known only while cruising")
+        x = self._x_nm + self.v_ums * ((tick - c) // WHEEL_STEP_TICKS)
+        return self.speed_mm_s, _trunc_div(x, 1_000_000), self.state, self.seq
+
     # ------------------------------------------------------------ commands
     def _command(self, v: dict[str, int]) -> None:
         seq, speed, dist = v["seq"], v["speed"], v["distance"]

@@ -39,6 +39,8 @@ from __future__ import annotations
 from collections import deque
 from typing import TYPE_CHECKING, Any, Callable
 
+from can_bus import dbc
+from can_bus.bits import _length
 from can_bus.submodules import STATUS_PERIOD_TICKS as PERIOD
 from firmware_model.interrupts import CAN0_RX
 from firmware_model.mcu.cpu import Cpu, Vector
@@ -67,6 +69,48 @@ and, as after any drift of a latest value, the last whole period frame by frame
 (``QuietCan.replay_last``), which leaves what the skipped periods would have. It must come
 before the footprint's next request, which may read what it does (the next frame into its
 buffer); later, it wakes the domain."""
+
+
+SHIFT_BITS = 32
+"""Bits a cruising wheel's status frame may grow or shrink by from period to period (its
+odometer's stuff bits: a few), kept free before the next request when a late ghost's effects
+are allowed to come (LATE_OK)."""
+
+
+class CruisingWheel:
+    """A child's wheel as the port asks about it while it cruises: its status frames' ticks.
+    A cruising wheel's odometer changes from period to period, so its status frame's stuff
+    bits do, and the frame's end, its receive interrupt, moves by whole bits (``tpb`` ticks a
+    bit); the bus is idle for it (the status frames are 10 ms apart)."""
+
+    def __init__(self, wheel: Any, tpb: int, max_bits: int = 160) -> None:
+        self.node = wheel
+        self.tpb = tpb
+        self.max_bits = max_bits
+
+    def bits_at(self, tick: int) -> int:
+        """SOF-to-EOF bits on the wire of its status frame sent at ``tick``."""
+        node = self.node
+        f = dbc.encode_raw_values(node.status_name, node.status_values_at(tick))
+        return _length(f.id, bytes(f.data), f.rtr, f.dlc)
+
+    def plan(self, footprint: Footprint, mark: int) -> tuple[int, int, int, int] | None:
+        """For a footprint noted from tick ``mark``: (the request its last status frame
+        raised, its next status tick, ticks from a status tick to that request, that frame's
+        bits), or None if it sent none, or was not cruising then."""
+        node = self.node
+        if node.is_silent:         # (no frames: nothing to find)
+            return None
+        due = node.status_due
+        last = due - PERIOD
+        for i, (off, vector, _, _) in enumerate(footprint):
+            since = mark + off - last
+            if vector is CAN0_RX and 0 < since <= self.max_bits * self.tpb:
+                try:
+                    return i, due, since, self.bits_at(last)
+                except ValueError:
+                    return None
+        return None
 
 
 class _Ghost:
@@ -155,7 +199,10 @@ class CanCpuPort:
         self._log: list[tuple[int, Vector, int, bool]] = []
         self._clean = True
         self._mark = 0
-        self._guards: list[Event] = []
+        self._guards: dict[int, Event] = {}
+        self.wheel: CruisingWheel | None = None
+        """The child's wheel (the world's), whose status frames change while it cruises."""
+        self._wheel_plan: tuple[int, int, int, int] | None = None
         self._footprint: Footprint = ()
         self._gaps: list[int] = []
         self._ghosts: dict[tuple[int, str], _Ghost] = {}
@@ -241,27 +288,62 @@ class CanCpuPort:
 
     # -- asleep ----------------------------------------------------------------------------
 
+    def plan(self, footprint: Footprint, start: int) -> bool:
+        """May the domain sleep at tick ``start`` (a probe's), the period before it having
+        raised ``footprint``? Yes, but with a cruising wheel whose status frame's receive
+        interrupt cannot be found among them (:class:`CruisingWheel`)."""
+        self._wheel_plan = None
+        wheel = self.wheel
+        if wheel is not None and self.quiet.drifting():
+            self._wheel_plan = wheel.plan(footprint, start - PERIOD)
+            return self._wheel_plan is not None
+        return True
+
     def sleep(self, footprint: Footprint, start: int) -> None:
         """The domain sleeps at tick ``start``, a probe's, the period before it having raised
-        ``footprint``: raise those requests from ``start`` on, every period."""
+        ``footprint`` (:meth:`plan` said yes): raise those requests from ``start`` on, every
+        period; a cruising wheel's status interrupt where its frame's length puts it."""
         world = self.quiet.world
         self._footprint = footprint
-        self._guards = [world.at_first(self, start + off, self._raise, i)
-                        for i, (off, _, _, _) in enumerate(footprint)]
-        # how long after each request the next one comes (ticks): a ghost whose effects
-        # come later than that must wake the domain (the next frame may read what they do)
+        plan = self._wheel_plan
+        shifted = plan[0] if plan is not None else -1
+        self._guards = {i: world.at_first(self, start + off, self._raise, i, True)
+                        for i, (off, _, _, _) in enumerate(footprint) if i != shifted}
+        if plan is not None:
+            i, due, since_status, bits = plan
+            self._guards[-1] = world.at_first(self, due, self._wheel_status, i, since_status,
+                                              bits)
+        # how long after each request the next one comes (ticks), less what a wheel's frame
+        # may move: a ghost whose effects come later than that must wake the domain (the
+        # next frame may read what they do)
         offs = sorted(off for off, _, _, _ in footprint)
-        self._gaps = [min(((o - off) % PERIOD or PERIOD) for o in offs)
+        slack = 0 if plan is None else SHIFT_BITS * self.wheel.tpb   # type: ignore[union-attr]
+        self._gaps = [min(((o - off) % PERIOD or PERIOD) for o in offs) - slack
                       for off, _, _, _ in footprint]
 
-    def _raise(self, i: int) -> None:
-        """A ghost's request, at the tick the driver's would come (an event first at it)."""
+    def _wheel_status(self, i: int, since_status: int, bits: int) -> None:
+        """The cruising wheel's status tick: its frame's receive interrupt comes
+        ``since_status`` ticks later, moved by the bits its frame has more or fewer than the
+        footprint's had (stuff bits: the odometer changes)."""
+        wheel = self.wheel
+        assert wheel is not None
+        world = self.quiet.world
+        now = world.now
+        self._guards[-1] = world.at_first(self, now + PERIOD, self._wheel_status, i,
+                                          since_status, bits)
+        end = now + since_status + (wheel.bits_at(now) - bits) * wheel.tpb
+        self._guards[-2] = world.at_first(self, end, self._raise, i, False)
+
+    def _raise(self, i: int, again: bool) -> None:
+        """A ghost's request, at the tick the driver's would come (an event first at it);
+        ``again``: the same a period later."""
         cpu = self.cpu
         assert cpu is not None
         _, vector, body, alone = self._footprint[i]
         world = self.quiet.world
         now = world.now
-        self._guards[i] = world.at_first(self, now + PERIOD, self._raise, i)
+        if again:
+            self._guards[i] = world.at_first(self, now + PERIOD, self._raise, i, True)
         order = self._order
         while order and order[0].tick < now - KEEP_PERIODS * PERIOD:
             old = order.popleft()
@@ -284,9 +366,9 @@ class CanCpuPort:
     def wake(self) -> None:
         """The domain wakes: no more ghosts; the catch-up that follows runs with
         ``catching_up`` set (:meth:`_replayed`)."""
-        for ev in self._guards:
+        for ev in self._guards.values():
             ev.cancel()
-        self._guards = []
+        self._guards = {}
 
     def woken(self) -> None:
         """The catch-up is over: every ghost raised up to now stood for a request it raised."""

@@ -227,10 +227,7 @@ class QuietCan:
             self._last = None
             self._misses = self._skip = 0
             return
-        if not self.may_sleep() or (port is not None and self.drifting()):
-            # (on the CPU model a cruising wheel's reports change from period to period, and
-            # with them their frames' stuff bits and the ticks of the interrupts they raise:
-            # ghosts would be off by a bit)
+        if not self.may_sleep():
             self._last = None
             self._misses = self._skip = 0
             self._after_busy = True
@@ -261,6 +258,8 @@ class QuietCan:
             periods = (clock.now - self._since) // PERIOD
             if orbit is None or not on_orbit(orbit, steps, periods, snap, COUNTERS):
                 return
+            if self.port is not None and self.drifting():
+                return      # (the CPU model: a cruising wheel's interrupts, from this period)
             # Back on the orbit it slept on (what woke it left nothing that a period does not
             # move on): sleep again now rather than one period later.
             self.resleeps += 1
@@ -283,6 +282,8 @@ class QuietCan:
     def _sleep(self, snap: Snapshot, steps: dict[int, int], replay: bool,
                footprint: Footprint) -> None:
         port = self.port
+        if port is not None and not port.plan(footprint, self.clock.now):
+            return      # (a cruising wheel whose status interrupt cannot be placed)
         moved = writable(snap, steps)
         stepped = {id(holder) for holder, key, _ in moved if key == "when"}
         if any(id(ev) not in stepped for ev in self.world.pending(self)):

@@ -42,7 +42,7 @@ from .config import ConfigError, SimConfig
 from .faults import Fault, schedule as schedule_fault, skewed_mac
 from .ledger import Ledger, Tally, summary
 from .load import Load
-from .can_ghosts import CanCpuPort
+from .can_ghosts import CanCpuPort, CruisingWheel
 from .quiet_can import PERIOD as CAN_PERIOD, QuietCan, notes_only, refuses_only
 from .quiet_ring import QuietRing
 from .domains import SimScheduler
@@ -261,6 +261,8 @@ class World:
             child.run_sequence(*self.cfg.sequence)
         self.can_buses[r] = bus
         self.submodules[r] = make_submodules(clock, bus, initial_angles=HOME)
+        if port is not None:
+            port.wheel = CruisingWheel(self.submodules[r]["WHEEL"], bus.tpb)
         tally = self._can_tally[r] = Tally()
         bus.trace = lambda frame, start, end, winner, r=r, tally=tally: \
             self._on_can(r, tally, frame, start, end)

@@ -57,7 +57,7 @@ def test_ghosts_that_meet_the_radio_wake_the_can_side_and_it_is_still_the_same_r
 
 
 @pytest.mark.parametrize("seed", [
-    4,     # a cruising wheel: its reports' stuff bits move the interrupts, so it stays awake
+    4,     # cruising wheels: their reports' stuff bits move their frames' interrupts
     11,    # an order waiting for the main loop when a probe comes: it stays awake
 ])
 def test_named_worlds_of_the_hunt_run_alike_asleep_or_not(seed):
@@ -118,3 +118,27 @@ def test_news_and_orders_refused_at_once_leave_a_sleeping_side_asleep_on_the_cpu
     assert HUNT.summary(fast) == HUNT.summary(slow)
     assert HUNT.cpu_figures(fast) == HUNT.cpu_figures(slow)
     assert HUNT.cpu_state(fast) == HUNT.cpu_state(slow)
+
+
+@pytest.mark.parametrize("speed", [80, -45, 3])
+def test_a_cruising_wheels_status_interrupt_moves_with_its_frames_length(speed):
+    """A cruising wheel's odometer changes its status frame, and with it the frame's stuff
+    bits and the tick of the receive interrupt it raises: the ghost comes where the frame's
+    length puts it (at 3 mm/s the odometer stays for three periods, then moves)."""
+    from firmware_model.radio.content import cmd
+    cfg = SimConfig(robots=(0, 1, 2), duration=20, can=True, seed=9, cpu=DEFAULT_COSTS)
+    worlds = []
+    for sleep in (False, True):
+        w = World(replace(cfg, can_sleep=sleep))
+        w.sched.at(16_000_000, lambda w=w: w.submit(0, 1, [cmd("wheel", speed)]))
+        w.sched.at(9 * 16_000_000, lambda w=w: w.submit(0, 1, [cmd("status")]))
+        worlds.append(w)
+    slow, fast = worlds
+    fast._advance(5 * 16_000_000)          # (run() would wake the CAN sides at its end)
+    assert fast.submodules[1]["WHEEL"].cruising and fast.quiet[1].asleep
+    for w in worlds:
+        w.run()
+    assert HUNT.summary(fast) == HUNT.summary(slow)
+    assert HUNT.cpu_figures(fast) == HUNT.cpu_figures(slow)
+    assert HUNT.cpu_state(fast) == HUNT.cpu_state(slow)
+    assert fast.quiet[1].periods_skipped > 120
