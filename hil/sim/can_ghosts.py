@@ -9,14 +9,16 @@ a CAN handler that meets a radio handler moves both. So a child's CAN side may s
   them to the CPU unchanged and notes, for the period the probe compares, each request's tick,
   vector and cycles, and whether each handler's effects came when a handler alone on the CPU
   has them (``entry + body`` cycles after its request: *on time*).
-* **It sleeps** only if every one of that period came on time, none is still running, no
-  work of the CAN side waits on the CPU (a message for the main loop, the dispatcher timer's
-  interrupt: ``ChildFirmware.cpu_work``) and no wheel cruises (its reports, and so its
-  frames' stuff bits and the ticks of the interrupts after them, change from period to
-  period). The port then raises the same requests at the same ticks a period later and every
-  period on (an event each, first at its tick as the driver's frame end was), each with a
-  ghost handler: the same vector and cycles, so it costs the CPU what the real one would, on
-  the same path, and the CPU's figures are the real ones.
+* **It sleeps** only if every one of that period came on time, the CPU is idle at the probe
+  (none of them still runs) and no work of the CAN side waits on the CPU (a message for the
+  main loop, the dispatcher timer's interrupt: ``ChildFirmware.cpu_work``). The port then
+  raises the same requests at the same ticks a period later and every period on (an event
+  each, first at its tick as the driver's frame end was), each with a ghost handler: the same
+  vector and cycles, so it costs the CPU what the real one would, on the same path, and the
+  CPU's figures are the real ones.
+* A cruising wheel's odometer changes its status frame from period to period, and with it
+  the frame's stuff bits and the tick its receive interrupt comes: that ghost comes where the
+  frame's length puts it (:class:`CruisingWheel`).
 * A ghost whose effects come on time stands for the real handler: the domain's state moves
   on by whole periods as the probe found. When its ``enter`` ran does not matter (nothing but
   its body reads what it takes, ``Cpu.irq``'s ``alone``).
