@@ -42,8 +42,8 @@ from collections import deque
 from typing import TYPE_CHECKING, Any, Callable
 
 from can_bus import dbc
-from can_bus.bits import _length
-from can_bus.submodules import STATUS_PERIOD_TICKS as PERIOD
+from can_bus.bits import frame_length_bits
+from can_bus.submodules import STATUS_PERIOD_TICKS as PERIOD, WheelNode
 from firmware_model.interrupts import CAN0_RX
 from firmware_model.mcu.cpu import Cpu, Vector
 from firmware_model.mcu.scheduler import Event
@@ -51,7 +51,7 @@ from firmware_model.mcu.scheduler import Event
 if TYPE_CHECKING:
     from .quiet_can import QuietCan
 
-__all__ = ["CanCpuPort", "Footprint"]
+__all__ = ["CanCpuPort", "CruisingWheel", "Footprint"]
 
 Footprint = tuple[tuple[int, Vector, int, bool], ...]
 """A period's requests: (ticks after the period's start, vector, body cycles, alone)."""
@@ -73,6 +73,8 @@ before the footprint's next request, which may read what it does (the next frame
 buffer); later, it wakes the domain."""
 
 
+_WHEEL_STATUS, _WHEEL_RAISE = -1, -2     # CanCpuPort._guards' keys beside the requests'
+
 SHIFT_BITS = 32
 """Bits a cruising wheel's status frame may grow or shrink by from period to period (its
 odometer's stuff bits: a few), kept free before the next request when a late ghost's effects
@@ -85,7 +87,7 @@ class CruisingWheel:
     bits do, and the frame's end, its receive interrupt, moves by whole bits (``tpb`` ticks a
     bit); the bus is idle for it (the status frames are 10 ms apart)."""
 
-    def __init__(self, wheel: Any, tpb: int, max_bits: int = 160) -> None:
+    def __init__(self, wheel: WheelNode, tpb: int, max_bits: int = 160) -> None:
         self.node = wheel
         self.tpb = tpb
         self.max_bits = max_bits
@@ -94,7 +96,7 @@ class CruisingWheel:
         """SOF-to-EOF bits on the wire of its status frame sent at ``tick``."""
         node = self.node
         f = dbc.encode_raw_values(node.status_name, node.status_values_at(tick))
-        return _length(f.id, bytes(f.data), f.rtr, f.dlc)
+        return frame_length_bits(f.id, f.data, f.rtr, include_ifs=False, dlc=f.dlc)
 
     def plan(self, footprint: Footprint, mark: int) -> tuple[int, int, int, int] | None:
         """For a footprint noted from tick ``mark``: (the request its last status frame
@@ -121,14 +123,13 @@ class _Ghost:
     became once a catch-up gave it; ``entered_at`` / ``effects_at`` when its ``enter`` and
     effects came, while it stood for the real handler."""
 
-    __slots__ = ("port", "key", "tick", "due", "limit", "late_ok", "real", "entered",
-                 "entered_at", "effects_at")
+    __slots__ = ("port", "key", "due", "limit", "late_ok", "real", "entered", "entered_at",
+                 "effects_at")
 
     def __init__(self, port: "CanCpuPort", key: tuple[int, str], due: int, limit: int,
                  late_ok: bool) -> None:
         self.port = port
-        self.key = key
-        self.tick = key[0]
+        self.key = key           # (the tick of its request, its vector's name)
         self.due = due
         self.limit = limit
         self.late_ok = late_ok
@@ -136,11 +137,6 @@ class _Ghost:
         self.entered = False     # the real enter has run
         self.entered_at: int | None = None
         self.effects_at: int | None = None
-
-    @property
-    def done(self) -> bool:
-        """Its effects came while it stood for the real handler."""
-        return self.effects_at is not None
 
     def enter(self) -> None:
         if self.real is None:
@@ -202,10 +198,14 @@ class CanCpuPort:
         self._clean = True
         self._mark = 0
         self._guards: dict[int, Event] = {}
+        """The asleep domain's pending events: each footprint request's next raise, by its
+        index, and a cruising wheel's status tick and its next raise (_WHEEL_STATUS,
+        _WHEEL_RAISE)."""
         self.wheel: CruisingWheel | None = None
         """The child's wheel (the world's), whose status frames change while it cruises."""
         self._wheel_plan: tuple[int, int, int, int] | None = None
-        self._footprint: Footprint = ()
+        self.footprint: Footprint = ()
+        """The requests it raises asleep (those of the period it fell asleep after)."""
         self._gaps: list[int] = []
         self._ghosts: dict[tuple[int, str], _Ghost] = {}
         self._order: deque[_Ghost] = deque()
@@ -306,20 +306,21 @@ class CanCpuPort:
         ``footprint`` (:meth:`plan` said yes): raise those requests from ``start`` on, every
         period; a cruising wheel's status interrupt where its frame's length puts it."""
         world = self.quiet.world
-        self._footprint = footprint
+        self.footprint = footprint
         plan = self._wheel_plan
         shifted = plan[0] if plan is not None else -1
         self._guards = {i: world.at_first(self, start + off, self._raise, i, True)
                         for i, (off, _, _, _) in enumerate(footprint) if i != shifted}
         if plan is not None:
             i, due, since_status, bits = plan
-            self._guards[-1] = world.at_first(self, due, self._wheel_status, i, since_status,
-                                              bits)
+            self._guards[_WHEEL_STATUS] = world.at_first(self, due, self._wheel_status, i,
+                                                         since_status, bits)
         # how long after each request the next one comes (ticks), less what a wheel's frame
         # may move: a ghost whose effects come later than that must wake the domain (the
         # next frame may read what they do)
         offs = sorted(off for off, _, _, _ in footprint)
-        slack = 0 if plan is None else SHIFT_BITS * self.wheel.tpb   # type: ignore[union-attr]
+        wheel = self.wheel
+        slack = 0 if plan is None or wheel is None else SHIFT_BITS * wheel.tpb
         self._gaps = [min(((o - off) % PERIOD or PERIOD) for o in offs) - slack
                       for off, _, _, _ in footprint]
 
@@ -331,23 +332,23 @@ class CanCpuPort:
         assert wheel is not None
         world = self.quiet.world
         now = world.now
-        self._guards[-1] = world.at_first(self, now + PERIOD, self._wheel_status, i,
-                                          since_status, bits)
+        self._guards[_WHEEL_STATUS] = world.at_first(self, now + PERIOD, self._wheel_status, i,
+                                                     since_status, bits)
         end = now + since_status + (wheel.bits_at(now) - bits) * wheel.tpb
-        self._guards[-2] = world.at_first(self, end, self._raise, i, False)
+        self._guards[_WHEEL_RAISE] = world.at_first(self, end, self._raise, i, False)
 
     def _raise(self, i: int, again: bool) -> None:
         """A ghost's request, at the tick the driver's would come (an event first at it);
         ``again``: the same a period later."""
         cpu = self.cpu
         assert cpu is not None
-        _, vector, body, alone = self._footprint[i]
+        _, vector, body, alone = self.footprint[i]
         world = self.quiet.world
         now = world.now
         if again:
             self._guards[i] = world.at_first(self, now + PERIOD, self._raise, i, True)
         order = self._order
-        while order and order[0].tick < now - KEEP_PERIODS * PERIOD:
+        while order and order[0].key[0] < now - KEEP_PERIODS * PERIOD:
             old = order.popleft()
             del self._ghosts[old.key]
         g = _Ghost(self, (now, vector.name), now + cpu.entry + body, now + self._gaps[i],

@@ -184,7 +184,6 @@ class QuietCan:
         self.port: CanCpuPort | None = None
         """On the CPU model: the CAN driver's way to the CPU, which raises the sleeping
         domain's interrupts as ghosts (hil/sim/can_ghosts.py)."""
-        self._footprint: Footprint = ()   # the interrupts of the orbit's period
 
     def start(self, phase: int) -> None:
         """Probe every period from tick ``phase`` on (a tick the status grid is idle at)."""
@@ -256,15 +255,15 @@ class QuietCan:
         if last is None:
             orbit, steps = self._orbit, self._steps
             periods = (clock.now - self._since) // PERIOD
+            if port is not None and self.drifting():
+                return      # (the CPU model: a cruising wheel's interrupts, from this period)
             if orbit is None or not on_orbit(orbit, steps, periods, snap, COUNTERS):
                 return
-            if self.port is not None and self.drifting():
-                return      # (the CPU model: a cruising wheel's interrupts, from this period)
             # Back on the orbit it slept on (what woke it left nothing that a period does not
             # move on): sleep again now rather than one period later.
             self.resleeps += 1
             self._sleep(snap, steps, self._replay or latest_moved(orbit, snap, steps, periods),
-                        self._footprint)
+                        port.footprint if port is not None else ())
             return
         found = period_steps(last, snap, PERIOD, COUNTERS)
         if found is None:
@@ -299,7 +298,6 @@ class QuietCan:
         self._since = self.clock.now
         self.asleep = True
         self.sleeps += 1
-        self._footprint = footprint
         if port is not None:
             port.sleep(footprint, self._since)
 
