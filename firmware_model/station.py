@@ -126,7 +126,8 @@ class RadioStation:
         self.uart.attach_cpu(cpu, UART0_RX, costs.uart_rx_byte.cycles, UART0_TX,
                              costs.uart_tx_byte.cycles, TX_END, costs.uart_tx_done.cycles)
         timer_cycles = costs.mac_timer.cycles
-        self.timer.on_expiry = lambda now: cpu.irq(TMR0, timer_cycles, self._on_timer_isr)
+        self.timer.on_expiry = lambda now: cpu.irq(TMR0, timer_cycles, self._on_timer_isr,
+                                                   alone=True)
         self.stall_timer.on_expiry = lambda now: self._stall_expired(now, timer_cycles)
         self.stall_timer.guard = self._stall_guard
         self.uart.rx_quiet = self.deframer.quiet_for
@@ -160,7 +161,7 @@ class RadioStation:
         self.uart.sync(now)
         if self.stall_timer.expiry is None:
             assert self.cpu is not None
-            self.cpu.irq(RXWATCH, cycles, self._on_stall_isr)
+            self.cpu.irq(RXWATCH, cycles, self._on_stall_isr, alone=True)
 
     def _on_timer_isr(self) -> None:
         self._on_timer(self.sched.now)
