@@ -30,8 +30,11 @@ its milestones, and its RETI counted when the CPU is next asked anything. Whatev
 the CPU while it runs (a request, a task, ``extend``) first puts it on the stack in the phase
 it has reached, so what follows is the general path's to the tick. Bytes received while the
 CPU is idle may be handled late, all at once (``lone_past``, Uart.receive's ``late_ok``).
-``fuse = False`` keeps every handler on the general path (docs/fast-paths.md; the two are
-compared by tests/firmware_model/mcu/test_cpu_fused.py).
+A request whose handler nothing can meet (``defer``: the CPU idle, no byte handed over late
+due before its RETI ends) is taken without an event: counted as run alone when the CPU is
+next touched after its RETI, or, touched earlier, made the lone handler from its tick
+(``irq``'s ``at``). ``fuse = False`` keeps every handler on the general path
+(docs/fast-paths.md; the two are compared by tests/firmware_model/mcu/test_cpu_fused.py).
 
 ``Cpu(sched, None)`` is the ideal CPU: every handler runs in zero ticks on the tick of its
 request, exactly as the firmware model ran before there was a CPU (the paper's timing).
@@ -157,6 +160,13 @@ class Cpu:
         a request or a task, so bytes must come at their ticks from now on) or reads its
         figures (``busy`` False)."""
         self._touching = False
+        self._deferred: list[tuple[int, Vector, int, Any]] = []
+        """Requests taken without an event (``defer``), in the order they came: (tick,
+        vector, body cycles, owner); none but the last may still run."""
+        self.late_clear: Callable[[int, int], bool] | None = None
+        """Set by a UART whose handlers may be counted late (``lone_past``):
+        ``late_clear(now, until)`` says none of them runs at ``now`` or is requested by
+        ``until`` (``defer``)."""
         self.entered = 0
         """The tick the entry sequence of the handler whose ``enter`` runs ended (for an
         ``enter`` that notes the time: it may run later, ``alone``)."""
@@ -415,14 +425,16 @@ class Cpu:
             self._settle(self.sched.now, final)
 
     def _touch(self, busy: bool) -> None:
-        """``on_touch``, if set, unless it is running already (it may ask the CPU itself)."""
-        if self.on_touch is None or self._touching:
-            return
-        self._touching = True
-        try:
-            self.on_touch(self.sched.now, busy)
-        finally:
-            self._touching = False
+        """``on_touch``, if set, unless it is running already (it may ask the CPU itself);
+        then a deferred request (``defer``), after the bytes handed over late before it."""
+        if self.on_touch is not None and not self._touching:
+            self._touching = True
+            try:
+                self.on_touch(self.sched.now, busy)
+            finally:
+                self._touching = False
+        if self._deferred:
+            self._resolve()
 
     def fits_alone(self, body: int, ticks: int) -> bool:
         """Would a handler of ``body`` cycles, run alone, be over (RETI done) within ``ticks``
@@ -441,6 +453,10 @@ class Cpu:
         reception that begins now may hand its bytes over late (``lone_past``)."""
         if self._alone is not None and not self._alone_over(now):
             return False
+        if self._deferred:
+            d = self._deferred[-1]
+            if d[0] <= now <= d[0] + self.entry + d[2] + self.reti:
+                return False
         return not self._stack and not self._pending and not self._tasks
 
     def lone_past(self, vector: Vector, body: int, t0: int, dt: int, n: int) -> None:
@@ -450,6 +466,8 @@ class Cpu:
         anything since before ``t0`` (the caller's invariant). The last one's RETI may still
         be running: it is then the lone handler, counted when it ends (``_settle``)."""
         now = self.sched.now
+        if self._deferred and self._deferred[0][0] < t0:
+            self._resolve(t0)          # over before t0: nothing comes late in their time
         if self._alone is not None:
             self._settle(t0)           # the previous byte's handler ended before this one
         assert self._alone is None and self.quiescent(t0), "lone_past needs an idle CPU"
@@ -469,6 +487,68 @@ class Cpu:
             f.fn = None
             self._alone = f
             self._alone_t = last
+
+    def defer(self, vector: Vector, body: int, owner: Any) -> bool:
+        """Take ``vector``'s request now without an event, if its handler may run alone
+        (``irq``'s ``alone``) and nothing can meet it: the CPU is idle now, and no handler
+        counted late (``late_clear``) runs now or is requested before this one's RETI ends.
+        Until the CPU is next touched nothing asks it for anything (a request, a task, a
+        read: each touches it first), so then, if its RETI has ended, it ran alone: counted
+        so, and ``owner.ran_alone(tick)`` told when its ``enter`` and effects came; else it
+        becomes the lone handler from its tick (``irq``'s ``at``), with ``owner.enter`` and
+        ``owner.fn``. False: not taken (ask ``irq``)."""
+        if not self.fuse or self.ideal or vector.level == MAIN_LEVEL or self._in_callback:
+            return False
+        now = self.sched.now
+        if self._deferred:
+            d = self._deferred[-1]
+            if now <= d[0] + self.entry + d[2] + self.reti:
+                return False
+        if self._alone is not None:
+            if not self._alone_over(now):
+                return False
+            self._settle(now)
+        if self._stack or self._pending or self._tasks:
+            return False
+        clear = self.late_clear
+        if clear is not None and not clear(now, now + self.entry + body + self.reti):
+            return False
+        self._deferred.append((now, vector, body, owner))
+        return True
+
+    def resolve(self) -> None:
+        """A deferred request counted or made the lone handler now (``defer``), as if the
+        CPU were touched, nothing else done."""
+        if self._deferred:
+            self._resolve()
+
+    def _resolve(self, before: int | None = None) -> None:
+        """The CPU is touched now (or asked to count handlers from tick ``before`` on): each
+        deferred request (requested before ``before``) ran alone if its RETI has ended (or
+        is the lone handler in its RETI), else it is the lone handler from its tick, its
+        effects still to come (``defer``)."""
+        now = self.sched.now
+        deferred = self._deferred
+        while deferred and (before is None or deferred[0][0] < before):
+            t, vector, body, owner = deferred.pop(0)
+            e = self.entry + body
+            if now <= t + e:           # its effects are still to come (as Uart._replay's)
+                self.irq(vector, body, owner.fn, enter=owner.enter, alone=True, at=t)
+                continue
+            s = self._stats(vector.name, vector.level)
+            s.calls += 1
+            s.latency[0] += 1
+            s.responded(e)
+            self.entered = t + self.entry
+            owner.ran_alone(t + e)
+            whole = e + self.reti
+            if now > t + whole:
+                s.busy += whole
+                self._busy += whole
+            else:                      # its RETI runs on: the lone handler (lone_past's)
+                self._alone = _Frame(s, vector.level, None, None, (), self.entry, body,
+                                     self.reti, t)
+                self._alone_t = t
 
     @property
     def busy(self) -> int:

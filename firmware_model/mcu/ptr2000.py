@@ -115,6 +115,13 @@ class Ptr2000:
         query = getattr(self.channel, "late_until", None)
         return query(self, now) if query is not None else None
 
+    def late_around(self, now: int) -> tuple[int | None, int | None]:
+        """The ticks the bytes that may come late are handed over (their RDRF) around
+        ``now``: the last by ``now``, the next after it (hil/sim/air.py,
+        ``Reception.quiet``)."""
+        query = getattr(self.channel, "late_around", None)
+        return query(self, now) if query is not None else (None, None)
+
     def on_time(self, now: int) -> None:
         """The bytes still to come each at its tick (the CPU has work: Uart._cpu_touched)."""
         on_time = getattr(self.channel, "on_time", None)

@@ -31,15 +31,16 @@ vector``) lowers TXEN and runs the MAC's end-of-frame rules (``on_tx_done`` with
 so a transmit handler that was preempted before its entry drops TXEN late by as much.
 
 On an idle CPU the simulator may count the receive handlers of a good frame's bytes late
-(``receive``'s ``late_ok``) and a transmit handler at the next TDRE (``_late_tdre``), each as
-it ran, to the tick (docs/fast-paths.md, "Late bytes on an idle CPU").
+(``receive``'s ``late_ok``) and the transmit handlers of a frame's bytes but the last two
+(``_late_tdre``, one event for them all), each as it ran, to the tick (docs/fast-paths.md,
+"Late bytes on an idle CPU").
 """
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Callable, Protocol
 
 from ..timing import BITS_PER_BYTE_8N1, TICK_HZ
-from .scheduler import Scheduler
+from .scheduler import Event, Scheduler
 
 if TYPE_CHECKING:
     from .cpu import Cpu, Vector
@@ -69,7 +70,7 @@ class Uart:
                  "rx_cycles", "tx_vector", "tx_cycles", "end_vector", "end_cycles", "rdr",
                  "overruns", "_read", "gaps", "gap_ticks", "_tx", "_tx_len", "_tx_next",
                  "_sodr", "_shift", "_tdre_entry", "_gap_from", "rx_quiet",
-                 "bytes_late", "_late_tdre", "_end_at")
+                 "bytes_late", "_late_tdre", "_late_from", "_shift_ev", "_end_at")
 
     def __init__(self, sched: Scheduler, baud: int = 9600, byte_ticks: int | None = None,
                  name: str = "UART0") -> None:
@@ -117,8 +118,11 @@ class Uart:
         self._shift: tuple[int, int] | None = None   # (index, stop-bit end) shifting out
         self._tdre_entry = 0
         self._late_tdre: int | None = None
-        """The TDRE tick of the byte in the shift register if its handler runs late (on an
-        idle CPU: ``_may_send_late``), else None."""
+        """The first TDRE tick of a run of transmit handlers counted late, one a byte time
+        (on an idle CPU: ``_may_send_late``), else None; ``_late_from`` its byte."""
+        self._late_from = 0
+        self._shift_ev: Event | None = None
+        """The event at ``_shift``'s stop-bit end."""
 
     def attach_cpu(self, cpu: Cpu, rx_vector: Vector, rx_cycles: int, tx_vector: Vector,
                    tx_cycles: int, end_vector: Vector, end_cycles: int) -> None:
@@ -127,6 +131,7 @@ class Uart:
         stop bit (``end_cycles``: TXEN low and the MAC's end-of-frame rules)."""
         self.cpu = cpu
         cpu.on_touch = self._cpu_touched
+        cpu.late_clear = self._late_clear
         self.rx_vector, self.rx_cycles = rx_vector, rx_cycles
         self.tx_vector, self.tx_cycles = tx_vector, tx_cycles
         self.end_vector, self.end_cycles = end_vector, end_cycles
@@ -171,7 +176,7 @@ class Uart:
         cpu = self.cpu
         assert cpu is not None and self.tx_vector is not None     # send() takes this path
         self._shift = (k, now + bt)
-        self.sched.at(now + bt, self._shift_done)
+        self._shift_ev = self.sched.at(now + bt, self._shift_done)
         if k == self._tx_len - 1:
             self.busy_until = now + bt
         if new_burst and self.line is not None:
@@ -215,23 +220,28 @@ class Uart:
         self.sched.at(max(end, now), self._end_timer, end)
 
     def _shift_done(self) -> None:
-        """The byte in the shift register has sent its stop bit."""
+        """The byte in the shift register has sent its stop bit (the last of a run of late
+        handlers' bytes: ``_late_tdre``)."""
         now = self.sched.now
         assert self._shift is not None                # _shift_in scheduled this
+        self._shift_ev = None
         k = self._shift[0]
-        if self._late_tdre is not None:       # its handler ran late: over by now
+        if self._late_tdre is not None:       # its handlers ran late: over by now
             self._late_tdre_done(k)
         self._shift = None
         j = self._sodr
         if j is not None:                     # SODR was written in time: back to back
             self._sodr = None
             if j + 1 < self._tx_len and self._may_send_late(now):
-                # TDRE of a byte but the last: its handler runs late (the last's arms the
-                # End's timer at its tick)
-                bt = self.byte_ticks
-                self._shift = (j, now + bt)
-                self.sched.at(now + bt, self._shift_done)
-                self._late_tdre = now
+                # TDREs of the bytes but the last: their handlers run late, each over before
+                # the next TDRE, one event at the end of them (the last's arms the End's
+                # timer at its tick); anything that asks the CPU meanwhile cuts the run
+                # (_tx_touched)
+                m = self._tx_len - 2
+                end = now + (m - j + 1) * self.byte_ticks
+                self._shift = (m, end)
+                self._shift_ev = self.sched.at(end, self._shift_done)
+                self._late_tdre, self._late_from = now, j
             else:
                 self._shift_in(j, now, False)
         elif k + 1 < self._tx_len:            # written late: the line idles, a gap
@@ -252,27 +262,46 @@ class Uart:
         return cpu.fits_alone(self.tx_cycles, self.byte_ticks) and cpu.quiescent(now)
 
     def _late_tdre_done(self, k: int) -> None:
-        """The late handler of byte ``k`` (its TDRE at ``_late_tdre``) is over: counted as
-        run alone, and its write done: byte ``k + 1`` in SODR."""
+        """The late handlers of the run's bytes up to ``k`` (TDREs a byte time apart from
+        ``_late_tdre``) are over: counted as run alone, and the last one's write done: byte
+        ``k + 1`` in SODR."""
         t = self._late_tdre
         cpu, vector = self.cpu, self.tx_vector
         assert t is not None and cpu is not None and vector is not None
-        self._late_tdre = None
-        cpu.lone_past(vector, self.tx_cycles, t, self.byte_ticks, 1)
-        self._tdre_entry = t + cpu.entry
+        n = k - self._late_from + 1
+        self._late_tdre, self._late_from = None, 0
+        cpu.lone_past(vector, self.tx_cycles, t, self.byte_ticks, n)
+        self._tdre_entry = t + (n - 1) * self.byte_ticks + cpu.entry
         self._sodr, self._tx_next = k + 1, k + 2
 
+    def _late_now(self, now: int) -> tuple[int, int]:
+        """The byte of the late run in the shift register at ``now`` and its TDRE tick (at
+        a byte's stop-bit end, that byte: its event is the one that ends it)."""
+        t = self._late_tdre
+        assert t is not None
+        bt = self.byte_ticks
+        i = max(0, now - t - 1) // bt
+        return self._late_from + i, t + i * bt
+
     def _tx_touched(self, now: int) -> None:
-        """The CPU is asked for something while a late transmit handler runs or has run:
-        counted and its write done if its effects came before now, else it goes on as a lone
-        handler (Cpu.irq's ``at``)."""
-        t, cpu = self._late_tdre, self.cpu
-        assert t is not None and cpu is not None and self._shift is not None
-        k = self._shift[0]
+        """The CPU is asked for something while late transmit handlers run or have run: the
+        run ends with the byte now in the shift register, its event at that byte's stop-bit
+        end; its handler counted and its write done if its effects came before now, else it
+        goes on as a lone handler (Cpu.irq's ``at``)."""
+        cpu = self.cpu
+        assert self._late_tdre is not None and cpu is not None and self._shift is not None
+        k, t = self._late_now(now)
+        if self._shift[0] != k:
+            assert self._shift_ev is not None
+            self._shift_ev.cancel()
+            self._shift = (k, t + self.byte_ticks)
+            self._shift_ev = self.sched.at(t + self.byte_ticks, self._shift_done)
         if t + cpu.entry + self.tx_cycles < now:
             self._late_tdre_done(k)
             return
-        self._late_tdre = None
+        if k > self._late_from:
+            self._late_tdre_done(k - 1)       # (writes byte k; its own handler runs on)
+        self._late_tdre, self._late_from = None, 0
         self._sodr, self._tx_next = None, k + 1
         self._tdre_request(at=t)
 
@@ -387,6 +416,25 @@ class Uart:
             on_time = getattr(line, "on_time", None)
             if on_time is not None:
                 on_time(now)
+
+    def _late_clear(self, now: int, until: int) -> bool:
+        """No handler of this UART counted late (a late TDRE's, a byte handed over late)
+        runs at ``now`` or is requested by ``until`` (``Cpu.defer``)."""
+        cpu = self.cpu
+        assert cpu is not None
+        if self._late_tdre is not None:
+            k, t = self._late_now(now)
+            if t + cpu.entry + self.tx_cycles + cpu.reti >= now:
+                return False                  # its handler runs
+            if k < self._tx_len - 2 and t + self.byte_ticks <= until:
+                return False                  # the next one is requested by then
+        query = getattr(self.line, "late_around", None)
+        if query is None:
+            return True
+        last, nxt = query(now)
+        if last is not None and last + cpu.entry + self.rx_cycles + cpu.reti >= now:
+            return False
+        return nxt is None or nxt > until
 
     def _take_rdr(self) -> None:
         """The receive handler reads SIDR: RDRF clears, the next byte may come."""

@@ -405,6 +405,23 @@ class Air:
             return None
         return rx.t0 + min(rx.quiet, rx.n - 1) * rx.bt - rx.lead
 
+    def late_around(self, radio: AirRadio, now: int) -> tuple[int | None, int | None]:
+        """What ``radio``'s firmware would be handed first if its CPU were asked for something
+        now (``sync``), and what may come late without an event: the hand-over tick (each
+        byte's stop bit's end less ``lead``) of the last byte due by ``now`` not handed over
+        yet, and of the next byte that may come late after it, each None if none. Idle noise
+        is handed over when asked (``_noise_upto``): then ``(now, None)``."""
+        rx = radio.rx
+        if rx is None:
+            if self.noise and radio.listening(now):
+                return now, None
+            return None, None
+        k = min((now + rx.lead - rx.t0) // rx.bt, rx.n)  # bytes due by now (Reception.flush)
+        last = rx.t0 + k * rx.bt - rx.lead if k > rx.pos else None
+        i = max(k, rx.pos)
+        nxt = rx.t0 + (i + 1) * rx.bt - rx.lead if i < min(rx.quiet, rx.n) else None
+        return last, nxt
+
     def on_time(self, radio: AirRadio, now: int) -> None:
         """``radio``'s CPU model has work from ``now`` (Uart._cpu_touched, after a sync): the
         bytes of its reception still to come go one by one at their ticks, as their

@@ -138,6 +138,12 @@ class _Ghost:
         self.entered_at: int | None = None
         self.effects_at: int | None = None
 
+    def ran_alone(self, due: int) -> None:
+        """Taken without an event (``Cpu.defer``), it ran alone: its ``enter`` and effects
+        came at ``due``, as a lone handler's do (``Cpu._alone_body``)."""
+        assert self.real is None and due == self.due
+        self.entered_at = self.effects_at = due
+
     def enter(self) -> None:
         if self.real is None:
             self.entered_at = self.port.now()
@@ -191,6 +197,8 @@ class CanCpuPort:
         self.meetings = 0
         """Ghosts that met the radio on the CPU and woke the domain."""
         self.ghosts_raised = 0
+        self.deferred = 0
+        """Ghosts the CPU took without an event (``Cpu.defer``): nothing could meet them."""
         self.late = 0
         """Ghosts whose effects came late (the radio held the CPU) without waking the domain
         (LATE_OK)."""
@@ -356,7 +364,10 @@ class CanCpuPort:
         self._ghosts[g.key] = g
         order.append(g)
         self.ghosts_raised += 1
-        cpu.irq(vector, body, g.fn, enter=g.enter, alone=alone)
+        if alone and cpu.defer(vector, body, g):
+            self.deferred += 1
+        else:
+            cpu.irq(vector, body, g.fn, enter=g.enter, alone=alone)
 
     def meet(self, ghost: _Ghost) -> None:
         """``ghost`` met the radio on the CPU: wake the domain, whose catch-up makes it real."""
@@ -368,7 +379,11 @@ class CanCpuPort:
 
     def wake(self) -> None:
         """The domain wakes: no more ghosts; the catch-up that follows runs with
-        ``catching_up`` set (:meth:`_replayed`)."""
+        ``catching_up`` set (:meth:`_replayed`), and finds a ghost the CPU took without an
+        event counted, or running (``Cpu.defer``)."""
+        cpu = self.cpu
+        if cpu is not None:
+            cpu.resolve()
         for ev in self._guards.values():
             ev.cancel()
         self._guards = {}

@@ -28,15 +28,41 @@ def _figures(cpu: Cpu) -> dict:
                      s.worst_latency, s.worst_response) for s in cpu.stats.values()}
 
 
+class _Deferred:
+    """The owner of a request the CPU takes without an event (``Cpu.defer``): its effects
+    noted as ``_run``'s lone handler notes them."""
+
+    def __init__(self, sched: Scheduler, seen: list) -> None:
+        self.sched, self.seen = sched, seen
+
+    def enter(self) -> None:
+        pass
+
+    def fn(self) -> None:
+        self.seen.append(("rx effect", self.sched.now))
+
+    def ran_alone(self, due: int) -> None:
+        self.seen.append(("rx effect", due))
+
+
 def _run(fuse: bool, other: Vector | None, at: int, task: bool = False,
-         extend: int = 0, ask_in_fn: bool = False) -> tuple[list, dict, int]:
+         extend: int = 0, ask_in_fn: bool = False,
+         defer: bool = False) -> tuple[list, dict, int]:
     """A lone handler requested at tick 1000 and, ``at`` ticks later, another request of
-    ``other`` (or a main-loop task): what happened when, each handler's figures, busy."""
+    ``other`` (or a main-loop task): what happened when, each handler's figures, busy.
+    ``defer``: the lone handler's request taken without an event (``Cpu.defer``)."""
     sched = Scheduler()
     cpu = Cpu(sched, DEFAULT_COSTS)
     cpu.fuse = fuse
     seen: list[tuple[str, int]] = []
     reg = []
+    if defer:
+        owner = _Deferred(sched, seen)
+
+        def take() -> None:
+            assert cpu.defer(RX, BODY, owner)
+            assert not cpu.quiescent(sched.now)
+        sched.at(1000, take)
 
     def enter():
         reg.append(sched.now)
@@ -48,7 +74,8 @@ def _run(fuse: bool, other: Vector | None, at: int, task: bool = False,
         if ask_in_fn:
             cpu.irq(LOW, 30, lambda: seen.append(("asked by rx", sched.now)))
 
-    sched.at(1000, lambda: cpu.irq(RX, BODY, body, enter=enter, alone=True))
+    if not defer:
+        sched.at(1000, lambda: cpu.irq(RX, BODY, body, enter=enter, alone=True))
     if task:
         sched.at(1000 + at, lambda: cpu.task("main", 50, lambda: seen.append(("task",
                                                                               sched.now))))
@@ -77,6 +104,36 @@ def test_a_request_while_a_lone_handler_runs_is_taken_as_on_the_general_path(oth
 @pytest.mark.parametrize("at", OFFSETS)
 def test_a_task_while_a_lone_handler_runs_waits_as_on_the_general_path(at):
     assert _run(True, None, at, task=True) == _run(False, None, at, task=True)
+
+
+@pytest.mark.parametrize("other", [TOP, SAME, LOW, None], ids=lambda v: getattr(v, "name",
+                                                                               "task"))
+@pytest.mark.parametrize("at", OFFSETS)
+def test_a_request_taken_without_an_event_is_counted_as_on_the_general_path(other, at):
+    """``Cpu.defer``: touched in its entry, body or RETI it goes on as a lone handler from
+    its tick; touched after its RETI it was counted run alone; either way the general
+    path's ticks, effects and figures."""
+    deferred = _run(True, other, at, task=other is None, defer=True)
+    assert deferred == _run(False, other, at, task=other is None)
+    assert ("rx effect", 1000 + 24 + BODY) in deferred[0] or other is TOP
+
+
+def test_a_request_is_not_taken_without_an_event_where_something_may_meet_it():
+    sched = Scheduler()
+    cpu = Cpu(sched, DEFAULT_COSTS)
+    owner = _Deferred(sched, [])
+    sched.at(100, lambda: cpu.irq(RX, BODY, lambda: None, alone=True))
+    sched.run_until(150)
+    assert not cpu.defer(LOW, 40, owner)            # a lone handler runs
+    sched.run_until(1000)
+    cpu.late_clear = lambda now, until: until < 1100
+    assert not cpu.defer(LOW, 80, owner)            # a byte handed over late at 1100 would
+    #                                                 meet it (RETI done at 1000 + 115)
+    assert cpu.defer(LOW, 20, owner)                # over by then: 1000 + 55
+    assert not cpu.defer(LOW, 20, owner)            # the first still runs
+    cpu.fuse = False
+    sched.run_until(2000)
+    assert not cpu.defer(LOW, 20, owner)            # every handler on the general path
 
 
 @pytest.mark.parametrize("at", [0, 100, 184, 200, 240, 260, 400])

@@ -820,3 +820,31 @@ def test_after_rdrf_the_edge_flag_still_sees_the_byte_whose_stop_bit_is_on_air(m
     cells = range(start, t, BT // 10)
     assert [noisy.radios[1].rx_fall(a, t) for a in cells] == \
         [first_fall(value, start, BT, a, t) for a in cells]
+
+
+def test_late_around_names_the_bytes_to_hand_over_on_either_side_of_now():
+    """``Air.late_around``: the hand-over tick (each byte's stop bit's end less ``lead``) of
+    the last byte due by now not handed over yet, and of the next that may come late
+    (``Reception.quiet``) after it: what ``Cpu.defer`` weighs."""
+    from types import SimpleNamespace
+
+    from hil.sim.reception import Reception
+    air = Air(Scheduler())
+    bt, t0, lead = 1000, 5000, 100
+    rx = Reception(b"abcdefgh", t0, bt, 8, quiet=8, lead=lead)
+    radio = SimpleNamespace(rx=rx, listening=lambda t: True)
+    assert air.late_around(radio, 5000) == (None, 5900)       # byte 0 at 6000 - 100
+    assert air.late_around(radio, 5900) == (5900, 6900)
+    assert air.late_around(radio, 8000) == (7900, 8900)       # bytes 0-2 due, none given
+    rx.pos = 3                                                # bytes 0-2 handed over
+    assert air.late_around(radio, 8000) == (None, 8900)
+    rx.quiet = 4                                              # byte 3 the last late one
+    assert air.late_around(radio, 8000) == (None, 8900)
+    assert air.late_around(radio, 9000) == (8900, None)       # due, not handed over yet
+    rx.quiet = 3                                              # the rest at their ticks
+    assert air.late_around(radio, 8899) == (None, None)
+    assert air.late_around(radio, 8900) == (8900, None)       # its event is at this tick
+    radio.rx = None
+    assert air.late_around(radio, 9000) == (None, None)
+    air.noise = True                                          # idle noise, handed over
+    assert air.late_around(radio, 9000) == (9000, None)       # when the CPU is asked

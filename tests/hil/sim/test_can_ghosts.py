@@ -7,6 +7,7 @@ from dataclasses import replace
 import pytest
 
 from firmware_model.cycle_costs import DEFAULT_COSTS
+from firmware_model.mcu.cpu import Cpu
 from hil.sim import can_ghosts
 from hil.sim.config import SimConfig
 from hil.sim.world import World
@@ -43,6 +44,20 @@ def test_an_idle_childs_can_side_sleeps_on_the_cpu_model_and_its_cpu_sees_every_
     assert rx == {r: 6 * 400 for r in (1, 2, 3)}
     # the radio met them on the CPU: late ghosts, their effects run at the wake
     assert sum(q.port.late for q in fast.quiet.values()) > 0
+    # most met nothing: the CPU took them without an event (Cpu.defer), the rest as
+    # requests
+    deferred = sum(q.port.deferred for q in fast.quiet.values())
+    raised = sum(q.port.ghosts_raised for q in fast.quiet.values())
+    assert 0.8 * raised < deferred < raised
+
+
+def test_ghosts_the_cpu_takes_without_an_event_are_the_same_run_as_ghosts_it_is_asked(
+        monkeypatch):
+    """``Cpu.defer`` refused, every ghost a request: the same run as with it."""
+    monkeypatch.setattr(Cpu, "defer", lambda self, vector, body, owner: False)
+    fast, _ = _same(IDLE, cuts=(123_456_789,))
+    assert sum(q.port.deferred for q in fast.quiet.values()) == 0
+    assert sum(q.port.ghosts_raised for q in fast.quiet.values()) > 0
 
 
 def test_ghosts_that_meet_the_radio_wake_the_can_side_and_it_is_still_the_same_run(
@@ -59,6 +74,9 @@ def test_ghosts_that_meet_the_radio_wake_the_can_side_and_it_is_still_the_same_r
 @pytest.mark.parametrize("seed", [
     4,     # cruising wheels: their reports' stuff bits move their frames' interrupts
     11,    # an order waiting for the main loop when a probe comes: it stays awake
+    # a ghost and a byte heard on time request the CPU at one tick: the byte first, as a
+    # real request hands the bytes due first (Air.late_around)
+    pytest.param(23, marks=pytest.mark.slow),
 ])
 def test_named_worlds_of_the_hunt_run_alike_asleep_or_not(seed):
     cfg, cuts, _ = HUNT.random_world(seed)
