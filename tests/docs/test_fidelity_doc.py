@@ -86,6 +86,26 @@ class probe:
         return min(tec for w in walks for tec, s in probe._walk(w) if s == state)
 
     @staticmethod
+    def bus_off_tec_byte() -> int:
+        """RTEC's TEC byte (bits 15-8) of a controller driven bus-off by bit errors on its
+        frame, read while it is bus-off."""
+        from can_bus.transceiver import Transceiver82C250
+        from firmware_model.mcu.can_controller import CanController
+        sched = Scheduler()
+        bus = CanBus(sched, BitTiming())
+        a, b = CanController(sched, name="A"), CanController(sched, name="B")
+        xa = Transceiver82C250(bus, a, name="XA")
+        Transceiver82C250(bus, b, name="XB")
+        a.start()
+        b.start()
+        bus.inject_bit_error(xa, count=32)
+        a.configure_tx(0, 0x123)
+        a.transmit(0, b"\x11\x22")
+        sched.run_until(1_000_000)
+        assert a.bus_off, "the probe's controller did not go bus-off"
+        return a.RTEC >> 8
+
+    @staticmethod
     def least(field: str, prescaler: int) -> int:
         """The smallest ``field`` (tseg1 or tseg2, quanta) a bit timing with ``prescaler``
         ticks a quantum may have. The other fields are roomy and the clock slow (4 MHz), so

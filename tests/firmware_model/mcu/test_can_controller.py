@@ -396,6 +396,8 @@ def test_bus_off_halts_then_firmware_restart_and_bus_recovery():
     # HALT was written 0, yet reads 1 until the controller has rejoined (the manual's node
     # status transition: bus-off, HALT = 1, until 128 x 11 recessive bits after the write)
     assert a.bus_off and a.node_status == NS_BUS_OFF and a.halted and a.TREQR == 1
+    # RTEC's TEC byte holds at 255 while bus-off (the count is over 255: docs/fidelity.md)
+    assert a.tec > 255 and a.RTEC >> 8 == 255
     r.run(recovery - 1)
     assert a.bus_off and a.halted and a.CSR & CSR_HALT and r.log == []
     r.run(recovery)
