@@ -100,6 +100,7 @@ class RadioStation:
         for every frame heard and sent (auth.sha256_blocks)."""
         uart.on_rx = self._on_rx
         uart.on_tx_done = self._on_tx_done
+        uart.rx_quiet = self.deframer.quiet_for
 
     def clocked_parts(self) -> tuple:
         """The parts that schedule events of their own (UART0, the two timer channels, the
@@ -130,7 +131,6 @@ class RadioStation:
                                                    alone=True)
         self.stall_timer.on_expiry = lambda now: self._stall_expired(now, timer_cycles)
         self.stall_timer.guard = self._stall_guard
-        self.uart.rx_quiet = self.deframer.quiet_for
 
     def _hash(self, frame) -> None:
         """The authenticated profile's tag of ``frame`` on the CPU model: its SHA-256 blocks

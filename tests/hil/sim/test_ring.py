@@ -325,6 +325,26 @@ def test_batched_delivery_equals_byte_by_byte_when_a_frame_stops_in_a_random_wor
     assert fast == slow
 
 
+def test_batched_delivery_equals_byte_by_byte_after_a_burst_of_interference():
+    """A world of scripts/sleep_hunt.py with bursts of interference (foreign bytes, no frame):
+    the MAC hears their garbage byte by byte and polls for a quiet channel, so the air hands
+    them over at their ticks, not in one burst at their end; in one burst, the father's MAC
+    went quiet only at the burst's end, programmed its timer from there and raised TXEN a
+    tick early 41.8 s in."""
+    from dataclasses import replace as _replace
+    from hunt import sleep_hunt
+    cfg, _, _ = sleep_hunt().random_world(71)
+    cfg = _replace(cfg, duration=45, cpu=None)
+
+    def trace(bb):
+        evs: list[dict] = []
+        World(_replace(cfg, byte_by_byte=bb), on_event=evs.append).run()
+        return evs
+    fast, slow = trace(False), trace(True)
+    assert any(e["ev"] == "txen" and e["robot"] == 0 and e["t"] == 669_656_392 for e in slow)
+    assert fast == slow
+
+
 def test_father_failover_takes_id0s_turn_without_a_miss():
     """Paper §III.A: PC1 and PC2 back each other up. PC2 (hot standby) takes ID 0's turn when
     PC1 dies, before anyone misses it; PC1, back, becomes the standby."""

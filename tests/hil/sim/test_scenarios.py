@@ -441,8 +441,9 @@ def test_a_forged_source_is_refused_not_acted_on_and_desynchronises_nobody(src, 
     end = t + len(data) * FOREIGN_B
     live = (0, 2, 3, 4)
     if how == "source":
+        # at the Source byte's end (byte 4), as each byte comes at its tick
         bad = events(evs, "bad_frame", t)
-        assert {(e["to"], e["field"]) for e in bad if e["t"] == end} == \
+        assert {(e["to"], e["field"]) for e in bad if e["t"] == t + 5 * FOREIGN_B} == \
             {(r, "source") for r in live}
         assert events(evs, "refused", t) == []
     else:
