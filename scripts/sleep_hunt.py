@@ -9,7 +9,9 @@ soak's random faults at a random spacing, a load that may stop half-way, byte er
 checksum, perhaps a robot gone for good), runs it once with every frame run and once with the
 fast paths, the second cut into 0-3 ``World.run`` segments that wake the CAN sides or not, and
 compares the summaries and the whole state (every part, every pending event, the random
-generators). A difference prints the world and makes the exit status 1. Two inexact sleeps were
+generators), and the world's events and summary with its receptions in bursts against every
+byte at its tick (``byte_by_byte``). A difference prints the world and makes the exit status
+1. Two inexact sleeps were
 found this way (a message noted between a probe's two snapshots, a cruising wheel whose
 odometer did not change for three periods); tests/hil/sim/test_quiet_can.py keeps both as named
 scenarios and runs a few seeds of this hunt. With ``--cpu`` each world runs on the CPU
@@ -93,6 +95,19 @@ def same_run(cfg: SimConfig, cuts: list[tuple[int, bool]], traced: bool = False)
             and fast_events == slow_events)
 
 
+def same_bytewise_run(cfg: SimConfig) -> bool:
+    """Does the run give the events and summary of the run with every byte at its tick
+    (``byte_by_byte``: no burst delivery, docs/fast-paths.md "Clean receptions in one
+    burst")?"""
+    runs = []
+    for bb in (False, True):
+        events: list[dict] = []
+        w = World(replace(cfg, byte_by_byte=bb), on_event=events.append)
+        w.run()
+        runs.append((summary(w), events))
+    return runs[0] == runs[1]
+
+
 def cpu_figures(w: World) -> dict:
     """Every child's CPU figures on the CPU model: busy cycles and each handler's calls, busy
     cycles, latency and response counts."""
@@ -172,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         cfg, cuts, traced = random_world(seed)
         t = time.perf_counter()
         ok = (same_cpu_run(cfg, cuts) and same_sleeping_cpu_run(cfg, cuts)) if a.cpu \
-            else same_run(cfg, cuts, traced)
+            else same_run(cfg, cuts, traced) and same_bytewise_run(cfg)
         bad += not ok
         print(f"seed {seed}: {'same run' if ok else 'DIFFERENT'} ({time.perf_counter() - t:.1f} s)"
               + ("" if ok else f"\n  {cfg!r}\n  cuts {cuts}, traced {traced}"), flush=True)
