@@ -453,10 +453,8 @@ class Cpu:
         reception that begins now may hand its bytes over late (``lone_past``)."""
         if self._alone is not None and not self._alone_over(now):
             return False
-        if self._deferred:
-            d = self._deferred[-1]
-            if d[0] <= now <= d[0] + self.entry + d[2] + self.reti:
-                return False
+        if self._deferred and self._deferred[-1][0] <= now <= self._deferred_end():
+            return False
         return not self._stack and not self._pending and not self._tasks
 
     def lone_past(self, vector: Vector, body: int, t0: int, dt: int, n: int) -> None:
@@ -465,12 +463,18 @@ class Cpu:
         by now: the bytes of a reception handed over late, nothing having asked the CPU for
         anything since before ``t0`` (the caller's invariant). The last one's RETI may still
         be running: it is then the lone handler, counted when it ends (``_settle``)."""
-        now = self.sched.now
         if self._deferred and self._deferred[0][0] < t0:
             self._resolve(t0)          # over before t0: nothing comes late in their time
         if self._alone is not None:
             self._settle(t0)           # the previous byte's handler ended before this one
         assert self._alone is None and self.quiescent(t0), "lone_past needs an idle CPU"
+        self._ran_alone(vector, body, t0, dt, n)
+
+    def _ran_alone(self, vector: Vector, body: int, t0: int, dt: int, n: int) -> None:
+        """Count ``n`` handlers of ``vector`` that ran alone from their requests at ``t0 + i
+        * dt``, their effects come by now; the last one, if its RETI still runs, is the lone
+        handler (``lone_past``, ``_resolve``)."""
+        now = self.sched.now
         s = self._stats(vector.name, vector.level)
         e = self.entry + body
         whole = e + self.reti
@@ -500,10 +504,8 @@ class Cpu:
         if not self.fuse or self.ideal or vector.level == MAIN_LEVEL or self._in_callback:
             return False
         now = self.sched.now
-        if self._deferred:
-            d = self._deferred[-1]
-            if now <= d[0] + self.entry + d[2] + self.reti:
-                return False
+        if self._deferred and now <= self._deferred_end():
+            return False
         if self._alone is not None:
             if not self._alone_over(now):
                 return False
@@ -515,6 +517,11 @@ class Cpu:
             return False
         self._deferred.append((now, vector, body, owner))
         return True
+
+    def _deferred_end(self) -> int:
+        """The tick the last deferred request's RETI ends (none before it still runs)."""
+        t, _, body, _ = self._deferred[-1]
+        return t + self.entry + body + self.reti
 
     def resolve(self) -> None:
         """A deferred request counted or made the lone handler now (``defer``), as if the
@@ -535,20 +542,9 @@ class Cpu:
             if now <= t + e:           # its effects are still to come (as Uart._replay's)
                 self.irq(vector, body, owner.fn, enter=owner.enter, alone=True, at=t)
                 continue
-            s = self._stats(vector.name, vector.level)
-            s.calls += 1
-            s.latency[0] += 1
-            s.responded(e)
+            self._ran_alone(vector, body, t, 0, 1)
             self.entered = t + self.entry
             owner.ran_alone(t + e)
-            whole = e + self.reti
-            if now > t + whole:
-                s.busy += whole
-                self._busy += whole
-            else:                      # its RETI runs on: the lone handler (lone_past's)
-                self._alone = _Frame(s, vector.level, None, None, (), self.entry, body,
-                                     self.reti, t)
-                self._alone_t = t
 
     @property
     def busy(self) -> int:

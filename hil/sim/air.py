@@ -192,7 +192,6 @@ class Air:
             self.active.append(tx)
             plain = self.ber == 0.0 and self.drop == 0.0 and not self.byte_by_byte
             noise = self.noise
-            foreign = radio is self._phantom
             clean = self._clean_for(bt) if plain else None
             for r in self.radios:
                 if r is radio or not r.alive or t0 < r.rx_from:
@@ -209,10 +208,7 @@ class Air:
                     cpu = getattr(r.uart, "cpu", None)
                     if cpu is None or cpu.ideal:
                         r.rx = Reception(data, t0, bt, tx.n, tx)
-                        if foreign and not self._quiet_for(r, data):
-                            # bytes from no robot that are not one good frame: the
-                            # firmware acts on them before their end (the MAC hears
-                            # garbage), so each comes at its tick
+                        if self._acts_before_end(r, tx, data):
                             self._bytewise(r, r.rx, 0, tx.n - 1)
                     else:
                         late = r.uart.may_come_late(data, bt, t0)
@@ -224,13 +220,16 @@ class Air:
                     r.rx = self._reception(r, tx)
         self.sched.at(tx.end, self._end, tx)
 
-    @staticmethod
-    def _quiet_for(r: AirRadio, data: bytes) -> bool:
-        """Would ``r``'s firmware report nothing before the last byte of ``data`` (a good
-        frame, nothing held: ``Uart.rx_quiet``)? A radio whose firmware cannot say: yes."""
-        uart = r.uart
-        quiet = getattr(uart, "rx_quiet", None) if uart is not None else None
-        return quiet is None or quiet(data)
+    def _acts_before_end(self, r: AirRadio, tx: Transmission, data: bytes) -> bool:
+        """Would ``r``'s firmware act on ``data``, received as sent, before its last byte, so
+        that each byte must come at its tick? Only for bytes from no robot (interference,
+        forged frames) that are not one good frame for it (``Uart.rx_quiet``: the MAC hears
+        garbage as it comes). A robot sends one good frame, after a quiet gap in which its
+        receivers' stall timers closed whatever they held."""
+        if tx.radio is not self._phantom:
+            return False
+        quiet = getattr(r.uart, "rx_quiet", None) if r.uart is not None else None
+        return quiet is not None and not quiet(data)
 
     def sync(self, radio: AirRadio, now: int) -> None:
         """Bring what ``radio`` has heard up to ``now`` (before its firmware looks)."""
@@ -401,8 +400,8 @@ class Air:
         rx = Reception(data, tx.t0 + k * tx.bt, tx.bt, n, tx, holes=holes,
                        lead=self._lead(r, tx.bt))
         lo = 0 if self.byte_by_byte or bytewise else first_bad
-        if lo and tx.radio is self._phantom and not self._quiet_for(r, data):
-            lo = 0            # bytes from no robot, not one good frame: each at its tick
+        if lo and self._acts_before_end(r, tx, data):
+            lo = 0
         cpu = getattr(r.uart, "cpu", None)
         if lo and cpu is not None and not cpu.ideal:
             if holes is None and k == 0 and r.uart.may_come_late(tx.data, tx.bt,

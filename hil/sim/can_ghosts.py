@@ -15,7 +15,8 @@ a CAN handler that meets a radio handler moves both. So a child's CAN side may s
   raises the same requests at the same ticks a period later and every period on (an event
   each, first at its tick as the driver's frame end was), each with a ghost handler: the same
   vector and cycles, so it costs the CPU what the real one would, on the same path, and the
-  CPU's figures are the real ones.
+  CPU's figures are the real ones. One that nothing can meet the CPU takes without an event
+  of its own (``Cpu.defer``), most of them.
 * A cruising wheel's odometer changes its status frame from period to period, and with it
   the frame's stuff bits and the tick its receive interrupt comes: that ghost comes where the
   frame's length puts it (:class:`CruisingWheel`).
