@@ -21,6 +21,8 @@ libpython's symbols were stripped nothing would be counted, and the script says 
 
 * ``idle``: the radio-only idle 7-robot ring, 60 simulated s, every frame run (no leap over
   the cycles it repeats: hil/sim/quiet_ring.py), the cost of the radio path itself;
+* ``idle-cpu``: the same ring on the CPU model (the command line's default), 20 s, every
+  frame run: what the handlers' machinery costs a frame;
 * ``saturated``: the 7-robot ring with every child's CAN side, ``load=saturate``, 60 s;
 * ``soak``: ``run_soak(0.05 h, seed 11)``, the whole soak (faults, traffic, CAN sides);
 * ``soak-0.1``: ``run_soak(0.1 h, seed 11)``, the same with a larger share of traffic (not
@@ -59,6 +61,16 @@ every = {{"ring_sleep": False}} if "ring_sleep" in SimConfig.__dataclass_fields_
 w = World(SimConfig(robots={RING!r}, duration=60.0, can=False, **every))
 run = w.run
 done = lambda: (60.0, w.air.occupations)
+""",
+    # the CPU model (the command line's default) on the same ring, every frame run: its
+    # handlers' machinery per frame (docs/cpu.md, "The default, and what it costs")
+    "idle-cpu": f"""
+from hil.sim.world import SimConfig, World
+from firmware_model.cycle_costs import DEFAULT_COSTS
+w = World(SimConfig(robots={RING!r}, duration=20.0, can=False, ring_sleep=False,
+                    cpu=DEFAULT_COSTS))
+run = w.run
+done = lambda: (20.0, w.air.occupations)
 """,
     "saturated": f"""
 from hil.sim.world import SimConfig, World

@@ -174,9 +174,12 @@ class RadioStation:
     def power_on(self) -> None:
         self._apply(self.mac.power_on(self.sched.now))
 
-    def _on_rx(self, data: bytes, t0: int, dt: int, now: int | None = None) -> None:
+    def _on_rx(self, data: bytes, t0: int, dt: int, now: int | None = None,
+               held: int | None = None) -> None:
         """Bytes from the UART, byte i's stop bit at ``t0 + i * dt``; ``now``: the tick of
-        their handler's effects when earlier than the scheduler's (Uart._replay)."""
+        their handler's effects when earlier than the scheduler's (Uart._replay); ``held``:
+        all but the last came late, their effects at that tick, given with the last's
+        (Uart._rx_isr), as if given apart."""
         if now is None:
             now = self.sched.now
         mac = self.mac
@@ -186,6 +189,15 @@ class RadioStation:
         # tick (bytes handed over in a burst too), else at its effects
         self._edge_cleared = end if self.cpu is None else now
         frame = d.known_frame(data, end)
+        if held is not None:
+            if frame is None:
+                self._on_rx(data[:-1], t0, dt, held)
+                self._on_rx(data[-1:], end, dt, now)
+                return
+            # all but the End in a frame in progress had armed the stall timer, which the
+            # End's handler stopped
+            stall = end - dt + self._stall + 1
+            self.stall_timer.programmed(stall + (stall & 1), held)
         if frame is not None:
             self._promise = None
             self.frames_heard += 1

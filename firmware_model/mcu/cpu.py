@@ -442,6 +442,11 @@ class Cpu:
         late, one every ``ticks`` (Uart: bytes and TDREs)."""
         return self.fuse and self.entry + body + self.reti < ticks
 
+    def runs_alone(self, fn: Callable[..., None]) -> bool:
+        """Is the lone handler (``irq``'s ``alone``) ``fn``'s, its effects still to come?"""
+        f = self._alone
+        return f is not None and f.fn == fn
+
     def _alone_over(self, now: int) -> bool:
         """The lone handler's effects came and its RETI ended before ``now`` (at ``now`` it
         still runs: ``_settle``)."""

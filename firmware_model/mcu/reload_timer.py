@@ -95,6 +95,15 @@ class ReloadTimer:
             ev.cancel()
         self._ev = self.sched.at(when, self._fire)
 
+    def programmed(self, when: int, now: int) -> None:
+        """The firmware programmed an expiry at ``when`` at tick ``now`` (earlier than the
+        scheduler's) and stopped the timer since, before it expired: the registers as
+        ``arm_at`` then ``stop`` leave them, without an event (bytes whose handlers armed it
+        given with the next byte's, which stopped it: firmware_model/station.py)."""
+        delay = when - now
+        self.delay = delay + (delay & 1)
+        self.stop()
+
     def stop(self) -> None:
         """Clear TMCSR.CNTE: no more interrupts."""
         self.expiry = None

@@ -70,7 +70,7 @@ class Uart:
                  "rx_cycles", "tx_vector", "tx_cycles", "end_vector", "end_cycles", "rdr",
                  "overruns", "_read", "gaps", "gap_ticks", "_tx", "_tx_len", "_tx_next",
                  "_sodr", "_shift", "_tdre_entry", "_gap_from", "rx_quiet",
-                 "bytes_late", "_late_tdre", "_late_from", "_shift_ev", "_end_at")
+                 "bytes_late", "_late_tdre", "_late_from", "_shift_ev", "_end_at", "_held")
 
     def __init__(self, sched: Scheduler, baud: int = 9600, byte_ticks: int | None = None,
                  name: str = "UART0") -> None:
@@ -87,6 +87,11 @@ class Uart:
         self.byte_ticks = byte_ticks
         self.line: SerialLine | None = None
         self.on_rx: Callable[..., None] | None = None
+        """``on_rx(data, t0, dt, now=None, held=None)``: bytes received, byte i's stop bit at
+        ``t0 + i * dt``; with a CPU model ``now``, the tick of their handlers' effects if
+        earlier than the scheduler's (bytes handed over late), and ``held``, the tick of the
+        effects of all but the last, which came late and are given with the last's
+        (``_rx_isr``): the receiver must end as if given them apart (firmware_model/station.py)."""
         self.bytes_late = 0
         """Bytes handed over late on an idle CPU and counted as handled at their ticks
         (``_replay``)."""
@@ -123,6 +128,11 @@ class Uart:
         self._late_from = 0
         self._shift_ev: Event | None = None
         """The event at ``_shift``'s stop-bit end."""
+        self._held: tuple[bytes, int, int, int] | None = None
+        """Bytes handed over late whose effects wait for the next byte's, which a lone
+        handler gives (``_replay``): (bytes, the first's stop-bit tick, ticks a byte, the
+        tick their effects came), given at that handler's body end or whenever the CPU or
+        this UART is asked anything first."""
 
     def attach_cpu(self, cpu: Cpu, rx_vector: Vector, rx_cycles: int, tx_vector: Vector,
                    tx_cycles: int, end_vector: Vector, end_cycles: int) -> None:
@@ -348,11 +358,14 @@ class Uart:
             return
         now = self.sched.now
         cpu = self.cpu
+        if self._held is not None:         # (bytes before these, whose byte never came)
+            self._give_held()
         if late_ok and t0 - lead < now:
             k = min(len(data), (now - t0 + lead - 1) // dt + 1)     # RDRFs before now
-            self._replay(data[:k], t0, dt, lead)
+            self._replay(data[:k], t0, dt, lead, hold=k < len(data))
             data = data[k:]
             t0 += k * dt
+        held, self._held = self._held, None
         cpu.settle(read=False)        # a handler running alone has read SIDR by now, or not
         for i, b in enumerate(data):
             t = t0 + i * dt
@@ -364,6 +377,14 @@ class Uart:
                 continue
             self.rdr.append((b, t))     # more than one only for bytes handed over late
             self._rx_request(dt)
+        if held is not None:
+            # bytes handed over late, all their effects due, and this byte after them (a
+            # frame's End): if its handler runs alone, nothing looks at theirs before its
+            # effects or before the CPU or this UART is asked anything, so they come with its,
+            # in one call (``_rx_isr``): a frame's all at once at its End
+            self._held = held
+            if len(data) != 1 or len(self.rdr) != 1 or not cpu.runs_alone(self._rx_isr):
+                self._give_held()
 
     def may_come_late(self, data: bytes, dt: int, now: int) -> bool:
         """Could ``data``, a byte every ``dt`` ticks from a reception beginning ``now``, be
@@ -374,12 +395,13 @@ class Uart:
         return cpu is not None and self.rx_quiet is not None and \
             cpu.fits_alone(self.rx_cycles, dt) and cpu.quiescent(now) and self.rx_quiet(data)
 
-    def _replay(self, chunk: bytes, t0: int, dt: int, lead: int) -> None:
+    def _replay(self, chunk: bytes, t0: int, dt: int, lead: int, hold: bool = False) -> None:
         """Bytes handed over late with an idle CPU (``receive``'s ``late_ok``): each byte's
         handler ran alone from its RDRF (``lead`` ticks before its date); those whose effects
         are due by now give them now, in one call, at the tick the last of them had them; a
         last byte whose body is still running becomes the lone handler and gives its effects
-        at its body's end."""
+        at its body's end. ``hold``: a byte comes right after them (``receive``), so bytes
+        whose effects are all due wait for it in ``_held``."""
         cpu, vector = self.cpu, self.rx_vector
         assert cpu is not None and vector is not None and self.on_rx is not None
         now = self.sched.now
@@ -390,7 +412,11 @@ class Uart:
         if due:
             self.bytes_late += due
             cpu.lone_past(vector, self.rx_cycles, t0 - lead, dt, due)
-            self.on_rx(chunk[:due], t0, dt, t0 - lead + (due - 1) * dt + e)
+            at = t0 - lead + (due - 1) * dt + e
+            if hold and due == n:
+                self._held = (chunk, t0, dt, at)      # (receive gives them, or holds them)
+            else:
+                self.on_rx(chunk[:due], t0, dt, at)
         if due < n:
             self.rdr.append((chunk[-1], last))
             self._rx_request(dt, at=last - lead)
@@ -402,16 +428,28 @@ class Uart:
         self.cpu.irq(self.rx_vector, self.rx_cycles, self._rx_isr, dt, enter=self._take_rdr,
                      alone=True, at=at)
 
+    def _give_held(self) -> None:
+        """The held bytes' effects (``_held``), with the tick they came."""
+        held = self._held
+        assert held is not None and self.on_rx is not None
+        self._held = None
+        data, t0, dt, at = held
+        self.on_rx(data, t0, dt, at)
+
     def _cpu_touched(self, now: int, busy: bool) -> None:
         """The CPU is asked for something (``busy``) or read: the bytes heard by now first
         (``Cpu.on_touch``); a request or task means the bytes still to come must each come at
         its tick (``on_time``), as their handlers now meet others."""
+        if self._held is not None:
+            self._give_held()
         if self._late_tdre is not None:
             self._tx_touched(now)
         line = self.line
         if line is None:
             return
         line.sync(now)
+        if self._held is not None:
+            self._give_held()
         if busy:
             on_time = getattr(line, "on_time", None)
             if on_time is not None:
@@ -444,12 +482,24 @@ class Uart:
     def _rx_isr(self, dt: int) -> None:
         if self._read and self.on_rx is not None:
             b, t = self._read.pop(0)
+            held = self._held
+            if held is not None:
+                data, t0, hdt, at = held
+                if hdt == dt and t == t0 + len(data) * dt:
+                    self._held = None           # the bytes before this one, with it
+                    self.on_rx(data + bytes((b,)), t0, dt, None, at)
+                    return
+                self._give_held()
             self.on_rx(bytes((b,)), t, dt)
 
     def sync(self, now: int) -> None:
         """Take every byte handed over by ``now`` (before a timer ISR reads state)."""
+        if self._held is not None:
+            self._give_held()
         if self.line is not None:
             self.line.sync(now)
+            if self._held is not None:
+                self._give_held()
 
     def rx_fall(self, after: int, now: int) -> int | None:
         """First falling edge on SIN0 in ticks (``after``, ``now``] inside the byte still

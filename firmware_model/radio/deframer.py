@@ -302,6 +302,14 @@ class Deframer:
         self._step(data[i], t0 + i * dt, out)
         return i + 1
 
+    def _clean(self) -> None:
+        """Forget the last frame's Header tick, bytes, Source and Length: a frame taken
+        whole (:meth:`known_frame`) and one fed byte by byte leave the same state."""
+        self._hdr_t = 0
+        self._raw.clear()
+        self._src = self._len = None
+        self._partial = 0
+
     def _complete(self, t: int, out: list) -> None:
         raw = bytes(self._raw)
         first = self.first
@@ -309,10 +317,12 @@ class Deframer:
         self.in_frame = False
         self.first = None
         self._pos = 0
+        src, length = self._src, self._len
+        self._clean()
         try:
             frame = parse_frame_cached(raw, self.max_content)
         except FrameError as err:  # pragma: no cover - every byte was checked already
-            out.append(FrameFailed(err, first, t, self._src, self._len, t))
+            out.append(FrameFailed(err, first, t, src, length, t))
             return
         out.append(FrameReceived(frame, first, t))
 
@@ -351,6 +361,8 @@ class Deframer:
             if len(whole) >= _WHOLE_MAX:
                 whole.clear()
             whole[data] = frame
+        if self._hdr_t or self._raw:
+            self._clean()
         self.last_tick = end
         return frame
 

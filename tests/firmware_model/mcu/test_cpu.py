@@ -273,10 +273,10 @@ def test_rdrf_comes_at_the_stop_bits_sample_half_a_bit_before_it_ends():
     seen: dict[int, list[int]] = {CHILD_BYTE_TICKS: [], PC_BYTE_TICKS: []}
     real = u.on_rx
 
-    def spy(data, t0, dt, now=None):
+    def spy(data, t0, dt, now=None, held=None):
         at = w.sched.now if now is None else now
         seen[dt].append(at - (t0 + (len(data) - 1) * dt))    # effects less the last date
-        return real(data, t0, dt, now)
+        return real(data, t0, dt, now, held)
 
     u.on_rx = spy
     w.run()

@@ -284,3 +284,106 @@ def test_whole_rings_on_the_cpu_model_give_the_same_trace_and_figures(case):
     # late bytes need a receiver holding nothing (idle noise comes a byte at a time, and a
     # frame after noise that left no partial Header may still come late)
     assert late > 0
+
+
+# -- a frame's late bytes given with its End (Uart._held) ------------------------------------
+
+END_LEAD = 832
+"""Ticks before a child's byte's stop bit ends at which its RDRF sets (Uart.rx_lead)."""
+END_EFFECTS = DEFAULT_COSTS.entry.cycles + DEFAULT_COSTS.uart_rx_byte.cycles
+"""From the End's RDRF to its handler's effects, alone: 119 cycles."""
+
+
+def _ring(fast: bool, ask=None) -> tuple:
+    """A ring of three children on the CPU model, 4 s; ``ask(world)`` may schedule things
+    on it first. Its records, summary and every handler's figures."""
+    from hil.sim.world import SimConfig, World
+    records: list = []
+    w = World(SimConfig(robots=(1, 2, 3), duration=4.0, seed=2, cpu=DEFAULT_COSTS,
+                        fast_paths=fast), listeners=[records.append])
+    if ask is not None:
+        ask(w)
+    w.run()
+    return records, w.summary(), {r: (c.busy, _figures(c)) for r, c in w.cpus.items()}
+
+
+def _an_end_at_robot_2() -> int:
+    """The stop-bit tick of the End of robot 1's fourth frame, which robot 2 hears late."""
+    records = _ring(True)[0]
+    ends = [r.end for r in records if type(r).__name__ == "FrameOnAir" and r.src == 1]
+    assert len(ends) >= 4
+    return ends[3]
+
+
+def test_a_frames_late_bytes_come_with_its_end_in_one_call(monkeypatch):
+    """On an idle CPU a good frame's bytes but the End come late, at the End's RDRF; their
+    effects wait for the End handler's, which gives the whole frame in one call: no stall
+    timer is armed and stopped for it."""
+    from hil.sim.world import SimConfig, World
+    w = World(SimConfig(robots=(1, 2, 3), duration=4.0, seed=2, cpu=DEFAULT_COSTS))
+    st = w.stations[2]
+    calls: list = []
+    real = st.uart.on_rx
+
+    def spy(data, t0, dt, now=None, held=None):
+        t = st.cpu.sched.now
+        calls.append((len(data), held is not None, t - t0 - (len(data) - 1) * dt, t))
+        return real(data, t0, dt, now, held)
+
+    st.uart.on_rx = spy
+    arms: list = []
+    timer = st.stall_timer
+    real_arm = type(timer).arm_at
+
+    def arm_at(self, when, now=None):
+        if self is timer:
+            arms.append(self.sched.now)
+        return real_arm(self, when, now)
+
+    monkeypatch.setattr(type(timer), "arm_at", arm_at)
+    w.run()
+    whole = [c for c in calls if c[1]]
+    assert sum(n == 14 for n, _, _, _ in whole) >= 10          # idle frames: 14 bytes
+    assert {lag for _, _, lag, _ in whole} == {END_EFFECTS - END_LEAD}  # the End's effects
+    # the bytes before the End were not given at its RDRF, where they came, so they armed
+    # no stall timer then (it is programmed, stopped, without an event)
+    assert not {t - END_EFFECTS for _, _, _, t in whole} & set(arms)
+    assert not {t - END_EFFECTS for _, _, _, t in whole} & {t for _, h, _, t in calls if not h}
+
+
+@pytest.mark.parametrize("offset", [-1, 0, 1, 23, 24, 25, 60, 118, 119, 120, 130, 800, 1400])
+@pytest.mark.parametrize("how", ["request", "read", "sync"])
+def test_a_look_before_the_end_handlers_effects_gets_the_late_bytes_first(offset, how):
+    """Something asks robot 2's CPU for something (a request of another level), reads it, or
+    its firmware reads the UART, ``offset`` ticks after the End's RDRF of a frame whose bytes
+    came late: it finds the frame's bytes before the End taken, as every byte at its tick
+    has them; the run is the general path's, event for event and figure for figure."""
+    end = _an_end_at_robot_2()
+    seen: list = []
+
+    def ask(w):
+        st = w.stations[2]
+
+        def look():
+            d = st.deframer
+            seen.append((w.sched.now, d.in_frame, d.last_tick))
+            if how == "request":
+                st.cpu.irq(LOW, 300, lambda: seen.append(("low", w.sched.now)))
+            elif how == "read":
+                seen.append(("busy", st.cpu.busy))
+            else:
+                st.uart.sync(w.sched.now)
+            seen.append(("then", d.in_frame, d.last_tick))
+        w.sched.at(end - END_LEAD + offset, look)
+
+    fast = _ring(True, ask)
+    fast_seen, seen[:] = list(seen), []
+    slow = _ring(False, ask)
+    assert fast == slow
+    # what the look saw once it asked, as every byte at its tick has it: the bytes before
+    # the End taken, or, once the End's handler has had its effects (the look comes first
+    # at their tick), the whole frame
+    then = [x for x in fast_seen if x[0] == "then"]
+    assert then == [x for x in seen if x[0] == "then"]
+    assert then == [("then", True, end - 16640) if offset <= END_EFFECTS else
+                    ("then", False, end)]

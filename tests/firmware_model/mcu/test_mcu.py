@@ -200,6 +200,35 @@ def test_timer_fires_exactly_at_armed_tick(start, delay):
     assert ((first + 1) + full * 65536) * pre == delay
 
 
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 10**6), st.integers(1, 10**7), st.integers(0, 10**5),
+       st.one_of(st.none(), st.integers(1, 10**7)))
+def test_a_timer_programmed_and_stopped_without_an_event_is_as_armed_then_stopped(
+        start, delay, later, pending):
+    """``programmed(when, at)``, given later than the tick the firmware programmed it at
+    (bytes whose handler armed it, given with the next byte's, which stopped it): the
+    registers and state ``arm_at(when, at)`` then ``stop()`` leave, and nothing fires."""
+    runs = []
+    for way in ("arm and stop", "programmed"):
+        s, t, fired = _timer(start)
+        if pending is not None:
+            t.arm_at(start + pending)            # armed before, for later or sooner
+        s.run_until(start + later)
+        at = start + later // 2                  # the firmware's tick, before now
+        when = start + later + delay             # later than both (arm_at's contract)
+        if way == "arm and stop":
+            t.arm_at(when, at)
+            t.stop()
+        else:
+            t.programmed(when, at)
+        s.run_until(start + later + 2 * 10**7)
+        runs.append((t.delay, t.expiry, t.registers if t.delay >= 2 else None, fired))
+    assert runs[0] == runs[1]
+    assert runs[0][1] is None                                 # stopped: no expiry
+    # nothing fires after it was stopped (an earlier arming may have fired before)
+    assert all(f <= start + later for f in runs[0][3]) and (pending or not runs[0][3])
+
+
 def test_timer_rearm_later_moves_expiry_and_fires_once():
     s, t, fired = _timer()
     t.arm_at(1000)

@@ -337,3 +337,38 @@ def test_a_frame_but_its_last_byte_takes_the_door_and_an_unknown_one_the_long_wa
     assert a.feed(forged[-1:], (len(forged) - 1) * BT, BT) == \
         [FrameReceived(Frame(dst=2, src=1, num=5, type=2, content=b"movex(77)"), 0,
                        (len(forged) - 1) * BT)]
+
+
+def _state(d: Deframer) -> dict:
+    """Everything a deframer holds (its slots), the last frame's leftovers included."""
+    return {k: (bytes(v) if isinstance(v, bytearray) else v)
+            for k in type(d).__slots__ if hasattr(d, k) for v in (getattr(d, k),)}
+
+
+@SETTINGS
+@given(st.binary(max_size=40), frames, st.integers(1, 3))
+def test_a_frame_taken_whole_leaves_what_feeding_it_leaves(before, f, split):
+    """After whatever came before it (garbage, a broken frame, a frame cut short, once its
+    bytes stopped), a good frame taken whole by ``known_frame`` (as an ideal receiver, or a
+    CPU model's receiver given a frame's late bytes with its End) leaves the deframer as
+    feeding it byte by byte, or in two chunks, does: nothing of the frames before it is
+    left (Header tick, bytes, Source, Length)."""
+    data = f.encode()
+    states = []
+    for how in ("whole", "per byte", "chunks"):
+        d = Deframer()
+        d.feed(before, 0, BT)
+        d.abort(len(before) * BT)
+        d.flush()                           # (what a receiver's feed reports at its end)
+        t0 = (len(before) + 5) * BT
+        end = t0 + (len(data) - 1) * BT
+        if how == "whole":
+            assert d.known_frame(data, end) == f
+        elif how == "per byte":
+            assert of(per_byte(d, data, t0, BT), FrameReceived)
+        else:
+            k = len(data) - split
+            events = d.feed(data[:k], t0, BT) + d.feed(data[k:], t0 + k * BT, BT)
+            assert of(events, FrameReceived)
+        states.append(_state(d))
+    assert states[0] == states[1] == states[2]
