@@ -154,6 +154,7 @@ class Cpu:
         """The lone handler running without the dispatcher (module docstring), or None."""
         self._alone_ev: Event | None = None
         self._alone_t = 0          # the tick it was accepted at
+        self._enter_now = False    # its ``enter`` runs at the entry's end (``irq``)
         self.on_touch: Callable[[int, bool], None] | None = None
         """Set by a UART whose received bytes may be handed over late (``lone_past``):
         ``on_touch(now, busy)`` runs before anything asks the CPU for something (``busy``:
@@ -181,12 +182,14 @@ class Cpu:
 
     def irq(self, vector: Vector, body: int, fn: Callable[..., None], *args: Any,
             enter: Callable[[], None] | None = None, alone: bool = False,
-            at: int | None = None) -> None:
+            at: int | None = None, enter_now: bool = False) -> None:
         """The peripheral raises ``vector``'s request now; its handler's body costs ``body``
         cycles. ``enter()`` runs when the handler starts, ``fn(*args)`` when its body ends.
         ``alone``: nothing but this handler's body reads what ``enter`` changes, so on an idle
         CPU both may run at the body's end, without the dispatcher (module docstring). ``at``: the
-        request came at that earlier tick, the CPU idle since (``lone_past``'s last byte)."""
+        request came at that earlier tick, the CPU idle since (``lone_past``'s last byte).
+        ``enter_now`` (with ``alone``): others see what ``enter`` does, so alone it runs at
+        the entry's end, as on the general path."""
         if vector.level == MAIN_LEVEL:
             return                      # ICR level 7: the request is never accepted
         if self.ideal:
@@ -203,7 +206,8 @@ class Cpu:
         if self._alone is not None:
             self._settle(now)
         if alone and self.fuse and not self._stack and not self._pending and \
-                not self._tasks and not self._in_callback:
+                not self._tasks and not self._in_callback and \
+                not (enter_now and at is not None):
             t = now if at is None else at
             s = self._stats(vector.name, vector.level)
             s.calls += 1
@@ -211,6 +215,7 @@ class Cpu:
             f = _Frame(s, vector.level, enter, fn, args, self.entry, body, self.reti, t)
             self._alone = f
             self._alone_t = t
+            self._enter_now = enter_now
             # the entry's end, then the body's, each scheduled when the general path would
             # schedule its milestone, so that events due at the same tick keep their order
             if t + f.entry > now:
@@ -336,10 +341,27 @@ class Cpu:
     # -- a lone handler, without the dispatcher --------------------------------------------
 
     def _alone_entry(self) -> None:
-        """The lone handler's entry sequence ends (its ``enter`` waits for the body's end)."""
+        """The lone handler's entry sequence ends: its ``enter`` waits for the body's end,
+        unless others see what it does (``irq``'s ``enter_now``): then it runs now, and the
+        body's end is scheduled after it, as on the general path."""
         f = self._alone
         assert f is not None
         f.phase = 1
+        enter = f.enter
+        if self._enter_now and enter is not None:
+            f.enter = None
+            self._alone_ev = None
+            self.entered = self.sched.now
+            self._in_callback = True     # requests made by it wait for it to return
+            try:
+                enter()
+            finally:
+                self._in_callback = False
+            if self._alone is not f:
+                # it asked for the CPU: f went on the stack (``_settle``), and from here the
+                # general path's own steps after an entry
+                self._dispatch()
+                return
         self._alone_ev = self.sched.at(self._alone_t + f.body_end, self._alone_body)
 
     def _alone_body(self) -> None:
@@ -398,6 +420,8 @@ class Cpu:
         self._alone = None
         f.since = t
         self._stack.append(f)
+        if ev is None and f.fn is not None:
+            return                     # asked from its ``enter`` (``_alone_entry``), running
         if f.fn is not None:
             # before its effects: its pending event is the general path's milestone (the
             # entry's end in phase 0, the body's in phase 1), scheduled when that path

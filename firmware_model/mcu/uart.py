@@ -319,7 +319,8 @@ class Uart:
         if self.on_tx_done is not None:
             assert self.cpu is not None and self.end_vector is not None   # set with the timer
             self._end_at = end
-            self.cpu.irq(self.end_vector, self.end_cycles, _nothing, enter=self._end_entered)
+            self.cpu.irq(self.end_vector, self.end_cycles, _nothing, enter=self._end_entered,
+                         alone=True, enter_now=True)
 
     def _end_entered(self) -> None:
         """TX END's handler begins: TXEN falls (``on_tx_done``), given the End's stop-bit tick

@@ -187,9 +187,11 @@ class _Line:
         return None
 
 
-def _send(fuse: bool, at: int | None, level: Vector = LOW) -> tuple[list, dict, int]:
+def _send(fuse: bool, at: int | None, level: Vector = LOW,
+          ask_on_done: Vector | None = None) -> tuple[list, dict, int]:
     """A UART on the CPU model sends 8 bytes from tick 1000; at ``at`` another handler asks
-    for the CPU: what reached the line, the End's handler, every handler's figures."""
+    for the CPU (``ask_on_done``: one asks from the End's handler's entry, where TXEN
+    falls): what reached the line, the End's handler, every handler's figures."""
     from firmware_model.interrupts import TX_END, UART0_RX, UART0_TX
     from firmware_model.mcu.uart import Uart
     sched = Scheduler()
@@ -199,7 +201,12 @@ def _send(fuse: bool, at: int | None, level: Vector = LOW) -> tuple[list, dict, 
     u = Uart(sched)
     u.line = _Line(sched, log)
     u.attach_cpu(cpu, UART0_RX, 160, UART0_TX, 48, TX_END, 200)
-    u.on_tx_done = lambda end: log.append((sched.now, "TX done", end))
+
+    def done(end):
+        log.append((sched.now, "TX done", end))
+        if ask_on_done is not None:
+            cpu.irq(ask_on_done, 300, lambda: log.append((sched.now, "asked", None)))
+    u.on_tx_done = done
     sched.at(1000, u.send, bytes(range(8)))
     if at is not None:
         sched.at(at, lambda: cpu.irq(level, 300, lambda: log.append((sched.now, level.name,
@@ -229,6 +236,29 @@ def test_a_request_while_transmit_handlers_run_late_is_taken_as_on_the_general_p
 
 def test_a_frame_sent_on_an_idle_cpu_is_counted_as_on_the_general_path():
     assert _send(True, None) == _send(False, None)
+
+
+END = _tdre(8)
+"""The End's stop-bit tick: TX END's request (entry 24 + 200 + RETI 11 cycles)."""
+
+
+@pytest.mark.parametrize("at", [END + d for d in (-1, 0, 1, 23, 24, 25, 100, 223, 224, 225,
+                                                  234, 235, 236, 300)])
+@pytest.mark.parametrize("level", [TOP, SAME, LOW], ids=lambda v: v.name)
+def test_the_ends_handler_alone_lowers_txen_at_its_entry_as_on_the_general_path(at, level):
+    """TX END runs alone on an idle CPU, its ``enter`` (TXEN falls: others see it) at the
+    entry's end as on the general path (``irq``'s ``enter_now``): a request of each level at
+    and around its entry, body and RETI ends finds it as the general path has it."""
+    fused = _send(True, at, level)
+    assert fused == _send(False, at, level)
+    assert [t for t, what, _ in fused[0] if what == "TX done"] == [END + 24] or at <= END
+
+
+@pytest.mark.parametrize("level", [TOP, SAME, LOW], ids=lambda v: v.name)
+def test_a_request_from_the_ends_entry_waits_for_it_as_on_the_general_path(level):
+    fused = _send(True, None, ask_on_done=level)
+    assert fused == _send(False, None, ask_on_done=level)
+    assert any(what == "asked" for _, what, _ in fused[0])
 
 
 CASES = {
@@ -284,6 +314,23 @@ def test_whole_rings_on_the_cpu_model_give_the_same_trace_and_figures(case):
     # late bytes need a receiver holding nothing (idle noise comes a byte at a time, and a
     # frame after noise that left no partial Header may still come late)
     assert late > 0
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_last_bytes_of_a_frame_by_one_event_are_an_event_each(case, monkeypatch):
+    """The receptions' last bytes of one transmission, one tick for all, by one event in
+    radio order (``Air._sync_ends``) and by an event each: the same run, event for event,
+    figure for figure, and the same state."""
+    from hil.sim.air import Air
+    from hunt import sleep_hunt
+    hunt = sleep_hunt()
+    runs = []
+    for together in (True, False):
+        monkeypatch.setattr(Air, "ends_together", together)
+        w, records = _world(case, True)
+        runs.append((records, w.summary(), {r: (c.busy, _figures(c)) for r, c in
+                                           w.cpus.items()}, hunt.cpu_state(w)))
+    assert runs[0] == runs[1]
 
 
 # -- a frame's late bytes given with its End (Uart._held) ------------------------------------
