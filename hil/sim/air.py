@@ -193,6 +193,9 @@ class Air:
             plain = self.ber == 0.0 and self.drop == 0.0 and not self.byte_by_byte
             noise = self.noise
             clean = self._clean_for(bt) if plain else None
+            # the receptions' last bytes, each at its RDRF, for one event a tick; byte by byte
+            # (the CPU model's --every-frame): an event each, the reference
+            ends: list | None = [] if self.ends_together and not self.byte_by_byte else None
             for r in self.radios:
                 if r is radio or not r.alive or t0 < r.rx_from:
                     continue
@@ -215,9 +218,20 @@ class Air:
                         r.rx = Reception(data, t0, bt, tx.n, tx, quiet=tx.n if late else 0,
                                          lead=r.uart.rx_lead(bt))
                         # late: only the last byte has an event (at its RDRF)
-                        self._bytewise(r, r.rx, tx.n if late else 0, tx.n - 1)
+                        self._bytewise(r, r.rx, tx.n if late else 0, tx.n - 1, ends)
                 else:
-                    r.rx = self._reception(r, tx)
+                    r.rx = self._reception(r, tx, ends=ends)
+            # one event at each tick the receivers' last bytes come, their order kept: nothing
+            # else this loop schedules comes at such a tick
+            at = self.sched.at
+            while ends:
+                t = ends[0][0]
+                now = [e for e in ends if e[0] == t]
+                if len(now) == 1:
+                    at(t, self._sync_rx, now[0][1], now[0][2], t)
+                else:
+                    at(t, self._sync_ends, now)
+                ends = [e for e in ends if e[0] != t]
         self.sched.at(tx.end, self._end, tx)
 
     def _acts_before_end(self, r: AirRadio, tx: Transmission, data: bytes) -> bool:
@@ -353,7 +367,7 @@ class Air:
     # -- receptions -----------------------------------------------------------------------
 
     def _reception(self, r: AirRadio, tx: Transmission, k: int = 0,
-                   bytewise: bool = False) -> Reception:
+                   bytewise: bool = False, ends: list | None = None) -> Reception:
         """What ``r`` hears of ``tx`` from its byte ``k`` on."""
         data = tx.data[k:] if k else tx.data
         n = tx.n - k
@@ -409,7 +423,7 @@ class Air:
                 rx.quiet = rx.lazy = lo       # the clean prefix may come late (Uart.receive)
             else:
                 lo = 0                        # every handler at its byte's tick
-        self._bytewise(r, rx, lo, n - 1)
+        self._bytewise(r, rx, lo, n - 1, ends)
         return rx
 
     def late_until(self, radio: AirRadio, now: int) -> int | None:
@@ -465,11 +479,13 @@ class Air:
         rx.flush(r, now)
         self._on_time_next(r, rx)
 
-    def _bytewise(self, r: AirRadio, rx: Reception, lo: int, hi: int) -> None:
+    def _bytewise(self, r: AirRadio, rx: Reception, lo: int, hi: int,
+                  ends: list | None = None) -> None:
         """Deliver bytes lo..hi-1 (0-based) each at its own tick; the last byte of a reception
         is delivered by the end-of-transmission event, in radio order, in every mode, unless
         the receiver takes it before its stop bit ends (``Reception.lead``): then by an event
-        of its own at its tick, with whatever came late before it."""
+        of its own at its tick, with whatever came late before it (``ends``: noted there for
+        one event at that tick, ``_sync_ends``)."""
         at = self.sched.at
         t0, bt, lead = rx.t0, rx.bt, rx.lead
         for i in range(lo + 1, hi + 1):
@@ -477,7 +493,22 @@ class Air:
             at(t, self._sync_rx, r, rx, t)
         if lead:
             t = t0 + (hi + 1) * bt - lead
-            at(t, self._sync_rx, r, rx, t)
+            if ends is None:
+                at(t, self._sync_rx, r, rx, t)
+            else:
+                ends.append((t, r, rx))
+
+    ends_together = True
+    """The last bytes of one transmission's receptions by one event a tick (``_sync_ends``);
+    False: an event each (what tests/firmware_model/mcu/test_cpu_fused.py compares with)."""
+
+    def _sync_ends(self, ends: list) -> None:
+        """The last bytes of the receptions of one transmission, each at its RDRF (one tick:
+        every receiver's RDRF leads its stop bit alike), in radio order: what an event each,
+        scheduled one after the other with nothing between them, does."""
+        for t, r, rx in ends:
+            if r.rx is rx:
+                rx.flush(r, t)
 
     @staticmethod
     def _lead(r: AirRadio, bt: int) -> int:
