@@ -42,7 +42,8 @@ from firmware_model.mcu.uart import first_fall, rates_agree, sample_byte
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.timing import PC_BYTE_TICKS
 
-from .reception import AirRadio, ByteStream, Reception, Transmission, first_byte_heard
+from .reception import (AirRadio, ByteStream, Reception, Transmission, first_byte_heard,
+                        flush_ends)
 
 
 HEADER = b"\x0f\x0a\x05"
@@ -193,8 +194,7 @@ class Air:
             plain = self.ber == 0.0 and self.drop == 0.0 and not self.byte_by_byte
             noise = self.noise
             clean = self._clean_for(bt) if plain else None
-            # the receptions' last bytes, each at its RDRF, for one event a tick; byte by byte
-            # (the CPU model's --every-frame): an event each, the reference
+            # the receptions' last bytes at their RDRFs, for one event a tick (ends_together)
             ends: list | None = [] if self.ends_together and not self.byte_by_byte else None
             for r in self.radios:
                 if r is radio or not r.alive or t0 < r.rx_from:
@@ -223,15 +223,11 @@ class Air:
                     r.rx = self._reception(r, tx, ends=ends)
             # one event at each tick the receivers' last bytes come, their order kept: nothing
             # else this loop schedules comes at such a tick
-            at = self.sched.at
-            while ends:
-                t = ends[0][0]
-                now = [e for e in ends if e[0] == t]
-                if len(now) == 1:
-                    at(t, self._sync_rx, now[0][1], now[0][2], t)
-                else:
-                    at(t, self._sync_ends, now)
-                ends = [e for e in ends if e[0] != t]
+            groups: dict[int, list] = {}
+            for e in ends or ():
+                groups.setdefault(e[0], []).append(e)
+            for t, group in groups.items():
+                self.sched.at(t, flush_ends, group)
         self.sched.at(tx.end, self._end, tx)
 
     def _acts_before_end(self, r: AirRadio, tx: Transmission, data: bytes) -> bool:
@@ -485,7 +481,7 @@ class Air:
         is delivered by the end-of-transmission event, in radio order, in every mode, unless
         the receiver takes it before its stop bit ends (``Reception.lead``): then by an event
         of its own at its tick, with whatever came late before it (``ends``: noted there for
-        one event at that tick, ``_sync_ends``)."""
+        one event at that tick, ``flush_ends``)."""
         at = self.sched.at
         t0, bt, lead = rx.t0, rx.bt, rx.lead
         for i in range(lo + 1, hi + 1):
@@ -499,16 +495,8 @@ class Air:
                 ends.append((t, r, rx))
 
     ends_together = True
-    """The last bytes of one transmission's receptions by one event a tick (``_sync_ends``);
-    False: an event each (what tests/firmware_model/mcu/test_cpu_fused.py compares with)."""
-
-    def _sync_ends(self, ends: list) -> None:
-        """The last bytes of the receptions of one transmission, each at its RDRF (one tick:
-        every receiver's RDRF leads its stop bit alike), in radio order: what an event each,
-        scheduled one after the other with nothing between them, does."""
-        for t, r, rx in ends:
-            if r.rx is rx:
-                rx.flush(r, t)
+    """The last bytes of one transmission's receptions by one event a tick (``flush_ends``);
+    False, or byte by byte (--every-frame on the CPU model): an event each, the reference."""
 
     @staticmethod
     def _lead(r: AirRadio, bt: int) -> int:

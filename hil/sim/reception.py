@@ -190,3 +190,13 @@ def first_byte_heard(t0: int, bt: int, when: int, rx_bt: int) -> int:
         if not (2 * m * bt <= sample < 2 * (m + 1) * bt):
             return k + 1
     return k
+
+
+def flush_ends(ends: list) -> None:
+    """``(tick, radio, reception)`` of one transmission's receivers, their last bytes each at
+    its RDRF (one tick for all: every receiver's RDRF leads its stop bit alike), in radio
+    order: what an event each, scheduled one after the other with nothing between them, does
+    (hil/sim/air.py, ``Air.ends_together``)."""
+    for t, r, rx in ends:
+        if r.rx is rx:
+            rx.flush(r, t)

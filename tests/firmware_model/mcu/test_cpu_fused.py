@@ -319,8 +319,8 @@ def test_whole_rings_on_the_cpu_model_give_the_same_trace_and_figures(case):
 @pytest.mark.parametrize("case", list(CASES))
 def test_the_last_bytes_of_a_frame_by_one_event_are_an_event_each(case, monkeypatch):
     """The receptions' last bytes of one transmission, one tick for all, by one event in
-    radio order (``Air._sync_ends``) and by an event each: the same run, event for event,
-    figure for figure, and the same state."""
+    radio order (hil/sim/reception.py, ``flush_ends``) and by an event each: the same run,
+    event for event, figure for figure, and the same state."""
     from hil.sim.air import Air
     from hunt import sleep_hunt
     hunt = sleep_hunt()
