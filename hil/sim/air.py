@@ -71,6 +71,7 @@ class Air:
         self._log1mp = math.log1p(-ber) if ber > 0 else 0.0
         self.noise = noise
         self.byte_by_byte = byte_by_byte
+        self._ends: list = []
         self.radios: list[AirRadio] = []
         self.active: list[Transmission] = []
         self.collision_until = -1
@@ -194,8 +195,8 @@ class Air:
             plain = self.ber == 0.0 and self.drop == 0.0 and not self.byte_by_byte
             noise = self.noise
             clean = self._clean_for(bt) if plain else None
-            # the receptions' last bytes at their RDRFs, for one event a tick (ends_together)
-            ends: list | None = [] if self.ends_together and not self.byte_by_byte else None
+            # receptions' last bytes, one event a tick (ends_together)
+            ends = self._ends if self.ends_together and not self.byte_by_byte else None
             for r in self.radios:
                 if r is radio or not r.alive or t0 < r.rx_from:
                     continue
@@ -221,13 +222,13 @@ class Air:
                         self._bytewise(r, r.rx, tx.n if late else 0, tx.n - 1, ends)
                 else:
                     r.rx = self._reception(r, tx, ends=ends)
-            # one event at each tick the receivers' last bytes come, their order kept: nothing
-            # else this loop schedules comes at such a tick
-            groups: dict[int, list] = {}
-            for e in ends or ():
-                groups.setdefault(e[0], []).append(e)
-            for t, group in groups.items():
-                self.sched.at(t, flush_ends, group)
+            if ends:       # their order kept: nothing else this loop schedules comes then
+                groups: dict[int, list] = {}
+                for e in ends:
+                    groups.setdefault(e[0], []).append(e)
+                ends.clear()
+                for t in groups:
+                    self.sched.at(t, flush_ends, groups[t])
         self.sched.at(tx.end, self._end, tx)
 
     def _acts_before_end(self, r: AirRadio, tx: Transmission, data: bytes) -> bool:
