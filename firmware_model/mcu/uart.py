@@ -441,18 +441,11 @@ class Uart:
         """The CPU is asked for something (``busy``) or read: the bytes heard by now first
         (``Cpu.on_touch``); a request or task means the bytes still to come must each come at
         its tick (``on_time``), as their handlers now meet others."""
-        if self._held is not None:
-            self._give_held()
-        if self._late_tdre is not None:
+        if self._late_tdre is not None:    # (sending: nothing held, the radio deaf)
             self._tx_touched(now)
-        line = self.line
-        if line is None:
-            return
-        line.sync(now)
-        if self._held is not None:
-            self._give_held()
-        if busy:
-            on_time = getattr(line, "on_time", None)
+        self.sync(now)
+        if busy and self.line is not None:
+            on_time = getattr(self.line, "on_time", None)
             if on_time is not None:
                 on_time(now)
 
@@ -484,13 +477,12 @@ class Uart:
         if self._read and self.on_rx is not None:
             b, t = self._read.pop(0)
             held = self._held
-            if held is not None:
-                data, t0, hdt, at = held
-                if hdt == dt and t == t0 + len(data) * dt:
-                    self._held = None           # the bytes before this one, with it
-                    self.on_rx(data + bytes((b,)), t0, dt, None, at)
-                    return
-                self._give_held()
+            if held is not None:                # the bytes before this one, with it
+                data, t0, _, at = held
+                assert t == t0 + len(data) * dt  # (receive holds them for this byte only)
+                self._held = None
+                self.on_rx(data + bytes((b,)), t0, dt, None, at)
+                return
             self.on_rx(bytes((b,)), t, dt)
 
     def sync(self, now: int) -> None:
