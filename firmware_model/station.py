@@ -205,7 +205,17 @@ class RadioStation:
                 assert self.cpu is not None               # _frame_cycles is set with it
                 self.cpu.extend(self._frame_cycles)
                 self._hash(frame)
-            self._apply(mac.on_frame(frame, t0, end, now))
+            # ``_apply``, inlined: a good frame, every receiver, every frame
+            acts = mac.on_frame(frame, t0, end, now)
+            if acts:
+                self._act(acts)
+            dl = mac.deadline
+            timer = self.timer
+            if dl is None:
+                if timer.expiry is not None:
+                    timer.stop()
+            elif dl != timer.expiry:
+                timer.arm_at(dl)
             return
         evs = d.feed(data, t0, dt)
         for ev in evs:

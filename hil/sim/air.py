@@ -197,6 +197,7 @@ class Air:
             clean = self._clean_for(bt) if plain else None
             # receptions' last bytes, one event a tick (ends_together)
             ends = self._ends if self.ends_together and not self.byte_by_byte else None
+            phantom = radio is self._phantom
             for r in self.radios:
                 if r is radio or not r.alive or t0 < r.rx_from:
                     continue
@@ -212,7 +213,7 @@ class Air:
                     cpu = getattr(r.uart, "cpu", None)
                     if cpu is None or cpu.ideal:
                         r.rx = Reception(data, t0, bt, tx.n, tx)
-                        if self._acts_before_end(r, tx, data):
+                        if phantom and self._acts_before_end(r, data):
                             self._bytewise(r, r.rx, 0, tx.n - 1)
                     else:
                         late = r.uart.may_come_late(data, bt, t0)
@@ -231,14 +232,12 @@ class Air:
                     self.sched.at(t, flush_ends, groups[t])
         self.sched.at(tx.end, self._end, tx)
 
-    def _acts_before_end(self, r: AirRadio, tx: Transmission, data: bytes) -> bool:
-        """Would ``r``'s firmware act on ``data``, received as sent, before its last byte, so
-        that each byte must come at its tick? Only for bytes from no robot (interference,
-        forged frames) that are not one good frame for it (``Uart.rx_quiet``: the MAC hears
-        garbage as it comes). A robot sends one good frame, after a quiet gap in which its
-        receivers' stall timers closed whatever they held."""
-        if tx.radio is not self._phantom:
-            return False
+    def _acts_before_end(self, r: AirRadio, data: bytes) -> bool:
+        """Would ``r``'s firmware act on ``data`` from no robot (interference, forged frames),
+        received as sent, before its last byte, so that each byte must come at its tick? Only
+        if they are not one good frame for it (``Uart.rx_quiet``: the MAC hears garbage as it
+        comes). A robot sends one good frame, after a quiet gap in which its receivers' stall
+        timers closed whatever they held: ``transmit`` asks only for the bytes of no robot."""
         quiet = getattr(r.uart, "rx_quiet", None) if r.uart is not None else None
         return quiet is not None and not quiet(data)
 
@@ -411,7 +410,7 @@ class Air:
         rx = Reception(data, tx.t0 + k * tx.bt, tx.bt, n, tx, holes=holes,
                        lead=self._lead(r, tx.bt))
         lo = 0 if self.byte_by_byte or bytewise else first_bad
-        if lo and self._acts_before_end(r, tx, data):
+        if lo and tx.radio is self._phantom and self._acts_before_end(r, data):
             lo = 0
         cpu = getattr(r.uart, "cpu", None)
         if lo and cpu is not None and not cpu.ideal:

@@ -163,8 +163,10 @@ class Reception:
             self.pos = self.n
             if self.quiet:
                 radio.deliver(self.data, self.t0 + self.bt, self.bt, True, self.lead)
+            elif self.lead:
+                radio.deliver(self.data, self.t0 + self.bt, self.bt, False, self.lead)
             else:
-                self._give(radio, self.data, 0)
+                radio.deliver(self.data, self.t0 + self.bt, self.bt)
         else:
             self.flush(radio, self.last_at)
 
