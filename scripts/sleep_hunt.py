@@ -16,7 +16,8 @@ found this way (a message noted between a probe's two snapshots, a cruising whee
 odometer did not change for three periods); tests/hil/sim/test_quiet_can.py keeps both as named
 scenarios and runs a few seeds of this hunt. With ``--cpu`` each world runs on the CPU
 model, its fast paths (lone handlers, bytes late on an idle CPU) against every byte at its
-tick on the general path: events, summary and every handler's figures; and, untraced, its
+tick on the general path: events, summary, every handler's figures and the state but for
+the CPUs and the fast paths' own forms; and, untraced, its
 sleeping CAN sides (their interrupts raised as ghosts) against CAN sides that never sleep:
 summary, state and every handler's figures.
 """
@@ -120,8 +121,9 @@ def cpu_figures(w: World) -> dict:
 def same_cpu_run(cfg: SimConfig, cuts: list[tuple[int, bool]]) -> bool:
     """On the CPU model: does the run with the fast paths (lone handlers, late bytes on an
     idle CPU: docs/fast-paths.md), cut at ``cuts``, give the events, summary and CPU figures
-    of the run with every byte at its tick and every handler on the general path? (Their
-    states differ in form: pending events and the lone handler's record.)"""
+    of the run with every byte at its tick and every handler on the general path, and, once
+    every station has looked at its UART, its state but for the CPUs and the fast paths' own
+    forms (:func:`cpu_state`)?"""
     from firmware_model.cycle_costs import DEFAULT_COSTS
     cfg = replace(cfg, cpu=DEFAULT_COSTS)
     slow_events: list[dict] = []
@@ -132,29 +134,63 @@ def same_cpu_run(cfg: SimConfig, cuts: list[tuple[int, bool]]) -> bool:
     for tick, wake in cuts:
         (fast.run if wake else fast._advance)(tick)
     fast.run()
-    return (summary(fast) == summary(slow) and fast_events == slow_events
-            and cpu_figures(fast) == cpu_figures(slow))
+    if not (summary(fast) == summary(slow) and fast_events == slow_events
+            and cpu_figures(fast) == cpu_figures(slow)):
+        return False
+    for w in (fast, slow):
+        looked_at(w)
+    return cpu_state(fast, forms=True) == cpu_state(slow, forms=True)
 
 
-def cpu_state(w: World) -> list:
+def cpu_state(w: World, forms: bool = False) -> list:
     """:func:`state` without the CPUs (their pending handlers hold ghosts or the real
     handlers: the same figures, a different form; :func:`cpu_figures` compares those) and
     without the UARTs' count of bytes handed over late (``Uart.bytes_late``: a figure of the
     fast path's, which a ghost the CPU took without an event leaves late where a real
-    handler made them come on time)."""
+    handler made them come on time). ``forms``: without the fast paths' own forms too, to
+    compare a run with them against one without (:func:`same_cpu_run`): the switches
+    themselves, the MAC's heartbeat length (its fast path's), a reception's clean prefix
+    that may come late, and the timers' pending events (their ``expiry`` is compared: a
+    timer re-armed later keeps an earlier event and moves it on when it fires)."""
     w.wake_can()
     parts = [p for _, q in sorted(w.quiet.items()) for p in q.roots]
     stations = [w.stations[r] for r in sorted(w.stations)]
     boundary = [w.sched, *w.quiet.values(), *(q.clock for q in w.quiet.values()),
                 *w.cpus.values(), *(q.port for q in w.quiet.values())]
-    late = [st.uart.bytes_late for st in stations]
+    aside: list[tuple[object, str, object]] = []
+
+    def put_aside(obj: object, name: str, value: object) -> None:
+        aside.append((obj, name, getattr(obj, name)))
+        setattr(obj, name, value)
+
     for st in stations:
-        st.uart.bytes_late = 0
+        put_aside(st.uart, "bytes_late", 0)
+        if forms:
+            put_aside(st.mac, "_hb_len", None)
+            put_aside(st.mac, "cfg", replace(st.mac.cfg, fast_path=True))
+            for timer in (st.timer, st.stall_timer):
+                put_aside(timer, "_ev", None)
+    if forms:
+        put_aside(w.air, "byte_by_byte", False)
+        for r in w.air.radios:
+            if r.rx is not None:
+                put_aside(r.rx, "quiet", 0)
+                put_aside(r.rx, "lazy", 0)
     try:
         return portable(snapshot([*parts, stations, w.air], boundary, rng_state=True))
     finally:
-        for st, n in zip(stations, late):
-            st.uart.bytes_late = n
+        for obj, name, value in reversed(aside):
+            setattr(obj, name, value)
+
+
+def looked_at(w: World) -> None:
+    """Every radio's firmware (the standby father's too) reads its UART now (``Uart.sync``):
+    what a reception's burst or a late frame still holds of the bytes handed over by now is
+    taken, as a look at the state would take it. A run with every byte at its tick has taken
+    them already."""
+    for r in w.air.radios:
+        if r.uart is not None:
+            r.uart.sync(w.sched.now)
 
 
 def same_sleeping_cpu_run(cfg: SimConfig, cuts: list[tuple[int, bool]]) -> bool:

@@ -314,6 +314,34 @@ def test_whole_rings_on_the_cpu_model_give_the_same_trace_and_figures(case):
     # late bytes need a receiver holding nothing (idle noise comes a byte at a time, and a
     # frame after noise that left no partial Header may still come late)
     assert late > 0
+    # and, every radio's UART read, the same state but for the CPUs and the fast paths' forms
+    from hunt import sleep_hunt
+    hunt = sleep_hunt()
+    for w in (fast, slow):
+        hunt.looked_at(w)
+    assert hunt.cpu_state(fast, forms=True) == hunt.cpu_state(slow, forms=True)
+
+
+def test_the_hunts_comparison_of_the_cpu_models_fast_paths_sees_their_state(monkeypatch):
+    """scripts/sleep_hunt.py --cpu compares the state too: a deframer whose known-frame door
+    keeps the last frame's Header tick (a leftover nothing reads, but one the byte-by-byte path
+    clears) makes a hunt world differ that is otherwise the same run."""
+    from firmware_model.radio.deframer import Deframer
+    from hunt import sleep_hunt
+    hunt = sleep_hunt()
+    cfg, cuts, _ = hunt.random_world(1)
+    assert hunt.same_cpu_run(cfg, cuts)
+    door = Deframer.known_frame
+
+    def leaky(self, data, end):
+        kept = self._hdr_t
+        frame = door(self, data, end)
+        if frame is not None:
+            self._hdr_t = kept
+        return frame
+
+    monkeypatch.setattr(Deframer, "known_frame", leaky)
+    assert not hunt.same_cpu_run(cfg, cuts)
 
 
 @pytest.mark.parametrize("case", list(CASES))
