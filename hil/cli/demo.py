@@ -6,6 +6,7 @@ import argparse
 from firmware_model.timing import TICK_HZ, ticks_to_s
 
 from ..sim import events as E
+from ..sim.ledger import SameHappening
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, SimConfig, World
 from .common import (Parser, UserError, auth_option, checked_mac_config, digit, positive,
@@ -25,7 +26,9 @@ def ring_story(events: list[E.TraceEvent]) -> list[str]:
     joins, collisions (each observer's view of the same happening is one line)."""
     lines: list[str] = []
     cut: set[int] = set()                   # robots whose radio a fault has cut off
-    seen: dict[tuple, list[int]] = {}
+    meta = next((ev for ev in events if isinstance(ev, E.Meta)), None)
+    # the observers' reports of one miss, drop or join, as the run's accounting takes them
+    same = SameHappening(meta.tmax // 2 if meta is not None else 0)
     for ev in events:
         k = type(ev)
         if k not in STORY_EVENTS:
@@ -41,12 +44,8 @@ def ring_story(events: list[E.TraceEvent]) -> list[str]:
         by = getattr(ev, "by", None)
         if isinstance(ev, E.Miss) and by in cut:
             continue                        # a robot that hears nothing counts everyone out
-        if by is not None:                  # miss, disable, join, rejoin
-            key = (ev.t, ev.KIND, r)
-            if key in seen:
-                seen[key].append(by)
-                continue
-            seen[key] = [by]
+        if by is not None and not same.first(ev.KIND, r, ev.t):    # miss, disable, join,
+            continue                                                # rejoin: told once
         if isinstance(ev, E.FaultEdge):
             if ev.phase == "start" and ev.kind in ("fail", "recover"):
                 (cut.add if ev.kind == "fail" else cut.discard)(r)

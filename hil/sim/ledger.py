@@ -67,6 +67,34 @@ def spread(counts: Counter) -> dict:
     return {"count": n, "min": min(counts), "median": median, "max": max(counts)}
 
 
+class SameHappening:
+    """Tells the first report of a happening that every robot hearing the air reports on its
+    own (a robot's missed turn, its drop, its join or rejoin) from the other observers'
+    reports of it: those come within ``same_turn`` ticks of the first. Each observer times a
+    turn from the same frame's End, but on the CPU model its timer's handler has its effects
+    a few hundred cycles later on one CPU than on another (and the father's PC is another CPU
+    again), so they need not come at one tick. Half of Tmax is the world's: a robot's next
+    miss, or its next change of one kind, is at least a turn, Tmax, later. 0: only reports
+    at the same tick are one."""
+
+    __slots__ = ("same_turn", "_last")
+
+    def __init__(self, same_turn: int = 0) -> None:
+        self.same_turn = same_turn
+        self._last: dict[tuple[str, int], int] = {}
+        """(kind, robot) -> the tick of the happening last counted."""
+
+    def first(self, kind: str, robot: int, now: int) -> bool:
+        """Is this report of ``kind`` about ``robot`` at tick ``now`` the first of its
+        happening, not another observer's of one counted within ``same_turn`` before?"""
+        key = (kind, robot)
+        last = self._last.get(key)
+        if last is not None and now - last <= self.same_turn:
+            return False
+        self._last[key] = now
+        return True
+
+
 class Ledger:
     """The run's accounting for the robots of the ring ``robots``. ``keep``: keep every
     message submitted and every outcome (``messages``, ``outcomes``, ``deliveries`` whole);
@@ -74,12 +102,12 @@ class Ledger:
     messages a delivery may still be checked against (the open ones, and those ended less
     than :data:`RETIRE_TICKS` ago), so a day's run holds what an hour's does."""
 
-    def __init__(self, robots, keep: bool = False) -> None:
+    def __init__(self, robots, keep: bool = False, same_turn: int = 0) -> None:
         self.stats: dict[int, RobotStats] = {r: RobotStats() for r in robots}
         self.membership: list[tuple[int, str, int]] = []   # (tick, kind, robot), deduplicated
-        self._membership_seen: set[tuple[int, str, int]] = set()
-        self._miss_seen: set[tuple[int, int]] = set()     # (tick, robot) counted
-        self._miss_order: deque[tuple[int, int]] = deque()  # the same, oldest first
+        self._reports = SameHappening(same_turn)
+        """Which observers' reports of a miss, a drop, a join or a rejoin are one happening
+        (``same_turn``: ticks, :class:`SameHappening`)."""
         self.keep = keep
         self.outcomes: list[Outcome] | None = [] if keep else None
         self.latency_ms: Counter = Counter()
@@ -147,25 +175,17 @@ class Ledger:
 
     def missed(self, now: int, robot: int) -> None:
         """``robot`` missed its turn, as one robot that hears the air saw it: counted once per
-        turn however many saw it."""
-        key = (now, robot)
-        if key not in self._miss_seen:
-            self._miss_seen.add(key)
-            order = self._miss_order
-            order.append(key)
-            # every robot that saw the miss reports it within a frame's time (a CPU model's
-            # late bytes included): older keys are forgotten, so the set stays small
-            while order[0][0] + RETIRE_TICKS < now:
-                self._miss_seen.discard(order.popleft())
-            if robot in self.stats:
-                self.stats[robot].missed += 1
+        turn however many saw it (:class:`SameHappening`)."""
+        if self._reports.first("miss", robot, now) and robot in self.stats:
+            self.stats[robot].missed += 1
 
-    def membership_change(self, kind: str, robot: int, now: int) -> None:
-        """A join, rejoin, disable or mode change, listed once however many robots saw it."""
-        key = (now, kind, robot)
-        if key not in self._membership_seen:
-            self._membership_seen.add(key)
-            self.membership.append(key)
+    def membership_change(self, kind: str, robot: int, now: int, observed: bool = True
+                          ) -> None:
+        """A join, rejoin or disable that the robots hearing the air saw (``observed``: listed
+        once however many saw it: :class:`SameHappening`), or a robot's own change of mode (not
+        ``observed``: it alone says it, every one listed), at its first report's tick."""
+        if not observed or self._reports.first(kind, robot, now):
+            self.membership.append((now, kind, robot))
 
     def _serial(self, a: Deliver) -> int:
         """The serial (1 on) of the latest message submitted that ``a`` delivers whole, 0 if

@@ -131,7 +131,8 @@ class World:
         self.action_turns: list[int] = []
         """``transmissions`` when each entry of ``actions`` happened."""
         self.radios = {}
-        self.ledger = ledger = Ledger(config.robots, keep=config.keep_records)
+        self.ledger = ledger = Ledger(config.robots, keep=config.keep_records,
+                                      same_turn=base.tmax // 2)
         """The run's accounting (hil/sim/ledger.py); its parts are the world's too."""
         self.stats, self.membership, self.identity = ledger.stats, ledger.membership, \
             ledger.identity

@@ -71,7 +71,7 @@ def _observe(self: World, st: RadioStation, a: Any, now: int) -> None:
             ev = (E.Rejoin if a.again else E.Join)(t=self.sched.now, robot=a.robot, by=r,
                                                    pc=pc)
     elif t is ModeChange:
-        self.ledger.membership_change(a.mode, r, now)
+        self.ledger.membership_change(a.mode, r, now, observed=False)
         if listened:
             ev = E.Mode(t=self.sched.now, robot=r, mode=a.mode, reason=a.reason)
     elif t is Deliver:

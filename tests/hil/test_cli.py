@@ -345,6 +345,13 @@ def test_demo_ring_tells_the_story_of_its_run(capsys):
     # while its radio is cut off, R1's own view (everyone else missing) is not the story
     assert not [t for t in text[cut:back] if "misses its turn" in t and not t.startswith("R1")]
     assert "(+" not in out and "member 1" not in out
+    # each happening told once, though every robot hearing the air saw it, on the CPU model
+    # a tick or a handler apart: three misses, one drop, each robot in the ring once
+    assert text.count("R1 misses its turn") == 3
+    assert text.count("R1 is dropped after three missed turns") == 1
+    for r in (1, 2, 3, 4):
+        assert text.count(f"R{r} is in the ring") == 1
+    assert text.count("R1 is in the ring again") == 1
 
 
 def test_the_progress_bar_run_is_the_same_run():

@@ -87,6 +87,46 @@ def test_a_miss_and_a_membership_change_count_once_however_many_saw_them():
     assert led.membership == [(100, "disable", 2), (300, "join", 2)]
 
 
+def test_the_observers_reports_of_one_happening_a_few_ticks_apart_count_once():
+    """On the CPU model each observer's timer handler has its effects a few hundred cycles
+    after another's (and the father's PC is another CPU): reports of one robot's miss, drop or
+    join within ``same_turn`` ticks of the first are that one happening, at the first's tick;
+    a report later than that is the next. A robot's own change of mode is every one listed."""
+    led = Ledger((1, 2, 3), same_turn=4_800_000)             # half of Tmax, as the world's
+    for t in (1000, 1001, 1309):             # robots 3 and 1, then the father, saw robot 2
+        led.missed(t, 2)
+        led.membership_change("disable", 2, t)
+    led.missed(1002, 3)                      # another robot's miss, at once: its own
+    led.missed(1000 + 4_800_000, 2)          # within half of Tmax of the first: the same
+    led.missed(1001 + 4_800_000, 2)          # later than that: the next turn's
+    led.membership_change("join", 2, 2000)   # a join is not a drop
+    for t in (3000, 3000, 3001):
+        led.membership_change("listen", 2, t, observed=False)
+    assert led.stats[2].missed == 2 and led.stats[3].missed == 1
+    assert led.membership == [(1000, "disable", 2), (2000, "join", 2), (3000, "listen", 2),
+                              (3000, "listen", 2), (3001, "listen", 2)]
+
+
+@pytest.mark.parametrize("cpu", ["ideal", "estimated"])
+def test_a_silent_robot_misses_three_turns_and_is_dropped_once_on_either_cpu(cpu):
+    """``rprs sim --fail 1@8`` on the CPU model (the command line's default) counted R1's
+    three missed turns as 6 and listed its drop twice: the observers' reports came a tick or a
+    PC's handler apart, and only reports at one tick were taken as one. Either CPU: 3 misses,
+    one drop, one join a robot, with and without the father."""
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    from hil.sim.faults import parse_fault
+    from hil.sim.world import SimConfig, World
+    for robots in ((1, 2, 3, 4), (0, 1, 2, 3, 4)):
+        w = World(SimConfig(robots=robots, duration=14.0, faults=(parse_fault("fail:1@8"),),
+                            cpu=DEFAULT_COSTS if cpu == "estimated" else None))
+        w.run()
+        assert w.stats[1].missed == 3
+        kinds = [(kind, r) for _, kind, r in w.membership if kind in ("join", "disable")]
+        assert kinds.count(("disable", 1)) == 1
+        assert sorted(kinds) == sorted({*kinds})                # nothing listed twice
+        assert {r for kind, r in kinds if kind == "join"} == set(robots) - {min(robots)}
+
+
 def test_a_streaming_ledger_forgets_what_ended_long_enough_ago_and_keeps_its_counts():
     """Without ``keep`` a message is checked against until RETIRE_TICKS after its outcome,
     then forgotten, its duplicate deliveries kept as a count: 10,000 messages leave a few."""
