@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from .common import UserError, stderr_console
+from .common import UserError, distinct_outputs, stderr_console
 
 
 def _db_for(spec_path: str, db: str | None) -> str:
@@ -258,6 +258,11 @@ def cmd_export(a: argparse.Namespace) -> int:
         raise UserError(f"no results file {a.db}")
     if not (a.csv or a.parquet):
         raise UserError("give --csv FILE and/or --parquet FILE")
+    distinct_outputs(csv=a.csv, parquet=a.parquet)
+    for opt, path in (("csv", a.csv), ("parquet", a.parquet)):
+        if path and Path(path).resolve() == Path(a.db).resolve():
+            raise UserError(f"--{opt} names the results file {a.db} itself, which the export "
+                            f"would overwrite: give another file")
     try:
         store = Store(a.db)
         for path, fn in ((a.csv, store.export_csv), (a.parquet, store.export_parquet)):

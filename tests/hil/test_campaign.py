@@ -632,6 +632,26 @@ def test_an_export_that_cannot_be_written_names_its_file_and_leaves_it(tmp_path,
     assert full.is_char_device()
 
 
+def test_an_export_onto_its_own_results_or_twice_onto_one_file_is_refused(tmp_path, capsys):
+    """``campaign export R.sqlite --csv R.sqlite`` wrote the CSV over the results file, and
+    ``--csv F --parquet F`` left only the Parquet file, both with exit status 0: refused in
+    one line, the results file untouched."""
+    from hil.cli import main
+    db = tmp_path / "r.sqlite"
+    Store(db).close()
+    before = db.read_bytes()
+    for args, says in (
+            (["--csv", str(db)], f"--csv names the results file {db} itself"),
+            (["--parquet", str(tmp_path / "." / "r.sqlite")], "--parquet names the results"),
+            (["--csv", str(tmp_path / "x"), "--parquet", str(tmp_path / "x")],
+             "--csv and --parquet name the same file")):
+        code = main(["campaign", "export", str(db), *args])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+        assert says in err, err
+    assert db.read_bytes() == before and not (tmp_path / "x").exists()
+
+
 def _results(store):
     return {r["run_key"]: (r["status"], r["metrics"]) for r in store.rows()}
 
