@@ -356,8 +356,9 @@ def report(results: list[SoakResult]) -> str:
     if any(not r.checksum for r in results) and \
             any(_verdict(r, n) != "yes" for r in results for n in r.invariants):
         # the notation's legend, where a no is shown (every promise kept: nothing to read)
-        rows += ["", "**NO**: a broken promise (exit status 1). Without the checksum "
-                 + " and ".join(f"'{n}'" for n in SoakResult.CHECKSUM_ONLY)
+        rows += ["", "Key: a bold **NO** would mark a broken promise (exit status 1). "
+                 "Without the checksum " + " and ".join(f"'{n}'" for n in
+                                                       SoakResult.CHECKSUM_ONLY)
                  + " are not promised (docs/guarantees.md: the paper's frame lets a byte "
                  "error through): a no there is expected and leaves the exit status 0."]
     return "\n".join(rows)

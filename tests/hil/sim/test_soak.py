@@ -271,7 +271,7 @@ def test_the_soak_says_which_no_is_a_broken_promise(monkeypatch, capsys, duplica
     without the checksum and exited 0, saying nowhere that this no is expected there. A no
     that no promise covers now says so, a broken promise alone is a bold **NO**, a last row
     says whether every promise held, and the exit status follows that row only. The legend
-    of the noes ("**NO**: a broken promise (exit status 1)...") is printed only where a no
+    of the noes ("Key: a bold **NO** would mark a broken promise...") is printed only where a no
     is shown: under a table of yeses it read like an alarm."""
     import hil.sim.soak as soak
     results = [_fake_result(True, duplicates_on), _fake_result(False, duplicates_off,
