@@ -188,6 +188,18 @@ STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
 """What stops a bench process cleanly: Ctrl-C, SIGTERM, and its terminal closed."""
 
 
+def take_stop_signals(handler: Callable[[int, Any], None]) -> dict[int, Any]:
+    """Put ``handler`` on each of :data:`STOP_SIGNALS` the process does not ignore, and give
+    back the handlers to restore. An ignored one stays ignored: a process started under
+    ``nohup`` (SIGHUP ignored) must outlive the terminal it was started from, and one started
+    in the background by a shell without job control ignores SIGINT."""
+    old = {}
+    for sig in STOP_SIGNALS:
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            old[sig] = signal.signal(sig, handler)
+    return old
+
+
 class Runner:
     """One real-time process: a scheduler, the things it owns, and clean shutdown."""
 
@@ -247,8 +259,7 @@ class Runner:
         if threading.current_thread() is threading.main_thread():
             # SIGHUP: the terminal it ran in closed; it used to kill the process, its --pcap
             # and --can-log cut off where their buffers were
-            for sig in STOP_SIGNALS:
-                old[sig] = signal.signal(sig, self.stop)
+            old = take_stop_signals(self.stop)
         try:
             if ready is not None:
                 ready()

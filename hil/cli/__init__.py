@@ -7,7 +7,8 @@ whose traces must not change by accident (tests/hil/sim/test_trace_digests.py).
 
 A user mistake (bad option value, unreadable file, malformed input) prints one line starting
 ``rprs: error:`` and exits with status 2; it never shows a traceback. Ctrl-C ends a command
-with ``rprs: interrupted`` and status 130, SIGTERM with ``rprs: terminated`` and status 143.
+with ``rprs: interrupted`` and status 130, SIGTERM with ``rprs: terminated`` and status 143,
+SIGHUP (its terminal closed) with ``rprs: hung up`` (if the terminal is still there) and 129.
 A standard output whose reader went away (``| head -1``) ends every command alike, as the
 Python docs recommend for SIGPIPE: no traceback, nothing more on stderr, stdout pointed at
 /dev/null, status 1 (``common.stdout_gone``, called here only); a bench process (``child``,
@@ -21,10 +22,11 @@ import importlib
 import io
 import logging
 import os
+import signal
 import sys
 from typing import Sequence
 
-from .common import Parser, Terminated, UserError, stdout_gone
+from .common import Parser, Terminated, UserError, say_closing, stdout_gone
 
 EXTRA_OF = {"matplotlib": "plot", "textual": "ui", "dask": "campaign", "distributed": "campaign",
             "numpy": "campaign", "pyarrow": "campaign"}
@@ -154,7 +156,7 @@ def _stacks_on_sigusr1() -> None:
     not seen again in 25 tries). A main thread waiting
     in a lock, a sleep or a blocking read or write is interrupted to run it (PEP 475)."""
     import faulthandler
-    import signal
+
     if not hasattr(signal, "SIGUSR1"):
         return
 
@@ -169,21 +171,32 @@ def _stacks_on_sigusr1() -> None:
         pass                         # not the main thread of the main interpreter
 
 
-def _terminate_on_sigterm():
-    """SIGTERM raises :class:`Terminated` (once: a second one kills) while a command runs, so
-    that it cleans up as on Ctrl-C (it used to die where it stood, leaving ``.partial`` files
-    and a capture cut in the middle of a packet). Commands that stop cleanly on SIGTERM
-    themselves (the bench processes, the monitor) put their own handler over this one.
-    Returns the handler to put back, or None (not the main thread)."""
-    import signal
+_STOPS = ("SIGTERM", "SIGHUP")
+"""The signals a command ends on as on Ctrl-C (``_terminate_on_signals``)."""
+_SIGHUP = getattr(signal, "SIGHUP", None)
+
+
+def _terminate_on_signals() -> dict:
+    """SIGTERM and SIGHUP (a closed terminal) raise :class:`Terminated` (once each: a second
+    one kills) while a command runs, so that it cleans up as on Ctrl-C (it used to die where
+    it stood, leaving ``.partial`` files and a capture cut in the middle of a packet).
+    Commands that stop cleanly on these themselves (the bench processes, the monitor, the
+    hub) put their own handlers over these. Returns the handlers to put back (none where this
+    is not the main thread)."""
 
     def terminate(signum, frame):
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-        raise Terminated()
-    try:
-        return signal.signal(signal.SIGTERM, terminate)
-    except ValueError:           # not the main thread of the main interpreter
-        return None
+        signal.signal(signum, signal.SIG_DFL)
+        raise Terminated(signum)
+    old = {}
+    for name in _STOPS:
+        sig = getattr(signal, name, None)
+        if sig is None or signal.getsignal(sig) is signal.SIG_IGN:
+            continue                 # (no SIGHUP on Windows; nohup: SIGHUP ignored, kept so)
+        try:
+            old[sig] = signal.signal(sig, terminate)
+        except ValueError:           # not the main thread of the main interpreter
+            return old
+    return old
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -192,7 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         from firmware_model.radio.mac_guard import install_from_environment
         install_from_environment()
     argv = list(sys.argv[1:] if argv is None else argv)
-    old_term = _terminate_on_sigterm()
+    old_handlers = _terminate_on_signals()
     try:
         code = _main(argv)
     except SystemExit:      # argparse's --help and --version; rich's own broken pipe
@@ -200,9 +213,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise SystemExit(1) from None
         raise
     finally:
-        if old_term is not None:
-            import signal
-            signal.signal(signal.SIGTERM, old_term)
+        if old_handlers:
+            for sig, handler in old_handlers.items():
+                signal.signal(sig, handler)
     return code if _stdout_flushed() else 1
 
 
@@ -243,9 +256,10 @@ def _main(argv: list[str]) -> int:
             raise
         print(f"rprs: error: {line}", file=sys.stderr)
         return 2
-    except Terminated:
-        print("rprs: terminated", file=sys.stderr)
-        return 143
+    except Terminated as exc:
+        # after SIGHUP the terminal may be gone: then nobody reads the line (say_closing)
+        say_closing("rprs: hung up" if exc.signum == _SIGHUP else "rprs: terminated")
+        return 128 + exc.signum
     except KeyboardInterrupt:
         print("rprs: interrupted", file=sys.stderr)
         return 130

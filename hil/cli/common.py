@@ -13,8 +13,13 @@ class UserError(Exception):
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the command stands so that it ends as Ctrl-C ends it: its output
-    files discarded, one line, exit status 143 (128 + SIGTERM)."""
+    """SIGTERM or SIGHUP (its terminal closed), raised where the command stands so that it
+    ends as Ctrl-C ends it: its output files discarded, one line (if the terminal is still
+    there), exit status 128 + the signal's number (143, 129)."""
+
+    def __init__(self, signum: int = 15) -> None:
+        super().__init__(signum)
+        self.signum = signum
 
 
 def stdout_gone() -> int:

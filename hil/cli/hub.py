@@ -11,6 +11,7 @@ from typing import Any, Sequence
 from ..bench.hub_parts import (MAX_BAUD, MAX_SECONDS, MIN_BAUD, HubError, check_args, check_fault,
                                parse_baud, parse_drop)
 from ..bench.radio_hub import RadioHub
+from ..bench.runner import take_stop_signals
 from .common import UserError
 
 
@@ -44,11 +45,6 @@ def summary_line(st: dict[str, Any]) -> str:
         line += (f"; raw mode restored {n} time{'s' if n != 1 else ''} (a program turned echo "
                  f"or line editing on)")
     return line
-
-
-STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
-                     if hasattr(signal, name))
-"""The signals that stop ``rprs radio-hub`` cleanly (links removed, summary, status 0)."""
 
 
 def is_fifo(path: str) -> bool:
@@ -96,7 +92,7 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
             hub.capture(PcapWriter(stream, *hub.capture_interfaces(), tsresol=9,
                                    live=pcap == "-" or is_fifo(pcap or "")))
         # SIGHUP too: a closed terminal must not leave links to ptys the next one is given
-        old = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
+        old = take_stop_signals(on_signal)     # (what stops it cleanly: bench/runner.py)
         try:
             for i, path in enumerate(hub.paths):
                 line = f"node {i}: {path}"

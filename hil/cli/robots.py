@@ -75,8 +75,8 @@ def _father_app(a: argparse.Namespace, app, runner, station, book, console) -> i
                               daemon=True)
     # the firmware's thread cannot take signals: SIGTERM (and a SIGINT sent from outside)
     # stop it from here, and the view quits when it has stopped (FatherApp's ``ended``)
-    from ..bench.runner import STOP_SIGNALS      # SIGHUP too: its terminal closed
-    old = {sig: signal.signal(sig, runner.stop) for sig in STOP_SIGNALS}
+    from ..bench.runner import take_stop_signals      # SIGHUP too: its terminal closed
+    old = take_stop_signals(runner.stop)
     worker.start()
     try:
         app.run()

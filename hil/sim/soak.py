@@ -233,8 +233,10 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
     return res
 
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-"""The signals that stop a soak (Ctrl-C, ``kill``), held while its processes fork."""
+STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
+                     if hasattr(signal, n))
+"""The signals that stop a soak (Ctrl-C, ``kill``, its terminal closed), held while its
+processes fork."""
 
 
 def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | None = None,
@@ -258,7 +260,7 @@ def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | N
                          daemon=True) for i, ck in enumerate(checksums)]
     results: dict[int, SoakResult] = {}
     try:
-        # Ctrl-C and SIGTERM wait while the processes fork: a child they reached before its
+        # Ctrl-C, SIGTERM and SIGHUP wait while the processes fork: a child they reached before its
         # own handlers were set ran the parent's, and printed a traceback from the middle of
         # the fork ("Exception ignored in: <function _after_fork>"). Each child unblocks them
         # once its handlers are its own; the parent here, after the last fork.
@@ -303,8 +305,11 @@ def run_soaks(hours: float, seed: int, checksums: list[bool], parallel: bool | N
 def _soak_child(conn, done, hours: float, seed: int, checksum: bool, kw: dict) -> None:
     """One run of :func:`run_soaks` in its own process: its result (or its error) goes back
     through ``conn``, its simulated seconds into ``done``. Ctrl-C is the parent's to handle
-    (it stops this process: SIGTERM ends it at once, whatever handler the parent had)."""
+    (it stops this process: SIGTERM ends it at once, whatever handler the parent had), and
+    so is a closed terminal's SIGHUP."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGHUP"):
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)   # (held by the parent's fork)
 

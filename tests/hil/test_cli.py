@@ -749,12 +749,14 @@ def test_a_write_error_mid_run_names_the_output_that_failed(tmp_path, capsys, mo
 
 
 @pytest.mark.parametrize("sig,status,word", [("SIGTERM", 143, "terminated"),
-                                              ("SIGINT", 130, "interrupted")])
+                                              ("SIGINT", 130, "interrupted"),
+                                              ("SIGHUP", 129, "hung up")])
 def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, status, word):
     """SIGTERM killed ``rprs sim`` where it stood: ``t.jsonl.partial`` and ``v.vcd.partial``
     were left behind and ``p.pcapng``, written in place, was cut in the middle of a packet
     (tshark: "appears to have been cut short"). SIGTERM now ends it as Ctrl-C does: one line,
-    no output file of any kind, status 128 + the signal."""
+    no output file of any kind, status 128 + the signal. So does SIGHUP (the terminal the
+    run was started from closed), which left a ``.partial`` file and said nothing."""
     import signal
     import time
     outs = {"--trace": tmp_path / "t.jsonl", "--vcd": tmp_path / "v.vcd",
@@ -778,6 +780,39 @@ def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, st
     assert proc.returncode == status, err
     assert err == f"rprs: {word}\n" and out == ""
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args,running,stopped", [
+    (["sim", "--duration", "100000", "--load", "1", "--no-progress"], None, 143),
+    (["submodules", "--can", f"virtual:rprs-nohup-{os.getpid()}"], "running joints", 0)])
+def test_a_run_started_under_nohup_outlives_its_terminal(tmp_path, args, running, stopped):
+    """Under ``nohup`` (SIGHUP ignored) a run must go on when the terminal it was started from
+    closes; the handlers that stop a run cleanly on SIGHUP (``rprs sim``'s, a bench
+    process's) had put themselves over the ignore. SIGTERM still stops it as before."""
+    import signal
+    out = tmp_path / "nohup.out"
+    with out.open("w") as f:
+        proc = subprocess.Popen([sys.executable, "-m", "hil.cli", *args], stdout=f,
+                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                preexec_fn=lambda: signal.signal(signal.SIGHUP,
+                                                                 signal.SIG_IGN))
+    try:
+        deadline = time.monotonic() + 60
+        # a run is under way: its line said, or, for rprs sim, well past its imports
+        while (running not in out.read_text()) if running else \
+                time.monotonic() < deadline - 58:
+            assert proc.poll() is None and time.monotonic() < deadline, out.read_text()
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGHUP)
+        time.sleep(1.0)
+        assert proc.poll() is None, out.read_text()              # still running
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == stopped, out.read_text()
 
 
 @pytest.mark.parametrize("option", ["--trace", "--vcd", "--pcap"])
