@@ -148,8 +148,11 @@ class SimConfig:
         elif not self.load > 0:
             raise ConfigError(f"load rate must be positive messages/s, got {self.load}")
         for r, t in self.power_on.items():
-            if r not in self.robots or t < 0:
-                raise ConfigError(f"bad power-on time {t} for robot {r}")
+            if r not in self.robots:
+                raise ConfigError(f"a power-on time for robot {r}, which is not in the ring "
+                                  f"{list(self.robots)}")
+            if not t >= 0:
+                raise ConfigError(f"bad power-on time {t} for robot {r}: seconds >= 0")
         for r, sw in self.radio_switch.items():
             if r not in self.robots:
                 raise ConfigError(f"radio switch times for robot {r}, which is not in the ring "

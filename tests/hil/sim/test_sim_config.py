@@ -42,6 +42,17 @@ def test_settings_that_do_not_go_together_are_a_config_error(settings, words):
         SimConfig(duration=5.0, **settings).validate()
 
 
+@pytest.mark.parametrize("power_on,words", [
+    ({5: 1.0}, r"a power-on time for robot 5, which is not in the ring \[1, 2, 3, 4\]"),
+    ({2: -1.0}, "bad power-on time -1.0 for robot 2"),
+    ({2: float("nan")}, "bad power-on time nan for robot 2")])
+def test_a_power_on_time_says_what_is_wrong_with_it(power_on, words):
+    """``--power 5@1`` on a ring without robot 5 said "bad power-on time 1.0 for robot 5",
+    blaming the time; a NaN time passed (``t < 0`` is False for it)."""
+    with pytest.raises(ConfigError, match=words):
+        SimConfig(duration=5.0, power_on=power_on).validate()
+
+
 def test_the_same_settings_alone_are_good():
     for settings in ({"robots": (0, 1), "father_standby": True},
                      {"mac": MacConfig(profile="paper")},
