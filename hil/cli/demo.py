@@ -86,7 +86,8 @@ def cmd_demo_ring(a: argparse.Namespace) -> int:
         names = ", ".join("the father (ID 0)" if r == 0 else f"R{r}" for r in robots)
         children = [r for r in robots if r != 0]
         what = (f"Demo: {names} power on together, form the ring and exchange seeded "
-                f"commands")
+                f"commands" if len(robots) > 1 else
+                f"Demo: {names} powers on alone and claims the silent channel")
         if len(robots) >= 3 and children and a.duration >= RING_DEMO_RECOVER_S + 8.0:
             # one child's radio fails and comes back, when there is time to see it invited
             # back (a few cycles after its recovery) and a ring left while it is away

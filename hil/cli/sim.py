@@ -24,9 +24,9 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                     progress: bool = True) -> None:
     """The world's options, and its outputs (``--trace``, ``--vcd`` outside demos,
     ``--json``, and ``--no-progress`` where there is a progress bar)."""
-    p.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4) if demo else
-                   (1, 2, 3, 4), help="robot IDs in the ring; 0 adds the father "
-                   "(default: %(default)s)")
+    robots = (0, 1, 2, 3, 4) if demo else (1, 2, 3, 4)
+    p.add_argument("--robots", type=robot_list, default=robots, help="robot IDs in the ring; "
+                   f"0 adds the father (default: {','.join(map(str, robots))})")
     p.add_argument("--duration", type=positive, default=30.0 if demo else 10.0,
                    metavar="SECONDS", help="simulated seconds (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of every random stream")

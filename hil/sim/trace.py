@@ -48,10 +48,12 @@ class OutputFile:
     to a reader) is written straight: a file renamed over it would replace it (as root,
     ``--trace /dev/null`` once replaced /dev/null with a regular file). A directory raises
     ``IsADirectoryError`` here, before anything is written, rather than at the rename after
-    the whole run. ``binary``: bytes, else ASCII text with ``\n`` line ends. An OSError from
-    writing ``f`` or from :meth:`commit` has ``filename`` = ``path``: the output that failed."""
+    the whole run. ``binary``: bytes, else ASCII text with ``\n`` line ends. ``compress``:
+    gzip-compressed (no name and no time in its header: the same bytes give the same file).
+    An OSError from writing ``f`` or from :meth:`commit` has ``filename`` = ``path``: the
+    output that failed."""
 
-    def __init__(self, path: str, binary: bool = False) -> None:
+    def __init__(self, path: str, binary: bool = False, compress: bool = False) -> None:
         self.path = path
         try:
             mode = os.stat(path).st_mode          # through symlinks
@@ -70,15 +72,25 @@ class OutputFile:
         except BaseException:
             raw.close()
             raise
-        self.f: IO = buf if binary else io.TextIOWrapper(
-            buf, encoding="ascii", newline="\n", line_buffering=raw.isatty())
+        self._buf = buf
+        inner: Any = gzip.GzipFile(filename="", mode="wb", fileobj=buf, mtime=0) \
+            if compress else buf
+        self.f: IO = inner if binary else io.TextIOWrapper(
+            inner, encoding="ascii", newline="\n", line_buffering=raw.isatty())
+
+    def _close(self) -> None:
+        """Close ``f`` and the buffer under it (a gzip layer leaves its file open)."""
+        try:
+            self.f.close()
+        finally:
+            self._buf.close()
 
     def commit(self) -> None:
         """Close the file and put it in place; OSError (``filename``: ``path``) if its last
         bytes cannot be written (a full disk) or it cannot be put in place, and then nothing
         is left."""
         try:
-            self.f.close()
+            self._close()
             if not self.direct:
                 os.replace(self.tmp, self.final)
         except BaseException as exc:
@@ -90,7 +102,7 @@ class OutputFile:
     def discard(self) -> None:
         """Close and remove the partial file (a device or FIFO is left as it is)."""
         try:
-            self.f.close()
+            self._close()
         except OSError:        # the bytes still buffered cannot be written (a full disk)
             pass
         if not self.direct:
@@ -102,11 +114,12 @@ class OutputFile:
 
 class TraceWriter:
     """Writes events to ``path`` atomically: the file appears complete at ``close()`` or not at
-    all (a run that fails leaves no partial trace behind; :class:`OutputFile`)."""
+    all (a run that fails leaves no partial trace behind; :class:`OutputFile`); gzip-compressed
+    if its name ends in ``.gz`` (:func:`read_trace` reads both)."""
 
     def __init__(self, path: str) -> None:
         self.path = path
-        self._out = OutputFile(path)
+        self._out = OutputFile(path, compress=path.endswith(".gz"))
         self._f = self._out.f
         self._dumps = json.JSONEncoder(separators=(",", ":"), ensure_ascii=True).encode
         self.count = 0

@@ -63,6 +63,25 @@ def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
     assert not list(tmp_path.glob("*.partial"))
 
 
+def test_a_trace_named_gz_is_written_compressed_and_the_same_for_the_same_seed(tmp_path,
+                                                                               capsys):
+    """``--trace run.jsonl.gz`` wrote plain text under a gzip name (``rprs plot`` and
+    ``read_trace`` read gzip by its magic bytes, ``zcat`` refused it). It is gzip now: the
+    plain trace's bytes inside, and byte for byte the same file for the same seed (no name or
+    time in the gzip header)."""
+    import gzip
+    from hil.sim.trace import read_trace
+    plain, a, b = tmp_path / "t.jsonl", tmp_path / "a.jsonl.gz", tmp_path / "b.jsonl.gz"
+    for p in (plain, a, b):
+        assert rprs(capsys, "sim", "--duration", "6", "--seed", "2", "--load", "1",
+                    "--trace", str(p))[0] == 0
+    assert a.read_bytes()[:2] == b"\x1f\x8b" and a.read_bytes() == b.read_bytes()
+    assert gzip.decompress(a.read_bytes()) == plain.read_bytes()
+    assert list(read_trace(str(a))) == list(read_trace(str(plain)))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.jsonl.gz", "b.jsonl.gz",
+                                                         "t.jsonl"]
+
+
 @pytest.mark.parametrize("args,needle", [
     (["sim", "--robots", "9"], "robot ID 9 is out of range"),
     (["sim", "--robots", "1,1"], "repeat"),
