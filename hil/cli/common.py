@@ -369,13 +369,42 @@ NOT_A_TERMINAL_WIDTH = 100_000
 is as wide as its cells)."""
 
 
+class _TrimmedLines:
+    """A text stream that writes to ``out`` each line without the spaces at its end (a rich
+    table pads every cell of its last column to the widest one: hundreds of spaces a line in
+    a file); a line not ended yet is held until it is, or until ``flush``."""
+
+    def __init__(self, out) -> None:
+        self.out = out
+        self._line = ""
+
+    def write(self, text: str) -> int:
+        *done, self._line = (self._line + text).split("\n")
+        if done:
+            self.out.write("".join(line.rstrip(" ") + "\n" for line in done))
+        return len(text)
+
+    def flush(self) -> None:
+        if self._line:
+            self.out.write(self._line)
+            self._line = ""
+        self.out.flush()
+
+    def isatty(self) -> bool:
+        return False
+
+    def fileno(self) -> int:
+        return self.out.fileno()
+
+
 def stdout_console(**kw):
     """A rich console on stdout whose reader going away ends the command as any other write
     to a closed stdout does (``main``: ``stdout_gone``), not by rich's own SystemExit.
 
     On a stdout that is not a terminal (a pipe, a file) nothing is wrapped and nothing is
     coloured, whatever ``COLUMNS`` or ``FORCE_COLOR`` say: ``rprs sim | grep "duplicate
-    deliveries 1"`` finds its line (rich wrapped at 80 columns there)."""
+    deliveries 1"`` finds its line (rich wrapped at 80 columns there); and no line ends in
+    spaces."""
     from rich.console import Console
 
     class StdoutConsole(Console):
@@ -385,7 +414,7 @@ def stdout_console(**kw):
     out = sys.stdout
     if not (hasattr(out, "isatty") and out.isatty()):
         kw.update(width=NOT_A_TERMINAL_WIDTH, soft_wrap=True, color_system=None,
-                  force_terminal=False)
+                  force_terminal=False, file=_TrimmedLines(out))
     return StdoutConsole(**kw)
 
 

@@ -23,6 +23,25 @@ def rprs(capsys, *args):
     return code, out, err
 
 
+def test_tables_written_to_a_file_or_a_pipe_end_no_line_in_spaces(capsys):
+    """A rich table pads every cell of its last column to the widest one: ``rprs conformance
+    > report.txt`` had lines of some 350 columns, most of them spaces. Off a terminal every
+    line of rprs's tables ends with its last character."""
+    from hil.cli.common import stdout_console
+    code, out, _ = rprs(capsys, "sim", "--duration", "3")
+    assert code == 0 and " robot " in out
+    from rich.table import Table
+    t = Table("what", "why")
+    t.add_row("a", "a long reason " * 5)
+    t.add_row("b", "short")
+    stdout_console().print(t)
+    wide = capsys.readouterr().out
+    assert "short" in wide
+    for text in (out, wide):
+        lines = text.splitlines()
+        assert lines and not [line for line in lines if line.endswith(" ")], text
+
+
 def test_sim_json_summary(capsys):
     code, out, err = rprs(capsys, "sim", "--robots", "0,1,2", "--duration", "6", "--load", "2",
                           "--json")
