@@ -184,7 +184,10 @@ class Ledger:
         """A join, rejoin or disable that the robots hearing the air saw (``observed``: listed
         once however many saw it: :class:`SameHappening`), or a robot's own change of mode (not
         ``observed``: it alone says it, every one listed), at its first report's tick."""
-        if not observed or self._reports.first(kind, robot, now):
+        # a join and a rejoin of one robot at once are one admission: whether an observer
+        # says "rejoin" depends on whether it ever had the robot in its ring
+        key = "join" if kind == "rejoin" else kind
+        if not observed or self._reports.first(key, robot, now):
             self.membership.append((now, kind, robot))
 
     def _serial(self, a: Deliver) -> int:

@@ -392,6 +392,20 @@ def test_demo_ring_tells_the_story_of_its_run(capsys):
     assert text.count("R1 is in the ring again") == 1
 
 
+def test_the_ring_demo_in_json_is_the_run_it_tells(capsys):
+    """``rprs demo ring --json`` left out the demo's failure and recovery of R1 (its setup sat
+    under the intro text, which --json leaves out): another run than the one told."""
+    code, out, _ = rprs(capsys, "demo", "ring", "--no-progress", "--json")
+    assert code == 0
+    s = json.loads(out)
+    code, told, _ = rprs(capsys, "demo", "ring", "--no-progress")
+    assert code == 0
+    assert f"channel occupations: {s['occupations']} " in told
+    assert s["robots"]["1"]["missed"] == 3
+    assert [c for c in s["membership_changes"] if c["robot"] == 1 and c["ev"] in
+            ("disable", "rejoin")] != []
+
+
 def test_the_progress_bar_run_is_the_same_run():
     """With a progress bar the world runs in one-second steps that leave sleeping CAN sides
     asleep (``World.run_in_steps``); the summary is the one-go run's."""

@@ -100,11 +100,33 @@ def test_the_observers_reports_of_one_happening_a_few_ticks_apart_count_once():
     led.missed(1000 + 4_800_000, 2)          # within half of Tmax of the first: the same
     led.missed(1001 + 4_800_000, 2)          # later than that: the next turn's
     led.membership_change("join", 2, 2000)   # a join is not a drop
+    # an observer that never had robot 2 in its ring says "join" where the others say
+    # "rejoin": one admission, listed as its first report says
+    led.membership_change("rejoin", 2, 2001)
     for t in (3000, 3000, 3001):
         led.membership_change("listen", 2, t, observed=False)
     assert led.stats[2].missed == 2 and led.stats[3].missed == 1
     assert led.membership == [(1000, "disable", 2), (2000, "join", 2), (3000, "listen", 2),
                               (3000, "listen", 2), (3001, "listen", 2)]
+
+
+def test_a_robot_admitted_again_is_listed_once_whoever_calls_it_a_join(capsys):
+    """Robot 3 is dropped, robot 2 powers on after that (it never had 3 in its ring) and 3
+    comes back: robots 0 and 1 report a rejoin, robot 2 a join, of one admission; the summary
+    listed both."""
+    from hil.sim.faults import parse_fault
+    from hil.sim.world import SimConfig, World
+    events: list = []
+    w = World(SimConfig(robots=(0, 1, 2, 3), duration=16.0, seed=1, power_on={2: 8.0},
+                        faults=(parse_fault("fail:3@4"), parse_fault("recover:3@12"))),
+              on_event=events.append)
+    w.run()
+    said = {(e["ev"], e["by"]) for e in events if e["ev"] in ("join", "rejoin")
+            and e["robot"] == 3 and e["t"] > 12 * 16_000_000}
+    assert ("rejoin", 1) in said and ("join", 2) in said           # the two views
+    back = [(kind, r) for t, kind, r in w.membership if r == 3 and kind in ("join", "rejoin")
+            and t > 12 * 16_000_000]
+    assert back == [("rejoin", 3)]
 
 
 @pytest.mark.parametrize("cpu", ["ideal", "estimated"])
