@@ -22,15 +22,14 @@ looks at its UART first (its timer interrupt calls ``sync``). Bytes that differ 
 sent — corrupted by ``ber``, collision garbage, idle noise that contains a header — can make
 the firmware act at any byte, so they are delivered one by one at their own ticks. Idle noise
 without a header is delivered in bursts (it can only be discarded), but to a UART on the CPU
-model, where each byte is an interrupt, a byte at its tick. Every random draw comes
-from a per-radio stream consumed in byte order. ``byte_by_byte=True`` delivers every byte at
-its own tick; the tests check both give the same trace.
+model, where each byte is an interrupt, a byte at its tick. Every random draw comes from a
+per-radio stream consumed in byte order. ``byte_by_byte=True`` delivers every byte at its
+own tick; the tests check both give the same trace.
 
 Over 500 lines on purpose: receptions, collisions, idle noise and aborted senders share each
 radio's reception state and its delivery order; split apart, that state would have to be
-public. What one radio hears of one transmission (``Reception``) and the radios' side of the
-air (``AirRadio``) are in hil/sim/reception.py.
-"""
+public. What one radio hears of one transmission (``Reception``) and the radios' side of
+the air (``AirRadio``) are in hil/sim/reception.py."""
 from __future__ import annotations
 
 import math
@@ -88,6 +87,7 @@ class Air:
         self.bursts = 0
         self.occupations = 0
         self.sent: dict[int, int] = {}      # transmissions started, per robot
+        self.uncounted: set[AirRadio] = set()   # radios ``sent`` leaves out (a twin's)
         self.collisions = 0
         self.carrier: set[AirRadio] = set()   # senders paused mid-frame (a gap between bytes)
         self.on_transmission: Callable[[Transmission], None] | None = None
@@ -185,7 +185,8 @@ class Air:
                     r.noise_from = t0
         tx = Transmission(radio, data, t0, bt)
         self.occupations += 1
-        self.sent[radio.robot] = self.sent.get(radio.robot, 0) + 1
+        if radio not in self.uncounted:
+            self.sent[radio.robot] = self.sent.get(radio.robot, 0) + 1
         overlapping = [a for a in self.active if a.end > t0] if self.active else []
         if overlapping or t0 < self.collision_until:
             self.active.append(tx)

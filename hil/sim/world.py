@@ -198,6 +198,7 @@ class World:
                                       observer=self._observe)
             st.report_io = bool(self.listeners)
             self.air.attach(radio)
+            self.air.uncounted.add(radio)         # its frames are no ring robot's
             radio.alive = False
             self.extra_stations[EXTRA + k] = st
             self._extra_of[st] = k

@@ -75,6 +75,20 @@ def test_twins_powered_on_together_end_with_one_member_and_one_that_says_so():
     assert sum(1 for e in tail if e["ev"] == "frame" and e["src"] == 2) > 20
 
 
+def test_a_twins_frames_are_not_counted_as_the_ring_robots():
+    """``--extra 2@0``: the twin became the member and the ring's R2 yielded after 3 frames,
+    but R2's ``frames_sent`` was 125: the air counted the twin's frames by their ID. The ring
+    robot's count is its own frames (its frame events), the channel's occupations all."""
+    w, evs = run(robots=(1, 2, 3), duration=10, seed=1, load=1.0, extra=((2, 0.0, None),))
+    frames = [e for e in evs if e["ev"] == "frame"]
+    for r in (1, 2, 3):
+        own = sum(1 for e in frames if e["src"] == r and "extra" not in e)
+        # (a frame still on the air at the end is counted sent and has no frame event yet)
+        assert w.summary()["robots"][r]["frames_sent"] - own in (0, 1)
+    assert sum(1 for e in frames if e.get("extra") == 1) > 20
+    assert w.air.occupations - len(frames) in (0, 1)
+
+
 def test_twins_with_one_seed_would_stay_in_lock_step():
     """The draw must differ between twins: the same world with the twin given the original's
     MAC seed never settles (the reason the simulator and the bench pass each robot its own)."""
