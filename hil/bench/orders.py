@@ -251,7 +251,7 @@ class OrderBook:
                 self._part_ended(o, "status()", now)
         elif names[:1] == ["act"] and len(cmds[0].args) == 2 and cmds[0].args[1] == 1:
             about = f"act({cmds[0].args[0]},0)"
-            o = self._oldest(d.src, lambda o: about in o.open_parts)
+            o = self._oldest(d.src, lambda o: about in o.open_parts, broadcast=True)
             if o is not None:
                 matched = True
                 if o.dst != BROADCAST:
@@ -262,9 +262,15 @@ class OrderBook:
         if not matched and self.on_news is not None:
             self.on_news(d, now)
 
-    def _oldest(self, robot: int, pred: Callable[[Order], bool]) -> Order | None:
+    def _oldest(self, robot: int, pred: Callable[[Order], bool],
+                broadcast: bool = False) -> Order | None:
+        """The oldest open order to ``robot`` that ``pred`` takes; a broadcast order too with
+        ``broadcast`` (only ``act(n,1)`` ends one: every robot answers a broadcast, and one
+        robot's ``done()``, ``fail()`` or status reply is no answer for all; the broadcast
+        ends ``sent-only``, the answers are news)."""
         for o in self.orders:
-            if not o.finished and o.dst in (robot, BROADCAST) and pred(o):
+            if not o.finished and (o.dst == robot or broadcast and o.dst == BROADCAST) \
+                    and pred(o):
                 return o
         return None
 

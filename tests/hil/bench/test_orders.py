@@ -151,3 +151,27 @@ def test_a_father_that_stands_by_says_new_orders_are_refused_and_what_becomes_of
     line = out.getvalue()
     assert "new orders are refused until this PC takes over" in line, line
     assert "2 held here go out if it does, else fail (expired) 60 s after each" in line, line
+
+
+def test_a_broadcast_status_ends_sent_only_and_each_robots_reply_is_news():
+    """A broadcast ``status()`` ended ``replied`` with the first robot's values (its reply,
+    a unicast message, was taken for the answer to the broadcast), where a broadcast ends
+    ``sent-only`` (docs/bench.md): every robot answers it, and no one reply is the answer.
+    A broadcast ``act(n,0)`` still ends when a robot broadcasts ``act(n,1)``."""
+    news = []
+    book, msg, seen = _order(cmd("status"), dst=7)
+    book.on_news = lambda d, now: news.append((d.src, now))
+    reply = (cmd("joint", 1, 0), cmd("joint", 2, 45))
+    book.observe(Deliver(1, 0, 5, 2, reply), 100)
+    book.observe(Deliver(2, 0, 5, 2, reply), 110)
+    book.observe(Outcome(msg, False, "broadcast"), 120)
+    assert [s[1] for s in seen] == ["queued", "sent-only"]
+    assert news == [(1, 100), (2, 110)]
+    # a done()/fail() from one robot is no report on a broadcast order either
+    book, msg, seen = _order(cmd("joint", 1, 20), dst=7)
+    _said(book, cmd("fail", 42), cmd("joint", 1, 20), at=100)
+    book.observe(Outcome(msg, False, "broadcast"), 120)
+    assert [s[1] for s in seen] == ["queued", "sent-only"]
+    book, msg, seen = _order(cmd("act", 3, 0), dst=7)
+    book.observe(Deliver(2, 7, 5, 2, (cmd("act", 3, 1),)), 100)
+    assert seen[-1][1] == "done"
