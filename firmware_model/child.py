@@ -345,11 +345,15 @@ class ChildFirmware:
                 self.latency_from = (cause, frames[0].id, bytes(frames[0].data))
             for f in frames:
                 self.can.send(f)
-            for dst, commands, type_ in d.take_radio():
+            radio = d.take_radio()
+            for i, (dst, commands, type_) in enumerate(radio):
                 try:
                     self.station.submit(dst, commands, type_)
                 except QueueFull:
-                    break  # the rest would be refused as well: the queue drains only in turns
+                    # the queue drains only in turns: the rest would be refused as well; they
+                    # are dropped, counted and noted (they were dropped unsaid)
+                    d.not_taken(radio[i:], self.sched.now)
+                    break
                 except ValueError:
                     pass  # refused (destination not valid): nothing else to do here
         when = d.deadline                # the earlier of the two deadlines (ticks), if any

@@ -123,6 +123,9 @@ class NodeView:
 class Dispatcher:
     """Turns Content commands into CAN commands and submodule reports into radio replies."""
 
+    STEADY_COUNTERS = ("replies_dropped",)
+    """Counts only (hil/sim/steady.py)."""
+
     STEADY_RECORDS = ("log",)
     """What it noticed, in words: appended to, never read by the model (tests and the monitor
     read it; hil/sim/steady.py)."""
@@ -149,6 +152,8 @@ class Dispatcher:
         self.deadline: int | None = None
         self.isolated = False
         self.log: list[tuple[int, str]] = []
+        self.replies_dropped = 0
+        """Radio messages (replies, reports) dropped, the radio's queue full (``not_taken``)."""
         self.bad_frames = 0
         """CAN frames received that do not decode (a wrong length, a remote frame, an id the
         acceptance masks let in that no node sends): ignored, counted."""
@@ -167,6 +172,16 @@ class Dispatcher:
     def take_radio(self) -> list[tuple[int, tuple[Command, ...], int]]:
         out, self._radio = self._radio, []
         return out
+
+    def not_taken(self, radio: list[tuple[int, tuple[Command, ...], int]], now: int) -> None:
+        """Messages ``take_radio`` gave that the radio could not take (its queue full: it
+        drains only in turns): dropped, counted (``replies_dropped``) and noted in the log,
+        so that a robot flooded with orders faster than its turns carry the answers says so.
+        (Held for later, they would keep a flooded child's CAN side awake for good.)"""
+        self.replies_dropped += len(radio)
+        n = len(radio)
+        self._note((now, f"{n} repl{'y' if n == 1 else 'ies'} dropped: the radio's queue is "
+                         f"full"))
 
     def has_output(self) -> bool:
         """Are CAN frames or radio messages waiting for ``take_can`` / ``take_radio``?"""

@@ -34,7 +34,8 @@ def cmd_child(a: argparse.Namespace) -> int:
 
 
 def child_summary(station, child, radio: bool = True) -> str:
-    """The closing line of ``rprs child``: with a radio, the radio's; then its CAN side's, if
+    """The closing line of ``rprs child``: with a radio, the radio's (and the replies it
+    dropped, its queue full, if any); then its CAN side's, if
     it has one: the frames it sent and received, and the CAN frames the firmware ignored as
     malformed (no node's frame: a wrong length, a remote frame, an unknown id). A CAN-only
     child (``radio`` False) has no radio fields to give."""
@@ -47,6 +48,10 @@ def child_summary(station, child, radio: bool = True) -> str:
               f"{bus.received} received"] if bus is not None else []
     can_side = ", ".join(counts + ([malformed] if bad else []) + bus_notes(bus))
     line = summary_line(station) if radio else f"robot {station.id}: CAN only (no radio)"
+    dropped = getattr(getattr(child, "dispatcher", None), "replies_dropped", 0)
+    if dropped:
+        line += (f", {dropped} repl{'y' if dropped == 1 else 'ies'} dropped (the radio's "
+                 f"queue full: orders came faster than its turns carry the answers)")
     return line + (f"; CAN: {can_side}" if can_side else "")
 
 

@@ -454,6 +454,11 @@ def test_a_child_with_a_radio_and_a_can_side_gives_both_sides():
         assert child_summary(station, child) == summary_line(station) + (
             "; CAN: 0 frames sent, 0 received, 2 malformed frames ignored (wrong length, "
             "remote or unknown id)")
+        # replies the radio's full queue could not take: dropped, and said (they were not)
+        child.dispatcher.replies_dropped = 3
+        assert child_summary(station, child).startswith(summary_line(station) + (
+            ", 3 replies dropped (the radio's queue full: orders came faster than its turns "
+            "carry the answers); CAN: "))
     finally:
         runner.run(0)
     runner = Runner()

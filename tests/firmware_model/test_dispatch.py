@@ -416,10 +416,11 @@ def test_only_a_request_to_this_robot_of_refused_orders_is_refused_whole():
     assert not d.refuses_all(1, (far,), int(FrameType.FAILURE))      # news is only noted
 
 
-def test_a_full_queue_ends_the_childs_replies_for_the_moment():
+def test_a_full_queue_ends_the_childs_replies_for_the_moment_and_says_so():
     """Both MACs refuse a message with QueueFull (a SubmitError) while ``max_queue`` wait;
     the child then stops offering the rest of its replies, which would be refused too (the
-    queue drains only in turns): the saturated ring used to offer 28,000 in 600 s."""
+    queue drains only in turns: the saturated ring used to offer 28,000 in 600 s). They were
+    dropped unsaid: now counted (``replies_dropped``) and noted in the dispatcher's log."""
     from firmware_model.radio.frame import FrameType
     from firmware_model.radio.mac import MacConfig, QueueFull, RotationalMac, SubmitError
     from firmware_model.radio.peer_macs import AlohaMac
@@ -442,11 +443,13 @@ def test_a_full_queue_ends_the_childs_replies_for_the_moment():
     while mac.pending < mac.cfg.max_queue:
         mac.submit(0, [cmd("status")], w.now)
     before = mac.pending
-    child.dispatcher.on_message(0, 1, (cmd("movex", 123456789),) * 3, w.now,
-                                int(FrameType.INSTRUCTION))
+    d = child.dispatcher
+    d.on_message(0, 1, (cmd("movex", 123456789),) * 3, w.now, int(FrameType.INSTRUCTION))
     child._pump()
     assert mac.pending == before and len(offered) == 1      # one refused, the rest not offered
-    assert not child.dispatcher.has_output()
+    assert not d.has_output()
+    assert d.replies_dropped == 3
+    assert d.log[-1][1] == "3 replies dropped: the radio's queue is full"
 
 
 def test_the_logs_keep_a_tail_not_a_days_record(monkeypatch):
@@ -466,3 +469,20 @@ def test_the_logs_keep_a_tail_not_a_days_record(monkeypatch):
     assert events and all(len(n.events) < 8 for nodes in w.submodules.values()
                           for n in nodes.values())
     assert max(t for t, *_ in events) > 30 * 16_000_000      # the latest kept
+
+
+def test_a_burst_of_replies_beyond_the_radios_queue_is_counted_dropped():
+    """A message of 33 ``status()`` orders, then one more: 34 replies, and the radio's queue
+    holds 32 messages, so some are dropped (a child cannot answer faster than its turns carry
+    the answers). They were dropped unsaid; every reply is now sent or counted dropped."""
+    w = World(SimConfig(robots=(0, 1, 2), duration=40.0, can=True, seed=1,
+                        keep_records=True))
+    w.run(s_to_ticks(5.0))
+    w.submit(0, 1, [cmd("status")] * 33)
+    w.run(s_to_ticks(5.3))
+    w.submit(0, 1, [cmd("status")])
+    w.run()
+    sent = [m for m in w.messages if m.src == 1 and m.dst == 0]
+    dropped = w.children[1].dispatcher.replies_dropped
+    assert dropped > 0 and len(sent) + dropped == 34
+    assert w.stats[1].delivered == len(sent) and w.summary()["pending"] == 0
