@@ -177,6 +177,8 @@ class RadioHub:
         removed at close), but not its parents: a mistyped path is refused, not built. A hub
         holds a lock on the directory while it runs: links there are a running hub's (refused)
         or stale (replaced). Raises ValueError with a one-line reason."""
+        if os.path.lexists(link_dir) and not os.path.isdir(link_dir):
+            raise ValueError(f"--link-dir {link_dir}: not a directory (a file is there)")
         try:
             if not os.path.isdir(link_dir):
                 os.mkdir(link_dir)

@@ -40,6 +40,9 @@ def open_port(spec: str, baud: int = 9600) -> serial.Serial:
     if not spec:
         raise PortError("no radio port given (e.g. /dev/ttyUSB0, /dev/pts/5, socket://host:port)")
     if "://" not in spec and not os.path.exists(spec):
+        if os.path.islink(spec):
+            raise PortError(f"serial port {spec} is a symlink to nothing (a dangling link, or "
+                            f"a loop of links)")
         raise PortError(f"serial port {spec} does not exist")
     try:
         port = serial.serial_for_url(spec, baudrate=baud, bytesize=8, parity="N", stopbits=1,

@@ -175,8 +175,12 @@ def test_bench_scripts_against_the_hub(hub):
         stop(kids)
 
 
-def test_runner_errors_are_one_line():
+def test_runner_errors_are_one_line(tmp_path):
+    loop = tmp_path / "loop"
+    loop.symlink_to(tmp_path / "loop")          # a link to itself: "does not exist" before
     for args, needle in ((["child", "--id", "1", "--radio", "/dev/nonexistent"], "does not exist"),
+                         (["child", "--id", "1", "--radio", str(loop)],
+                          "is a symlink to nothing (a dangling link, or a loop of links)"),
                          (["child", "--id", "1", "--can", "socketcan:nonexist0"],
                           "cannot open CAN bus"),
                          (["father", "--radio", "/dev/nonexistent"], "does not exist"),

@@ -376,14 +376,15 @@ def test_a_second_hub_on_the_same_link_dir_is_refused_and_the_first_keeps_its_li
 
 
 def test_a_bad_link_dir_is_refused_in_one_line_and_nothing_is_left(tmp_path):
-    """A --link-dir under a missing directory, under a file, or holding a regular file named
-    nodeN is refused with a ValueError (the CLI's one line, status 2); the hub makes no
-    parents and leaves no pty or link behind."""
+    """A --link-dir under a missing directory, under a file, that is a file, or holding a
+    regular file named nodeN is refused with a ValueError (the CLI's one line, status 2);
+    the hub makes no parents and leaves no pty or link behind."""
     (tmp_path / "file").write_text("x")
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "node1").write_text("keep me")
     cases = {tmp_path / "missing" / "air": "parent directory .* does not exist",
              tmp_path / "file" / "air": "Not a directory",
+             tmp_path / "file": r"not a directory \(a file is there\)",    # said "File exists"
              tmp_path / "full": "node1 exists and is not a symlink"}
     before = len(os.listdir("/proc/self/fd"))
     for d, why in cases.items():
