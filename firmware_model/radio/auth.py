@@ -71,7 +71,7 @@ class RingKey:
         return "RingKey(<16 bytes>)"
 
 
-_KEY_LINE = re.compile(r"^key\s*=\s*([0-9A-Fa-f]{32})$")
+_KEY_LINE = re.compile(r"key[ \t]*=[ \t]*([0-9A-Fa-f]{32})\Z")
 
 
 def load_key(path: str | Path) -> RingKey:
@@ -79,7 +79,7 @@ def load_key(path: str | Path) -> RingKey:
     line ``key = `` followed by 32 hex digits. Raises KeyFileError with one line."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="ascii")
+        text = p.read_bytes().decode("ascii")      # (no newline translation: clause 54's)
     except FileNotFoundError:
         raise KeyFileError(f"key file {p}: no such file") from None
     except IsADirectoryError:
@@ -89,8 +89,10 @@ def load_key(path: str | Path) -> RingKey:
     except OSError as exc:
         raise KeyFileError(f"key file {p}: cannot read it ({exc.strerror or exc})") from None
     keys = []
-    for n, line in enumerate(text.splitlines(), 1):
-        s = line.strip()
+    # exactly clause 54: lines end with LF or CRLF (no other line break), stripped of spaces
+    # and tabs only
+    for n, line in enumerate(text.split("\n"), 1):
+        s = line.removesuffix("\r").strip(" \t")
         if not s or s.startswith("#"):
             continue
         m = _KEY_LINE.match(s)

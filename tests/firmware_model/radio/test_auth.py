@@ -160,13 +160,18 @@ def test_the_key_file(tmp_path):
              "# nothing\n": "no 'key = ' line",
              "key = 000102030405060708090a0b0c0d0e0f\nkey = 000102030405060708090a0b0c0d0e0f":
              "2 'key = ' lines",
-             "key = 000102030405060708090a0b0c0d0e0f # the ring's": "line 1"}   # clause 54
+             "key = 000102030405060708090a0b0c0d0e0f # the ring's": "line 1",   # clause 54
+             # a lone CR is no line end, and only spaces and tabs are stripped (clause 54:
+             # a CR-only file read as two lines, a vertical tab after the key was taken)
+             "# c\rkey = 000102030405060708090a0b0c0d0e0f\r": "no 'key = ' line",
+             "key = 000102030405060708090a0b0c0d0e0f\x0b": "line 1",
+             "key\x0c= 000102030405060708090a0b0c0d0e0f": "line 1"}
     spaced = tmp_path / "spaced.key"        # CRLF, spaces and tabs, an indented comment
     spaced.write_bytes(b"  # a comment\r\n \t\r\n\tkey\t=000102030405060708090a0b0c0d0e0f \r\n")
     assert load_key(spaced) == KEY
     for text, said in cases.items():
         p = tmp_path / "bad.key"
-        p.write_text(text)
+        p.write_bytes(text.encode("ascii"))
         with pytest.raises(KeyFileError, match=re.escape(said)):
             load_key(p)
     with pytest.raises(KeyFileError, match="no such file"):
