@@ -18,9 +18,12 @@ def _app(content: bytes) -> bool:
         return False
 
 
-def _kind(f: Frame) -> str:
+def _kind(f: Frame, sealed: bool = False) -> str:
+    """Clause 21's kind of the robot's frame ``f``; ``sealed``: its ``auth(...)`` already
+    taken off (the authenticated profile has no heartbeat: its idle frame is a control
+    frame)."""
     if not f.content:
-        return "heartbeat"
+        return "control" if sealed else "heartbeat"
     try:
         cmds = parse_content(f.content)
     except ContentError:

@@ -227,7 +227,7 @@ def _rotation(self: Tester, h: Heard) -> Heard:
     def watch(h: Heard, i: int) -> None:
         if not self.after_miss:          # after a missed turn: no hand-over to time
             gaps.append(h.start - self.last_end - TTRANS)
-        kinds.add(_kind(h.frame))
+        kinds.add(_kind(h.frame, sealed=self.key is not None))
         polls.append((_polls_of(h.frame), self.after_miss))
     for _ in range(3):                   # until as many hand-overs as asked are timed
         h = self._turns(h, self.turns - len(gaps), None, watch)

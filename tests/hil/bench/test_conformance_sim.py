@@ -413,6 +413,10 @@ def test_an_authenticated_child_passes_every_clause_with_either_team(robot):
         assert all(v == {"pass"} for c, v in verdicts.items()
                    if c not in ("32", "39", "40", "51")), why
         assert _talked_over(link, robot) == [], why
+        # clause 21: the profile has no heartbeat, its idle frame is a control frame (the kit
+        # said "heartbeat", reading the frame with its auth taken off)
+        kinds = next(c.figure for c in rep.checks if c.clause == "21")
+        assert kinds == "frame kinds: control", why
 
 
 class _Air:
