@@ -25,6 +25,7 @@ import re
 from collections import deque
 from typing import Any, Iterable
 
+from ..sim.ledger import SameHappening
 from ..sim.trace import OutputFile, TraceError
 from ..sim.events import (Disable, FaultEdge, FrameOnAir, Interference, Meta, Miss, Rejoin)
 from .vcd import TickReorder, checked_events
@@ -92,8 +93,10 @@ class _Collector:
         self.closed = False
         # dedupe / observer state
         self.dead: set[int] = set()
-        self.miss_items: dict[tuple[int, int], list] = {}
-        self.marks_seen: set[tuple[str, int, int]] = set()
+        self.miss_items: dict[int, list] = {}
+        """Robot -> the item of its last missed turn: the observers' reports of one miss come
+        a tick or a handler apart on the CPU model (hil/sim/ledger.py, ``SameHappening``)."""
+        self.marks_seen = SameHappening(self.tmax // 2)
         self.totals = {"frames": 0, "collided": 0, "misses": 0, "disables": 0, "rejoins": 0,
                        "interference": 0}
 
@@ -114,13 +117,11 @@ class _Collector:
             q.push(s, ("frame", s, e, ev.src, ev.collided, ev.aborted, ev.bytes, ev.dst), 0, n)
         elif k is Miss:
             r, by = ev.robot, ev.by
-            key = (r, t)
-            item = self.miss_items.get(key)
-            if item is None:
+            item = self.miss_items.get(r)
+            if item is None or t - item[2] > self.tmax // 2:     # (else another's report)
                 # [kind, box start, box end, robot, observers, observers with a live radio]
                 item = ["miss", t - self.tmax, t, r, set(), set()]
-                self.miss_items = {k2: v for k2, v in self.miss_items.items() if k2[1] == t}
-                self.miss_items[key] = item
+                self.miss_items[r] = item
                 self.totals["misses"] += 1
                 q.push(t - self.tmax, item, 1, n)
             item[4].add(by)
@@ -129,9 +130,7 @@ class _Collector:
         elif k is Disable or k is Rejoin:
             r = ev.robot
             name = ev.KIND
-            if (name, r, t) not in self.marks_seen:
-                self.marks_seen = {m for m in self.marks_seen if m[2] == t}
-                self.marks_seen.add((name, r, t))
+            if self.marks_seen.first(name, r, t):     # every member reports it, not at once
                 self.totals[name + "s"] += 1
                 q.push(t, ("mark", t, name, r, name), 2, n)
         elif k is FaultEdge:

@@ -16,7 +16,8 @@ lands on its exact tick. Signals (scope ``rprs``):
 ``rprs.R<r>.rx``    1 while another robot's frame is on air and this robot's TXEN is low;
                     ``x`` when what is on air is garbage (a collision, interference), ``z``
                     while the robot's radio is failed (``fault`` fail .. recover).
-``rprs.R<r>.miss``  an event (arrow in GTKWave) at each tick a miss of this robot is reported.
+``rprs.R<r>.miss``  an event (arrow in GTKWave) at the tick a miss of this robot is first reported
+                   (its observers' reports of one miss, a tick or a handler apart, are one).
 
 Frames and CAN frames are logged at their end (``t`` = ``end``), so changes are reordered
 through a bounded look-back buffer (twice Tmax): memory does not grow with the trace length.
@@ -33,6 +34,7 @@ from vcd import VCDWriter
 
 from ..sim.events import (CanFrameOnBus, FaultEdge, FrameOnAir, Interference, Meta, Miss,
                           OtherEvent, TraceError, TxenEdge, typed)
+from ..sim.ledger import SameHappening
 from ..sim.trace import OutputFile
 
 __all__ = ["VcdError", "VcdTraceWriter", "write_vcd", "TIMESCALE", "checked_events",
@@ -177,7 +179,7 @@ class VcdTraceWriter:
         self.can_on: dict[int, list[int]] = {b: [] for b in self.buses}
         self.owner: int | str = "x"
         self._fid = 0
-        self._misses: set[tuple[int, int]] = set()
+        self._misses = SameHappening(meta.tmax // 2)
         self.frames = self.collided = self.can_frames = self.misses = self.interference = 0
         self.last_tick = 0
 
@@ -227,9 +229,8 @@ class VcdTraceWriter:
             q.push(end, ("fe", self._fid, -1), 0, n)
         elif kind is Miss:
             r = self._robot(ev.robot, "miss", n)
-            if (r, t) not in self._misses:       # reported once per observer
-                self._misses.add((r, t))
-                self.misses += 1
+            if self._misses.first("miss", r, t):     # reported by every observer, not at
+                self.misses += 1                       # one tick on the CPU model
                 q.push(t, ("miss", r), 2, n)
         elif kind is CanFrameOnBus:
             b = ev.bus

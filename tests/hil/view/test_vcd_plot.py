@@ -256,6 +256,26 @@ def test_plot_png_default_window_around_the_first_fault(fault_run, tmp_path):
     assert not list(tmp_path.glob("*.partial"))
 
 
+def test_on_the_cpu_model_a_miss_and_a_drop_are_drawn_and_counted_once(tmp_path):
+    """On the CPU model (the command line's default) the members report a miss or a drop a
+    tick or a handler apart: ``rprs plot`` counted 9 misses for 6 and drew "R1 disabled"
+    twice, the VCD had a miss event per report tick. Both now count as the run's summary
+    does (reports within half of Tmax are one), the same as on the ideal CPU."""
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    runs = {}
+    for cpu in (None, DEFAULT_COSTS):
+        evs = _sim(robots=(1, 2, 3, 4), duration=20.0, load=1.0, seed=3, cpu=cpu,
+                   faults=(Fault("fail", 1, 8.0), Fault("recover", 1, 15.0)))
+        ticks = {e["t"] for e in evs if e["ev"] == "disable"}
+        runs[cpu is None] = (plot_trace(evs, str(tmp_path / "f.svg")),
+                             write_vcd(evs, str(tmp_path / "r.vcd")), len(ticks))
+    (ideal, ideal_vcd, _), (model, model_vcd, disable_ticks) = runs[True], runs[False]
+    assert disable_ticks > 1                   # the reports of the drop: several ticks
+    assert model["disables"] == ideal["disables"] == 1
+    assert model["misses"] == ideal["misses"] == model_vcd["misses"] == ideal_vcd["misses"]
+    assert model["misses"] == 6       # R1's 3, and 3 R1 reported of the others while deaf
+
+
 def test_plot_svg_with_window(fault_run, tmp_path):
     out = tmp_path / "fig7.svg"
     s = plot_trace(fault_run, str(out), start_s=14.9, end_s=15.6)
