@@ -149,6 +149,12 @@ def load_spec(path: str | Path, check=None) -> Spec:
         except MetricsHookError as e:
             raise SpecError(f"{path}: [campaign] metrics: {e}") from None
     points = points_of(grid, base)
+    seen: set = set()
+    for p in points:
+        if p.key in seen:      # a value given twice: the same runs planned twice, one kept
+            raise SpecError(f"{path}: [grid] gives the point {p.key} twice (a value repeated "
+                            f"in a list): each point once")
+        seen.add(p.key)
     if check is not None:
         for p in points:
             try:

@@ -57,6 +57,12 @@ class Store:
 
     def claim(self, name: str, root_seed: int) -> None:
         """Mark the file as this campaign's; StoreError if it holds another one."""
+        want = self.holds(name, root_seed)
+        self.db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", want.items())
+
+    def holds(self, name: str, root_seed: int) -> dict[str, str]:
+        """StoreError if the file holds another campaign than ``name`` with ``root_seed``
+        (its seeds would be other runs'); the meta that marks it this one's."""
         m = self.meta()
         want = {"name": name, "root_seed": str(root_seed)}
         for k, v in want.items():
@@ -64,7 +70,7 @@ class Store:
                 raise StoreError(f"{self.path} holds campaign {m.get('name')!r} with "
                                  f"root_seed {m.get('root_seed')}, not {name!r} with "
                                  f"root_seed {root_seed}: use another --db")
-        self.db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", want.items())
+        return want
         self.db.commit()
 
     # -- runs -------------------------------------------------------------------------------
@@ -72,12 +78,19 @@ class Store:
         """The runs with a result (ok or crashed): a lost run is to be run again."""
         return {k for (k,) in self.db.execute("SELECT run_key FROM runs WHERE status != 'lost'")}
 
-    def counts(self) -> dict[str, int]:
+    def counts(self, keys: set[str] | None = None) -> dict[str, int]:
         """Stored runs by status: ``ok``, ``crashed`` (the model raised), ``lost`` (the cluster
-        lost the task: no result)."""
+        lost the task: no result); ``keys``: of those runs only (a campaign's own, when its
+        grid shrank since)."""
         out = {"ok": 0, "crashed": 0, "lost": 0}
-        for status, n in self.db.execute("SELECT status, COUNT(*) FROM runs GROUP BY status"):
-            out[status] = n
+        if keys is None:
+            for status, n in self.db.execute("SELECT status, COUNT(*) FROM runs "
+                                             "GROUP BY status"):
+                out[status] = n
+            return out
+        for key, status in self.db.execute("SELECT run_key, status FROM runs"):
+            if key in keys:
+                out[status] += 1
         return out
 
     def commits(self) -> set[tuple[str, int]]:

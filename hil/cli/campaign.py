@@ -35,6 +35,8 @@ def cmd_run(a: argparse.Namespace) -> int:
     from ..campaign.store import Store, StoreError
     if a.workers is not None and a.workers < 1:
         raise UserError("--workers must be at least 1")
+    if a.retries < 0:
+        raise UserError(f"--retries must be 0 or more, got {a.retries}")
     if a.scheduler:
         _check_scheduler(a.scheduler)
     try:
@@ -117,13 +119,16 @@ def cmd_status(a: argparse.Namespace) -> int:
     if not Path(db).is_file():
         print(f"campaign {spec.name}: {spec.runs} runs, none done yet (no {db})")
         return 0
+    mine = {run_key(p.key, i) for p in spec.points for i in range(spec.seeds)}
     try:
         store = Store(db)
-        counts, done = store.counts(), store.done()
-        store.close()
+        try:
+            store.holds(spec.name, spec.root_seed)   # another campaign's file: refused, as
+            counts, done = store.counts(mine), store.done()     # by run
+        finally:
+            store.close()
     except StoreError as e:
         raise UserError(str(e)) from None
-    mine = {run_key(p.key, i) for p in spec.points for i in range(spec.seeds)}
     missing = len(mine - done)
     print(f"campaign {spec.name} in {db}: {spec.runs} runs; done {counts['ok']}, crashed "
           f"{counts['crashed']} (the model raised: results), lost {counts['lost']} (the "

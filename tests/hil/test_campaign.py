@@ -123,6 +123,8 @@ def test_a_spec_expands_its_grid_and_checks_every_point(spec_file, tmp_path):
                         ("[grid]\nfault = ['fail:1@2']\n", "each value is a list"),
                         ("[campaign]\nseeds = 0\n", "seeds must be an integer >= 1"),
                         ("[camp]\n", "unknown table"),
+                        # a value twice: planned twice, run twice, one result kept
+                        ("[grid]\nrobots = ['0,1,2', '0,1,2']\n", "twice"),
                         ("not toml [", "not TOML")):
         bad = tmp_path / "bad.toml"
         bad.write_text(text)
@@ -650,6 +652,39 @@ def test_an_export_onto_its_own_results_or_twice_onto_one_file_is_refused(tmp_pa
         assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
         assert says in err, err
     assert db.read_bytes() == before and not (tmp_path / "x").exists()
+
+
+def test_status_counts_only_its_own_campaigns_runs(spec_file, tmp_path, capsys):
+    """``campaign status`` counted every row of the results file: another campaign's file
+    (refused by ``run``) or a grid shrunk since gave done + missing above the runs planned.
+    It refuses another campaign's file as ``run`` does, and counts the spec's own runs."""
+    from hil.cli import main
+    from hil.campaign.seeds import run_key
+    spec = load_spec(spec_file, check=check_args)
+    db = tmp_path / "r.sqlite"
+    store = Store(db)
+    store.claim(spec.name, spec.root_seed)
+    keys = [run_key(p.key, i) for p in spec.points for i in range(spec.seeds)]
+    rows = [{"run_key": k, "point_key": "{}", "args": [], "seed_index": 0, "seed": 1,
+             "status": "ok", "error": None, "metrics": {}, "wall_s": 0.0, "worker": "w"}
+            for k in keys[:1] + ["another-point/0", "another-point/1"]]
+    store.add(rows, "abc", False)
+    store.close()
+    assert main(["campaign", "status", str(spec_file), "--db", str(db)]) == 0
+    out = capsys.readouterr().out
+    assert f"{spec.runs} runs; done 1," in out and f"missing {spec.runs - 1}" in out, out
+    other = tmp_path / "other.toml"
+    other.write_text(spec_file.read_text().replace("root_seed = 11", "root_seed = 99"))
+    assert main(["campaign", "status", str(other), "--db", str(db)]) == 2
+    err = capsys.readouterr().err
+    assert "holds campaign" in err and "use another --db" in err and err.count("\n") == 1
+
+
+def test_negative_retries_are_refused(spec_file, tmp_path, capsys):
+    from hil.cli import main
+    assert main(["campaign", "run", str(spec_file), "--db", str(tmp_path / "r.sqlite"),
+                 "--retries", "-1"]) == 2
+    assert "--retries must be 0 or more" in capsys.readouterr().err
 
 
 def _results(store):
