@@ -44,10 +44,26 @@ def cmd_run(a: argparse.Namespace) -> int:
     except SpecError as e:
         raise UserError(str(e)) from None
     db = _db_for(a.spec, a.db)
+    new_file = not Path(db).exists()
     try:
         store = Store(db)
     except StoreError as e:
         raise UserError(str(e)) from None
+    try:
+        return _run_into(a, spec, store, db, run_campaign)
+    except UserError:
+        if new_file and not any(store.counts().values()):
+            # refused before any run (a dirty tree, no scheduler): no empty file left
+            store.close()
+            Path(db).unlink(missing_ok=True)
+        raise
+    finally:
+        store.close()
+
+
+def _run_into(a: argparse.Namespace, spec, store, db: str, run_campaign) -> int:
+    """``campaign run``'s run into ``store`` (``db``), with its progress bar."""
+    from ..campaign.store import StoreError
     progress = None
     bar = None
     if not a.no_progress and sys.stderr.isatty():
@@ -91,7 +107,6 @@ def cmd_run(a: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.stop()
-        store.close()
     print(f"campaign {spec.name}: {out.planned} runs planned, {out.skipped} already in {db}, "
           f"{out.ran} run now ({out.crashed} crashed) in {out.wall_s:.1f} s on "
           f"{out.workers} worker(s)"

@@ -286,9 +286,24 @@ function rprs.dissector(tvb, pinfo, tree)
     if n == 0 then return 0 end
     pinfo.cols.protocol = "RPRS"
     local t = tree:add(rprs, tvb(), "RPRS radio frame")
-    if n < 14 or tvb(0, 3):bytes():tohex() ~= "0F0A05" then
+    if n < 3 or tvb(0, 3):bytes():tohex() ~= "0F0A05" then
         t:add_proto_expert_info(e_header)
         pinfo.cols.info = string.format("not a frame (%d bytes)", n)
+        return n
+    end
+    if n < 14 then
+        -- a Header, then fewer bytes than the shortest frame: a frame cut short (its sender's
+        -- radio died, an aborted packet); the fields it has are read, as rprs decode does
+        t:add(f.header, tvb(0, 3))
+        local fields = { { 3, 1, f.dst, "Destination" }, { 4, 1, f.src, "Source" },
+                         { 5, 2, f.num, "Number" }, { 7, 1, f.type, "Type" },
+                         { 8, 4, f.len, "Length" } }
+        for _, fd in ipairs(fields) do
+            if fd[1] + fd[2] <= n then number(tvb, fd[1], fd[2], t, fd[3], fd[4]) end
+        end
+        t:add_proto_expert_info(e_length, string.format(
+            "Cut short: %d bytes, a frame has at least 14", n))
+        pinfo.cols.info = string.format("cut short after %d of at least 14 bytes", n)
         return n
     end
     t:add(f.header, tvb(0, 3))

@@ -524,6 +524,21 @@ def test_results_of_another_commit_or_a_dirty_tree_are_not_mixed(spec_file, tmp_
         run_campaign(spec, other, workers=1, allow_dirty=True)
 
 
+def test_a_refused_run_leaves_no_empty_results_file(spec_file, tmp_path, monkeypatch, capsys):
+    """``campaign run`` refused for a dirty tree left an empty results file behind, which
+    ``campaign report`` then read as a campaign "?" of 0 runs. A file it made for nothing is
+    removed; a file that was there is left as it was."""
+    from hil.cli import main
+    monkeypatch.setattr(engine, "source_state", lambda root=None: ("deadbeef", True))
+    db = tmp_path / "new.sqlite"
+    assert main(["campaign", "run", str(spec_file), "--db", str(db), "--workers", "1"]) == 2
+    assert "uncommitted" in capsys.readouterr().err and not db.exists()
+    kept = tmp_path / "kept.sqlite"
+    Store(kept).close()
+    assert main(["campaign", "run", str(spec_file), "--db", str(kept), "--workers", "1"]) == 2
+    assert kept.exists()
+
+
 def test_the_real_source_state_is_a_commit_of_this_checkout():
     commit, dirty = REAL_SOURCE_STATE()
     head = subprocess.run(["git", "-C", str(engine.SOURCE), "rev-parse", "HEAD"],

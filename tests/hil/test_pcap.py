@@ -397,6 +397,30 @@ def test_a_radio_that_dies_in_its_first_byte_leaves_an_empty_packet(tmp_path):
 
 
 @needs_tshark
+def test_a_frame_cut_short_under_14_bytes_has_the_fields_it_carries(tmp_path):
+    """The dissector called any packet under 14 bytes "not a frame" with "No Header 0F 0A
+    05", a Header it had; ``rprs decode`` says "truncated after 12 of 14 bytes". The fields
+    the bytes hold are decoded now, with the Length expert saying the frame is cut short."""
+    path = tmp_path / "cut.pcapng"
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--robots", "0,1,2",
+                        "--duration", "8", "--seed", "1", "--cpu", "ideal", "--no-progress",
+                        "--fault", "foreign@6:x0f0a05373130303130303030", "--pcap", str(path)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    out = subprocess.run([TSHARK, "-X", f"lua_script:{plugin_path()}", "-r", str(path), "-Y",
+                          "frame.len == 12", "-T", "fields", "-e", "_ws.col.Info", "-e",
+                          "rprs.dst", "-e", "rprs.src", "-e", "rprs.num", "-e", "rprs.type",
+                          "-e", "rprs.len", "-e", "_ws.expert.message"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    info, dst, src, num, typ, length, experts = out.stdout.strip().split("\t")
+    assert info == "cut short after 12 of at least 14 bytes"
+    assert (dst, src, num, typ, length) == ("7", "1", "0", "1", "0")
+    assert "Cut short: 12 bytes, a frame has at least 14" in experts
+    assert "No Header" not in experts
+
+
+@needs_tshark
 def test_tshark_decodes_the_authenticated_profiles_freshness_and_tag(tmp_path):
     """docs/protocol.md clause 52: with --auth-key every frame ends with auth(FFFFFFFF,TTTTTTTT);
     the dissector shows both as fields (rprs.auth.fresh, rprs.auth.tag), the values each
