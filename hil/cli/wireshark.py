@@ -57,6 +57,8 @@ def install_extcap(where: str | None) -> int:
     dest = dest_dir / "rprs-radio"
     script = (f"#!/bin/sh\n# RPRS radio capture for Wireshark (rprs wireshark --install-extcap)\n"
               f"exec {shlex.quote(sys.executable)} -m hil.cli.extcap \"$@\"\n")
+    _a_directory(dest_dir)
+    replaced = dest.exists()
     try:
         dest_dir.mkdir(parents=True, exist_ok=True)
         dest.write_text(script, encoding="utf-8")
@@ -64,9 +66,19 @@ def install_extcap(where: str | None) -> int:
     except OSError as exc:
         raise UserError(f"cannot install the extcap launcher in {dest_dir}: "
                         f"{exc.strerror or exc}") from None
-    print(f"installed {dest}: Wireshark lists the interface rprs-radio (restart it); "
-          f"give it the radio's port in its options")
+    print(f"{'replaced' if replaced else 'installed'} {dest}: Wireshark lists the interface "
+          f"rprs-radio (restart it); give it the radio's port in its options")
     return 0
+
+
+def _a_directory(d: Path) -> None:
+    """UserError if ``d``, or a folder it would be made in, is a file (mkdir said "File
+    exists")."""
+    for p in (d, *d.parents):
+        if p.exists():
+            if not p.is_dir():
+                raise UserError(f"cannot install in {d}: {p} is a file, not a directory")
+            return
 
 
 def cmd_wireshark(a: argparse.Namespace) -> int:
@@ -78,8 +90,11 @@ def cmd_wireshark(a: argparse.Namespace) -> int:
         return install_extcap(a.dir)
     for opt in ("dir", "dbc"):
         if getattr(a, opt) and not a.install:
-            raise UserError(f"--{opt} is for --install (where the dissector goes, and whose DBC "
-                            f"it decodes the CAN payloads with): give --install too")
+            raise UserError(
+                "--dir is for --install or --install-extcap (where the dissector or the "
+                "capture's launcher goes): give one of them too" if opt == "dir" else
+                "--dbc is for --install (whose DBC the dissector decodes the CAN payloads "
+                "with): give --install too")
     if a.install:
         text = None
         if a.dbc:
@@ -90,6 +105,8 @@ def cmd_wireshark(a: argparse.Namespace) -> int:
             except ValueError as exc:
                 raise UserError(f"--dbc: {exc}") from None
         dest_dir = Path(a.dir) if a.dir else personal_plugins_dir()
+        _a_directory(dest_dir)
+        replaced = (dest_dir / src.name).exists()
         try:
             dest_dir.mkdir(parents=True, exist_ok=True)
             dest = dest_dir / src.name
@@ -100,7 +117,8 @@ def cmd_wireshark(a: argparse.Namespace) -> int:
         except OSError as exc:
             raise UserError(f"cannot install the dissector in {dest_dir}: "
                             f"{exc.strerror or exc}") from None
-        print(f"installed {dest}" + (f" (CAN payloads decoded with {a.dbc})" if a.dbc else "")
+        print(f"{'replaced' if replaced else 'installed'} {dest}"
+              + (f" (CAN payloads decoded with {a.dbc})" if a.dbc else "")
               + ": restart Wireshark (or Analyze > Reload Lua Plugins)")
         return 0
     print(src)

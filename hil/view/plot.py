@@ -446,6 +446,9 @@ def plot_trace(events: Iterable[Any], out: str, start_s: float | None = None,
     if not frames:
         lo = (start_s or 0.0)
         hi = end_s if end_s is not None else end_tick / hz
+        if lo >= end_tick / hz:
+            raise PlotError(f"--start {lo:g} s is after the trace's end (it covers "
+                            f"0-{end_tick / hz:g} s)")
         raise PlotError(f"no frame on air between {lo:g} s and {hi:g} s "
                         f"(the trace covers 0-{end_tick / hz:g} s)")
 

@@ -142,7 +142,7 @@ def test_a_trace_named_gz_is_written_compressed_and_the_same_for_the_same_seed(t
     (["sim", "--load", "1e9"], "'saturate'"),
     (["encode", "--src", "1", "--dst", "2", "movex(1)" * 80], "more than a frame carries (562"),
     (["sim", "--bogus"], "unrecognized arguments: --bogus (see 'rprs sim --help')"),
-    (["wireshark", "--dir", "x"], "give --install too"),
+    (["wireshark", "--dir", "x"], "--dir is for --install or --install-extcap"),
     (["sim", "--frame-bytes", "100"], "sizes the peer MACs' frames"),
     (["bench", "latency", "--radio", "x", "--dst", "0"], "the bench's own ID"),
     (["bench", "latency", "--radio", "x", "--dst", "3", "--team", "0,1"], "must hold"),

@@ -141,6 +141,18 @@ def test_the_dissector_installs_where_asked(tmp_path):
     p = rprs("wireshark", "--install", "--dir", str(tmp_path / "plugins"))
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "plugins" / "rprs.lua").read_text() == plugin_path().read_text()
+    assert p.stdout.startswith(f"installed {tmp_path / 'plugins' / 'rprs.lua'}")
+    # a dissector there already (one edited by hand) is replaced, and the line says so
+    (tmp_path / "plugins" / "rprs.lua").write_text("-- mine\n")
+    p = rprs("wireshark", "--install", "--dir", str(tmp_path / "plugins"))
+    assert p.stdout.startswith(f"replaced {tmp_path / 'plugins' / 'rprs.lua'}"), p.stdout
+    # a file where the folder would be: named as such (mkdir said "File exists")
+    (tmp_path / "afile").write_text("x")
+    for d in (tmp_path / "afile", tmp_path / "afile" / "sub"):
+        p = rprs("wireshark", "--install", "--dir", str(d))
+        assert p.returncode == 2 and p.stderr == (
+            f"rprs: error: cannot install in {d}: {tmp_path / 'afile'} is a file, not a "
+            f"directory\n"), p.stderr
     p = rprs("wireshark", "--path")
     assert p.returncode == 0 and p.stdout.strip() == str(plugin_path())
 

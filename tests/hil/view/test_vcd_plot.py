@@ -401,8 +401,11 @@ def test_plot_bad_window(idle_run, tmp_path):
         plot_trace(idle_run, str(out), start_s=3.0, end_s=2.0)
     with pytest.raises(PlotError, match=">= 0"):
         plot_trace(idle_run, str(out), start_s=-1.0)
-    with pytest.raises(PlotError, match="no frame on air between 50 s and 60 s"):
+    with pytest.raises(PlotError, match=r"--start 50 s is after the trace's end \(it covers "
+                                        r"0-4 s\)"):      # (said: no frame between 50 and 60)
         plot_trace(idle_run, str(out), start_s=50.0, end_s=60.0)
+    with pytest.raises(PlotError, match="no frame on air between 0.5 s and 1 s"):
+        plot_trace(idle_run, str(out), start_s=0.5, end_s=1.0)   # before the ring formed
     assert list(tmp_path.iterdir()) == []
 
 
