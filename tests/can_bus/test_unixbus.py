@@ -377,7 +377,10 @@ def test_seven_processes_all_hear_everyone(busdir):
             if child.poll() is None:
                 child.kill()
             child.communicate(timeout=10)
-    assert os.listdir(busdir) == []
+    # nothing left behind: the bus that made the directory removes it if it leaves last (it
+    # is then empty), else the directory stays, empty (which process left last is the OS's
+    # choice: the test expected the second and failed in CI on the first)
+    assert not os.path.exists(busdir) or os.listdir(busdir) == []
 
 
 def test_python_can_entry_point(busdir):
