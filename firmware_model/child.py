@@ -379,6 +379,8 @@ class RadioOnlyChild:
     def __init__(self, station: RadioStation) -> None:
         self.station = station
         self.refused = 0
+        self.replies_dropped = 0
+        """Failures not sent, the radio's queue full (as a CAN child's dispatcher counts)."""
         station.add_app(self._on_message)
 
     def _on_message(self, d: Deliver, now: int) -> None:
@@ -391,5 +393,7 @@ class RadioOnlyChild:
         try:
             self.station.submit(d.src, (cmd("fail", CODE_NO_CAN), order),
                                 int(FrameType.FAILURE))
+        except QueueFull:
+            self.replies_dropped += 1     # counted and said (rprs child's closing line)
         except ValueError:
-            pass  # refused (queue full, destination not in the ring): nothing else to do
+            pass  # refused (destination not in the ring): nothing else to do

@@ -67,6 +67,8 @@ def _monitor(a: argparse.Namespace) -> int:
         close_writers(trace, vcd, ok=False)
         raise
     ok = False
+    import time
+    t0 = time.perf_counter()
     try:
         code, world = run_monitor_sim(cfg, a.speed, trace=trace,
                                       listeners=[vcd.write] if vcd is not None else (),
@@ -76,8 +78,9 @@ def _monitor(a: argparse.Namespace) -> int:
         raise write_failed(exc, trace=a.trace, VCD=a.vcd, capture=a.pcap) from None
     finally:                             # as rprs sim: a complete output is kept
         close_outputs(trace, vcd, capture, a.pcap, ok)
+    wall = time.perf_counter() - t0      # (the view's time: the run paced at --speed)
     if a.json:                           # the world up to where the view was closed
-        print_summary_and_report(world, 0.0, a, cfg)
+        print_summary_and_report(world, wall, a, cfg)
     elif a.cpu_report:
         from ..view.cpu_report import print_cpu_report
         print_cpu_report(world, cfg.cpu, console=stdout_console)

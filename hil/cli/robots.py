@@ -48,7 +48,9 @@ def child_summary(station, child, radio: bool = True) -> str:
               f"{bus.received} received"] if bus is not None else []
     can_side = ", ".join(counts + ([malformed] if bad else []) + bus_notes(bus))
     line = summary_line(station) if radio else f"robot {station.id}: CAN only (no radio)"
-    dropped = getattr(getattr(child, "dispatcher", None), "replies_dropped", 0)
+    dropped = getattr(child, "replies_dropped", None)            # a radio-only child's
+    if dropped is None:
+        dropped = getattr(getattr(child, "dispatcher", None), "replies_dropped", 0)
     if dropped:
         line += (f", {dropped} repl{'y' if dropped == 1 else 'ies'} dropped (the radio's "
                  f"queue full: orders came faster than its turns carry the answers)")

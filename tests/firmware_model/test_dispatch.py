@@ -308,6 +308,15 @@ def test_a_radio_only_child_answers_orders_with_a_failure():
                     (0, (cmd("fail", 42), cmd("status")), int(FrameType.FAILURE)),
                     (0, (cmd("fail", 42), cmd("paw", 1)), int(FrameType.FAILURE))]
     assert child.refused == 3
+    assert child.replies_dropped == 0
+    # the radio's queue full: the failure is counted dropped, not lost unsaid
+    from firmware_model.radio.mac import QueueFull
+
+    def full(dst, commands, type_):
+        raise QueueFull("queue full: 32 messages wait")
+    station.submit = full
+    deliver(Deliver(0, 2, 11, 2, (cmd("joint", 2, 10),)), 0)
+    assert child.refused == 4 and child.replies_dropped == 1
 
 
 def test_a_finished_order_is_reported_done_to_its_sender():

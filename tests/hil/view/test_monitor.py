@@ -579,6 +579,8 @@ def test_the_monitor_reports_the_cpu_budget_of_what_it_ran(tmp_path):
                           "--cpu", "estimated", "--cpu-report", "--json", "--duration", "2",
                           "--no-progress"], capture_output=True, text=True, timeout=120)
     got, want = json.loads(out), json.loads(sim.stdout)
+    # the view's own wall time and speed (it said 0.0 and null): the run paced at --speed 64
+    assert got["wall_seconds"] > 0 and 0 < got["speed"] <= 64 * 1.1
     for d in (got, want):
         del d["wall_seconds"], d["speed"]
     assert want["cpu_report"]["1"]["handlers"] and want["duration_ticks"] == 2 * TICK_HZ
