@@ -178,8 +178,8 @@ class Dispatcher:
         drains only in turns): dropped, counted (``replies_dropped``) and noted in the log,
         so that a robot flooded with orders faster than its turns carry the answers says so.
         (Held for later, they would keep a flooded child's CAN side awake for good.)"""
-        self.replies_dropped += len(radio)
         n = len(radio)
+        self.replies_dropped += n
         self._note((now, f"{n} repl{'y' if n == 1 else 'ies'} dropped: the radio's queue is "
                          f"full"))
 

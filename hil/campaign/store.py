@@ -59,6 +59,7 @@ class Store:
         """Mark the file as this campaign's; StoreError if it holds another one."""
         want = self.holds(name, root_seed)
         self.db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", want.items())
+        self.db.commit()
 
     def holds(self, name: str, root_seed: int) -> dict[str, str]:
         """StoreError if the file holds another campaign than ``name`` with ``root_seed``
@@ -71,7 +72,6 @@ class Store:
                                  f"root_seed {m.get('root_seed')}, not {name!r} with "
                                  f"root_seed {root_seed}: use another --db")
         return want
-        self.db.commit()
 
     # -- runs -------------------------------------------------------------------------------
     def done(self) -> set[str]:

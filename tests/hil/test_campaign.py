@@ -695,6 +695,22 @@ def test_status_counts_only_its_own_campaigns_runs(spec_file, tmp_path, capsys):
     assert "holds campaign" in err and "use another --db" in err and err.count("\n") == 1
 
 
+def test_a_claimed_file_stays_claimed_when_closed_without_runs(tmp_path):
+    """``claim`` commits its mark: a file claimed and closed before any run is stored (a
+    campaign stopped at once) still refuses another campaign."""
+    db = tmp_path / "c.sqlite"
+    store = Store(db)
+    store.claim("one", 1)
+    store.close()
+    store = Store(db)
+    try:
+        assert store.meta() == {"name": "one", "root_seed": "1"}
+        with pytest.raises(StoreError, match="holds campaign 'one'"):
+            store.holds("two", 1)
+    finally:
+        store.close()
+
+
 def test_negative_retries_are_refused(spec_file, tmp_path, capsys):
     from hil.cli import main
     assert main(["campaign", "run", str(spec_file), "--db", str(tmp_path / "r.sqlite"),
