@@ -199,6 +199,7 @@ class RotationalMac:
         self.standby = self.cfg.standby      # a replica of ID 0 that does not transmit
         self._watched = False
         self._check_turns = 0               # PC2 after a takeover: turns still to watch
+        self._rejoining = False             # after a stall: our first turn is watched first
         self._seen: dict[int, int] = {}      # LISTEN: source -> tick last heard
         # disabled robot -> (frames heard since, the End of the last)
         self._heard_disabled: dict[int, tuple[int, int]] = {}
@@ -273,6 +274,7 @@ class RotationalMac:
         if self._paper:
             return self._paper_power_on(now)
         self.mode = LISTEN
+        self._rejoining = False
         self._booting = True
         self._lone_boot = False
         self._announcing = None
@@ -361,6 +363,9 @@ class RotationalMac:
             self._foreign_heard(src, end, out)
             out.append(Refused(src, frame.num, f"robot {src} is not in the team"))
             out.extend(self.on_corrupt(first, None, end, now))
+            return out
+        if self._rejoining and self.phase == WATCH:
+            self._left_out_while_stalled(src, now, out)
             return out
         content = frame.content
         if self.cfg.checksum:
@@ -570,6 +575,10 @@ class RotationalMac:
             return out
         if self.phase == SWITCH:
             out.append(TX_OFF)             # a turn taken on a stale view is not sent
+        # The ring may have left us out meanwhile (three missed turns): our first turn on the
+        # old view is watched first, as a checking PC's (WATCH); another robot's Header in it
+        # means it did, and we go back to LISTEN to be invited, having sent nothing.
+        self._rejoining = not self._paper and not self.standby
         self.phase = WAIT
         self.owner = None
         self.poller = None
@@ -662,6 +671,7 @@ class RotationalMac:
     _announced = _members._announced
     _unheard_answer = _members._unheard_answer
     _to_listen = _members._to_listen
+    _left_out_while_stalled = _members._left_out_while_stalled
 
     # -- frame building (mac_frames.py) ------------------------------------------------------
 

@@ -35,7 +35,16 @@ def _deadline_listen(self: RotationalMac, now: int, rx_busy: bool, out: list) ->
 
 def _deadline_watch(self: RotationalMac, now: int, rx_busy: bool, last_rx: int | None,
                     rx_began: int | None, out: list) -> None:
-    """WATCH (father failover): the active PC's Header came, follow it; else take the turn."""
+    """WATCH (father failover): the active PC's Header came, follow it; else take the turn.
+    Our first turn after a stall: a Header in it is another robot's, to which the ring gave
+    the turn after leaving us out (``_left_out_while_stalled``); else the ring still has us."""
+    if self._rejoining:
+        if rx_busy:
+            # (its Source is not read yet: the ring's successor, the one robot it can be)
+            self._to_listen(out, now, "a robot sent in our first turn after a stall: the "
+                            "ring left us out meanwhile")
+            return
+        self._rejoining = False
     if rx_busy:                    # the active PC is sending: follow it
         if not self.standby:
             self.standby = True

@@ -239,8 +239,18 @@ def _to_listen(self: RotationalMac, out: list, now: int, reason: str,
     self._passed_invite = False
     self._check_turns = 0             # back only invited (no PC is ID 0) or as a standby
     self._fail_run = None             # clause 41a counts again from our next ring
+    self._rejoining = False
     self.deadline = now + self._claim_ticks()
     out.append(ModeChange(LISTEN, reason))
+
+
+def _left_out_while_stalled(self: RotationalMac, src: int, now: int, out: list) -> None:
+    """Our first turn after a stall (``resync``), watched before we send, and robot ``src``
+    sends in it: the ring left us out while we did not run (three missed turns, clause 40),
+    and the turn was ``src``'s. Back to LISTEN, to be invited (clause 5): nothing sent on the
+    stale view, and nobody counted missing for it."""
+    self._to_listen(out, now, f"robot {src} sent in our first turn after a stall: the ring "
+                    f"left us out meanwhile")
 
 
 def _auth_refusal(self: RotationalMac, frame: Frame) -> tuple[str, str] | None:

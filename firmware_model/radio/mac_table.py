@@ -236,8 +236,13 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WATCH", "failed frame", "WAIT", "a frame broke after its Length: the turn passes at "
        "its promised end", "designed"),
     _T("WATCH", "deadline", "WAIT", "the active PC's Header is coming: stand by", "designed"),
-    _T("WATCH", "deadline", "SWITCH", "no Header from the active PC: take ID 0's turn",
-       "designed"),
+    _T("WATCH", "deadline", "SWITCH", "no Header from the active PC: take ID 0's turn; or "
+       "none in our first turn after a stall: the ring still has us, take it", "designed"),
+    # -- a bench station after a stall (clause 5) -----------------------------------------
+    _T("WATCH", "frame", "LISTEN", "another robot's frame in our first turn after a stall: "
+       "the ring left us out meanwhile; to be invited again", "designed"),
+    _T("WATCH", "deadline", "LISTEN", "a Header coming in our first turn after a stall: the "
+       "ring left us out meanwhile; to be invited again", "designed"),
 )
 
 

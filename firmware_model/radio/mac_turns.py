@@ -156,14 +156,15 @@ def _my_turn(self: RotationalMac, start: int, now: int, out: list) -> None:
     if start > now:
         self._hold(start, now, out)
         return
-    if self.standby or (not self._watched and self.id == 0 and (
+    if self.standby or self._rejoining or (not self._watched and self.id == 0 and (
             self._check_turns > 0 or
             self.cfg.pc > 1 and self.turns % PC2_CHECK_EVERY == 0)):
         # The active PC's header starts at start + Ttrans and is complete 3 bytes later.
         # A PC that took over watches its first turns (PC1 too: otherwise its probation,
         # which leaves messages undelivered, never ended), and an active PC2 one turn
         # in PC2_CHECK_EVERY: if PC1 were active too, both would send in the same slot,
-        # each deaf to the other, for ever.
+        # each deaf to the other, for ever. Our first turn after a stall is watched alike:
+        # the ring may have left us out meanwhile and given it to the next robot (clause 5).
         self.phase = WATCH
         self.owner = self.id
         self.turn_start = start

@@ -530,8 +530,26 @@ def _recorded(run: Callable[[], None]) -> Counter:
     return seen
 
 
+def _stall_paths() -> None:
+    """A bench station resynchronised after a stall watches its first turn (clause 5): the
+    next robot's frame in it, or its Header coming when the watch ends, means the ring left it
+    out meanwhile."""
+    for busy in (False, True):
+        mac, t = _answer(2, {1, 2, 3}, 1, 0b1010)
+        late = t + 10 * 16_000_000
+        mac.resync(late)
+        t = late + 100 * B
+        mac.on_frame(Frame(7, 1, 0, 3, b""), t - 14 * B, t, t)
+        if busy:
+            mac.on_timer(mac.deadline, rx_busy=True)
+        else:
+            t += 20 * B
+            mac.on_frame(Frame(7, 3, 0, 3, b""), t - 14 * B, t, t)
+
+
 def _bare_drives() -> None:
     _rare_paths()
+    _stall_paths()
     _father_paths()
     _window_paths()
     _steal_paths()

@@ -129,6 +129,51 @@ def test_a_process_stopped_for_a_second_sends_nothing_stale_when_it_continues(
         errs[stopped]
 
 
+@pytest.mark.timing
+def test_a_process_stopped_longer_than_three_turns_rejoins_without_a_collision(recorded_hub):
+    """SIGSTOP R2 for 4 s in the ring 0, 1, 2: the others drop it (three missed turns) and go
+    on as a ring of two. R2 used to take its turn on its old ring when it continued: it sent
+    in R0's slot (two collisions on the hub), refused R0's frame as out of turn and counted
+    the healthy father missing. Now it watches that turn first, hears R0 in it, listens, and
+    is invited back: no collision, and nobody but R2 counted missing by anyone."""
+    hub, _ = recorded_hub
+    ids = (0, 1, 2)
+    team = ",".join(map(str, ids))
+    lines: dict[int, list[str]] = {i: [] for i in ids}
+    procs = {}
+    for node, i in enumerate(ids):
+        args = ("father", "--no-input", "--json") if i == 0 else \
+            ("child", "--id", str(i), "--events")
+        procs[i] = spawn(*args, "--radio", hub.paths[node], "--team", team,
+                         stdout=subprocess.PIPE)
+    readers = [_reader(procs[i].stdout, lines[i]) for i in ids]
+    sniffer = bench.Sniffer(hub.paths[5]).start()
+    try:
+        assert wait_for(lambda: ring_is(sniffer, list(ids)), 40.0)
+        collisions_before = hub.stats()["collisions"]
+        procs[2].send_signal(signal.SIGSTOP)
+        time.sleep(4.0)
+        procs[2].send_signal(signal.SIGCONT)
+        t_cont = sniffer.tick() / 16e6
+        assert wait_for(lambda: heard(sniffer, 2, t_cont) >= 3, 20.0)
+        assert wait_for(lambda: ring_is(sniffer, list(ids)), 10.0)
+        collisions = hub.stats()["collisions"] - collisions_before
+    finally:
+        sniffer.stop()
+        stop(procs.values())
+        for r in readers:
+            r.join(timeout=5)
+    events = {i: _events(lines[i]) for i in ids}
+    assert collisions == 0
+    missed = {(i, e["robot"]) for i in ids for e in events[i] if e.get("ev") == "miss"}
+    assert {m for m in missed if m[1] != 2} == set(), missed        # only R2 was missing
+    assert (0, 2) in missed and (1, 2) in missed                    # the stall was long
+    assert not [e for e in events[2] if e.get("ev") == "refused"], events[2]
+    modes = [e.get("reason") for e in events[2] if e.get("ev") == "mode"]
+    assert any("first turn after a stall: the ring left us out" in (m or "") for m in modes), \
+        modes
+
+
 def _father(port: str, *args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "hil.cli", "father", "--radio", port,
                              "--team", "0,1,2", "--json", "--exit-when-done", *args],

@@ -9,8 +9,8 @@ import time
 
 from firmware_model.radio.frame import Frame
 from firmware_model.radio.mac import (
-    LISTEN, MEMBER, SEND, WAIT, MacConfig, Miss, ModeChange, Refused, RotationalMac, Transmit,
-    TxEnable,
+    LISTEN, MEMBER, SEND, WAIT, WATCH, MacConfig, Miss, ModeChange, Refused, RotationalMac,
+    Transmit, TxEnable,
 )
 from firmware_model.station import Stalled, build_station
 from firmware_model.timing import TICK_HZ
@@ -209,10 +209,64 @@ def test_a_member_resyncing_takes_no_turn_until_it_hears_the_ring():
     out = mac.on_frame(Frame(dst=7, src=3, num=0, type=3, content=b""), t, t + 1000, t + 1000)
     assert not [a for a in out if type(a) in (Refused, Miss)], out
     assert mac.owner == 1 and mac.phase == WAIT
-    # then R1's frame gives R2 its turn
+    # then R1's frame gives R2 its turn, watched first: R3 does not send in it, so the ring
+    # still has R2, and it raises TXEN when the watch is over
     t += 20 * MS
     out = mac.on_frame(Frame(dst=7, src=1, num=0, type=3, content=b""), t, t + 1000, t + 1000)
+    assert out == [] and mac.phase == WATCH and mac.owner == 2
+    assert mac.deadline == t + 1000 + mac.cfg.ttrans + max(4 * mac.cfg.byte_ticks,
+                                                            mac.cfg.standby_watch)
+    out = mac.on_timer(mac.deadline)
+    assert any(type(a) is TxEnable and a.on for a in out) and mac.mode == MEMBER
+    # the watch was for the first turn after the stall only: the next is taken at once
+    mac.on_timer(mac.deadline)                          # SWITCH: the frame goes out
+    mac.on_tx_done(mac.deadline or t + 40 * MS)
+    t = mac.turn_start + 30 * MS
+    mac.on_frame(Frame(dst=7, src=3, num=0, type=3, content=b""), t, t + 1000, t + 1000)
+    out = mac.on_frame(Frame(dst=7, src=1, num=0, type=3, content=b""), t + 20 * MS,
+                       t + 20 * MS + 1000, t + 20 * MS + 1000)
     assert any(type(a) is TxEnable and a.on for a in out)
+
+
+def _resynced_and_watching() -> tuple[RotationalMac, int]:
+    """R2 (ring {1, 2, 3}) stalled long; R1's frame, the first it hears, gives it its turn,
+    which it watches: (the MAC, the End of R1's frame)."""
+    mac = member_2()
+    late = mac.deadline + 10 * TICK_HZ
+    mac.resync(late)
+    t = late + 5 * MS
+    mac.on_frame(Frame(dst=7, src=1, num=0, type=3, content=b""), t, t + 1000, t + 1000)
+    assert mac.phase == WATCH
+    return mac, t + 1000
+
+
+def test_a_member_left_out_during_its_stall_hears_the_next_robot_in_its_turn_and_listens():
+    """Stopped longer than three turns, R2 was dropped; R1 and R3 go on as a ring of two, so
+    R3 sends right after R1. R2 used to take the turn on its old view too (a collision at the
+    bench, then it refused R3's frame and counted the father missing). Now R3's frame in the
+    watched turn sends R2 back to LISTEN: nothing sent, nobody counted missing or refused."""
+    mac, end = _resynced_and_watching()
+    t = end + mac.cfg.ttrans + 2 * MS
+    out = mac.on_frame(Frame(dst=7, src=3, num=0, type=3, content=b""), t, t + 15 * MS,
+                       t + 15 * MS)
+    assert mac.mode == LISTEN, out
+    assert [a.reason for a in out if type(a) is ModeChange] == [
+        "robot 3 sent in our first turn after a stall: the ring left us out meanwhile"]
+    assert not [a for a in out if type(a) in (Refused, Miss, Transmit, TxEnable)], out
+    # invited again as any listening robot is
+    t += 100 * MS
+    out = mac.on_frame(Frame(dst=7, src=1, num=0, type=3, content=b"poll(2,10)"), t,
+                       t + 1000, t + 1000)
+    assert mac.mode == MEMBER and any(type(a) is TxEnable and a.on for a in out), out
+
+
+def test_a_header_coming_in_the_watched_turn_sends_it_back_to_listen():
+    """The next robot's frame still coming in when the watch ends (its Header begun): the
+    same verdict, before its Source is read."""
+    mac, _ = _resynced_and_watching()
+    out = mac.on_timer(mac.deadline, rx_busy=True)
+    assert mac.mode == LISTEN
+    assert not [a for a in out if type(a) in (Miss, Transmit, TxEnable)], out
 
 
 def test_a_member_resyncing_that_hears_nobody_goes_back_to_listen():
