@@ -107,6 +107,10 @@ def load_spec(path: str | Path, check=None) -> Spec:
         raise SpecError(f"cannot read campaign file {path}: {e.strerror}") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise SpecError(f"{path}: not TOML: {e}") from None
+    if not data:
+        # (an empty file, or comments only: most likely the wrong file, not 10 default runs)
+        raise SpecError(f"{path}: no [campaign] or [grid] table: nothing says what to run "
+                        "(docs/campaigns.md)")
     unknown = set(data) - {"campaign", "grid"}
     if unknown:
         raise SpecError(f"{path}: unknown table(s) {', '.join(sorted(unknown))}; "

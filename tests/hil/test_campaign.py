@@ -125,6 +125,9 @@ def test_a_spec_expands_its_grid_and_checks_every_point(spec_file, tmp_path):
                         ("[camp]\n", "unknown table"),
                         # a value twice: planned twice, run twice, one result kept
                         ("[grid]\nrobots = ['0,1,2', '0,1,2']\n", "twice"),
+                        # empty (or comments only): the wrong file, not 10 default runs
+                        ("", "no \\[campaign\\] or \\[grid\\] table"),
+                        ("# nothing yet\n", "nothing says what to run"),
                         ("not toml [", "not TOML")):
         bad = tmp_path / "bad.toml"
         bad.write_text(text)
