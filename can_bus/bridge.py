@@ -317,6 +317,10 @@ class PythonCanBus:
         self.not_ours = 0
         """Frames heard that are not CAN 2.0A data or remote frames (extended IDs, error
         frames, CAN FD): logged, handed to no node."""
+        self.malformed = 0
+        """Frames heard that no CAN 2.0A frame can be (an id above 0x7FF without the extended
+        flag, a DLC that disagrees with the data, more than 8 bytes): what a buggy peer on a
+        software bus sends. Logged, handed to no node; the first is reported."""
         self.send_errors = 0
         self.receive_errors = 0
         self.lost = 0
@@ -570,7 +574,17 @@ class PythonCanBus:
 
     def _deliver(self, msg: can.Message) -> None:
         self._in_flight.pop(id(msg), None)
-        frame = CanFrame.from_message(msg)
+        try:
+            frame = CanFrame.from_message(msg)
+        except ValueError as e:
+            # No node takes it (the firmware would crash on it), and the bus goes on.
+            self.malformed += 1
+            if self.malformed == 1:
+                self._report(f"a frame no CAN 2.0A node can send was ignored ({e}); more "
+                             f"are counted")
+            if self._writer is not None:
+                self._log_received(msg)
+            return
         if self._echo(frame):
             return
         end = self.sched.now

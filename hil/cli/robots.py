@@ -60,7 +60,8 @@ def child_summary(station, child, radio: bool = True) -> str:
 def bus_notes(bus) -> list[str]:
     """What a bench process's CAN bus (``can_bus.bridge.PythonCanBus``) heard and handed to
     no node, for its closing line: frames the kernel dropped before they were read (a flood),
-    and frames that are not CAN 2.0A (an extended id, CAN FD: no node of ours takes them)."""
+    frames that are not CAN 2.0A (an extended id, CAN FD: no node of ours takes them), and
+    frames no CAN 2.0A node can send (a software bus carries them)."""
     notes = []
     lost = getattr(bus, "lost", 0)
     if lost:
@@ -70,6 +71,10 @@ def bus_notes(bus) -> list[str]:
     if other:
         notes.append(f"{other} frame{'s' if other > 1 else ''} not CAN 2.0A ignored "
                      f"(extended id, CAN FD or error frame)")
+    bad = getattr(bus, "malformed", 0)
+    if bad:
+        notes.append(f"{bad} frame{'s' if bad > 1 else ''} no CAN 2.0A node can send ignored "
+                     f"(an 11-bit id above 0x7FF, or a DLC that disagrees with the data)")
     return notes
 
 

@@ -10,6 +10,7 @@ import os
 import subprocess
 import sys
 import time
+import uuid
 
 import can
 import pytest
@@ -25,6 +26,7 @@ from firmware_model.radio.content import cmd
 from firmware_model.radio.mac import Deliver
 from firmware_model.station import build_station
 from hil.bench.runner import summary_line
+from hil.cli.robots import bus_notes
 from hil.sim.realtime import RealTimeScheduler
 from firmware_model.timing import TICK_HZ
 
@@ -180,6 +182,42 @@ def test_frames_no_node_takes_are_logged_and_counted(can_channel, tmp_path):
     errors = 0 if can_channel.startswith("socketcan") else 1
     assert bus.not_ours == 1 + errors
     assert sum(m.is_error_frame for m in logged) == errors
+
+
+@pytest.mark.parametrize("kind", ["virtual", "rprs_unix"])
+def test_a_malformed_frame_is_counted_and_reported_once_and_the_bus_goes_on(kind, tmp_path):
+    """A software bus carries what no CAN 2.0A node can send: an 11-bit frame with the id
+    0x901, a DLC of 2 over 6 data bytes. Either crashed ``rprs child`` and ``rprs submodules``
+    with a traceback (CanFrame refused it in the reader's handler). Now it reaches no node,
+    is logged and counted (``malformed``), the first is reported in one line, and the good
+    frame after it is delivered."""
+    import can
+    channel = f"virtual:rprs-{uuid.uuid4().hex[:8]}" if kind == "virtual" else \
+        f"rprs_unix:{tmp_path / 'bus'}"
+    sched = RealTimeScheduler()
+    said: list[str] = []
+    bus = PythonCanBus(sched, open_bus(channel), log=str(tmp_path / "all.log"),
+                       on_error=said.append)
+    heard = []
+    bus.trace = lambda frame, start, end, node: heard.append(frame.id)
+    other = open_bus(channel)
+    try:
+        time.sleep(0.2)
+        other.send(can.Message(arbitration_id=0x901, is_extended_id=False, data=bytes(6)))
+        other.send(can.Message(arbitration_id=0x101, is_extended_id=False, data=bytes(6),
+                               dlc=2))
+        other.send(can.Message(arbitration_id=0x181, is_extended_id=False, data=bytes(8)))
+        sched.run_for(0.5)
+    finally:
+        other.shutdown()
+        bus.close()
+    assert heard == [0x181] and bus.received == 1
+    assert bus.malformed == 2
+    assert len(said) == 1 and "no CAN 2.0A node can send" in said[0], said
+    assert bus_notes(bus) == ["2 frames no CAN 2.0A node can send ignored (an 11-bit id "
+                              "above 0x7FF, or a DLC that disagrees with the data)"]
+    assert [m.arbitration_id for m in can.LogReader(str(tmp_path / "all.log"))] == \
+        [0x901, 0x101, 0x181]
 
 
 @pytest.mark.vcan
