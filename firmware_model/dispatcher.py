@@ -316,8 +316,12 @@ class Dispatcher:
         for job in list(self.jobs):
             self._job_failed(job, None, now)
         for i in range(1, 5):
-            self.target[i - 1] = round(self.nodes[i].value, 2) if self.nodes[i].last_seen \
-                is not None else self.target[i - 1]
+            if self.nodes[i].last_seen is not None:
+                # held where it last reported, within its limits: a joint that overshot one
+                # (a reported -10.5 deg for joint 2) is held at the limit, whose angle the
+                # command can carry (mode 1 takes no angle of its own: docs/can.md)
+                lo, hi = JOINT_LIMITS[i]
+                self.target[i - 1] = min(max(round(self.nodes[i].value, 2), lo), hi)
             self._can.append(dbc.encode(f"JOINT{i}_CMD", angle=self.target[i - 1], speed=0,
                                         seq=self._next_seq(i), mode=1))
         self._can.append(dbc.encode("WHEEL_CMD", speed=0, distance=0,

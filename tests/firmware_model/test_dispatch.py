@@ -139,6 +139,20 @@ def test_stop_holds_the_joints_and_stops_the_wheel():
     assert w.submodules[1]["WHEEL"].v_ums == 0
 
 
+def test_stop_holds_a_joint_that_reported_past_its_limit_at_the_limit():
+    """Joint 2 reports -10.5 deg (an overshoot, or any node on the bus: the status frame
+    carries it), below its limit of -10. ``stop()`` used to command the hold at the reported
+    angle, which JOINT2_CMD cannot carry: DbcError, and the child died (a traceback at the
+    bench). It holds the joint at the limit now, and every command goes out."""
+    from firmware_model.dispatcher import Dispatcher
+    d = Dispatcher(1)
+    d.on_can(dbc.encode_raw("JOINT2_STATUS", angle=-1050, speed=0, state=2, seq=0), 1000)
+    d.on_message(5, 1, (cmd("stop"),), 2000)
+    sent = [dbc.decode(f) for f in d.take_can()]
+    assert [name for name, _ in sent] == [f"JOINT{i}_CMD" for i in range(1, 5)] + ["WHEEL_CMD"]
+    assert sent[1][1]["mode"] == 1 and sent[1][1]["angle"] == -10.0 and d.target[1] == -10.0
+
+
 def test_status_reply_reports_the_joints():
     w, evs = child_world()
     send(w, [cmd("status")])
