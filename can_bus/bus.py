@@ -643,8 +643,8 @@ class CanBus:
 
     def _late_ack_received(self, frame: CanFrame, start: int, tx: _Node,
                            rx: list[_Node]) -> None:
-        """Every transmitter was error-passive when its ACK came back late: its error flag is
-        recessive, so the receivers, which acknowledged in time for themselves, see a whole
+        """Every transmitter was error-passive when its ACK came back late, or when no
+        receiver could drive it: its error flag is recessive, so the receivers see a whole
         frame and take it at its end (``start`` + the frame's wire bits)."""
         now = self.sched.now
         rx = [ns for ns in rx if ns.attached]

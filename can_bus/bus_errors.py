@@ -22,10 +22,13 @@ def _frame_error(self: CanBus, kind: str) -> None:
     self._busy_until = idle_at
     self.error_frames += 1
     rx = self._cur_rx
-    late_passive = kind == "ack" and self._cur_late and \
-        all(ns.state is PASSIVE for ns in self._cur_tx)
-    if late_passive:
-        # The receivers saw no error: they take the frame at its end, not REC + 1.
+    passive_ack = kind == "ack" and bool(rx) and all(ns.state is PASSIVE
+                                                     for ns in self._cur_tx)
+    if passive_ack:
+        # Every transmitter is error-passive: its ACK error flag is recessive, so the
+        # receivers (which do not check the ACK slot) saw no error, whether the ACK came back
+        # late or nobody could drive it: they take the frame at its end, not REC + 1 (ISO
+        # 11898-1 exception 1).
         self.sched.at(self._cur_start + len(_frame_info(frame)[0]) * tpb,
                       self._late_ack_received, frame, self._cur_start, self._cur_tx[0],
                       list(rx))

@@ -392,6 +392,24 @@ class DeafNode(Node):
     acknowledges = False
 
 
+def test_a_passive_transmitters_ack_error_is_no_error_for_receivers_that_cannot_ack():
+    """a sends to c alone, which cannot drive the ACK slot (a halted controller, a transceiver
+    in standby). While a is error-active its flag destroys the frame (c's REC + 1 each time);
+    from TEC 128 on its flag is recessive, so c sees a whole frame, takes it at each retry and
+    works its REC off (ISO 11898-1 exception 1). c's REC used to climb past 127 (error-passive
+    with no error of its own) and it never received the frame."""
+    sched = Scheduler()
+    bus = CanBus(sched, BitTiming())
+    a, c = Node("a"), DeafNode("c")
+    bus.attach(a)
+    bus.attach(c)
+    bus.request(a, CanFrame(0x123, b"\x01"))
+    sched.run_until(2_000_000)
+    assert bus.tec(a) == 128 and set(e.kind for e in a.errors) == {"ack"}
+    assert len(c.rx) > 20 and all(f.id == 0x123 for f, *_ in c.rx)
+    assert bus.rec(c) == 0 and bus.error_state(c) is ErrorState.ACTIVE
+
+
 def _filter_run(b_cls):
     """a sends 0x110, 0x120, 0x130 (the first one destroyed by a local error at b), then
     0x140 once b is gone; c cannot acknowledge."""
