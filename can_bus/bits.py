@@ -478,7 +478,7 @@ class BitTiming:
         if not isinstance(self.tick_hz, int) or self.tick_hz < 1_000_000:
             raise ValueError(f"BitTiming.tick_hz must be an int of at least 1 MHz, got "
                              f"{self.tick_hz!r}")
-        if self.ticks_per_bit < self.tick_hz // 1_000_000:
+        if self.tick_hz > 1_000_000 * self.ticks_per_bit:     # exact: no rounding of the rate
             raise ValueError(
                 f"bit time of {self.ticks_per_bit} ticks is faster than 1 Mbit/s, the CAN 2.0 limit"
             )
@@ -515,6 +515,10 @@ class BitTiming:
                      sjw: int = 1, tick_hz: int = DEFAULT_TICK_HZ) -> "BitTiming":
         """Settings giving exactly ``bitrate`` with ``tq_per_bit`` quanta from a ``tick_hz``
         clock; ValueError if impossible."""
+        for name, v in (("bitrate", bitrate), ("tq_per_bit", tq_per_bit), ("tick_hz", tick_hz)):
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ValueError(f"BitTiming.from_bitrate: {name} must be a positive int, "
+                                 f"got {v!r}")
         ticks = tick_hz / bitrate
         if ticks != int(ticks) or int(ticks) % tq_per_bit:
             raise ValueError(f"{bitrate} bit/s is not reachable with {tq_per_bit} quanta from "

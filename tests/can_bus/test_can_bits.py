@@ -280,6 +280,12 @@ def test_bit_timing_other_rates():
     assert BitTiming(prescaler=64, tseg1=16, tseg2=8, sjw=4).ticks_per_bit == 64 * 25
     with pytest.raises(ValueError):
         BitTiming.from_bitrate(300_000)
+    # exactly 1 Mbit/s from a clock of no whole number of MHz is allowed
+    assert BitTiming(prescaler=1, tseg1=11, tseg2=4, tick_hz=16_000_000).bitrate == 1_000_000
+    # impossible arguments: ValueError, as documented (ZeroDivisionError before)
+    for args in ((0,), (500_000, 0), (-1,), (500_000, 16, 0.75, 1, 0)):
+        with pytest.raises(ValueError, match="positive int"):
+            BitTiming.from_bitrate(*args)
 
 
 @pytest.mark.parametrize(
@@ -295,6 +301,10 @@ def test_bit_timing_other_rates():
         dict(sjw=5),
         dict(tseg2=2, sjw=3),
         dict(prescaler=1, tseg1=4, tseg2=2),  # 7 ticks a bit: faster than 1 Mbit/s
+        # a clock of no whole number of MHz: 14 ticks of 14.7456 MHz are 1.053 Mbit/s, and
+        # 16 ticks of 16.5 MHz 1.031 Mbit/s (a check rounding tick_hz down let both pass)
+        dict(prescaler=1, tseg1=9, tseg2=4, tick_hz=14_745_600),
+        dict(prescaler=1, tseg1=11, tseg2=4, tick_hz=16_500_000),
         # One-quantum segments: the register fields hold them, the manual forbids them
         # (F2MC-16LX hardware manual ch. 21, BTR: TSEG1 >= 2 TQ, TSEG2 >= 2 TQ).
         dict(tseg1=1, tseg2=8),
