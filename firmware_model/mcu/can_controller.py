@@ -174,8 +174,10 @@ class CanController(CanNode):
 
     @property
     def acknowledges(self) -> bool:
-        """A halted controller (HALT = 1) takes no part in bus traffic: it cannot drive the
-        ACK slot of another node's frame (the bus asks at each frame, see can_bus.bus)."""
+        """A halted controller (HALT = 1) takes no frames and cannot drive the ACK slot of
+        another node's frame (the bus asks at each frame, see can_bus.bus). Simplification:
+        the bus still counts it a receiver for its error counters, so an error frame while it
+        is halted moves its REC, which the MB90F549's would not."""
         return not self._csr & CSR_HALT
 
     __slots__ = (
