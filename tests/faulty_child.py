@@ -24,7 +24,10 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
   for BOOT frames (clause 45; caught only by ``rprs conformance --wrap``);
 - ``masks-never-drop``: a ``ring(mask)`` admits and sends it to LISTEN as it should, but never
   drops a member the mask leaves out, though it counted that member missing too (clause
-  51.3).
+  51.3);
+- ``silent-after-refused``: it refuses a forged or replayed frame, as it should, but does not
+  take the turn that frame closed: it waits for the next robot's (clause 53, authenticated
+  profile).
 """
 from __future__ import annotations
 
@@ -46,6 +49,8 @@ Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
           "invite-every-turn", "deaf-to-masks", "no-cut-off",
           "masks-never-drop", "early-takeovers", "numbers-do-not-wrap", "own-numbers-skip-00")
+AUTH_FAULTS = ("silent-after-refused",)
+"""Faults of the authenticated profile only (the kit's clause 53 step)."""
 
 
 def _delay_switch(set_attr: Setter, ms: int, only_answers: bool) -> None:
@@ -77,6 +82,22 @@ def _no_ack(set_attr: Setter) -> None:
         self._acks = []
         return orig(self, now, out)
     set_attr(Mac, "_build_frame", _build_frame)
+
+
+def _silent_after_refused(set_attr: Setter) -> None:
+    orig = Mac.on_frame
+
+    def on_frame(self, frame, first, end, now):
+        out = orig(self, frame, first, end, now)
+        if any(type(a) is mac_mod.Refused for a in out) and self.phase == mac_mod.HOLD:
+            # the turn the refused frame closed is ours: wait, with no deadline, for a frame
+            # of the next robot's instead (whoever takes the turn over)
+            self.phase = mac_mod.WAIT
+            self.owner = self.succ(self.id)
+            self.turn_start = end
+            self.deadline = None
+        return out
+    set_attr(Mac, "on_frame", on_frame)
 
 
 def _boot_01(set_attr: Setter) -> None:
@@ -192,12 +213,13 @@ def patch(fault: str, set_attr: Setter = setattr) -> None:
      "deaf-to-masks": _deaf_to_masks, "no-cut-off": _no_cut_off,
      "masks-never-drop": _masks_never_drop, "early-takeovers": _early_takeovers,
      "numbers-do-not-wrap": _numbers_do_not_wrap,
-     "own-numbers-skip-00": _own_numbers_skip_00}[fault](set_attr)
+     "own-numbers-skip-00": _own_numbers_skip_00,
+     "silent-after-refused": _silent_after_refused}[fault](set_attr)
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 2 or sys.argv[1] not in FAULTS:
-        sys.exit(f"usage: faulty_child.py {{{'|'.join(FAULTS)}}} child ARGS...")
+    if len(sys.argv) < 2 or sys.argv[1] not in FAULTS + AUTH_FAULTS:
+        sys.exit(f"usage: faulty_child.py {{{'|'.join(FAULTS + AUTH_FAULTS)}}} child ARGS...")
     patch(sys.argv[1])
     # a broken rule may move the MAC along no row of the transition table: that is the point
     os.environ.pop("RPRS_MAC_TABLE_GUARD", None)

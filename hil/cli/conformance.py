@@ -39,6 +39,7 @@ def cmd_conformance(a: argparse.Namespace) -> int:
         rep, error = t.report, str(exc)
     except OSError as exc:
         rep, error = t.report, f"the port failed: {exc}"
+    rep.stopped = error
     from rich import box
     from rich.table import Table
     table = Table(box=box.SIMPLE_HEAD, title=f"robot {a.id} against docs/protocol.md "

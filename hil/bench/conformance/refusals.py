@@ -21,7 +21,14 @@ def _refused(self: Tester, h: Heard, data: bytes, clause: str, name: str, num: i
     """In our turn, ``data`` (status() for the robot with Number ``num``) instead of our
     frame: the robot must act on nothing in it (no ack, no status reply) and go on with
     the ring (clause 53: a failed frame, its turn closed uncertainly)."""
-    nxt, end = self._once_heard(h, data, name)
+    try:
+        nxt, end = self._once_heard(h, data, name, clause)
+    except ConformanceError:
+        # the clause's own verdict, before the run stops: a robot that never takes the
+        # turn after a refused frame does not go on with the ring
+        self.check(clause, name, False, f"it missed its turn after it {MISS_LIMIT} times in "
+                   f"a row", t0)
+        raise
     acted = []
 
     def watch(x: Heard, i: int) -> None:
@@ -200,7 +207,7 @@ def _broken(self: Tester, h: Heard) -> Heard:
     told: list[int | None] = []          # the mask its next frame gave, each time
     for name, data in (("a bad Number digit", bad_digit), ("Length 9999", oversize)):
         try:
-            nxt, end = self._once_heard(h, data, f"a frame with {name}")
+            nxt, end = self._once_heard(h, data, f"a frame with {name}", "41")
         except ConformanceError:
             self.check("41", "a frame that breaks is not acted on and closes the turn",
                        False, f"after {name}: it missed its turn {MISS_LIMIT} times", t0)

@@ -41,19 +41,26 @@ class Report:
     profile: str
     checks: list[Check] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)    # what no clause judges: missed turns
+    stopped: str | None = None
+    """Why the run stopped before its last check (ConformanceError, a port that failed), or
+    None: a run that stopped has not passed, whatever it had checked."""
 
     @property
     def passed(self) -> bool:
-        """Something was checked and every clause passed or was not applicable."""
-        return any(c.applicable for c in self.checks) and \
+        """The run went to its end, something was checked, and every clause passed or was
+        not applicable."""
+        return self.stopped is None and any(c.applicable for c in self.checks) and \
             all(c.passed or not c.applicable for c in self.checks)
 
     def junit(self) -> bytes:
         """JUnit XML: one testcase per clause, a failure element where it failed, a skipped
-        element with the reason where it was not applicable."""
+        element with the reason where it was not applicable; a run that stopped, one more
+        testcase with an error element that says why."""
         suite = ET.Element("testsuite", name=f"rprs conformance robot {self.robot} "
-                           f"({self.profile})", tests=str(len(self.checks)),
+                           f"({self.profile})",
+                           tests=str(len(self.checks) + (self.stopped is not None)),
                            failures=str(sum(c.verdict == "FAIL" for c in self.checks)),
+                           errors=str(int(self.stopped is not None)),
                            skipped=str(sum(c.verdict == "n/a" for c in self.checks)))
         if self.notes:
             ET.SubElement(suite, "system-out").text = "\n".join(self.notes)
@@ -65,6 +72,11 @@ class Report:
                 ET.SubElement(case, "failure", message=c.figure)
             elif c.verdict == "n/a":
                 ET.SubElement(case, "skipped", message=f"not applicable: {c.figure}")
+        if self.stopped is not None:
+            # the checks the run never reached: a CI reading the XML must not pass it
+            case = ET.SubElement(suite, "testcase", classname="run", name="the run goes to "
+                                 "its end", time="0.000")
+            ET.SubElement(case, "error", message=f"stopped: {self.stopped}")
         return ET.tostring(suite, encoding="utf-8", xml_declaration=True)
 
 

@@ -396,6 +396,7 @@ class Tester:
             stopped = False
         except ConformanceError as exc:
             shared = exc.shared
+            self.report.stopped = str(exc)
             raise
         finally:
             self.link.close()
@@ -503,11 +504,13 @@ class Tester:
                 on_frame(h, i)
         return h
 
-    def _once_heard(self, h: Heard, data: bytes, name: str) -> tuple[Heard, int]:
+    def _once_heard(self, h: Heard, data: bytes, name: str,
+                    clause: str) -> tuple[Heard, int]:
         """In our turn after ``h``, ``data`` (a frame that breaks, or one to refuse) instead
         of our frame; the robot's next frame and our End before it. A turn missed after it
         leaves nothing to judge of it (we took the turn over with our plain frame): it is
-        sent again in a later turn, up to ``MISS_LIMIT`` times."""
+        sent again in a later turn, up to ``MISS_LIMIT`` times; ``clause`` says why such a
+        frame still closes our turn."""
         for _ in range(MISS_LIMIT):
             self._note_acks(h)
             acks = self._acks_content()
@@ -517,8 +520,8 @@ class Tester:
                 return nxt, end
             h = nxt
         raise ConformanceError(f"robot {self.robot} missed its turn after {name} "
-                               f"{MISS_LIMIT} times in a row (clause 41: a frame that breaks "
-                               f"closes our turn, and the next is its)")
+                               f"{MISS_LIMIT} times in a row (clause {clause}: such a frame "
+                               f"still closes our turn, and the next is its)")
 
     REPLY_TURNS = 30
     """Turns we wait at most for the robot's reply to a status() (a busy PC, or a CAN side

@@ -8,6 +8,7 @@ tier).
 from __future__ import annotations
 
 import re
+from xml.etree import ElementTree as ET
 
 import pytest
 
@@ -199,6 +200,25 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     elif fault == "invite-every-turn":
         assert "invitations 1, 1, 1" in _figure(rep, "32") and \
             "turns apart, not every 4" in _figure(rep, "32"), why
+
+
+def test_a_robot_that_stops_after_a_refused_frame_fails_clause_53_by_name(monkeypatch):
+    """An authenticated robot that refuses our forged frame but never takes the turn it
+    closed: the run stops there. The kit used to stop with no row for clause 53, a message
+    blaming clause 41, and JUnit XML with no failure (a CI would have passed the robot). Now
+    clause 53 is a FAIL row, the stop names it, and the XML carries the stop as an error."""
+    faulty_child.patch("silent-after-refused", monkeypatch.setattr)
+    rep, stopped, link = _run(1, "rprs", (0, 1), key=RingKey(bytes(range(16))))
+    why = _table(rep, stopped, link)
+    assert stopped is not None and "(clause 53:" in stopped and "clause 41" not in stopped, why
+    c53 = [c for c in rep.checks if c.clause == "53"]
+    assert [c.verdict for c in c53] == ["FAIL"], why
+    assert c53[0].figure.startswith("it missed its turn after it 3 times in a row"), why
+    assert not rep.passed and rep.stopped == stopped
+    suite = ET.fromstring(rep.junit())
+    assert suite.get("errors") == "1" and suite.get("failures") != "0", why
+    err = [c.find("error") for c in suite.iter("testcase") if c.find("error") is not None]
+    assert len(err) == 1 and err[0].get("message") == f"stopped: {stopped}"
 
 
 @pytest.mark.parametrize("robot, team, key", [
