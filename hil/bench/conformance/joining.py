@@ -55,6 +55,13 @@ def _stops_announcing(self: Tester, h: Heard) -> Heard:
     whether it stops."""
     self._note_acks(h)
     t0 = self._secs()
+    if h.frame.type not in (5, 6):
+        # no BOOT/JOIN answer (clause 34: none, or one every member refuses, clause 53):
+        # nothing of its was acknowledged, so there is nothing to stop
+        self.check("36", "stops its BOOT/JOIN once acknowledged", True,
+                   f"its answer was no BOOT/JOIN frame (Type '{h.frame.type}'): nothing "
+                   f"acknowledged", t0, applicable=False)
+        return h
     announcing: list[int] = []
     excused: list[int] = []
 

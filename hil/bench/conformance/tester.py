@@ -12,7 +12,7 @@ from firmware_model.radio.auth import seal as auth_seal, strip as auth_strip
 from firmware_model.radio.content import parse_content
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from firmware_model.radio.errors import ContentError
-from firmware_model.radio.frame import BROADCAST, HEADER, Frame
+from firmware_model.radio.frame import BROADCAST, HEADER, Frame, FrameType
 from firmware_model.radio.integrity import check as crc_check, seal as crc_seal
 from firmware_model.timing import TICK_HZ
 
@@ -154,16 +154,19 @@ class Tester:
 
     def _authenticated(self, f: Frame) -> Frame:
         """The robot's frame ``f`` with its ``auth(...)`` taken off, its tag and freshness
-        checked (clauses 52-53); a frame that fails keeps its Content (it reads as
-        unreadable) and is noted for clause 52's verdict."""
+        checked (clauses 52-53). A frame that fails is noted for clause 52's verdict and, as
+        every member refuses it (clause 53), judged for its timing only: it becomes a control
+        frame with nothing in it, so that no other check credits what it carries (an answer
+        to an invitation, an ack, a reply)."""
         assert self.key is not None       # (called only in an authenticated ring)
         fresh = auth_check(self.key, f)
         if fresh is None:
             self.auth_bad.append(f"Number {f.num:02d}: no valid tag")
-            return f
+            return _refused_frame(f)
         if self.rx_fresh is not None and fresh <= self.rx_fresh:
             self.auth_bad.append(f"Number {f.num:02d}: freshness {fresh:08x} after "
                                  f"{self.rx_fresh:08x}")
+            return _refused_frame(f)
         self.rx_fresh = fresh
         return Frame(dst=f.dst, src=f.src, num=f.num, type=f.type, content=auth_strip(f.content))
 
@@ -597,3 +600,10 @@ class Tester:
     _fall_silent = silence._fall_silent
     _dropped = silence._dropped
     _rejoin = silence._rejoin
+
+
+def _refused_frame(f: Frame) -> Frame:
+    """What a member makes of the robot's frame ``f`` that it refuses (a wrong tag, a stale
+    freshness: clause 53): its timing and its Source, nothing it carries (a control frame,
+    no Content)."""
+    return Frame(dst=BROADCAST, src=f.src, num=f.num, type=FrameType.BROADCAST_INFO, content=b"")

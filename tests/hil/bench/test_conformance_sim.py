@@ -221,6 +221,24 @@ def test_a_robot_that_stops_after_a_refused_frame_fails_clause_53_by_name(monkey
     assert len(err) == 1 and err[0].get("message") == f"stopped: {stopped}"
 
 
+def test_frames_with_a_wrong_tag_earn_the_robot_no_verdict_but_clause_52s(monkeypatch):
+    """An authenticated robot that checks our tags right but signs its own frames with
+    another key: every member refuses every frame of its (clause 53). The kit used to judge
+    their Content anyway: "answers an invitation" (34), its BOOT's Number (29), acks (36, 47,
+    48) passed on frames nobody may act on. Now such a frame counts for its timing only:
+    clause 52 fails by name, and nothing it carries passes a clause."""
+    import firmware_model.radio.auth as auth_mod
+    key, other = RingKey(bytes(range(16))), RingKey(bytes(16))
+    seal = auth_mod.seal
+    monkeypatch.setattr(auth_mod, "seal", lambda k, *a: seal(other, *a))
+    rep, stopped, link = _run(1, "rprs", (0, 1), key=key)
+    why = _table(rep, stopped, link)
+    verdicts = _verdicts(rep)
+    assert verdicts.get("52") == {"FAIL"} and "no valid tag" in _figure(rep, "52"), why
+    for clause in ("34", "29", "36", "47", "48"):
+        assert "pass" not in verdicts.get(clause, set()), (clause, why)
+
+
 @pytest.mark.parametrize("robot, team, key", [
     (1, None, None), (6, (0, 6), None), (3, None, RingKey(bytes(range(16))))],
     ids=["1-default", "6-small", "3-auth"])
