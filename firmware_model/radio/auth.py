@@ -19,6 +19,7 @@ The PC side uses the standard library's ``hmac`` and ``hashlib``: no crypto is w
 """
 from __future__ import annotations
 
+import datetime
 import hmac
 import re
 from dataclasses import dataclass
@@ -42,22 +43,38 @@ SHA256_BLOCK = 64
 
 CLOCK_EPOCH = 1_767_225_600
 """2026-01-01 00:00 UTC: a station with no flash (a PC) seeds its freshness counter from its
-clock, ``CLOCK_RATE`` a second since this instant (clause 53)."""
+clock, ``CLOCK_RATE`` a second since its key's epoch (clause 52), this instant unless the key
+file gives another (``epoch = YYYY-MM-DD``, clause 54)."""
 CLOCK_RATE = 32
 """Freshness values a second of a clock-seeded counter: more than the frames any station can
 send in a second (a lone member, the fastest, sends one every 55 ms or more), so a restarted
 PC always starts above every value it sent before."""
 
 
+KEY_FILE_MAX = 64 * 1024
+"""Bytes a key file may hold at most (a key line and comments): a longer one, or a device
+that never ends (``/dev/zero``), is refused, not read into memory."""
+
+
 class KeyFileError(ValueError):
     """A key file that cannot be used: one line saying which file and what is wrong."""
 
 
+class FreshnessExhausted(RuntimeError):
+    """A station's freshness counter passed ``ffffffff`` under its key: it may send nothing
+    more under that key (a value would repeat, clause 52); the ring key must be rotated
+    (clause 54)."""
+
+
 @dataclass(frozen=True)
 class RingKey:
-    """The ring's pre-shared key (16 bytes) and the inner and outer HMAC states it gives."""
+    """The ring's pre-shared key (16 bytes) and the inner and outer HMAC states it gives;
+    ``epoch``: the instant (Unix seconds, a UTC midnight) from which a PC's clock-seeded
+    freshness counter counts under this key (clause 54's ``epoch =`` line; if none,
+    2026-01-01 00:00 UTC)."""
 
     key: bytes
+    epoch: int = CLOCK_EPOCH
 
     def __post_init__(self) -> None:
         if len(self.key) != KEY_BYTES:
@@ -72,6 +89,7 @@ class RingKey:
 
 
 _KEY_LINE = re.compile(r"key[ \t]*=[ \t]*([0-9A-Fa-f]{32})\Z")
+_EPOCH_LINE = re.compile(r"epoch[ \t]*=[ \t]*([0-9]{4}-[0-9]{2}-[0-9]{2})\Z")
 
 
 def load_key(path: str | Path) -> RingKey:
@@ -79,7 +97,12 @@ def load_key(path: str | Path) -> RingKey:
     line ``key = `` followed by 32 hex digits. Raises KeyFileError with one line."""
     p = Path(path)
     try:
-        text = p.read_bytes().decode("ascii")      # (no newline translation: clause 54's)
+        with p.open("rb") as fh:
+            raw = fh.read(KEY_FILE_MAX + 1)
+        if len(raw) > KEY_FILE_MAX:
+            raise KeyFileError(f"key file {p}: longer than {KEY_FILE_MAX} bytes: not a key "
+                               f"file")
+        text = raw.decode("ascii")      # (no newline translation: clause 54's)
     except FileNotFoundError:
         raise KeyFileError(f"key file {p}: no such file") from None
     except IsADirectoryError:
@@ -89,6 +112,7 @@ def load_key(path: str | Path) -> RingKey:
     except OSError as exc:
         raise KeyFileError(f"key file {p}: cannot read it ({exc.strerror or exc})") from None
     keys = []
+    epochs = []
     # exactly clause 54: lines end with LF or CRLF (no other line break), stripped of spaces
     # and tabs only
     for n, line in enumerate(text.split("\n"), 1):
@@ -96,24 +120,54 @@ def load_key(path: str | Path) -> RingKey:
         if not s or s.startswith("#"):
             continue
         m = _KEY_LINE.match(s)
-        if m is None:
+        if m is not None:
+            keys.append(bytes.fromhex(m.group(1)))
+            continue
+        e = _EPOCH_LINE.match(s)
+        if e is None:
             raise KeyFileError(f"key file {p}, line {n}: expected 'key = ' and 32 hex digits "
-                               f"(a 128-bit key), or a # comment")
-        keys.append(bytes.fromhex(m.group(1)))
+                               f"(a 128-bit key), 'epoch = YYYY-MM-DD', or a # comment")
+        try:
+            day = datetime.date.fromisoformat(e.group(1))
+        except ValueError:
+            raise KeyFileError(f"key file {p}, line {n}: epoch {e.group(1)} is no date") \
+                from None
+        epochs.append(int(datetime.datetime(day.year, day.month, day.day,
+                                            tzinfo=datetime.timezone.utc).timestamp()))
     if len(keys) != 1:
         raise KeyFileError(f"key file {p}: " + ("no 'key = ' line" if not keys else
                                                 f"{len(keys)} 'key = ' lines, one expected"))
-    return RingKey(keys[0])
+    if len(epochs) > 1:
+        raise KeyFileError(f"key file {p}: {len(epochs)} 'epoch = ' lines, one at most")
+    return RingKey(keys[0], epochs[0] if epochs else CLOCK_EPOCH)
 
 
-def clock_freshness(unix_time: float) -> int:
-    """The first freshness value of a station with no flash started at ``unix_time``."""
-    return max(0, min(FRESH_MAX, int((unix_time - CLOCK_EPOCH) * CLOCK_RATE)))
+def clock_freshness(unix_time: float, epoch: int = CLOCK_EPOCH) -> int:
+    """The first freshness value of a station with no flash started at ``unix_time``, under
+    a key whose epoch is ``epoch`` (clause 52). Raises FreshnessExhausted from
+    ``epoch`` + 4.25 years on, when the values left would not last (the key is due for
+    rotation, clause 54)."""
+    fresh = max(0, int((unix_time - epoch) * CLOCK_RATE))
+    if fresh >= FRESH_MAX:
+        day = datetime.datetime.fromtimestamp(epoch, datetime.timezone.utc).date()
+        raise FreshnessExhausted(
+            f"the ring key's freshness values ran out: a PC's counter counts {CLOCK_RATE} a "
+            f"second from the key's epoch ({day}) and has passed ffffffff; rotate the key, "
+            f"its file with a new 'epoch = ' line (docs/protocol.md clause 54)")
+    return fresh
 
 
 def seal(key: RingKey, dst: int, src: int, num: int, type: int, body: bytes,
          fresh: int) -> Frame:
-    """The frame carrying ``body`` followed by ``auth(fresh,tag)``."""
+    """The frame carrying ``body`` followed by ``auth(fresh,tag)``; FreshnessExhausted for
+    a value past ``ffffffff`` (it would not fit its 8 digits, and the counter must not
+    wrap: clause 52)."""
+    if not 0 <= fresh <= FRESH_MAX:
+        if fresh > FRESH_MAX:
+            raise FreshnessExhausted(
+                "the freshness counter passed ffffffff under this ring key: nothing more may "
+                "be sent under it; rotate the key (docs/protocol.md clause 54)")
+        raise ValueError(f"a freshness value is 0..{FRESH_MAX:x}, got {fresh}")
     n = len(body) + AUTH_TEXT_LEN
     covered = b"%d%d%02d%d%04d" % (dst, src, num, type, n) + body + b"auth(%08x," % fresh
     return Frame(dst=dst, src=src, num=num, type=type,

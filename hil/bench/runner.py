@@ -34,7 +34,7 @@ from firmware_model.radio.mac import (
     UNACKNOWLEDGED, Deliver, Disable, DuplicateId, ForeignRing, Join, MacConfig, Message, Miss,
     ModeChange, NumberBehind, Outcome, Refused, RotationalMac, SubmitError, Transmit, TxEnable,
 )
-from firmware_model.radio.auth import clock_freshness
+from firmware_model.radio.auth import FreshnessExhausted, clock_freshness
 from firmware_model.station import RadioStation, Stalled, build_station
 from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
 
@@ -267,6 +267,9 @@ class Runner:
                 self.sched.run_forever()
             else:
                 self.sched.run_for(seconds)
+        except FreshnessExhausted as exc:
+            # (a PC's counter ran out while it ran: it may send nothing more under this key)
+            self.fail(str(exc))
         finally:
             for sig, h in old.items():
                 signal.signal(sig, h)
@@ -292,7 +295,11 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
         # the clock, above every value it sent before (docs/protocol.md clause 52).
         mac = station.mac
         assert isinstance(mac, RotationalMac)   # (a station is built with the paper's MAC)
-        mac.auth_tx = clock_freshness(time.time())
+        try:
+            mac.auth_tx = clock_freshness(time.time(), config.auth.epoch)
+        except FreshnessExhausted as exc:
+            port.close()
+            raise RunError(str(exc)) from None
     try:
         channel = SerialChannel(runner.sched, port, txen)
     except PortError as exc:

@@ -16,6 +16,7 @@ VERDICT_STYLE = {"pass": "[green]pass[/green]", "FAIL": "[red]FAIL[/red]", "n/a"
 def cmd_conformance(a: argparse.Namespace) -> int:
     from ..bench.conformance import ConformanceError, Tester
     from ..bench.serial_radio import PortError
+    from firmware_model.radio.auth import FreshnessExhausted
     if a.tester is not None and a.tester == a.id:
         raise UserError(f"--tester must differ from --id (both {a.id})")
     me = a.tester if a.tester is not None else (0 if a.id != 0 else 1)
@@ -30,7 +31,7 @@ def cmd_conformance(a: argparse.Namespace) -> int:
                    progress=None if quiet else lambda s: print(s, file=sys.stderr, flush=True),
                    key=a.auth_key, team=tuple(a.team) if a.team else tuple(range(7)),
                    checksum=a.checksum, wrap=a.wrap)
-    except (PortError, ValueError) as exc:
+    except (PortError, ValueError, FreshnessExhausted) as exc:
         raise UserError(str(exc)) from None
     try:
         rep = t.run()
@@ -39,6 +40,8 @@ def cmd_conformance(a: argparse.Namespace) -> int:
         rep, error = t.report, str(exc)
     except OSError as exc:
         rep, error = t.report, f"the port failed: {exc}"
+    except FreshnessExhausted as exc:
+        rep, error = t.report, str(exc)
     rep.stopped = error
     from rich import box
     from rich.table import Table

@@ -21,8 +21,14 @@ REAL_DATES = {
     ("firmware_model/radio/auth.py", "2026-01-01 00:00 UTC"),
     ("docs/protocol.md", "2026-01-01 00:00 UTC"),
     ("tests/hil/bench/test_stranger_robot.py", "2026-01-01 00:00 UTC"),
+    ("tests/firmware_model/radio/test_auth.py", "2026-01-01 00:00 UTC"),
+    # a key file's own epoch line (clause 54), and malformed ones
+    ("tests/firmware_model/radio/test_auth.py", "2030-03-01"),
+    ("tests/firmware_model/radio/test_auth.py", "2030-02-30"),
+    ("tests/firmware_model/radio/test_auth.py", "2030-04-01"),
 }
-"""Dates that are part of the product: the authenticated profile's freshness epoch."""
+"""Dates that are part of the product: the authenticated profile's freshness epoch, and the
+epochs of key files in the tests."""
 
 NUMBERS = {"seven": 7, "eight": 8, "nine": 9, "ten": 10, "eleven": 11, "twelve": 12,
            "sixteen": 16}

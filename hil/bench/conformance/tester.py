@@ -75,7 +75,9 @@ class Tester:
         self.key = key                    # the ring key: the authenticated profile (§4.11)
         if key is not None and profile == "paper":
             raise ValueError("the paper profile has no authenticated profile")
-        self.fresh = clock_freshness(time.time())   # our next freshness value
+        # our next freshness value (FreshnessExhausted, a ValueError's kin, is said in one
+        # line by the command: the key is due for rotation)
+        self.fresh = clock_freshness(time.time(), key.epoch) if key is not None else 0
         self.rx_fresh: int | None = None  # the robot's last freshness value
         self.auth_bad: list[str] = []     # the robot's frames with a wrong tag or stale value
         self.checksum = checksum          # the checksum extension (clause 20)

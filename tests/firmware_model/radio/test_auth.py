@@ -181,6 +181,48 @@ def test_the_key_file(tmp_path):
     assert "00010203" not in repr(KEY)
 
 
+def test_a_key_files_epoch_restarts_a_pcs_clock_seeded_counter(tmp_path):
+    """Clause 54: a key file may give the epoch from which a PC's counter counts (a rotated
+    key's date); without one it is 2026-01-01 00:00 UTC. A PC's counter (32 a second) runs out 4.25
+    years after the epoch: it used to go on past ffffffff into 9 digits, every frame
+    malformed (``auth(100000000,...`` after ``auth(ffffffff,...``), so a PC started after
+    April 2030 sent one valid frame. Now its start is refused in one line naming rotation,
+    and a key with a recent epoch starts again from 0."""
+    p = tmp_path / "rotated.key"
+    p.write_text("# rotated\nkey = 000102030405060708090a0b0c0d0e0f\nepoch = 2030-03-01\n")
+    k = load_key(p)
+    assert k.key == KEY.key and k.epoch == 1_898_553_600          # 2030-03-01 00:00 UTC
+    assert load_key(tmp_path / "rotated.key") != KEY                 # another epoch
+    assert auth.clock_freshness(1_898_553_600 + 10.5, k.epoch) == 336
+    april_2030 = auth.CLOCK_EPOCH + (auth.FRESH_MAX + 1) / auth.CLOCK_RATE
+    with pytest.raises(auth.FreshnessExhausted, match="rotate the key"):
+        auth.clock_freshness(april_2030)                             # the default epoch
+    assert auth.clock_freshness(april_2030, k.epoch) > 0             # the rotated key
+    for text, said in {"epoch = 2030-02-30": "no date", "epoch = 30-03-01": "line 2",
+                       "epoch = 2030-03-01\nepoch = 2030-04-01": "2 'epoch = ' lines"}.items():
+        p.write_text("key = 000102030405060708090a0b0c0d0e0f\n" + text + "\n")
+        with pytest.raises(KeyFileError, match=re.escape(said)):
+            load_key(p)
+
+
+def test_the_counter_never_goes_past_ffffffff():
+    """Clause 52: eight hex digits, never a value twice: sealing past ffffffff is refused."""
+    assert auth.seal(KEY, 7, 0, 0, 3, b"", auth.FRESH_MAX).content.startswith(b"auth(ffffffff,")
+    with pytest.raises(auth.FreshnessExhausted, match="rotate the key"):
+        auth.seal(KEY, 7, 0, 0, 3, b"", auth.FRESH_MAX + 1)
+
+
+def test_a_key_file_that_never_ends_is_refused_not_read_into_memory(tmp_path):
+    """``--auth-key /dev/zero`` read without end: MemoryError and a traceback, or the kernel
+    killed it. Now one line."""
+    with pytest.raises(KeyFileError, match="longer than 65536 bytes"):
+        load_key("/dev/zero")
+    big = tmp_path / "big.key"
+    big.write_text("# padding\n" * 10_000 + "key = 000102030405060708090a0b0c0d0e0f\n")
+    with pytest.raises(KeyFileError, match="longer than"):
+        load_key(big)
+
+
 def test_a_bad_key_file_is_one_line_for_the_cli_user(tmp_path):
     p = tmp_path / "bad.key"
     p.write_text("key = xyz\n")
