@@ -6,16 +6,18 @@ import argparse
 import binascii
 import io
 import json
+import re
 import sys
 from typing import Iterable, cast
 
-from firmware_model.radio.content import parse_content
+from firmware_model.radio import auth, integrity
+from firmware_model.radio.content import AUTH_TAIL, parse_content
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.frame import MAX_CONTENT, Frame
 from firmware_model.timing import PC_BYTE_TICKS, max_content_bytes
 
-from .common import UserError, digit
+from .common import UserError, auth_key, digit
 
 def cmd_encode(a: argparse.Namespace) -> int:
     content = a.content.encode("ascii", "strict") if a.content.isascii() else None
@@ -35,9 +37,17 @@ def cmd_encode(a: argparse.Namespace) -> int:
                 f"a PC sends at most {pc_max} Content bytes (its bytes are longer; clause 14)")
         print(f"rprs encode: note: {what}: no station sends this frame (docs/protocol.md "
               f"§3); receivers must still take it", file=sys.stderr)
+    if a.fresh is not None and a.auth_key is None:
+        raise UserError("--fresh goes with --auth-key (the freshness value of a signed frame)")
     try:
         parse_content(content)
-        frame = Frame(dst=a.dst, src=a.src, num=a.num, type=a.type, content=content)
+        if a.auth_key is not None:
+            # the authenticated profile's last command, sealed as a station does (clause 52)
+            frame = auth.seal(a.auth_key, a.dst, a.src, a.num, a.type, content, a.fresh or 0)
+        elif a.checksum:
+            frame = integrity.seal(a.dst, a.src, a.num, a.type, content)      # clause 20
+        else:
+            frame = Frame(dst=a.dst, src=a.src, num=a.num, type=a.type, content=content)
         data = frame.encode()
     except WireError as exc:
         raise UserError(str(exc)) from None
@@ -45,17 +55,34 @@ def cmd_encode(a: argparse.Namespace) -> int:
     return 0
 
 
-def _frame_json(frame: Frame) -> dict:
+def _frame_json(frame: Frame, key=None) -> dict:
+    """A frame as JSON: its fields, its commands (an ``auth(...)`` or ``crc(...)`` that ends
+    it reported apart, with whether it holds: ``tag_ok`` with the ring key, else null;
+    ``crc_ok``), or why its Content is unreadable."""
+    content = frame.content
     d = {"dst": frame.dst, "src": frame.src, "num": frame.num, "type": frame.type,
-         "len": len(frame.content), "content": frame.content.decode("ascii")}
+         "len": len(content), "content": content.decode("ascii")}
+    if AUTH_TAIL.search(content):
+        fresh, tag = content[-auth.AUTH_TEXT_LEN + 5:-1].decode("ascii").split(",")
+        d["auth"] = {"fresh": fresh, "tag": tag, "tag_ok": None if key is None else
+                     auth.check(key, frame) is not None}
+        content = auth.strip(content)
+    elif CRC_TAIL.search(content):
+        d["crc"] = int(content[-6:-1])
+        d["crc_ok"] = integrity.check(frame)
+        content = integrity.strip(content)
     try:
-        d["commands"] = [[c.name, list(c.args)] for c in parse_content(frame.content)]
+        d["commands"] = [[c.name, list(c.args)] for c in parse_content(content)]
     except WireError as exc:
         d["content_error"] = str(exc)
     return d
 
 
-def _decode_bytes(chunks, out) -> tuple[int, int]:
+CRC_TAIL = re.compile(rb"crc\([0-9]{5}\)\Z")
+"""``crc(NNNNN)`` ending a Content (the checksum extension, docs/protocol.md clause 20)."""
+
+
+def _decode_bytes(chunks, out, key=None) -> tuple[int, int]:
     """Print what the bytes hold, a row each; returns (frames decoded, bytes read)."""
     d = Deframer()
     offset = 0
@@ -64,7 +91,7 @@ def _decode_bytes(chunks, out) -> tuple[int, int]:
         for ev in d.feed(data, offset, 1):
             if isinstance(ev, FrameReceived):
                 frames += 1
-                out({"offset": ev.first, "frame": _frame_json(ev.frame)})
+                out({"offset": ev.first, "frame": _frame_json(ev.frame, key)})
             elif isinstance(ev, Garbage):
                 out({"offset": ev.first, "garbage": ev.count})
             elif isinstance(ev, FrameFailed):
@@ -98,17 +125,29 @@ def cmd_decode(a: argparse.Namespace) -> int:
             # (a buffered reader: read1 hands over what has come, without waiting for more)
             src = cast(io.BufferedIOBase, sys.stdin.buffer)
             chunks = iter(lambda: src.read1(4096), b"")
-        frames, size = _decode_bytes(chunks, out)
+        frames, size = _decode_bytes(chunks, out, a.auth_key)
     else:
         if not a.hexdata:
             raise UserError("give the frame as hex, or --stream to read stdin")
-        frames, size = _decode_bytes([_unhex(" ".join(a.hexdata))], out)
+        frames, size = _decode_bytes([_unhex(" ".join(a.hexdata))], out, a.auth_key)
     sys.stdout.flush()
     if not frames:       # found nothing: status 1, as rprs bench link or cycle hearing no frame
         print(f"rprs decode: no frame in {size} bytes of input", file=sys.stderr)
         return 1
     print(f"{frames} frame(s) decoded", file=sys.stderr)
     return 0
+
+
+def _freshness(text: str) -> int:
+    """``--fresh``: 0 to ffffffff, decimal or ``0x`` hex."""
+    try:
+        v = int(text[2:], 16) if text.lower().startswith("0x") else int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"freshness value {text!r} is not a whole number "
+                                         f"(decimal, or 0x and hex digits)") from None
+    if not 0 <= v <= auth.FRESH_MAX:
+        raise argparse.ArgumentTypeError(f"freshness value must be 0-0xffffffff, got {text}")
+    return v
 
 
 def add(sub) -> None:
@@ -122,7 +161,16 @@ def add(sub) -> None:
     e.add_argument("--type", type=digit(0, 9, "type"), default=2,
                    help="Type digit (default %(default)s, a message; docs/protocol.md §3)")
     e.add_argument("--spaced", action="store_true", help="space between bytes")
-    e.add_argument("content", help="Content text, e.g. 'movex(10)moveto(1.5,-2,0)'")
+    seal = e.add_mutually_exclusive_group()
+    seal.add_argument("--checksum", action="store_true",
+                      help="end the Content with its crc(NNNNN) (docs/protocol.md clause 20)")
+    seal.add_argument("--auth-key", type=auth_key, metavar="FILE", default=None,
+                      help="sign the frame: end the Content with auth(fresh,tag) under this "
+                      "ring key file (docs/protocol.md clause 52)")
+    e.add_argument("--fresh", type=_freshness, default=None, metavar="N",
+                   help="with --auth-key: the freshness value, decimal or 0x hex (default 0)")
+    e.add_argument("content", help="Content text, e.g. 'movex(10)moveto(1.5,-2,0)'; without "
+                   "the crc() or auth() that --checksum or --auth-key add")
     e.set_defaults(func=cmd_encode)
     c = sub.add_parser("decode", help="find frames in hex or in a byte stream",
                        description="Find frames in hex or in a byte stream: a JSON line on "
@@ -132,4 +180,7 @@ def add(sub) -> None:
     c.add_argument("--stream", action="store_true", help="read bytes from stdin")
     c.add_argument("--hex", action="store_true", help="with --stream: stdin is hex text "
                    "(without --stream the HEX arguments are hex already)")
+    c.add_argument("--auth-key", type=auth_key, metavar="FILE", default=None,
+                   help="check each auth(fresh,tag) with this ring key file ('tag_ok'; "
+                   "without it the tag is shown, not checked); crc() is always checked")
     c.set_defaults(func=cmd_decode)

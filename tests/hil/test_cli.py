@@ -179,6 +179,36 @@ def test_decode_reports_frames_and_garbage(capsys):
     assert "1 frame(s)" in err
 
 
+def test_signed_and_checksummed_frames_are_made_and_checked_by_the_tools(capsys, tmp_path):
+    """``auth`` and ``crc`` end a Content (clauses 20, 52): ``rprs decode`` called ``auth`` an
+    unknown command and checked neither, and ``rprs encode`` could make neither, so the tools
+    could not make or check a signed frame. The spec's signed example decodes with its tag
+    checked under the spec's key; one digit off, the tag fails; encode makes the same bytes."""
+    key = tmp_path / "ring.key"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
+    spec = ("0f0a05313430313230303331737461747573282961757468283030303030303261"
+            "2c333438623164646529" "1719")      # docs/protocol.md §4.11, robot 4's status()
+    code, out, _ = rprs(capsys, "encode", "--src", "4", "--dst", "1", "--num", "1",
+                        "--auth-key", str(key), "--fresh", "0x2a", "status()")
+    assert code == 0 and out.strip() == spec
+    code, out, _ = rprs(capsys, "decode", spec, "--auth-key", str(key))
+    f = json.loads(out)["frame"]
+    assert f["auth"] == {"fresh": "0000002a", "tag": "348b1dde", "tag_ok": True}
+    assert f["commands"] == [["status", []]] and "content_error" not in f
+    forged = spec.replace("3164646529", "3164646629")                  # tag ...1dde -> ...1ddf
+    code, out, _ = rprs(capsys, "decode", forged, "--auth-key", str(key))
+    assert json.loads(out)["frame"]["auth"]["tag_ok"] is False
+    code, out, _ = rprs(capsys, "decode", spec)                           # no key: not checked
+    assert json.loads(out)["frame"]["auth"]["tag_ok"] is None
+    code, out, _ = rprs(capsys, "encode", "--src", "0", "--dst", "1", "--checksum",
+                        "status()")
+    code, out, _ = rprs(capsys, "decode", out.strip())
+    f = json.loads(out)["frame"]
+    assert f["crc_ok"] is True and f["content"].endswith("crc(%05d)" % f["crc"])
+    code, _, err = rprs(capsys, "encode", "--src", "0", "--dst", "1", "--fresh", "3", "x()")
+    assert code == 2 and "--fresh goes with --auth-key" in err
+
+
 def test_decode_stream_from_stdin_bytes(monkeypatch, capsys):
     frame = bytes.fromhex("0f0a053231303532303030396d6f766578283130291719")
     data = b"\x00\x0f\x0a\x05" + frame + frame[:10]      # partial header, frame, truncated
