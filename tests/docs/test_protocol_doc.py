@@ -92,7 +92,7 @@ def conversation() -> list[tuple[int, bytes]]:
     cfg = MacConfig(team=frozenset({1, 4}))
     macs = {1: RotationalMac(1, cfg), 4: RotationalMac(4, cfg)}
     off = {4: (1500 * MS, 3600 * MS)}
-    until = 3700 * MS
+    until = 3760 * MS
     on: set[int] = set()
     air: list[tuple[int, int, int]] = []          # (first bit, end, sender)
     queue: list = []
@@ -138,7 +138,10 @@ def conversation() -> list[tuple[int, bytes]]:
                 act(robot, mac.power_on(t), t)
             elif kind == "tx done":
                 act(robot, mac.on_tx_done(t), t)
-            elif kind == "frame" and robot in on and alive(robot, t):
+            elif kind == "frame" and robot in on and alive(robot, t) and \
+                    alive(robot, rest[1] - CHILD_BYTE_TICKS):
+                # heard only if its radio was on for the whole frame, first bit to End (a
+                # radio back on mid-frame hears no Header: clause 15)
                 act(robot, mac.on_frame(rest[0], rest[1], t, t), t)
             elif kind == "submit":
                 mac.submit(rest[0], rest[1], t, rest[2])
