@@ -105,6 +105,10 @@ class Order:
     ended: int | None = None
     history: list[tuple[int, str]] = field(default_factory=list)
     open_parts: list[str] = field(default_factory=list)   # commands not yet reported on
+    expect: dict[int, list[str]] = field(default_factory=dict)
+    """A broadcast: each robot it went to (the ring when it was first sent, less those that
+    never acknowledged it) -> the commands that robot has yet to report on. Its reports are
+    news (the broadcast ended ``sent-only``), but they answer it, not a later order."""
 
     def seconds(self, now: int) -> float:
         return (now - self.queued) / TICK_HZ
@@ -170,11 +174,15 @@ class OrderBook:
             for o in self.open_orders():
                 m = o.message                   # (a queued order has its message)
                 if o.state == "queued" and m is not None and m.num == f.num and m.dst == f.dst:
+                    if o.dst == BROADCAST:
+                        o.expect = {r: list(o.open_parts) for r in m.awaiting}
                     self._set(o, "sent", now)
         elif isinstance(a, Outcome):
             ended = self._by_msg.get(id(a.message))
             if ended is None or ended.finished:
                 return
+            for r in a.message.awaiting:        # never acknowledged: it may not have it
+                ended.expect.pop(r, None)
             if a.delivered:
                 self._acknowledged(ended, now)
             elif a.message.state == UNACKNOWLEDGED or ended.dst == BROADCAST:
@@ -203,8 +211,9 @@ class OrderBook:
             self._maybe_done(o, now)
 
     def _arrived(self, o: Order, now: int) -> None:
-        """The robot answered about ``o``: it has it, acknowledged or not yet."""
-        if o.state in ("queued", "sent"):
+        """The robot answered about ``o`` (sent: :meth:`_owner` gives no queued order): it has
+        it, acknowledged or not yet."""
+        if o.state == "sent":
             self._set(o, "acknowledged", now)
 
     def _part_ended(self, o: Order, part: str, now: int) -> None:
@@ -225,14 +234,24 @@ class OrderBook:
         return part == o.text or part in o.open_parts
 
     def _news(self, d: Deliver, now: int) -> None:
-        """A message for the father: a done()/fail() about an order, a status reply, an
-        act(n,1) notice, or other news."""
+        """A message for the father: a status reply, a done()/fail() about an order, an
+        act(n,1) notice, or other news. Each is about the oldest order the robot has had
+        (sent, not queued) that it has yet to report on (:meth:`_owner`): a robot carries out
+        and reports its orders in the order it takes them."""
         cmds = d.commands
         names = [c.name for c in cmds]
         matched = False
-        if names and names[0] in ("done", "fail") and len(cmds) >= 2:
+        if _is_status_reply(cmds) and d.dst != BROADCAST:
+            # (before done/fail: a reply that starts with fail(31), joint 1 not answering)
+            o = self._owner(d.src, lambda o, parts: "status()" in parts, "status()")
+            if o is not None:
+                matched = True
+                self._arrived(o, now)
+                o.reply = describe_reply(cmds)
+                self._part_ended(o, "status()", now)
+        elif names and names[0] in ("done", "fail") and len(cmds) >= 2:
             about = "".join(c.text() for c in cmds[1:])
-            o = self._oldest(d.src, lambda o: self._about(o, about))
+            o = self._owner(d.src, lambda o, parts: about in parts or about == o.text, about)
             if o is not None:
                 matched = True
                 self._arrived(o, now)
@@ -242,36 +261,39 @@ class OrderBook:
                     code = int(cmds[0].args[0])
                     part = "" if about == o.text else f": {about}"
                     self._set(o, "failed", now, f"fail({code}): {fail_reason(code)}{part}")
-        elif any(n in ("joint", "wheel", "paw") for n in names) and d.dst != BROADCAST:
-            o = self._oldest(d.src, lambda o: "status()" in o.open_parts)
+        elif names[:1] == ["act"] and len(cmds[0].args) == 2 and cmds[0].args[1] == 1:
+            about = f"act({cmds[0].args[0]},0)"
+            o = self._owner(d.src, lambda o, parts: about in parts, about)
             if o is not None:
                 matched = True
                 self._arrived(o, now)
-                o.reply = describe_reply(cmds)
-                self._part_ended(o, "status()", now)
-        elif names[:1] == ["act"] and len(cmds[0].args) == 2 and cmds[0].args[1] == 1:
-            about = f"act({cmds[0].args[0]},0)"
-            o = self._oldest(d.src, lambda o: about in o.open_parts, broadcast=True)
-            if o is not None:
-                matched = True
-                if o.dst != BROADCAST:
-                    self._arrived(o, now)
-                    self._part_ended(o, about, now)
-                else:
-                    self._set(o, "done", now)
+                self._part_ended(o, about, now)
         if not matched and self.on_news is not None:
             self.on_news(d, now)
 
-    def _oldest(self, robot: int, pred: Callable[[Order], bool],
-                broadcast: bool = False) -> Order | None:
-        """The oldest open order to ``robot`` that ``pred`` takes; a broadcast order too with
-        ``broadcast`` (only ``act(n,1)`` ends one: every robot answers a broadcast, and one
-        robot's ``done()``, ``fail()`` or status reply is no answer for all; the broadcast
-        ends ``sent-only``, the answers are news)."""
+    def _owner(self, robot: int, pred: Callable[[Order, list[str]], bool],
+               part: str) -> Order | None:
+        """The order ``robot``'s report on ``part`` is about: the oldest order it has had
+        (sent or further: never a queued one, which it cannot have) whose commands not yet
+        reported on ``pred`` takes: an open order to it, or a broadcast it was sent to and
+        has not reported on yet. A broadcast's report is consumed there (the broadcast ended
+        ``sent-only``; its reports are news) and None is returned: one robot's answer to a
+        broadcast is no answer to a later order of its own."""
         for o in self.orders:
-            if not o.finished and (o.dst == robot or broadcast and o.dst == BROADCAST) \
-                    and pred(o):
+            if o.state == "queued" or o.message is None:
+                continue
+            if o.dst == robot and not o.finished and pred(o, o.open_parts):
                 return o
+            if o.dst == BROADCAST:
+                parts = o.expect.get(robot)
+                if parts and pred(o, parts):
+                    if part in parts:
+                        parts.remove(part)
+                    else:
+                        parts.clear()           # a report on the whole message
+                    if not parts:
+                        del o.expect[robot]
+                    return None
         return None
 
     def _set(self, o: Order, state: str, now: int, reason: str = "") -> None:
@@ -283,6 +305,16 @@ class OrderBook:
             o.ended = now
         if self.on_change is not None:
             self.on_change(o, now)
+
+
+def _is_status_reply(cmds: tuple[Command, ...]) -> bool:
+    """The answer to ``status()`` (docs/dispatcher.md): a value or ``fail(30+n)`` for each
+    submodule, joints 1-4, the wheel and the paw, with at least one value; no order named."""
+    names = [c.name for c in cmds]
+    return len(cmds) == 6 and any(n in ("joint", "wheel", "paw") for n in names) and all(
+        n in ("joint", "wheel", "paw") or (n == "fail" and len(c.args) == 1 and
+                                          31 <= int(c.args[0]) <= 36)
+        for n, c in zip(names, cmds))
 
 
 def book_keeper(book: OrderBook) -> Callable[[Any, object, int], None]:

@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 from firmware_model.radio.content import cmd
-from firmware_model.radio.frame import FrameType
-from firmware_model.radio.mac import Deliver, Message, Outcome
+from firmware_model.radio.frame import Frame, FrameType
+from firmware_model.radio.mac import Deliver, Message, Outcome, Transmit
 from hil.bench.orders import OrderBook
 
 
@@ -14,6 +14,12 @@ def _book():
                   submitted=0)
     book.submitted(msg, 0)
     return book, msg, seen
+
+
+def _sent(book, msg, at, to=(1,)):
+    """The station sends ``msg``'s first frame (a broadcast to the robots ``to``)."""
+    msg.awaiting = set(to) if msg.dst == 7 else {msg.dst}
+    book.observe(Transmit(Frame(dst=msg.dst, src=0, num=msg.num, type=2, content=b""), b""), at)
 
 
 def test_an_order_goes_acknowledged_then_done():
@@ -28,10 +34,12 @@ def test_a_done_notice_before_the_ack_still_says_the_order_arrived():
     """A lossy channel: the robot's ack was lost and the done() notice came first. The order
     arrived (the robot answered about it): acknowledged, then done, on that tick."""
     book, msg, seen = _book()
+    _sent(book, msg, 100)
     book.observe(Deliver(1, 0, 5, int(FrameType.BROADCAST_INFO),
                          (cmd("done"), cmd("joint", 1, 20))), 200)
     book.observe(Outcome(msg, True, ""), 300)          # the late ack changes nothing
-    assert seen == [(1, "queued", 0), (1, "acknowledged", 200), (1, "done", 200)]
+    assert seen == [(1, "queued", 0), (1, "sent", 100), (1, "acknowledged", 200),
+                    (1, "done", 200)]
 
 
 def _order(*commands, dst=1):
@@ -157,21 +165,73 @@ def test_a_broadcast_status_ends_sent_only_and_each_robots_reply_is_news():
     """A broadcast ``status()`` ended ``replied`` with the first robot's values (its reply,
     a unicast message, was taken for the answer to the broadcast), where a broadcast ends
     ``sent-only`` (docs/bench.md): every robot answers it, and no one reply is the answer.
-    A broadcast ``act(n,0)`` still ends when a robot broadcasts ``act(n,1)``."""
+    A broadcast ``act(n,0)`` alike: each robot's ``act(n,1)`` is news."""
     news = []
     book, msg, seen = _order(cmd("status"), dst=7)
     book.on_news = lambda d, now: news.append((d.src, now))
-    reply = (cmd("joint", 1, 0), cmd("joint", 2, 45))
+    _sent(book, msg, 50, to=(1, 2))
+    reply = tuple(cmd("joint", i, 0) for i in range(1, 5)) + (cmd("wheel", 0), cmd("paw", 1))
     book.observe(Deliver(1, 0, 5, 2, reply), 100)
     book.observe(Deliver(2, 0, 5, 2, reply), 110)
     book.observe(Outcome(msg, False, "broadcast"), 120)
-    assert [s[1] for s in seen] == ["queued", "sent-only"]
+    assert [s[1] for s in seen] == ["queued", "sent", "sent-only"]
     assert news == [(1, 100), (2, 110)]
     # a done()/fail() from one robot is no report on a broadcast order either
     book, msg, seen = _order(cmd("joint", 1, 20), dst=7)
+    _sent(book, msg, 50)
     _said(book, cmd("fail", 42), cmd("joint", 1, 20), at=100)
     book.observe(Outcome(msg, False, "broadcast"), 120)
-    assert [s[1] for s in seen] == ["queued", "sent-only"]
+    assert [s[1] for s in seen] == ["queued", "sent", "sent-only"]
     book, msg, seen = _order(cmd("act", 3, 0), dst=7)
+    book.on_news = lambda d, now: news.append((d.src, now))
+    _sent(book, msg, 50, to=(2,))
     book.observe(Deliver(2, 7, 5, 2, (cmd("act", 3, 1),)), 100)
-    assert seen[-1][1] == "done"
+    assert seen[-1][1] == "sent" and news[-1] == (2, 100)
+
+
+def _msg(book, num, *commands, dst=1):
+    m = Message(src=0, dst=dst, num=num, type=2, commands=tuple(commands), content=b"",
+                submitted=0)
+    book.submitted(m, 0)
+    return m
+
+
+STATUS = tuple(cmd("joint", i, 0) for i in range(1, 5)) + (cmd("wheel", 0), cmd("paw", 1))
+
+
+def test_a_reply_answers_no_order_still_queued_and_a_broadcast_is_answered_first():
+    """``7 status()``, ``2 status()``, ``2 status()``, ``1 status()`` (an outside check): the
+    last, never sent, ended ``replied`` with R1's answer to the broadcast, and #2 took R2's;
+    the father exited 0 with messages still queued. A robot answers its orders in the order
+    it has them: its first reply after a broadcast is the broadcast's (news), and an order
+    still queued has no answer."""
+    seen, news = [], []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state)),
+                     on_news=lambda d, now: news.append(d.src))
+    b = _msg(book, 1, cmd("status"), dst=7)
+    m2 = _msg(book, 2, cmd("status"), dst=2)
+    m3 = _msg(book, 3, cmd("status"), dst=2)
+    _msg(book, 4, cmd("status"), dst=1)
+    _sent(book, b, 10, to=(1, 2))
+    b.awaiting = set()                                     # every member acknowledged it
+    book.observe(Outcome(b, True, ""), 20)                 # (a broadcast: sent-only)
+    _sent(book, m2, 30)
+    book.observe(Deliver(1, 0, 5, 3, STATUS), 40)         # R1's answer to the broadcast
+    book.observe(Deliver(2, 0, 5, 3, STATUS), 50)         # R2's answer to the broadcast
+    assert news == [1, 2] and {i for i, st in seen if st == "replied"} == set()
+    book.observe(Deliver(2, 0, 6, 3, STATUS), 60)         # R2's answer to #2
+    assert (2, "replied") in seen and (3, "replied") not in seen
+    assert [o.id for o in book.open_orders()] == [3, 4]   # still queued: open
+    assert m3.num == 3
+
+
+def test_a_status_reply_that_starts_with_a_silent_joint_is_the_reply():
+    """Joint 1 silent: the child answers ``fail(31)joint(2,45)...paw(1)`` (docs/dispatcher.md).
+    It was taken for a failure report about ``joint(2,45)...`` and shown as news; the order
+    ended ``unreported`` a minute later."""
+    book, msg, seen = _order(cmd("status"), dst=1)
+    book.observe(Outcome(msg, True, ""), 100)
+    reply = (cmd("fail", 31),) + STATUS[1:]
+    _said(book, *reply, at=200)
+    assert seen[-1][1] == "replied"
+    assert book.orders[0].reply.startswith("fail(31): joint 1 did not respond, joint 2")
