@@ -46,6 +46,15 @@ RATED_SPEED = {i: float(dbc.signal_range(f"JOINT{i}_CMD", "speed")[1]) for i in 
 MARGIN = TICK_HZ // 2
 """Extra time (0.5 s) a submodule gets beyond the planned motion time to report done."""
 
+_MOVING = 1
+"""A joint status frame's ``state`` while it moves (rprs.dbc: 0 idle, 1 moving, 2 holding)."""
+_HOLDING = 2
+"""... and once it has arrived where its last command (the frame's ``seq``) sent it."""
+
+ARRIVED_DEG = 0.05
+"""A joint that reports an angle this close to where it was sent (deg) is there: a move to
+it is a move to where the arm already is (status frames give 0.01 deg)."""
+
 SILENCE = 3 * TICK_HZ // 10
 """A node whose status frames (every 100 ms) stop for 300 ms is not responding."""
 
@@ -118,6 +127,9 @@ class NodeView:
     value: float = 0.0                   # angle (deg), speed (mm/s) or opening (%)
     last_seen: int | None = None
     extra: dict = field(default_factory=dict)
+    status_at: int | None = None
+    """Tick of its last status frame (``last_seen`` counts its events too, which carry no
+    ``value``, ``state`` or ``seq``)."""
 
 
 class Dispatcher:
@@ -220,13 +232,23 @@ class Dispatcher:
         if role is None:
             pass
         elif role[0] == _STATUS:
-            v = self.nodes[role[1]]
-            v.last_seen = now
+            n = role[1]
+            v = self.nodes[n]
+            v.last_seen = v.status_at = now
             v.state = int(sig["state"])
             v.seq = int(sig["seq"])
             key = role[2]
             v.value = float(sig[key]) if key is not None else 0.0
             v.extra = sig
+            if v.state == _HOLDING and n <= 4 and self.jobs:
+                # a joint holding after our command with this seq has arrived: its done
+                # event may have been lost (a software bus that dropped frames while a
+                # bench process stalled), and an order it carried out would fail fail(3n)
+                for job in list(self.jobs):
+                    if job.waiting.get(n) == v.seq:
+                        del job.waiting[n]
+                        if not job.waiting:
+                            self._job_done(job, now)
         else:
             n = role[1]
             self.nodes[n].last_seen = now
@@ -257,6 +279,8 @@ class Dispatcher:
         for v in self.nodes.values():
             if v.last_seen is not None:
                 v.last_seen += late
+            if v.status_at is not None:
+                v.status_at += late
         self._update_deadline()
 
     def on_timer(self, now: int) -> None:
@@ -448,9 +472,35 @@ class Dispatcher:
         where they were last sent, so a command that arrives mid-motion gets a sensible speed;
         no joint is given less than a quarter of its rated speed, so a stale position costs
         little time."""
-        moves = {i: q[i - 1] for i in range(1, 5) if abs(q[i - 1] - self.target[i - 1]) >= 0.005}
+        moves: dict[int, float] = {}
+        joined: dict[int, int] = {}
+        for i in range(1, 5):
+            a = q[i - 1]
+            if abs(a - self.target[i - 1]) >= 0.005:
+                moves[i] = a
+                continue
+            seq = self._seq[i]
+            v = self.nodes[i]
+            told = v.status_at is not None and now - v.status_at < SILENCE   # a fresh status
+            if any(j.waiting.get(i) == seq for j in self.jobs) or (
+                    told and v.state == _MOVING and v.seq == seq):
+                # already sent there and still on its way (for a job, or one superseded for
+                # another joint): this order waits for the same arrival (a second act(1,0)
+                # used to announce act(1,1) at once, mid-motion)
+                joined[i] = seq
+            elif told and abs(a - v.value) >= ARRIVED_DEG:
+                # sent there, but not there (its submodules restarted at rest, or a job on it
+                # failed): a move, not a move to where the arm already is
+                moves[i] = a
+        # the arrivals this order joins are due when the jobs that sent them there said
+        joined_by = max((j.deadline for j in self.jobs if set(j.waiting) & set(joined)),
+                        default=now)
         if not moves:
-            return None
+            if not joined:
+                return None
+            job = Job(src, c, dict(joined), joined_by, started=now)
+            self.jobs.append(job)
+            return job
         dist = {i: abs(a - self._position(i)) for i, a in moves.items()}
         duration = max(max(d / RATED_SPEED[i] for i, d in dist.items()), 0.001)   # seconds
         waiting = {}
@@ -461,8 +511,11 @@ class Dispatcher:
                                         speed=speed, seq=seq, mode=0))
             waiting[i] = seq
             self.target[i - 1] = round(moves[i], 2)
-        job = Job(src, c, waiting, now + int(duration * 2 * TICK_HZ) + 2 * MARGIN,
-                  started=now)
+        # (a joint this order joined still arrives with its seq, though the job that sent it
+        # there may have been superseded just now for another joint)
+        waiting.update(joined)
+        job = Job(src, c, waiting, max(now + int(duration * 2 * TICK_HZ) + 2 * MARGIN,
+                                       joined_by), started=now)
         self.jobs.append(job)
         return job
 
@@ -473,15 +526,16 @@ class Dispatcher:
 
     def _next_seq(self, n: int) -> int:
         """The next command sequence number for node ``n``. A new command replaces the one
-        the node is running (it reports no done for that one), so earlier jobs stop waiting
-        for node ``n``; a job left waiting for nothing ends as superseded (no reply)."""
+        the node is running (it reports no done for that one), so an earlier job waiting for
+        node ``n`` will not be carried out as ordered: it ends as superseded, with no report
+        (docs/dispatcher.md), though its other submodules may still arrive. (It used to stop
+        waiting for ``n`` alone and report done when the others had: ``movez(60)`` reported
+        done with joint 4 sent elsewhere by a later ``joint(4,-30)``.)"""
         self._seq[n] = seq = (self._seq[n] + 1) % 256
         for job in list(self.jobs):
             if n in job.waiting:
-                del job.waiting[n]
-                if not job.waiting:
-                    self.jobs.remove(job)
-                    self._note((job.started, f"{job.command.text()}: superseded"))
+                self.jobs.remove(job)
+                self._note((job.started, f"{job.command.text()}: superseded"))
         return seq
 
     def _job_done(self, job: Job, now: int) -> None:

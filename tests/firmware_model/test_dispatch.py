@@ -509,3 +509,80 @@ def test_a_burst_of_replies_beyond_the_radios_queue_is_counted_dropped():
     dropped = w.children[1].dispatcher.replies_dropped
     assert dropped > 0 and len(sent) + dropped == 34
     assert w.stats[1].delivered == len(sent) and w.summary()["pending"] == 0
+
+
+# -- orders that overlap, restarts and lost events (outside checks of the order book) ------
+
+def _status(d, i, angle, state, seq, now):
+    """Joint ``i`` says where it is: its STATUS frame (state 1 moving, 2 holding)."""
+    d.on_can(dbc.encode_raw(f"JOINT{i}_STATUS", angle=round(angle * 100), speed=0,
+                            state=state, seq=seq), now)
+
+
+def _event_done(d, i, now):
+    d.on_can(dbc.encode(f"EVENT{i}", kind="done", seq=d._seq[i], code=0), now)
+
+
+def test_a_move_one_of_whose_joints_a_newer_order_takes_is_not_reported_done():
+    """``movez(60)`` then ``joint(4,-30)``: the move never reaches its pose, yet it was
+    reported done() when its other joints arrived. It is superseded as a whole now: no
+    report; the newer order is reported when joint 4 arrives."""
+    from firmware_model.dispatcher import Dispatcher
+    d = Dispatcher(1)
+    d.on_message(0, 1, (cmd("movez", 60),), 0)
+    moved = sorted(d.jobs[0].waiting)
+    assert 4 in moved and len(moved) > 1
+    d.on_message(0, 1, (cmd("joint", 4, -30),), 10)
+    for i in moved:
+        _event_done(d, i, 20)
+    assert d.take_radio() == [(0, (cmd("done"), cmd("joint", 4, -30)), 3)]
+
+
+def test_the_same_action_ordered_again_mid_motion_is_announced_when_it_arrives():
+    """A second ``act(1,0)`` while action 1 runs: every joint already sent there, so it
+    used to announce ``act(1,1)`` at once, mid-motion. It waits for the same arrival now:
+    both orders are announced when the joints report done, not before."""
+    from firmware_model.dispatcher import Dispatcher
+    d = Dispatcher(1)
+    d.on_message(0, 1, (cmd("act", 1, 0),), 0)
+    d.on_message(0, 1, (cmd("act", 1, 0),), 10)
+    assert [c for _, c, _ in d.take_radio()] == [(cmd("act", 1, 0),)] * 2   # no act(1,1)
+    assert len(d.jobs) == 2
+    for i in sorted(d.jobs[0].waiting):
+        _event_done(d, i, 20)
+    assert [c for _, c, _ in d.take_radio()] == [(cmd("act", 1, 1),)] * 2
+
+
+def test_a_joint_not_where_it_was_sent_is_moved_there_again():
+    """The submodules restarted (their joints at rest) after joint 1 was sent to 40 deg: a
+    new ``joint(1,40)`` was taken for a move to where the arm already is (no command, no
+    report, ``unreported``). A fresh status that says otherwise makes it a move."""
+    from firmware_model.dispatcher import Dispatcher
+    d = Dispatcher(1)
+    d.on_message(0, 1, (cmd("joint", 1, 40),), 0)
+    _event_done(d, 1, 10)
+    d.take_radio(), d.take_can()
+    _status(d, 1, 0.0, 0, 0, 20)                     # restarted: at rest, its seq 0
+    d.on_message(0, 1, (cmd("joint", 1, 40),), 30)
+    sent = [dbc.decode(f) for f in d.take_can()]
+    assert [(n, m["angle"]) for n, m in sent] == [("JOINT1_CMD", 40.0)]
+    _status(d, 1, 40.0, 2, 0, 40)                    # where it was sent: already there
+    d.jobs.clear()
+    d.on_message(0, 1, (cmd("joint", 1, 40),), 50)
+    assert d.take_can() == [] and d.jobs == []
+
+
+def test_a_joint_holding_after_the_command_finishes_the_order_its_done_event_lost():
+    """A bench child stalled mid-move on a software bus that dropped frames meanwhile: the
+    joint's done EVENT was lost, and the order failed fail(31) though the status said the
+    joint held its target. A status frame holding with the command's seq finishes it."""
+    from firmware_model.dispatcher import Dispatcher
+    d = Dispatcher(1)
+    d.on_message(0, 1, (cmd("joint", 1, 100),), 0)
+    seq = d._seq[1]
+    _status(d, 1, 50.0, 1, seq, 10)                   # moving: not yet
+    assert d.take_radio() == []
+    _status(d, 1, 100.0, 2, seq - 1, 20)              # holding, an older command's: not yet
+    assert d.take_radio() == []
+    _status(d, 1, 100.0, 2, seq, 30)
+    assert d.take_radio() == [(0, (cmd("done"), cmd("joint", 1, 100)), 3)]
