@@ -256,6 +256,8 @@ class OrderBook:
                 matched = True
                 self._arrived(o, now)
                 if names[0] == "done":
+                    # (a done order commanded its submodules; a refusal, fail(2), did not)
+                    self._replaced_before(o, now)
                     self._part_ended(o, about, now)
                 else:
                     code = int(cmds[0].args[0])
@@ -270,6 +272,24 @@ class OrderBook:
                 self._part_ended(o, about, now)
         if not matched and self.on_news is not None:
             self.on_news(d, now)
+
+    def _replaced_before(self, o: Order, now: int) -> None:
+        """The robot reported on ``o``: an older order of one submodule to it that ``o``
+        commanded too (``joint(2,-5)`` before ``joint(2,100)``), still open, was replaced
+        before it was carried out. Had it been carried out, its report would have come
+        first: the robot reports in the order its orders finish. It ends ``unreported``
+        now, so that a later report with its text (``joint(2,-5)`` again) goes to the order
+        it is about, not to it."""
+        mine = _submodules(o)
+        if not mine:
+            return
+        for p in self.orders:
+            if p is o:
+                break
+            if p.dst == o.dst and not p.finished and p.state != "queued" and \
+                    (_submodules(p) or set()) & mine:
+                self._set(p, "unreported", now, f"replaced by #{o.id} before it was carried "
+                          f"out: the robot reports no order a newer one replaced")
 
     def _owner(self, robot: int, pred: Callable[[Order, list[str]], bool],
                part: str) -> Order | None:
@@ -305,6 +325,23 @@ class OrderBook:
             o.ended = now
         if self.on_change is not None:
             self.on_change(o, now)
+
+
+def _submodules(o: Order) -> set[int] | None:
+    """The submodules ``o`` commands, where its commands say exactly (``joint(n,..)`` joint
+    n, ``wheel`` 5, ``paw`` 6); None for any other (a Cartesian move or an action commands
+    the joints its plan moves, which only the robot knows)."""
+    if o.message is None:
+        return None
+    out: set[int] = set()
+    for c in o.message.commands:
+        if c.name == "joint" and c.args:
+            out.add(int(c.args[0]))
+        elif c.name in ("wheel", "paw"):
+            out.add(5 if c.name == "wheel" else 6)
+        else:
+            return None
+    return out
 
 
 def _is_status_reply(cmds: tuple[Command, ...]) -> bool:

@@ -235,3 +235,22 @@ def test_a_status_reply_that_starts_with_a_silent_joint_is_the_reply():
     _said(book, *reply, at=200)
     assert seen[-1][1] == "replied"
     assert book.orders[0].reply.startswith("fail(31): joint 1 did not respond, joint 2")
+
+
+def test_a_report_ends_an_older_order_it_replaced_and_a_repeat_gets_its_own_report():
+    """``2 joint(2,-5)``, ``2 joint(2,100)``, then later ``2 joint(2,-5)``: the first was
+    replaced (no report), and the third's done() went to it, the third ending unreported.
+    The second's report shows the first was replaced: it ends unreported then."""
+    seen = []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state, o.reason)))
+    ms = [_msg(book, k, cmd("joint", 2, a), dst=2) for k, a in ((1, -5), (2, 100), (3, -5))]
+    for k, m in enumerate(ms[:2]):
+        _sent(book, m, 10 + k)
+        book.observe(Outcome(m, True, ""), 20 + k)
+    book.observe(Deliver(2, 0, 5, 3, (cmd("done"), cmd("joint", 2, 100))), 30)
+    assert (1, "unreported") in [s[:2] for s in seen] and (2, "done") in [s[:2] for s in seen]
+    assert "replaced by #2" in next(r for i, st, r in seen if i == 1 and st == "unreported")
+    _sent(book, ms[2], 40)
+    book.observe(Outcome(ms[2], True, ""), 50)
+    book.observe(Deliver(2, 0, 6, 3, (cmd("done"), cmd("joint", 2, -5))), 60)
+    assert seen[-1][:2] == (3, "done") and not book.open_orders()
