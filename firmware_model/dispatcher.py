@@ -350,6 +350,10 @@ class Dispatcher:
                                         seq=self._next_seq(i), mode=1))
         self._can.append(dbc.encode("WHEEL_CMD", speed=0, distance=0,
                                     seq=self._next_seq(WHEEL)))
+        if self.report_done and src not in (self.id, BROADCAST):
+            # carried out now (the hold and stop commands are queued): reported as such, so
+            # that the sender tells it from a child that could not (fail(42), no CAN side)
+            self._radio.append((src, (cmd("done"), c), int(FrameType.BROADCAST_INFO)))
 
     def fresh(self, n: int, now: int) -> bool:
         """Submodule ``n`` sent a status frame less than SILENCE (300 ms) ago."""

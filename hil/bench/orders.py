@@ -6,10 +6,10 @@ An order goes ``queued`` (submitted to the MAC) -> ``sent`` (its first frame on 
 ``replied`` (the answer to ``status()``), ``failed`` (no acknowledgement after the MAC's
 attempts, or the robot's ``fail(code)`` with that order), or ``unreported`` (acknowledged, and
 no report :data:`REPORT_WITHIN_S` later: :meth:`OrderBook.expire`). An order of ``act(n,0)`` ends
-when the
-robot broadcasts ``act(n,1)``; ``stop()``, which the robot carries out at once and reports on
-no further, ends with its acknowledgement; a broadcast (destination 7), and every order in the
-paper profile (nothing is acknowledged there), ends ``sent-only``. An order that never reached
+when the robot broadcasts ``act(n,1)``; ``stop()``, which the robot carries out at once, when it
+reports ``done()stop()`` (a child with no CAN side answers ``fail(42)``); a broadcast
+(destination 7), and every order in the paper profile (nothing is acknowledged there), ends
+``sent-only``. An order that never reached
 the MAC ends ``refused`` at once, with the reason: a bad order line, a full queue at a terminal
 (piped input waits for room instead), or a father PC standing by (docs/protocol.md clause 50).
 A message of several commands (``1 joint(1,20)joint(2,30)``) is followed command by command, as the
@@ -27,7 +27,9 @@ from typing import Any, Callable
 
 from firmware_model.radio.content import Command
 from firmware_model.radio.frame import BROADCAST
-from firmware_model.radio.mac import UNACKNOWLEDGED, Deliver, Message, Outcome, Transmit
+from firmware_model.radio.mac import (
+    UNACKNOWLEDGED, Deliver, Disable, Message, Outcome, Transmit,
+)
 from firmware_model.timing import TICK_HZ
 
 FAIL_REASONS = {
@@ -51,10 +53,11 @@ REPORT_WITHIN_S = 60.0
 child reports every job it runs done or failed within twice its planned time + 1 s (at most
 about 13 s: a joint's whole range at its rated speed), and no report at all for a move to where
 the arm already is or an order replaced by a newer one (docs/dispatcher.md)."""
-REPORTED = frozenset({"movex", "movey", "movez", "moveto", "joint", "wheel", "paw", "status"})
-"""Commands the robot reports on by themselves: ``done()`` and the command, the reply to
-``status()``, or ``fail(code)`` and the command; ``act(n,0)`` is reported by ``act(n,1)``. Any
-other command (``stop()``) is done once acknowledged."""
+REPORTED = frozenset({"movex", "movey", "movez", "moveto", "joint", "wheel", "paw", "status",
+                      "stop"})
+"""Commands the robot reports on by themselves: ``done()`` and the command (``stop()`` as soon
+as it is carried out), the reply to ``status()``, or ``fail(code)`` and the command;
+``act(n,0)`` is reported by ``act(n,1)``. Any other command is done once acknowledged."""
 
 
 def _reported(c: Command) -> bool:
@@ -129,6 +132,7 @@ class OrderBook:
         self.on_change = on_change
         self.on_news = on_news
         self._by_msg: dict[int, Order] = {}
+        self._dropped: dict[int, int] = {}       # robot -> tick the ring last dropped it
 
     def open_orders(self) -> list[Order]:
         return [o for o in self.orders if not o.finished]
@@ -192,16 +196,34 @@ class OrderBook:
                 self._set(ended, "failed", now, a.reason)
         elif isinstance(a, Deliver):
             self._news(a, now)
+        elif isinstance(a, Disable):
+            self._dropped[a.robot] = now
 
     def expire(self, now: int, within_s: float = REPORT_WITHIN_S) -> None:
         """End ``unreported`` every order acknowledged ``within_s`` seconds ago or more that
-        the robot has not reported on: it never will."""
+        the robot has not reported on: it never will. The reason says what the father saw
+        that explains it: a ``stop()`` after it, the ring dropping the robot, or else the
+        cases in which a robot reports nothing."""
         for o in self.open_orders():
-            acked = next((t for t, state in o.history if state == "acknowledged"), None)
+            acked = _tick_of(o, "acknowledged")
             if acked is not None and (now - acked) / TICK_HZ >= within_s:
                 self._set(o, "unreported", now, f"no report within {within_s:g} s of its "
-                          f"acknowledgement: the robot reports none for a move to where the "
-                          f"arm already is, or for an order a newer one replaced")
+                          f"acknowledgement: {self._why_unreported(o, acked)}")
+
+    def _why_unreported(self, o: Order, acked: int) -> str:
+        for p in self.orders:
+            if p.id > o.id and p.dst in (o.dst, BROADCAST) and p.message is not None and \
+                    any(c.name == "stop" for c in p.message.commands):
+                t = _tick_of(p, "acknowledged")
+                if t is not None and t >= acked:
+                    return f"#{p.id}'s stop() stopped it (the robot reports no order it stopped)"
+        dropped = self._dropped.get(o.dst) if o.dst is not None else None
+        if dropped is not None and dropped >= acked:
+            return (f"the ring dropped robot {o.dst} after it acknowledged it (at "
+                    f"{(dropped - o.queued) / TICK_HZ:.2f} s): it stopped, or lost the order "
+                    f"restarting")
+        return ("the robot reports none for a move to where the arm already is, or for an "
+                "order a newer one replaced")
 
     def _acknowledged(self, o: Order, now: int) -> None:
         self._set(o, "acknowledged", now)
@@ -325,6 +347,11 @@ class OrderBook:
             o.ended = now
         if self.on_change is not None:
             self.on_change(o, now)
+
+
+def _tick_of(o: Order, state: str) -> int | None:
+    """The tick ``o`` first reached ``state``, if it did."""
+    return next((t for t, st in o.history if st == state), None)
 
 
 def _submodules(o: Order) -> set[int] | None:

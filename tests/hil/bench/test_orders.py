@@ -4,6 +4,7 @@ from __future__ import annotations
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import Frame, FrameType
 from firmware_model.radio.mac import Deliver, Message, Outcome, Transmit
+from firmware_model.timing import TICK_HZ
 from hil.bench.orders import OrderBook
 
 
@@ -93,11 +94,19 @@ def test_a_radio_only_child_fails_a_message_of_several_orders_once():
     assert seen[-1][1] == "failed" and not book.open_orders()
 
 
-def test_stop_is_done_once_acknowledged():
-    """stop() is carried out at once and reported on no further: its acknowledgement ends it."""
+def test_stop_is_done_when_the_robot_reports_it_and_failed_when_it_could_not():
+    """stop() ended ``done`` at its acknowledgement, though a child with no CAN side answers
+    ``fail(42)stop()`` (an outside check): the father said done, then showed the failure as
+    news, and exited 0. The child reports ``done()stop()`` once carried out."""
     book, msg, seen = _order(cmd("stop"))
     book.observe(Outcome(msg, True, ""), 100)
-    assert seen[-2:] == [(1, "acknowledged", 100, ""), (1, "done", 100, "")]
+    assert seen[-1][1] == "acknowledged"
+    _said(book, cmd("done"), cmd("stop"), at=120)
+    assert seen[-1][:3] == (1, "done", 120)
+    book, msg, seen = _order(cmd("stop"))
+    book.observe(Outcome(msg, True, ""), 100)
+    _said(book, cmd("fail", 42), cmd("stop"), at=120)
+    assert seen[-1][1] == "failed" and "fail(42)" in seen[-1][3]
 
 
 def test_an_order_the_robot_never_reports_on_ends_unreported():
@@ -254,3 +263,20 @@ def test_a_report_ends_an_older_order_it_replaced_and_a_repeat_gets_its_own_repo
     book.observe(Outcome(ms[2], True, ""), 50)
     book.observe(Deliver(2, 0, 6, 3, (cmd("done"), cmd("joint", 2, -5))), 60)
     assert seen[-1][:2] == (3, "done") and not book.open_orders()
+
+
+def test_an_order_left_unreported_says_what_the_father_saw():
+    """A move cut by ``stop()``, and one whose robot the ring dropped, ended ``unreported``
+    with "a move to where the arm already is, or ... replaced": false in both cases."""
+    from firmware_model.radio.mac import Disable
+    book = OrderBook()
+    move = _msg(book, 1, cmd("joint", 1, -100), dst=1)
+    stop = _msg(book, 2, cmd("stop"), dst=1)
+    other = _msg(book, 3, cmd("joint", 1, 90), dst=2)
+    for k, m in enumerate((move, stop, other)):
+        book.observe(Outcome(m, True, ""), 10 + k)
+    book.observe(Disable(2), 100)
+    book.expire(61 * TICK_HZ)
+    reasons = {o.id: (o.state, o.reason) for o in book.orders}
+    assert reasons[1][0] == "unreported" and "#2's stop() stopped it" in reasons[1][1]
+    assert reasons[3][0] == "unreported" and "the ring dropped robot 2" in reasons[3][1]

@@ -301,10 +301,10 @@ def test_the_zoom_is_one_cycle_inside_the_window_from_the_lowest_id(fault_run, t
         ids = s["zoom_robots"]           # a robot's turn up to its next: one whole cycle
         assert ids[0] == ids[-1] == min(ids) and len(set(ids)) == len(ids) - 1, (start, ids)
     # 14.85: R1 is still out of the ring (R2 R3 R4), and a cycle from R2 ends before the
-    # radio comes back; 14.9: the cycles before it no longer start at R2, so one after it
+    # radio comes back; from 15.4 on R1 is back (invited at 15.3 s), and the cycle is from R1
     assert plot_trace(fault_run, out, start_s=14.85, end_s=15.55)["zoom_robots"] == [2, 3, 4, 2]
-    s = plot_trace(fault_run, out, start_s=14.9, end_s=15.6)
-    assert s["zoom_robots"] == [1, 2, 3, 4, 1] and s["zoom_s"][0] > 15.0
+    s = plot_trace(fault_run, out, start_s=15.4, end_s=16.1)
+    assert s["zoom_robots"] == [1, 2, 3, 4, 1] and s["zoom_s"][0] > 15.4
     s = plot_trace(fault_run, out)       # the default window: the last cycle before R1 fails
     assert s["zoom_robots"] == [1, 2, 3, 4, 1] and s["zoom_s"][1] <= 8.0
 
