@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
+from firmware_model.radio.frame import CONTENT_OFFSET, MAX_CONTENT
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ, TMAX_TICKS, TTRANS_TICKS
 
 from .serial_radio import PortError, open_port
@@ -39,6 +40,11 @@ class HeardFrame:
     invites: bool = False   # its Content holds poll(k,mask): an invitation window follows
 
 
+MAX_FRAME_BYTES = CONTENT_OFFSET + MAX_CONTENT + 2
+"""The longest frame's bytes (Header to End): the most a listener that began mid-frame hears of
+it before the next Header."""
+
+
 @dataclass
 class Listening:
     """What a passive listener collected."""
@@ -46,8 +52,9 @@ class Listening:
     frames: list[HeardFrame] = field(default_factory=list)
     garbage: int = 0
     joined_mid_frame: int = 0
-    """Bytes that made no frame before the first good one: the listener began in the middle
-    of a frame (not counted in ``garbage``)."""
+    """The bytes of the frame the listener began in the middle of: a first run of bytes that
+    made no frame, up to one frame's worth (not counted in ``garbage``; every later run, and
+    the rest of a longer one, is garbage: a channel of noise alone is garbage, not silence)."""
     failed: int = 0
     bytes: int = 0
     seconds: float = 0.0
@@ -64,6 +71,7 @@ class Sniffer:
         self.bt = byte_ticks
         self.result = Listening()
         self._deframer = Deframer(byte_ticks=byte_ticks)
+        self._mid_left = MAX_FRAME_BYTES  # bytes that may yet be a frame joined late
         self._stop = threading.Event()
         self._t0 = time.monotonic_ns()
         self._thread = threading.Thread(target=self._loop, name="sniffer", daemon=True)
@@ -127,12 +135,16 @@ class Sniffer:
                                                ev.end - n * bt, ev.end,
                                                b"poll(" in f.content), f)
                     elif isinstance(ev, Garbage):
-                        if res.frames:
-                            res.garbage += ev.count
-                        else:          # we began listening mid-frame: not the ring's fault
-                            res.joined_mid_frame += ev.count
+                        # we began listening mid-frame: not the ring's fault, up to one
+                        # frame's worth before the first frame; the rest is garbage
+                        k = min(ev.count, self._mid_left)
+                        self._mid_left -= k
+                        res.joined_mid_frame += k
+                        res.garbage += ev.count - k
                     elif isinstance(ev, FrameFailed):
                         res.failed += 1
+                    if type(ev) is not Garbage:
+                        self._mid_left = 0    # a frame began: no later byte is one joined late
 
 
 def listen(port: str, seconds: float, progress: Callable[[float], None] | None = None) \

@@ -36,7 +36,8 @@ def cmd_bench(a: argparse.Namespace) -> int:
             if a.json:
                 print(json.dumps(report))
             else:
-                print(f"link {'OK' if ok else 'SILENT'}: {res.bytes} bytes in {secs} s, "
+                verdict = "OK" if ok else "NO FRAMES" if res.bytes else "SILENT"
+                print(f"link {verdict}: {res.bytes} bytes in {secs} s, "
                       f"{len(res.frames)} good frames from robots {robots or 'none'}, "
                       f"{res.garbage} garbage bytes, {res.failed} broken frames")
             return went_away() if res.error else 0 if ok else 1

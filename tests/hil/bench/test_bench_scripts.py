@@ -55,6 +55,30 @@ def test_the_sniffer_discards_what_waited_in_the_port_before_it_started():
     assert res.garbage == 2 and res.failed == 0       # between the good frames
 
 
+def test_noise_before_any_frame_is_garbage_not_a_frame_joined_late():
+    """A channel of noise alone (``rprs radio-hub --noise``, nobody sending): ``bench link``
+    said ``SILENT ... 0 garbage bytes`` and ``bench cycle`` counted it all as the tail of a
+    frame it came in on. Only a first run of one frame's worth is that; the rest is garbage,
+    and ``link`` says it heard bytes but no frame."""
+    master, slave = os.openpty()
+    try:
+        sn = bench.Sniffer(os.ttyname(slave)).start()
+        os.write(master, bytes(range(0x20, 0x7f)) * 10)            # 950 bytes, no Header
+        time.sleep(0.3)
+        os.write(master, b"\x00\x01\x02")                         # a later burst
+        deadline = time.monotonic() + 5.0
+        while sn.result.bytes < 953 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(0.1)
+        res = sn.stop()
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert res.bytes == 953 and not res.frames
+    assert res.joined_mid_frame == bench.MAX_FRAME_BYTES
+    assert res.garbage == 953 - bench.MAX_FRAME_BYTES
+
+
 class _Station:
     """What ``latency`` uses of a station: its ID, ``submit`` and its list of observers."""
 
