@@ -51,6 +51,11 @@ class BenchCapture:
         self._chunks: deque[tuple[int, int, int]] = deque()   # (end offset, tick, byte ticks)
         self._flush_ev: Any = None
         self.error: str | None = None
+        self.close_error: str | None = None
+        """Why the file could not be finished at the end (its last bytes not written), or None."""
+        self.on_error: Any = None
+        """Called with the error once, when the capture stops (its reader went away, the disk
+        filled): ``rprs capture``, which has nothing else to do, stops then."""
 
     # -- the serial port --------------------------------------------------------------------
 
@@ -119,14 +124,19 @@ class BenchCapture:
             try:
                 self.writer.can(0, end, frame.id, frame.data)
             except (OSError, ValueError) as e:
-                self.error = f"capture stopped: {e}"
+                self._stopped(e)
 
     def _write(self, key: str, tick: int, data: bytes) -> None:
         if self.error is None:
             try:
                 self.writer.radio(key, tick, data)
             except (OSError, ValueError) as e:
-                self.error = f"capture stopped: {e}"
+                self._stopped(e)
+
+    def _stopped(self, e: Exception) -> None:
+        self.error = f"capture stopped: {e}"
+        if self.on_error is not None:
+            self.on_error(self.error)
 
     def close(self) -> None:
         """Write a burst still being heard, then close the file."""
@@ -136,8 +146,8 @@ class BenchCapture:
         self._flush_heard()
         try:
             self.stream.close()
-        except OSError:
-            pass
+        except OSError as e:
+            self.close_error = e.strerror or str(e)
 
 
 def open_capture(sched: Any, path: str, robot: int | None, radio: bool,

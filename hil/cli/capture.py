@@ -4,6 +4,7 @@ the same cut into frames as a bench process's ``--pcap`` (hil/bench/capture.py).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from types import SimpleNamespace
 from typing import Any
@@ -35,6 +36,10 @@ def cmd_capture(a: argparse.Namespace) -> int:
     from ..bench.serial_radio import PortError, SerialChannel, open_port
     if a.duration is not None and not a.duration > 0:
         raise UserError(f"--duration must be a number of seconds > 0, got {a.duration:g}")
+    if a.pcap != "-" and os.path.exists(a.pcap) and os.path.exists(a.radio) and \
+            os.path.samefile(a.pcap, a.radio):
+        # (writing the capture there would transmit it: a listener sends nothing)
+        raise UserError(f"--pcap {a.pcap} is the radio's own port: give another file")
     try:
         port = open_port(a.radio)
     except PortError as exc:
@@ -42,10 +47,13 @@ def cmd_capture(a: argparse.Namespace) -> int:
     runner = Runner()
     try:
         stream = sys.stdout.buffer if a.pcap == "-" else open(a.pcap, "wb")
+        cap = BenchCapture(runner.sched, stream, None, True, None,
+                           listener=f"radio on {a.radio}")
     except OSError as exc:
         port.close()
         raise UserError(f"cannot write capture {a.pcap}: {exc.strerror or exc}") from None
-    cap = BenchCapture(runner.sched, stream, None, True, None, listener=f"radio on {a.radio}")
+    # a capture that cannot go on (its reader gone, the disk full) ends the command
+    cap.on_error = lambda why: runner.fail(why)
     channel = SerialChannel(runner.sched, port, "none")
     channel.attach(_Ears(PC_BYTE_TICKS))               # type: ignore[arg-type]
     channel.tap = cap
@@ -58,8 +66,11 @@ def cmd_capture(a: argparse.Namespace) -> int:
     runner.run(a.duration, ready=lambda: print(
         f"capturing {a.radio} to {where} (listen only: nothing is sent); Ctrl-C stops",
         file=sys.stderr, flush=True))
-    print(f"capture: {channel.bytes_in} bytes heard in {runner.sched.now / 16e6:.1f} s"
-          + (f"; {cap.error}" if cap.error else ""), file=sys.stderr)
+    print(f"capture: {channel.bytes_in} bytes heard in {runner.sched.now / 16e6:.1f} s",
+          file=sys.stderr)
+    if cap.error is None and cap.close_error is not None:
+        print(f"rprs: error: cannot write capture {a.pcap}: {cap.close_error}", file=sys.stderr)
+        return 1
     if runner.failure is not None:
         print(f"rprs: error: {runner.failure}", file=sys.stderr)
         return 1

@@ -11,7 +11,10 @@ from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, SimConfig, World
 from .common import (Parser, UserError, auth_option, checked_mac_config, digit, positive,
                      probability, profile_option)
-from .sim import add_sim_options, cmd_sim, cpu_costs, cpu_option, dispatch_latency_lines
+from .sim import (
+    add_sim_options, close_writers, cmd_sim, cpu_costs, cpu_option, dispatch_latency_lines,
+    write_failed,
+)
 
 STORY_EVENTS = (E.Mode, E.Join, E.Rejoin, E.Disable, E.Miss, E.FaultEdge, E.Collision)
 """The kinds of event the ring demo tells (hil/sim/events.py)."""
@@ -158,12 +161,15 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
         step = TICK_HZ // 10
         while world.now < world.end_tick and done[0] < steps:
             world.run(world.now + step)
+    except OSError as exc:        # the trace could not be written during the run (disk full)
+        if trace is not None:
+            trace.discard()
+        raise write_failed(exc, trace=a.trace) from None
     except BaseException:
         if trace is not None:
             trace.discard()
         raise
-    if trace is not None:
-        trace.close()
+    close_writers(trace, None, ok=True)
     acts = world.actions
     frames = sum(world.air.sent.values())
     if done[0] < steps:

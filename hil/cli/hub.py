@@ -108,15 +108,22 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
             for s, h in old.items():
                 signal.signal(s, h)
     finally:
+        close_error = None
         if stream is not None and pcap != "-":
-            stream.close()
+            try:
+                stream.close()
+            except OSError as e:       # its last bytes (the disk filled): said below
+                close_error = e.strerror or str(e)
     if hub.capture_error:
         print(f"radio-hub: {hub.capture_error}", file=sys.stderr)
     print(summary_line(hub.stats()), file=out)
     out.flush()
     if hub.error is not None:
         raise HubError(hub.failure()) from hub.error
-    return 0
+    if close_error is not None and not hub.capture_error:
+        print(f"rprs: error: cannot write capture {pcap}: {close_error}", file=sys.stderr)
+        return 1
+    return 1 if hub.capture_error else 0
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -1185,3 +1185,79 @@ def test_the_log_goes_to_the_stderr_of_the_moment(capsys, monkeypatch):
     monkeypatch.setattr(sys, "stderr", later)
     logging.getLogger("after.the.command").warning("still heard")
     assert "still heard" in later.getvalue()
+
+
+# -- outputs that cannot be written (a full disk: /dev/full), found by outside checks -------
+
+FULL = "/dev/full"
+
+
+@pytest.mark.skipif(not os.path.exists(FULL), reason="needs /dev/full (a Linux device)")
+def test_a_demo_trace_that_cannot_be_written_is_one_line(capsys, tmp_path):
+    """``rprs demo --trace /dev/full`` ended in a traceback (``demo ring`` said it in one
+    line)."""
+    code, out, err = rprs(capsys, "demo", "--trace", FULL)
+    assert code == 2 and err == f"rprs: error: cannot write trace {FULL}: No space left on " \
+        "device\n"
+
+
+def _capture(*args, **kw):
+    return subprocess.Popen([sys.executable, "-m", "hil.cli", "capture", *args], cwd=ROOT,
+                            stderr=subprocess.PIPE, text=False, **kw)
+
+
+@pytest.mark.skipif(not os.path.exists(FULL), reason="needs /dev/full (a Linux device)")
+def test_a_capture_that_cannot_be_written_or_would_transmit_is_refused():
+    """``rprs capture --pcap /dev/full``: a traceback; ``--pcap`` naming its own ``--radio``:
+    the pcapng header went on air from a command that says it sends nothing."""
+    master, slave = os.openpty()
+    port = os.ttyname(slave)
+    try:
+        for pcap, said in ((FULL, f"cannot write capture {FULL}: No space left on device"),
+                           (port, "is the radio's own port")):
+            p = _capture("--radio", port, "--pcap", pcap, "--duration", "1")
+            _, err = p.communicate(timeout=30)
+            assert p.returncode == 2 and said in err.decode() and b"Traceback" not in err
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_a_capture_whose_reader_goes_away_stops():
+    """``rprs capture --pcap - | head -c 300``: it said ``capture stopped: Broken pipe`` only
+    when killed, listening on (holding the port) meanwhile. It stops now, status 1."""
+    from firmware_model.radio.frame import Frame
+    master, slave = os.openpty()
+    try:
+        p = _capture("--radio", os.ttyname(slave), "--pcap", "-", stdout=subprocess.PIPE)
+        p.stdout.read(50)                         # the reader takes a little, then goes
+        p.stdout.close()
+        frame = Frame(src=1, dst=7, num=0, type=3, content=b"").encode()
+        deadline = time.monotonic() + 20
+        while p.poll() is None and time.monotonic() < deadline:
+            os.write(master, frame)
+            time.sleep(0.1)
+        assert p.poll() == 1, "still capturing with its reader gone"
+        assert b"capture stopped: [Errno 32] Broken pipe" in p.stderr.read()
+    finally:
+        if p.poll() is None:
+            p.kill()
+        p.wait()
+        p.stderr.close()
+        os.close(master)
+        os.close(slave)
+
+
+@pytest.mark.skipif(not os.path.exists(FULL), reason="needs /dev/full (a Linux device)")
+def test_a_hub_whose_capture_cannot_be_finished_says_so():
+    """``rprs radio-hub --pcap /dev/full`` ran, then crashed at Ctrl-C with a traceback and no
+    summary line."""
+    import signal
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                          "--pcap", FULL], cwd=ROOT, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    assert p.stdout.readline().startswith("node 0: ")
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=30)
+    assert p.returncode == 1 and "Traceback" not in err
+    assert "radio-hub: " in out and f"cannot write capture {FULL}: No space left" in err
