@@ -20,7 +20,7 @@ import sys
 import threading
 import time
 from dataclasses import replace
-from typing import Any, Callable, NamedTuple, TextIO
+from typing import Any, Callable, NamedTuple, Protocol, TextIO
 
 from can_bus.bridge import CanOpenError, PythonCanBus, open_bus, parse_spec
 from can_bus.submodules import make_submodules
@@ -103,7 +103,15 @@ class RunError(Exception):
     """A setup problem the user can fix (port, bus, arguments): one line."""
 
 
-def _events_printer(out: TextIO | None, robot: int,
+class TextSink(Protocol):
+    """Where JSON lines go: stdout, or a tee of it and ``--log FILE`` (write and flush)."""
+
+    def write(self, s: str, /) -> object: ...
+
+    def flush(self) -> object: ...
+
+
+def _events_printer(out: TextSink | None, robot: int,
                     on_closed: Callable[[], None] | None = None,
                     err: TextIO | None = None
                     ) -> Callable[[RadioStation, object, int], None]:
@@ -383,7 +391,7 @@ def _capture(runner: Runner, pcap: str | None, robot: int | None,
 
 def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
                 txen: str = "none", config: MacConfig | None = None, can_log: str | None = None,
-                events: TextIO | None = None,
+                events: TextSink | None = None,
                 pcap: str | None = None) -> tuple[RadioStation, ChildFirmware | RadioOnlyChild]:
     """A child on real ports (either may be None: radio only, or CAN only)."""
     if not 1 <= robot <= 6:
@@ -419,7 +427,7 @@ def build_submodules(runner: Runner, can: str, can_log: str | None = None,
 
 
 def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool = False,
-                 config: MacConfig | None = None, events: TextIO | None = None,
+                 config: MacConfig | None = None, events: TextSink | None = None,
                  pc: int | None = None, pcap: str | None = None) -> RadioStation:
     # --standby or --pc says the father is a pair of PCs (docs/protocol.md §4.9)
     cfg = replace(realtime_config(config), standby=standby, pc=pc or (2 if standby else 1),

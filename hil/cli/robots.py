@@ -152,6 +152,11 @@ def cmd_father(a: argparse.Namespace) -> int:
     runner = Runner()
     if log is not None:
         runner.on_close(log.close, last=True)
+
+    def log_failed(exc: OSError) -> None:      # (the disk filled): the session's record is cut
+        runner.fail(f"cannot write the log {a.log}: {exc.strerror or exc}")
+    # what goes to stdout goes to --log too: the story, or with --json every JSON line
+    out = sys.stdout if log is None else Tee(sys.stdout, log, on_error=log_failed)
     app = None
     if not (a.plain or a.json or a.quiet or a.no_input or a.exit_when_done) and \
             sys.stdin.isatty() and sys.stdout.isatty():
@@ -160,13 +165,12 @@ def cmd_father(a: argparse.Namespace) -> int:
         app = FatherApp(lambda line: order(line), lambda: head(), HISTORY_FILE,
                         ended=runner.finished.is_set)
         console = FatherConsole(LinesTo(app.post_line) if log is None else
-                                Tee(LinesTo(app.post_line), log), "human")
+                                Tee(LinesTo(app.post_line), log, on_error=log_failed), "human")
     else:
-        console = FatherConsole(sys.stdout if log is None else Tee(sys.stdout, log),
-                                "json" if a.json else "quiet" if a.quiet else "human")
+        console = FatherConsole(out, "json" if a.json else "quiet" if a.quiet else "human")
     try:
         station = build_father(runner, a.radio, txen=a.txen, standby=a.standby,
-                               config=mac_config(a), events=sys.stdout if a.json else None,
+                               config=mac_config(a), events=out if a.json else None,
                                pc=a.pc, pcap=a.pcap)
     except RunError as exc:
         runner.run(0)

@@ -4,7 +4,7 @@ machine's stream instead, ``--quiet`` only the orders' ends (docs/bench.md)."""
 from __future__ import annotations
 
 import json
-from typing import Protocol
+from typing import Any, Callable, Protocol
 
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import Deliver, Disable, Join, ModeChange
@@ -33,19 +33,34 @@ def order_help() -> list[str]:
 
 
 class Tee:
-    """A line sink that writes to several (the screen and ``--log FILE``)."""
+    """A line sink that writes to several (the screen and ``--log FILE``). A sink after the
+    first that cannot be written (the disk filled) is dropped and ``on_error(exc)`` told
+    once; the first sink's errors (stdout's reader gone) go to the caller."""
 
-    def __init__(self, *sinks: "LineSink") -> None:
-        self.sinks = sinks
+    def __init__(self, *sinks: "LineSink",
+                 on_error: Callable[[OSError], None] | None = None) -> None:
+        self.sinks = list(sinks)
+        self.on_error = on_error
 
     def write(self, s: str, /) -> int:
-        for sink in self.sinks:
-            sink.write(s)
+        for i, sink in enumerate(list(self.sinks)):
+            self._do(i, sink, sink.write, s)
         return len(s)
 
     def flush(self) -> None:
-        for sink in self.sinks:
-            sink.flush()
+        for i, sink in enumerate(list(self.sinks)):
+            self._do(i, sink, sink.flush)
+
+    def _do(self, i: int, sink: "LineSink", act: Callable[..., Any], *args: Any) -> None:
+        if i == 0 or self.on_error is None:
+            act(*args)
+            return
+        try:
+            act(*args)
+        except OSError as exc:
+            if sink in self.sinks:
+                self.sinks.remove(sink)
+                self.on_error(exc)
 
 
 def _who(r: int) -> str:

@@ -1261,3 +1261,38 @@ def test_a_hub_whose_capture_cannot_be_finished_says_so():
     out, err = p.communicate(timeout=30)
     assert p.returncode == 1 and "Traceback" not in err
     assert "radio-hub: " in out and f"cannot write capture {FULL}: No space left" in err
+
+
+def _father_on_a_pty(*args):
+    master, slave = os.openpty()
+    try:
+        r = subprocess.run([sys.executable, "-m", "hil.cli", "father", "--radio",
+                            os.ttyname(slave), "--no-input", "--duration", "3", "--team",
+                            "0,1", *args],
+                           cwd=ROOT, capture_output=True, text=True, timeout=60)
+    finally:
+        os.close(master)
+        os.close(slave)
+    return r
+
+
+@pytest.mark.skipif(not os.path.exists(FULL), reason="needs /dev/full (a Linux device)")
+def test_a_father_log_that_cannot_be_written_stops_it_in_one_line():
+    """``rprs father --log /dev/full --plain``: a traceback from a scheduler callback, the
+    closing lines lost; with ``--json`` no error at all, status 0."""
+    for mode in ("--plain", "--json"):
+        r = _father_on_a_pty(mode, "--log", FULL)
+        assert r.returncode == 1 and "Traceback" not in r.stderr, (mode, r.stderr)
+        assert f"rprs: error: cannot write the log {FULL}: No space left on device" in \
+            r.stderr, (mode, r.stderr)
+
+
+def test_a_father_json_log_holds_every_json_line(tmp_path):
+    """``--log FILE`` appends what the console shows, with ``--json`` the JSON lines: it held
+    the order records only, not the station's events."""
+    log = tmp_path / "f.log"
+    r = _father_on_a_pty("--json", "--log", str(log))
+    assert r.returncode == 0, r.stderr
+    printed = [line for line in r.stdout.splitlines() if line.startswith("{")]
+    assert printed and log.read_text().splitlines() == printed
+    assert any('"ev":"tx"' in line for line in printed)
