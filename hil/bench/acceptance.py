@@ -59,10 +59,19 @@ def pytest_configure(config: Any) -> None:
 
 
 def _targets(config: Any) -> list[str]:
-    names = [t.strip() for t in config.getoption("--target").split(",") if t.strip()]
+    given = config.getoption("--target")
+    names = [t.strip() for t in given.split(",") if t.strip()]
+    if not names:
+        # (an unset variable in a CI job: not 'every test skipped', a usage error)
+        raise pytest.UsageError(f"--target {given!r} names no target: choose from "
+                                f"{', '.join(TARGETS)}")
     bad = [t for t in names if t not in TARGETS]
     if bad:
         raise pytest.UsageError(f"--target {bad[0]!r}: choose from {', '.join(TARGETS)}")
+    twice = sorted({t for t in names if names.count(t) > 1})
+    if twice:
+        raise pytest.UsageError(f"--target names {twice[0]!r} twice: each target once (one "
+                                f"device under test each)")
     robot = config.getoption("rprs_dut_id")
     if not str(robot).isdigit() or not 1 <= int(robot) <= 6:
         raise pytest.UsageError(f"--dut-id {robot}: a child's ID is 1-6")

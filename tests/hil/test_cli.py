@@ -351,6 +351,10 @@ def test_demo_takes_the_action_sequence_options_without_naming_it(capsys):
     (["--target", "bored"], "--target 'bored': choose from model, process, board"),
     (["--target", "model", "--dut-id", "9"], "--dut-id 9: a child's ID is 1-6"),
     (["--target", "model", "--dut-id", "0"], "--dut-id 0: a child's ID is 1-6"),
+    # an unset variable in a CI job: "6 skipped", exit 0; a target twice: misleading failures
+    (["--target", ""], "--target '' names no target"),
+    (["--target", ","], "--target ',' names no target"),
+    (["--target", "model,model"], "--target names 'model' twice"),
 ])
 def test_acceptance_board_without_its_ports_is_a_usage_error(args, needle):
     """A board target with its ports forgotten once reported "6 skipped", exit 0."""
