@@ -24,6 +24,7 @@ import logging
 import os
 import signal
 import sys
+import time
 from typing import Sequence
 
 from .common import Parser, Terminated, UserError, say_closing, stdout_gone
@@ -176,16 +177,35 @@ _STOPS = ("SIGTERM", "SIGHUP")
 _SIGHUP = getattr(signal, "SIGHUP", None)
 
 
+SAME_STOP_S = 1.0
+"""A second SIGTERM (SIGHUP) this soon after the first is the same stop told twice (GNU
+``timeout`` signals the process, then its process group): ignored, so that the clean-up the
+first began ends with its line. A later one kills."""
+
+
+_STOPPING: dict[int, float] = {}
+"""The stop signals taken so far (signal -> monotonic s): the command is stopping on them."""
+
+
 def _terminate_on_signals() -> dict:
     """SIGTERM and SIGHUP (a closed terminal) raise :class:`Terminated` (once each: a second
-    one kills) while a command runs, so that it cleans up as on Ctrl-C (it used to die where
-    it stood, leaving ``.partial`` files and a capture cut in the middle of a packet).
-    Commands that stop cleanly on these themselves (the bench processes, the monitor, the
-    hub) put their own handlers over these. Returns the handlers to put back (none where this
-    is not the main thread)."""
+    one kills, unless it comes within ``SAME_STOP_S``) while a command runs, so that it cleans
+    up as on Ctrl-C (it used to die where it stood, leaving ``.partial`` files and a capture
+    cut in the middle of a packet). Commands that stop cleanly on these themselves (the bench
+    processes, the monitor, the hub) put their own handlers over these. Returns the handlers
+    to put back (none where this is not the main thread)."""
+    first = _STOPPING
+    first.clear()
 
     def terminate(signum, frame):
-        signal.signal(signum, signal.SIG_DFL)
+        now = time.monotonic()
+        if signum in first:
+            if now - first[signum] < SAME_STOP_S:
+                return
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        first[signum] = now
         raise Terminated(signum)
     old = {}
     for name in _STOPS:
@@ -215,7 +235,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if old_handlers:
             for sig, handler in old_handlers.items():
-                signal.signal(sig, handler)
+                # a stop in progress ignores its signal told again (SAME_STOP_S) to the end:
+                # put back, the default would kill the process as it returns its status
+                signal.signal(sig, signal.SIG_IGN if sig in _STOPPING else handler)
     return code if _stdout_flushed() else 1
 
 

@@ -834,15 +834,20 @@ def test_a_write_error_mid_run_names_the_output_that_failed(tmp_path, capsys, mo
     assert sorted(p.name for p in tmp_path.iterdir()) == ["readonly"]     # nothing left
 
 
-@pytest.mark.parametrize("sig,status,word", [("SIGTERM", 143, "terminated"),
-                                              ("SIGINT", 130, "interrupted"),
-                                              ("SIGHUP", 129, "hung up")])
-def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, status, word):
+@pytest.mark.parametrize("sig,status,word,twice", [("SIGTERM", 143, "terminated", False),
+                                                    ("SIGINT", 130, "interrupted", False),
+                                                    ("SIGHUP", 129, "hung up", False),
+                                                    ("SIGTERM", 143, "terminated", True)],
+                         ids=["SIGTERM", "SIGINT", "SIGHUP", "SIGTERM-twice"])
+def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, status, word,
+                                                               twice):
     """SIGTERM killed ``rprs sim`` where it stood: ``t.jsonl.partial`` and ``v.vcd.partial``
     were left behind and ``p.pcapng``, written in place, was cut in the middle of a packet
     (tshark: "appears to have been cut short"). SIGTERM now ends it as Ctrl-C does: one line,
     no output file of any kind, status 128 + the signal. So does SIGHUP (the terminal the
-    run was started from closed), which left a ``.partial`` file and said nothing."""
+    run was started from closed), which left a ``.partial`` file and said nothing. SIGTERM
+    twice at once (GNU ``timeout`` signals the process, then its group) is one stop: the
+    second killed it mid-clean-up, without its line."""
     import signal
     import time
     outs = {"--trace": tmp_path / "t.jsonl", "--vcd": tmp_path / "v.vcd",
@@ -858,6 +863,9 @@ def test_a_signal_mid_run_leaves_no_output_and_a_signal_status(tmp_path, sig, st
             assert proc.poll() is None and time.monotonic() < deadline
             time.sleep(0.05)
         proc.send_signal(getattr(signal, sig))
+        if twice:
+            time.sleep(0.02)
+            proc.send_signal(getattr(signal, sig))
         out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
