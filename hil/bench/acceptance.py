@@ -56,6 +56,34 @@ def pytest_configure(config: Any) -> None:
     config.addinivalue_line("markers", "acceptance: speaks to the DUT only through radio and "
                             "CAN (runs once per --target)")
     _targets(config)                  # a wrong --target, or a board without ports: usage error
+    _sigterm_as_interrupt()
+
+
+def _interrupted(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionfinish(session: Any) -> None:
+    """The devices are down: SIGTERM kills again (an interrupt in pytest's own ending would
+    print its traceback)."""
+    import signal
+    import threading
+    if threading.current_thread() is threading.main_thread() and \
+            signal.getsignal(signal.SIGTERM) is _interrupted:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _sigterm_as_interrupt() -> None:
+    """SIGTERM stops the run as Ctrl-C does: pytest tears the device down (a ``process``
+    target's ``rprs child``, its hub, its temporary directory). By default SIGTERM killed
+    pytest where it stood, leaving the child running and ``/tmp/rprs-bench-*`` behind.
+    Left alone where something else handles it, or off the main thread."""
+    import signal
+    import threading
+    if threading.current_thread() is threading.main_thread() and \
+            signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _interrupted)
 
 
 def _targets(config: Any) -> list[str]:

@@ -1308,3 +1308,33 @@ def test_a_father_json_log_holds_every_json_line(tmp_path):
     printed = [line for line in r.stdout.splitlines() if line.startswith("{")]
     assert printed and log.read_text().splitlines() == printed
     assert any('"ev":"tx"' in line for line in printed)
+
+
+@pytest.mark.timing
+def test_sigterm_to_an_acceptance_run_tears_its_child_process_down():
+    """SIGTERM to ``pytest tests/acceptance --target process`` killed pytest where it stood:
+    its ``rprs child`` ran on and ``/tmp/rprs-bench-*`` was left. It stops as on Ctrl-C now,
+    the device torn down."""
+    import glob
+    import signal
+    import tempfile
+    before = set(glob.glob(os.path.join(tempfile.gettempdir(), "rprs-bench-*")))
+    p = subprocess.Popen([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-n", "0",
+                          "-q", "tests/acceptance", "--target", "process"], cwd=ROOT,
+                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        mine: set[str] = set()
+        while not mine and time.monotonic() < deadline and p.poll() is None:
+            mine = set(glob.glob(os.path.join(tempfile.gettempdir(), "rprs-bench-*"))) - before
+            time.sleep(0.05)
+        assert mine, "the process target never started"
+        time.sleep(0.5)
+        p.send_signal(signal.SIGTERM)
+        out, _ = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode != -signal.SIGTERM, out          # not killed where it stood
+    assert not any(os.path.exists(d) for d in mine), out  # the device was torn down
