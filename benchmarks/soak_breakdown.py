@@ -127,8 +127,8 @@ def measure(hours: float, seed: int) -> Breakdown:
         out.wake_s += clock() - t
         out.wakes += 1
 
-    def drive_joints(self, src, c, now, q):
-        job = drive(self, src, c, now, q)
+    def drive_joints(self, src, c, now, q, only=None):
+        job = drive(self, src, c, now, q, only)
         if job is not None:
             started[id(job)] = (now, job)
         return job

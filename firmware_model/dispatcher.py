@@ -313,8 +313,9 @@ class Dispatcher:
         if self._refused(src, c, now):
             return
         q = list(self.target)
-        q[int(c.args[0]) - 1] = round(float(c.args[1]), 2)
-        self._drive_joints(src, c, now, q)
+        i = int(c.args[0])
+        q[i - 1] = round(float(c.args[1]), 2)
+        self._drive_joints(src, c, now, q, only=i)   # (the others are no concern of it)
 
     def _cmd_wheel(self, src: int, c: Command, now: int) -> None:
         if self._refused(src, c, now):
@@ -469,16 +470,18 @@ class Dispatcher:
             return
         self._drive_joints(src, c, now, list(q))
 
-    def _drive_joints(self, src: int, c: Command, now: int, q: list[float]) -> Job | None:
+    def _drive_joints(self, src: int, c: Command, now: int, q: list[float],
+                      only: int | None = None) -> Job | None:
         """Coordinated motion: the joints that move arrive at about the same time.
 
         Planned from where the joints are (their last status, at most 100 ms old), not from
         where they were last sent, so a command that arrives mid-motion gets a sensible speed;
         no joint is given less than a quarter of its rated speed, so a stale position costs
-        little time."""
+        little time. ``only``: the one joint the order is about (``joint(n,a)``); a pose
+        (a Cartesian move, an action) is about all four."""
         moves: dict[int, float] = {}
         joined: dict[int, int] = {}
-        for i in range(1, 5):
+        for i in (range(1, 5) if only is None else (only,)):
             a = q[i - 1]
             if abs(a - self.target[i - 1]) >= 0.005:
                 moves[i] = a

@@ -586,3 +586,18 @@ def test_a_joint_holding_after_the_command_finishes_the_order_its_done_event_los
     assert d.take_radio() == []
     _status(d, 1, 100.0, 2, seq, 30)
     assert d.take_radio() == [(0, (cmd("done"), cmd("joint", 1, 100)), 3)]
+
+
+def test_an_order_for_one_joint_waits_for_no_other():
+    """``joint(2,45)`` (where joint 2 already is) while joint 1 still moves: it waited for
+    joint 1's arrival and was reported done (the arm's whole commanded pose was taken for its
+    concern). It is about joint 2 alone: a move to where it already is, no report."""
+    from firmware_model.dispatcher import Dispatcher
+    d = Dispatcher(1)
+    _status(d, 2, 45.0, 0, 0, 0)
+    d.on_message(0, 1, (cmd("joint", 1, 20),), 10)
+    _status(d, 1, 5.0, 1, d._seq[1], 20)               # joint 1 on its way
+    d.on_message(0, 1, (cmd("joint", 2, 45),), 30)
+    assert [j.command for j in d.jobs] == [cmd("joint", 1, 20)]
+    _event_done(d, 1, 40)
+    assert d.take_radio() == [(0, (cmd("done"), cmd("joint", 1, 20)), 3)]

@@ -279,7 +279,9 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
             return _r1_in_ring(lines)
         assert wait_for(joined, 40.0), lines[-5:]
         time.sleep(0.5)                                   # R1 hears its submodules' status
-        father.stdin.write("1 joint(1,20)\n1 status()\n1 moveto(900,0,0)\n1 joint(1,20)\n")
+        # (the last: joint 2, never commanded, at rest at 45 deg by its status; a repeat of
+        # joint(1,20) while joint 1 still moves would wait for its arrival, docs/dispatcher.md)
+        father.stdin.write("1 joint(1,20)\n1 status()\n1 moveto(900,0,0)\n1 joint(2,45)\n")
         father.stdin.close()
         # one order failed and one ended unreported: not every order succeeded, status 1
         assert father.wait(timeout=40) == 1, father.stderr.read()
@@ -309,7 +311,7 @@ def test_the_father_console_follows_each_order_to_its_end(hub, tmp_path, mode):
                  "#2 -> R1 status(): replied in", ", joint 2 45 deg, joint 3 -90 deg",
                  "#3 -> R1 moveto(900,0,0): failed after",
                  "fail(1): target out of the arm's reach",
-                 "#4 -> R1 joint(1,20): unreported after", "no report within 3 s"):
+                 "#4 -> R1 joint(2,45): unreported after", "no report within 3 s"):
         assert want in text, (want, lines)
     assert len(lines) < 30, lines
 
