@@ -209,6 +209,13 @@ class OrderBook:
             if acked is not None and (now - acked) / TICK_HZ >= within_s:
                 self._set(o, "unreported", now, f"no report within {within_s:g} s of its "
                           f"acknowledgement: {self._why_unreported(o, acked)}")
+        for o in self.orders:
+            # a broadcast's answers not come by then never will (a robot already there):
+            # left owed, they would take a later order's report with the same text
+            if o.expect:
+                sent = _tick_of(o, "sent")
+                if sent is not None and (now - sent) / TICK_HZ >= within_s:
+                    o.expect.clear()
 
     def _why_unreported(self, o: Order, acked: int) -> str:
         for p in self.orders:
@@ -308,10 +315,13 @@ class OrderBook:
         for p in self.orders:
             if p is o:
                 break
-            if p.dst == o.dst and not p.finished and p.state != "queued" and \
-                    (_submodules(p) or set()) & mine:
+            if not (_submodules(p) or set()) & mine or p.state == "queued":
+                continue
+            if p.dst == o.dst and not p.finished:
                 self._set(p, "unreported", now, f"replaced by #{o.id} before it was carried "
                           f"out: the robot reports no order a newer one replaced")
+            elif p.dst == BROADCAST and o.dst in p.expect:
+                del p.expect[o.dst]           # its answer to the broadcast will not come
 
     def _owner(self, robot: int, pred: Callable[[Order, list[str]], bool],
                part: str) -> Order | None:

@@ -280,3 +280,31 @@ def test_an_order_left_unreported_says_what_the_father_saw():
     reasons = {o.id: (o.state, o.reason) for o in book.orders}
     assert reasons[1][0] == "unreported" and "#2's stop() stopped it" in reasons[1][1]
     assert reasons[3][0] == "unreported" and "the ring dropped robot 2" in reasons[3][1]
+
+
+def test_a_broadcast_answer_that_never_comes_takes_no_later_report():
+    """``7 joint(1,20)``, robot 1 already there (no report, as documented): its owed answer
+    to the broadcast stayed owed, and took the report of a later ``1 joint(1,20)``, which
+    ended unreported. A later report on the same submodule, or report-within, ends the
+    debt."""
+    seen, news = [], []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state)),
+                     on_news=lambda d, now: news.append(d.src))
+    b = _msg(book, 1, cmd("joint", 1, 20), dst=7)
+    m2 = _msg(book, 2, cmd("joint", 1, 0), dst=1)
+    m3 = _msg(book, 3, cmd("joint", 1, 20), dst=1)
+    _sent(book, b, 10, to=(1,))
+    b.awaiting = set()
+    book.observe(Outcome(b, True, ""), 20)
+    for k, m in enumerate((m2, m3)):
+        _sent(book, m, 30 + k)
+        book.observe(Outcome(m, True, ""), 40 + k)
+    book.observe(Deliver(1, 0, 5, 3, (cmd("done"), cmd("joint", 1, 0))), 50)
+    book.observe(Deliver(1, 0, 6, 3, (cmd("done"), cmd("joint", 1, 20))), 60)
+    assert (2, "done") in seen and (3, "done") in seen and news == []
+    # and without a report between: report-within ends the debt
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state)))
+    b = _msg(book, 1, cmd("joint", 1, 20), dst=7)
+    _sent(book, b, 10, to=(1,))
+    book.expire(61 * TICK_HZ)
+    assert book.orders[0].expect == {}
