@@ -71,6 +71,11 @@ def bus_notes(bus) -> list[str]:
     if other:
         notes.append(f"{other} frame{'s' if other > 1 else ''} not CAN 2.0A ignored "
                      f"(extended id, CAN FD or error frame)")
+    refused = getattr(getattr(bus, "bus", None), "tx_dropped", 0)
+    if refused:
+        # (rprs_unix: a peer that was not reading, a stalled process, had its queue full)
+        notes.append(f"{refused} frame{'s' if refused > 1 else ''} sent dropped for a peer "
+                     f"that was not reading (its queue full)")
     bad = getattr(bus, "malformed", 0)
     if bad:
         notes.append(f"{bad} frame{'s' if bad > 1 else ''} no CAN 2.0A node can send ignored "

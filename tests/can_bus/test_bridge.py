@@ -889,3 +889,25 @@ def test_closing_the_terminal_stops_a_bench_process_cleanly(tmp_path):
     assert p.returncode == 0, p.returncode       # -1: killed by SIGHUP
     lines = log.read_text().splitlines()
     assert len(lines) >= 30 and all(line.endswith(" T") for line in lines), lines[-3:]
+
+
+def test_frames_a_stalled_peer_could_not_take_are_said_in_the_closing_line(tmp_path):
+    """On ``rprs_unix`` a peer that does not read (a bench process stopped) has a queue of a
+    few datagrams; the frames sent beyond it were dropped with nothing said anywhere (a done
+    event lost so failed a finished move). The sender's closing line now counts them."""
+    channel = f"rprs_unix:{tmp_path / 'bus'}"
+    sched = RealTimeScheduler()
+    bus = PythonCanBus(sched, open_bus(channel))
+    peer = open_bus(channel)                   # never reads
+    try:
+        time.sleep(0.2)
+        for _ in range(40):
+            bus.bus.send(can.Message(arbitration_id=0x100, is_extended_id=False, data=b"x"),
+                         timeout=0.01)
+        dropped = bus.bus.tx_dropped
+    finally:
+        peer.shutdown()
+        bus.close()
+    assert dropped > 0
+    assert f"{dropped} frames sent dropped for a peer that was not reading (its queue " \
+        "full)" in bus_notes(bus)
