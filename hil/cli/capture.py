@@ -51,6 +51,8 @@ def cmd_capture(a: argparse.Namespace) -> int:
                            listener=f"radio on {a.radio}")
     except OSError as exc:
         port.close()
+        if a.pcap == "-" and isinstance(exc, BrokenPipeError):
+            raise                  # stdout's reader gone already: as every command ends then
         raise UserError(f"cannot write capture {a.pcap}: {exc.strerror or exc}") from None
     # a capture that cannot go on (its reader gone, the disk full) ends the command
     cap.on_error = lambda why: runner.fail(why)

@@ -1250,7 +1250,11 @@ def test_a_capture_whose_reader_goes_away_stops():
             os.write(master, frame)
             time.sleep(0.1)
         assert p.poll() == 1, "still capturing with its reader gone"
-        assert b"capture stopped: [Errno 32] Broken pipe" in p.stderr.read()
+        err = p.stderr.read()
+        # (gone before the header was all written: it ends as every command then does,
+        # quietly; after: it says the capture stopped)
+        assert b"Traceback" not in err and (b"capture stopped: [Errno 32] Broken pipe" in err
+                                            or b"rprs: error" not in err), err
     finally:
         if p.poll() is None:
             p.kill()
