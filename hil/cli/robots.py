@@ -62,24 +62,17 @@ def bus_notes(bus) -> list[str]:
     no node, for its closing line: frames the kernel dropped before they were read (a flood),
     frames that are not CAN 2.0A (an extended id, CAN FD: no node of ours takes them), and
     frames no CAN 2.0A node can send (a software bus carries them)."""
-    notes = []
-    lost = getattr(bus, "lost", 0)
-    if lost:
-        notes.append(f"{lost} frame{'s' if lost > 1 else ''} lost (the receive queue "
-                     f"overflowed)")
-    other = getattr(bus, "not_ours", 0)
-    if other:
-        notes.append(f"{other} frame{'s' if other > 1 else ''} not CAN 2.0A ignored "
-                     f"(extended id, CAN FD or error frame)")
-    refused = getattr(getattr(bus, "bus", None), "tx_dropped", 0)
-    if refused:
-        # (rprs_unix: a peer that was not reading, a stalled process, had its queue full)
-        notes.append(f"{refused} frame{'s' if refused > 1 else ''} sent dropped for a peer "
-                     f"that was not reading (its queue full)")
-    bad = getattr(bus, "malformed", 0)
-    if bad:
-        notes.append(f"{bad} frame{'s' if bad > 1 else ''} no CAN 2.0A node can send ignored "
-                     f"(an 11-bit id above 0x7FF, or a DLC that disagrees with the data)")
+    counted = (
+        (getattr(bus, "lost", 0), "lost (the receive queue overflowed)"),
+        (getattr(bus, "not_ours", 0), "not CAN 2.0A ignored (extended id, CAN FD or error "
+                                      "frame)"),
+        # rprs_unix: a peer that was not reading (a stalled process) had its queue full
+        (getattr(getattr(bus, "bus", None), "tx_dropped", 0),
+         "sent dropped for a peer that was not reading (its queue full)"),
+        (getattr(bus, "malformed", 0), "no CAN 2.0A node can send ignored (an 11-bit id "
+                                       "above 0x7FF, or a DLC that disagrees with the data)"),
+    )
+    notes = [f"{n} frame{'s' if n > 1 else ''} {what}" for n, what in counted if n]
     return notes
 
 
