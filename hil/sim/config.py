@@ -94,6 +94,11 @@ class SimConfig:
         self._check_together()
         if not self.robots:
             raise ConfigError("no robots: give at least one ID with --robots")
+        from firmware_model.cycle_costs import CycleCosts
+        if self.cpu is not None and not isinstance(self.cpu, CycleCosts):
+            raise ConfigError(f"cpu must be a CycleCosts table (firmware_model.cycle_costs: "
+                              f"DEFAULT_COSTS is --cpu estimated) or None for the ideal CPU, "
+                              f"got {self.cpu!r}")
         for r in self.robots:
             if not isinstance(r, int) or not 0 <= r <= 6:
                 raise ConfigError(f"robot ID {r!r} is not 0-6 (0 is the father, 1-6 children)")

@@ -87,3 +87,17 @@ def test_one_switch_turns_every_fast_path_off():
     fast = World(SimConfig(robots=(0, 1, 2), duration=1, can=True))
     assert fast.quiet_ring is not None and all(q.enabled for q in fast.quiet.values())
     assert all(st.mac.cfg.fast_path for st in fast.stations.values())
+
+
+@pytest.mark.parametrize("cpu", ["estimated", "ideal", 1])
+def test_a_cpu_that_is_no_cost_table_says_so(cpu):
+    """``SimConfig(cpu="estimated")``, the command line's word, got as far as building the
+    CPUs and died there in an AttributeError."""
+    with pytest.raises(ConfigError, match="cpu must be a CycleCosts table"):
+        hil.sim.world.World(SimConfig(duration=1.0, cpu=cpu))
+
+
+def test_the_cost_table_and_the_ideal_cpu_are_good():
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    for cpu in (None, DEFAULT_COSTS):
+        SimConfig(duration=1.0, cpu=cpu).validate()
