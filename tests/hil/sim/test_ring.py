@@ -375,3 +375,25 @@ def test_father_failover_takes_id0s_turn_without_a_miss():
     s = w.summary()
     assert s["duplicate_deliveries"] == 0
     assert s["submitted"] == s["delivered"] + s["failed"] + s["pending"]
+
+
+@pytest.mark.parametrize("robots,back,kw", [
+    ((1, 4), 4, dict(power_on={4: 1.0}, duration=8.0, seed=0,
+                     faults=(Fault("fail", 4, 1.5), Fault("recover", 4, 3.6)))),
+    ((0, 4), 4, dict(duration=10.0, seed=2,
+                     faults=(Fault("fail", 4, 3.933), Fault("recover", 4, 5.879))))])
+def test_a_ring_of_two_takes_back_its_member_without_counting_the_healthy_one_missing(
+        robots, back, kw):
+    """docs/protocol.md §8.2 and clause 37: the robot whose radio comes back with fewer than
+    three misses counted still holds the ring of two, and hears its only other member, alone,
+    invite it. It answered nothing (a lone claimer's mask "says nothing about our ring"),
+    sent a frame into the window, sent the healthy claimer to LISTEN and counted it missing
+    three times. Now it goes to LISTEN and answers at once."""
+    _, evs = run(robots=robots, **kw)
+    healthy = next(r for r in robots if r != back)
+    recovered = next(e["t"] for e in evs if e["ev"] == "fault" and e.get("kind") == "recover")
+    after = [e for e in evs if e.get("t", -1) >= recovered]
+    assert [e for e in after if e["ev"] in ("miss", "disable") and e["robot"] == healthy] == []
+    assert [e for e in after if e["ev"] == "mode" and e["robot"] == healthy] == []
+    rejoined = [e for e in after if e["ev"] == "rejoin" and e["robot"] == back]
+    assert rejoined and rejoined[0]["t"] - recovered < 16_000_000 // 2     # within 0.5 s
