@@ -160,12 +160,10 @@ def probability(text: str) -> float:
     return v
 
 
-LOAD_MAX = 1000.0
-"""Messages/s per robot: the highest ``--load`` rate taken (tens of times what the whole channel
-carries)."""
 
 
 def load_spec(text: str) -> str | float:
+    from hil.sim.config import LOAD_MAX
     if text in ("idle", "saturate"):
         return text
     try:

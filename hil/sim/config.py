@@ -4,13 +4,15 @@ built. ``rprs sim``'s options map onto it (hil/cli/sim.py); the campaign and the
 too, and the world (hil/sim/world.py) runs it."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from firmware_model.radio.frame import MAX_CONTENT
 from firmware_model.radio.mac import MacConfig
 from firmware_model.timing import s_to_ticks
 
-from .faults import CAN_KINDS, Fault, FaultError, check_skew
+from .faults import CAN_KINDS, Fault, FaultError, check_skew, parse_fault
 
 if TYPE_CHECKING:
     from firmware_model.cycle_costs import CycleCosts
@@ -19,6 +21,17 @@ if TYPE_CHECKING:
 
 class ConfigError(ValueError):
     """A simulation setting that cannot work (bad robot list, fault time, load ...)."""
+
+
+LOAD_MAX = 1000.0
+"""Messages/s per robot: the highest load rate taken (tens of times what the whole channel
+carries; a rate far above that is ``saturate``, and costs the simulator each message)."""
+PAYLOAD_MIN = 8
+"""Content bytes of the smallest message ``payload`` may ask for (``movex(1)``): an empty
+Content is a heartbeat, which nobody acknowledges (docs/protocol.md clause 21)."""
+FLAGS = ("noise", "byte_by_byte", "can", "fast_paths", "can_sleep", "keep_records",
+         "ring_sleep", "realtime", "father_standby")
+"""SimConfig's switches: True or False, nothing that is merely truthy ("no" is)."""
 
 
 @dataclass
@@ -91,16 +104,12 @@ class SimConfig:
     def validate(self) -> None:
         """A ConfigError for the first setting that cannot work. The settings that do not
         go together come first (:meth:`_check_together`), then each setting alone."""
+        self._check_types()
         self._check_together()
         if not self.robots:
             raise ConfigError("no robots: give at least one ID with --robots")
-        from firmware_model.cycle_costs import CycleCosts
-        if self.cpu is not None and not isinstance(self.cpu, CycleCosts):
-            raise ConfigError(f"cpu must be a CycleCosts table (firmware_model.cycle_costs: "
-                              f"DEFAULT_COSTS is --cpu estimated) or None for the ideal CPU, "
-                              f"got {self.cpu!r}")
         for r in self.robots:
-            if not isinstance(r, int) or not 0 <= r <= 6:
+            if isinstance(r, bool) or not isinstance(r, int) or not 0 <= r <= 6:
                 raise ConfigError(f"robot ID {r!r} is not 0-6 (0 is the father, 1-6 children)")
         if len(set(self.robots)) != len(self.robots):
             raise ConfigError(f"robot IDs repeat in {list(self.robots)}")
@@ -135,8 +144,6 @@ class SimConfig:
             if f.robot is not None and f.robot not in self.robots:
                 raise ConfigError(f"fault {f.spec()} names robot {f.robot}, which is not in the "
                                   f"ring {list(self.robots)}")
-            if f.at < 0:
-                raise ConfigError(f"fault {f.spec()}: time must not be negative")
             if f.kind in CAN_KINDS and not self.can:
                 raise ConfigError(f"fault {f.spec()} needs the children's CAN side (--can)")
             if f.kind == "skew":
@@ -152,6 +159,14 @@ class SimConfig:
             raise ConfigError(f"load must be idle, saturate or a rate, got {self.load!r}")
         elif not self.load > 0:
             raise ConfigError(f"load rate must be positive messages/s, got {self.load}")
+        elif not self.load <= LOAD_MAX:
+            raise ConfigError(f"load rate {self.load:g} messages/s per robot is more than "
+                              f"{LOAD_MAX:g}: the channel carries a few dozen short messages a "
+                              f"second in all; any rate far above that is 'saturate'")
+        if self.payload is not None and not PAYLOAD_MIN <= self.payload <= MAX_CONTENT:
+            raise ConfigError(f"payload must be {PAYLOAD_MIN}-{MAX_CONTENT} Content bytes (an "
+                              f"empty Content is a heartbeat, which nobody acknowledges), got "
+                              f"{self.payload}")
         for r, t in self.power_on.items():
             if r not in self.robots:
                 raise ConfigError(f"a power-on time for robot {r}, which is not in the ring "
@@ -178,6 +193,74 @@ class SimConfig:
                                   f"{list(self.robots)}: give its team ({r}@{t:g}:TEAM)")
         if self.extra and self.mac_kind != "rotational":
             raise ConfigError("extra robots need the rotational MAC")
+
+    def _check_types(self) -> None:
+        """Settings given in Python with a type they cannot have: a ConfigError naming the
+        setting, not a TypeError, a hang or a silent misreading deep in the run (the command
+        line's options come typed; a program's SimConfig does not)."""
+        from firmware_model.cycle_costs import CycleCosts
+        from firmware_model.radio.peer_macs import PeerConfig
+
+        def number(name: str, v: object) -> None:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ConfigError(f"{name} must be a finite number, got {v!r}")
+
+        if not isinstance(self.robots, (tuple, list)):
+            raise ConfigError(f"robots must be a tuple of IDs 0-6, got {self.robots!r}")
+        number("duration", self.duration)
+        number("ber", self.ber)
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int):
+            raise ConfigError(f"seed must be an int, got {self.seed!r}")
+        for name in FLAGS:
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        if not isinstance(self.faults, (tuple, list)):
+            raise ConfigError(f"faults must be a tuple of Fault, got {self.faults!r}")
+        for f in self.faults:
+            if not isinstance(f, Fault):
+                raise ConfigError(f"faults must be Fault objects (hil.sim.faults.parse_fault "
+                                  f"reads a spec such as 'fail:1@5'), got {f!r}")
+            if f.kind != "skew":
+                number(f"fault {f.kind}'s time", f.at)
+                if f.at < 0:
+                    raise ConfigError(f"fault {f.spec()}: time must not be negative")
+            try:        # every check the command line's spec gets
+                text = f.spec()
+            except (AssertionError, TypeError, ValueError):
+                raise ConfigError(f"{f!r}: not a fault the command line could give (a skew "
+                                  f"needs its fraction, numbers must be numbers)") from None
+            try:
+                parse_fault(text)
+            except FaultError as exc:
+                raise ConfigError(f"fault {text}: {exc}") from None
+        if not isinstance(self.power_on, dict):
+            raise ConfigError(f"power_on must be a dict of robot ID to seconds, got "
+                              f"{self.power_on!r}")
+        for r, t in self.power_on.items():
+            number(f"robot {r}'s power-on time", t)
+        if not isinstance(self.load, str):
+            number("load", self.load)
+        if self.load_until is not None:
+            number("load_until", self.load_until)
+        if self.payload is not None and (isinstance(self.payload, bool)
+                                         or not isinstance(self.payload, int)):
+            raise ConfigError(f"payload must be a whole number of bytes, got {self.payload!r}")
+        for name, v, kind in (("mac", self.mac, MacConfig), ("peer", self.peer, PeerConfig),
+                              ("cpu", self.cpu, CycleCosts)):
+            if v is not None and not isinstance(v, kind):
+                raise ConfigError(f"{name} must be a {kind.__name__} or None, got {v!r}" + (
+                    " (firmware_model.cycle_costs.DEFAULT_COSTS is --cpu estimated, None the "
+                    "ideal CPU)" if kind is CycleCosts else ""))
+        if self.sequence is not None:
+            seq = self.sequence
+            if not (isinstance(seq, tuple) and len(seq) == 2 and isinstance(seq[0], tuple)
+                    and isinstance(seq[1], int) and not isinstance(seq[1], bool)):
+                raise ConfigError(f"sequence must be ((row of robot IDs), cycles), got {seq!r}")
+        for x in self.extra:
+            if not (isinstance(x, tuple) and len(x) == 3):
+                raise ConfigError(f"each extra robot must be (ID, power-on seconds, team or "
+                                  f"None), got {x!r}")
+            number(f"extra robot {x[0]!r}'s power-on time", x[1])
 
     def _check_together(self) -> None:
         """Settings that do not go together: the paper profile has no standby PC, and an

@@ -14,7 +14,7 @@ from firmware_model.radio.peer_macs import PeerConfig
 from hil.campaign.runs import check_args
 from hil.campaign.spec import SpecError, load_spec
 from hil.sim.config import ConfigError, SimConfig
-from hil.sim.faults import parse_fault
+from hil.sim.faults import Fault, parse_fault
 
 
 def test_the_world_module_still_offers_the_config():
@@ -45,7 +45,7 @@ def test_settings_that_do_not_go_together_are_a_config_error(settings, words):
 @pytest.mark.parametrize("power_on,words", [
     ({5: 1.0}, r"a power-on time for robot 5, which is not in the ring \[1, 2, 3, 4\]"),
     ({2: -1.0}, "bad power-on time -1.0 for robot 2"),
-    ({2: float("nan")}, "bad power-on time nan for robot 2")])
+    ({2: float("nan")}, "robot 2's power-on time must be a finite number, got nan")])
 def test_a_power_on_time_says_what_is_wrong_with_it(power_on, words):
     """``--power 5@1`` on a ring without robot 5 said "bad power-on time 1.0 for robot 5",
     blaming the time; a NaN time passed (``t < 0`` is False for it)."""
@@ -93,7 +93,7 @@ def test_one_switch_turns_every_fast_path_off():
 def test_a_cpu_that_is_no_cost_table_says_so(cpu):
     """``SimConfig(cpu="estimated")``, the command line's word, got as far as building the
     CPUs and died there in an AttributeError."""
-    with pytest.raises(ConfigError, match="cpu must be a CycleCosts table"):
+    with pytest.raises(ConfigError, match="cpu must be a CycleCosts or None"):
         hil.sim.world.World(SimConfig(duration=1.0, cpu=cpu))
 
 
@@ -101,3 +101,33 @@ def test_the_cost_table_and_the_ideal_cpu_are_good():
     from firmware_model.cycle_costs import DEFAULT_COSTS
     for cpu in (None, DEFAULT_COSTS):
         SimConfig(duration=1.0, cpu=cpu).validate()
+
+
+@pytest.mark.parametrize("settings,words", [
+    ({"load": float("inf")}, "load must be a finite number"),
+    ({"load": 1e6}, "more than 1000"),                 # ran for ever (a message a microsecond)
+    ({"duration": "10"}, "duration must be a finite number"),
+    ({"ber": None}, "ber must be a finite number"),
+    ({"robots": 3}, "robots must be a tuple"),
+    ({"robots": (True, 2)}, "robot ID True is not 0-6"),
+    ({"power_on": {1: "2"}}, "robot 1's power-on time must be a finite number"),
+    ({"faults": ("fail:1@2",)}, "faults must be Fault objects"),
+    ({"faults": (Fault("zap", 1, 0.5),)}, "unknown fault kind 'zap'"),
+    ({"faults": (Fault("ber", None, 0.5, 1.0),)}, "ber needs a probability"),
+    ({"faults": (Fault("fail", None, 0.5),)}, "fail needs a robot"),
+    ({"faults": (Fault("fail", 1, float("nan")),)}, "time must be a finite number"),
+    ({"faults": (Fault("skew", 1),)}, "a skew needs its fraction"),
+    ({"extra": ((),)}, "each extra robot must be"),
+    ({"mac": {"checksum": True}}, "mac must be a MacConfig"),
+    ({"sequence": ((1, 2),)}, "sequence must be"),
+    ({"load": "saturate", "payload": 0}, "payload must be 8-562"),
+    ({"load": "saturate", "payload": "5"}, "payload must be a whole number"),
+    ({"load_until": "x"}, "load_until must be a finite number"),
+    ({"can": "no"}, "can must be True or False"),
+])
+def test_a_setting_of_the_wrong_type_is_a_config_error(settings, words):
+    """A program's SimConfig is not typed by the command line's options: each of these used
+    to die deep in the run (TypeError, AttributeError, OverflowError), hang, or run taking
+    "no" for yes or an unknown fault for nothing."""
+    with pytest.raises(ConfigError, match=words):
+        hil.sim.world.World(SimConfig(**{"duration": 2.0, **settings}))
