@@ -423,8 +423,8 @@ class RotationalMac:
             # A frame accepted from a member (clauses 37, 51; not one refused out of turn):
             # its poll or ring mask says whether it still has us, and which ring it has.
             for p in polls:
-                if p.args[1] == 1 << src and not (p.args[0] == self.id
-                                                  and set(self.ring) <= {self.id, src}):
+                if p.args[1] == 1 << src and not (p.args[0] == self.id and self._announcing
+                                                  is None and set(self.ring) <= {self.id, src}):
                     continue    # a lone claimer's mask says nothing about our ring (clause 37)
                 if not (p.args[1] >> self.id & 1):
                     self._to_listen(out, now, f"left out of robot {src}'s ring (its poll mask)",

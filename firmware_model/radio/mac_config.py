@@ -190,6 +190,9 @@ def check_submission(robot: int, dst: int, commands: Iterable[Command],
     """The checks every MAC makes when a message is submitted (a destination other than the
     sender, a Type digit, no MAC commands); returns the commands and their Content."""
     commands = tuple(commands)
+    if not commands:
+        raise SubmitError("a message needs at least one command: an empty Content is a "
+                          "heartbeat (docs/protocol.md clause 21), which nobody acknowledges")
     if not 0 <= dst <= BROADCAST or dst == robot:
         raise SubmitError(f"destination must be a robot ID 0-6 other than {robot}, "
                           f"or {BROADCAST} (broadcast); got {dst}")

@@ -263,6 +263,10 @@ def test_submission_refuses_a_frame_longer_than_tmax():
         child.submit(1, [cmd("stop")])                      # to itself
     with pytest.raises(SubmitError, match="MAC command"):
         child.submit(2, [cmd("ack", 1, 5)])
+    with pytest.raises(SubmitError, match="an empty Content is a heartbeat"):
+        child.submit(2, [])       # was queued, sent as a heartbeat and failed unacknowledged
+    with pytest.raises(SubmitError, match="an empty Content is a heartbeat"):
+        w.submit(1, 2, [])
     for reserved in (5, 6, 7, 9):                           # BOOT, JOIN, reserved
         with pytest.raises(SubmitError, match="Type must be 0-4"):
             child.submit(2, [cmd("stop")], type=reserved)
