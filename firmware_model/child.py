@@ -36,7 +36,9 @@ from can_bus.bus import ErrorState
 from can_bus.frames import CanFrame
 
 from .cycle_costs import DEFAULT_COSTS, CycleCosts, message_cycles
-from .dispatcher import CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, REQUEST_TYPES, Dispatcher
+from .dispatcher import (
+    CODE_BLOCKED, CODE_BUS_OFF, CODE_NO_CAN, REQUEST_TYPES, Dispatcher, is_order,
+)
 from .mcu.can_controller import AMS_AMR0, AMS_AMR1, CSR_NIE, CSR_NT, CanController
 from .interrupts import CAN0_RX, CAN0_TX_NS, DISPATCH_TASK, TMR1
 from .mcu.cpu import Cpu
@@ -368,13 +370,11 @@ class ChildFirmware:
 
 class RadioOnlyChild:
     """A child with a radio and no CAN side (``rprs child`` without ``--can``). It takes part
-    in the ring, and answers every order addressed to it (``joint``, ``status``, ...) with a
-    failure, Type '4' ``fail(42)`` and the order (docs/dispatcher.md): it acknowledged orders
-    and silently did nothing before."""
+    in the ring, and answers every order addressed to it (``joint``, ``status``, ...), and every
+    broadcast order a child with its CAN side would carry out, with a failure, Type '4'
+    ``fail(42)`` and the order (docs/dispatcher.md): a father owes each robot's answer to a
+    broadcast to it, not to a later order of its own."""
 
-    ORDERS = frozenset(n[5:] for n in dir(Dispatcher) if n.startswith("_cmd_")) - {"fail"}
-    """What the dispatcher would act on; a ``fail`` report is news, not an order (answering
-    it could bounce failures between two robots for ever)."""
 
     def __init__(self, station: RadioStation) -> None:
         self.station = station
@@ -384,9 +384,13 @@ class RadioOnlyChild:
         station.add_app(self._on_message)
 
     def _on_message(self, d: Deliver, now: int) -> None:
-        if d.dst == BROADCAST or d.type not in REQUEST_TYPES:
+        if d.type not in REQUEST_TYPES:
             return                  # news (a reply, a failure, a notice) is not an order
-        order = next((c for c in d.commands if c.name in self.ORDERS), None)
+        # what the dispatcher would carry out (a broadcast's too, as it does; a broadcast act
+        # is a notice, clause 19a); a fail() report is news, not an order: answering it could
+        # bounce failures between two robots for ever
+        order = next((c for c in d.commands if is_order(c)
+                      and not (d.dst == BROADCAST and c.name == "act")), None)
         if order is None:
             return
         self.refused += 1

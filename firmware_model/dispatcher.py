@@ -611,3 +611,15 @@ def _roles() -> dict[str, tuple[int, int, str | None]]:
 
 
 _ROLES = _roles()
+
+
+ORDER_NAMES = frozenset(n[5:] for n in dir(Dispatcher) if n.startswith("_cmd_"))
+"""The commands a child acts on as orders (``act`` only as ``act(n,0)``, the start of action
+n); anything else a father could send (``done()``, ``fail(n)``, ``act(n,1)``) is news a
+child reports, which it notes and never carries out."""
+
+
+def is_order(c: Command) -> bool:
+    """Would a child carry out ``c``, sent to it alone (:data:`ORDER_NAMES`)?"""
+    return c.name in ORDER_NAMES and not (c.name == "act" and c.args[1:2] != (0,))
+

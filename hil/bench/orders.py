@@ -28,7 +28,7 @@ from typing import Any, Callable
 from firmware_model.radio.content import Command
 from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
-    UNACKNOWLEDGED, Deliver, Disable, Message, Outcome, Transmit,
+    UNACKNOWLEDGED, Deliver, Disable, Message, ModeChange, Outcome, Transmit,
 )
 from firmware_model.timing import TICK_HZ
 
@@ -133,6 +133,7 @@ class OrderBook:
         self.on_news = on_news
         self._by_msg: dict[int, Order] = {}
         self._dropped: dict[int, int] = {}       # robot -> tick the ring last dropped it
+        self._left: list[tuple[int, str]] = []   # (tick, why) the father went back to LISTEN
 
     def open_orders(self) -> list[Order]:
         return [o for o in self.orders if not o.finished]
@@ -179,7 +180,10 @@ class OrderBook:
                 m = o.message                   # (a queued order has its message)
                 if o.state == "queued" and m is not None and m.num == f.num and m.dst == f.dst:
                     if o.dst == BROADCAST:
-                        o.expect = {r: list(o.open_parts) for r in m.awaiting}
+                        # a broadcast act(n,0) is a notice no robot carries out (clause 19a):
+                        # no act(n,1) answers it
+                        owed = [p for p in o.open_parts if not p.startswith("act(")]
+                        o.expect = {r: list(owed) for r in m.awaiting if owed}
                     self._set(o, "sent", now)
         elif isinstance(a, Outcome):
             ended = self._by_msg.get(id(a.message))
@@ -198,6 +202,8 @@ class OrderBook:
             self._news(a, now)
         elif isinstance(a, Disable):
             self._dropped[a.robot] = now
+        elif isinstance(a, ModeChange) and a.mode == "listen":
+            self._left.append((now, a.reason))
 
     def expire(self, now: int, within_s: float = REPORT_WITHIN_S) -> None:
         """End ``unreported`` every order acknowledged ``within_s`` seconds ago or more that
@@ -218,19 +224,50 @@ class OrderBook:
                     o.expect.clear()
 
     def _why_unreported(self, o: Order, acked: int) -> str:
+        """What the father saw after ``o``'s acknowledgement that explains a missing report,
+        the first of them: a later order to the robot that commands what ``o`` did (it
+        replaced ``o``), a ``stop()``, the ring dropping the robot, the father itself out of
+        the ring (a report sent then was not heard); else the cases in which a robot reports
+        nothing."""
+        seen: list[tuple[int, str]] = []
+        mine = _submodules(o)
         for p in self.orders:
-            if p.id > o.id and p.dst in (o.dst, BROADCAST) and p.message is not None and \
-                    any(c.name == "stop" for c in p.message.commands):
-                t = _tick_of(p, "acknowledged")
-                if t is not None and t >= acked:
-                    return f"#{p.id}'s stop() stopped it (the robot reports no order it stopped)"
+            if p.id <= o.id or p.dst not in (o.dst, BROADCAST) or p.message is None:
+                continue
+            t = _tick_of(p, "acknowledged")
+            if t is None or t < acked:
+                continue
+            if any(c.name == "stop" for c in p.message.commands):
+                seen.append((t, f"#{p.id}'s stop() stopped it (the robot reports no order it "
+                                f"stopped)"))
+            elif p.dst == o.dst and _moves(o) and _moves(p) and (
+                    mine is None or (_submodules(p) or mine) & mine):
+                seen.append((t, f"#{p.id} ({p.text}) came before it was reported on: a newer "
+                                f"order replaces it, and the robot reports no order replaced"))
         dropped = self._dropped.get(o.dst) if o.dst is not None else None
         if dropped is not None and dropped >= acked:
-            return (f"the ring dropped robot {o.dst} after it acknowledged it (at "
-                    f"{(dropped - o.queued) / TICK_HZ:.2f} s): it stopped, or lost the order "
-                    f"restarting")
+            seen.append((dropped, f"the ring dropped robot {o.dst} after it acknowledged it "
+                                  f"(at {(dropped - o.queued) / TICK_HZ:.2f} s): it stopped, "
+                                  f"or lost the order restarting"))
+        left = next(((t, why) for t, why in self._left if t >= acked), None)
+        if left is not None:
+            seen.append((left[0], f"the father itself was out of the ring from "
+                                  f"{(left[0] - o.queued) / TICK_HZ:.2f} s ({left[1]}): a "
+                                  f"report sent then was not heard"))
+        if seen:
+            return min(seen, key=lambda x: x[0])[1]
         return ("the robot reports none for a move to where the arm already is, or for an "
                 "order a newer one replaced")
+
+    def close(self, now: int, why: str) -> None:
+        """The father stops (``why``: the radio port went away, a signal, the duration): every
+        order still open gets its final state, as every order line gets one. One never sent
+        fails; one sent ends ``unreported``."""
+        for o in self.open_orders():
+            if o.state == "queued":
+                self._set(o, "failed", now, f"never sent: {why}")
+            else:
+                self._set(o, "unreported", now, f"{why} before the robot reported on it")
 
     def _acknowledged(self, o: Order, now: int) -> None:
         self._set(o, "acknowledged", now)
@@ -379,6 +416,14 @@ def _submodules(o: Order) -> set[int] | None:
         else:
             return None
     return out
+
+
+MOVES = frozenset({"movex", "movey", "movez", "moveto", "joint", "wheel", "paw", "act"})
+"""Orders that command submodules: a later one of them may replace an earlier one."""
+
+
+def _moves(o: Order) -> bool:
+    return o.message is not None and any(c.name in MOVES for c in o.message.commands)
 
 
 def _is_status_reply(cmds: tuple[Command, ...]) -> bool:

@@ -461,6 +461,13 @@ def parse_order(line: str) -> tuple[int, list]:
         commands = list(parse_content(text.encode("ascii")))
     except WireError as exc:
         raise ValueError(str(exc)) from None
+    from firmware_model.dispatcher import ORDER_NAMES, is_order
+    for c in commands:
+        if c.spec.layer != "mac" and not is_order(c):     # (a MAC command: SubmitError)
+            raise ValueError(
+                f"{c.text()} is news a robot reports, not an order: no child carries it out"
+                + (f" (start action {c.args[0]} with act({c.args[0]},0))" if c.name == "act"
+                   else f"; orders: {', '.join(sorted(ORDER_NAMES - {'act'}))}, act(n,0)"))
     return dst, commands
 
 

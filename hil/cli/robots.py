@@ -190,6 +190,9 @@ def cmd_father(a: argparse.Namespace) -> int:
         maybe_exit()
 
     book = OrderBook(on_change=changed, on_news=console.news)
+    # the orders still open when it stops end then, their lines told before the console and
+    # its log close (the runner's closers run in reverse order)
+    runner.on_close(lambda: book.close(runner.sched.now, _stop_reason(runner)))
 
     def expire() -> None:                          # once a second, on the station's clock
         book.expire(runner.sched.now, a.report_within)
@@ -236,6 +239,12 @@ def cmd_father(a: argparse.Namespace) -> int:
                     "broadcast or the paper profile): exit status 1")
         code = 1
     return code
+
+
+def _stop_reason(runner) -> str:
+    """Why the father stopped, for the orders it leaves open (OrderBook.close)."""
+    failure = getattr(runner, "failure", None)
+    return failure if failure is not None else "the father stopped"
 
 
 def father_head(mac, radio: str, book) -> str:

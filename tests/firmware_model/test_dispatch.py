@@ -300,8 +300,9 @@ def test_status_reports_only_fresh_values_and_says_which_are_not():
 
 def test_a_radio_only_child_answers_orders_with_a_failure():
     """rprs child without --can acknowledged orders and silently did nothing. Now each order
-    addressed to it comes back as fail(42) with the order; news (replies, failures,
-    broadcasts) is not answered."""
+    addressed to it comes back as fail(42) with the order, a broadcast order too (a child with
+    its CAN side answers one: the father owes the answer to the broadcast, and an answer never
+    sent took a later order's); news (replies, failures, a broadcast act) is not answered."""
     from firmware_model.child import RadioOnlyChild
     from firmware_model.radio.frame import FrameType
     from firmware_model.radio.mac import Deliver
@@ -318,10 +319,13 @@ def test_a_radio_only_child_answers_orders_with_a_failure():
     deliver(Deliver(3, 2, 8, 3, (cmd("joint", 1, 5.0),)), 0)          # a reply: news
     deliver(Deliver(3, 2, 9, 4, (cmd("fail", 42), cmd("status"))), 0)  # a failure: news
     deliver(Deliver(0, 2, 10, 2, (cmd("paw", 1), cmd("wheel", 40))), 0)  # one failure a message
+    deliver(Deliver(0, 7, 11, 2, (cmd("status"),)), 0)               # a broadcast order
+    deliver(Deliver(0, 2, 12, 2, (cmd("act", 1, 1),)), 0)            # a notice: no order
     assert sent == [(0, (cmd("fail", 42), cmd("joint", 1, 12)), int(FrameType.FAILURE)),
                     (0, (cmd("fail", 42), cmd("status")), int(FrameType.FAILURE)),
-                    (0, (cmd("fail", 42), cmd("paw", 1)), int(FrameType.FAILURE))]
-    assert child.refused == 3
+                    (0, (cmd("fail", 42), cmd("paw", 1)), int(FrameType.FAILURE)),
+                    (0, (cmd("fail", 42), cmd("status")), int(FrameType.FAILURE))]
+    assert child.refused == 4
     assert child.replies_dropped == 0
     # the radio's queue full: the failure is counted dropped, not lost unsaid
     from firmware_model.radio.mac import QueueFull
@@ -329,8 +333,8 @@ def test_a_radio_only_child_answers_orders_with_a_failure():
     def full(dst, commands, type_):
         raise QueueFull("queue full: 32 messages wait")
     station.submit = full
-    deliver(Deliver(0, 2, 11, 2, (cmd("joint", 2, 10),)), 0)
-    assert child.refused == 4 and child.replies_dropped == 1
+    deliver(Deliver(0, 2, 13, 2, (cmd("joint", 2, 10),)), 0)
+    assert child.refused == 5 and child.replies_dropped == 1
 
 
 def test_a_finished_order_is_reported_done_to_its_sender():

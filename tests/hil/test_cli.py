@@ -705,6 +705,21 @@ def test_a_father_order_that_is_not_ascii_is_refused_in_words():
         parse_order("2 movex(1é)")
 
 
+@pytest.mark.parametrize("line,words", [
+    ("1 act(1,1)", r"act\(1,1\) is news a robot reports, not an order: no child carries it "
+                   r"out \(start action 1 with act\(1,0\)\)"),
+    ("1 fail(2)", r"fail\(2\) is news a robot reports"),
+    ("2 status()done()", r"done\(\) is news a robot reports")])
+def test_a_father_line_no_child_carries_out_is_refused(line, words):
+    """``1 act(1,1)`` and ``1 fail(2)`` ended ``done`` once acknowledged, the father exiting
+    0, though the child ignores both (docs/dispatcher.md)."""
+    from hil.bench.runner import parse_order
+    with pytest.raises(ValueError, match=words):
+        parse_order(line)
+    from firmware_model.radio.content import cmd
+    assert parse_order("1 act(1,0)")[1] == [cmd("act", 1, 0)]
+
+
 def test_a_father_order_to_the_father_itself_is_refused_as_it_is_parsed():
     """'0 status()' passed the order's parser ("destination ID (0-7)") and was refused later by
     the MAC as "a robot ID 0-6 other than 0", a line of another shape; now the parser says it."""

@@ -308,3 +308,63 @@ def test_a_broadcast_answer_that_never_comes_takes_no_later_report():
     _sent(book, b, 10, to=(1,))
     book.expire(61 * TICK_HZ)
     assert book.orders[0].expect == {}
+
+
+def test_a_broadcast_act_owes_no_answer_and_the_next_act_gets_its_own():
+    """``7 act(1,0)`` then ``1 act(1,0)`` (an outside check, 3 runs of 3): a broadcast act is
+    a notice no robot carries out (clause 19a), yet each robot was owed an act(1,1) for it,
+    and R1's answer to #2 went to the broadcast: #2 ended unreported, the father exit 1."""
+    seen, news = [], []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state)),
+                     on_news=lambda d, now: news.append(d.src))
+    b = _msg(book, 1, cmd("act", 1, 0), dst=7)
+    m2 = _msg(book, 2, cmd("act", 1, 0), dst=1)
+    _sent(book, b, 10, to=(1, 2))
+    b.awaiting = set()
+    book.observe(Outcome(b, True, ""), 20)
+    _sent(book, m2, 30)
+    book.observe(Outcome(m2, True, ""), 40)
+    book.observe(Deliver(1, 7, 5, 3, (cmd("act", 1, 1),)), 50)
+    assert (2, "done") in seen and news == []
+
+
+def test_the_first_thing_the_father_saw_explains_a_missing_report():
+    """``1 act(1,0)``, ``1 act(0,0)`` (done), a ``stop()`` seconds later: #1 was blamed on the
+    stop, though #2 had replaced it long before. And an order whose report came while the
+    father itself was out of the ring (stalled, left out) was said to be a move to where the
+    arm already was."""
+    from firmware_model.radio.mac import ModeChange
+    book = OrderBook()
+    a1 = _msg(book, 1, cmd("act", 1, 0), dst=1)
+    a0 = _msg(book, 2, cmd("act", 0, 0), dst=1)
+    st = _msg(book, 3, cmd("stop"), dst=1)
+    j = _msg(book, 4, cmd("joint", 1, 160), dst=2)
+    q = _msg(book, 5, cmd("status"), dst=2)
+    for k, m in enumerate((a1, a0)):
+        book.observe(Outcome(m, True, ""), 10 + k)
+    book.observe(Outcome(j, True, ""), 15)
+    book.observe(Outcome(q, True, ""), 16)                # a status() replaces no move
+    book.observe(ModeChange("listen", "stalled 3.02 s"), 20)
+    book.observe(Outcome(st, True, ""), 4 * TICK_HZ)
+    book.expire(70 * TICK_HZ)
+    why = {o.id: (o.state, o.reason) for o in book.orders}
+    assert why[1][0] == "unreported" and "#2 (act(0,0)) came before it was reported" in why[1][1]
+    assert "the father itself was out of the ring" in why[4][1] and "stalled 3.02 s" in why[4][1]
+
+
+def test_orders_open_when_the_father_stops_each_get_a_final_state():
+    """The radio port went away with three orders open: the closing line said ``open 3`` and
+    none got an end line, where every order line gets exactly one final state."""
+    seen = []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state, o.reason)))
+    m1 = _msg(book, 1, cmd("joint", 1, 160), dst=1)
+    _msg(book, 2, cmd("status"), dst=1)
+    book.observe(Outcome(m1, True, ""), 10)
+    book.close(100, "the radio port /tmp/air/node0 went away (read failed)")
+    ends = {i: (st, r) for i, st, r in seen if st in ("unreported", "failed")}
+    assert ends[1] == ("unreported", "the radio port /tmp/air/node0 went away (read failed) "
+                                     "before the robot reported on it")
+    assert ends[2][0] == "failed" and ends[2][1].startswith("never sent: the radio port")
+    assert book.counts()["open"] == 0
+    book.close(200, "again")                              # once only
+    assert len([s for s in seen if s[1] in ("unreported", "failed")]) == 2
