@@ -122,10 +122,13 @@ class _Collector:
                 # [kind, box start, box end, robot, observers, observers with a live radio]
                 item = ["miss", t - self.tmax, t, r, set(), set()]
                 self.miss_items[r] = item
-                self.totals["misses"] += 1
                 q.push(t - self.tmax, item, 1, n)
             item[4].add(by)
             if by not in self.dead:
+                if not item[5]:
+                    # counted as the run's summary counts misses: reported by a robot that
+                    # could hear the air (one whose radio had failed is drawn, not counted)
+                    self.totals["misses"] += 1
                 item[5].add(by)
         elif k is Disable or k is Rejoin:
             r = ev.robot

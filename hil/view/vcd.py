@@ -180,6 +180,7 @@ class VcdTraceWriter:
         self.owner: int | str = "x"
         self._fid = 0
         self._misses = SameHappening(meta.tmax // 2)
+        self._deaf: set[int] = set()       # robots whose radio has failed, as events are fed
         self.frames = self.collided = self.can_frames = self.misses = self.interference = 0
         self.last_tick = 0
 
@@ -219,6 +220,10 @@ class VcdTraceWriter:
             if hit is not None and ev.kind in ("fail", "recover"):
                 down = (ev.kind == "fail") == (ev.phase != "end")
                 q.push(t, ("dead", hit, down), 2, n)
+                if down:
+                    self._deaf.add(ev.robot)
+                else:
+                    self._deaf.discard(ev.robot)
         elif kind is Interference:
             start, end = ev.start, ev.end
             if not start <= end:
@@ -229,8 +234,11 @@ class VcdTraceWriter:
             q.push(end, ("fe", self._fid, -1), 0, n)
         elif kind is Miss:
             r = self._robot(ev.robot, "miss", n)
-            if self._misses.first("miss", r, t):     # reported by every observer, not at
-                self.misses += 1                       # one tick on the CPU model
+            # a miss as the run's summary counts them: reported by a robot that could hear
+            # the air (not one whose radio had failed), once for all its observers (whose
+            # reports come a tick or a handler apart on the CPU model)
+            if ev.by not in self._deaf and self._misses.first("miss", r, t):
+                self.misses += 1
                 q.push(t, ("miss", r), 2, n)
         elif kind is CanFrameOnBus:
             b = ev.bus

@@ -91,6 +91,20 @@ def frames(evs):
 
 # -- VCD -------------------------------------------------------------------------------------
 
+def heard_misses(evs) -> set[tuple[int, int]]:
+    """(robot, tick) of each miss reported by a robot whose radio worked (the summary's
+    count: a deaf robot blames the others for its own silence)."""
+    deaf: set[int] = set()
+    out = set()
+    for e in evs:
+        if e["ev"] == "fault" and e.get("kind") in ("fail", "recover"):
+            (deaf.add if (e["kind"] == "fail") == (e.get("phase") != "end")
+             else deaf.discard)(e["robot"])
+        elif e["ev"] == "miss" and e["by"] not in deaf:
+            out.add((e["robot"], e["t"]))
+    return out
+
+
 def test_timescale_maps_ticks_exactly():
     assert timescale_for(16_000_000) == ("100 ps", 625)
     assert timescale_for(1_000_000) == ("1 us", 1)
@@ -154,8 +168,9 @@ def test_vcd_misses_deduplicated_and_dead_radio_is_z(fault_run, tmp_path):
     out = tmp_path / "run.vcd"
     s = write_vcd(fault_run, str(out))
     _, ch, _ = parse_vcd(out)
-    misses = {(e["robot"], e["t"]) for e in fault_run if e["ev"] == "miss"}
+    misses = heard_misses(fault_run)
     assert s["misses"] == len(misses) < sum(e["ev"] == "miss" for e in fault_run)
+    assert {r for r, _ in misses} == {1}       # R1's reports of the others, deaf, are none
     r1 = sorted(t for r, t in misses if r == 1)
     assert [t for t, _ in ch["rprs.R1.miss"]] == [t * UNITS for t in r1]
     assert value_at(ch, "rprs.R1.rx", 10 * 16_000_000 * UNITS) == "z"   # failed 8 s .. 14 s
@@ -251,7 +266,7 @@ def test_plot_png_default_window_around_the_first_fault(fault_run, tmp_path):
     assert s["format"] == "png" and 0 < s["turns"] <= 200
     lo, hi = s["window_s"]
     assert lo < 8.0 < hi                   # the radio failure, its misses and the disable
-    assert s["misses"] == len({(e["robot"], e["t"]) for e in fault_run if e["ev"] == "miss"})
+    assert s["misses"] == len(heard_misses(fault_run)) == 3
     assert s["disables"] == 1 and s["rejoins"] == 1 and s["collided"] == 2
     assert 0.5 < s["utilisation"] < 0.9
     assert not list(tmp_path.glob("*.partial"))
@@ -274,7 +289,7 @@ def test_on_the_cpu_model_a_miss_and_a_drop_are_drawn_and_counted_once(tmp_path)
     assert disable_ticks > 1                   # the reports of the drop: several ticks
     assert model["disables"] == ideal["disables"] == 1
     assert model["misses"] == ideal["misses"] == model_vcd["misses"] == ideal_vcd["misses"]
-    assert model["misses"] == 6       # R1's 3, and 3 R1 reported of the others while deaf
+    assert model["misses"] == 3       # R1's; those R1 reported of the others while deaf: none
 
 
 def test_plot_svg_with_window(fault_run, tmp_path):
@@ -444,3 +459,24 @@ def test_interference_and_air_faults(idle_run, tmp_path):
     p = plot_trace(evs, str(tmp_path / "i.svg"))
     assert p["interference"] == 1
     assert "burst@x:0.001" in (tmp_path / "i.svg").read_text()
+
+
+def test_the_waveform_and_the_plot_count_misses_as_the_summary_does(tmp_path):
+    """R1's radio fails for 7 s in a ring of four: R1, deaf, reports each of the three healthy
+    robots missing. The summary counts R1's three misses only (reports by a robot whose
+    radio failed are none); the VCD fired a miss on each healthy robot too, and the plot
+    said "6 missed"."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(0, 1, 2, 3), duration=15.0,
+                        faults=(Fault("fail", 1, 5.0), Fault("recover", 1, 12.0))),
+              on_event=evs.append)
+    w.run()
+    assert any(e["ev"] == "miss" and e["robot"] != 1 for e in evs)     # R1's, while deaf
+    summary = w.summary()
+    missed = sum(r["missed"] for r in summary["robots"].values())
+    assert missed == 3
+    s = write_vcd(evs, str(tmp_path / "run.vcd"))
+    _, ch, _ = parse_vcd(tmp_path / "run.vcd")
+    assert s["misses"] == missed
+    assert not any(ch.get(f"rprs.R{r}.miss") for r in (0, 2, 3))
+    assert plot_trace(evs, str(tmp_path / "run.png"))["misses"] == missed
