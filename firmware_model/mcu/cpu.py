@@ -603,10 +603,28 @@ class Cpu:
     # -- figures -------------------------------------------------------------------------
 
     def load(self, now: int | None = None) -> float:
-        """Share of the machine cycles since the start spent in handlers and tasks."""
+        """Share of the machine cycles since the start spent in handlers and tasks, those
+        still running included (a handler longer than the run kept the CPU busy all of it,
+        though its cycles are not yet in ``busy``)."""
         now = self.sched.now if now is None else now
         span = now - self.started
-        return self.busy / span if span > 0 else 0.0
+        return (self.busy + self.running(now)) / span if span > 0 else 0.0
+
+    def running(self, now: int) -> int:
+        """Cycles done by ``now`` of the handlers and tasks still running (not in ``busy``)."""
+        return sum(done for _, done, _ in self.unfinished(now))
+
+    def unfinished(self, now: int) -> list[tuple[HandlerStats, int, int]]:
+        """The handlers and tasks still running at ``now`` (their RETI not done): (their
+        figures, cycles done, ticks since their request)."""
+        out = [(f.stats, f.done, now - f.requested) for f in self._stack]
+        if out:
+            top = self._stack[-1]
+            out[-1] = (top.stats, top.done + now - top.since, now - top.requested)
+        f = self._alone
+        if f is not None and not self._alone_over(now):
+            out.append((f.stats, min(now - self._alone_t, f.end), now - f.requested))
+        return out
 
     @property
     def idle(self) -> bool:

@@ -34,6 +34,13 @@ def _pct(counts, q: float) -> int:
     return value
 
 
+def _source_kind(source: str) -> str:
+    """A cost's source in a word or two: ``manual``, ``listing``, ``estimate``, or the file
+    that changed it (``big.toml (was 95)``), its brackets whole."""
+    head = source.split(":")[0]
+    return head + ")" * (head.count("(") - head.count(")"))
+
+
 def costed_by(name: str, costs: CycleCosts = DEFAULT_COSTS) -> dict:
     """Where handler ``name``'s cycles come from: its vector and ICR (none for main-loop
     work) and its rows of the cycle-cost table, each with its cycles and its source's kind
@@ -41,7 +48,7 @@ def costed_by(name: str, costs: CycleCosts = DEFAULT_COSTS) -> dict:
     v = VECTORS.get(name)
     return {"vector": v.number if v else None, "icr": icr_of(v.number) if v else None,
             "costs": {row: {"cycles": getattr(costs, row).cycles,
-                            "source": getattr(costs, row).source.split(":")[0]}
+                            "source": _source_kind(getattr(costs, row).source)}
                       for row in COSTED_BY.get(name, ())}}
 
 
@@ -50,9 +57,16 @@ def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int,
     """The report of one CPU as plain data (JSON-ready): ``span`` ticks of simulated time."""
     cpu.settle()
     rows = []
+    # a handler still running at the end (one longer than the run): its cycles so far count,
+    # and its response is at least as long as it has run
+    going: dict[str, tuple[int, int]] = {}
+    for st, done, since in cpu.unfinished(cpu.sched.now):
+        c, w = going.get(st.name, (0, 0))
+        going[st.name] = (c + done, max(w, since))
     for s in sorted(cpu.stats.values(), key=lambda s: (s.level, s.name)):
         lat, resp = s.latency, s.response
-        worst = s.worst_response
+        busy, still = s.busy + going.get(s.name, (0, 0))[0], going.get(s.name, (0, 0))[1]
+        worst = max(s.worst_response, still)
         if s.level < MAIN_LEVEL:
             worst += sample_wait + sum(getattr(costs, row).worst_extra
                                        for row in COSTED_BY.get(s.name, ()))
@@ -60,17 +74,19 @@ def cpu_budget(cpu: Cpu, sample_wait: int, byte_ticks: int, span: int,
             "handler": s.name, "level": s.level, "calls": s.calls,
             "per_second": round(s.calls * TICK_HZ / span, 1) if span else 0.0,
             "cycles_per_call": round(s.busy / s.calls) if s.calls else 0,
-            "load": round(s.busy / span, 6) if span else 0.0,
+            "load": round(busy / span, 6) if span else 0.0,
+            **({"running_us": round(still * US, 1)} if s.name in going else {}),
             "latency_us": [round(_pct(lat, 0.5) * US, 1), round(_pct(lat, 0.99) * US, 1),
                            round(s.worst_latency * US, 1)],
             "response_us": [round(_pct(resp, 0.5) * US, 1), round(_pct(resp, 0.99) * US, 1),
-                            round(s.worst_response * US, 1)],
+                            round(max(s.worst_response, still) * US, 1)],
             "worst_case_us": round(worst * US, 1),
             **({"deadline_us": round(byte_ticks * US, 1)} if s.name.startswith("UART0 RX")
                else {}),
             **costed_by(s.name, costs),
         })
-    return {"load": round(cpu.busy / span, 6) if span else 0.0, "handlers": rows}
+    return {"load": round((cpu.busy + cpu.running(cpu.sched.now)) / span, 6) if span else 0.0,
+            "handlers": rows}
 
 
 def print_cpu_report(world, costs, console=None) -> dict:
@@ -109,7 +125,12 @@ def print_cpu_report(world, costs, console=None) -> dict:
         con.print(t)
         if deadline is not None:
             con.print(f"{deadline[0]} worst case {deadline[1]:g} us against its deadline, "
-                      f"one byte: {deadline[2]:g} us")
+                      f"one byte: {deadline[2]:g} us"
+                      + (": missed" if deadline[1] > deadline[2] else ""))
+        for h in rep["handlers"]:
+            if "running_us" in h:
+                con.print(f"{h['handler']} still running at the end, {h['running_us']:g} us "
+                          f"after its request")
     con.print("cycles: entry + body + RETI of one call; latency: request to acceptance; "
               "response: request to the handler's effects (p50/p99/max); worst adds the longest "
               f"instruction ({costs.sample_wait_max.cycles} cycles) and its listings' fetch and "

@@ -521,6 +521,23 @@ def test_sim_json_with_the_cpu_report_is_one_document(capsys):
     assert "cpu_report" in doc and "delivered" in doc
 
 
+def test_the_cpu_report_counts_a_handler_still_running_at_the_end(capsys, tmp_path):
+    """A receive handler of 1e11 cycles (longer than the run) kept each child's CPU busy from
+    its first byte on: the report said load 0.00 %, response 0 and a worst case of 43 us
+    against the byte's 1040 us, its cycles not being in any finished call."""
+    costs = tmp_path / "big.toml"
+    costs.write_text("[costs]\nuart_rx_byte = 100000000000\n")
+    code, out, _ = rprs(capsys, "sim", "--robots", "1,2", "--duration", "5", "--cpu-costs",
+                        str(costs), "--cpu-report", "--json", "--no-progress")
+    assert code == 0
+    doc = json.loads(out)
+    rep = doc["cpu_report"]["2"]         # (R1 claims the channel; R2 hears its first byte)
+    row = next(h for h in rep["handlers"] if h["handler"] == "UART0 RX")
+    assert rep["load"] > 0.5 and row["load"] > 0.5 and doc["cpu_load"]["2"] > 0.5
+    assert row["running_us"] > 1e6 and row["worst_case_us"] > row["deadline_us"]
+    assert row["costs"]["uart_rx_byte"]["source"] == "big.toml (was 95)"
+
+
 def test_a_can_log_that_cannot_be_written_is_one_line_and_closes_the_bus():
     """python-can warns at exit about a bus never shut down: that was a second line."""
     for log in (".", "x.unknown-format"):
