@@ -10,7 +10,7 @@ import os
 import sys
 
 PROJECT = ("firmware_model", "hil", "can_bus", "construct", "can", "cantools", "serial",
-           "rich", "numpy")
+           "rich")
 """Modules a benchmark of the project imports: the project's packages and its dependencies
 (pyproject.toml), by their import names."""
 
