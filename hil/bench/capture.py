@@ -17,6 +17,7 @@ from collections import deque
 from typing import Any, BinaryIO
 
 from firmware_model.radio.deframer import Deframer, FrameFailed, FrameReceived
+from firmware_model.timing import TICK_HZ
 
 from ..sim.pcap import PcapWriter
 
@@ -51,6 +52,8 @@ class BenchCapture:
         self._chunks: deque[tuple[int, int, int]] = deque()   # (end offset, tick, byte ticks)
         self._flush_ev: Any = None
         self.error: str | None = None
+        self.gaps = 0                   # stalls: heard bytes dropped, their times unknown
+        self._note: str | None = None   # the comment of the next packet (a gap before it)
         self.close_error: str | None = None
         """Why the file could not be finished at the end (its last bytes not written), or None."""
         self.on_error: Any = None
@@ -126,10 +129,24 @@ class BenchCapture:
             except (OSError, ValueError) as e:
                 self._stopped(e)
 
+    def gap(self, late: int) -> None:
+        """The process did not run for ``late`` ticks (a stall: SIGSTOP, Ctrl-Z, a starved
+        machine): what the port took in meanwhile was dropped, its times being unknown (read
+        late, its bytes would be stamped as if heard at once). What was open before it is
+        written as it is, cut short, and the next packet says there is a gap before it."""
+        if self._flush_ev is not None:
+            self._flush_ev.cancel()
+            self._flush_ev = None
+        self._flush_heard()
+        self.gaps += 1
+        self._note = (f"the capture stalled {late / TICK_HZ:.2f} s before this packet: what "
+                      f"the radio heard then is not in it")
+
     def _write(self, key: str, tick: int, data: bytes) -> None:
         if self.error is None:
+            note, self._note = self._note, None
             try:
-                self.writer.radio(key, tick, data)
+                self.writer.radio(key, tick, data, note)
             except (OSError, ValueError) as e:
                 self._stopped(e)
 

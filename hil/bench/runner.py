@@ -329,6 +329,8 @@ def _radio_station(runner: Runner, robot: int, port_spec: str, txen: str, byte_t
 
     def stalled(late: int, now: int) -> None:
         channel.flush()                  # what came during the stall describes the past
+        if channel.tap is not None:      # (its --pcap: the gap said, not false stamps)
+            channel.tap.gap(late)
         station.resync(late)
         runner.note(f"robot {robot} stalled: it did not run for {late / TICK_HZ:.2f} s "
                     f"(more than the margins allow); what it heard meanwhile is dropped and "

@@ -61,6 +61,15 @@ class Listening:
     error: str | None = None
     """Why listening ended early (the port went away), or None; ``seconds`` is then how long
     it did listen."""
+    stalls: list[tuple[int, int]] = field(default_factory=list)
+    """(from, to) ticks in which the listener itself did not run (SIGSTOP, a starved machine):
+    what it read then is dropped (read late, its times are unknown), and no turn across such a
+    span is judged."""
+
+
+SNIFFER_STALL_TICKS = 150 * TICK_HZ // 1000
+"""A listener whose reads (each returns within the port's 50 ms timeout) came further apart
+than this (150 ms) did not run meanwhile: a stall, not a quiet channel."""
 
 
 class Sniffer:
@@ -113,6 +122,7 @@ class Sniffer:
 
     def _loop(self) -> None:
         res = self.result
+        last = self.tick()
         while not self._stop.is_set():
             try:
                 data = self.port.read(max(1, self.port.in_waiting))
@@ -121,9 +131,22 @@ class Sniffer:
                     self.result.seconds = self.tick() / TICK_HZ
                     self.error = str(exc) or type(exc).__name__
                 return
+            now = self.tick()
+            since, last = last, now
+            if now - since > SNIFFER_STALL_TICKS:
+                # the read returns within its timeout: this one did not run for longer (a
+                # stall); what it read describes the past at unknown times
+                with self._lock:
+                    res.stalls.append((since, now))
+                    self._deframer.reset()
+                try:
+                    self.port.reset_input_buffer()    # what waits there came meanwhile too
+                except (OSError, ValueError, AttributeError):
+                    pass
+                last = self.tick()
+                continue
             if not data:
                 continue
-            now = self.tick()
             bt = self.bt
             with self._lock:
                 res.bytes += len(data)
@@ -181,7 +204,10 @@ def cycle_report(res: Listening) -> dict[str, Any]:
     gaps: list[float] = []
     windows: list[float] = []
     long_gaps: list[dict[str, Any]] = []
+    stalls = res.stalls
     for a, b in zip(fs, fs[1:]):
+        if any(a.end <= t1 and t0 <= b.end for t0, t1 in stalls):
+            continue             # the listener stalled between them: not a turn it saw
         g = (b.start - a.end) * 1000 / TICK_HZ
         (windows if a.invites else gaps).append(g)
         if g >= tmax * 0.9:
@@ -209,6 +235,8 @@ def cycle_report(res: Listening) -> dict[str, Any]:
         "cycle_ms_median": cycles,
         "garbage_bytes": res.garbage, "joined_mid_frame_bytes": res.joined_mid_frame,
         "failed_frames": res.failed, "seconds": res.seconds, "error": res.error,
+        "stalls": len(stalls),
+        "stalled_s": round(sum(t1 - t0 for t0, t1 in stalls) / TICK_HZ, 3),
     }
 
 

@@ -50,6 +50,11 @@ def cmd_bench(a: argparse.Namespace) -> int:
             return went_away() if res.error else 1
         print(f"ring {rep['robots']}: {rep['frames']} frames in {secs} s, "
               f"{rep['misses']} missed turns, {rep['garbage_bytes']} garbage bytes")
+        if rep["stalls"]:
+            print(f"this listener stalled {rep['stalls']} time{'s' if rep['stalls'] > 1 else ''}"
+                  f" ({rep['stalled_s']:g} s in all: it did not run, a stopped or starved "
+                  f"process): what it read then is dropped, and no turn across a stall is "
+                  f"judged")
         if rep["turn_gap_ms_median"] is not None:
             print(f"turn hand-over (End -> next Header): median {rep['turn_gap_ms_median']:.2f} "
                   f"ms against Ttrans {rep['spec_gap_ms']:g} ms; error median "

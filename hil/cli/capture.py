@@ -9,7 +9,7 @@ import sys
 from types import SimpleNamespace
 from typing import Any
 
-from firmware_model.timing import PC_BYTE_TICKS
+from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
 
 from .common import UserError
 
@@ -28,6 +28,12 @@ class _Ears:
     def deliver(self, data: bytes, t0: int, bt: int, late_ok: bool = False,
                 lead: int = 0) -> None:
         pass
+
+
+CAPTURE_STALL_TICKS = 50 * TICK_HZ // 1000
+"""A capture that did not run for longer than this (50 ms) drops what it then reads: the
+stamps of bytes read that late would be off by more than a turn's guard (Ttrans, 5 ms) is
+worth, and a frame cut by the quiet timer firing first would be two false packets."""
 
 
 def cmd_capture(a: argparse.Namespace) -> int:
@@ -61,6 +67,15 @@ def cmd_capture(a: argparse.Namespace) -> int:
     channel.tap = cap
     channel.on_lost = lambda why: runner.fail(f"the radio port {a.radio} went away ({why})")
     runner.sched.on_start(channel.flush)
+
+    def stalled(late: int, now: int) -> None:
+        # bytes read after a stall would be stamped as if heard at once: dropped, the gap said
+        channel.flush()
+        cap.gap(late)
+        print(f"rprs: capture stalled: it did not run for {late / TICK_HZ:.2f} s; what the "
+              f"radio heard meanwhile is not in the capture (its times are unknown), and the "
+              f"next packet's comment says so", file=sys.stderr, flush=True)
+    runner.sched.watch_stalls(CAPTURE_STALL_TICKS, stalled)
     runner.on_close(channel.close)
     runner.on_close(cap.close, last=True)
     channel.start()
@@ -68,7 +83,8 @@ def cmd_capture(a: argparse.Namespace) -> int:
     runner.run(a.duration, ready=lambda: print(
         f"capturing {a.radio} to {where} (listen only: nothing is sent); Ctrl-C stops",
         file=sys.stderr, flush=True))
-    print(f"capture: {channel.bytes_in} bytes heard in {runner.sched.now / 16e6:.1f} s",
+    gaps = f", {cap.gaps} gap{'s' if cap.gaps != 1 else ''} (stalls)" if cap.gaps else ""
+    print(f"capture: {channel.bytes_in} bytes heard in {runner.sched.now / 16e6:.1f} s{gaps}",
           file=sys.stderr)
     if cap.error is None and cap.close_error is not None:
         print(f"rprs: error: cannot write capture {a.pcap}: {cap.close_error}", file=sys.stderr)

@@ -10,6 +10,7 @@ import random
 import time
 
 import pcapng
+import pytest
 
 from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.radio.frame import Frame
@@ -154,3 +155,83 @@ def test_rprs_capture_refuses_a_port_that_is_not_there(tmp_path):
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert p.stderr.strip() == f"rprs: error: serial port {tmp_path / 'nothing'} does not exist"
     assert not (tmp_path / "c.pcapng").exists()
+
+
+def _comments(stream: io.BytesIO) -> list[str | None]:
+    return [b.options.get("opt_comment") if "opt_comment" in b.options else None
+            for b in pcapng.FileScanner(io.BytesIO(stream.getvalue()))
+            if type(b).__name__ == "EnhancedPacket"]
+
+
+def test_a_stall_leaves_a_marked_gap_not_false_stamps():
+    """SIGSTOP (Ctrl-Z) of ``rprs capture`` for 5 s: on resume the backlog was read at once,
+    each byte stamped as if heard then (251 false "early" warnings), and a frame open at the
+    stop was cut in two by the quiet timer. A stall now writes what was open, cut short, and
+    the next packet's comment says the capture has a gap before it."""
+    frame = Frame(dst=7, src=1, num=0, type=3, content=b"").encode()
+    sched = Scheduler()
+    out = _Stream()
+    cap = BenchCapture(sched, out, 1, True, None)
+    cap.heard(frame, len(frame) * BT, BT)
+    cap.heard(frame[:5], 2 * len(frame) * BT, BT)        # the stop comes mid-frame
+    sched.now = 5 * 16_000_000
+    cap.gap(5 * 16_000_000 - 2 * len(frame) * BT)
+    cap.heard(frame, sched.now + len(frame) * BT, BT)
+    sched.run_until(sched.now + (len(frame) + QUIET_BYTES + 1) * BT)
+    cap.close()
+    heard = [d for name, _, d in _packets(out) if name.endswith("heard")]
+    assert heard == [frame, frame[:5], frame]
+    comments = _comments(out)
+    assert comments[:2] == [None, None] and comments[2].startswith("the capture stalled 4.")
+    assert cap.gaps == 1
+
+
+@pytest.mark.timing
+def test_rprs_capture_stopped_and_continued_marks_the_gap_and_stamps_no_frame_early(tmp_path):
+    """The outside check's Ctrl-Z and ``fg``, on the hub: before, 53 to 251 frames stamped
+    closer than Ttrans to the one before (false "early" warnings) and no word of the stop."""
+    import signal
+    import subprocess
+    import sys
+
+    from firmware_model.radio.errors import FrameError
+    from firmware_model.radio.frame import parse_frame
+    from paths import ROOT
+    from processes import hub_links
+
+    def rprs(*args, **kw):
+        return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT, **kw)
+    air = tmp_path / "air"
+    with hub_links(air, 3):
+        procs = [rprs("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
+                      "--duration", "9", stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL),
+                 rprs("father", "--plain", "--no-input", "--radio", str(air / "node1"),
+                      "--team", "0,1", "--duration", "9", stdout=subprocess.DEVNULL,
+                      stderr=subprocess.DEVNULL)]
+        time.sleep(1.0)
+        cap = rprs("capture", "--radio", str(air / "node2"), "--pcap",
+                   str(tmp_path / "air.pcapng"), "--duration", "6", stderr=subprocess.PIPE,
+                   text=True)
+        time.sleep(2.0)
+        cap.send_signal(signal.SIGSTOP)
+        time.sleep(1.5)
+        cap.send_signal(signal.SIGCONT)
+        _, err = cap.communicate(timeout=60)
+        for p in procs:
+            p.wait(timeout=30)
+    assert cap.returncode == 0, err
+    assert "rprs: capture stalled: it did not run for 1." in err and "1 gap (stalls)" in err, err
+    out = _Stream((tmp_path / "air.pcapng").read_bytes())
+    comments = _comments(out)
+    assert sum(1 for c in comments if c and c.startswith("the capture stalled 1.")) == 1
+    frames = []
+    for (_, ns, data), note in zip(_packets(out), comments):
+        try:
+            parse_frame(data)
+        except FrameError:
+            frames.append(None)
+            continue
+        frames.append((ns - len(data) * BT * 1000 // 16, ns, note))
+    gaps = [b[0] - a[1] for a, b in zip(frames, frames[1:])
+            if a is not None and b is not None and b[2] is None]
+    assert len(gaps) > 20 and min(gaps) > 2_500_000, sorted(gaps)[:5]   # ns; Ttrans is 5 ms

@@ -4,6 +4,8 @@ from __future__ import annotations
 import os
 import time
 
+import pytest
+
 from firmware_model.radio.frame import Frame
 from firmware_model.timing import TICK_HZ
 from hil.bench import scripts as bench
@@ -30,6 +32,54 @@ def test_cycle_report_keeps_invitation_windows_apart_from_hand_overs():
     assert abs(rep["invitation_gap_ms_median"] - 50.0) < 0.01
     assert rep["turn_gap_error_ms_p99"] < 0.3 and rep["misses"] == 0
     assert abs(rep["turn_gap_ms_median"] - 5.1) < 0.11
+
+
+def test_no_turn_across_the_listeners_own_stall_is_judged():
+    """``rprs bench cycle`` SIGSTOPped for 2 s counted a missed turn on a healthy ring: the
+    frames after the stall, read at once, stood 2 s after the last one before it."""
+    frames, t = [], 0
+    for k in range(20):
+        f = _frame(k % 2, t)
+        frames.append(f)
+        t = f.end + 5 * MS + (2000 * MS if k == 9 else 0)     # the listener stopped after 9
+    stall = (frames[9].end + MS, frames[10].start - MS)
+    rep = bench.cycle_report(Listening(frames=frames, seconds=5.0))
+    assert rep["misses"] == 1 and rep["stalls"] == 0          # (without the stall said)
+    rep = bench.cycle_report(Listening(frames=frames, seconds=5.0, stalls=[stall]))
+    assert rep["misses"] == 0 and rep["stalls"] == 1 and abs(rep["stalled_s"] - 1.998) < 0.01
+    assert rep["turn_gap_error_ms_p99"] < 0.01
+
+
+@pytest.mark.timing
+def test_the_sniffer_says_when_it_did_not_run():
+    """A listener thread that does not run for longer than SNIFFER_STALL_TICKS (its reads
+    return every 50 ms at most) records the span, and drops what it read then."""
+    import signal
+    import subprocess
+    import sys
+    master, slave = os.openpty()
+    code = ("import os, sys, time, json\n"
+            "from hil.bench import scripts as b\n"
+            f"s = b.Sniffer(os.ttyname({slave})).start()\n"
+            "print('go', flush=True); time.sleep(2.5)\n"
+            "r = s.stop(); print(json.dumps([r.stalls, r.bytes]))\n")
+    p = subprocess.Popen([sys.executable, "-c", code], pass_fds=(slave,), text=True,
+                         stdout=subprocess.PIPE)
+    try:
+        assert p.stdout.readline() == "go\n"
+        time.sleep(0.5)
+        p.send_signal(signal.SIGSTOP)
+        os.write(master, Frame(src=2, dst=7, num=3, type=3, content=b"").encode())
+        time.sleep(0.8)
+        p.send_signal(signal.SIGCONT)
+        import json
+        stalls, nbytes = json.loads(p.stdout.readline())
+    finally:
+        p.wait(timeout=10)
+        os.close(master)
+        os.close(slave)
+    assert any(0.6 < (t1 - t0) / TICK_HZ < 2.0 for t0, t1 in stalls), stalls
+    assert nbytes == 0                   # read after the stall: dropped, its times unknown
 
 
 def test_the_sniffer_discards_what_waited_in_the_port_before_it_started():
