@@ -338,8 +338,8 @@ def _draw_rows(ax: Any, items: list[tuple], robots: list[int], unit_div: float, 
 
 def _zoom_span(items, robots, ttrans, lo=None, hi=None):
     """One cycle at the turn scale, so the Ttrans gaps show: a robot's turn up to its next
-    one (the next cycle's first turn), every turn normal (every gap exactly Ttrans, no
-    collision), each frame wholly inside the window [``lo``, ``hi``] ticks when one is given
+    one (the next cycle's first turn), every turn normal (every gap Ttrans, up to a quarter
+    more: a handler's time on the CPU model; no collision), each frame wholly inside the window [``lo``, ``hi``] ticks when one is given
     (a frame that straddles its edge is not one of them). Of those, the cycles that start at
     their lowest ID (the ring's, at that time) if any does; of these, the last that ends
     before the first interesting item of the window, else the first (docs/visualisation.md,
@@ -352,8 +352,11 @@ def _zoom_span(items, robots, ttrans, lo=None, hi=None):
     n = len(robots)
 
     def normal(run):
+        # a hand-over's gap is Ttrans on the ideal CPU, and a handler's time more on the CPU
+        # model (the command line's default: 81,115 ticks) or with a slow clock: up to a
+        # quarter more (an invitation window, 10 ms, or a stagger wait is no hand-over)
         return all(not f[4] and not f[5] for f in run) and all(
-            b[1] - a[2] == ttrans for a, b in zip(run, run[1:]))
+            ttrans <= b[1] - a[2] <= ttrans + ttrans // 4 for a, b in zip(run, run[1:]))
 
     def span(run, cyc):
         ids = [f[3] for f in cyc]

@@ -480,3 +480,16 @@ def test_the_waveform_and_the_plot_count_misses_as_the_summary_does(tmp_path):
     assert s["misses"] == missed
     assert not any(ch.get(f"rprs.R{r}.miss") for r in (0, 2, 3))
     assert plot_trace(evs, str(tmp_path / "run.png"))["misses"] == missed
+
+
+def test_on_the_cpu_model_the_zoom_finds_a_whole_cycle(tmp_path):
+    """docs/visualisation.md's own example runs on the CPU model (the command line's default),
+    where a hand-over's gap is Ttrans and a handler's time (81,115 ticks): no cycle had every
+    gap exactly Ttrans, and the zoom fell back to the window's first frames, from R4."""
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    evs = _sim(robots=(1, 2, 3, 4), duration=16.0, load=1.0, can=True, cpu=DEFAULT_COSTS,
+               faults=(Fault("fail", 1, 8.0), Fault("recover", 1, 15.0)))
+    for start in (14.85, 14.9):
+        s = plot_trace(evs, str(tmp_path / "z.svg"), start_s=start, end_s=15.6)
+        assert s["zoom_robots"][0] == 2 and s["zoom_robots"] == s["zoom_robots"][:1] + [3, 4, 2]
+        assert start <= s["zoom_s"][0] < s["zoom_s"][1] <= 15.6
