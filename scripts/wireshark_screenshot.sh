@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 work=$(mktemp -d)
 trap 'kill ${ws:-} ${xv:-} 2>/dev/null || true; rm -rf "$work"' EXIT
 rprs=${RPRS:-.venv/bin/rprs}
-"$rprs" sim --robots 0,1,2 --duration 6 --seed 4 --can --load 1 --no-progress \
+"$rprs" sim --robots 0,1,2 --duration 6 --seed 4 --can --load 1 --cpu ideal --no-progress \
   --pcap "$work/run.pcapng" > /dev/null
 display=:97
 Xvfb "$display" -screen 0 1600x1000x24 -nolisten tcp > /dev/null 2>&1 & xv=$!
