@@ -93,22 +93,33 @@ class BenchCapture:
             else:                            # Garbage: stays until the next frame
                 continue
             self._packet(ev.first)
-            self._packet(stop)
+            self._packet(stop, frame=True)
 
-    def _packet(self, stop: int) -> None:
+    def _packet(self, stop: int, frame: bool = False) -> None:
         """Write the heard bytes before offset ``stop`` as one packet, stamped with the tick
-        its last byte completed."""
+        its last byte completed: for a ``frame`` (its bytes back to back on the air), of the
+        estimates its chunks give (each read's tick, plus the byte times between the chunk's
+        last byte and the frame's), the earliest; else the last chunk's (noise comes when it
+        comes).
+        A read is never early, only late (a loaded machine, a USB adapter's latency timer),
+        so the earliest is the nearest: a frame whose last chunk was read 2 ms late was
+        stamped 2 ms late, and the hand-over after it looked 2 ms short ("early")."""
         n = stop - self._base
         if n <= 0:
             return
         data, self._heard = bytes(self._heard[:n]), self._heard[n:]
-        last = stop - 1
+        first, last = self._base, stop - 1
         chunks = self._chunks
+        best: int | None = None
         while chunks[0][0] <= last:
-            chunks.popleft()
+            end, tick, bt = chunks.popleft()
+            if frame and end > first:    # (its bytes end inside this frame)
+                est = tick + (last - (end - 1)) * bt
+                best = est if best is None else min(best, est)
         end, tick, bt = chunks[0]
+        est = tick - (end - 1 - last) * bt
         self._base = stop
-        self._write("heard", tick - (end - 1 - last) * bt, data)
+        self._write("heard", est if best is None else min(best, est), data)
 
     def _flush_heard(self) -> None:
         """Nothing heard for a while: what is open was cut short; write it as it is."""

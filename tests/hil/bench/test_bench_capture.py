@@ -235,3 +235,27 @@ def test_rprs_capture_stopped_and_continued_marks_the_gap_and_stamps_no_frame_ea
     gaps = [b[0] - a[1] for a, b in zip(frames, frames[1:])
             if a is not None and b is not None and b[2] is None]
     assert len(gaps) > 20 and min(gaps) > 2_500_000, sorted(gaps)[:5]   # ns; Ttrans is 5 ms
+
+
+def test_a_frame_is_stamped_by_its_least_late_read():
+    """A frame read in three chunks, the last 2 ms late (a loaded machine, a USB adapter's
+    latency timer): it was stamped 2 ms late, and the hand-over after it looked 2 ms short,
+    "early" against Ttrans. A read is never early, so the earliest estimate is the nearest."""
+    frame = Frame(dst=7, src=1, num=0, type=3, content=b"").encode()
+    sched = Scheduler()
+    out = _Stream()
+    cap = BenchCapture(sched, out, 1, True, None)
+    late = 2 * 16_000                                  # 2 ms
+    for a, b, delay in ((0, 5, 0), (5, 9, 0), (9, len(frame), late)):
+        now = b * BT + delay
+        sched.run_until(now)
+        cap.heard(frame[a:b], now, BT)
+    noise = b"\x00\x01"                                # not back to back: its last read
+    now = (len(frame) + 40) * BT + late
+    cap.heard(noise, now, BT)
+    sched.run_until(now + (QUIET_BYTES + 1) * BT)
+    cap.close()
+    (_, t1, d1), (_, t2, d2) = [p for p in _packets(out) if p[0].endswith("heard")]
+    assert (d1, d2) == (frame, noise)
+    assert t1 == len(frame) * BT * 1_000_000_000 // 16_000_000
+    assert t2 == now * 1_000_000_000 // 16_000_000
