@@ -90,7 +90,11 @@ class CanDriver:
         self.bus_offs = 0
         self.isolations = 0
         self._restart_at: int | None = None
+        self._restarted = 0                # the tick of the last bus-off restart
+        self._kept: dict[int, CanFrame] = {}   # heads left by drop_requests, maybe on the wire
         self._retry_at: int | None = None
+        self.on_back: Callable[[int], None] = lambda now: None
+        """Called when the node leaves standby to try the bus again (``isolate``'s retry)."""
         c = controller
         for can_id, buf in TX_BUFFERS.items():
             c.configure_tx(buf, can_id)
@@ -141,6 +145,8 @@ class CanDriver:
         self.can.clear_tc(buf)
         q = self._queue[buf]
         if q:
+            if self._kept.get(buf) is q[0]:
+                del self._kept[buf]
             q.pop(0)
         if q and not self.isolated:
             self._load(buf)
@@ -167,8 +173,9 @@ class CanDriver:
         c.CSR = c.CSR & ~CSR_NT            # clear the node status transition flag
         if c.bus_off:
             self.bus_offs += 1
-            self.on_fault(CODE_BUS_OFF, self.sched.now)
             self._restart_at = self.sched.now + RESTART_DELAY
+            self.drop_requests()
+            self.on_fault(CODE_BUS_OFF, self.sched.now)
         self.on_status()            # error-passive or bus-off: the blocked-bus watch starts
 
     def deadline(self) -> int | None:
@@ -177,18 +184,28 @@ class CanDriver:
         retry = self._retry_at
         if retry is not None and (best is None or retry < best):
             best = retry
-        if not self.isolated and self.can.error_state is not _ACTIVE:
-            blocked = (self.last_rx or 0) + BLOCKED
+        if self._watching():
+            blocked = max(self.last_rx or 0, self._restarted) + BLOCKED
             if best is None or blocked < best:
                 best = blocked
         return best
+
+    def _watching(self) -> bool:
+        """The blocked-bus watch runs: on the bus, not error-active, and not waiting for the
+        bus-off restart (a halted controller hears nothing: that is no blocked bus, and its
+        restart, RESTART_DELAY after the bus-off, comes later than BLOCKED)."""
+        return not self.isolated and self._restart_at is None and \
+            self.can.error_state is not _ACTIVE
 
     def on_timer(self, now: int) -> None:
         c = self.can
         if self._restart_at is not None and now >= self._restart_at:
             self._restart_at = None
+            self._restarted = now          # the watch counts from the restart
             if c.halted:
                 c.start()
+            if not self.isolated:
+                self._resume()
         if self._retry_at is not None and now >= self._retry_at:
             self._retry_at = None
             self.isolated = False
@@ -196,20 +213,46 @@ class CanDriver:
             self.xcvr.standby(False)
             if c.halted:
                 c.start()
-            for buf, q in self._queue.items():
-                if q:
-                    self._load(buf)
-        if not self.isolated and c.error_state is not ErrorState.ACTIVE and \
-                now - (self.last_rx or 0) >= BLOCKED:
+            self._resume()
+            self.on_back(now)
+        if self._watching() and now - max(self.last_rx or 0, self._restarted) >= BLOCKED:
             self.isolate(now)
+
+    def drop_requests(self) -> None:
+        """Every frame waiting to be sent is dropped (the jobs they were for failed: a fault
+        reported must not be followed by the order carried out after all); one that may be
+        on the wire now stays at the head of its queue until its attempt ends: sent (its
+        transmit interrupt takes it off) or cancelled (:meth:`_resume` takes it off)."""
+        for buf, q in self._queue.items():
+            if q and not self.can.cancel(buf):
+                del q[1:]
+                self._kept[buf] = q[0]
+            else:
+                q.clear()
+
+    def _resume(self) -> None:
+        """Back on the bus (the bus-off restart, the retry after standby): a head kept by
+        :meth:`drop_requests` whose request is gone was cancelled, and goes; then each
+        queue's head is requested (a newer command waits for the older)."""
+        for buf, f in list(self._kept.items()):
+            q = self._queue[buf]
+            if not (q and q[0] is f):
+                del self._kept[buf]
+            elif not self.can.TREQR >> buf & 1:
+                q.pop(0)
+                del self._kept[buf]
+        for buf, q in self._queue.items():
+            if q:
+                self._load(buf)
 
     def isolate(self, now: int) -> None:
         """Report the blocked bus and take this node off it (82C250 standby)."""
         self.isolated = True
         self.isolations += 1
-        # Standby takes the transmitter off the bus; requests stay in their buffers (a frame
-        # that may be on the wire cannot be cancelled anyway) and go when the bus is back.
+        # Standby takes the transmitter off the bus; the requests of the jobs that fail now
+        # are dropped (one that may be on the wire cannot be cancelled: it ends its attempt)
         self.xcvr.standby(True)
+        self.drop_requests()
         self.on_fault(CODE_BLOCKED, now)
         self._retry_at = now + RETRY
 
@@ -243,6 +286,7 @@ class ChildFirmware:
         self.can = CanDriver(self.sched, controller, transceiver, self._on_can, self._on_fault,
                              self._pump, costs=costs,
                              cpu=self.cpu if can_cpu is None else can_cpu(self.cpu))
+        self.can.on_back = self.dispatcher.on_bus_back
         self.latency_from: tuple[int, int, bytes] | None = None
         """(End tick of a radio order's frame, CAN id and data of the first frame the order
         produced) until that frame reaches the bus: the world measures the dispatcher's

@@ -158,6 +158,9 @@ class Dispatcher:
         self.nodes = {n: NodeView() for n in range(1, 7)}
         self._seq = {n: 0 for n in range(1, 7)}     # last command sequence number per node
         self.target = list(HOME)             # commanded joint angles (deg)
+        self._rebase: set[int] = set()
+        """Joints whose commanded angle is to be their next status at rest (after a stop() or
+        a bus fault, where they are is not where they were sent); a new command clears it."""
         self.jobs: list[Job] = []
         self._can: list[CanFrame] = []
         self._radio: list[tuple[int, tuple[Command, ...], int]] = []
@@ -240,6 +243,13 @@ class Dispatcher:
             key = role[2]
             v.value = float(sig[key]) if key is not None else 0.0
             v.extra = sig
+            if n in self._rebase and v.state != _MOVING:
+                # the joint's first status at rest after a stop or a bus fault: the pose
+                # relative orders are planned from (a movey(0) after stop() moved the tip
+                # 10.7 mm, back to the last report before the stop)
+                self._rebase.discard(n)
+                lo, hi = JOINT_LIMITS[n]
+                self.target[n - 1] = min(max(round(v.value, 2), lo), hi)
             if v.state == _HOLDING and n <= 4 and self.jobs:
                 # a joint holding after our command with this seq has arrived: its done
                 # event may have been lost (a software bus that dropped frames while a
@@ -300,7 +310,14 @@ class Dispatcher:
         for job in list(self.jobs):
             self._job_failed(job, code, now)
         self.isolated = code == CODE_BLOCKED
+        self._rebase.update(range(1, 5))   # what was sent did not all go: ask the joints
         self._update_deadline()
+
+    def on_bus_back(self, now: int) -> None:
+        """The CAN driver left standby to try the bus again (it re-isolates, and reports
+        fail(41) again, if the bus is still blocked): ``status()`` is answered again. It
+        answered fail(41) for good after one blocked second."""
+        self.isolated = False
 
     # -- commands (the Content command table's app layer) ----------------------------------
 
@@ -351,6 +368,9 @@ class Dispatcher:
                                         seq=self._next_seq(i), mode=1))
         self._can.append(dbc.encode("WHEEL_CMD", speed=0, distance=0,
                                     seq=self._next_seq(WHEEL)))
+        # a moving joint stops where the hold finds it, not where it last reported (up to
+        # 100 ms before): the commanded pose is each joint's next status once it holds
+        self._rebase.update(range(1, 5))
         if self.report_done and src not in (self.id, BROADCAST):
             # carried out now (the hold and stop commands are queued): reported as such, so
             # that the sender tells it from a child that could not (fail(42), no CAN side)
@@ -539,6 +559,7 @@ class Dispatcher:
         waiting for ``n`` alone and report done when the others had: ``movez(60)`` reported
         done with joint 4 sent elsewhere by a later ``joint(4,-30)``.)"""
         self._seq[n] = seq = (self._seq[n] + 1) % 256
+        self._rebase.discard(n)
         for job in list(self.jobs):
             if n in job.waiting:
                 self.jobs.remove(job)

@@ -230,8 +230,10 @@ def test_isolation_with_a_frame_on_the_blocked_bus_retries_without_reloading_it(
     """The 2-hour soak found it: a child isolated itself while its own frame was on the
     blocked bus, so the controller could not cancel it (TCANR: "the frame may be on the bus");
     at the retry the driver loaded that buffer again and the controller refused ("a transmit
-    request pending"). A request now stays in its buffer across the isolation, and the frames
-    queued behind it go out in order once the bus is back."""
+    request pending"). A request that may be on the wire now stays in its buffer across the
+    isolation and goes once the bus is back; the frames queued behind it were for the jobs
+    that failed at the isolation (fail(41)), and are dropped: an order reported failed is
+    not carried out after all."""
     from can_bus.bus import CanBus
     from can_bus.transceiver import Transceiver82C250
     from firmware_model.child import RETRY, CanDriver
@@ -259,7 +261,10 @@ def test_isolation_with_a_frame_on_the_blocked_bus_retries_without_reloading_it(
     drv.on_timer(sched.now)                        # the retry: back on the bus
     sched.run_until(sched.now + 16_000)
     assert not drv.isolated
-    assert sent == [(0x101, b"\x01"), (0x101, b"\x02")]
+    assert sent == [(0x101, b"\x01")]
+    drv.send(CanFrame(0x101, b"\x03"))            # a command after the retry goes as ever
+    sched.run_until(sched.now + 16_000)
+    assert sent == [(0x101, b"\x01"), (0x101, b"\x03")]
 
 
 def _status_frame(n: int, value: float):
@@ -605,3 +610,70 @@ def test_an_order_for_one_joint_waits_for_no_other():
     assert [j.command for j in d.jobs] == [cmd("joint", 1, 20)]
     _event_done(d, 1, 40)
     assert d.take_radio() == [(0, (cmd("done"), cmd("joint", 1, 20)), 3)]
+
+
+def _replies(w, since=0):
+    return [(m.submitted, "".join(c.text() for c in m.commands)) for m in w.messages
+            if m.src == 1 and m.dst == 0 and m.submitted >= since]
+
+
+def test_status_is_answered_again_once_the_blocked_bus_is_back():
+    """One blocked second (a stuck TXD), then the bus works (the next order is carried out
+    and reported done), yet every later status() was answered fail(41): the dispatcher's
+    flag was never cleared by the driver's retry."""
+    w, evs = child_world(duration=12.0)
+    xcvr = w.children[1].can.xcvr
+    xcvr.stick_txd(True)
+    w.run(START + s_to_ticks(1.0))
+    xcvr.stick_txd(False)
+    w.run(START + s_to_ticks(3.0))                 # the retry, a second after the isolation
+    send(w, [cmd("joint", 1, 30)])
+    w.run(START + s_to_ticks(5.0))
+    t = w.now
+    send(w, [cmd("status")])
+    w.run(t + s_to_ticks(1.0))
+    after = [r for _, r in _replies(w, since=t)]
+    assert len(after) == 1 and after[0].startswith("joint(1,30)"), _replies(w)
+    assert any(r == "done()joint(1,30)" for _, r in _replies(w))
+
+
+def test_a_bus_off_is_no_blocked_bus_and_its_failed_order_is_not_carried_out_later():
+    """A bus-off on a joint command: fail(40) for the order, then 49 ms later fail(41) (the
+    blocked-bus watch took the halted controller's silence for a blocked bus) and a second in
+    standby, after which the failed order's command went out and the joint moved."""
+    w, evs = child_world(duration=10.0)
+    w.inject("busoff", 1, w.now + s_to_ticks(0.5), None)
+    w.run(w.now + s_to_ticks(1.0))
+    t = w.now
+    send(w, [cmd("joint", 1, 30)])
+    w.run(t + s_to_ticks(3.0))
+    replies = [r for _, r in _replies(w, since=t)]
+    assert replies == ["fail(40)joint(1,30)"], replies
+    assert w.children[1].can.isolations == 0
+    assert not [s for n, s in commands_after(evs, t) if n == "JOINT1_CMD"]
+    assert w.submodules[1]["JOINT1"].angle_deg == pytest.approx(0, abs=0.01)
+    send(w, [cmd("joint", 1, 20)])                  # restarted: the next order is done
+    w.run()
+    assert w.submodules[1]["JOINT1"].angle_deg == pytest.approx(20, abs=0.01)
+    assert _replies(w)[-1][1] == "done()joint(1,20)"
+
+
+@pytest.mark.parametrize("after", [[cmd("movey", 0)], [cmd("movez", 10)]])
+def test_relative_moves_after_stop_start_where_the_arm_stopped(after):
+    """``joint(1,90)``, ``stop()`` mid-motion, then ``movey(0)``: the hold was recorded at the
+    last status (up to 100 ms old, 57.13 deg where the joint stopped at 59.58), so movey(0)
+    moved the tip 10.7 mm and movez(10) moved it sideways too."""
+    from firmware_model.kinematics import forward
+    w, evs = child_world(duration=10.0)
+    send(w, [cmd("joint", 1, 90)])
+    w.run(START + s_to_ticks(1.0))
+    send(w, [cmd("stop")])
+    w.run(START + s_to_ticks(3.0))
+    subs = w.submodules[1]
+    before = forward(tuple(subs[f"JOINT{i}"].angle_deg for i in range(1, 5)))
+    send(w, after)
+    w.run()
+    end = forward(tuple(subs[f"JOINT{i}"].angle_deg for i in range(1, 5)))
+    dz = 10.0 if after[0].name == "movez" else 0.0
+    assert (end.x - before.x, end.y - before.y, end.z - before.z) == pytest.approx(
+        (0.0, 0.0, dz), abs=0.05)
