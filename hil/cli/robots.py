@@ -200,16 +200,13 @@ def cmd_father(a: argparse.Namespace) -> int:
     runner.sched.post(expire)
 
     def order(line: str) -> str | None:          # a typed order (the app's thread)
-        from ..bench.runner import parse_order
         if line.strip().lower() in HELP_WORDS:
             assert app is not None                 # (typed into the live view)
             for text in order_help():
                 app.post_line(text)
             return None
-        try:
-            dst, commands = parse_order(line)
-        except ValueError as exc:
-            return str(exc)
+        # a line that is no order too: take_order gives it its record, ended ``refused`` with
+        # the reason, shown, logged and counted as a piped one is (docs/bench.md)
         runner.sched.post(take_order, runner, station, book, line, False)
         return None
 

@@ -339,8 +339,9 @@ def _draw_rows(ax: Any, items: list[tuple], robots: list[int], unit_div: float, 
 def _zoom_span(items, robots, ttrans, lo=None, hi=None):
     """One cycle at the turn scale, so the Ttrans gaps show: a robot's turn up to its next
     one (the next cycle's first turn), every turn normal (every gap Ttrans, up to a quarter
-    more: a handler's time on the CPU model; no collision), each frame wholly inside the window [``lo``, ``hi``] ticks when one is given
-    (a frame that straddles its edge is not one of them). Of those, the cycles that start at
+    more: a handler's time on the CPU model; no collision), each frame wholly inside the
+    window [``lo``, ``hi``] ticks when one is given (a frame that straddles its edge is not
+    one of them). Of those, the cycles that start at
     their lowest ID (the ring's, at that time) if any does; of these, the last that ends
     before the first interesting item of the window, else the first (docs/visualisation.md,
     Fig. 7 item 2). With no whole cycle, the same choice among normal runs of |robots|

@@ -188,3 +188,55 @@ def test_sigterm_or_ctrl_c_stops_the_live_father_cleanly(tmp_path, how):
     assert proc.returncode == 0, seen[-500:]
     assert b"robot 0: " in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]
     assert b"orders: 0 (" in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]
+
+
+def test_a_line_typed_live_that_is_no_order_gets_its_record_like_a_piped_one(tmp_path):
+    """Typed into the live view, ``bogus`` only showed "not sent: ..." there: no record, not
+    in ``--log``, and the closing line said ``refused 0`` (docs/bench.md: every order line
+    gets a record and exactly one final state)."""
+    import os
+    import select
+    import subprocess
+    import sys
+    import time
+    import tty
+    term_m, term_s = os.openpty()
+    radio_m, radio_s = os.openpty()
+    tty.setraw(radio_s)
+    log = tmp_path / "father.log"
+    env = dict(os.environ, TERM="xterm-256color", HOME=str(tmp_path))
+    proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "father", "--radio",
+                             os.ttyname(radio_s), "--team", "0,1", "--log", str(log)],
+                            stdin=term_s, stdout=term_s, stderr=term_s, env=env)
+    os.close(term_s)
+    seen = b""
+
+    def drain(until, timeout: float) -> None:
+        nonlocal seen
+        end = time.monotonic() + timeout
+        while not until() and time.monotonic() < end:
+            if select.select([term_m], [], [], 0.1)[0]:
+                try:
+                    seen += os.read(term_m, 65536)
+                except OSError:
+                    return
+    try:
+        drain(lambda: b"DST COMMANDS" in seen or proc.poll() is not None, 60)
+        assert b"DST COMMANDS" in seen, seen[-500:]
+        os.write(term_m, b"bogus\r")
+        drain(lambda: b"refused" in seen, 30)
+        os.write(term_m, b"\x03")
+        drain(lambda: proc.poll() is not None, 60)
+        proc.wait(timeout=10)
+        drain(lambda: False, 0.5)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        for fd in (term_m, radio_m, radio_s):
+            os.close(fd)
+    assert proc.returncode == 0, seen[-500:]
+    closing = seen.rpartition(b"DST COMMANDS")[2]
+    assert b"orders: 1 (" in closing and b"refused 1" in closing, closing[-500:]
+    logged = log.read_text()
+    assert "#1 'bogus': refused: bad order: start with the destination ID" in logged, logged
