@@ -201,7 +201,7 @@ def foreign_fault(at: float, count: float | None = None, hexdata: str | None = N
         raise FaultError("foreign needs a byte count or the bytes: foreign@T:N or "
                          "foreign@T:xHEX, e.g. foreign@2:14 or foreign@2:x0f0a05")
     if not (0 <= at < float("inf")):
-        raise FaultError(f"foreign needs a time in seconds >= 0, got {at!r}")
+        raise FaultError(f"foreign needs a finite time in seconds >= 0, got {at!r}")
     if hexdata is not None:
         if not hexdata or len(hexdata) % 2 or any(c not in "0123456789abcdefABCDEF"
                                                   for c in hexdata):

@@ -967,3 +967,13 @@ def test_a_late_header_after_a_burst_in_the_hand_over_costs_nobody_a_miss_on_the
     simulator's case: tests/docs/test_margin_bounds.py). A run the host disturbed
     (``processes.disturbed``) that fails is run again (``_judged``)."""
     _judged(_late_headers_after_bursts)
+
+
+@pytest.mark.parametrize("spec,words", [
+    ("socket://:99999", "PORT 1-65535"), ("socket://localhost", "needs HOST:PORT"),
+    ("socket://host:port", "got 'port'")])
+def test_a_socket_url_without_a_port_it_can_use_says_so(spec, words):
+    """pyserial answers these with "'debug|info|warning|error'" (an outside check)."""
+    from hil.bench.serial_radio import PortError, open_port
+    with pytest.raises(PortError, match=words):
+        open_port(spec)
