@@ -301,6 +301,13 @@ def _active_frame(self: RotationalMac, frame: Frame, end: int, now: int, out: li
             # probation we leave new messages to PC2 (clause 50), or both deliver them.
             if silent:
                 self._check_turns = 3
+            # our Numbers go on after the other PC's (its message's, or its control frame's,
+            # which repeats its last message's, clause 45): a PC that stalled while the other
+            # took over reused one of its Numbers, and the members took its next message for
+            # a duplicate (clause 48), acknowledged and never delivered
+            if 0 < (frame.num - self._last_num) % 100 < 50:
+                self._last_num = frame.num
+                self._next_num = (frame.num + 1) % 100
             self._own_id_heard(frame.num, end, now, out)
             return out
     if self.mode == LISTEN:

@@ -16,6 +16,7 @@ import time
 import pytest
 
 from firmware_model.radio import mac as M
+from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import Frame
 from hil.bench import scripts as bench
 from hil.bench.radio_hub import RadioHub
@@ -432,3 +433,23 @@ def test_rprs_sim_extra_mistakes_are_one_line(args, needle, capsys):
     assert main(["sim", "--robots", "1,2,3", *args]) == 2
     err = capsys.readouterr().err
     assert needle in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_an_active_pc_goes_on_after_the_numbers_of_the_pc_that_stood_in_for_it():
+    """At the bench: PC1 stalled 4.5 s, PC2 took over and sent a message, Number 02; PC1,
+    back and still active, heard PC2's frames (refusing them as its own ID) but kept its own
+    counter, and sent its next message as 02 too: the child took it for a duplicate (clause
+    48), acknowledged it and never delivered it. PC1 now numbers on after PC2's frames (a
+    control frame repeats its sender's last message Number, clause 45)."""
+    pc1 = _member(0, ring=(0, 1), paired=True)
+    pc1.owner, pc1.phase, t = 1, M.WAIT, 10_000_000
+    assert pc1._next_num == 1
+    other = Frame(dst=7, src=0, num=2, type=3, content=b"")
+    pc1.on_frame(other, t - 200_000, t, t)
+    assert not pc1.standby                          # PC1 stays active (clause 50) ...
+    msg = pc1.submit(1, [cmd("status")], now=t)
+    assert msg.num == 3                             # ... and goes on after PC2's Number
+    behind = Frame(dst=7, src=0, num=1, type=3, content=b"")     # an older Number: no step back
+    t += 1_000_000
+    pc1.on_frame(behind, t - 200_000, t, t)
+    assert pc1.submit(1, [cmd("status")], now=t).num == 4
