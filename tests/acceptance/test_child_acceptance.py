@@ -19,11 +19,15 @@ def _done(dut, msg):
 
 def test_the_child_is_in_the_fathers_ring(dut):
     assert dut.in_ring()
-    assert dut.run_until(lambda: len(dut.frames()) > 0, 5.0), "no CAN traffic on the bus"
+    # (the bus is alive: the submodules' status frames; that the child itself is on it, the
+    # tests below show: its commands, and its status reply from what it heard there)
+    assert dut.run_until(lambda: len(dut.frames()) > 0, 5.0), \
+        "no CAN traffic on the bus: no submodule (nor the bench's emulated ones) is on it"
 
 
 def test_a_joint_command_reaches_its_joint_and_completes(dut):
     n0 = len(dut.frames("EVENT1"))
+    k0 = len(dut.replies(3))
     msg = dut.send([cmd("joint", 1, 25)])
     assert dut.run_until(lambda: any(s["angle"] == 25 for _, _, s in dut.frames("JOINT1_CMD")),
                          10.0), f"no JOINT1_CMD angle 25 on the CAN bus in 10 s; {dut.explain(msg)}"
@@ -32,6 +36,12 @@ def test_a_joint_command_reaches_its_joint_and_completes(dut):
     assert dut.frames("EVENT1")[-1][2]["kind"] == 1            # done
     assert dut.run_until(_done(dut, msg), 10.0) and msg.state == "delivered", \
         f"joint(1,25) not acknowledged in 10 s; {dut.explain(msg)}"
+    # the child's own report that it finished (docs/protocol.md, done(): protocol 3.0); a
+    # child that never sent it passed
+    reported = lambda: ["".join(c.text() for c in d.commands)  # noqa: E731
+                        for d in dut.replies(3)[k0:]]
+    assert dut.run_until(lambda: "done()joint(1,25)" in reported(), 10.0), \
+        f"no done()joint(1,25) from the child in 10 s (it sent {reported()})"
     if dut.submodules:
         assert dut.submodules["JOINT1"].angle_deg == pytest.approx(25, abs=0.01)
 
