@@ -10,6 +10,7 @@ from functools import partial
 from typing import TYPE_CHECKING
 
 from firmware_model.radio.auth import AUTH_TEXT_LEN
+from firmware_model.timing import TICK_HZ
 
 from ..scripts import percentile
 from .frames import _at_turn, _kind, _mask_of, _polls_of
@@ -78,6 +79,10 @@ def _stops_announcing(self: Tester, h: Heard) -> Heard:
     return h
 
 
+INVITATIONS = 400
+"""How many times the kit invites the robot before it stops (about 50 s of lone turns)."""
+
+
 def _invite(self: Tester, since: int, mask: int | None = None) -> tuple[Heard, int]:
     """As a lone member, invite the robot (``poll(id,mask)``, clauses 31, 34) until it
     answers; its answer and our End before it. ``mask``: the ring our poll names (default
@@ -101,7 +106,14 @@ def _invite(self: Tester, since: int, mask: int | None = None) -> tuple[Heard, i
                               self._air(50) + 2 * self.tol, self.robot)
         at = (nxt or lone[-1]).end + TTRANS
     broken = 0                         # invitations in a row answered by failed frames
-    for _ in range(400):               # a lone member inviting the robot (clause 31, 34)
+    told = self.now()
+    self.progress(f"inviting robot {self.robot} (poll({self.robot},{mask}) in our lone turns, "
+                  f"up to {INVITATIONS}): waiting for its BOOT or JOIN")
+    for k in range(INVITATIONS):       # a lone member inviting the robot (clause 31, 34)
+        if self.now() - told >= 10 * TICK_HZ:      # no answer for a while: say so
+            told = self.now()
+            self.progress(f"still inviting robot {self.robot}: {k} invitations, no answer "
+                          f"yet ({len(self.heard)} good frames heard, {self.bad} failed)")
         at = max(self.now(), at, end + TWIN + self.me * TSLOT)
         h = self._arriving(at)
         if h is None:

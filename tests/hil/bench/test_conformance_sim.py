@@ -649,3 +649,18 @@ def test_the_kit_sends_its_new_message_again_when_the_robot_lost_its_frame():
     assert "to our 99 and 00" in _figure(rep, "45"), why
     # the broken frame, then the same message whole (later clauses send theirs too)
     assert copies[0][7:8] == b"x" and copies[1] == copies[0][:7] + b"2" + copies[0][8:], why
+
+
+def test_a_kit_waiting_for_an_answer_says_so_while_it_waits():
+    """A robot that never answers (here: deaf, a lone claimer for ever) had the kit silent
+    for the 50 s of its 400 invitations, without a line even without --quiet; it now says
+    it invites, and again every 10 s."""
+    lines: list[str] = []
+    link = SimLink(1, "rprs", (0, 1), patch=lambda st, child: setattr(st.mac, "on_frame",
+                                                                       lambda *a, **k: []))
+    t = Tester(link, 1, "rprs", team=(0, 1), progress=lines.append)
+    with pytest.raises(ConformanceError, match="answering our invitations"):
+        t.run()
+    assert lines[0].startswith("inviting robot 1 (poll(1,1) in our lone turns, up to 400)")
+    still = [x for x in lines if x.startswith("still inviting robot 1:")]
+    assert len(still) >= 3 and "no answer yet" in still[0]
