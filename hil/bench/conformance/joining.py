@@ -146,7 +146,9 @@ def _invite(self: Tester, since: int, mask: int | None = None) -> tuple[Heard, i
     else:
         self._mark, self._mark_collided = (0, 0, 0), 0
         raise self._quiet("answering our invitations (is it on the channel, listening, "
-                          "with both IDs in its team?)")
+                          "with both IDs in its team" + (", signing with this --auth-key"
+                                                         if self.key is not None else "")
+                          + "?)")
     return h, end
 
 
