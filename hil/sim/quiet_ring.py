@@ -228,6 +228,24 @@ class QuietRing:
         the event callback and the capture, which get what the cycles leapt over wrote)?"""
         return self.world.hooks() != self._own_hooks
 
+    def _expiries(self) -> list[int]:
+        """The first tick at which a message a station holds may fail ``expired`` on the next
+        frame it hears (a station that takes no turns, standing by or listening, fails what is
+        older than ``max_age`` there: RotationalMac._expire, clause 50). No event says so, and
+        the held message looks like a part that repeats: a leap across it failed a standby's
+        message at 145 s where the frame-by-frame run fails it at 60 s."""
+        w = self.world
+        sb = w.standby_station
+        out = []
+        for st in (*w.stations.values(), *w.extra_stations.values(),
+                   *((sb,) if sb is not None else ())):
+            mac = st.mac
+            held = [m.submitted for m in (*getattr(mac, "_queue", ()),
+                                          getattr(mac, "_inflight", None)) if m is not None]
+            if held:
+                out.append(min(held) + mac.cfg.max_age + 1)
+        return out
+
     def _back_off(self) -> None:
         """A snapshot that led to no leap: after the n-th in a row, the next 2^(n-1) - 1 probes
         (at most 63) take none."""
@@ -308,7 +326,8 @@ class QuietRing:
             return
         moved = writable(snap, steps)
         stepped = {id(h) for h, key, _ in moved if key == "when" and type(h) is Event}
-        horizon = min([e.when for e in events if id(e) not in stepped] + [self.until + 1])
+        horizon = min([e.when for e in events if id(e) not in stepped] + [self.until + 1]
+                      + self._expiries())
         reach = max([e.when for e in events if id(e) in stepped] + [now])
         # every moved event stays before the horizon: strictly, so that one due at the
         # horizon's tick keeps its place among that tick's events

@@ -547,3 +547,27 @@ def test_a_probe_takes_no_snapshot_while_the_loads_next_message_is_near():
     assert taken and len(taken) == w.quiet_ring.probes
     assert all(due is None or due >= now + qr.LOADED_LEAP_TICKS for now, due in taken), taken
     assert w.quiet_ring.leaps > 0
+
+
+def test_a_leap_stops_where_a_standby_pc_fails_what_it_held():
+    """A soak's seed 39 (an outside check): PC1's radio died with messages queued, came back
+    and stood by holding them; the idle ring then leapt across their 60 s, and they failed
+    "expired" up to 145 s after they were submitted, where the frame-by-frame run fails them
+    at 60 s (a standby fails what is too old on the frames it hears: no event says when)."""
+    from hil.sim import events as E
+    from hil.sim.faults import Fault
+    cfg = SimConfig(robots=(0, 1, 2), duration=120.0, seed=0, load=2.0, load_until=8.0,
+                    father_standby=True, mac=MacConfig(checksum=True),
+                    faults=(Fault("fail", 0, 5.0), Fault("recover", 0, 7.6)))
+    ends = {}
+    for leap in (False, True):
+        w = World(replace(cfg, ring_sleep=leap))
+        got = ends[leap] = []
+        w.add_listener(lambda ev, got=got: got.append((ev.t, ev.num, ev.reason))
+                       if isinstance(ev, E.Failed) and ev.src == 0 else None)
+        w.run()
+        if leap:
+            assert w.quiet_ring.leaps > 0                 # (it does leap, before and after)
+    late = [f for f in ends[False] if f[2].startswith("expired")]
+    assert len(late) >= 3 and all(t < s_to_ticks(68) for t, _, _ in late)
+    assert ends[True] == ends[False]
