@@ -118,6 +118,8 @@ class Ledger:
         """(src, num, submit-serial, receiver) -> deliveries, kept whole with ``keep``."""
         self.submitted_count = 0
         self.ended_count = 0
+        self.oldest_outcome = 0
+        """The most ticks any message took from its submission to its outcome."""
         self.corrupt_deliveries = 0
         self.wrong_deliveries = 0
         self._by_key: dict[tuple[int, int], list[int]] = {}
@@ -229,6 +231,8 @@ class Ledger:
         paper profile: sent once, unacknowledged) or ``fail``."""
         m = a.message
         self.ended_count += 1
+        if now - m.submitted > self.oldest_outcome:
+            self.oldest_outcome = now - m.submitted
         if self.outcomes is not None:
             self.outcomes.append(a)
         serial = self._serial_of.pop(m, None)
@@ -299,5 +303,6 @@ def summary(world: World) -> dict:
             **({"dispatch_latency_ticks": spread(world.dispatch_latency_ticks)}
                if world.dispatch_latency_ticks else {}),
             "duplicate_deliveries": dup_deliveries,
+            "oldest_outcome_s": round(world.ledger.oldest_outcome / TICK_HZ, 3),
             "corrupt_deliveries": world.ledger.corrupt_deliveries,
             "wrong_robot_deliveries": world.ledger.wrong_deliveries}

@@ -254,7 +254,7 @@ def _fake_result(checksum: bool, duplicates: int = 0, pending: int = 0):
                "refused_frames": 0}}, "membership_changes": [], "submitted": 10,
                "delivered": 10 - pending, "failed": 0, "pending": pending,
                "duplicate_deliveries": duplicates, "wrong_robot_deliveries": 0,
-               "corrupt_deliveries": 0}
+               "corrupt_deliveries": 0, "oldest_outcome_s": 3.0}
     return SoakResult(hours=0.05, seed=1, checksum=checksum, faults={"ber": 1},
                       summary=summary, reform_s=[0.1])
 
@@ -312,3 +312,14 @@ def test_even_the_shortest_soak_injects_a_fault():
         assert faults and all(SETTLE_S <= f.at < MIN_HOURS * 3600 for f in faults), seed
         again = random_faults(random.Random(seed), (0, 1, 2, 3), MIN_HOURS, False, False)
         assert again == faults
+
+
+def test_a_message_older_than_max_age_at_its_end_is_a_broken_promise():
+    """The soak checked only that every message ended: seed 39 (ideal CPU, no CAN side) had a
+    standby PC's held messages fail 145 s after submission, and every promise was "kept"."""
+    ok = _fake_result(True)
+    assert ok.kept
+    late = _fake_result(True)
+    late.summary["oldest_outcome_s"] = 145.0
+    name = next(k for k in late.invariants if k.startswith("every message ended within 60 s"))
+    assert not late.invariants[name] and not late.kept
