@@ -19,6 +19,8 @@
 #   RPRS_VM_MEM      guest memory (default 512M)
 #   RPRS_VM_TIMEOUT  seconds before the VM is killed (default 1800)
 #   RPRS_VM_KEEP=1   keep the per-run directory (init script, kernel log) for debugging
+# Exit status: the command's; 125 if the VM could not be prepared or started; 123 if it booted
+# but this host's kernel cannot run its guest programs (the guest's init died at once).
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -273,6 +275,14 @@ UMLPID=
 secs=$(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')
 
 if [ ! -e "$RUN/booted" ]; then
+  if [ "$vmrc" = 134 ]; then
+    # The kernel booted and panicked on its init: the guest's first program (the host's bash,
+    # through hostfs) died at once, before its first line. Seen on a host whose own kernel
+    # (6.18, firecracker) does not run user-mode Linux's guests, with trixie's UML 6.12 and
+    # bookworm's 6.1 alike: no VM can run the SocketCAN tests on this host.
+    printf 'vcan-vm: UNAVAILABLE: user-mode Linux booted but its first guest program died at once (kernel panic: "Attempted to kill init"): this host (kernel %s) does not run UML guests\n' "$(uname -r)" >&2
+    exit 123
+  fi
   reason=$({ grep -v -e '^$' -e mmapper_init -e 'ubd device' "$RUN/uml.log" || true; } | tail -1)
   die "virtualization unavailable: user-mode Linux did not start (exit $vmrc${reason:+: $reason})"
 fi
