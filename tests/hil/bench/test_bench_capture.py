@@ -96,6 +96,24 @@ def test_stamps_are_the_wall_clock_when_the_scheduler_runs_not_when_it_was_built
     assert -50_000_000 < stamp - written[0] <= 0
 
 
+def _rprs(*args, **kw):
+    import subprocess
+    import sys
+
+    from paths import ROOT
+    return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT, **kw)
+
+
+def _ring_of_two(air, seconds: int) -> list:
+    """A child (ID 1) on hub node 0 and the father on node 1, for ``seconds``: processes."""
+    import subprocess
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return [_rprs("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
+                  "--duration", str(seconds), **quiet),
+            _rprs("father", "--plain", "--no-input", "--radio", str(air / "node1"), "--team",
+                  "0,1", "--duration", str(seconds), **quiet)]
+
+
 def test_rprs_capture_listens_on_a_hub_node_and_writes_the_ring_it_hears(tmp_path):
     """``rprs capture``: a listen-only station on a radio's port, here a hub node beside a
     father and a child: every packet it writes is a whole frame of theirs (or flagged noise),
@@ -107,16 +125,10 @@ def test_rprs_capture_listens_on_a_hub_node_and_writes_the_ring_it_hears(tmp_pat
     from firmware_model.radio.frame import parse_frame
     from paths import ROOT
 
-    def rprs(*args, **kw):
-        return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT, **kw)
     from processes import hub_links
     air = tmp_path / "air"
     with hub_links(air, 3):
-        procs = [rprs("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
-                      "--duration", "8", stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL),
-                 rprs("father", "--plain", "--no-input", "--radio", str(air / "node1"),
-                      "--team", "0,1", "--duration", "8", stdout=subprocess.DEVNULL,
-                      stderr=subprocess.DEVNULL)]
+        procs = _ring_of_two(air, 8)
         t0 = time.time_ns()
         to_file = subprocess.run([sys.executable, "-m", "hil.cli", "capture", "--radio",
                                   str(air / "node2"), "--pcap", str(tmp_path / "air.pcapng"),
@@ -192,26 +204,18 @@ def test_rprs_capture_stopped_and_continued_marks_the_gap_and_stamps_no_frame_ea
     closer than Ttrans to the one before (false "early" warnings) and no word of the stop."""
     import signal
     import subprocess
-    import sys
 
     from firmware_model.radio.errors import FrameError
     from firmware_model.radio.frame import parse_frame
-    from paths import ROOT
     from processes import hub_links
 
-    def rprs(*args, **kw):
-        return subprocess.Popen([sys.executable, "-m", "hil.cli", *args], cwd=ROOT, **kw)
     air = tmp_path / "air"
     with hub_links(air, 3):
-        procs = [rprs("child", "--id", "1", "--radio", str(air / "node0"), "--team", "0,1",
-                      "--duration", "9", stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL),
-                 rprs("father", "--plain", "--no-input", "--radio", str(air / "node1"),
-                      "--team", "0,1", "--duration", "9", stdout=subprocess.DEVNULL,
-                      stderr=subprocess.DEVNULL)]
+        procs = _ring_of_two(air, 9)
         time.sleep(1.0)
-        cap = rprs("capture", "--radio", str(air / "node2"), "--pcap",
-                   str(tmp_path / "air.pcapng"), "--duration", "6", stderr=subprocess.PIPE,
-                   text=True)
+        cap = _rprs("capture", "--radio", str(air / "node2"), "--pcap",
+                    str(tmp_path / "air.pcapng"), "--duration", "6", stderr=subprocess.PIPE,
+                    text=True)
         time.sleep(2.0)
         cap.send_signal(signal.SIGSTOP)
         time.sleep(1.5)

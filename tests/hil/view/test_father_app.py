@@ -143,9 +143,26 @@ def test_sigterm_or_ctrl_c_stops_the_live_father_cleanly(tmp_path, how):
     the view's modes. Now the view quits and the summary comes, status 0 (docs/bench.md).
     Ctrl-C typed at that terminal (a byte 0x03 to the view, raw mode: no signal) only said
     "Press ctrl+q"; it now stops it as cleanly."""
+    import signal
+
+    def stop(proc, type_in, wait_for):
+        if how == "SIGTERM":
+            proc.send_signal(signal.SIGTERM)
+        else:
+            type_in(b"\x03")
+    code, seen = _live_father(tmp_path, [], stop)
+    assert code == 0, seen[-500:]
+    assert b"robot 0: " in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]
+    assert b"orders: 0 (" in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]
+
+
+def _live_father(tmp_path, args: list[str], act) -> tuple[int, bytes]:
+    """Run ``rprs father`` (the live view) at a pty terminal on a pty radio, ``args`` more;
+    once its view is up, ``act(proc, type_in, wait_for)`` (``type_in(bytes)`` types at the
+    terminal, ``wait_for(text, timeout)`` reads it until it has shown ``text``); then wait for
+    it to end. Returns its exit status and everything its terminal showed."""
     import os
     import select
-    import signal
     import subprocess
     import sys
     import time
@@ -155,7 +172,7 @@ def test_sigterm_or_ctrl_c_stops_the_live_father_cleanly(tmp_path, how):
     tty.setraw(radio_s)
     env = dict(os.environ, TERM="xterm-256color", HOME=str(tmp_path))
     proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "father", "--radio",
-                             os.ttyname(radio_s), "--team", "0,1"], stdin=term_s,
+                             os.ttyname(radio_s), "--team", "0,1", *args], stdin=term_s,
                             stdout=term_s, stderr=term_s, env=env)
     os.close(term_s)
     seen = b""
@@ -172,10 +189,8 @@ def test_sigterm_or_ctrl_c_stops_the_live_father_cleanly(tmp_path, how):
     try:
         drain(lambda: b"DST COMMANDS" in seen or proc.poll() is not None, 60)
         assert b"DST COMMANDS" in seen, seen[-500:]
-        if how == "SIGTERM":
-            proc.send_signal(signal.SIGTERM)
-        else:
-            os.write(term_m, b"\x03")
+        act(proc, lambda data: os.write(term_m, data),
+            lambda text, timeout: drain(lambda: text in seen, timeout))
         drain(lambda: proc.poll() is not None, 60)
         proc.wait(timeout=10)
         drain(lambda: False, 0.5)
@@ -185,57 +200,21 @@ def test_sigterm_or_ctrl_c_stops_the_live_father_cleanly(tmp_path, how):
             proc.wait()
         for fd in (term_m, radio_m, radio_s):
             os.close(fd)
-    assert proc.returncode == 0, seen[-500:]
-    assert b"robot 0: " in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]
-    assert b"orders: 0 (" in seen.rpartition(b"DST COMMANDS")[2], seen[-500:]
+    return proc.returncode, seen
 
 
 def test_a_line_typed_live_that_is_no_order_gets_its_record_like_a_piped_one(tmp_path):
     """Typed into the live view, ``bogus`` only showed "not sent: ..." there: no record, not
     in ``--log``, and the closing line said ``refused 0`` (docs/bench.md: every order line
     gets a record and exactly one final state)."""
-    import os
-    import select
-    import subprocess
-    import sys
-    import time
-    import tty
-    term_m, term_s = os.openpty()
-    radio_m, radio_s = os.openpty()
-    tty.setraw(radio_s)
     log = tmp_path / "father.log"
-    env = dict(os.environ, TERM="xterm-256color", HOME=str(tmp_path))
-    proc = subprocess.Popen([sys.executable, "-m", "hil.cli", "father", "--radio",
-                             os.ttyname(radio_s), "--team", "0,1", "--log", str(log)],
-                            stdin=term_s, stdout=term_s, stderr=term_s, env=env)
-    os.close(term_s)
-    seen = b""
 
-    def drain(until, timeout: float) -> None:
-        nonlocal seen
-        end = time.monotonic() + timeout
-        while not until() and time.monotonic() < end:
-            if select.select([term_m], [], [], 0.1)[0]:
-                try:
-                    seen += os.read(term_m, 65536)
-                except OSError:
-                    return
-    try:
-        drain(lambda: b"DST COMMANDS" in seen or proc.poll() is not None, 60)
-        assert b"DST COMMANDS" in seen, seen[-500:]
-        os.write(term_m, b"bogus\r")
-        drain(lambda: b"refused" in seen, 30)
-        os.write(term_m, b"\x03")
-        drain(lambda: proc.poll() is not None, 60)
-        proc.wait(timeout=10)
-        drain(lambda: False, 0.5)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        for fd in (term_m, radio_m, radio_s):
-            os.close(fd)
-    assert proc.returncode == 0, seen[-500:]
+    def bogus(proc, type_in, wait_for):
+        type_in(b"bogus\r")
+        wait_for(b"refused", 30)
+        type_in(b"\x03")
+    code, seen = _live_father(tmp_path, ["--log", str(log)], bogus)
+    assert code == 0, seen[-500:]
     closing = seen.rpartition(b"DST COMMANDS")[2]
     assert b"orders: 1 (" in closing and b"refused 1" in closing, closing[-500:]
     logged = log.read_text()
