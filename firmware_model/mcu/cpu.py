@@ -471,6 +471,15 @@ class Cpu:
         f = self._alone
         return f is not None and f.fn == fn
 
+    def handles(self, fn: Callable[..., None]) -> bool:
+        """Is a handler whose effects are ``fn`` requested, running or deferred, its effects
+        still to come?"""
+        if self.runs_alone(fn):
+            return True
+        if any(f.fn == fn for f in self._stack) or any(p[6] == fn for p in self._pending):
+            return True
+        return False
+
     def _alone_over(self, now: int) -> bool:
         """The lone handler's effects came and its RETI ended before ``now`` (at ``now`` it
         still runs: ``_settle``)."""

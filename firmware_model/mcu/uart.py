@@ -396,6 +396,18 @@ class Uart:
         return cpu is not None and self.rx_quiet is not None and \
             cpu.fits_alone(self.rx_cycles, dt) and cpu.quiescent(now) and self.rx_quiet(data)
 
+    def late_once_idle(self, data: bytes, dt: int, now: int) -> bool:
+        """Could ``data`` (as ``may_come_late``), from a reception beginning ``now`` on a CPU
+        that has work now, be handed over late from the first byte that finds the CPU idle
+        (hil/sim/air.py, ``Air.on_time``'s way back)? Only if nothing of this UART's receive
+        path is still to run (no byte in RDR or read and not yet handled, none held, no
+        receive handler on the CPU), so that ``rx_quiet`` judges the deframer as the first
+        byte's handler finds it."""
+        cpu = self.cpu
+        return cpu is not None and self.rx_quiet is not None and not self.rdr and \
+            not self._read and self._held is None and cpu.fits_alone(self.rx_cycles, dt) and \
+            not cpu.quiescent(now) and not cpu.handles(self._rx_isr) and self.rx_quiet(data)
+
     def _replay(self, chunk: bytes, t0: int, dt: int, lead: int, hold: bool = False) -> None:
         """Bytes handed over late with an idle CPU (``receive``'s ``late_ok``): each byte's
         handler ran alone from its RDRF (``lead`` ticks before its date); those whose effects

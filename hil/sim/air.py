@@ -217,11 +217,10 @@ class Air:
                         if phantom and self._acts_before_end(r, data):
                             self._bytewise(r, r.rx, 0, tx.n - 1)
                     else:
-                        late = r.uart.may_come_late(data, bt, t0)
-                        r.rx = Reception(data, t0, bt, tx.n, tx, quiet=tx.n if late else 0,
-                                         lead=r.uart.rx_lead(bt))
+                        rx = r.rx = Reception(data, t0, bt, tx.n, tx, lead=r.uart.rx_lead(bt))
+                        late = self._lazy(r, rx, tx.n, data, t0)
                         # late: only the last byte has an event (at its RDRF)
-                        self._bytewise(r, r.rx, tx.n if late else 0, tx.n - 1, ends)
+                        self._bytewise(r, rx, tx.n if late else 0, tx.n - 1, ends)
                 else:
                     r.rx = self._reception(r, tx, ends=ends)
             if ends:       # their order kept: nothing else this loop schedules comes then
@@ -415,38 +414,37 @@ class Air:
             lo = 0
         cpu = getattr(r.uart, "cpu", None)
         if lo and cpu is not None and not cpu.ideal:
-            if holes is None and k == 0 and r.uart.may_come_late(tx.data, tx.bt,
-                                                                 self.sched.now):
-                rx.quiet = rx.lazy = lo       # the clean prefix may come late (Uart.receive)
-            else:
+            if holes is not None or k or not self._lazy(r, rx, lo, tx.data, self.sched.now):
                 lo = 0                        # every handler at its byte's tick
         self._bytewise(r, rx, lo, n - 1, ends)
         return rx
 
+    def _lazy(self, r: AirRadio, rx: Reception, lo: int, data: bytes, now: int) -> bool:
+        """May ``rx``'s clean prefix (``lo`` bytes of the frame ``data``, beginning ``now``)
+        come late (``Reception.quiet``; ``Uart.may_come_late``)? On a CPU that has work now,
+        byte by byte until one finds it idle, then late, as after a touch (``on_time``)."""
+        if r.uart.may_come_late(data, rx.bt, now):
+            rx.quiet = rx.lazy = lo
+            return True
+        if r.uart.late_once_idle(data, rx.bt, now):
+            rx.lazy = lo
+            self._on_time_next(r, rx)
+            return True
+        return False
+
     def late_until(self, radio: AirRadio, now: int) -> int | None:
         """The tick the last byte of ``radio``'s reception that may still come late completes
         (its last byte always comes at its tick), if any bytes are still to come late."""
-        rx = radio.rx
-        if rx is None or rx.quiet <= rx.pos:
-            return None
-        return rx.t0 + min(rx.quiet, rx.n - 1) * rx.bt - rx.lead
+        return None if radio.rx is None else radio.rx.late_until()
 
     def late_around(self, radio: AirRadio, now: int) -> tuple[int | None, int | None]:
         """What ``radio``'s firmware would be handed first if its CPU were asked for something
-        now (``sync``), and what may come late without an event: the hand-over tick (each
-        byte's stop bit's end less ``lead``) of the last byte due by ``now`` not handed over
-        yet, and of the next byte that may come late after it, each None if none. Idle noise
-        is handed over when asked (``_noise_upto``): then ``(now, None)``."""
+        now (``sync``), and what may come late without an event (``Reception.around``). Idle
+        noise is handed over when asked (``_noise_upto``): then ``(now, None)``."""
         rx = radio.rx
-        if rx is None:
-            if self.noise and radio.listening(now):
-                return now, None
-            return None, None
-        k = min((now + rx.lead - rx.t0) // rx.bt, rx.n)  # bytes due by now (Reception.flush)
-        last = rx.t0 + k * rx.bt - rx.lead if k > rx.pos else None
-        i = max(k, rx.pos)
-        nxt = rx.t0 + (i + 1) * rx.bt - rx.lead if i < min(rx.quiet, rx.n) else None
-        return last, nxt
+        if rx is not None:
+            return rx.around(now)
+        return (now, None) if self.noise and radio.listening(now) else (None, None)
 
     def on_time(self, radio: AirRadio, now: int) -> None:
         """``radio``'s CPU model has work from ``now`` (Uart._cpu_touched, after a sync): the

@@ -154,6 +154,22 @@ class Reception:
         """The tick the last byte is handed over (its stop bit's end, less ``lead``)."""
         return self.t0 + self.n * self.bt - self.lead
 
+    def late_until(self) -> int | None:
+        """The tick the last byte that may still come late completes, or None (Air)."""
+        if self.quiet <= self.pos:
+            return None
+        return self.t0 + min(self.quiet, self.n - 1) * self.bt - self.lead
+
+    def around(self, now: int) -> tuple[int | None, int | None]:
+        """The hand-over tick (each byte's stop bit's end less ``lead``) of the last byte due
+        by ``now`` not handed over yet, and of the next byte that may come late after it,
+        each None if none (Air.late_around)."""
+        k = min((now + self.lead - self.t0) // self.bt, self.n)   # bytes due by now (flush)
+        last = self.t0 + k * self.bt - self.lead if k > self.pos else None
+        i = max(k, self.pos)
+        nxt = self.t0 + (i + 1) * self.bt - self.lead if i < min(self.quiet, self.n) else None
+        return last, nxt
+
     def finish(self, radio: AirRadio) -> None:
         """Deliver every byte not delivered yet, the last one due now: ``flush`` at
         ``last_at``, in one hand-over of the whole ``data`` when no byte went before and none

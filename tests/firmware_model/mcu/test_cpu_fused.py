@@ -462,3 +462,51 @@ def test_a_look_before_the_end_handlers_effects_gets_the_late_bytes_first(offset
     assert then == [x for x in seen if x[0] == "then"]
     assert then == [("then", True, end - 16640) if offset <= END_EFFECTS else
                     ("then", False, end)]
+
+
+
+def _a_frame_from_robot_1() -> tuple[int, int]:
+    """(first bit, End's stop bit) of robot 1's fourth frame, which robot 2 hears."""
+    records = _ring(True)[0]
+    frames = [r for r in records if type(r).__name__ == "FrameOnAir" and r.src == 1]
+    assert len(frames) >= 4
+    return frames[3].start, frames[3].end
+
+
+@pytest.mark.parametrize("before", [1, 100, 1_500])
+@pytest.mark.parametrize("lasts", [2_000, 40_000, 120_000])
+def test_a_reception_that_begins_while_the_main_loop_works_comes_late_once_it_is_done(
+        before, lasts, monkeypatch):
+    """Robot 2's main loop has ``lasts`` cycles of work from ``before`` ticks before robot
+    1's frame begins: its bytes come at their ticks while the work runs, and late from the
+    first byte that finds the CPU idle (Uart.late_once_idle); the run is the general path's,
+    event for event and figure for figure."""
+    from firmware_model.mcu.uart import Uart
+    start, end = _a_frame_from_robot_1()
+    chosen: list = []
+    real = Uart.late_once_idle
+
+    def spy(self, data, dt, now):
+        ok = real(self, data, dt, now)
+        if now == start:
+            chosen.append(ok)
+        return ok
+
+    monkeypatch.setattr(Uart, "late_once_idle", spy)
+    late: list = []
+
+    def ask(w):
+        st = w.stations[2]
+        w.sched.at(start - before, st.cpu.task, "work", lasts, lambda: None)
+        for t in (start - before - 1, end + 1):
+            w.sched.at(t, lambda: late.append(st.uart.bytes_late))
+
+    fast = _ring(True, ask)
+    fast_late, late[:] = list(late), []
+    slow = _ring(False, ask)
+    assert fast == slow
+    assert chosen[0] is True             # robot 2's reception began on a busy CPU ...
+    # ... and the 14-byte frame's bytes after the work (not its End) came late
+    after = (lasts - before) // 16640 + 1
+    assert fast_late[1] - fast_late[0] >= 13 - after - 1
+    assert late == [0, 0]                # (every byte at its tick on the general path)
