@@ -46,7 +46,7 @@ import re
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
-from firmware_model.timing import PC_BYTE_TICKS, s_to_ticks
+from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ, s_to_ticks
 
 if TYPE_CHECKING:
     from firmware_model.radio.mac import MacConfig
@@ -79,7 +79,13 @@ class Fault:
 
     @property
     def end(self) -> float:
-        """When the fault stops acting (instantaneous faults: when they happen)."""
+        """When the fault stops acting (s): a burst's and a foreign transmitter's when their
+        bytes leave the air; other instantaneous faults when they happen."""
+        if self.kind == "burst" and self.value is not None:
+            return self.at + self.value
+        if self.kind == "foreign":
+            n = len(self.data) if self.data is not None else int(self.value or 0)
+            return self.at + n * PC_BYTE_TICKS / TICK_HZ
         return self.until if self.until is not None else self.at
 
     def spec(self) -> str:

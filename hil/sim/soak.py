@@ -118,6 +118,8 @@ class SoakResult:
     wall_s: float = 0.0
     isolations: int = 0
     bus_offs: int = 0
+    unexplained_drops: list[tuple[float, int]] = field(default_factory=list)
+    """(s, robot) of each drop that no radio fault explains (:func:`unexplained_drops`)."""
     can_periods_skipped: float = 0.0
     """Share of the children's CAN status periods that slept instead of running frame by
     frame (hil/sim/quiet_can.py; how the run was computed, not what it found)."""
@@ -135,6 +137,8 @@ class SoakResult:
             "no corrupted command acted on": s["corrupt_deliveries"] == 0,
             f"ring re-formed within {REFORM_BOUND_S:g} s of every fault":
                 self.not_reformed == 0 and all(x <= REFORM_BOUND_S for x in self.reform_s),
+            f"no robot dropped but in a radio fault (+ {REFORM_BOUND_S:g} s)":
+                not self.unexplained_drops,
         }
 
     CHECKSUM_ONLY = ("nothing delivered twice", "no corrupted command acted on")
@@ -147,6 +151,28 @@ class SoakResult:
         :attr:`CHECKSUM_ONLY` without it."""
         return all(ok for name, ok in self.invariants.items()
                    if self.checksum or name not in self.CHECKSUM_ONLY)
+
+
+RADIO_FAULTS = frozenset({"fail", "recover", "steal", "ber", "noise", "burst", "drop",
+                          "foreign", "skew"})
+"""Faults on the radio side: only these may cost a robot its place in the ring (a CAN fault
+stays inside its child, docs/guarantees.md)."""
+
+
+def unexplained_drops(membership: list[tuple[int, str, int]], faults: list[Fault]
+                      ) -> list[tuple[float, int]]:
+    """(s, robot) of each drop (``disable``, World.membership) after the ring first formed
+    (:data:`SETTLE_S`) that no radio fault explains: none acting then or ended within
+    :data:`REFORM_BOUND_S` before (a skew acts all the run). A ring that re-formed must stay
+    whole until the next fault; a healthy robot dropped then was counted missing."""
+    windows = [(f.at, math.inf if f.kind == "skew" else f.end + REFORM_BOUND_S)
+               for f in faults if f.kind in RADIO_FAULTS]
+    out = []
+    for tick, kind, robot in membership:
+        t = tick / TICK_HZ
+        if kind == "disable" and t >= SETTLE_S and not any(a <= t <= e for a, e in windows):
+            out.append((round(t, 3), robot))
+    return out
 
 
 def run_timing_reformations(w: World, faults, progress=None) -> tuple[list[float], int]:
@@ -237,6 +263,7 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
         counts[f.kind] = counts.get(f.kind, 0) + 1
     res = SoakResult(hours, seed, checksum, counts, w.summary(), reform, not_reformed,
                      time.perf_counter() - t0)
+    res.unexplained_drops = unexplained_drops(w.membership, faults)
     res.isolations = sum(c.can.isolations for c in w.children.values())
     res.bus_offs = sum(c.can.bus_offs for c in w.children.values())
     if w.quiet:
@@ -367,6 +394,7 @@ def report(results: list[SoakResult]) -> str:
         [sum(v["refused_frames"] for v in x["robots"].values()) for x in s])
     row("ring re-formations timed", [len(r.reform_s) for r in results])
     row("longest re-formation (s)", [max(r.reform_s) if r.reform_s else "-" for r in results])
+    row("robots dropped with no radio fault", [len(r.unexplained_drops) for r in results])
     row("CAN bus-offs / isolations", [f"{r.bus_offs} / {r.isolations}" for r in results])
     for name in results[0].invariants:
         row(f"**{name}**", [_verdict(r, name) for r in results])

@@ -323,3 +323,41 @@ def test_a_message_older_than_max_age_at_its_end_is_a_broken_promise():
     late.summary["oldest_outcome_s"] = 145.0
     name = next(k for k in late.invariants if k.startswith("every message ended within 60 s"))
     assert not late.invariants[name] and not late.kept
+
+
+def test_a_burst_and_a_foreign_transmitter_end_when_their_bytes_leave_the_air():
+    """The soak timed a burst's re-formation from the burst's start, and took it for over
+    while it still jammed the air: a fault ends when it stops acting."""
+    assert parse_fault("burst@3:0.5").end == 3.5
+    assert parse_fault("foreign@2:x0f0a05").end == pytest.approx(2 + 3 * 16667 / TICK_HZ)
+    assert parse_fault("foreign@2:96").end == pytest.approx(2 + 96 * 16667 / TICK_HZ)
+    assert parse_fault("steal:1@4").end == 4.0
+    assert parse_fault("ber@30-31:0.01").end == 31.0
+
+
+def test_a_robot_dropped_with_no_radio_fault_near_is_a_broken_promise():
+    """The soak looked at the ring once after each fault: a healthy robot dropped later, with
+    no radio fault acting or just over, passed. A drop counts unless a radio fault acted
+    within REFORM_BOUND_S before it (a CAN fault stays inside its child)."""
+    from hil.sim.soak import REFORM_BOUND_S, unexplained_drops
+
+    def drop(s: float, robot: int = 2) -> tuple[int, str, int]:
+        return (s_to_ticks(s), "disable", robot)
+
+    faults = [parse_fault(f) for f in ("fail:2@20", "recover:2@25", "burst@100:0.5",
+                                       "busoff:3@200", "stuck:1@300-302")]
+    membership = [drop(5.0),                          # the ring forming: not counted
+                  drop(22.0), (s_to_ticks(26.0), "join", 2),
+                  drop(25 + REFORM_BOUND_S),          # the last tick of the window
+                  drop(100.5 + REFORM_BOUND_S - 0.01, 4),   # after the burst's bytes
+                  drop(100.5 + REFORM_BOUND_S + 0.1, 4),
+                  drop(201.0, 3), drop(301.0, 1), drop(400.0)]
+    assert unexplained_drops(membership, faults) == [
+        (round(100.5 + REFORM_BOUND_S + 0.1, 3), 4), (201.0, 3), (301.0, 1), (400.0, 2)]
+    # a robot whose clock runs slow upsets the ring all the run
+    assert unexplained_drops(membership, faults + [parse_fault("skew:4:0.06")]) == []
+    ok = _fake_result(True)
+    assert ok.kept
+    ok.unexplained_drops = [(400.0, 2)]
+    name = next(k for k in ok.invariants if k.startswith("no robot dropped"))
+    assert not ok.invariants[name] and not ok.kept
