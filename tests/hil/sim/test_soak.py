@@ -72,7 +72,8 @@ def test_soak_command_json(capsys):
 
 def _stepwise(w, faults) -> tuple[list[float], int]:
     """The re-formation timer as it was first written: the world run in steps of SAMPLE_S,
-    the ring checked at every step after a fault ends with no other active."""
+    the ring checked at every step after a fault ends with no other active (from the last
+    end, when a fault began meanwhile)."""
     from hil.sim.soak import REFORM_BOUND_S, SAMPLE_S
     ends = sorted({round(f.end, 6) for f in faults if f.kind != "skew"})
     starts = [(f.at, f.end) for f in faults]
@@ -84,6 +85,9 @@ def _stepwise(w, faults) -> tuple[list[float], int]:
             if not any(a <= now_s < e for a, e in starts):
                 pending = ends[i] if pending is None else pending
             i += 1
+        if pending is not None and any(pending < a <= now_s for a, _ in starts):
+            active = any(a <= now_s < e for a, e in starts)
+            pending = None if active else max(e for _, e in starts if e <= now_s)
         if pending is not None:
             if w.ring_complete():
                 reform.append(round(now_s - pending, 3))
@@ -361,3 +365,34 @@ def test_a_robot_dropped_with_no_radio_fault_near_is_a_broken_promise():
     ok.unexplained_drops = [(400.0, 2)]
     name = next(k for k in ok.invariants if k.startswith("no robot dropped"))
     assert not ok.invariants[name] and not ok.kept
+
+
+class _RingBrokenBetween:
+    """What ``run_timing_reformations`` reads of a world: a ring not whole from ``a`` to
+    ``b`` seconds of a 60 s run."""
+
+    def __init__(self, a: float, b: float) -> None:
+        self.a, self.b = a, b
+        self.now = 0
+        self.end_tick = s_to_ticks(60)
+
+    def _advance(self, until: int) -> None:
+        self.now = until
+
+    def ring_complete(self) -> bool:
+        return not self.a <= self.now / TICK_HZ < self.b
+
+
+@pytest.mark.parametrize("specs, reform", [
+    (("fail:2@12",), [7.0]),                         # whole again 7 s after the fault
+    (("fail:2@12", "noise@14-16"), [3.0]),           # timed from the noise's end
+    (("fail:2@12", "noise@14-16", "steal:1@18"), [1.0]),
+    (("fail:2@12", "steal:1@20"), [7.0, 0.0]),       # a fault after the ring re-formed
+])
+def test_a_reformation_is_timed_from_the_last_fault_that_began_before_it(specs, reform):
+    """A fault that began while the ring was not yet whole again after another restarts the
+    time: the 15 s promise is about the ring after the faults. Timed from the first, a
+    robot's failure followed by 13 s of noise would count the noise against the ring."""
+    from hil.sim.soak import run_timing_reformations
+    faults = [parse_fault(s) for s in specs]
+    assert run_timing_reformations(_RingBrokenBetween(12.0, 19.0), faults) == (reform, 0)
