@@ -185,6 +185,12 @@ class CanCpuPort:
     requests over while the domain is awake, raises ghosts while it sleeps (module
     docstring)."""
 
+    @property
+    def order(self) -> int:
+        """Its ghosts' place among the domains' events at a tick: its domain's
+        (hil/sim/domains.py)."""
+        return self.quiet.order
+
     def __init__(self, quiet: "QuietCan") -> None:
         self.quiet = quiet
         self.cpu: Cpu | None = None

@@ -3,11 +3,14 @@ the *domains* the fast paths need (docs/fast-paths.md).
 
 A part of the world may run as a domain (the simulator runs a child's CAN side so): its
 events, scheduled with :meth:`SimScheduler.at_first`, run before every other event of the same
-tick but a model's step (``Scheduler.at_top``), FIFO among themselves. That makes the order of
-simultaneous events in independent parts a rule rather than an accident of when each was
-scheduled, so a domain can be taken out of the heap (:meth:`SimScheduler.take`) and put back
-(:meth:`SimScheduler.put_back`) without changing what runs first, and the clock moved on past
-events taken out (:meth:`SimScheduler.skip_to`): hil/sim/quiet_can.py and quiet_ring.py.
+tick but a model's step (``Scheduler.at_top``): the domains in the order of their owners'
+``order`` (a child's ID), each domain's FIFO. That makes the order of simultaneous events in
+independent parts a rule rather than an accident of when each was scheduled, so a domain can
+be taken out of the heap (:meth:`SimScheduler.take`) and put back (:meth:`SimScheduler.put_back`)
+without changing what runs first, whenever other domains were put back (two children's CAN
+frames ending at one tick are traced child 1's first, however their sides woke), and the clock
+moved on past events taken out (:meth:`SimScheduler.skip_to`): hil/sim/quiet_can.py and
+quiet_ring.py.
 """
 from __future__ import annotations
 
@@ -18,6 +21,15 @@ from firmware_model.mcu.scheduler import _FIRST, Event, Scheduler
 
 __all__ = ["SimScheduler"]
 
+_DOMAIN = 1 << 52
+"""Added to a domain's event's sequence number per unit of its owner's ``order``: a domain's
+events at a tick after those of every domain of a lower order (fewer than 2^52 events a run)."""
+
+
+def _order(owner: object) -> int:
+    """A domain owner's place among the domains at a tick (0 when it names none)."""
+    return getattr(owner, "order", 0) * _DOMAIN
+
 
 class SimScheduler(Scheduler):
     """The kernel's heap with domains: events by owner, taken out and put back."""
@@ -26,12 +38,13 @@ class SimScheduler(Scheduler):
 
     def at_first(self, owner: object, when: int, fn: Callable[..., Any], *args: Any) -> Event:
         """Like :meth:`at`, for an event of the domain ``owner``: at its tick it runs before
-        every event scheduled with :meth:`at` (module docstring)."""
+        every event scheduled with :meth:`at`, after those of domains whose owner's ``order``
+        is lower (module docstring)."""
         if when < self.now:
             raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
         ev = Event(when, fn, args, owner, 1)
         self._seq += 1
-        heapq.heappush(self._heap, (when, self._seq - _FIRST, ev))
+        heapq.heappush(self._heap, (when, self._seq - _FIRST + _order(owner), ev))
         return ev
 
     def pending(self, owner: object) -> list[Event]:
@@ -60,7 +73,8 @@ class SimScheduler(Scheduler):
                 raise ValueError(f"cannot put back an event at tick {ev.when}: now is "
                                  f"tick {self.now}")
             self._seq += 1
-            heapq.heappush(self._heap, (ev.when, self._seq - ev.rank * _FIRST, ev))
+            key = self._seq - ev.rank * _FIRST + (_order(ev.owner) if ev.rank == 1 else 0)
+            heapq.heappush(self._heap, (ev.when, key, ev))
 
     def skip_to(self, tick: int) -> None:
         """Move ``now`` on to ``tick`` without running anything: for a model that took its

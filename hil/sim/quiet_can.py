@@ -140,8 +140,11 @@ class QuietCan:
     (the radio station); ``may_sleep()``: False while something outside watches the bus or
     the domain is plainly busy (a job running), which saves the snapshot."""
 
-    def __init__(self, world: SimScheduler, name: str = "CAN") -> None:
+    def __init__(self, world: SimScheduler, name: str = "CAN", order: int = 0) -> None:
         self.name = name
+        self.order = order
+        """Its place among the domains' events at one tick (hil/sim/domains.py): the child's
+        ID."""
         self.world = world
         self.clock = DomainClock(world, self)
         self.roots: list[Any] = []

@@ -244,7 +244,7 @@ class World:
             fn(self.meta)
 
     def _build_can_side(self, r: int, st: RadioStation) -> None:
-        quiet = QuietCan(self.sched, name=f"R{r} CAN")
+        quiet = QuietCan(self.sched, name=f"R{r} CAN", order=r)
         clock = quiet.clock
         bus = CanBus(clock, CAN_TIMING)
         ctrl = CanController(clock, CAN_TIMING)

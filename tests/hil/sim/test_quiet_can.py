@@ -14,6 +14,7 @@ import pytest
 
 from can_bus.submodules import STATUS_STAGGER_TICKS
 from firmware_model.cycle_costs import DEFAULT_COSTS
+from firmware_model.timing import TICK_HZ
 from hil.sim.domains import SimScheduler
 from firmware_model.radio.content import cmd
 from firmware_model.radio.frame import FrameType
@@ -76,6 +77,51 @@ def test_steps_run_before_domain_events_and_keep_their_rank_when_put_back():
     assert out == ["step", "domain, while taken", "domain", "domain 2", "world"]
     with pytest.raises(ValueError):
         s.at_top(99, out.append, "the past")
+
+
+class _Domain:
+    def __init__(self, order: int) -> None:
+        self.order = order
+
+
+def test_two_domains_at_one_tick_run_in_their_owners_order_however_they_were_scheduled():
+    """Child 2's CAN side woke before child 1's (a listener added mid-run wakes them all) and
+    put its events back first: two status frames ending at one tick were traced bus 2 first,
+    where ``--every-frame`` traced bus 1 first. Domains at a tick go by their ``order``."""
+    s = SimScheduler()
+    one, two = _Domain(1), _Domain(2)
+    out: list[str] = []
+    s.at_first(two, 50, out.append, "2a")
+    s.at(50, out.append, "world")
+    s.at_first(one, 50, out.append, "1a")
+    s.at_first(two, 50, out.append, "2b")
+    s.at_first(one, 50, out.append, "1b")
+    taken: list = []
+    s.at(20, lambda: taken.extend(s.take(one) + s.take(two)))
+    s.at(30, lambda: s.put_back(taken[2:]))            # child 2's first, then child 1's
+    s.at(31, lambda: s.put_back(taken[:2]))
+    s.run_until(100)
+    assert out == ["1a", "1b", "2a", "2b", "world"]
+
+
+def test_a_listener_added_mid_run_hears_what_every_frame_run_would():
+    """The attack's case: ring 1, 2 with CAN sides under load, untraced to 7.3 s (the sides
+    sleep), then a listener: the same events in the same order as with the fast paths off."""
+    from hil.sim.events import RecordListener
+
+    def run(fast: bool) -> tuple[list, dict]:
+        ev: list = []
+        w = World(SimConfig(robots=(1, 2), duration=8.0, seed=1, can=True, load=1.0,
+                            fast_paths=fast))
+        w.run(int(7.3 * TICK_HZ) + 1)
+        w.add_listener(RecordListener(ev.append))
+        w.run()
+        return ev, w.summary()
+
+    fast, slow = run(True), run(False)
+    can = [(e["t"], e["bus"]) for e in fast[0] if e["ev"] == "can"]
+    assert len({t for t, _ in can}) < len(set(can))     # two buses' frames end at one tick
+    assert fast == slow
 
 
 def test_put_back_refuses_the_past():
