@@ -453,16 +453,34 @@ def advance(moved: list[tuple[Any, Any, int]], periods: int) -> None:
             setattr(holder, key, getattr(holder, key) + d * periods)
 
 
+_ID_MIN = 1 << 46
+"""An int in a set at least this large is taken for an object's identity (CPython's ids are
+addresses, about 2^47; a tick count reaches it after 51 simulated days)."""
+
+
 def portable(snap: Snapshot) -> list:
     """``snap.shape`` without object identities (a function by its name, a foreign or
-    boundary object by its type, a dict by its size): two worlds built alike compare equal
-    with it."""
+    boundary object by its type, a dict by its size, a set's objects and ids by their
+    kind): two worlds built alike compare equal with it."""
     out = []
     for x in snap.shape:
-        if type(x) is tuple and x and x[0] in ("fn", "boundary", "id"):
+        t = type(x)
+        if t is tuple and x and x[0] in ("fn", "boundary", "id"):
             out.append(x[:1] + ((x[3],) if len(x) > 3 else ()))
-        elif type(x) is tuple and x and x[0] == "dict":
+        elif t is tuple and x and x[0] == "dict":
             out.append(("dict", len(x[1])))        # keys may be ids (a bus's nodes)
+        elif t is set or t is frozenset:
+            # members may be objects (a twin's radio) or ids (a CAN bus's deaf nodes)
+            out.append(("set", sorted(map(_portable_member, x))))
         else:
             out.append(x)
     return out
+
+
+def _portable_member(v: Any) -> str:
+    """A set's member as :func:`portable` compares it."""
+    if type(v) is int:
+        return "id" if v >= _ID_MIN else repr(v)
+    if isinstance(v, (bool, float, str, bytes, Enum, type(None))):
+        return repr(v)
+    return f"<{type(v).__name__}>"

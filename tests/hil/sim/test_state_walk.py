@@ -466,3 +466,24 @@ def test_a_soak_like_world_mid_run_gives_the_reference_snapshots(compared):
         (w.run if stop == 1.0 else w._advance)(round(w.end_tick * stop))
         _whole(w)
     assert len(compared) > 20
+
+
+@pytest.mark.parametrize("spec", [
+    dict(robots=(1, 2), can=True, faults=("noisy:2.JOINT1@0.5-3",)),   # a bus's deaf ids
+    dict(robots=(1, 2), extra=((1, 0.5, None),)),                      # a twin's radio
+])
+def test_two_worlds_built_alike_have_the_same_portable_state(spec):
+    """The hunts compare two worlds by ``portable`` snapshots: a CAN bus's set of deaf nodes
+    (their ids, while a ``noisy`` fault lasts) and the air's set of a twin's radios (objects)
+    made two identical worlds differ."""
+    from hil.sim.faults import parse_fault
+    from hunt import sleep_hunt
+    hunt = sleep_hunt()
+    kw = dict(spec)
+    faults = tuple(parse_fault(f) for f in kw.pop("faults", ()))
+    cfg = SimConfig(duration=2.0, seed=1, can_sleep=False, ring_sleep=False, faults=faults,
+                    **kw)
+    a, b = World(cfg), World(cfg)
+    a.run()
+    b.run()
+    assert hunt.state(a) == hunt.state(b)
