@@ -22,10 +22,12 @@ import threading
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-
+import can_bus  # noqa: E402,F401    (the project's packages first: with tests/ on sys.path,
+import firmware_model  # noqa: E402,F401    its package-less tests/hil/ ... would shadow them)
 from hil.bench import scripts as bench           # noqa: E402
 from hil.bench.radio_hub import RadioHub         # noqa: E402
+
+sys.path.append(str(Path(__file__).resolve().parent.parent / "tests"))   # the tests' helpers
 from processes import heard, ring_is, spawn, stop, wait_for   # noqa: E402
 
 HEADER = b"\x0f\x0a\x05"

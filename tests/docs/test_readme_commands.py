@@ -237,3 +237,16 @@ def test_a_python_without_the_project_gets_one_line_from_every_script():
         assert r.returncode == 2 and r.stdout == "", (name, r.returncode, r.stdout[-300:])
         assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, (name, r.stderr)
         assert f".venv/bin/python scripts/{name}" in r.stderr, r.stderr
+
+
+def test_every_script_and_benchmark_starts_with_the_projects_python(tmp_path):
+    """``python scripts/bench_stalls.py``, as docs/guarantees.md quotes it, died at import:
+    the tests' directory it put first on sys.path holds package-less ``tests/hil/``, which
+    shadowed the project's ``hil`` (an editable install is found after every path entry).
+    Every script and benchmark gives its usage with the project's Python, from any
+    directory."""
+    for path in [ROOT / "scripts" / n for n in SCRIPTS] + \
+            [ROOT / "benchmarks" / n for n in BENCHMARKS if n != "run.py"]:
+        r = subprocess.run([sys.executable, str(path), "--help"], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0 and "usage:" in r.stdout, (path.name, r.stderr[-400:])
