@@ -333,7 +333,7 @@ def _wire(can_id: int, data: bytes, rtr: bool, dlc: int) -> tuple[int, ...]:
     changes misses the cache (nearly every frame of a moving joint does), so this is computed
     from integers, a byte at a time (the same bits as the bit-by-bit functions above, tested
     against them) rather than lists of bits."""
-    header = can_id << 7 | (rtr << 6) | dlc      # SOF 0, ID, RTR, IDE 0, r0 0, DLC
+    header = can_id << 7 | (bool(rtr) << 6) | dlc   # SOF 0, ID, RTR, IDE 0, r0 0, DLC
     crc = _header_crc(header)
     table = _CRC15_BYTE
     for byte in data:
@@ -378,7 +378,7 @@ def _length(can_id: int, data: bytes, rtr: bool, dlc: int) -> int:
     frame nothing goes wrong in, and a moving joint's status frames are new nearly every
     time): the same CRC, and the stuffed lengths of the header, each data byte and the CRC
     from the tables (tested against :func:`_wire`)."""
-    crc, n, state = _header_run(can_id << 7 | (rtr << 6) | dlc)
+    crc, n, state = _header_run(can_id << 7 | (bool(rtr) << 6) | dlc)
     table = _CRC15_BYTE
     lens = _stuff_len_table(8)
     for byte in data:

@@ -325,3 +325,14 @@ def test_bit_timing_psc0_needs_five_quanta_in_tseg1():
         BitTiming(prescaler=1, tseg1=4, tseg2=3, tick_hz=8_000_000)
     assert BitTiming(prescaler=1, tseg1=5, tseg2=2, tick_hz=8_000_000).bitrate == 1_000_000
     assert BitTiming(prescaler=2, tseg1=2, tseg2=5, tick_hz=16_000_000).bitrate == 1_000_000
+
+
+def test_a_truthy_rtr_is_the_remote_bit_whatever_its_value():
+    """``rtr=2`` shifted into the header set the identifier's last bit instead of RTR: the
+    length and the wire bits were another frame's, where ``frame_bits`` made the remote one."""
+    from can_bus.bits import frame_bits, frame_length_bits, stuff, wire_bits
+    for can_id in (0x002, 0x100, 0x7FE):
+        assert frame_length_bits(can_id, b"", rtr=2) == \
+            frame_length_bits(can_id, b"", rtr=True) == \
+            len(stuff(frame_bits(can_id, b"", rtr=2))) + 13
+        assert wire_bits(can_id, b"", rtr=2) == wire_bits(can_id, b"", rtr=True)
