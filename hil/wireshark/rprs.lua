@@ -281,14 +281,39 @@ local function number(tvb, offset, width, tree, field, label)
     return nil
 end
 
+-- The capture's own word on a packet (its comment: "collided", "aborted: ..."), marked on
+-- every packet, a frame or not: in the analysis subtree ``a`` (made under ``t`` if nil);
+-- returns ``info`` prefixed.
+local function mark_comment(tvb, t, info, a)
+    local comment = comment_field()
+    if comment == nil then return info end
+    local text = tostring(comment.value)
+    for _, mark in ipairs({ { "collided", f.collided, e_collided, "[collided] " },
+                            { "aborted", f.aborted, e_aborted, "[cut short] " } }) do
+        if text:find(mark[1]) then
+            a = a or t:add(rprs, tvb(), "Analysis")
+            local item = a:add(mark[2], true)
+            item:set_generated()
+            item:add_proto_expert_info(mark[3])
+            info = mark[4] .. info
+        end
+    end
+    return info
+end
+
 function rprs.dissector(tvb, pinfo, tree)
     local n = tvb:len()
-    if n == 0 then return 0 end
     pinfo.cols.protocol = "RPRS"
     local t = tree:add(rprs, tvb(), "RPRS radio frame")
+    if n == 0 then
+        -- a transmission whose sender's radio died before its first byte (the capture keeps
+        -- the packet, and says so in its comment)
+        pinfo.cols.info = mark_comment(tvb, t, "no byte sent")
+        return 0
+    end
     if n < 3 or tvb(0, 3):bytes():tohex() ~= "0F0A05" then
         t:add_proto_expert_info(e_header)
-        pinfo.cols.info = string.format("not a frame (%d bytes)", n)
+        pinfo.cols.info = mark_comment(tvb, t, string.format("not a frame (%d bytes)", n))
         return n
     end
     if n < 14 then
@@ -303,7 +328,8 @@ function rprs.dissector(tvb, pinfo, tree)
         end
         t:add_proto_expert_info(e_length, string.format(
             "Cut short: %d bytes, a frame has at least 14", n))
-        pinfo.cols.info = string.format("cut short after %d of at least 14 bytes", n)
+        pinfo.cols.info = mark_comment(tvb, t, string.format(
+            "cut short after %d of at least 14 bytes", n))
         return n
     end
     t:add(f.header, tvb(0, 3))
@@ -461,20 +487,7 @@ function rprs.dissector(tvb, pinfo, tree)
             info = "[early] " .. info
         end
     end
-    local comment = comment_field()
-    if comment ~= nil then
-        local text = tostring(comment.value)
-        for _, mark in ipairs({ { "collided", f.collided, e_collided, "[collided] " },
-                                { "aborted", f.aborted, e_aborted, "[cut short] " } }) do
-            if text:find(mark[1]) then
-                local item = a:add(mark[2], true)
-                item:set_generated()
-                item:add_proto_expert_info(mark[3])
-                info = mark[4] .. info
-            end
-        end
-    end
-    pinfo.cols.info = info
+    pinfo.cols.info = mark_comment(tvb, t, info, a)
     return n
 end
 

@@ -422,11 +422,14 @@ def test_a_frame_cut_short_under_14_bytes_has_the_fields_it_carries(tmp_path):
     out = subprocess.run([TSHARK, "-X", f"lua_script:{plugin_path()}", "-r", str(path), "-Y",
                           "frame.len == 12", "-T", "fields", "-e", "_ws.col.Info", "-e",
                           "rprs.dst", "-e", "rprs.src", "-e", "rprs.num", "-e", "rprs.type",
-                          "-e", "rprs.len", "-e", "_ws.expert.message"],
+                          "-e", "rprs.len", "-e", "_ws.expert.message", "-e",
+                          "frame.comment"],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
-    info, dst, src, num, typ, length, experts = out.stdout.strip().split("\t")
-    assert info == "cut short after 12 of at least 14 bytes"
+    info, dst, src, num, typ, length, experts, comment = out.stdout.rstrip("\n").split("\t")
+    # (the burst met a robot's frame here: the capture says so, and so does the dissector)
+    assert info == ("[collided] " if "collided" in comment else "") + \
+        "cut short after 12 of at least 14 bytes"
     assert (dst, src, num, typ, length) == ("7", "1", "0", "1", "0")
     assert "Cut short: 12 bytes, a frame has at least 14" in experts
     assert "No Header" not in experts
@@ -823,3 +826,39 @@ def test_a_robot_acknowledging_a_message_again_is_a_duplicate_ack(retries):
     got = _tshark_rows(path, "-Y", "rprs.analysis.duplicate_ack", "-T", "fields", "-e",
                        "frame.number")
     assert want and [n for n in got if n in set(parsed)] == want
+
+
+@needs_tshark
+@pytest.mark.parametrize("cut", [0.5, 1.5, 5.5, 12.5])
+def test_a_frame_cut_short_by_its_senders_death_is_marked_however_short(tmp_path, cut):
+    """The capture says "aborted" on the packet of a transmission whose sender's radio died;
+    the dissector marked it only from 14 bytes on, and a packet of no byte not at all."""
+    sim = ("--robots", "0,1,2,3", "--duration", "3", "--can", "--load", "1", "--seed", "1",
+           "--no-progress")
+    p = rprs("sim", *sim, "--trace", str(tmp_path / "t.jsonl"))
+    assert p.returncode == 0, p.stderr
+    trace = [json.loads(x) for x in (tmp_path / "t.jsonl").read_text().splitlines()]
+    start = next(e["start"] for e in trace if e["ev"] == "frame" and e["src"] == 1)
+    at = (start + int(16640 * cut)) / 16e6                # a child's byte: 16,640 ticks
+    path = tmp_path / "cut.pcapng"
+    p = rprs("sim", *sim, "--fail", f"1@{at!r}", "--pcap", str(path))
+    assert p.returncode == 0, p.stderr
+    rows = _tshark_rows(path, "-Y", 'frame.comment contains "aborted"', "-T", "fields", "-e",
+                        "frame.len", "-e", "rprs.analysis.aborted", "-e", "_ws.col.Info")
+    assert len(rows) == 1, rows
+    length, aborted, info = rows[0].split("\t")
+    assert int(length) == int(cut) and aborted in ("1", "True") and "[cut short]" in info
+
+
+@needs_tshark
+def test_a_burst_that_collided_is_marked_collided_though_it_is_no_frame(tmp_path):
+    """A foreign burst with no Header is "not a frame"; its packet's comment says collided,
+    which the dissector did not mark (a -Y rprs.analysis.collided filter missed it)."""
+    path = tmp_path / "b.pcapng"
+    p = rprs("sim", "--robots", "0,1,2,3", "--duration", "6", "--load", "1", "--seed", "2",
+             "--fault", "steal:1@3.5", "--fault", "burst@3:0.1", "--no-progress", "--pcap",
+             str(path))
+    assert p.returncode == 0, p.stderr
+    rows = _tshark_rows(path, "-Y", "rprs.analysis.collided", "-T", "fields", "-e",
+                        "frame.interface_name", "-e", "_ws.col.Info")
+    assert any(r.startswith("foreign transmitters\t[collided] not a frame") for r in rows), rows
