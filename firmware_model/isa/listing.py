@@ -205,6 +205,8 @@ def expand(name: str, directory: Path = LISTINGS, seen: tuple[str, ...] = ()) ->
         raw = path.read_text(encoding="utf-8").splitlines()
     except OSError as exc:
         raise ListingError(f"no listing {path.name}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ListingError(f"listing {path}: not UTF-8 text (byte {exc.start})") from None
     out: list[Line] = []
     stack: list[tuple[int, list[Line]]] = []
     labels: set[str] = set()

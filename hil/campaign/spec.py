@@ -100,7 +100,8 @@ def points_of(grid: dict[str, list[Any]], base: dict[str, Any]) -> tuple[Point, 
 
 def load_spec(path: str | Path, check=None) -> Spec:
     """Read and check a campaign file. ``check(args)`` raises ValueError for arguments
-    ``rprs sim`` refuses (the CLI passes its parser)."""
+    ``rprs sim`` refuses (the CLI passes its parser), else gives the settings they make (or
+    None), which two points must not share."""
     try:
         data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
     except OSError as e:
@@ -160,9 +161,18 @@ def load_spec(path: str | Path, check=None) -> Spec:
                             f"in a list): each point once")
         seen.add(p.key)
     if check is not None:
+        made: dict[str, str] = {}
         for p in points:
             try:
-                check(p.args)
+                cfg = check(p.args)
             except ValueError as e:
                 raise SpecError(f"{path}: grid point {p.key}: {e}") from None
+            if cfg is None:
+                continue
+            # values spelled apart that make the same run: 1 and 1.0, "0,1" and "00,1"
+            first = made.setdefault(repr(cfg), p.key)
+            if first != p.key:
+                raise SpecError(f"{path}: [grid] gives the points {first} and {p.key}, which "
+                                f"make the same run (a value repeated in another spelling): "
+                                f"each point once")
     return Spec(name, seeds, root, points, chunk, metrics)

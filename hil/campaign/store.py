@@ -27,12 +27,18 @@ class StoreError(ValueError):
 
 
 class Store:
-    def __init__(self, path: str | Path) -> None:
+    """``read_only``: a file to read (``campaign status``, ``report``, ``export``), which
+    must exist and hold a campaign; nothing in it is created or changed."""
+
+    def __init__(self, path: str | Path, read_only: bool = False) -> None:
         self.path = Path(path)
         if not self.path.parent.is_dir():
             raise StoreError(f"{path}: no directory {self.path.parent} to keep the results in")
         if self.path.is_dir():
             raise StoreError(f"{path} is a directory, not a campaign results file")
+        if read_only:
+            self._open_to_read()
+            return
         try:
             self.db = sqlite3.connect(self.path)
             self.db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
@@ -47,6 +53,21 @@ class Store:
             self.db.commit()
         except sqlite3.DatabaseError as e:
             raise StoreError(f"{path}: not a campaign results file ({e})") from None
+
+    def _open_to_read(self) -> None:
+        if not self.path.is_file():
+            raise StoreError(f"no results file {self.path}")
+        try:
+            self.db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True)
+            tables = {n for (n,) in self.db.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+            named = "meta" in tables and self.db.execute(
+                "SELECT value FROM meta WHERE key = 'name'").fetchone() is not None
+        except sqlite3.DatabaseError as e:
+            raise StoreError(f"{self.path}: not a campaign results file ({e})") from None
+        if not named or "runs" not in tables:
+            self.db.close()
+            raise StoreError(f"{self.path}: not a campaign results file (no campaign in it)")
 
     def close(self) -> None:
         self.db.close()
@@ -113,13 +134,29 @@ class Store:
         return cur.rowcount
 
     def rows(self) -> list[dict[str, Any]]:
+        """Every stored run; a row that is not what ``add`` writes (a file edited or damaged
+        by hand) is a StoreError naming it."""
         out = []
-        for values in self.db.execute(f"SELECT {', '.join(COLUMNS)} FROM runs "
-                                      "ORDER BY point_key, seed_index"):
-            r = dict(zip(COLUMNS, values))
-            r["args"] = json.loads(r["args"])
-            r["metrics"] = json.loads(r["metrics"]) if r["metrics"] else None
-            out.append(r)
+        try:
+            cur = self.db.execute(f"SELECT {', '.join(COLUMNS)} FROM runs "
+                                  "ORDER BY point_key, seed_index")
+            for values in cur:
+                r = dict(zip(COLUMNS, values))
+                try:
+                    r["args"] = json.loads(r["args"])
+                    r["metrics"] = json.loads(r["metrics"]) if r["metrics"] else None
+                    point = json.loads(r["point_key"])
+                except (TypeError, ValueError) as e:
+                    raise StoreError(f"{self.path}: run {r['run_key']}: a damaged row "
+                                     f"({e})") from None
+                if not isinstance(r["args"], list) or not isinstance(point, dict) or (
+                        r["status"] == "ok" and not (isinstance(r["metrics"], dict)
+                                                     and "submitted" in r["metrics"])):
+                    raise StoreError(f"{self.path}: run {r['run_key']}: a damaged row (not "
+                                     f"what a campaign run stores)")
+                out.append(r)
+        except sqlite3.DatabaseError as e:
+            raise StoreError(f"{self.path}: not a campaign results file ({e})") from None
         return out
 
     # -- export -----------------------------------------------------------------------------

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from .common import UserError, distinct_outputs, stderr_console
+from .common import UserError, file_name, distinct_outputs, stderr_console
 
 
 def _db_for(spec_path: str, db: str | None) -> str:
@@ -136,7 +136,7 @@ def cmd_status(a: argparse.Namespace) -> int:
         return 0
     mine = {run_key(p.key, i) for p in spec.points for i in range(spec.seeds)}
     try:
-        store = Store(db)
+        store = Store(db, read_only=True)
         try:
             store.holds(spec.name, spec.root_seed)   # another campaign's file: refused, as
             counts, done = store.counts(mine), store.done()     # by run
@@ -158,7 +158,7 @@ def cmd_report(a: argparse.Namespace) -> int:
     if not Path(a.db).is_file():
         raise UserError(f"no results file {a.db}")
     try:
-        store = Store(a.db)
+        store = Store(a.db, read_only=True)
         rows = store.rows()
     except StoreError as e:
         raise UserError(str(e)) from None
@@ -284,7 +284,7 @@ def cmd_export(a: argparse.Namespace) -> int:
             raise UserError(f"--{opt} names the results file {a.db} itself, which the export "
                             f"would overwrite: give another file")
     try:
-        store = Store(a.db)
+        store = Store(a.db, read_only=True)
         for path, fn in ((a.csv, store.export_csv), (a.parquet, store.export_parquet)):
             if path:
                 print(f"{fn(path)} runs -> {path}")
@@ -301,7 +301,8 @@ def add(sub) -> None:
                              parser_class=type(ca))
     r = csub.add_parser("run", help="run every missing (grid point, seed) of a campaign file")
     r.add_argument("spec", metavar="SPEC.toml", help="the campaign file (docs/campaigns.md)")
-    r.add_argument("--db", metavar="FILE", help="the results file (default: SPEC.sqlite)")
+    r.add_argument("--db", type=file_name, metavar="FILE",
+                   help="the results file (default: SPEC.sqlite)")
     r.add_argument("--scheduler", metavar="tcp://HOST:8786", help="a running Dask scheduler "
                    "(default: a local cluster, one worker per core)")
     r.add_argument("--workers", type=int, help="local cluster: worker processes (default: "
@@ -316,18 +317,21 @@ def add(sub) -> None:
     st = csub.add_parser("status", help="done, crashed, lost and missing runs of a campaign, "
                          "running nothing")
     st.add_argument("spec", metavar="SPEC.toml", help="the campaign file")
-    st.add_argument("--db", metavar="FILE", help="the results file (default: SPEC.sqlite)")
+    st.add_argument("--db", type=file_name, metavar="FILE",
+                    help="the results file (default: SPEC.sqlite)")
     st.set_defaults(func=cmd_status)
     rep = csub.add_parser("report", help="per grid point: rates with Wilson intervals, "
                           "re-formation quantiles, the failing runs as commands")
     rep.add_argument("db", metavar="RESULTS.sqlite")
-    rep.add_argument("--plots", metavar="DIR", help="write PNG plots into DIR")
+    rep.add_argument("--plots", type=file_name, metavar="DIR", help="write PNG plots into DIR")
     rep.add_argument("--json", action="store_true", help="print the statistics as JSON")
     rep.set_defaults(func=cmd_report)
     ex = csub.add_parser("export", help="the runs as CSV or Parquet (pandas, DuckDB)")
     ex.add_argument("db", metavar="RESULTS.sqlite")
-    ex.add_argument("--csv", metavar="FILE", help="one row a run: the columns, each grid "
+    ex.add_argument("--csv", type=file_name, metavar="FILE",
+                    help="one row a run: the columns, each grid "
                     "parameter (param_*) and each metric (m_*)")
-    ex.add_argument("--parquet", metavar="FILE", help="the same rows as Parquet (needs "
+    ex.add_argument("--parquet", type=file_name, metavar="FILE",
+                    help="the same rows as Parquet (needs "
                     "pyarrow)")
     ex.set_defaults(func=cmd_export)

@@ -11,7 +11,7 @@ from typing import Any
 
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
 
-from .common import UserError
+from .common import UserError, file_name
 
 
 class _Ears:
@@ -100,7 +100,7 @@ def add(sub) -> None:
                        "as pcapng for Wireshark (nothing is sent)")
     c.add_argument("--radio", required=True, metavar="PORT",
                    help="the serial port of a radio (/dev/ttyUSB0, a hub node, socket://...)")
-    c.add_argument("--pcap", required=True, metavar="FILE",
+    c.add_argument("--pcap", required=True, type=file_name, metavar="FILE",
                    help="the capture: a file, a FIFO (mkfifo f; wireshark -k -i f), or - for "
                         "stdout (rprs capture ... --pcap - | wireshark -k -i -)")
     c.add_argument("--duration", type=float, metavar="SECONDS",

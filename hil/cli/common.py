@@ -72,6 +72,14 @@ def output_file(path: str, what: str) -> str:
     return path
 
 
+def file_name(text: str) -> str:
+    """A file or directory an option names (``--log``, ``--db``, ``--plots`` ...): an empty
+    name, which ran as if the option were not given and wrote nothing, is refused."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty name: give the file (or directory)")
+    return text
+
+
 def output_path(text: str) -> str:
     """The file an output option (``--trace``, ``--vcd``, ``--pcap``) writes. An empty name
     (which wrote nothing, and said nothing) and ``-`` (standard output to the radio hub; a
@@ -97,6 +105,12 @@ def distinct_outputs(**paths: str | None) -> None:
             raise UserError(f"--{seen[key]} and --{name} name the same file {path}: give each "
                             f"its own")
         seen[key] = name
+    # each is written to PATH.partial first and renamed at the end (trace.py, pcap.py)
+    for key, name in list(seen.items()):
+        other = seen.get(key + ".partial")
+        if other is not None:
+            raise UserError(f"--{name}'s file, written as {key}.partial first, is --{other}'s: "
+                            f"give each a name of its own")
 
 
 def robot_list(text: str) -> tuple[int, ...]:
@@ -178,6 +192,15 @@ def load_spec(text: str) -> str | float:
             f"{text} messages/s per robot is more than {LOAD_MAX:g}: the channel carries a few "
             f"dozen short messages a second in all, so any rate far above that is 'saturate' "
             f"(which runs as fast; a rate costs the simulator each message it offers)")
+    return v
+
+
+def load_rate(text: str) -> float:
+    """A load given as a rate only (``rprs soak --rate``): positive, at most LOAD_MAX."""
+    v = load_spec(text)
+    if isinstance(v, str):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a positive rate in messages/s per "
+                                         f"robot")
     return v
 
 

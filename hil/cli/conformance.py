@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .common import (UserError, auth_option, digit, output_file, port_name, positive,
+from .common import (UserError, auth_option, file_name, digit, output_file, port_name, positive,
                      robot_list, stdout_console)
 
 
@@ -92,6 +92,7 @@ def add(sub) -> None:
     p.add_argument("--wrap", action="store_true",
                    help="also run the robot's own message Number past '99' (clause 45): "
                    "about a hundred status() orders, about 10 s more on the air")
-    p.add_argument("--junit", metavar="FILE", help="write the verdicts as JUnit XML here")
+    p.add_argument("--junit", type=file_name, metavar="FILE",
+                   help="write the verdicts as JUnit XML here")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=cmd_conformance)

@@ -9,8 +9,8 @@ from ..sim import events as E
 from ..sim.ledger import SameHappening
 from ..sim.trace import TraceWriter
 from ..sim.world import ConfigError, SimConfig, World
-from .common import (Parser, UserError, auth_option, checked_mac_config, digit, positive,
-                     probability, profile_option)
+from .common import (Parser, UserError, auth_option, checked_mac_config, digit, file_name,
+                     positive, probability, profile_option)
 from .sim import (
     add_sim_options, close_writers, cmd_sim, cpu_costs, cpu_option, dispatch_latency_lines,
     write_failed,
@@ -206,7 +206,8 @@ def add_action_options(p: argparse.ArgumentParser) -> None:
                    help="radios hear random bytes when idle")
     p.add_argument("--timeout", type=positive, default=300.0, metavar="SECONDS",
                    help="give up after this much (simulated) time")
-    p.add_argument("--trace", metavar="FILE", help="write the JSON Lines trace here")
+    p.add_argument("--trace", type=file_name, metavar="FILE",
+                   help="write the JSON Lines trace here")
     cpu_option(p)
     profile_option(p)
     auth_option(p)

@@ -12,7 +12,7 @@ from ..bench.hub_parts import (MAX_BAUD, MAX_SECONDS, MIN_BAUD, HubError, check_
                                parse_baud, parse_drop)
 from ..bench.radio_hub import RadioHub
 from ..bench.runner import take_stop_signals
-from .common import UserError
+from .common import UserError, file_name
 
 
 def cmd_radio_hub(a: argparse.Namespace) -> int:
@@ -154,7 +154,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     p.add_argument("--link-dir", type=link_dir, default=None, metavar="DIR",
                    help="also create DIR/node0 ... symlinks to the ptys")
-    p.add_argument("--pcap", metavar="FILE", default=None,
+    p.add_argument("--pcap", type=file_name, metavar="FILE", default=None,
                    help="write a pcapng capture of the air here, wall-clock timestamps; '-' "
                    "streams it to stdout for a live view: | wireshark -k -i - (the node "
                    "paths then go to stderr)")

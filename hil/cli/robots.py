@@ -8,8 +8,8 @@ import sys
 from firmware_model.timing import TICK_HZ
 
 from ..bench.orders import REPORT_WITHIN_S
-from .common import (UserError, can_notes, digit, distinct_outputs, mac_config, mac_options,
-                     port_name, positive, realtime_options, run_until_stopped,
+from .common import (UserError, can_notes, digit, distinct_outputs, file_name, mac_config,
+                     mac_options, port_name, positive, realtime_options, run_until_stopped,
                      stopped_by_itself, txen_option)
 
 def cmd_child(a: argparse.Namespace) -> int:
@@ -141,6 +141,7 @@ def cmd_father(a: argparse.Namespace) -> int:
     from ..view.father import HELP_WORDS, FatherConsole, Tee, order_help
     if a.json and a.quiet:
         raise UserError("--json and --quiet: choose one")
+    distinct_outputs(log=a.log, pcap=a.pcap)
     log = None
     if a.log:
         try:
@@ -277,8 +278,9 @@ def add(sub) -> None:
     ch.add_argument("--can", metavar="INTERFACE:CHANNEL",
                     help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can (both "
                     "shared with other processes); virtual:NAME stays inside this process")
-    ch.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
-    ch.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
+    ch.add_argument("--can-log", type=file_name, metavar="FILE",
+                    help="log CAN traffic (.log .asc .blf)")
+    ch.add_argument("--pcap", type=file_name, metavar="FILE", help=PCAP_HELP)
     txen_option(ch)
     mac_options(ch)
     realtime_options(ch, events=True)
@@ -288,8 +290,9 @@ def add(sub) -> None:
     sm.add_argument("--can", metavar="INTERFACE:CHANNEL", required=True,
                     help="the child's python-can bus, e.g. socketcan:vcan0, "
                     "rprs_unix:/tmp/rprs-can; virtual:NAME stays inside this process")
-    sm.add_argument("--can-log", metavar="FILE", help="log CAN traffic (.log .asc .blf)")
-    sm.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
+    sm.add_argument("--can-log", type=file_name, metavar="FILE",
+                    help="log CAN traffic (.log .asc .blf)")
+    sm.add_argument("--pcap", type=file_name, metavar="FILE", help=PCAP_HELP)
     realtime_options(sm)
     sm.set_defaults(func=cmd_submodules)
     fa = sub.add_parser("father", help="the father station (ID 0) on a serial port")
@@ -318,8 +321,9 @@ def add(sub) -> None:
                     f"already is, or an order a newer one replaced (default {REPORT_WITHIN_S:g})")
     fa.add_argument("--plain", action="store_true", help="at a terminal, lines instead of the "
                     "live view (the view is used only when stdin and stdout are a terminal)")
-    fa.add_argument("--pcap", metavar="FILE", help=PCAP_HELP)
-    fa.add_argument("--log", metavar="FILE", help="also append what the console shows (each "
+    fa.add_argument("--pcap", type=file_name, metavar="FILE", help=PCAP_HELP)
+    fa.add_argument("--log", type=file_name, metavar="FILE",
+                    help="also append what the console shows (each "
                     "order's changes, replies, the ring's news; with --json the JSON lines) "
                     "to FILE: the session's record outlives the view")
     txen_option(fa)

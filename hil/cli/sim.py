@@ -15,7 +15,7 @@ from ..sim.config import ConfigError, SimConfig
 from ..sim.faults import Fault
 from ..sim.world import World
 from .common import (
-    UserError, auth_option, checked_mac_config, digit, distinct_outputs, profile_option,
+    UserError, auth_option, checked_mac_config, digit, distinct_outputs, file_name, profile_option,
     fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console,
     stdout_console)
 
@@ -77,7 +77,8 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        help="peer MACs: frame size of the load (default 80)")
         p.add_argument("--vcd", type=output_path, metavar="FILE",
                        help="write a waveform (GTKWave) here")
-        p.add_argument("--cpu-costs", metavar="FILE", help="a TOML file of cycle costs "
+        p.add_argument("--cpu-costs", type=file_name, metavar="FILE",
+                       help="a TOML file of cycle costs "
                        "([costs] name = cycles) over the default table; implies --cpu "
                        "estimated")
         p.add_argument("--cpu-report", action="store_true", help="print each child's CPU "

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import positive, progress_bars, robot_list
+from .common import load_rate, positive, progress_bars, robot_list
 from .sim import cpu_costs, cpu_option
 
 def _hours(text: str) -> float:
@@ -54,7 +54,7 @@ def add(sub) -> None:
                     help="the same seed gives the same faults, traffic and trace")
     so.add_argument("--robots", type=robot_list, default=(0, 1, 2, 3, 4),
                     help="robot IDs in the ring (default 0,1,2,3,4)")
-    so.add_argument("--rate", type=positive, default=0.5, metavar="MSG/S",
+    so.add_argument("--rate", type=load_rate, default=0.5, metavar="MSG/S",
                     help="messages per second per robot (default 0.5)")
     so.add_argument("--checksum", dest="checksum_mode", choices=("on", "off", "both"),
                     default="on", help="the integrity extension (both: compare); exit "

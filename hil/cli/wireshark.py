@@ -6,7 +6,7 @@ import os
 import shutil
 from pathlib import Path
 
-from .common import UserError
+from .common import UserError, file_name
 
 
 def personal_plugins_dir() -> Path:
@@ -135,7 +135,8 @@ def add(sub) -> None:
                    "plugins folder")
     g.add_argument("--install-extcap", action="store_true", help="put a launcher of the live "
                    "radio capture (interface rprs-radio) in Wireshark's personal extcap folder")
-    w.add_argument("--dir", metavar="DIR", help="with --install or --install-extcap: this "
+    w.add_argument("--dir", type=file_name, metavar="DIR",
+                   help="with --install or --install-extcap: this "
                    "folder instead")
     w.add_argument("--dbc", metavar="FILE", help="with --install: decode the CAN payloads with "
                    "this DBC (your own submodules') instead of can_bus/rprs.dbc")

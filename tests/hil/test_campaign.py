@@ -964,3 +964,72 @@ def test_message_latency_and_throughput_per_point_with_their_intervals(spec_file
         assert p["latency_p99_ms"] is None              # fewer than 100 messages
         est, lo, hi = p["throughput"]
         assert est == round(sum(tputs) / len(tputs), 4) and lo <= est <= hi
+
+
+def _stored(db) -> None:
+    """A results file holding one campaign and one run, without running it."""
+    store = Store(db)
+    store.claim("x", 0)
+    store.add([dict(run_key="k1", point_key='{"load":"1"}', args=["--load", "1"],
+                    seed_index=0, seed=1, status="ok", error=None,
+                    metrics={"submitted": 3, "delivered": 3, "failed": 0}, wall_s=0.1,
+                    worker="w")], "c0ffee", False)
+    store.close()
+
+
+@pytest.mark.parametrize("damage", ["metrics = 'garbage'", "metrics = '{}'", "metrics = 'null'",
+                                    "args = 'not json'", "point_key = 'xx'"])
+@pytest.mark.parametrize("command", ["report", "export"])
+def test_a_damaged_results_row_is_one_line_naming_it(tmp_path, capsys, damage, command):
+    """Rows edited by hand made ``campaign report`` and ``export`` die in a JSONDecodeError,
+    KeyError or TypeError traceback."""
+    import sqlite3
+    from hil.cli import main
+    db = tmp_path / "m.sqlite"
+    _stored(db)
+    con = sqlite3.connect(db)
+    con.execute(f"UPDATE runs SET {damage}")
+    con.commit()
+    con.close()
+    extra = ["--csv", str(tmp_path / "m.csv")] if command == "export" else []
+    code = main(["campaign", command, str(db), *extra])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "run k1: a damaged row" in err, err
+
+
+@pytest.mark.parametrize("command", ["report", "export", "status"])
+def test_a_file_with_no_campaign_in_it_is_refused_and_left_as_it_was(tmp_path, capsys,
+                                                                     command):
+    """``campaign report app.sqlite`` on another program's database answered with an empty
+    report, exit 0, and added the campaign's tables to it; an empty file became a database."""
+    import sqlite3
+    from hil.cli import main
+    other, empty = tmp_path / "app.sqlite", tmp_path / "empty.sqlite"
+    con = sqlite3.connect(other)
+    con.execute("CREATE TABLE users (name)")
+    con.commit()
+    con.close()
+    empty.write_bytes(b"")
+    spec = tmp_path / "t.toml"
+    spec.write_text(SPEC)
+    for db in (other, empty):
+        before = db.read_bytes()
+        args = {"report": [str(db)], "export": [str(db), "--csv", str(tmp_path / "o.csv")],
+                "status": [str(spec), "--db", str(db)]}[command]
+        code = main(["campaign", command, *args])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "no campaign in it" in err, err
+        assert db.read_bytes() == before
+    assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("grid", ['duration = [1, 1.0]', 'robots = ["0,1", "00,1"]',
+                                  'load = [1, "1"]'])
+def test_one_point_spelled_two_ways_is_refused(tmp_path, grid):
+    """``duration = [0.5, 0.50]`` was refused as a point given twice, ``[1, 1.0]`` not: the
+    points are compared by the run they make."""
+    from hil.campaign.spec import SpecError
+    p = tmp_path / "d.toml"
+    p.write_text(f'[campaign]\nname = "x"\nseeds = 2\nduration = 1\n[grid]\n{grid}\n')
+    with pytest.raises(SpecError, match="make the same run"):
+        load_spec(p, check=check_args)

@@ -1374,3 +1374,59 @@ def test_sigterm_to_an_acceptance_run_tears_its_child_process_down():
             p.wait()
     assert p.returncode != -signal.SIGTERM, out          # not killed where it stood
     assert not any(os.path.exists(d) for d in mine), out  # the device was torn down
+
+
+@pytest.mark.parametrize("args", [
+    ["demo", "--trace", ""],
+    ["sim", "--duration", "1", "--cpu-costs", ""],
+    ["father", "--radio", "loop://", "--no-input", "--duration", "1", "--log", ""],
+    ["father", "--radio", "loop://", "--no-input", "--duration", "1", "--pcap", ""],
+    ["child", "--id", "1", "--radio", "loop://", "--duration", "1", "--pcap", ""],
+    ["campaign", "report", "x.sqlite", "--plots", ""],
+    ["campaign", "status", "x.toml", "--db", ""],
+    ["campaign", "export", "x.sqlite", "--csv", ""],
+    ["conformance", "--radio", "loop://", "--junit", ""],
+    ["wireshark", "--install", "--dir", ""],
+])
+def test_an_empty_file_or_directory_name_is_refused_wherever_an_option_takes_one(
+        capsys, tmp_path, monkeypatch, args):
+    """``--log ''``, ``--db ''``, ``--dir ''`` ... ran as if the option were not given: no
+    log, the default database, and ``wireshark --install --dir ''`` wrote into the user's
+    own plugins folder. Each is one line, status 2, and nothing written."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = rprs(capsys, *args)
+    assert code == 2 and err.count("\n") == 1 and "an empty name" in err, err
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_soak_rate_past_the_simulators_limit_is_one_line(capsys):
+    """``rprs soak --rate 1001`` died in a ConfigError traceback after forking its runs."""
+    code, _, err = rprs(capsys, "soak", "--hours", "0.05", "--rate", "1001", "--no-can")
+    assert code == 2 and err.count("\n") == 1 and "argument --rate" in err, err
+
+
+def test_a_listing_that_is_no_utf8_text_is_one_line_naming_it(capsys, tmp_path):
+    path = tmp_path / "lat1.asm"
+    path.write_bytes(b"MOV A, #1\n\xe9\n")
+    code, _, err = rprs(capsys, "listing", "--file", str(path))
+    assert code == 2 and err.count("\n") == 1 and "lat1.asm: not UTF-8" in err, err
+
+
+def test_a_trace_and_a_capture_whose_partial_names_meet_are_refused(capsys, tmp_path,
+                                                                    monkeypatch):
+    """``--trace x.partial --pcap x``: the capture, written to x.partial first, was renamed
+    over by the trace, which took the capture's name; exit 0, no capture anywhere."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = rprs(capsys, "sim", "--duration", "1", "--trace", "x.partial", "--pcap", "x")
+    assert code == 2 and err.count("\n") == 1 and "x.partial" in err, err
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_fathers_log_and_capture_naming_one_file_are_refused(capsys, tmp_path,
+                                                                 monkeypatch):
+    """The console's text went into the pcapng, which capinfos then called corrupt."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = rprs(capsys, "father", "--radio", "loop://", "--no-input", "--duration",
+                        "1", "--pcap", "y.pcap", "--log", "./y.pcap")
+    assert code == 2 and err.count("\n") == 1 and "name the same file" in err, err
+    assert not list(tmp_path.iterdir())
