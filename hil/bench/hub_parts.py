@@ -98,7 +98,7 @@ def check_fault(f: Any, nodes: int = MAX_NODES) -> None:
                          f"not {f.spec()}")
     if f.robot is not None and not 0 <= f.robot < nodes:
         raise ValueError(f"fault {f.spec()}: the hub has nodes 0-{nodes - 1}")
-    if not f.end <= MAX_SECONDS:
+    if not max(f.at, f.until if f.until is not None else f.at) <= MAX_SECONDS:
         raise ValueError(f"fault {f.spec()}: times must be at most {MAX_SECONDS} s after "
                          f"the hub starts")
 
