@@ -61,11 +61,10 @@ class Store:
             self.db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro", uri=True)
             tables = {n for (n,) in self.db.execute(
                 "SELECT name FROM sqlite_master WHERE type = 'table'")}
-            named = "meta" in tables and self.db.execute(
-                "SELECT value FROM meta WHERE key = 'name'").fetchone() is not None
+            columns = {row[1] for row in self.db.execute("PRAGMA table_info(runs)")}
         except sqlite3.DatabaseError as e:
             raise StoreError(f"{self.path}: not a campaign results file ({e})") from None
-        if not named or "runs" not in tables:
+        if "meta" not in tables or not {"run_key", "point_key", "metrics"} <= columns:
             self.db.close()
             raise StoreError(f"{self.path}: not a campaign results file (no campaign in it)")
 
