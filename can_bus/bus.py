@@ -107,10 +107,14 @@ Fault injection
 * ``inject_bit_error(node=None, count=1, bit=None)``: the next ``count`` frames (sent by
   ``node``, or by anyone) get a bit error detected by the transmitter and all receivers at wire
   bit ``bit`` (0 = SOF; default: the last bit of the stuffed CRC field; values past the ACK
-  delimiter are clamped to it).
+  delimiter are clamped to it, values inside the arbitration field to the bit after it: a
+  transmitter that reads dominant on its recessive identifier bit has lost arbitration, which
+  is no error, ISO 11898-1).
 * ``hold_dominant(node, True/False)``: the bus reads dominant while any node holds it. A frame
   in flight is destroyed at the hold tick ``H`` (flag start ``F = H``; its transmitter detects
-  a bit error, the others a stuff error); otherwise every node sees a SOF and a stuff error six
+  a bit error, the others a stuff error, also inside the arbitration field, where the standard
+  has the transmitter lose arbitration and every node find the stuff error: not modelled);
+  otherwise every node sees a SOF and a stuff error six
   bits later (``F = H + 6`` bits). Counting from ``F``: detection (+8 / +1), REC += 8 for
   receivers if bit 7 is still dominant, then at the 14th dominant bit and every 8 more
   TEC += 8 for the transmitter and REC += 8 for receivers (ISO rule for dominant bits after
@@ -145,7 +149,8 @@ from can_bus.physical import DEFAULT_LENGTH_M, LINE_DELAY_S_PER_M, prop_time_s
 from can_bus import bus_errors, bus_hold
 from can_bus.bus_state import (_ELEVEN, _FRAME, _IDLE, _NO_DEAF, _REC_AFTER_PASSIVE_RX, _RECOVERY,
                                _TAIL, ACTIVE, BUS_OFF, ERROR_FRAME_TOTAL_BITS, PASSIVE,
-                               CanErrorEvent, ErrorState, NodeStatus, _frame_info, _Hold, _Node,
+                               CanErrorEvent, ErrorState, NodeStatus, _arbitration_end,
+                               _frame_info, _Hold, _Node,
                                _prio)
 
 __all__ = [
@@ -535,7 +540,8 @@ class CanBus:
                     bit = lst.pop(0)
                     if not lst:
                         del inj[key]
-                    k = nstuffed - 1 if bit is None else min(bit, nstuffed + 2)
+                    k = nstuffed - 1 if bit is None else min(
+                        max(bit, _arbitration_end(_frame_info(frame)[0]) + 1), nstuffed + 2)
                     if err is None or k < err[0]:
                         err = (k, "bit")
                     break

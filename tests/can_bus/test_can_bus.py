@@ -445,3 +445,21 @@ def test_a_node_with_rx_ids_hears_only_those_and_the_bus_runs_as_without_them():
     assert [i for i, _ in done] == [0x110, 0x120, 0x130] and len(c_rx) == 3
     assert rec > 0                         # the local error, partly worked off
     assert errors[-1] == "ack"             # 0x140 with nobody able to acknowledge it
+
+
+@pytest.mark.parametrize("bit", [1, 3, 7, 12])
+def test_a_bit_error_injected_in_the_arbitration_field_comes_after_it(bit):
+    """A transmitter reading dominant on its recessive identifier bit has lost arbitration,
+    which is no error (ISO 11898-1): an error injected there gave it TEC + 8 at that bit. It
+    comes, as a local error does, at the first bit after the arbitration field."""
+    from can_bus.bus_state import _arbitration_end, _frame_info
+    f = CanFrame(0x7FF, b"\x00")
+    after = _arbitration_end(_frame_info(f)[0]) + 1
+    assert bit < after
+    sched, bus, (a, b), log, errs = make(2)
+    bus.inject_bit_error(a, 1, bit=bit)
+    bus.request(a, f)
+    sched.run_until(400 * TPB)
+    assert [(e.kind, e.tick // TPB) for e in a.errors] == [("bit", after + 1)]
+    assert [e.tick // TPB for e in b.errors] == [after + 1]
+    assert len(log) == 1 and bus.tec(a) == 7                 # +8, then -1 for the retry
