@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from types import SimpleNamespace
 from typing import Any
 
@@ -80,12 +81,14 @@ def cmd_capture(a: argparse.Namespace) -> int:
     runner.on_close(cap.close, last=True)
     channel.start()
     where = "stdout" if a.pcap == "-" else a.pcap
+    started = time.monotonic()
     runner.run(a.duration, ready=lambda: print(
         f"capturing {a.radio} to {where} (listen only: nothing is sent); Ctrl-C stops",
         file=sys.stderr, flush=True))
     gaps = f", {cap.gaps} gap{'s' if cap.gaps != 1 else ''} (stalls)" if cap.gaps else ""
-    print(f"capture: {channel.bytes_in} bytes heard in {runner.sched.now / 16e6:.1f} s{gaps}",
-          file=sys.stderr)
+    # (the wall time it ran: the runner's clock stops at its last event, the last byte heard)
+    print(f"capture: {channel.bytes_in} bytes heard in {time.monotonic() - started:.1f} s"
+          f"{gaps}", file=sys.stderr)
     if cap.error is None and cap.close_error is not None:
         print(f"rprs: error: cannot write capture {a.pcap}: {cap.close_error}", file=sys.stderr)
         return 1

@@ -117,6 +117,8 @@ def _unhex(text: str) -> bytes:
 def cmd_decode(a: argparse.Namespace) -> int:
     def out(obj):
         print(json.dumps(obj), flush=False)
+    if a.stream and a.hexdata:
+        raise UserError("--stream reads stdin: give the frame as HEX or --stream, not both")
     if a.stream:
         chunks: Iterable[bytes]
         if a.hex:

@@ -20,7 +20,7 @@ def cmd_inject(a: argparse.Namespace) -> int:
     except FaultError as exc:
         raise UserError(str(exc)) from None
     if not a.at <= MAX_SECONDS:         # as the hub's foreign@T: time.sleep(1e300) overflowed
-        raise UserError(f"--at must be at most {MAX_SECONDS} seconds, got {a.at:g}")
+        raise UserError(f"--at must be at most {MAX_SECONDS} seconds, got {a.at!r}")
     data = foreign_bytes(fault, a.seed)
     try:
         port = open_port(a.radio)

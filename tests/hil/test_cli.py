@@ -1430,3 +1430,29 @@ def test_the_fathers_log_and_capture_naming_one_file_are_refused(capsys, tmp_pat
                         "1", "--pcap", "y.pcap", "--log", "./y.pcap")
     assert code == 2 and err.count("\n") == 1 and "name the same file" in err, err
     assert not list(tmp_path.iterdir())
+
+
+def test_a_capture_stopped_by_ctrl_c_says_how_long_it_listened(tmp_path):
+    """``rprs capture`` stopped by Ctrl-C after 3 s said ``0 bytes heard in 0.0 s`` (the time
+    of its last event, not of the capture)."""
+    master, slave = os.openpty()
+    try:
+        p = _capture("--radio", os.ttyname(slave), "--pcap", str(tmp_path / "c.pcap"))
+        ready = p.stderr.readline()
+        assert ready.startswith(b"capturing"), ready
+        time.sleep(2.0)
+        import signal
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=30)
+        line = [x for x in err.decode().splitlines() if x.startswith("capture:")]
+        assert line and line[0].startswith("capture: 0 bytes heard in "), err
+        assert float(line[0].split(" in ")[1].split(" s")[0]) >= 1.9, line
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_decode_with_stream_and_hex_arguments_is_refused(capsys):
+    """``rprs decode --stream 0f0a`` read stdin and dropped the HEX argument silently."""
+    code, _, err = rprs(capsys, "decode", "--stream", "0f0a05")
+    assert code == 2 and err.count("\n") == 1 and "not both" in err, err
