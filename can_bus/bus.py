@@ -106,15 +106,12 @@ Fault injection
 ---------------
 * ``inject_bit_error(node=None, count=1, bit=None)``: the next ``count`` frames (sent by
   ``node``, or by anyone) get a bit error detected by the transmitter and all receivers at wire
-  bit ``bit`` (0 = SOF; default: the last bit of the stuffed CRC field; values past the ACK
-  delimiter are clamped to it, values inside the arbitration field to the bit after it: a
-  transmitter that reads dominant on its recessive identifier bit has lost arbitration, which
-  is no error, ISO 11898-1).
+  bit ``bit`` (0 = SOF; default: the last bit of the stuffed CRC field; clamped to the ACK
+  delimiter, and after the arbitration field, where a dominant bit read is lost arbitration).
 * ``hold_dominant(node, True/False)``: the bus reads dominant while any node holds it. A frame
   in flight is destroyed at the hold tick ``H`` (flag start ``F = H``; its transmitter detects
-  a bit error, the others a stuff error, also inside the arbitration field, where the standard
-  has the transmitter lose arbitration and every node find the stuff error: not modelled);
-  otherwise every node sees a SOF and a stuff error six
+  a bit error, the others a stuff error; not modelled: inside the arbitration field, the
+  transmitter losing arbitration there); otherwise every node sees a SOF and a stuff error six
   bits later (``F = H + 6`` bits). Counting from ``F``: detection (+8 / +1), REC += 8 for
   receivers if bit 7 is still dominant, then at the 14th dominant bit and every 8 more
   TEC += 8 for the transmitter and REC += 8 for receivers (ISO rule for dominant bits after
