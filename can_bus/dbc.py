@@ -303,7 +303,8 @@ def _encode_uncached(name: str, signals: dict[str, Any], raw: bool) -> CanFrame:
         # raw values were checked against their bit width only (a frame any CAN tool can
         # send); physical ones against the DBC's [min|max] with cantools' strict tolerance
         # (|scale| * 1e-6), every signal and none else, choice names already numbers: all that
-        # cantools' strict mode would check again (tests/can_bus/test_dbc.py holds it to that)
+        # cantools' strict mode would check again (tests/can_bus/test_dbc.py holds it to that),
+        # and one more: a choice signal's value must be whole (cantools rounds 1.4 to 1)
         data = e.msg.encode(signals, scaling=not raw, strict=False)
     except (cantools.database.EncodeError, KeyError, ValueError, OverflowError) as exc:
         raise DbcError(f"{name}: cannot encode {signals!r}: {exc}") from exc
