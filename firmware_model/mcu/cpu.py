@@ -474,11 +474,8 @@ class Cpu:
     def handles(self, fn: Callable[..., None]) -> bool:
         """Is a handler whose effects are ``fn`` requested, running or deferred, its effects
         still to come?"""
-        if self.runs_alone(fn):
-            return True
-        if any(f.fn == fn for f in self._stack) or any(p[6] == fn for p in self._pending):
-            return True
-        return False
+        return self.runs_alone(fn) or any(f.fn == fn for f in self._stack) or \
+            any(p[6] == fn for p in self._pending)
 
     def _alone_over(self, now: int) -> bool:
         """The lone handler's effects came and its RETI ended before ``now`` (at ``now`` it

@@ -392,9 +392,16 @@ class Uart:
         handed over late (``receive``'s ``late_ok``)? Only on a CPU with nothing to do now,
         whose receive handler, run alone, is over before the next byte comes, and if the
         receiving firmware reports nothing before the last byte (``rx_quiet``)."""
+        return self._late_fits(data, dt, now, True)
+
+    def _late_fits(self, data: bytes, dt: int, now: int, idle: bool) -> bool:
+        """``data`` may come late on this CPU, idle now or not as ``idle`` says: a receive
+        handler that, alone, is over before the next byte, and a receiving firmware that
+        reports nothing before the last byte (``rx_quiet``)."""
         cpu = self.cpu
         return cpu is not None and self.rx_quiet is not None and \
-            cpu.fits_alone(self.rx_cycles, dt) and cpu.quiescent(now) and self.rx_quiet(data)
+            cpu.fits_alone(self.rx_cycles, dt) and cpu.quiescent(now) == idle and \
+            self.rx_quiet(data)
 
     def late_once_idle(self, data: bytes, dt: int, now: int) -> bool:
         """Could ``data`` (as ``may_come_late``), from a reception beginning ``now`` on a CPU
@@ -403,10 +410,9 @@ class Uart:
         path is still to run (no byte in RDR or read and not yet handled, none held, no
         receive handler on the CPU), so that ``rx_quiet`` judges the deframer as the first
         byte's handler finds it."""
-        cpu = self.cpu
-        return cpu is not None and self.rx_quiet is not None and not self.rdr and \
-            not self._read and self._held is None and cpu.fits_alone(self.rx_cycles, dt) and \
-            not cpu.quiescent(now) and not cpu.handles(self._rx_isr) and self.rx_quiet(data)
+        return not self.rdr and not self._read and self._held is None and \
+            self.cpu is not None and not self.cpu.handles(self._rx_isr) and \
+            self._late_fits(data, dt, now, False)
 
     def _replay(self, chunk: bytes, t0: int, dt: int, lead: int, hold: bool = False) -> None:
         """Bytes handed over late with an idle CPU (``receive``'s ``late_ok``): each byte's

@@ -98,7 +98,7 @@ def check_fault(f: Any, nodes: int = MAX_NODES) -> None:
                          f"not {f.spec()}")
     if f.robot is not None and not 0 <= f.robot < nodes:
         raise ValueError(f"fault {f.spec()}: the hub has nodes 0-{nodes - 1}")
-    if not max(f.at, f.until if f.until is not None else f.at) <= MAX_SECONDS:
+    if not (f.at if f.until is None else f.until) <= MAX_SECONDS:   # (not a burst's end)
         raise ValueError(f"fault {f.spec()}: times must be at most {MAX_SECONDS} s after "
                          f"the hub starts")
 

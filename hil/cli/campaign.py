@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from .common import UserError, file_name, distinct_outputs, stderr_console
+from .common import UserError, distinct_outputs, file_name, stderr_console
 
 
 def _db_for(spec_path: str, db: str | None) -> str:
