@@ -22,6 +22,12 @@ COLUMNS = ("run_key", "point_key", "args", "seed_index", "seed", "status", "erro
            "wall_s", "worker", "commit_id", "dirty", "finished_at", "code")
 
 
+READ_METRICS = frozenset({"submitted", "failed", "duplicates", "misdelivered",
+                          "corrupted_acted_on", "not_reformed", "reform_max_s"})
+"""The metrics of an ``ok`` run that the report and the verdicts read without a default
+(hil/campaign/runs.py ``metrics_of`` writes them all): a row without one is damaged."""
+
+
 class StoreError(ValueError):
     """A results file that cannot be opened or does not belong to this campaign."""
 
@@ -51,6 +57,7 @@ class Store:
             if "code" not in have:          # a file from before the column: its rows' is NULL
                 self.db.execute("ALTER TABLE runs ADD COLUMN code TEXT")
             self.db.commit()
+            self._columns = set(COLUMNS)
         except sqlite3.DatabaseError as e:
             raise StoreError(f"{path}: not a campaign results file ({e})") from None
 
@@ -64,6 +71,7 @@ class Store:
             columns = {row[1] for row in self.db.execute("PRAGMA table_info(runs)")}
         except sqlite3.DatabaseError as e:
             raise StoreError(f"{self.path}: not a campaign results file ({e})") from None
+        self._columns = columns        # (a file from before the code column is read as is)
         if "meta" not in tables or not {"run_key", "point_key", "metrics"} <= columns:
             self.db.close()
             raise StoreError(f"{self.path}: not a campaign results file (no campaign in it)")
@@ -137,8 +145,8 @@ class Store:
         by hand) is a StoreError naming it."""
         out = []
         try:
-            cur = self.db.execute(f"SELECT {', '.join(COLUMNS)} FROM runs "
-                                  "ORDER BY point_key, seed_index")
+            select = ", ".join(c if c in self._columns else "NULL" for c in COLUMNS)
+            cur = self.db.execute(f"SELECT {select} FROM runs ORDER BY point_key, seed_index")
             for values in cur:
                 r = dict(zip(COLUMNS, values))
                 try:
@@ -150,7 +158,7 @@ class Store:
                                      f"({e})") from None
                 if not isinstance(r["args"], list) or not isinstance(point, dict) or (
                         r["status"] == "ok" and not (isinstance(r["metrics"], dict)
-                                                     and "submitted" in r["metrics"])):
+                                                     and READ_METRICS <= r["metrics"].keys())):
                     raise StoreError(f"{self.path}: run {r['run_key']}: a damaged row (not "
                                      f"what a campaign run stores)")
                 out.append(r)

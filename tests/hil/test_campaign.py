@@ -972,8 +972,12 @@ def _stored(db) -> None:
     store.claim("x", 0)
     store.add([dict(run_key="k1", point_key='{"load":"1"}', args=["--load", "1"],
                     seed_index=0, seed=1, status="ok", error=None,
-                    metrics={"submitted": 3, "delivered": 3, "failed": 0}, wall_s=0.1,
-                    worker="w")], "c0ffee", False)
+                    metrics={"submitted": 3, "delivered": 3, "failed": 0, "pending": 0,
+                             "duplicates": 0, "misdelivered": 0, "corrupted_acted_on": 0,
+                             "collisions": 0, "membership_changes": 4, "reformations": 0,
+                             "reform_max_s": None, "not_reformed": 0,
+                             "latency_ms": {"40": 3}, "throughput": 0.3},
+                    wall_s=0.1, worker="w")], "c0ffee", False)
     store.close()
 
 
@@ -1033,3 +1037,31 @@ def test_one_point_spelled_two_ways_is_refused(tmp_path, grid):
     p.write_text(f'[campaign]\nname = "x"\nseeds = 2\nduration = 1\n[grid]\n{grid}\n')
     with pytest.raises(SpecError, match="make the same run"):
         load_spec(p, check=check_args)
+
+
+def test_a_results_file_from_before_the_code_column_is_reported_as_it_is(tmp_path, capsys):
+    """Reading opens the file read-only, so it no longer adds the ``code`` column a file
+    written before it lacks: its rows read with no code, and the file is left as it was."""
+    import sqlite3
+    from hil.cli import main
+    db = tmp_path / "old.sqlite"
+    _stored(db)
+    con = sqlite3.connect(db)
+    con.execute("ALTER TABLE runs DROP COLUMN code")
+    con.commit()
+    con.close()
+    before = db.read_bytes()
+    rows = Store(db, read_only=True).rows()
+    assert len(rows) == 1 and rows[0]["code"] is None and rows[0]["metrics"]["submitted"] == 3
+    assert main(["campaign", "report", str(db)]) == 0
+    assert "1 runs" in capsys.readouterr().out
+    assert db.read_bytes() == before
+
+
+def test_the_metrics_the_report_reads_are_those_a_run_stores():
+    """A row whose metrics lack one the report reads is refused as damaged (report died in a
+    KeyError): the set is what metrics_of writes."""
+    from hil.campaign.runs import metrics_of
+    from hil.campaign.store import READ_METRICS
+    from hil.sim.world import SimConfig
+    assert READ_METRICS <= metrics_of(SimConfig(robots=(1, 2), duration=1.0)).keys()
