@@ -6,6 +6,7 @@ The extras' libraries are installed in the test venv, so each command runs in a 
 imports of them fail as in a core venv (a meta path finder put first refuses them)."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import textwrap
@@ -69,8 +70,15 @@ def test_a_child_and_the_plain_father_run_on_the_core_on_the_hub(tmp_path):
         out, err = child.communicate(timeout=30)
     assert father.returncode == 0, father.stderr
     assert child.returncode == 0, err
-    assert "robot 0: member, ring [0, 1]" in father.stderr, father.stderr
-    assert "robot 1: member, ring [0, 1]" in out + err, (out, err)
+    for said, me in ((father.stderr, 0), (out + err, 1)):
+        if "stalled: it did not run for" in said:
+            # the process itself did not run for longer than the margins (a busy machine),
+            # said so and listened for the ring again; the run may end before it is back
+            # in: it ran, sent and heard frames on the hub
+            sent, heard = re.search(r"frames sent (\d+), heard (\d+)", said).groups()
+            assert int(sent) > 10 and int(heard) > 10, said
+        else:
+            assert f"robot {me}: member, ring [0, 1]" in said, said
 
 
 @pytest.mark.parametrize("args, extra", [
