@@ -148,12 +148,14 @@ class RadioStation:
     def _stall_guard(self, now: int) -> int | None:
         """The stall timer is due, a frame in progress: if the air is still to hand over
         bytes of it that came late (a good frame's, each of which re-armed the timer on its
-        own tick), look again when the last of them has come (ReloadTimer.guard)."""
+        own tick), look again one stall gap after the last of them (ReloadTimer.guard): the
+        earliest the timer it re-armed can be due. Bytes handed over before that (a touch,
+        a collision or an abort flushes them) re-arm it earlier themselves."""
         if not self.deframer.in_frame:
             return None
         late_until = getattr(self.uart.line, "late_until", None)
         until = late_until(now) if late_until is not None else None
-        return until if until is not None and until > now else None
+        return until + self._stall if until is not None and until > now else None
 
     def _stall_expired(self, now: int, cycles: int) -> None:
         """The stall timer's compare matched: its interrupt, unless bytes handed over late
