@@ -67,7 +67,9 @@ def _frame_json(frame: Frame, key=None) -> dict:
         d["auth"] = {"fresh": fresh, "tag": tag, "tag_ok": None if key is None else
                      auth.check(key, frame) is not None}
         content = auth.strip(content)
-    elif CRC_TAIL.search(content):
+    elif CRC_TAIL.search(content) and int(content[-6:-1]) <= CRC_MAX:
+        # (a value past 16 bits is no checksum: left in, it makes the Content unreadable,
+        # as the firmware finds it, clause 16)
         d["crc"] = int(content[-6:-1])
         d["crc_ok"] = integrity.check(frame)
         content = integrity.strip(content)
@@ -80,6 +82,9 @@ def _frame_json(frame: Frame, key=None) -> dict:
 
 CRC_TAIL = re.compile(rb"crc\([0-9]{5}\)\Z")
 """``crc(NNNNN)`` ending a Content (the checksum extension, docs/protocol.md clause 20)."""
+
+CRC_MAX = 65535
+"""The largest ``crc(value)``: a CRC-16 (docs/protocol.md, clause 20; its parameter's bounds)."""
 
 
 def _decode_bytes(chunks, out, key=None) -> tuple[int, int]:

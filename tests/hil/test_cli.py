@@ -205,6 +205,11 @@ def test_signed_and_checksummed_frames_are_made_and_checked_by_the_tools(capsys,
     code, out, _ = rprs(capsys, "decode", out.strip())
     f = json.loads(out)["frame"]
     assert f["crc_ok"] is True and f["content"].endswith("crc(%05d)" % f["crc"])
+    # crc(65536) is past the parameter's 0-65535: no checksum, an unreadable Content, as every
+    # other parameter out of its bounds (clause 16)
+    code, out, _ = rprs(capsys, "decode", "0f0a05373130313230303130637263283635353336291719")
+    f = json.loads(out)["frame"]
+    assert "crc" not in f and "65536" in f["content_error"] and "commands" not in f
     code, _, err = rprs(capsys, "encode", "--src", "0", "--dst", "1", "--fresh", "3", "x()")
     assert code == 2 and "--fresh goes with --auth-key" in err
 
