@@ -64,6 +64,33 @@ def test_idle_turns_are_frame_bytes_times_16640_plus_ttrans():
     assert ones[1]["start"] - ones[0]["start"] == 4 * 312_960 == s_to_ticks(0.07824)
 
 
+@pytest.mark.parametrize("cpu,txen,header", [(None, 0, TTRANS_TICKS),
+                                              ("estimated", 834, TTRANS_TICKS + 1_142)])
+def test_the_hand_over_on_each_cpu_is_the_same_every_turn(cpu, txen, header):
+    """docs/protocol.md clause 23: on the ideal CPU the next owner raises TXEN at E and
+    begins its Header at E + Ttrans to the tick; on the MB90F549 model it learns of E when the
+    End's receive handler has run (TXEN at E + 834 ticks) and its timer's handler writes the
+    first byte Ttrans after TXEN and its own entry and body later (E + 81,142): an idle turn
+    of 314,102 ticks (19.63 ms, §7.2), every turn."""
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    kw = {} if cpu is None else {"cpu": DEFAULT_COSTS}
+    _, evs = run(robots=(1, 2, 3), duration=6.0, **kw)
+    after = s_to_ticks(3.0)
+    fs = frames(evs)
+    assert not any(f["collided"] for f in fs)
+    ends = [f["end"] for f in fs]
+    # each TXEN from the last End at or before it (at one tick the frame's event may follow)
+    txens = [e["t"] - max(x for x in ends if x <= e["t"]) for e in evs
+             if e["ev"] == "txen" and e["on"] and e["t"] >= after]
+    turns = [(b["start"] - a["end"], b["end"] - a["end"]) for a, b in zip(fs, fs[1:])
+             if b["start"] >= after]
+    assert len(turns) > 100 and len(txens) > 100
+    assert set(txens) == {txen} and {t[0] for t in turns} == {header}
+    assert {t[1] for t in turns} == {header + 14 * CHILD_BYTE_TICKS}
+    assert (header + 14 * CHILD_BYTE_TICKS) * 1_000_000 // TICK_HZ == \
+        (19_560 if cpu is None else 19_631)           # µs: §7.2's idle turn on each CPU
+
+
 def test_father_turn_uses_the_pc_uart_byte_time():
     w, evs = run(robots=(0, 1, 2), duration=8.0)
     fs = frames(evs, after=s_to_ticks(5.0))
