@@ -82,6 +82,31 @@ def test_sim_trace_file_is_complete_and_deterministic(tmp_path, capsys):
     assert not list(tmp_path.glob("*.partial"))
 
 
+def test_the_same_seed_gives_the_same_files_in_processes_with_other_string_hashes(tmp_path):
+    """Determinism across processes: a set or dict of strings iterates in an order that
+    Python's hash seed decides, a different one in each process. Two processes with other
+    hash seeds (PYTHONHASHSEED) run one seeded world with most of the model on (the standby
+    father taking over, CAN sides with a bus-off, noise, the authenticated profile, the CPU
+    model) and write the same trace, capture and waveform, byte for byte."""
+    key = tmp_path / "ring.key"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
+    outs = []
+    for seed in ("0", "4242"):
+        d = tmp_path / seed
+        d.mkdir()
+        args = ["sim", "--robots", "0,1,2,3", "--duration", "12", "--seed", "5", "--load", "1",
+                "--can", "--father-standby", "--fault", "fail:0@4", "--recover", "0@6",
+                "--fault", "busoff:2@3", "--noise", "--auth-key", str(key),
+                "--trace", str(d / "t.jsonl"), "--pcap", str(d / "p.pcapng"),
+                "--vcd", str(d / "w.vcd")]
+        env = dict(os.environ, PYTHONHASHSEED=seed)
+        r = subprocess.run([sys.executable, "-m", "hil.cli", *args], env=env, cwd=ROOT,
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        outs.append([(d / n).read_bytes() for n in ("t.jsonl", "p.pcapng", "w.vcd")])
+    assert all(outs[0]) and outs[0] == outs[1]
+
+
 def test_a_trace_named_gz_is_written_compressed_and_the_same_for_the_same_seed(tmp_path,
                                                                                capsys):
     """``--trace run.jsonl.gz`` wrote plain text under a gzip name (``rprs plot`` and
