@@ -47,16 +47,6 @@ def summary_line(st: dict[str, Any]) -> str:
     return line
 
 
-def is_fifo(path: str) -> bool:
-    """Is ``path`` a FIFO (a live reader at its other end: flush each packet)?"""
-    import os
-    import stat
-    try:
-        return stat.S_ISFIFO(os.stat(path).st_mode)
-    except OSError:
-        return False
-
-
 def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = False,
                 seed: int = 0, link_dir: str | None = None,
                 drops: Sequence[tuple[int, float, float]] = (),
@@ -64,8 +54,9 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
     """The ``rprs radio-hub`` command: print the node paths, run until SIGINT, SIGTERM or
     SIGHUP (its terminal closed), print a summary; HubError (one line) after the summary if a
     thread of the hub failed and stopped it. ``pcap``: a pcapng capture to this file, or ``-`` to
-    stdout, flushed packet by
-    packet (``| wireshark -k -i -``; the paths and the summary then go to stderr). Bad
+    stdout
+    (``| wireshark -k -i -``; the paths and the summary then go to stderr), flushed packet by
+    packet. Bad
     arguments raise ValueError with a one-line message."""
     check_args(nodes, baud, ber, [tuple(d) for d in drops])
     done = threading.Event()
@@ -89,8 +80,15 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
                        drops=drops, faults=faults)
         if stream is not None:
             from ..sim.pcap import PcapWriter
-            hub.capture(PcapWriter(stream, *hub.capture_interfaces(), tsresol=9,
-                                   live=pcap == "-" or is_fifo(pcap or "")))
+            # flushed packet by packet, to a file too (a few frames a second at 9600 baud):
+            # a hub that is killed or loses power keeps what it captured, and a disk that
+            # cannot take it (full) is said at once, by the header's flush
+            try:
+                writer = PcapWriter(stream, *hub.capture_interfaces(), tsresol=9, live=True)
+            except OSError as e:
+                hub.close()
+                raise ValueError(f"cannot write capture {pcap}: {e.strerror or e}") from None
+            hub.capture(writer)
         # SIGHUP too: a closed terminal must not leave links to ptys the next one is given
         old = take_stop_signals(on_signal)     # (what stops it cleanly: bench/runner.py)
         try:

@@ -1188,6 +1188,45 @@ def test_live_capture_through_a_pipe_into_tshark():
     assert "radio-hub: " in err
 
 
+def _packets_so_far(path) -> list:
+    """The packets of a capture still being written ([] until a whole one is there)."""
+    try:
+        return _capture_packets(path.read_bytes())
+    except Exception:                   # (empty, or a block half written)
+        return []
+
+
+def test_a_capture_to_a_file_has_each_frame_as_it_comes_and_keeps_it_if_the_hub_is_killed(
+        tmp_path):
+    """``rprs radio-hub --pcap hub.pcapng`` buffered a regular file's packets until it
+    stopped: after 25 frames the file was still empty, and a hub that was killed (SIGKILL,
+    out of memory, power) left 0 bytes, where ``rprs child --pcap`` had written every packet.
+    Each packet is now on disk as it comes, to a file as to a pipe."""
+    cap = tmp_path / "hub.pcapng"
+    hub = subprocess.Popen([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                            "--pcap", str(cap)], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        paths = [hub.stdout.readline().split()[2] for _ in range(2)]
+        fd = os.open(paths[0], os.O_RDWR | os.O_NOCTTY)
+        try:
+            os.write(fd, FRAME)
+            deadline = time.monotonic() + 20
+            while not _packets_so_far(cap) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert _packets_so_far(cap), "nothing on disk while the hub ran"
+        finally:
+            os.close(fd)
+        hub.kill()
+        hub.wait(timeout=10)
+        pkts = _capture_packets(cap.read_bytes())
+        assert [p[2] for p in pkts] == [FRAME]
+    finally:
+        _kill(hub)
+        for f in (hub.stdout, hub.stderr):
+            f.close()
+
+
 def test_a_capture_that_cannot_be_written_is_one_line(tmp_path):
     r = subprocess.run([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
                         "--pcap", str(tmp_path / "no" / "x.pcapng")],
