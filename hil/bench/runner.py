@@ -571,14 +571,23 @@ def feed_orders(runner: Runner, station: RadioStation, book: Any, stream: TextIO
 
 
 def summary_line(station: RadioStation) -> str:
+    """A bench station's closing line; with the bytes its port brought while its radio was
+    sending or switching (deaf: dropped, as the PTR2000 hears nothing then), if any: a peer
+    that answers before this station's frame has left its radio (a port without the air's
+    pacing) is heard by nobody, and this says why."""
     m = station.mac
     r = station.refused
     auth = f"forged {r.get('forged', 0)}, replayed {r.get('replayed', 0)}, " \
         if m.cfg.auth is not None else ""
-    return (f"robot {station.id}: {m.mode}, ring {list(m.ring)}, frames sent {m.frames_sent}, "
+    line = (f"robot {station.id}: {m.mode}, ring {list(m.ring)}, frames sent {m.frames_sent}, "
             f"heard {station.frames_heard}, bad frames {station.frames_failed}, "
             f"refused {sum(r.values())} ({auth}out of turn {r.get('out_of_turn', 0)}, own ID "
             f"{r.get('own_id', 0)}), numbers behind {station.behind}, pending {m.pending}")
+    deaf = getattr(getattr(station.uart.line, "channel", None), "bytes_deaf", 0)
+    if deaf:
+        line += (f", {deaf} byte{'s' if deaf != 1 else ''} came while its radio sent or "
+                 f"switched (deaf: dropped)")
+    return line
 
 
 TICKS_PER_MS = TICK_HZ // 1000

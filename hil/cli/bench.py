@@ -111,7 +111,8 @@ def cmd_bench(a: argparse.Namespace) -> int:
     p99 = lambda v: f"{bench.percentile(v, 99):.1f}" if v else "-"  # noqa: E731
     rep = {"sent": r.sent, "replies": r.replies, "loss": 1 - r.replies / r.sent if r.sent else 1,
            "round_trip_ms_median": statistics.median(r.round_trip_ms) if r.round_trip_ms
-           else None, "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,
+           else None, "round_trip_ms_p99": bench.percentile(r.round_trip_ms, 99)
+           if r.round_trip_ms else None, "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,
            "failed": r.failed, "refused": len(r.refusals),
            "refusal": r.refusals[0] if r.refusals else None}
     if a.json:

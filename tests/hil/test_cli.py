@@ -1483,3 +1483,37 @@ def test_decode_with_stream_and_hex_arguments_is_refused(capsys):
     """``rprs decode --stream 0f0a`` read stdin and dropped the HEX argument silently."""
     code, _, err = rprs(capsys, "decode", "--stream", "0f0a05")
     assert code == 2 and err.count("\n") == 1 and "not both" in err, err
+
+
+def test_a_child_says_how_many_bytes_came_while_its_radio_was_deaf():
+    """On a port without the air's pacing (one end of a pty pair, a peer's script at the other)
+    a peer that answered the moment the child's frame reached it answered while the child's
+    radio model was still sending it: deaf, as a PTR2000 is, so the answer was dropped, and
+    the closing line said ``heard 0, bad frames 0``: a ring that never formed, and no clue.
+    The closing line says how many bytes came while the radio was deaf."""
+    import select
+    import signal
+    master, slave = os.openpty()
+    p = subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", "1", "--radio",
+                          os.ttyname(slave), "--team", "0,1"], cwd=ROOT,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        frames = 0
+        while frames < 5 and time.monotonic() < deadline:     # a lone claimer's frames
+            if select.select([master], [], [], 0.1)[0] and os.read(master, 4096):
+                frames += 1
+                os.write(master, b"\x00" * 8)       # at once: its radio still sends
+        assert frames == 5, "the child sent nothing"
+        time.sleep(0.3)
+        p.send_signal(signal.SIGTERM)
+        out, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+        os.close(master)
+        os.close(slave)
+    assert p.returncode == 0, err
+    assert re.search(r"robot 1: .*, \d+ bytes came while its radio sent or switched "
+                     r"\(deaf: dropped\)", out + err), out + err
