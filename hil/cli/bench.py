@@ -109,10 +109,11 @@ def cmd_bench(a: argparse.Namespace) -> int:
         t.join(timeout=5)
     med = lambda v: f"{statistics.median(v):.1f}" if v else "-"  # noqa: E731
     p99 = lambda v: f"{bench.percentile(v, 99):.1f}" if v else "-"  # noqa: E731
+    rtt = r.round_trip_ms
     rep = {"sent": r.sent, "replies": r.replies, "loss": 1 - r.replies / r.sent if r.sent else 1,
-           "round_trip_ms_median": statistics.median(r.round_trip_ms) if r.round_trip_ms
-           else None, "round_trip_ms_p99": bench.percentile(r.round_trip_ms, 99)
-           if r.round_trip_ms else None, "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,
+           "round_trip_ms_median": statistics.median(rtt) if rtt else None,
+           "round_trip_ms_p99": bench.percentile(rtt, 99) if rtt else None,
+           "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,
            "failed": r.failed, "refused": len(r.refusals),
            "refusal": r.refusals[0] if r.refusals else None}
     if a.json:
