@@ -10,13 +10,14 @@ the chunks in flight).
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from .code import code_identity
 from .runs import metrics_of, run_chunk
@@ -192,6 +193,38 @@ def check_workers(client: Any) -> None:
             + ", ".join(sorted(other)) + "; start them from this checkout")
 
 
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """Hold the stop signals (SIGINT, SIGTERM, SIGHUP) while the embedded cluster starts, then
+    handle the first that came as it would have been: one that interrupts ``LocalCluster``
+    mid-start leaves its nannies half started, and Dask's shutdown of them at exit printed
+    tracebacks ("Nanny failed to start") after ``rprs: interrupted``. A start takes a second
+    or two; in the main thread only (where signals are handled)."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[tuple[int, Any]] = []
+    old: dict[int, Any] = {}
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is not None and signal.getsignal(sig) not in (signal.SIG_IGN, None):
+            old[sig] = signal.signal(sig, lambda signum, frame: came.append((signum, frame)))
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    if came:                  # (not if the start itself raised: that goes on)
+        signum, frame = came[0]
+        handler = old[signum]
+        if callable(handler):
+            handler(signum, frame)            # Python's SIGINT handler raises KeyboardInterrupt
+        else:
+            os.kill(os.getpid(), signum)      # SIG_DFL: as it would have, now
+
+
 RETRIES = 2
 """How many times a task the cluster lost is sent again before its runs are stored lost."""
 
@@ -235,14 +268,15 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
     own = client is None
     cluster = None
     watch: WorkerWatch | None = None
-    if own:
-        from dask.distributed import Client
-        if scheduler:
-            client = Client(scheduler, timeout="30s")
-        else:
-            cluster = local_cluster(workers or os.cpu_count() or 1)
-            client = Client(cluster)
     try:
+        if own:
+            from dask.distributed import Client
+            if scheduler:
+                client = Client(scheduler, timeout="30s")
+            else:
+                with signals_held():
+                    cluster = local_cluster(workers or os.cpu_count() or 1)
+                    client = Client(cluster)
         from dask.distributed import as_completed
         if cluster is not None:
             client.wait_for_workers(workers or os.cpu_count() or 1, timeout=120)
@@ -289,7 +323,8 @@ def run_campaign(spec: Spec, store: Store, scheduler: str | None = None,
         if watch is not None:
             watch.stop()
         if own:
-            client.close()
+            if client is not None:
+                client.close()
             if cluster is not None:
                 cluster.close()
     wall = time.perf_counter() - t0

@@ -59,12 +59,17 @@ def metrics_hook(spec: str) -> Callable[[list, Any], dict]:
     the worker as in the client: the module must be importable on both)."""
     import importlib
     mod_name, sep, fn_name = spec.partition(":")
-    if not sep or not mod_name or not fn_name.isidentifier():
-        raise MetricsHookError(f"{spec!r}: give 'module:function'")
+    if not sep or not mod_name or not fn_name.isidentifier() or mod_name.startswith("."):
+        raise MetricsHookError(f"{spec!r}: give 'module:function' (an absolute module name)")
     try:
         mod = importlib.import_module(mod_name)
     except ImportError as e:
-        raise MetricsHookError(f"{spec!r}: cannot import {mod_name}: {e}") from None
+        raise MetricsHookError(f"{spec!r}: cannot import {mod_name}: {e} (a module beside "
+                               f"the campaign file is found; else put its directory on "
+                               f"PYTHONPATH)") from None
+    except Exception as e:      # noqa: BLE001 - the user's module failed: said in one line
+        raise MetricsHookError(f"{spec!r}: importing {mod_name} failed: "
+                               f"{type(e).__name__}: {e}") from None
     fn = getattr(mod, fn_name, None)
     if not callable(fn):
         raise MetricsHookError(f"{spec!r}: {mod_name} has no function {fn_name}")

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -98,6 +99,24 @@ def points_of(grid: dict[str, list[Any]], base: dict[str, Any]) -> tuple[Point, 
     return tuple(out)
 
 
+MAX_RUNS = 1_000_000
+"""The most runs a campaign file may plan (about 23 core-days at two seconds a run)."""
+
+
+def importable_beside(path: str | Path) -> None:
+    """Let a ``metrics`` hook's module sit beside its campaign file: that file's directory
+    goes first on this process's import path and on ``PYTHONPATH``, which the embedded
+    cluster's worker processes start with (an external cluster's workers need it on their
+    own path: docs/campaigns.md)."""
+    import os
+    where = str(Path(path).resolve().parent)
+    if where not in sys.path:
+        sys.path.insert(0, where)
+    paths = os.environ.get("PYTHONPATH", "").split(os.pathsep)
+    if where not in paths:
+        os.environ["PYTHONPATH"] = os.pathsep.join([where] + [p for p in paths if p])
+
+
 def load_spec(path: str | Path, check=None) -> Spec:
     """Read and check a campaign file. ``check(args)`` raises ValueError for arguments
     ``rprs sim`` refuses (the CLI passes its parser), else gives the settings they make (or
@@ -149,10 +168,16 @@ def load_spec(path: str | Path, check=None) -> Spec:
         from .runs import MetricsHookError, metrics_hook
         if not isinstance(metrics, str):
             raise SpecError(f"{path}: [campaign] metrics must be a string 'module:function'")
+        importable_beside(path)
         try:
             metrics_hook(metrics)
         except MetricsHookError as e:
             raise SpecError(f"{path}: [campaign] metrics: {e}") from None
+    planned = seeds * math.prod(len(v) for v in grid.values())
+    if planned > MAX_RUNS:
+        # (planned whole before the first run: ten times this took minutes and GBs, silent)
+        raise SpecError(f"{path}: {planned:,} runs (seeds x grid points), more than "
+                        f"{MAX_RUNS:,}: split it into several campaign files")
     points = points_of(grid, base)
     seen: set = set()
     for p in points:

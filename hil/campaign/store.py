@@ -28,8 +28,46 @@ READ_METRICS = frozenset({"submitted", "failed", "duplicates", "misdelivered",
 (hil/campaign/runs.py ``metrics_of`` writes them all): a row without one is damaged."""
 
 
+STATUSES = frozenset({"ok", "crashed", "lost"})
+"""A stored run's ``status`` (the module docstring)."""
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _sound_metrics(m: Any) -> bool:
+    """Are an ``ok`` run's metrics what ``metrics_of`` writes, in what the report reads: every
+    READ_METRICS entry a number (``reform_max_s`` None without a re-formation), the latency
+    histogram {number as text: count}, the throughput a number, the custom ones numbers?"""
+    if not isinstance(m, dict) or not READ_METRICS <= m.keys():
+        return False
+    if not all(_number(m[k]) for k in READ_METRICS - {"reform_max_s"}) or not (
+            m["reform_max_s"] is None or _number(m["reform_max_s"])):
+        return False
+    lat = m.get("latency_ms")
+    if lat is not None:
+        if not isinstance(lat, dict) or not all(isinstance(n, int) and _number(n)
+                                                for n in lat.values()):
+            return False
+        try:
+            [float(k) for k in lat]
+        except ValueError:
+            return False
+    if "throughput" in m and not _number(m["throughput"]):
+        return False
+    custom = m.get("custom")
+    return custom is None or (isinstance(custom, dict) and all(_number(v)
+                                                               for v in custom.values()))
+
+
 class StoreError(ValueError):
     """A results file that cannot be opened or does not belong to this campaign."""
+
+
+class StoreWriteError(StoreError):
+    """Results that could not be stored while the campaign ran (the disk filled, the file
+    became read-only): the rows stored before are kept."""
 
 
 class Store:
@@ -86,8 +124,11 @@ class Store:
     def claim(self, name: str, root_seed: int) -> None:
         """Mark the file as this campaign's; StoreError if it holds another one."""
         want = self.holds(name, root_seed)
-        self.db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", want.items())
-        self.db.commit()
+        try:                      # the first write: a file that cannot take it is said now
+            self.db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)", want.items())
+            self.db.commit()
+        except sqlite3.Error as e:
+            raise StoreError(f"{self.path}: cannot write the results file ({e})") from None
 
     def holds(self, name: str, root_seed: int) -> dict[str, str]:
         """StoreError if the file holds another campaign than ``name`` with ``root_seed``
@@ -111,13 +152,11 @@ class Store:
         lost the task: no result); ``keys``: of those runs only (a campaign's own, when its
         grid shrank since)."""
         out = {"ok": 0, "crashed": 0, "lost": 0}
-        if keys is None:
-            for status, n in self.db.execute("SELECT status, COUNT(*) FROM runs "
-                                             "GROUP BY status"):
-                out[status] = n
-            return out
         for key, status in self.db.execute("SELECT run_key, status FROM runs"):
-            if key in keys:
+            if status not in STATUSES:
+                raise StoreError(f"{self.path}: run {key}: a damaged row (status "
+                                 f"{status!r})")
+            if keys is None or key in keys:
                 out[status] += 1
         return out
 
@@ -128,16 +167,25 @@ class Store:
         """Store rows (a run already stored is kept as it was, unless it was lost); returns
         how many were new."""
         rows = list(rows)
-        self.db.executemany("DELETE FROM runs WHERE run_key = ? AND status = 'lost'",
-                            [(r["run_key"],) for r in rows if r["status"] != "lost"])
         now = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-        cur = self.db.executemany(
-            f"INSERT OR IGNORE INTO runs ({', '.join(COLUMNS)}) "
-            "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-            [(r["run_key"], r["point_key"], json.dumps(r["args"]), r["seed_index"], r["seed"],
-              r["status"], r["error"], json.dumps(r["metrics"]), r["wall_s"], r["worker"],
-              commit_id, int(dirty), now, r.get("code")) for r in rows])
-        self.db.commit()
+        try:                      # one transaction: a chunk is stored whole or not at all
+            self.db.executemany("DELETE FROM runs WHERE run_key = ? AND status = 'lost'",
+                                [(r["run_key"],) for r in rows if r["status"] != "lost"])
+            cur = self.db.executemany(
+                f"INSERT OR IGNORE INTO runs ({', '.join(COLUMNS)}) "
+                "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                [(r["run_key"], r["point_key"], json.dumps(r["args"]), r["seed_index"],
+                  r["seed"], r["status"], r["error"], json.dumps(r["metrics"]), r["wall_s"],
+                  r["worker"], commit_id, int(dirty), now, r.get("code")) for r in rows])
+            self.db.commit()
+        except sqlite3.Error as e:
+            try:
+                self.db.rollback()
+            except sqlite3.Error:
+                pass
+            raise StoreWriteError(f"{self.path}: cannot store results ({e}); the runs "
+                                  f"stored before are kept, and campaign run goes on from "
+                                  f"them") from None
         return cur.rowcount
 
     def rows(self) -> list[dict[str, Any]]:
@@ -156,9 +204,9 @@ class Store:
                 except (TypeError, ValueError) as e:
                     raise StoreError(f"{self.path}: run {r['run_key']}: a damaged row "
                                      f"({e})") from None
-                if not isinstance(r["args"], list) or not isinstance(point, dict) or (
-                        r["status"] == "ok" and not (isinstance(r["metrics"], dict)
-                                                     and READ_METRICS <= r["metrics"].keys())):
+                if not isinstance(r["args"], list) or not isinstance(point, dict) or \
+                        r["status"] not in STATUSES or (r["status"] == "ok" and
+                                                        not _sound_metrics(r["metrics"])):
                     raise StoreError(f"{self.path}: run {r['run_key']}: a damaged row (not "
                                      f"what a campaign run stores)")
                 out.append(r)
@@ -201,8 +249,18 @@ class Store:
         rows = self.flat_rows()
         names = sorted({k for r in rows for k in r}, key=lambda k: (
             COLUMNS.index(k) if k in COLUMNS else len(COLUMNS), k))
+        table = [{k: r.get(k) for k in names} for r in rows]
+        for k in names:
+            # a grid key with numbers and words (load = [1, "saturate"]), or flags and
+            # numbers: a Parquet column has one type, so such a column is text, each value
+            # as the CSV writes it (integers and floats together are floats)
+            kinds = {type(r[k]) for r in table if r[k] is not None}
+            if len(kinds) > 1 and not kinds <= {int, float}:
+                for r in table:
+                    if r[k] is not None:
+                        r[k] = str(r[k])
         buf = io.BytesIO()      # not to ``path``: pyarrow removes a file it fails to write
-        pq.write_table(pa.Table.from_pylist([{k: r.get(k) for k in names} for r in rows]), buf)
+        pq.write_table(pa.Table.from_pylist(table), buf)
         _write_whole(path, buf.getvalue())
         return len(rows)
 

@@ -51,9 +51,10 @@ def cmd_run(a: argparse.Namespace) -> int:
         raise UserError(str(e)) from None
     try:
         return _run_into(a, spec, store, db, run_campaign)
-    except UserError:
+    except (UserError, KeyboardInterrupt):
         if new_file and not any(store.counts().values()):
-            # refused before any run (a dirty tree, no scheduler): no empty file left
+            # refused or stopped before any run was stored (a dirty tree, no scheduler,
+            # Ctrl-C while the cluster started): no empty file left
             store.close()
             Path(db).unlink(missing_ok=True)
         raise
@@ -63,7 +64,7 @@ def cmd_run(a: argparse.Namespace) -> int:
 
 def _run_into(a: argparse.Namespace, spec, store, db: str, run_campaign) -> int:
     """``campaign run``'s run into ``store`` (``db``), with its progress bar."""
-    from ..campaign.store import StoreError
+    from ..campaign.store import StoreError, StoreWriteError
     progress = None
     bar = None
     if not a.no_progress and sys.stderr.isatty():
@@ -100,6 +101,9 @@ def _run_into(a: argparse.Namespace, spec, store, db: str, run_campaign) -> int:
                                    "(Ctrl-C stops; campaign run again goes on from there)"
                                    if n == 0 else f"{n} worker(s) connected again"),
                                file=sys.stderr, flush=True))
+    except StoreWriteError as e:          # (the disk filled while it ran: it cannot go on)
+        print(f"rprs: error: {e}", file=sys.stderr)
+        return 1
     except StoreError as e:
         raise UserError(str(e)) from None
     except OSError as e:
@@ -131,6 +135,8 @@ def cmd_status(a: argparse.Namespace) -> int:
     except SpecError as e:
         raise UserError(str(e)) from None
     db = _db_for(a.spec, a.db)
+    if Path(db).is_dir():
+        raise UserError(f"{db} is a directory, not a campaign results file")
     if not Path(db).is_file():
         print(f"campaign {spec.name}: {spec.runs} runs, none done yet (no {db})")
         return 0

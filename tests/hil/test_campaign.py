@@ -448,14 +448,46 @@ def test_a_campaigns_own_metrics_from_each_runs_trace_are_stored_and_reported(tm
     assert out.count("  frames on air: ") == 2 and "mean of 2 runs" in out
 
 
-@pytest.mark.parametrize("hook,says", [("nosuch_module:f", "cannot import nosuch_module"),
-                                       ("campaign_metrics:nope", "no function nope"),
-                                       ("campaign_metrics", "give 'module:function'")])
+@pytest.mark.parametrize("hook,says", [
+    ("nosuch_module:f", "cannot import nosuch_module"),
+    ("campaign_metrics:nope", "no function nope"),
+    ("campaign_metrics", "give 'module:function'"),
+    (".relative:f", "an absolute module name"),
+    ("hook_syntax:f", "importing hook_syntax failed: SyntaxError: expected ':'"),
+    ("hook_raises:f", "importing hook_raises failed: RuntimeError: not today")])
 def test_a_metrics_hook_that_cannot_be_used_is_refused_with_the_file(tmp_path, hook, says):
+    """A hook module that fails to import other than by ImportError (a syntax error in the
+    user's own module, one that raises, a relative name) was a traceback."""
+    (tmp_path / "hook_syntax.py").write_text("def f(events, world)\n    return {}\n")
+    (tmp_path / "hook_raises.py").write_text("raise RuntimeError('not today')\n")
     f = tmp_path / "bad.toml"
     f.write_text(SPEC.replace('duration = 3\n', f'duration = 3\nmetrics = "{hook}"\n'))
     with pytest.raises(SpecError, match=says):
         load_spec(f, check=check_args)
+
+
+def test_a_metrics_hook_beside_its_campaign_file_is_found_from_anywhere(tmp_path):
+    """docs/campaigns.md's example, a ``mymetrics.py`` beside the campaign file, was "cannot
+    import mymetrics" unless its directory was on PYTHONPATH (the ``rprs`` script does not
+    look in the working directory). The campaign file's directory is searched, by the
+    command and by the embedded cluster's worker processes (a run in another directory)."""
+    d = tmp_path / "study"
+    d.mkdir()
+    (d / "mymetrics_beside.py").write_text(
+        "def frames(events, world):\n    return {'occupations': world.air.occupations}\n")
+    (d / "s.toml").write_text(
+        '[campaign]\nseeds = 1\nduration = 2\nmetrics = "mymetrics_beside:frames"\n'
+        '[grid]\nrobots = ["1,2"]\n')
+    r = subprocess.run([sys.executable, "-m", "hil.cli", "campaign", "run", str(d / "s.toml"),
+                        "--workers", "1", "--no-progress", "--allow-dirty"], cwd="/",
+                       capture_output=True, text=True, timeout=300,
+                       env={k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
+    assert r.returncode == 0, r.stderr
+    store = Store(d / "s.sqlite", read_only=True)
+    rows = store.rows()
+    store.close()
+    assert [row["status"] for row in rows] == ["ok"]
+    assert rows[0]["metrics"]["custom"]["occupations"] > 0
 
 
 def test_a_metric_that_is_no_number_crashes_its_run_with_the_reason(tmp_path):
@@ -540,6 +572,16 @@ def test_a_refused_run_leaves_no_empty_results_file(spec_file, tmp_path, monkeyp
     Store(kept).close()
     assert main(["campaign", "run", str(spec_file), "--db", str(kept), "--workers", "1"]) == 2
     assert kept.exists()
+    # Ctrl-C before any run was stored (while the cluster started) left a file of 0 runs
+    # marked as this campaign's; README: an interrupted run leaves no output file of it
+    monkeypatch.setattr(engine, "source_state", lambda root=None: ("c0ffee", False))
+
+    def interrupted(spec, store, **kw):
+        store.claim(spec.name, spec.root_seed)
+        raise KeyboardInterrupt
+    monkeypatch.setattr(engine, "run_campaign", interrupted)
+    assert main(["campaign", "run", str(spec_file), "--db", str(db), "--workers", "1"]) == 130
+    assert not db.exists()
 
 
 def test_the_real_source_state_is_a_commit_of_this_checkout():
@@ -587,9 +629,15 @@ def test_cli_run_report_and_export(spec_file, tmp_path):
     (("campaign", "report", "/no/such.sqlite"), "no results file"),
     (("campaign", "export", "/no/such.sqlite", "--csv", "x.csv"), "no results file"),
     (("campaign", "run", "{spec}", "--workers", "0"), "--workers must be at least 1"),
+    (("campaign", "status", "{spec}", "--db", "{dir}"), "is a directory"),
+    (("campaign", "run", "{huge}"), "more than 1,000,000: split it"),
 ])
-def test_cli_mistakes_are_one_line(args, words, spec_file):
-    r = rprs(*[a.format(spec=spec_file) for a in args])
+def test_cli_mistakes_are_one_line(args, words, spec_file, tmp_path):
+    """(``status --db DIR`` said "none done yet (no DIR)"; a campaign of 10^11 runs was
+    planned whole, minutes and GBs in silence, before the first ran.)"""
+    huge = tmp_path / "huge.toml"
+    huge.write_text('[campaign]\nseeds = 100000000000\n[grid]\nrobots = ["1,2"]\n')
+    r = rprs(*[a.format(spec=spec_file, dir=tmp_path, huge=huge) for a in args])
     assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
@@ -981,12 +1029,20 @@ def _stored(db) -> None:
     store.close()
 
 
-@pytest.mark.parametrize("damage", ["metrics = 'garbage'", "metrics = '{}'", "metrics = 'null'",
-                                    "args = 'not json'", "point_key = 'xx'"])
+@pytest.mark.parametrize("damage", [
+    "metrics = 'garbage'", "metrics = '{}'", "metrics = 'null'", "args = 'not json'",
+    "point_key = 'xx'", "status = 'weird'", "status = NULL",
+    "metrics = json_set(metrics, '$.submitted', 'x')",
+    "metrics = json_set(metrics, '$.failed', json('null'))",
+    "metrics = json_set(metrics, '$.reform_max_s', 'x')",
+    "metrics = json_set(metrics, '$.latency_ms', json('[1, 2]'))",
+    "metrics = json_set(metrics, '$.latency_ms', json('{\"a\": 1}'))",
+    "metrics = json_set(metrics, '$.throughput', 'x')",
+    "metrics = json_set(metrics, '$.custom', json('{\"m\": \"x\"}'))"])
 @pytest.mark.parametrize("command", ["report", "export"])
 def test_a_damaged_results_row_is_one_line_naming_it(tmp_path, capsys, damage, command):
     """Rows edited by hand made ``campaign report`` and ``export`` die in a JSONDecodeError,
-    KeyError or TypeError traceback."""
+    KeyError or TypeError traceback; so did a metric of the wrong type."""
     import sqlite3
     from hil.cli import main
     db = tmp_path / "m.sqlite"
@@ -997,6 +1053,25 @@ def test_a_damaged_results_row_is_one_line_naming_it(tmp_path, capsys, damage, c
     con.close()
     extra = ["--csv", str(tmp_path / "m.csv")] if command == "export" else []
     code = main(["campaign", command, str(db), *extra])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "run k1: a damaged row" in err, err
+
+
+@pytest.mark.parametrize("damage", ["status = 'weird'", "status = NULL"])
+def test_a_status_no_run_has_is_one_line_in_campaign_status(tmp_path, capsys, damage):
+    """``campaign status``, which counts the runs by status, died in a KeyError on a status
+    no run stores."""
+    import sqlite3
+    from hil.cli import main
+    db = tmp_path / "m.sqlite"
+    _stored(db)
+    con = sqlite3.connect(db)
+    con.execute(f"UPDATE runs SET {damage}")
+    con.commit()
+    con.close()
+    spec = tmp_path / "x.toml"
+    spec.write_text('[campaign]\nname = "x"\n[grid]\nload = ["1"]\n')
+    code = main(["campaign", "status", str(spec), "--db", str(db)])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "run k1: a damaged row" in err, err
 
@@ -1065,3 +1140,75 @@ def test_the_metrics_the_report_reads_are_those_a_run_stores():
     from hil.campaign.store import READ_METRICS
     from hil.sim.world import SimConfig
     assert READ_METRICS <= metrics_of(SimConfig(robots=(1, 2), duration=1.0)).keys()
+
+
+def test_a_results_file_the_disk_cannot_take_more_of_stops_the_run_in_one_line(tmp_path):
+    """A campaign whose results file stopped growing (the disk filled; here the process's
+    file-size limit) died in an ``sqlite3.OperationalError`` traceback. It stops with one
+    line and status 1, the runs stored before are kept, and ``campaign run`` again, with
+    room, goes on from them."""
+    import resource
+    spec = tmp_path / "full.toml"
+    spec.write_text('[campaign]\nname = "full"\nseeds = 40\nduration = 1\nchunk = 1\n'
+                    '[grid]\nrobots = ["1,2"]\nber = [0.0, 0.001]\n')
+    run = [sys.executable, "-m", "hil.cli", "campaign", "run", str(spec), "--workers", "1",
+           "--no-progress", "--allow-dirty"]
+
+    def limited():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (48 * 512, 48 * 512))
+    r = subprocess.run(run, cwd=ROOT, capture_output=True, text=True, timeout=600,
+                       preexec_fn=limited)
+    errors = [line for line in r.stderr.splitlines() if line.startswith("rprs: error:")]
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    assert len(errors) == 1 and "cannot store results" in errors[0], r.stderr
+    store = Store(tmp_path / "full.sqlite", read_only=True)
+    kept = store.counts()["ok"]
+    store.close()
+    assert 0 < kept < 80
+    r = subprocess.run(run, cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert f"{kept} already in" in r.stdout and f"{80 - kept} run now" in r.stdout
+
+
+def test_a_grid_key_of_numbers_and_words_exports_to_parquet_as_text(tmp_path, capsys):
+    """``load = [1, "saturate"]`` ran, reported and exported to CSV, and ``export --parquet``
+    died in pyarrow's ArrowTypeError: a Parquet column has one type."""
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow not installed (the "
+                             "'campaign' extra)")
+    from hil.cli import main
+    db = tmp_path / "m.sqlite"
+    store = Store(db)
+    store.claim("m", 0)
+    rows = []
+    for i, (load, flag) in enumerate(((1, True), ("saturate", 2))):
+        rows.append(dict(run_key=f"k{i}", point_key=json.dumps({"load": load, "x": flag}),
+                         args=["--load", str(load)], seed_index=0, seed=1, status="ok",
+                         error=None, wall_s=0.1, worker="w",
+                         metrics={"submitted": 3, "failed": 0, "duplicates": 0,
+                                  "misdelivered": 0, "corrupted_acted_on": 0,
+                                  "not_reformed": 0, "reform_max_s": None,
+                                  "throughput": 0.3 if i else 1}))
+    store.add(rows, "c0ffee", False)
+    store.close()
+    out = tmp_path / "m.parquet"
+    assert main(["campaign", "export", str(db), "--parquet", str(out)]) == 0, \
+        capsys.readouterr().err
+    t = {r["run_key"]: r for r in pq.read_table(out).to_pylist()}
+    assert (t["k0"]["param_load"], t["k1"]["param_load"]) == ("1", "saturate")
+    assert (t["k0"]["param_x"], t["k1"]["param_x"]) == ("True", "2")
+    assert (t["k0"]["m_throughput"], t["k1"]["m_throughput"]) == (1.0, 0.3)   # (floats)
+
+
+def test_a_stop_signal_while_the_cluster_starts_is_handled_once_it_has_started():
+    """Ctrl-C in the second or two Dask takes to start the embedded cluster interrupted the
+    start, and Dask's shutdown of its half-started worker processes printed tracebacks
+    ("Nanny failed to start") after ``rprs: interrupted``. The signal is held while the
+    cluster starts, then handled as it would have been."""
+    reached = []
+    with pytest.raises(KeyboardInterrupt):
+        with engine.signals_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+            reached.append("the start went on")
+    assert reached == ["the start went on"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
