@@ -277,7 +277,7 @@ class ChildFirmware:
         self.costs = costs
         # the CPU model times the radio's handlers too: it runs on the station's scheduler
         self.cpu = Cpu(self.sched if costs is None else station.sched, costs,
-                       name=f"MB90F549-R{self.id}")
+                       name=f"MB90F549-R{self.id}", order=self.id)
         if costs is not None:
             station.run_on(self.cpu, costs)
         self.dispatcher = Dispatcher(self.id)

@@ -99,7 +99,7 @@ class _Frame:
     """A handler (or main-loop task) on the CPU: its milestones in cycles of its own work."""
 
     __slots__ = ("stats", "level", "enter", "fn", "args", "entry", "body_end", "end", "done",
-                 "since", "requested", "phase")
+                 "since", "requested", "phase", "body_at")
 
     def __init__(self, stats: HandlerStats, level: int, enter, fn, args, entry: int,
                  body: int, reti: int, requested: int) -> None:
@@ -115,6 +115,7 @@ class _Frame:
         self.since = 0         # tick it last resumed
         self.requested = requested
         self.phase = 0         # 0 entry, 1 body, 2 RETI
+        self.body_at = -1      # the tick its body's end was last scheduled (its event made)
 
     def next_milestone(self) -> int:
         return (self.entry, self.body_end, self.end)[self.phase]
@@ -134,10 +135,14 @@ class Cpu:
     """Run a lone handler on an idle CPU without the dispatcher (module docstring); False:
     every handler on the general path (the fast-paths switch, hil/sim/config.py)."""
 
-    def __init__(self, sched: Clock, costs: Any = None, name: str = "CPU") -> None:
+    def __init__(self, sched: Clock, costs: Any = None, name: str = "CPU",
+                 order: int = 0) -> None:
         self.sched = sched
         self.costs = costs
         self.name = name
+        self.order = order
+        """Its robot's place among the radios (hil/sim/air.py: the receivers of one byte
+        request their handlers in this order, ``_reti_in_place``)."""
         self.ideal = costs is None
         self.entry = 0 if costs is None else costs.entry.cycles
         self.reti = 0 if costs is None else costs.reti.cycles
@@ -222,6 +227,7 @@ class Cpu:
                 self._alone_ev = self.sched.at(t + f.entry, self._alone_entry)
             else:
                 f.phase = 1
+                f.body_at = now
                 self._alone_ev = self.sched.at(t + f.body_end, self._alone_body)
             return
         assert at is None, "a request in the past needs an idle CPU (lone_past)"
@@ -301,6 +307,8 @@ class Cpu:
     def _schedule(self) -> None:
         if self._stack:
             top = self._stack[-1]
+            if top.phase == 1:
+                top.body_at = self.sched.now
             self._ev = self.sched.at(top.since + top.next_milestone() - top.done,
                                      self._milestone)
 
@@ -362,6 +370,7 @@ class Cpu:
                 # general path's own steps after an entry
                 self._dispatch()
                 return
+        f.body_at = self.sched.now
         self._alone_ev = self.sched.at(self._alone_t + f.body_end, self._alone_body)
 
     def _alone_body(self) -> None:
@@ -434,9 +443,37 @@ class Cpu:
             assert ev is not None
             ev.fn = self._milestone
             self._ev = ev
-        else:
-            f.phase = 1 if now - t < f.body_end else 2
+        elif now - t < f.body_end:
+            f.phase = 1
             self._schedule()
+        else:
+            f.phase = 2
+            self._reti_in_place(f)
+
+    def _reti_in_place(self, f: _Frame) -> None:
+        """Schedule the RETI of ``f``, a lone handler whose effects came, put on the stack by a
+        touch in its RETI (``_settle``), where the general path's RETI event is among the
+        events due at its end: that one was scheduled at the body's end, by the body's event,
+        made at ``f.body_at`` (its entry's end: nothing touched the CPU since the request).
+        Scheduled now, it would come after the RETIs of other CPUs scheduled since (two
+        receivers of one byte whose handlers end at one tick, the other's body moved on by a
+        request in it): it comes before each RETI whose body's event was made later, or at
+        the same tick by a robot later in the radios' order (which requests one byte's
+        handlers first)."""
+        mine = (f.body_at, self.order)
+
+        def later(ev: Event) -> bool:
+            cpu = getattr(ev.fn, "__self__", None)
+            if not isinstance(cpu, Cpu) or cpu is self or cpu._ev is not ev or not cpu._stack:
+                return False
+            top = cpu._stack[-1]
+            return top.phase == 2 and (top.body_at, cpu.order) > mine
+
+        at_before = getattr(self.sched, "at_before", None)
+        if at_before is None:
+            self._schedule()
+            return
+        self._ev = at_before(f.since + f.end - f.done, self._milestone, later)
 
     def settle(self, read: bool = True, final: bool = False) -> None:
         """Count a lone handler that has ended (``busy`` and the handlers' figures are then
@@ -524,6 +561,7 @@ class Cpu:
         if done < n:
             f = _Frame(s, vector.level, None, None, (), self.entry, body, self.reti, last)
             f.fn = None
+            f.body_at = last + self.entry      # (its body's event, had it had one)
             self._alone = f
             self._alone_t = last
 

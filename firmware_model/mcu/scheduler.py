@@ -92,6 +92,27 @@ class Scheduler:
         heapq.heappush(self._heap, (when, self._seq - 2 * _FIRST, ev))
         return ev
 
+    def at_before(self, when: int, fn: Callable[..., Any], first: Callable[[Event], bool],
+                  *args: Any) -> Event:
+        """Like :meth:`at`, but before the first live ordinary event due at ``when`` for which
+        ``first(event)`` holds: for an event that stands for one scheduled earlier (a CPU's
+        milestone, firmware_model/mcu/cpu.py ``Cpu._reti_in_place``). The events due then
+        from that one on keep their order after it."""
+        heap = self._heap
+        due = sorted((e for e in heap if e[0] == when and e[2].rank == 0
+                      and not e[2].cancelled), key=lambda e: e[1])
+        i = next((i for i, e in enumerate(due) if first(e[2])), None)
+        if i is None:
+            return self.at(when, fn, *args)
+        moved = {id(e[2]) for e in due[i:]}
+        heap[:] = [e for e in heap if id(e[2]) not in moved]      # in place: run_until holds it
+        heapq.heapify(heap)
+        ev = self.at(when, fn, *args)
+        for _, _, e in due[i:]:
+            self._seq += 1
+            heapq.heappush(heap, (when, self._seq, e))
+        return ev
+
     def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
         """Run ``fn(*args)`` ``delay`` ticks from now."""
         return self.at(self.now + delay, fn, *args)

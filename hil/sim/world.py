@@ -169,7 +169,7 @@ class World:
             if config.can and r != 0:
                 self._build_can_side(r, st)
             elif config.cpu is not None and r != 0:
-                self.cpus[r] = Cpu(self.sched, config.cpu, name=f"MB90F549-R{r}")
+                self.cpus[r] = Cpu(self.sched, config.cpu, name=f"MB90F549-R{r}", order=r)
                 self.cpus[r].fuse = config.fast_paths
                 st.run_on(self.cpus[r], config.cpu)
             self.sched.at(s_to_ticks(config.power_on.get(r, 0.0)), self._power_on, r)

@@ -168,6 +168,58 @@ def test_busy_counts_a_lone_handler_once_its_reti_event_would_have_run(fuse):
     assert marks == [(100, 0, False), (194, 0, False), (195, 0, False), (196, 195, True)]
 
 
+def _two_receivers(fuse: bool, how: str, a_touched: int, a_first: bool) -> tuple:
+    """Two robots' CPUs, A and B, request one byte's receive handler at tick 1000 (in radio
+    order: A first if ``a_first``), each ending at 1000 + 24 + BODY and its RETI at 1195;
+    a request comes on A at ``a_touched`` (its body, which moves its body's end on, or its
+    RETI) and one on B in its RETI (1188). B's handler is counted late on the fast paths
+    (``how``: taken without an event, ``Cpu.defer``; or a byte handed over late at the
+    touch, ``Cpu.lone_past``), as a sleeping CAN side's ghost or a quiet reception's byte
+    is. What each CPU's request did when, in the order it was done, and the figures."""
+    sched = Scheduler()
+    a = Cpu(sched, DEFAULT_COSTS, "A", order=1 if a_first else 5)
+    b = Cpu(sched, DEFAULT_COSTS, "B", order=5 if a_first else 1)
+    a.fuse = b.fuse = fuse
+    seen: list[tuple[str, int]] = []
+    owner = _Deferred(sched, [])
+
+    def requests() -> None:
+        for cpu in sorted((a, b), key=lambda c: c.order):
+            if cpu is a:
+                a.irq(RX, BODY, lambda: None, alone=True)
+            elif not fuse:
+                b.irq(RX, BODY, owner.fn, enter=owner.enter, alone=True)
+            elif how == "defer":
+                assert b.defer(RX, BODY, owner)
+
+    def on_b() -> None:
+        if fuse and how == "late":
+            b.lone_past(RX, BODY, 1000, 16_640, 1)     # (the UART's, as it is touched)
+        b.irq(LOW, 40, lambda: seen.append(("B", sched.now)))
+
+    sched.at(1000, requests)
+    sched.at(a_touched, lambda: a.irq(LOW, 40, lambda: seen.append(("A", sched.now))))
+    sched.at(1188, on_b)
+    sched.run_until(5000)
+    return seen, _figures(a), _figures(b)
+
+
+@pytest.mark.parametrize("a_first", [True, False])
+@pytest.mark.parametrize("a_touched", [1030, 1186])
+@pytest.mark.parametrize("how", ["defer", "late"])
+def test_handlers_of_two_cpus_ending_at_one_tick_keep_the_general_paths_order(how, a_touched,
+                                                                             a_first):
+    """A handler counted late (or a lone one) that a request finds in its RETI has that RETI's
+    event where the general path's, made by the body's end, is among the events of its tick:
+    before another CPU's RETI whose body's end a request moved on, after one requested
+    before it at one tick (sleep_hunt --cpu, seed 509: two children's CAN receive handlers
+    waiting for one byte's RETI, their effects at one tick in the other order)."""
+    general = _two_receivers(False, how, a_touched, a_first)
+    assert _two_receivers(True, how, a_touched, a_first) == general
+    assert [who for who, _ in general[0]] == \
+        (["B", "A"] if a_touched == 1030 or not a_first else ["A", "B"])
+
+
 class _Line:
     """The UART's TX line, noting what reaches it: (tick, what, detail)."""
 
