@@ -96,6 +96,17 @@ def command(row: dict[str, Any]) -> str:
     return "rprs sim " + " ".join(shlex.quote(a) for a in row["args"]) + f" --seed {row['seed']}"
 
 
+def _failing(row: dict[str, Any]) -> dict[str, Any]:
+    """A failing run for the report: its command, what it broke, and for a crashed run the
+    last line of what it raised (a crash in the campaign's own metrics hook is not in what
+    the command repeats: ``rprs sim`` runs no hook)."""
+    out: dict[str, Any] = {"command": command(row), "broke": _broke(row)}
+    if row["status"] == "crashed":
+        lines = [x for x in (row.get("error") or "").splitlines() if x.strip()]
+        out["error"] = lines[-1].strip() if lines else None
+    return out
+
+
 def _broke(row: dict[str, Any]) -> list[str]:
     return broken(row["metrics"] if row["status"] == "ok" else None, row["args"])
 
@@ -142,7 +153,7 @@ def summarize(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "runs_broken_ci95": wilson(len(bad), len(runs)),
             "reform_runs": len(reform),
             "corrupted_acted_on": sum(r["metrics"]["corrupted_acted_on"] for r in ok),
-            "failing": [{"command": command(r), "broke": _broke(r)} for r in bad],
+            "failing": [_failing(r) for r in bad],
         }
         point["duplicates"] = sum(r["metrics"]["duplicates"] for r in ok)
         # message latency, pooled over the point's runs, each quantile only from enough

@@ -219,6 +219,8 @@ def cmd_report(a: argparse.Namespace) -> int:
                         "re-formation", "runs", p["reform_runs"], REFORM_QUANTILES)
         for f in p["failing"]:
             print(f"  FAILED ({', '.join(f['broke'])}): {f['command']}")
+            if f.get("error"):
+                print(f"    it raised: {f['error']}")
     for f in files:
         print(f"plot: {f}")
     return 0

@@ -517,6 +517,11 @@ def test_a_broken_run_is_recorded_and_reported_not_lost(spec_file, tmp_path):
     cmds = [f["command"] for p in points for f in p["failing"] if f["broke"] == ["crashed"]]
     assert sorted(cmds) == sorted(f"rprs sim {' '.join(r['args'])} --seed {r['seed']}"
                                   for r in odd)
+    # what it raised, its traceback's last line: a crash in the campaign's metrics hook is
+    # not in what that command repeats
+    raised = [f["error"] for p in points for f in p["failing"]]
+    assert len(raised) == len(odd) and all(
+        e.startswith("RuntimeError: deliberately broken run, seed ") for e in raised), raised
 
 
 def test_the_local_cluster_takes_no_fixed_port(recwarn):
