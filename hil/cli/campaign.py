@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -50,6 +51,11 @@ def cmd_run(a: argparse.Namespace) -> int:
     except StoreError as e:
         raise UserError(str(e)) from None
     try:
+        lock = _only_run_on(db)
+    except UserError:
+        store.close()
+        raise
+    try:
         return _run_into(a, spec, store, db, run_campaign)
     except (UserError, KeyboardInterrupt):
         if new_file and not any(store.counts().values()):
@@ -60,6 +66,27 @@ def cmd_run(a: argparse.Namespace) -> int:
         raise
     finally:
         store.close()
+        if lock is not None:
+            os.close(lock)
+
+
+def _only_run_on(db: str) -> int | None:
+    """Take ``db`` for this ``campaign run`` alone (an exclusive ``flock`` on the file, which
+    SQLite's own locks leave alone): a second run of the same campaign on it did every run
+    again, and one of the two copies of each was dropped. Readers (``status``, ``report``)
+    are not held off. The descriptor that holds it, or None where there is no ``flock``."""
+    try:
+        import fcntl
+    except ImportError:                       # (not on Windows)
+        return None
+    fd = os.open(db, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise UserError(f"another campaign run is writing {db}: wait for it to end, or give "
+                        f"this one another --db") from None
+    return fd
 
 
 def _run_into(a: argparse.Namespace, spec, store, db: str, run_campaign) -> int:

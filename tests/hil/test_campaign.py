@@ -1217,3 +1217,23 @@ def test_a_stop_signal_while_the_cluster_starts_is_handled_once_it_has_started()
             reached.append("the start went on")
     assert reached == ["the start went on"]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_second_run_of_a_campaign_on_its_results_file_is_refused_while_the_first_runs(
+        spec_file, tmp_path, capsys):
+    """Two ``campaign run`` of one campaign on one results file both ran every run, each
+    printing "N run now", and one copy of each run was dropped: the work done twice. The
+    second is refused in one line while the first holds the file; readers are not."""
+    import fcntl
+    from hil.cli import main
+    db = tmp_path / "t.sqlite"
+    Store(db).close()
+    with open(db, "rb") as held:               # as a first campaign run holds it
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        code = main(["campaign", "run", str(spec_file), "--db", str(db), "--workers", "1",
+                     "--no-progress"])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"another campaign run is writing {db}" in err
+        assert main(["campaign", "status", str(spec_file), "--db", str(db)]) == 0
+    assert db.exists()
