@@ -141,8 +141,9 @@ class TraceWriter:
 
 def read_trace(path: str) -> Iterator[dict[str, Any]]:
     """Yield the events of a trace file (plain or gzip-compressed, told apart by the gzip
-    magic bytes), checking the meta line comes first. A file that is not a trace (an image,
-    a README, a truncated gzip) raises ``TraceError`` naming the line."""
+    magic bytes), checking the meta line comes first and gives this version (or none: a
+    hand-made trace). A file that is not a trace (an image, a README, a truncated gzip) or
+    another version's raises ``TraceError`` naming the line."""
     try:
         raw = open(path, "rb")
     except OSError as exc:
@@ -159,8 +160,15 @@ def read_trace(path: str) -> Iterator[dict[str, Any]]:
                     raise TraceError(f"{path}:{n}: not a JSON line ({exc})") from None
                 if not isinstance(ev, dict) or "ev" not in ev:
                     raise TraceError(f"{path}:{n}: not a trace event (no 'ev')")
-                if n == 1 and ev["ev"] != "meta":
-                    raise TraceError(f"{path}:1: the first line must be the meta event")
+                if n == 1:
+                    if ev["ev"] != "meta":
+                        raise TraceError(f"{path}:1: the first line must be the meta event")
+                    v = ev.get("version", TRACE_VERSION)
+                    if type(v) is not int or v != TRACE_VERSION:
+                        raise TraceError(f"{path}:1: trace version {v!r}: this rprs reads "
+                                         f"version {TRACE_VERSION}" + (
+                                             " (a newer rprs wrote it)" if type(v) is int and
+                                             v > TRACE_VERSION else ""))
                 yield ev
         except (OSError, EOFError, zlib.error) as exc:   # a damaged or truncated gzip
             raise TraceError(f"{path}: unreadable after line {n}: {exc}") from None

@@ -354,6 +354,15 @@ def test_plot_bad_input(idle_run, tmp_path):
     (tmp_path / "junk.jsonl").write_text("this is not json\n")
     with pytest.raises(TraceError, match="not a JSON line"):
         plot_trace(read_trace(str(tmp_path / "junk.jsonl")), str(out))
+    # another version's trace (a newer rprs's, a hand-edited one) was read without a word
+    for version, says in ((2, "trace version 2: this rprs reads version 1 \\(a newer"),
+                          (0, "trace version 0"), ('"1"', "trace version '1'"),
+                          ("null", "trace version None")):
+        f = tmp_path / "other.jsonl"
+        f.write_text(json.dumps(idle_run[0]).replace('"version": 1', f'"version": {version}')
+                     + "\n" + "".join(json.dumps(e) + "\n" for e in idle_run[1:50]))
+        with pytest.raises(TraceError, match=says):
+            plot_trace(read_trace(str(f)), str(out))
     assert not out.exists() and not list(tmp_path.glob("*.partial"))
 
 
