@@ -141,8 +141,17 @@ class Dut:
         raise NotImplementedError
 
     def replies(self, kind: int | None = None) -> list[Deliver]:
-        return [d for _, d in list(self.inbox) if d.src == self.id and
+        return [d for _, d in self.replies_at(kind)]
+
+    def replies_at(self, kind: int | None = None) -> list[tuple[int, Deliver]]:
+        """The DUT's messages to the father with the tick each was delivered (the clock of
+        ``frames``' ticks)."""
+        return [(t, d) for t, d in list(self.inbox) if d.src == self.id and
                 (kind is None or d.type == kind)]
+
+    @staticmethod
+    def seconds(ticks: int) -> float:
+        return ticks / TICK_HZ
 
     def frames(self, name: str | None = None) -> list[tuple[int, str, dict]]:
         return [f for f in list(self.can_log) if name is None or f[1] == name]

@@ -42,6 +42,13 @@ def test_a_joint_command_reaches_its_joint_and_completes(dut):
                         for d in dut.replies(3)[k0:]]
     assert dut.run_until(lambda: "done()joint(1,25)" in reported(), 10.0), \
         f"no done()joint(1,25) from the child in 10 s (it sent {reported()})"
+    # ... and only once the joint said it had: a child that reported done() as soon as it
+    # took the order (the joint still on its way) passed
+    moved = dut.frames("EVENT1")[-1][0]
+    said = next(t for t, d in dut.replies_at(3)[k0:]
+                if "".join(c.text() for c in d.commands) == "done()joint(1,25)")
+    assert said >= moved, (f"the child reported done()joint(1,25) {dut.seconds(moved - said):.3f}"
+                           f" s before joint 1's EVENT1 (done) was on the bus")
     if dut.submodules:
         assert dut.submodules["JOINT1"].angle_deg == pytest.approx(25, abs=0.01)
 
