@@ -25,6 +25,8 @@ Faults (each one rule of docs/protocol.md broken, the rest of the child untouche
 - ``masks-never-drop``: a ``ring(mask)`` admits and sends it to LISTEN as it should, but never
   drops a member the mask leaves out, though it counted that member missing too (clause
   51.3);
+- ``status-reply-type-2``: it answers ``status()`` (with its values, or ``fail(code)status()``
+  without them) in a message of Type '2', a command, not '3' or '4' (clause 19a);
 - ``silent-after-refused``: it refuses a forged or replayed frame, as it should, but does not
   take the turn that frame closed: it waits for the next robot's (clause 53, authenticated
   profile).
@@ -48,7 +50,8 @@ Mac = mac_mod.RotationalMac
 Setter = Callable[[Any, str, Any], None]
 FAULTS = ("late-turn", "long-length", "no-ack", "boot-01", "no-stagger", "late-answer",
           "invite-every-turn", "deaf-to-masks", "no-cut-off",
-          "masks-never-drop", "early-takeovers", "numbers-do-not-wrap", "own-numbers-skip-00")
+          "masks-never-drop", "early-takeovers", "numbers-do-not-wrap", "own-numbers-skip-00",
+          "status-reply-type-2")
 AUTH_FAULTS = ("silent-after-refused",)
 """Faults of the authenticated profile only (the kit's clause 53 step)."""
 
@@ -201,6 +204,33 @@ def _own_numbers_skip_00(set_attr: Setter) -> None:
     set_attr(Mac, "submit", submit)
 
 
+def _status_reply_type_2(set_attr: Setter) -> None:
+    """The dispatcher's answers to status() (a child with its CAN side), and a child without
+    one's fail(42)status(), go out as Type '2'."""
+    from firmware_model import child, dispatcher
+    orig = dispatcher.Dispatcher._cmd_status
+
+    def _cmd_status(self, src, c, now):
+        n = len(self._radio)
+        orig(self, src, c, now)
+        self._radio[n:] = [(dst, cmds, 2) for dst, cmds, _ in self._radio[n:]]
+    set_attr(dispatcher.Dispatcher, "_cmd_status", _cmd_status)
+    radio_only = child.RadioOnlyChild._on_message
+
+    def _on_message(self, d, now):
+        submit = self.station.submit
+
+        def as_command(dst, commands, type=2):
+            return submit(dst, commands, 2 if any(c.name == "status" for c in commands)
+                          else type)
+        self.station.submit = as_command
+        try:
+            radio_only(self, d, now)
+        finally:
+            del self.station.submit
+    set_attr(child.RadioOnlyChild, "_on_message", _on_message)
+
+
 def patch(fault: str, set_attr: Setter = setattr) -> None:
     """Break ``fault``'s rule in the rotational MAC (for every robot of this process);
     ``set_attr``: how (pytest's ``monkeypatch.setattr`` undoes it after the test). The
@@ -214,6 +244,7 @@ def patch(fault: str, set_attr: Setter = setattr) -> None:
      "masks-never-drop": _masks_never_drop, "early-takeovers": _early_takeovers,
      "numbers-do-not-wrap": _numbers_do_not_wrap,
      "own-numbers-skip-00": _own_numbers_skip_00,
+     "status-reply-type-2": _status_reply_type_2,
      "silent-after-refused": _silent_after_refused}[fault](set_attr)
 
 

@@ -80,7 +80,7 @@ def _message(self: Tester, h: Heard) -> Heard:
     self.num = (self.num + 1) % 100
     num = self.num
     ack = f"ack({self.me},{num})".encode()
-    seen: dict[str, list] = {"acked": [], "replies": [], "again": []}
+    seen: dict[str, list] = {"acked": [], "replies": [], "again": [], "forms": []}
 
     def watch(h: Heard, i: int) -> None:
         if ack in h.frame.content:
@@ -91,6 +91,7 @@ def _message(self: Tester, h: Heard) -> Heard:
             # the status, or why there is none; the same Number again is its message
             # retransmitted (our ack was lost to it, e.g. while it stalled), no new reply
             seen["replies"].append(h.frame.num)
+            seen["forms"].append((h.frame.type, h.frame.content))
         elif h.frame.dst == self.me and (b"joint(" in h.frame.content or
                                          b"fail(" in h.frame.content):
             seen["again"].append(h.frame.num)
@@ -107,6 +108,8 @@ def _message(self: Tester, h: Heard) -> Heard:
     self.check("47", "acknowledges our message in its next frame", acked[:1] == [0],
                "ack in its next frame" if acked[:1] == [0] else
                f"first ack in its frame {acked[0] + 1}" if acked else "no ack", t0)
+    if self.robot != 0:
+        _reply_form(self, seen["forms"], t0)
     t0 = self._secs()
     seen["acked"].clear()
     h = self._turns(h, 4, (b"status()", {"dst": self.robot, "type_": 2, "num": num}),
@@ -130,11 +133,35 @@ def _message(self: Tester, h: Heard) -> Heard:
     ok = len(before) == 1 and len(new) == 1 and new[0] == (before[0] + 1) % 100
     again = seen["again"]
     self.check("45", "its next message takes the next Number (ours wrapped, 99 then 00)",
-               ok, f"its replies' Numbers: {', '.join(f'{n:02d}' for n in before + new)}, "
+               ok, f"its replies' Numbers: "
+               f"{', '.join(f'{n:02d}' for n in before + new) or 'none'}, "
                f"to our {num:02d} and {self.num:02d}" +
                (f" (sent again: {', '.join(f'{n:02d}' for n in again)})" if again else "") +
                ("" if new else f"; no new reply in {6 + self.REPLY_TURNS} turns"), t0)
     return h
+
+
+def _reply_form(self: Tester, forms: list[tuple[int, bytes]], t0: float) -> None:
+    """Clause 19a: a child answers status() with a message of Type '3' holding its values
+    (``joint(1,a)...``), or of Type '4', ``fail(code)status()``, when it has none (the
+    command table, docs/protocol.md). A reply of another Type passed: it was counted by
+    its commands alone."""
+    if not forms:
+        self.check("19a", "answers status() as the command table says (Type '3' values, "
+                   "or Type '4' fail(code)status())", False, "no reply", t0)
+        return
+    type_, content = forms[0]
+    text = content.decode("ascii", "replace")
+    if content.startswith(b"fail("):
+        ok = type_ == 4 and b")status()" in content
+        want = "Type '4' fail(code)status()"
+    else:
+        ok = type_ == 3 and content.startswith(b"joint(")
+        want = "Type '3' joint(1,a)..."
+    self.check("19a", "answers status() as the command table says (Type '3' values, or "
+               "Type '4' fail(code)status())", ok,
+               f"its reply: Type '{type_}' {text[:40]}" + ("" if ok else f"; want {want}"),
+               t0)
 
 
 FATHER = ("the father (ID 0) has no submodule: it carries out and answers no order "

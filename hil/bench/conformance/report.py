@@ -62,21 +62,23 @@ class Report:
                            failures=str(sum(c.verdict == "FAIL" for c in self.checks)),
                            errors=str(int(self.stopped is not None)),
                            skipped=str(sum(c.verdict == "n/a" for c in self.checks)))
-        if self.notes:
-            ET.SubElement(suite, "system-out").text = "\n".join(self.notes)
+        # in the order the JUnit schema (Ant's, Jenkins') gives: a testcase's failure or
+        # skipped before its system-out, the suite's system-out after its testcases
         for c in self.checks:
             case = ET.SubElement(suite, "testcase", classname=f"clause {c.clause}",
                                  name=c.name, time=f"{c.seconds:.3f}")
-            ET.SubElement(case, "system-out").text = c.figure
             if c.verdict == "FAIL":
                 ET.SubElement(case, "failure", message=c.figure)
             elif c.verdict == "n/a":
                 ET.SubElement(case, "skipped", message=f"not applicable: {c.figure}")
+            ET.SubElement(case, "system-out").text = c.figure
         if self.stopped is not None:
             # the checks the run never reached: a CI reading the XML must not pass it
             case = ET.SubElement(suite, "testcase", classname="run", name="the run goes to "
                                  "its end", time="0.000")
             ET.SubElement(case, "error", message=f"stopped: {self.stopped}")
+        if self.notes:
+            ET.SubElement(suite, "system-out").text = "\n".join(self.notes)
         return ET.tostring(suite, encoding="utf-8", xml_declaration=True)
 
 

@@ -134,6 +134,13 @@ def test_a_clause_not_applicable_is_skipped_in_junit_with_its_reason_and_fails_n
     assert cases["clause 29"].find("failure") is None
     assert cases["clause 34"].find("skipped") is None and cases["clause 34"].find("failure") is None
     assert cases["clause 23"].find("failure") is not None
+    # the JUnit schema's order (Ant's, Jenkins'): a failure or skipped before system-out in a
+    # testcase, the suite's own system-out after its testcases
+    assert [e.tag for e in cases["clause 23"]] == ["failure", "system-out"]
+    assert [e.tag for e in cases["clause 29"]] == ["skipped", "system-out"]
+    rep.notes.append("robot 1 missed a turn")
+    suite = ET.fromstring(rep.junit())
+    assert [e.tag for e in suite] == ["testcase"] * 3 + ["system-out"]
     assert not rep.passed
     rep.checks.pop()
     assert rep.passed                               # n/a is no failure

@@ -56,10 +56,10 @@ def _table(rep: Report, stopped: str | None, link: SimLink) -> str:
 
 
 # ------------------------------------------------------------------- the matrix
-PROTOCOL_ONLY = {"29", "32", "34", "36", "39", "40", "44", "45", "48", "51"}
-"""Clauses the rprs profile adds to the paper's (the invitation, the duty to invite, BOOT,
-the phantom takeover and the cut-off in a ring of three, R-stagger, the reply's Number, the
-retransmission, ring views)."""
+PROTOCOL_ONLY = {"19a", "29", "32", "34", "36", "39", "40", "44", "45", "48", "51"}
+"""Clauses the rprs profile adds to the paper's (the status() reply's form, the invitation,
+the duty to invite, BOOT, the phantom takeover and the cut-off in a ring of three, R-stagger,
+the reply's Number, the retransmission, ring views)."""
 
 
 @pytest.mark.parametrize("team", ["default", "small"])
@@ -154,7 +154,7 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
                 "invite-every-turn": {"32"}, "deaf-to-masks": {"51"},
                 "no-cut-off": {"40"}, "masks-never-drop": {"51"},
                 "early-takeovers": {"39"}, "numbers-do-not-wrap": {"45"},
-                "own-numbers-skip-00": {"45"}}[fault]
+                "own-numbers-skip-00": {"45"}, "status-reply-type-2": {"19a"}}[fault]
     assert failed == expected, why
     if fault == "long-length":         # no good frame: the run stops at the invitation
         assert stopped is not None and "answered 5 invitations in a row with failed " \
@@ -197,6 +197,9 @@ def test_the_kit_names_the_cause_of_each_deliberate_bug(monkeypatch, fault):
     elif fault == "masks-never-drop":  # only the drop of the ring of three fails
         assert [c.name for c in rep.checks if c.verdict == "FAIL"] == [Tester.DROP], why
         assert "told ring 7 (the ring of two: 3; of three: 7)" in _figure(rep, "51"), why
+    elif fault == "status-reply-type-2":   # counted by its commands alone, it passed
+        assert _figure(rep, "19a").startswith("its reply: Type '2' ") and \
+            _figure(rep, "19a").endswith("; want Type '4' fail(code)status()"), why
     elif fault == "invite-every-turn":
         assert "invitations 1, 1, 1" in _figure(rep, "32") and \
             "turns apart, not every 4" in _figure(rep, "32"), why
