@@ -457,7 +457,10 @@ def parse_order(line: str) -> tuple[int, list]:
     text = text.strip()
     if not text.isascii():
         bad = next(c for c in text if not c.isascii())
-        raise ValueError(f"{bad!r} is not ASCII: Content is ASCII text such as 'movex(10)' "
+        # a byte the input's encoding could not read comes as a lone surrogate: name the byte
+        what = (f"byte 0x{ord(bad) - 0xDC00:02x}" if 0xDC80 <= ord(bad) <= 0xDCFF else
+                repr(bad))
+        raise ValueError(f"{what} is not ASCII: Content is ASCII text such as 'movex(10)' "
                          f"(docs/protocol.md §3.3)")
     try:
         commands = list(parse_content(text.encode("ascii")))

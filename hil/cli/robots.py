@@ -221,11 +221,12 @@ def cmd_father(a: argparse.Namespace) -> int:
     if app is not None:
         return _father_app(a, app, runner, station, book, console)
     def show_help() -> None:
+        # (with --json, stdout carries JSON lines only: the help goes to stderr, and is no
+        # order either way)
         for text in order_help():
-            print(text, flush=True)
+            print(text, file=sys.stderr if a.json else sys.stdout, flush=True)
     if not a.no_input:
-        feed_orders(runner, station, book, sys.stdin, on_eof=eof,
-                    on_help=None if a.json else show_help)
+        feed_orders(runner, station, book, sys.stdin, on_eof=eof, on_help=show_help)
     elif a.exit_when_done:
         runner.sched.post(maybe_exit)
     code = run_until_stopped(runner, a, f"father (ID 0, {role}) on {a.radio}; {how}; "

@@ -750,6 +750,9 @@ def test_a_father_order_that_is_not_ascii_is_refused_in_words():
     from hil.bench.runner import parse_order
     with pytest.raises(ValueError, match="'é' is not ASCII"):
         parse_order("2 movex(1é)")
+    # a byte the input's encoding could not read (surrogateescape) is named as the byte
+    with pytest.raises(ValueError, match=r"^byte 0xff is not ASCII"):
+        parse_order(b"2 movex(1\xff)".decode("utf-8", "surrogateescape"))
 
 
 @pytest.mark.parametrize("line,words", [
@@ -1218,6 +1221,22 @@ def test_the_father_prints_help_and_keeps_its_log(tmp_path):
     logged = log.read_text().splitlines()
     assert [x for x in logged if "#1 -> all status()" in x] == orders
     assert not any("an order: DST COMMANDS" in x for x in logged)   # the story, not the help
+
+
+def test_help_under_json_goes_to_stderr_and_is_no_order(tmp_path):
+    """With ``--json`` (stdout: JSON lines only) ``help`` and ``?`` were taken for orders,
+    refused, and counted in the closing line (exit status 1): 30 orders for 28 lines of
+    input. They are help, on stderr, and no order."""
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "father", "--json", "--radio",
+                        "loop://", "--duration", "3"],
+                       input="help\n?\n7 status()\n", capture_output=True, text=True,
+                       timeout=60)
+    assert p.returncode in (0, 1), p.stderr                    # (the order finds nobody)
+    assert p.stderr.count("an order: DST COMMANDS") == 2, p.stderr
+    records = [json.loads(x) for x in p.stdout.splitlines()]   # every line JSON
+    assert "an order: DST COMMANDS" not in p.stdout
+    assert "orders: 1 (" in p.stderr, p.stderr
+    assert not any(r.get("text") in ("help", "?") for r in records), records
 
 
 def test_a_log_that_cannot_be_written_is_one_line(tmp_path):
