@@ -68,7 +68,8 @@ def test_an_action_is_announced_and_reported_done(dut):
     notices = lambda: [c.text() for d in dut.replies()[k0:] for c in d.commands]  # noqa: E731
     assert dut.run_until(lambda: "act(2,1)" in notices(), 15.0), \
         f"no act(2,1) notice in 15 s; {dut.explain(msg)}"
-    assert notices().index("act(2,0)") < notices().index("act(2,1)")
+    assert "act(2,0)" in notices(), f"act(2,1) came, but no act(2,0) before it: {notices()}"
+    assert notices().index("act(2,0)") < notices().index("act(2,1)"), notices()
     assert any(s["angle"] == -90 for _, _, s in dut.frames("JOINT1_CMD"))
 
 
@@ -80,6 +81,12 @@ def test_status_reply_reports_four_joints(dut):
         f"no status reply (Type '3', joint(...)) in 10 s; {dut.explain(msg)}"
     got = [c for d in dut.replies(3)[k0:] for c in d.commands if c.name == "joint"]
     assert [c.args[0] for c in got] == [1, 2, 3, 4]
+    if dut.submodules:       # the bench's own joints: their angles (at rest between tests)
+        # are what the child reports (docs/protocol.md, status(): joint angles in degrees)
+        angles = {c.args[0]: float(c.args[1]) for c in got}
+        real = {i: dut._call(lambda i=i: dut.submodules[f"JOINT{i}"].angle_deg)
+                for i in range(1, 5)}
+        assert all(abs(angles[i] - real[i]) <= 0.01 for i in real), (angles, real)
 
 
 def test_a_stalled_joint_is_reported(dut):
