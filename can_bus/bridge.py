@@ -22,21 +22,18 @@ from __future__ import annotations
 
 import collections
 import errno
-import io
 import logging
 import threading
 import time
-from typing import TYPE_CHECKING, Any, Callable
+from typing import Any, Callable
 
 import can
 
 from .bits import BitTiming, frame_length_bits
+from .candump_log import open_log
 from .bus import ErrorState, NodeStatus
 from .frames import CanFrame
 from .node import check_node
-
-if TYPE_CHECKING:
-    from can.io.generic import MessageWriter
 
 
 class CanOpenError(Exception):
@@ -184,44 +181,6 @@ class _HeldLog(logging.Handler):
             logging.getLogger(r.name).handle(r)
 
 
-CANFD_FDF = 0x04
-"""The CAN FD frame flag (linux/can.h, kernel 6.2 on): set on every CAN FD frame SocketCAN
-hands over, so ``candump -L`` writes a CAN FD frame with ``##5`` where python-can wrote ``##1``."""
-
-
-class CandumpLogWriter(can.CanutilsLogWriter):
-    """python-can's candump ``.log`` writer, but with every frame written as ``candump -L``
-    writes it: a remote frame keeps its DLC (``101#R6``; python-can's writer wrote ``101#R``,
-    and a remote frame asks for that many bytes), and a CAN FD frame carries the FDF flag in
-    its flags as SocketCAN's do (``101##5...``)."""
-
-    def on_message_received(self, msg: can.Message) -> None:
-        if not msg.is_error_frame and (msg.is_remote_frame and msg.dlc or msg.is_fd):
-            wrote = io.StringIO()
-            file, self.file = self.file, wrote
-            try:
-                super().on_message_received(msg)
-            finally:
-                self.file = file
-            line = wrote.getvalue()
-            head, sep, rest = line.partition("#")
-            if msg.is_remote_frame:
-                rest = f"R{msg.dlc:X}" + rest[1:]
-            else:                                 # "#<flags><data> R": flags one hex digit
-                rest = f"#{int(rest[1], 16) | CANFD_FDF:X}" + rest[2:]
-            self.file.write(head + sep + rest)
-            return
-        super().on_message_received(msg)
-
-
-def open_log(path: str) -> MessageWriter:
-    """A python-can log writer for ``path``, chosen by its extension; a ``.log`` is written as
-    ``candump -L`` writes (``CandumpLogWriter``)."""
-    if path.lower().endswith(".log"):
-        return CandumpLogWriter(path)
-    return can.Logger(path)
-
-
 def kernel_drops(bus: can.BusABC) -> int | None:
     """Frames the kernel dropped for ``bus``'s SocketCAN socket because its receive queue was
     full (the socket's drop count, ``SO_MEMINFO``), or None where that cannot be read (not
@@ -343,6 +302,9 @@ class PythonCanBus:
         self._send_failing = False
         # (frame, start, end, node) of each frame, like CanBus.trace
         self.trace: Callable[[CanFrame, int, int, Any], None] | None = None
+        self.trace_other: Callable[[can.Message, int], None] | None = None
+        """(message, tick) of each frame received that no CAN 2.0A node takes (an extended
+        id, CAN FD, an error frame): for a capture, which shows what the bus carried."""
         self.log = log
         self._writer = open_log(log) if log else None
         self._drops0 = kernel_drops(bus)
@@ -571,6 +533,8 @@ class PythonCanBus:
         self._in_flight.pop(id(msg), None)
         if self._writer is not None:
             self._log_received(msg)
+        if self.trace_other is not None:
+            self.trace_other(msg, self.sched.now)
 
     def _deliver(self, msg: can.Message) -> None:
         self._in_flight.pop(id(msg), None)

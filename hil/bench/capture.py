@@ -136,7 +136,17 @@ class BenchCapture:
         """``PythonCanBus.trace``: a frame sent (``node`` set) or received, ending at ``end``."""
         if self.error is None:
             try:
-                self.writer.can(0, end, frame.id, frame.data)
+                self.writer.can(0, end, frame.id, frame.data, frame.rtr, frame.dlc)
+            except (OSError, ValueError) as e:
+                self._stopped(e)
+
+    def can_other(self, msg: Any, tick: int) -> None:
+        """``PythonCanBus.trace_other``: a frame no CAN 2.0A node takes (an extended id, CAN
+        FD, an error frame), received at ``tick``: in the capture as SocketCAN has it."""
+        if self.error is None:
+            from ..sim.pcap import socketcan_message
+            try:
+                self.writer.can_raw(0, tick, socketcan_message(msg))
             except (OSError, ValueError) as e:
                 self._stopped(e)
 

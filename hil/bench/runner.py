@@ -388,6 +388,7 @@ def _capture(runner: Runner, pcap: str | None, robot: int | None,
         channel.tap = cap
     if bus is not None:
         bus.trace = cap.can_frame
+        bus.trace_other = cap.can_other
     runner.on_close(cap.close, last=True)     # after the port and the bus are closed
 
 

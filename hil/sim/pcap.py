@@ -13,12 +13,15 @@ from __future__ import annotations
 
 import io
 import struct
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import pcapng
 from pcapng import blocks
 
 from firmware_model.timing import TICK_HZ
+
+if TYPE_CHECKING:
+    import can
 
 LINKTYPE_USER0 = 147
 LINKTYPE_CAN_SOCKETCAN = 227
@@ -31,17 +34,49 @@ type, total length and interface ID (pcapng, draft-ietf-opsawg-pcapng, 4.3)."""
 _DISTINCT_BLOCKS = 1 << 16
 """Distinct packets whose bytes a writer keeps (then it starts again: memory stays bounded)."""
 
+CAN_EFF_FLAG = 0x80000000
+CAN_RTR_FLAG = 0x40000000
 CAN_ERR_FLAG = 0x20000000
+CAN_ERR_MASK = 0x1FFFFFFF
+CANFD_BRS, CANFD_ESI, CANFD_FDF = 0x01, 0x02, 0x04
+"""linux/can.h: the identifier's flags, and a CAN FD frame's flags byte."""
 CAN_ERR_PROT = 0x00000008
 CAN_ERR_ACK = 0x00000020
 PROT_TYPES = {"bit": 0x01, "form": 0x02, "stuff": 0x04}
 """data[2] of a protocol-violation error frame (linux/can/error.h, CAN_ERR_PROT_*)."""
 
 
-def socketcan_frame(can_id: int, data: bytes) -> bytes:
-    """16 bytes of LINKTYPE_CAN_SOCKETCAN: the identifier and flags in network byte order, the
-    length, three padding bytes, eight data bytes."""
-    return struct.pack(">IB3x8s", can_id, len(data), bytes(data))
+def socketcan_frame(can_id: int, data: bytes, rtr: bool = False,
+                    dlc: int | None = None) -> bytes:
+    """16 bytes of LINKTYPE_CAN_SOCKETCAN (linux/can.h ``struct can_frame``): the identifier
+    and flags in network byte order, the length, two padding bytes, the raw DLC where it is
+    above 8 (``len8_dlc``), eight data bytes. A remote frame (``rtr``) has CAN_RTR_FLAG and,
+    for its length, the bytes it asks for (its DLC), and no data."""
+    dlc = (0 if rtr else len(data)) if dlc is None else dlc
+    if rtr:
+        can_id |= CAN_RTR_FLAG
+        data = b""
+    length = min(dlc, 8) if rtr else len(data)
+    raw = dlc if 8 < dlc <= 15 and length == 8 else 0
+    return struct.pack(">IB2xB8s", can_id, length, raw, bytes(data))
+
+
+def socketcan_message(msg: "can.Message") -> bytes:
+    """A frame python-can received that is no CAN 2.0A node's (an extended id, CAN FD, an error
+    frame) as LINKTYPE_CAN_SOCKETCAN: ``struct can_frame`` with CAN_EFF_FLAG or CAN_ERR_FLAG
+    (and its error class), or ``struct canfd_frame`` (72 bytes, CANFD_FDF and the BRS/ESI
+    flags in its flags byte)."""
+    can_id = msg.arbitration_id
+    if msg.is_error_frame:
+        return struct.pack(">IB3x8s", CAN_ERR_FLAG | (can_id & CAN_ERR_MASK),
+                           min(len(msg.data), 8), bytes(msg.data[:8]))
+    if msg.is_extended_id:
+        can_id |= CAN_EFF_FLAG
+    if msg.is_fd:
+        flags = CANFD_FDF | (CANFD_BRS if msg.bitrate_switch else 0) | (
+            CANFD_ESI if msg.error_state_indicator else 0)
+        return struct.pack(">IBB2x64s", can_id, len(msg.data), flags, bytes(msg.data))
+    return socketcan_frame(can_id, bytes(msg.data), msg.is_remote_frame, msg.dlc)
 
 
 def error_frame(kind: str) -> bytes:
@@ -152,9 +187,15 @@ class PcapWriter:
         """A transmission on air, ending at tick ``end``: the bytes its sender sent."""
         self._packet(("radio", key), end, data, comment)
 
-    def can(self, bus: int, tick: int, can_id: int, data: bytes) -> None:
-        """A CAN frame on ``bus`` that ended (EOF) at ``tick``."""
-        self._packet(("can", bus), tick, socketcan_frame(can_id, data), None)
+    def can(self, bus: int, tick: int, can_id: int, data: bytes, rtr: bool = False,
+            dlc: int | None = None) -> None:
+        """A CAN 2.0A frame on ``bus`` that ended (EOF) at ``tick`` (``rtr``: a remote frame,
+        asking for ``dlc`` bytes)."""
+        self._packet(("can", bus), tick, socketcan_frame(can_id, data, rtr, dlc), None)
+
+    def can_raw(self, bus: int, tick: int, packet: bytes) -> None:
+        """A LINKTYPE_CAN_SOCKETCAN packet on ``bus`` at ``tick`` (``socketcan_message``)."""
+        self._packet(("can", bus), tick, packet, None)
 
     def can_error(self, bus: int, tick: int, kind: str, comment: str) -> None:
         """An error frame on ``bus`` whose flag started at ``tick``."""

@@ -358,7 +358,7 @@ class World:
     def _on_can(self, r: int, tally: Tally, frame, start: int, end: int) -> None:
         tally.frames += 1
         if self.pcap is not None:
-            self.pcap.can(r, end, frame.id, frame.data)
+            self.pcap.can(r, end, frame.id, frame.data, frame.rtr, frame.dlc)
         child = self.children.get(r)
         lat = child.latency_from if child is not None else None
         if lat is not None and (frame.id, bytes(frame.data)) == lat[1:]:

@@ -263,3 +263,38 @@ def test_a_frame_is_stamped_by_its_least_late_read():
     assert (d1, d2) == (frame, noise)
     assert t1 == len(frame) * BT * 1_000_000_000 // 16_000_000
     assert t2 == now * 1_000_000_000 // 16_000_000
+
+
+def test_the_can_interface_holds_remote_frames_and_frames_no_node_takes_as_socketcan_has_them():
+    """A bench capture wrote a remote frame (101#R6, 010#R) as a data frame of length 0: an
+    ESTOP data frame, which stops every node, where the bus carried a remote one, which stops
+    none; and left out the frames no CAN 2.0A node takes (an extended id, CAN FD, an error
+    frame), which the CAN interface of a capture holds, as SocketCAN hands them over
+    (docs/wireshark.md)."""
+    import struct
+
+    import can
+
+    from can_bus.frames import CanFrame
+    sched = Scheduler()
+    out = _Stream()
+    cap = BenchCapture(sched, out, 1, False, "vcan0")
+    cap.can_frame(CanFrame(0x101, b"", True, 6), 0, 100, None)
+    cap.can_frame(CanFrame(0x010, b"", True, 0), 0, 200, None)
+    cap.can_frame(CanFrame(0x181, bytes(range(8))), 0, 300, None)
+    cap.can_other(can.Message(arbitration_id=0x1ABCDEF, is_extended_id=True, data=b"\x01"),
+                  400)
+    cap.can_other(can.Message(arbitration_id=0x20, is_error_frame=True, dlc=8,
+                              data=bytes(8)), 500)
+    cap.can_other(can.Message(arbitration_id=0x123, is_extended_id=False, is_fd=True,
+                              bitrate_switch=True, data=bytes(range(12))), 600)
+    cap.close()
+    got = [struct.unpack_from(">IBB2x", d) + (d[8:],) for _, _, d in _packets(out)]
+    assert got == [
+        (0x40000101, 6, 0, bytes(8)),                     # CAN_RTR_FLAG, asks for 6
+        (0x40000010, 0, 0, bytes(8)),
+        (0x181, 8, 0, bytes(range(8))),
+        (0x81ABCDEF, 1, 0, b"\x01" + bytes(7)),           # CAN_EFF_FLAG
+        (0x20000020, 8, 0, bytes(8)),                     # CAN_ERR_FLAG | CAN_ERR_ACK
+        (0x123, 12, 0x05, bytes(range(12)) + bytes(52)),  # canfd_frame: FDF | BRS
+    ]
