@@ -1019,8 +1019,9 @@ def test_message_latency_and_throughput_per_point_with_their_intervals(spec_file
         assert est == round(sum(tputs) / len(tputs), 4) and lo <= est <= hi
 
 
-def _stored(db) -> None:
-    """A results file holding one campaign and one run, without running it."""
+def _stored(db, damage: str | None = None) -> None:
+    """A results file holding one campaign and one run, without running it; ``damage``: an
+    SQL ``SET`` clause that then edits the run's row by hand."""
     store = Store(db)
     store.claim("x", 0)
     store.add([dict(run_key="k1", point_key='{"load":"1"}', args=["--load", "1"],
@@ -1032,6 +1033,12 @@ def _stored(db) -> None:
                              "latency_ms": {"40": 3}, "throughput": 0.3},
                     wall_s=0.1, worker="w")], "c0ffee", False)
     store.close()
+    if damage is not None:
+        import sqlite3
+        con = sqlite3.connect(db)
+        con.execute(f"UPDATE runs SET {damage}")
+        con.commit()
+        con.close()
 
 
 @pytest.mark.parametrize("damage", [
@@ -1048,14 +1055,9 @@ def _stored(db) -> None:
 def test_a_damaged_results_row_is_one_line_naming_it(tmp_path, capsys, damage, command):
     """Rows edited by hand made ``campaign report`` and ``export`` die in a JSONDecodeError,
     KeyError or TypeError traceback; so did a metric of the wrong type."""
-    import sqlite3
     from hil.cli import main
     db = tmp_path / "m.sqlite"
-    _stored(db)
-    con = sqlite3.connect(db)
-    con.execute(f"UPDATE runs SET {damage}")
-    con.commit()
-    con.close()
+    _stored(db, damage)
     extra = ["--csv", str(tmp_path / "m.csv")] if command == "export" else []
     code = main(["campaign", command, str(db), *extra])
     err = capsys.readouterr().err
@@ -1066,14 +1068,9 @@ def test_a_damaged_results_row_is_one_line_naming_it(tmp_path, capsys, damage, c
 def test_a_status_no_run_has_is_one_line_in_campaign_status(tmp_path, capsys, damage):
     """``campaign status``, which counts the runs by status, died in a KeyError on a status
     no run stores."""
-    import sqlite3
     from hil.cli import main
     db = tmp_path / "m.sqlite"
-    _stored(db)
-    con = sqlite3.connect(db)
-    con.execute(f"UPDATE runs SET {damage}")
-    con.commit()
-    con.close()
+    _stored(db, damage)
     spec = tmp_path / "x.toml"
     spec.write_text('[campaign]\nname = "x"\n[grid]\nload = ["1"]\n')
     code = main(["campaign", "status", str(spec), "--db", str(db)])
