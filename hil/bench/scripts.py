@@ -299,7 +299,16 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
             continue
         sent += 1
         end = time.monotonic() + timeout
-        while time.monotonic() < end and (len(replies) == n_rep or msg.state == "sent"
+
+        def answer(msg: Any = msg, t_sub: int = t_sub, n_rep: int = n_rep) -> int | None:
+            """The tick of this request's reply: the first from ``dst`` heard no earlier
+            than the frame that acknowledged the request (the robot answers what it has
+            taken: a reply heard before that is a late one to an earlier request that timed
+            out); unacknowledged, the first since it was submitted."""
+            since = next((t for t, o in list(outcomes) if o.message is msg and o.delivered),
+                         t_sub)
+            return next((t for t, _ in replies[n_rep:] if t >= since), None)
+        while time.monotonic() < end and (answer() is None or msg.state == "sent"
                                           or msg.state == "queued") and \
                 not (ended is not None and ended.is_set()):
             time.sleep(0.005)
@@ -309,8 +318,9 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
                        TICK_HZ)
         elif done:
             failed.append(done[0].reason)
-        if len(replies) > n_rep:
-            rtt.append((replies[n_rep][0] - t_sub) * 1000 / TICK_HZ)
+        got = answer()
+        if got is not None:
+            rtt.append((got - t_sub) * 1000 / TICK_HZ)
         if progress is not None:
             progress(i + 1)
     station.remove_observer(observe)

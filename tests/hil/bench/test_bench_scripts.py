@@ -175,6 +175,42 @@ def test_latency_tells_a_refusal_from_a_status_reply_and_skips_broadcasts():
     assert station.observers == []           # it stopped watching when it was done
 
 
+def test_a_late_reply_to_a_request_that_timed_out_is_not_the_next_ones():
+    """``latency`` took the first message from the robot after a request for its reply: the
+    late reply to a request that had timed out, heard after the next request went out, was
+    credited to that one, with a round trip too short. A reply is the request's only if it
+    was heard no earlier than the frame that acknowledged the request."""
+    from types import SimpleNamespace
+
+    from firmware_model.radio.content import cmd
+    from firmware_model.radio.mac import Deliver, Outcome
+
+    station = _Station()
+    sched = SimpleNamespace(now=0)
+    calls = []
+
+    def submit(dst, commands, type_):
+        msg = SimpleNamespace(state="delivered")
+        calls.append(msg)
+        t = sched.now                                 # (each request a second later)
+        if len(calls) == 1:                           # acknowledged, its reply late
+            station.tell(Outcome(msg, True, ""), t + 20 * MS)
+        else:
+            station.tell(Deliver(2, 0, 1, 3, (cmd("joint", 1, 0),)), t + 5 * MS)  # #1's
+            station.tell(Outcome(msg, True, ""), t + 20 * MS)
+            station.tell(Deliver(2, 0, 2, 3, (cmd("joint", 1, 0),)), t + 40 * MS)
+        return msg
+
+    def post(fn, *args):
+        sched.now += 1000 * MS
+        fn(*args)
+    sched.post = post
+    station.submit = submit
+    r = bench.latency(SimpleNamespace(sched=sched), station, 2, 2, 0.05)
+    assert (r.sent, r.replies) == (2, 1)
+    assert r.round_trip_ms == [40.0]
+
+
 def test_a_listener_whose_port_goes_away_stops_and_says_so(capsys, monkeypatch):
     """The radio hub stopped under 'rprs bench link': it once listened on to the end of
     --duration and reported a whole run, exit 0."""
