@@ -198,7 +198,7 @@ class RotationalMac:
         self._passed_invite = False       # PC2 in LISTEN let one invitation of ID 0 pass
         self.standby = self.cfg.standby      # a replica of ID 0 that does not transmit
         self._watched = False
-        self._check_turns = 0               # PC2 after a takeover: turns still to watch
+        self._check_turns, self._deaf_check, self._held = 0, False, list[Deliver]()  # clause 50
         self._rejoining = False             # after a stall: our first turn is watched first
         self._seen: dict[int, int] = {}      # LISTEN: source -> tick last heard
         # disabled robot -> (frames heard since, the End of the last)
@@ -304,7 +304,8 @@ class RotationalMac:
             self._expire(now, ended)
             if ended:
                 return ended + list(self.on_frame(frame, first, end, now))
-        self._heard_since_tx = True
+        if not self._heard_since_tx:       # (the first good frame since ours: clause 50)
+            self._heard_after_tx(first, good=True)
         if src == self.owner and phase == WAIT and frame.type == 3 and src != self.id and (
                 not frame.content if not self._hb_len
                 else len(frame.content) == self._hb_len and crc_ok(frame)):
@@ -529,7 +530,7 @@ class RotationalMac:
                     if not fresh:
                         out.append(Duplicate(src, frame.num))
                     elif not self.standby:     # the active PC delivers; its standby only
-                        out.append(Deliver(src, frame.dst, frame.num, frame.type, app_cmds))
+                        self._deliver(Deliver(src, frame.dst, frame.num, frame.type, app_cmds), out)
 
         invited = [p.args[0] for p in polls if p.args[0] not in self.ring]
         if invited:
@@ -645,10 +646,10 @@ class RotationalMac:
     # -- turn machinery (mac_turns.py) -------------------------------------------------------
 
     force_turn = _turns.force_turn
-    _watch_ticks = _turns._watch_ticks
-    _takeover = _turns._takeover
-    _count_skipped = _turns._count_skipped
-    _pair_floor = _turns._pair_floor
+    _watch_ticks, _heard_after_tx, _deliver = (_turns._watch_ticks, _turns._heard_after_tx,
+                                                _turns._deliver)
+    _takeover, _count_skipped, _pair_floor = (_turns._takeover, _turns._count_skipped,
+                                              _turns._pair_floor)
     _next_turn = _turns._next_turn
     _window = _turns._window
     _after_window = _turns._after_window

@@ -45,6 +45,18 @@ def _deadline_watch(self: RotationalMac, now: int, rx_busy: bool, last_rx: int |
                             "ring left us out meanwhile")
             return
         self._rejoining = False
+    if rx_busy and self._deaf_check and not self.standby:
+        # Checking after a possible deafness: whose frame is it? The other PC's stands us by
+        # (``_active_frame``); a member's is followed, and our next turn is watched again.
+        self.deadline = now + 2 * self.cfg.byte_ticks
+        return
+    if rx_busy or self._heard_since_tx:
+        # Watched with a radio that hears: the check is done. The deliveries it held go out
+        # with our acknowledgements, or, if the other PC is sending, are its to make.
+        self._deaf_check = False
+        if not rx_busy:
+            out.extend(self._held)
+        self._held = []
     if rx_busy:                    # the active PC is sending: follow it
         if not self.standby:
             self.standby = True
@@ -168,6 +180,12 @@ def _deadline_wait(self: RotationalMac, now: int, rx_busy: bool, last_rx: int | 
     # comes back before it goes to LISTEN, both PCs are active and both would deliver.
     deaf = self.id == 0 and self.cfg.paired and not self.standby and \
         self._silent >= 2 and not self._heard_since_tx and not self._noise_since_tx
+    if self.id == 0 and self.cfg.paired and not self.standby and \
+            not self._heard_since_tx and not self._noise_since_tx:
+        # An active PC that missed a turn with nothing at all heard since its own frame may
+        # have been deaf while the other PC took over (clause 50): it delivers nothing new
+        # until it has watched its next turn for the other PC's Header.
+        self._deaf_check = True
     if n >= self.cfg.miss_limit:
         self._drop(o, out)
     if len(self.ring) >= 2 and \

@@ -238,6 +238,8 @@ def _to_listen(self: RotationalMac, out: list, now: int, reason: str,
     self._announcing = None           # a BOOT not acknowledged is sent again
     self._passed_invite = False
     self._check_turns = 0             # back only invited (no PC is ID 0) or as a standby
+    self._deaf_check = False
+    self._held = []                   # our acknowledgements are not sent: not ours to deliver
     self._fail_run = None             # clause 41a counts again from our next ring
     self._rejoining = False
     self.deadline = now + self._claim_ticks()
@@ -287,13 +289,19 @@ def _active_frame(self: RotationalMac, frame: Frame, end: int, now: int, out: li
         lone_other = any(c.name == "poll" and c.args[1] == 1 for c in mac_cmds)
         if self.mode == MEMBER and not self.lone and lone_other:
             return out                     # the other PC claimed alone: it will listen
-        if self.mode == LISTEN or self.lone or self.cfg.pc > 1:
+        if self.mode == LISTEN or self.lone or self.cfg.pc > 1 or (
+                self.phase == WATCH and self._deaf_check):
             if self.lone:
                 self._to_listen(out, now, "another PC is active as ID 0")
             elif self.mode == MEMBER:      # keep the ring we know; follow the other PC
                 out.append(ModeChange(MEMBER, "another PC is active as ID 0: standing by"))
             self.standby = True            # the other PC is active: stand by for it
             self._check_turns = 0          # a standby keeps the Numbers (clause 50)
+            self._deaf_check = False
+            if self._held:                 # not delivered, so not acknowledged (clause 50)
+                held = {(d.src, d.num) for d in self._held}
+                self._acks = [a for a in self._acks if a not in held]
+                self._held = []
         else:
             # PC1 stays active (a PC2 that is active too will yield); the frame, PC2's or
             # a forger's, is refused and closes the slot it was sent in. Heard after a miss

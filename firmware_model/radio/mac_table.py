@@ -227,7 +227,7 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("SEND", "tx done", "HOLD", "a lone member pauses Twin + id x Tslot", "designed"),
     # -- father failover ------------------------------------------------------------------
     _T("WATCH", "frame", "WAIT", "the active PC's frame: follow it; PC1 on probation refuses "
-       "the other PC's, which closes ID 0's slot", "designed"),
+       "the other PC's, which closes ID 0's slot; a checking PC stands by", "designed"),
     _T("WATCH", "frame", "WINDOW", "the active PC's frame invites a robot: its window",
        "designed"),
     _T("WATCH", "garbage", "WATCH", "bytes that form no frame: keep watching", "designed"),
@@ -236,6 +236,10 @@ TRANSITIONS: tuple[Transition, ...] = (
     _T("WATCH", "failed frame", "WAIT", "a frame broke after its Length: the turn passes at "
        "its promised end", "designed"),
     _T("WATCH", "deadline", "WAIT", "the active PC's Header is coming: stand by", "designed"),
+    _T("WATCH", "deadline", "WATCH", "a frame is coming while we check after a possible "
+       "deafness: read its Source first", "designed"),
+    _T("WATCH", "frame", "WATCH", "a member's frame while we check: the turn after it is "
+       "ours, watched again", "designed"),
     _T("WATCH", "deadline", "SWITCH", "no Header from the active PC: take ID 0's turn; or "
        "none in our first turn after a stall: the ring still has us, take it", "designed"),
     # -- a bench station after a stall (clause 5) -----------------------------------------

@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from .mac_config import PC2_CHECK_EVERY, TAKEOVER_TOLERANCE
-from .mac_events import TX_ON, Miss, Transmit
+from .mac_events import TX_ON, Deliver, Miss, Transmit
 from .mac_phases import HOLD, MEMBER, SEND, SWITCH, WAIT, WATCH, WINDOW
 
 if TYPE_CHECKING:
@@ -23,7 +23,35 @@ def _watch_ticks(self: RotationalMac) -> int:
     w = max(4 * self.cfg.byte_ticks, self.cfg.standby_watch)
     if self.standby:
         return 2 * self.cfg.ttrans + (self.cfg.pc + 2) * w
+    if self._deaf_check and self.cfg.pc == 1:
+        # PC1 back from a possible deafness watches past the Header of a PC2 that checks
+        # its own turn first (TXEN at Ttrans + W, Header Ttrans later), and still sends
+        # early enough for a standby PC2 to hear it (2 Ttrans + 4 W).
+        return 2 * (self.cfg.ttrans + w)
     return self.cfg.ttrans + w
+
+
+def _heard_after_tx(self: RotationalMac, first: int, good: bool) -> None:
+    """Something was heard, its first byte in at ``first``: a good frame (``good``), or a
+    failed one or garbage. The first thing heard since our own frame, by an active PC of a
+    pair after more silence than a live successor's Header can take (Ttrans + 6 Tslot + 5 B:
+    its latest R-stagger, clause 44, and a byte), says our radio may have been deaf while the
+    other PC took over: we check (clause 50)."""
+    cfg = self.cfg
+    if not self._heard_since_tx and not self._noise_since_tx and self.id == 0 and \
+            cfg.paired and not self.standby and self.mode == MEMBER and \
+            first - self._tx_end > cfg.ttrans + 6 * cfg.tslot + 5 * cfg.byte_ticks:
+        self._deaf_check = True
+    if good:
+        self._heard_since_tx = True
+    else:
+        self._noise_since_tx = True
+
+
+def _deliver(self: RotationalMac, d: Deliver, out: list) -> None:
+    """Deliver a new message, or, while we check after a possible deafness, hold it until our
+    watched turn finds no other PC on the air and our acknowledgement goes out (clause 50)."""
+    (self._held if self._deaf_check else out).append(d)
 
 
 def _takeover(self: RotationalMac, src: int, first: int) -> list[int] | None:
@@ -157,7 +185,7 @@ def _my_turn(self: RotationalMac, start: int, now: int, out: list) -> None:
         self._hold(start, now, out)
         return
     if self.standby or self._rejoining or (not self._watched and self.id == 0 and (
-            self._check_turns > 0 or
+            self._check_turns > 0 or self._deaf_check or
             self.cfg.pc > 1 and self.turns % PC2_CHECK_EVERY == 0)):
         # The active PC's header starts at start + Ttrans and is complete 3 bytes later.
         # A PC that took over watches its first turns (PC1 too: otherwise its probation,

@@ -484,8 +484,8 @@ def _father_paths() -> None:
         heard(mac, 1, (100 + 100 * i) * B, b"poll(0,2)")  # LISTEN -> WATCH
     assert mac.phase == M.WATCH
 
-    # PC1, which heard the other PC after a miss: on probation it watches its turns, and
-    # refuses the other PC's frame heard then (clause 50)
+    # PC1, which missed a turn with nothing heard: it checks (clause 50), watches its turn,
+    # and the other PC's frame heard then stands it by
     mac = M.RotationalMac(0, M.MacConfig(team=frozenset({0, 1, 2}), paired=True, pc=1))
     mac.power_on(0)
     heard(mac, 1, 100 * B, b"poll(0,2)")                 # invited: ring {0, 1}
@@ -494,8 +494,12 @@ def _father_paths() -> None:
     heard(mac, 0, mac.turn_start + 40 * B)               # the other PC: probation; WAIT for 1
     heard(mac, 1, mac.turn_start + 80 * B)               # our turn, watched
     assert mac.phase == M.WATCH
-    heard(mac, 0, mac.turn_start + 30 * B)               # refused, closes the slot: -> WAIT
-    assert (mac.phase, mac.owner) == (M.WAIT, 1) and not mac.standby
+    mac.on_timer(mac.deadline, rx_busy=True)             # a frame coming: read its Source
+    assert mac.phase == M.WATCH
+    heard(mac, 1, mac.turn_start + 30 * B)               # robot 1's: our turn, watched again
+    assert mac.phase == M.WATCH and not mac.standby
+    heard(mac, 0, mac.turn_start + 30 * B)               # the other PC's: stand by, -> WAIT
+    assert (mac.phase, mac.owner) == (M.WAIT, 1) and mac.standby   # it checked (clause 50)
 
 
 HOOKS = {"on_frame": "frame", "on_corrupt": "failed frame", "on_garbage": "garbage",
