@@ -6,16 +6,10 @@ from typing import TYPE_CHECKING, Any
 
 import can
 
+from .frames import CAN_ERR_FLAG, CAN_ERR_MASK, fd_flags
+
 if TYPE_CHECKING:
     from can.io.generic import MessageWriter
-
-
-CANFD_BRS, CANFD_ESI, CANFD_FDF = 0x01, 0x02, 0x04
-"""A CAN FD frame's flags (linux/can.h); FDF (kernel 6.2 on) is set on every CAN FD frame
-SocketCAN hands over, so ``candump -L`` writes a CAN FD frame with ``##5`` where python-can
-wrote ``##1``."""
-CAN_ERR_FLAG, CAN_ERR_MASK = 0x20000000, 0x1FFFFFFF
-"""An error frame's identifier: the flag, and its error class bits (linux/can.h)."""
 
 
 class CandumpLogWriter(can.CanutilsLogWriter):
@@ -69,9 +63,7 @@ class CandumpLogWriter(can.CanutilsLogWriter):
             if not msg.is_extended_id and msg.arbitration_id > 0x7FF:
                 return None
             if msg.is_fd:
-                flags = CANFD_FDF | (CANFD_BRS if msg.bitrate_switch else 0) | (
-                    CANFD_ESI if msg.error_state_indicator else 0)
-                text = f"{ident}##{flags:X}{data.hex().upper()}"
+                text = f"{ident}##{fd_flags(msg):X}{data.hex().upper()}"
             elif msg.is_remote_frame:
                 dlc = msg.dlc or 0
                 if dlc > 15:

@@ -13,7 +13,23 @@ import can
 
 from can_bus.bits import _check
 
-__all__ = ["CanFrame"]
+__all__ = ["CAN_EFF_FLAG", "CAN_ERR_FLAG", "CAN_ERR_MASK", "CAN_RTR_FLAG", "CANFD_BRS",
+           "CANFD_ESI", "CANFD_FDF", "CanFrame", "fd_flags"]
+
+CAN_EFF_FLAG, CAN_RTR_FLAG, CAN_ERR_FLAG = 0x80000000, 0x40000000, 0x20000000
+CAN_ERR_MASK = 0x1FFFFFFF
+"""SocketCAN's identifier flags and an error frame's class bits (linux/can.h), as a capture
+(LINKTYPE_CAN_SOCKETCAN) and a ``candump -L`` log write them."""
+CANFD_BRS, CANFD_ESI, CANFD_FDF = 0x01, 0x02, 0x04
+"""A CAN FD frame's flags (linux/can.h); FDF (kernel 6.2 on) is set on every CAN FD frame
+SocketCAN hands over, so ``candump -L`` writes a CAN FD frame with ``##5`` where python-can
+wrote ``##1``."""
+
+
+def fd_flags(msg: can.Message) -> int:
+    """A CAN FD ``msg``'s flags byte as SocketCAN gives it: FDF, with BRS and ESI if set."""
+    return CANFD_FDF | (CANFD_BRS if msg.bitrate_switch else 0) | (
+        CANFD_ESI if msg.error_state_indicator else 0)
 
 
 @dataclass(frozen=True)

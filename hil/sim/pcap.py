@@ -18,6 +18,7 @@ from typing import IO, TYPE_CHECKING, Any
 import pcapng
 from pcapng import blocks
 
+from can_bus.frames import CAN_EFF_FLAG, CAN_ERR_FLAG, CAN_ERR_MASK, CAN_RTR_FLAG, fd_flags
 from firmware_model.timing import TICK_HZ
 
 if TYPE_CHECKING:
@@ -34,12 +35,6 @@ type, total length and interface ID (pcapng, draft-ietf-opsawg-pcapng, 4.3)."""
 _DISTINCT_BLOCKS = 1 << 16
 """Distinct packets whose bytes a writer keeps (then it starts again: memory stays bounded)."""
 
-CAN_EFF_FLAG = 0x80000000
-CAN_RTR_FLAG = 0x40000000
-CAN_ERR_FLAG = 0x20000000
-CAN_ERR_MASK = 0x1FFFFFFF
-CANFD_BRS, CANFD_ESI, CANFD_FDF = 0x01, 0x02, 0x04
-"""linux/can.h: the identifier's flags, and a CAN FD frame's flags byte."""
 CAN_ERR_PROT = 0x00000008
 CAN_ERR_ACK = 0x00000020
 PROT_TYPES = {"bit": 0x01, "form": 0x02, "stuff": 0x04}
@@ -73,9 +68,7 @@ def socketcan_message(msg: "can.Message") -> bytes:
     if msg.is_extended_id:
         can_id |= CAN_EFF_FLAG
     if msg.is_fd:
-        flags = CANFD_FDF | (CANFD_BRS if msg.bitrate_switch else 0) | (
-            CANFD_ESI if msg.error_state_indicator else 0)
-        return struct.pack(">IBB2x64s", can_id, len(msg.data), flags, bytes(msg.data))
+        return struct.pack(">IBB2x64s", can_id, len(msg.data), fd_flags(msg), bytes(msg.data))
     return socketcan_frame(can_id, bytes(msg.data), msg.is_remote_frame, msg.dlc)
 
 
