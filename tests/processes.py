@@ -41,6 +41,28 @@ def stop(procs) -> list[str]:
     return rest
 
 
+def sigstop(p: subprocess.Popen, timeout: float = 10.0) -> None:
+    """Stop ``p`` (SIGSTOP) and return once every thread of it has stopped (state T in
+    /proc). kill() returning is not enough: SIGSTOP wakes one thread, which then stops the
+    others, and on a busy machine another thread may go on reading a port for milliseconds
+    until it is scheduled."""
+    import os
+    import signal
+    p.send_signal(signal.SIGSTOP)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        states = []
+        with contextlib.suppress(FileNotFoundError):
+            for task in os.listdir(f"/proc/{p.pid}/task"):
+                with contextlib.suppress(FileNotFoundError):     # a thread that ended
+                    with open(f"/proc/{p.pid}/task/{task}/stat") as f:
+                        states.append(f.read().rsplit(")", 1)[1].split()[0])
+        if states and all(s == "T" for s in states):
+            return
+        time.sleep(0.001)
+    raise AssertionError(f"process {p.pid} did not stop within {timeout} s of SIGSTOP")
+
+
 def wait_for(pred, timeout: float) -> bool:
     end = time.monotonic() + timeout
     while time.monotonic() < end:

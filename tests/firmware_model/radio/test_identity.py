@@ -21,7 +21,7 @@ from firmware_model.radio.frame import Frame
 from hil.bench import scripts as bench
 from hil.bench.radio_hub import RadioHub
 from hil.sim.world import ConfigError, SimConfig, World
-from processes import heard, ring_is, spawn, stop, wait_for
+from processes import heard, ring_is, sigstop, spawn, stop, wait_for
 
 S = 16_000_000
 
@@ -378,7 +378,7 @@ def test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring(
     try:
         assert wait_for(lambda: ring_is(sniffer, [1, 2, 3]), 40.0)
         _lines(kids[2], errs["original"])
-        kids[2].send_signal(signal.SIGSTOP)
+        sigstop(kids[2])
         t_stop = sniffer.tick() / 16e6
         twin = spawn("child", "--id", "2", "--radio", hub.paths[3], "--team", "1,2,3")
         _lines(twin, errs["twin"])
