@@ -569,6 +569,18 @@ class PythonCanBus:
         for _node, on_frame in self._sinks:
             on_frame(frame, start, end)
 
+    def _own_echo(self, msg: can.Message) -> bool:
+        """``msg`` (read, not yet taken) is our own frame back; a frame no CAN 2.0A node can
+        send (an 11-bit id above 0x7FF, a DLC its data disagree with) is none: logged as
+        received, as ``_deliver`` logs it."""
+        if not _classic(msg):
+            return False
+        try:
+            frame = CanFrame.from_message(msg)
+        except ValueError:
+            return False
+        return self._echo(frame)
+
     def _echo(self, frame: CanFrame) -> bool:
         """``frame`` is our own frame back (in order): sent, not heard."""
         if self._echoes and frame == self._echoes[0]:
@@ -618,7 +630,7 @@ class PythonCanBus:
             for msg in [*self._in_flight.values(), *self._unread()]:
                 if self._writer is None:
                     break                        # (the log ended: a full disk)
-                if _classic(msg) and self._echo(CanFrame.from_message(msg)):
+                if self._own_echo(msg):
                     continue
                 self._log_received(msg)
         self._in_flight.clear()

@@ -284,8 +284,8 @@ class Runner:
             for fn in reversed(self._closers):
                 try:
                     fn()
-                except Exception:   # noqa: BLE001 - closing must go on
-                    pass
+                except Exception as exc:   # noqa: BLE001 - closing must go on, and says so
+                    self.warn(f"while closing: {type(exc).__name__}: {exc}")
             self.finished.set()
 
 

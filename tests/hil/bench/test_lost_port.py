@@ -73,3 +73,20 @@ def test_a_radio_port_that_takes_no_bytes_is_said_and_exits_1():
     said = [x for x in lines if x.startswith(f"rprs: the radio port {path}: cannot write")]
     assert len(said) == 1 and "the frame is lost" in said[0], r.stderr
     assert lines[-1].startswith("rprs: 1 trouble during the run") and "Traceback" not in r.stderr
+
+
+def test_a_closer_that_raises_is_said_and_the_others_still_run(capsys):
+    """Closing goes on past a part whose close raises (the rest still close: a log ended,
+    a bus shut down), and says so in one line with exit status 1 (``troubles``): the
+    exception used to be swallowed, hiding a CAN log left unended."""
+    runner = Runner()
+    closed = []
+    runner.on_close(lambda: closed.append("first"))
+
+    def broken() -> None:
+        raise ValueError("CAN 2.0A id must be in 0..0x7FF, got 0x800")
+    runner.on_close(broken)
+    runner.run(0.01)
+    assert closed == ["first"] and runner.troubles == 1
+    assert capsys.readouterr().err == ("rprs: while closing: ValueError: CAN 2.0A id must be "
+                                       "in 0..0x7FF, got 0x800\n")
