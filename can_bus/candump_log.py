@@ -2,6 +2,7 @@
 writers for ``.asc`` and ``.blf``), docs/bench.md."""
 from __future__ import annotations
 
+import gzip
 from typing import TYPE_CHECKING, Any
 
 import can
@@ -82,7 +83,11 @@ class CandumpLogWriter(can.CanutilsLogWriter):
 
 def open_log(path: str) -> MessageWriter:
     """A python-can log writer for ``path``, chosen by its extension; a ``.log`` is written as
-    ``candump -L`` writes (``CandumpLogWriter``)."""
-    if path.lower().endswith(".log"):
+    ``candump -L`` writes (``CandumpLogWriter``), and so is a ``.log.gz``, through gzip (where
+    python-can's compressed writer would write its own lines)."""
+    lower = path.lower()
+    if lower.endswith(".log"):
         return CandumpLogWriter(path)
+    if lower.endswith(".log.gz"):
+        return CandumpLogWriter(gzip.open(path, "wt", encoding="ascii"))
     return can.Logger(path)

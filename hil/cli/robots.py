@@ -280,7 +280,7 @@ def add(sub) -> None:
                     help="python-can bus, e.g. socketcan:vcan0, rprs_unix:/tmp/rprs-can (both "
                     "shared with other processes); virtual:NAME stays inside this process")
     ch.add_argument("--can-log", type=file_name, metavar="FILE",
-                    help="log CAN traffic (.log .asc .blf)")
+                    help="log CAN traffic (.log .log.gz .asc .blf)")
     ch.add_argument("--pcap", type=file_name, metavar="FILE", help=PCAP_HELP)
     txen_option(ch)
     mac_options(ch)
@@ -292,7 +292,7 @@ def add(sub) -> None:
                     help="the child's python-can bus, e.g. socketcan:vcan0, "
                     "rprs_unix:/tmp/rprs-can; virtual:NAME stays inside this process")
     sm.add_argument("--can-log", type=file_name, metavar="FILE",
-                    help="log CAN traffic (.log .asc .blf)")
+                    help="log CAN traffic (.log .log.gz .asc .blf)")
     sm.add_argument("--pcap", type=file_name, metavar="FILE", help=PCAP_HELP)
     realtime_options(sm)
     sm.set_defaults(func=cmd_submodules)

@@ -59,6 +59,25 @@ def test_every_frame_is_written_as_candump_writes_it(tmp_path):
     assert w.unwritable == 2
 
 
+def test_a_gzipped_log_holds_the_same_candump_lines(tmp_path):
+    """``--can-log FILE.log.gz`` went to python-can's compressed writer, whose lines are not
+    candump's (a remote frame's DLC lost, every error class a bus error): it is the same
+    writer as a ``.log``, through gzip."""
+    import gzip
+    from can_bus.candump_log import open_log
+    msgs = [can.Message(timestamp=1.0, arbitration_id=0x101, is_extended_id=False,
+                        is_remote_frame=True, dlc=6, is_rx=True, channel="vcan0"),
+            can.Message(timestamp=1.1, arbitration_id=0x20, is_error_frame=True, dlc=8,
+                        data=bytes(8), channel="vcan0")]
+    w = open_log(str(tmp_path / "bus.log.gz"))
+    for m in msgs:
+        w.on_message_received(m)
+    w.stop()
+    with gzip.open(tmp_path / "bus.log.gz", "rt") as f:
+        assert f.read().splitlines() == ["(1.000000) vcan0 101#R6 R",
+                                         "(1.100000) vcan0 20000020#0000000000000000"]
+
+
 @pytest.mark.skipif(shutil.which("log2asc") is None,
                     reason="log2asc not installed (Debian package can-utils)")
 def test_can_utils_reads_the_whole_log(tmp_path):
