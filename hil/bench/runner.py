@@ -40,6 +40,7 @@ from firmware_model.timing import CHILD_BYTE_TICKS, PC_BYTE_TICKS, TICK_HZ
 
 from ..sim.realtime import RealTimeScheduler
 from .serial_radio import PortError, SerialChannel, open_port
+from .stdout import StdoutFailed
 
 LOG = logging.getLogger("rprs.bench")
 """The bench processes' log (``rprs child -v``: what was opened; ``-vv``: every frame sent and
@@ -113,12 +114,15 @@ class TextSink(Protocol):
 
 def _events_printer(out: TextSink | None, robot: int,
                     on_closed: Callable[[], None] | None = None,
-                    err: TextIO | None = None
+                    err: TextIO | None = None,
+                    on_failed: Callable[[str], None] | None = None,
                     ) -> Callable[[RadioStation, object, int], None]:
     """An observer turning the station's outputs into trace-like JSON lines. When ``out``'s
     reader has gone away (``| head -1``: BrokenPipeError), nothing more is written and
-    ``on_closed`` runs once (the runner's ``stop``: the process stops quietly). A duplicate
-    ID or a foreign ring is also said in one line on ``err`` (stderr), with --events or not."""
+    ``on_closed`` runs once (the runner's ``stop``: the process stops quietly); when it cannot
+    be written otherwise (a full disk), ``on_failed(why)`` runs once (the runner's ``fail``:
+    its summary, then one line). A duplicate ID or a foreign ring is also said in one line on
+    ``err`` (stderr), with --events or not."""
     closed = False
 
     def emit(ev: dict) -> None:
@@ -132,6 +136,12 @@ def _events_printer(out: TextSink | None, robot: int,
             closed = True
             if on_closed is not None:
                 on_closed()
+        except (OSError, StdoutFailed) as exc:
+            closed = True
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+            if on_failed is None:
+                raise
+            on_failed(f"cannot write the events: {why}")
 
     def observe(st: RadioStation, a: object, now: int) -> None:
         if isinstance(a, Transmit):
@@ -284,6 +294,8 @@ class Runner:
             for fn in reversed(self._closers):
                 try:
                     fn()
+                except BrokenPipeError:
+                    pass       # stdout's reader has gone: the command ends as every one then
                 except Exception as exc:   # noqa: BLE001 - closing must go on, and says so
                     self.warn(f"while closing: {type(exc).__name__}: {exc}")
             self.finished.set()
@@ -400,7 +412,8 @@ def build_child(runner: Runner, robot: int, radio: str | None, can: str | None,
     if not 1 <= robot <= 6:
         raise RunError(f"a child's ID is 1-6, got {robot}")
     cfg = realtime_config(config)
-    observer = _events_printer(events, robot, on_closed=runner.stdout_gone)
+    observer = _events_printer(events, robot, on_closed=runner.stdout_gone,
+                               on_failed=runner.fail)
     channel = bus = None
     if radio:
         station, channel = _radio_station(runner, robot, radio, txen, CHILD_BYTE_TICKS, cfg,
@@ -436,7 +449,8 @@ def build_father(runner: Runner, radio: str, txen: str = "none", standby: bool =
     cfg = replace(realtime_config(config), standby=standby, pc=pc or (2 if standby else 1),
                   paired=standby or pc is not None)
     station, channel = _radio_station(runner, 0, radio, txen, PC_BYTE_TICKS, cfg,
-                                      _events_printer(events, 0, on_closed=runner.stdout_gone))
+                                      _events_printer(events, 0, on_closed=runner.stdout_gone,
+                                                      on_failed=runner.fail))
     _capture(runner, pcap, 0, channel, None, None)
     return station
 

@@ -27,6 +27,7 @@ import sys
 import time
 from typing import Sequence
 
+from ..bench.stdout import GuardedStdout, StdoutFailed
 from .common import Parser, Terminated, UserError, say_closing, stdout_gone
 
 EXTRA_OF = {"matplotlib": "plot", "textual": "ui", "dask": "campaign", "distributed": "campaign",
@@ -226,6 +227,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         install_from_environment()
     argv = list(sys.argv[1:] if argv is None else argv)
     old_handlers = _terminate_on_signals()
+    raw_stdout = sys.stdout
+    if raw_stdout is not None and not isinstance(raw_stdout, GuardedStdout):
+        sys.stdout = GuardedStdout(raw_stdout)       # (a full disk: one line, not a traceback)
     try:
         code = _main(argv)
     except SystemExit:      # argparse's --help and --version; rich's own broken pipe
@@ -233,6 +237,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise SystemExit(1) from None
         raise
     finally:
+        sys.stdout = raw_stdout
         if old_handlers:
             for sig, handler in old_handlers.items():
                 # a stop in progress ignores its signal told again (SAME_STOP_S) to the end:
@@ -287,4 +292,8 @@ def _main(argv: list[str]) -> int:
         return 130
     except BrokenPipeError:
         return stdout_gone()
+    except StdoutFailed as exc:
+        print(f"rprs: error: cannot write standard output: {exc}", file=sys.stderr)
+        stdout_gone()       # (what is still in its buffer dropped: no second error at exit)
+        return 1
 

@@ -131,17 +131,17 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
         cfg.validate()
     except ConfigError as exc:
         raise UserError(str(exc)) from None
-    print(f"Action sequence (paper Fig. 11): R1..R{n} in a row, {cycles} cycle(s); each robot "
-          f"turns its end link left, then all return, in order.")
-    print(f"{'real time' if a.realtime else 'simulated'}; ring: "
-          f"{', '.join('father 0' if r == 0 else f'R{r}' for r in robots)}; "
-          f"Tmax 600 ms, Ttrans 5 ms, 9600 baud\n")
     trace = None
     if a.trace:
         try:
             trace = TraceWriter(a.trace)
         except OSError as exc:
             raise UserError(f"cannot write trace {a.trace}: {exc.strerror}") from None
+    print(f"Action sequence (paper Fig. 11): R1..R{n} in a row, {cycles} cycle(s); each robot "
+          f"turns its end link left, then all return, in order.")
+    print(f"{'real time' if a.realtime else 'simulated'}; ring: "
+          f"{', '.join('father 0' if r == 0 else f'R{r}' for r in robots)}; "
+          f"Tmax 600 ms, Ttrans 5 ms, 9600 baud\n")
     letters = "abcdefghijklmnopqrstuvwxyz"
     done = [0]
 
@@ -161,6 +161,12 @@ def cmd_demo_actions(a: argparse.Namespace) -> int:
         step = TICK_HZ // 10
         while world.now < world.end_tick and done[0] < steps:
             world.run(world.now + step)
+    except BrokenPipeError:
+        # standard output's reader has gone (``| head -4``): the run stops there, its trace
+        # unfinished and so not kept, and the command ends as every command then ends
+        if trace is not None:
+            trace.discard()
+        raise
     except OSError as exc:        # the trace could not be written during the run (disk full)
         if trace is not None:
             trace.discard()

@@ -677,8 +677,9 @@ FRAME_HEX = "0f0a053231303532303030396d6f766578283130291719"
     ["--help"],
     ["sim", "--help"],
     ["--version"],
+    ["demo"],
 ], ids=["sim", "sim --json", "sim --cpu-report", "decode", "encode", "--help", "sim --help",
-        "--version"])
+        "--version", "demo"])
 def test_a_closed_stdout_ends_every_command_alike(command):
     """``rprs ... | head -1``: each command ended its own way when its reader had gone:
     ``rprs sim``'s table with status 1 (rich's own handling), ``--json`` and ``decode`` with 0
@@ -694,6 +695,44 @@ def test_a_closed_stdout_ends_every_command_alike(command):
     finally:
         os.close(w)
     assert (p.returncode, p.stderr) == (1, "")
+
+
+def test_a_demo_whose_reader_goes_away_keeps_no_trace(tmp_path):
+    """``rprs demo --trace T | head -4``: the demo prints as it runs, and took the broken pipe
+    for a trace it could not write (status 2, "cannot write an output"). It now ends as every
+    command does (status 1, nothing on stderr), its trace unfinished and so not kept."""
+    r, w = os.pipe()
+    os.close(r)
+    trace = tmp_path / "t.jsonl"
+    try:
+        p = subprocess.run([sys.executable, "-m", "hil.cli", "demo", "--trace", str(trace)],
+                           stdout=w, stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(w)
+    assert (p.returncode, p.stderr) == (1, "") and not trace.exists()
+
+
+@pytest.mark.parametrize("command", [
+    ["encode", "--src", "1", "--dst", "2", "movex(10)"],
+    ["sim", "--robots", "1,2", "--duration", "2", "--json"],
+    ["demo"],
+    ["child", "--id", "1", "--radio", "loop://", "--team", "1", "--events", "--duration", "3"],
+    ["father", "--radio", "loop://", "--team", "0", "--json", "--no-input", "--duration", "3"],
+], ids=["encode", "sim --json", "demo", "child --events", "father --json"])
+def test_a_standard_output_that_cannot_be_written_is_one_line(command, full_device):
+    """``rprs ... > /dev/full``: a standard output that fails for another reason than its
+    reader going away (a full disk) ended every command in a traceback (a bench process at
+    its first event, without its summary). Now: one line naming the reason, status 1; a
+    bench process stops with its summary first."""
+    with open(full_device, "w") as out:
+        p = subprocess.run([sys.executable, "-m", "hil.cli", *command], stdout=out,
+                           stderr=subprocess.PIPE, text=True, timeout=120)
+    assert p.returncode == 1 and "Traceback" not in p.stderr, p.stderr
+    last = p.stderr.strip().splitlines()[-1]
+    assert last in ("rprs: error: cannot write standard output: No space left on device",
+                    "rprs: error: cannot write the events: No space left on device"), p.stderr
+    if command[0] in ("child", "father"):
+        assert "member" in p.stderr and last.endswith("events: No space left on device")
 
 
 def test_a_long_output_piped_to_head_ends_quietly(tmp_path):
