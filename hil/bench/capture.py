@@ -57,6 +57,8 @@ class BenchCapture:
         self.close_error: str | None = None
         """Why the file could not be finished at the end (its last bytes not written), or None."""
         self.on_error: Any = None
+        self.reader_gone = False
+        """The capture stopped because the reader of its pipe went away (``--pcap - | ...``)."""
         """Called with the error once, when the capture stops (its reader went away, the disk
         filled): ``rprs capture``, which has nothing else to do, stops then."""
 
@@ -172,6 +174,7 @@ class BenchCapture:
                 self._stopped(e)
 
     def _stopped(self, e: Exception) -> None:
+        self.reader_gone = isinstance(e, BrokenPipeError)
         self.error = f"capture stopped: {e}"
         if self.on_error is not None:
             self.on_error(self.error)

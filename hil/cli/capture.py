@@ -12,7 +12,7 @@ from typing import Any
 
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
 
-from .common import UserError, file_name
+from .common import UserError, distinct_outputs, file_name
 
 
 class _Ears:
@@ -47,6 +47,7 @@ def cmd_capture(a: argparse.Namespace) -> int:
             os.path.samefile(a.pcap, a.radio):
         # (writing the capture there would transmit it: a listener sends nothing)
         raise UserError(f"--pcap {a.pcap} is the radio's own port: give another file")
+    distinct_outputs(pcap=a.pcap)          # (another radio's port: the same, on that radio)
     try:
         port = open_port(a.radio)
     except PortError as exc:
@@ -62,7 +63,9 @@ def cmd_capture(a: argparse.Namespace) -> int:
             raise                  # stdout's reader gone already: as every command ends then
         raise UserError(f"cannot write capture {a.pcap}: {exc.strerror or exc}") from None
     # a capture that cannot go on (its reader gone, the disk full) ends the command
-    cap.on_error = lambda why: runner.fail(why)
+    # (standard output's reader gone, ``--pcap - | head -c 100``: as every command then ends)
+    cap.on_error = lambda why: runner.stdout_gone() if cap.reader_gone and a.pcap == "-" \
+        else runner.fail(why)
     channel = SerialChannel(runner.sched, port, "none")
     channel.attach(_Ears(PC_BYTE_TICKS))               # type: ignore[arg-type]
     channel.tap = cap
@@ -89,6 +92,8 @@ def cmd_capture(a: argparse.Namespace) -> int:
     # (the wall time it ran: the runner's clock stops at its last event, the last byte heard)
     print(f"capture: {channel.bytes_in} bytes heard in {time.monotonic() - started:.1f} s"
           f"{gaps}", file=sys.stderr)
+    if runner.stdout_closed:
+        raise BrokenPipeError("standard output closed by its reader")    # (main: status 1)
     if cap.error is None and cap.close_error is not None:
         print(f"rprs: error: cannot write capture {a.pcap}: {cap.close_error}", file=sys.stderr)
         return 1

@@ -125,6 +125,8 @@ def cmd_decode(a: argparse.Namespace) -> int:
     if a.stream and a.hexdata:
         raise UserError("--stream reads stdin: give the frame as HEX or --stream, not both")
     if a.stream:
+        if sys.stdin is None:
+            raise UserError("standard input is closed: --stream reads the bytes from it")
         chunks: Iterable[bytes]
         if a.hex:
             chunks = (_unhex(line) for line in sys.stdin)

@@ -101,6 +101,10 @@ def distinct_outputs(**paths: str | None) -> None:
         if not path or path == "-":
             continue
         key, name = os.path.realpath(path), opt.replace("_", "-")
+        if is_terminal(path):
+            raise UserError(f"--{name} {path} is a terminal or a serial port: what is written "
+                            f"there would be sent (a radio on it would transmit it); give a "
+                            f"file, or '-' where standard output is taken")
         if key in seen:
             raise UserError(f"--{seen[key]} and --{name} name the same file {path}: give each "
                             f"its own")
@@ -111,6 +115,25 @@ def distinct_outputs(**paths: str | None) -> None:
         if other is not None:
             raise UserError(f"--{name}'s file, written as {key}.partial first, is --{other}'s: "
                             f"give each a name of its own")
+
+
+def is_terminal(path: str) -> bool:
+    """Is ``path`` a terminal, a pty or a serial port (a tty device), told from its device
+    number without opening it (opening a serial port raises DTR, which may key a radio's
+    TXEN)? Unix98 pty slaves are majors 136-143 (Linux devices.txt); every other tty device
+    has ``tty`` for its sysfs subsystem."""
+    import stat
+    try:
+        st = os.stat(path)
+    except OSError:
+        return False
+    if not stat.S_ISCHR(st.st_mode):
+        return False
+    major, minor = os.major(st.st_rdev), os.minor(st.st_rdev)
+    if 136 <= major <= 143:
+        return True
+    subsystem = f"/sys/dev/char/{major}:{minor}/subsystem"
+    return os.path.exists(subsystem) and os.path.basename(os.path.realpath(subsystem)) == "tty"
 
 
 def robot_list(text: str) -> tuple[int, ...]:
@@ -275,10 +298,16 @@ def mac_options(p: argparse.ArgumentParser) -> None:
     profile_option(p)
 
 
-def mac_config(a: argparse.Namespace):
+def mac_config(a: argparse.Namespace, own: int):
+    """The MAC configuration of a bench station whose ID is ``own`` (a child's ``--id``, the
+    father's 0). A ``--team`` without ``own`` is refused: the station claimed the channel
+    and formed a ring all the same, outside the team it was told."""
     kw = {"checksum": a.checksum, "quiet_channel": not a.idle_noise, "profile": a.profile,
           "auth": a.auth_key}
     if a.team:
+        if own not in a.team:
+            raise UserError(f"--team {','.join(map(str, sorted(a.team)))} leaves out this "
+                            f"robot's own ID {own}: give the team it belongs to")
         kw["team"] = frozenset(a.team)
     if getattr(a, "standby", False):
         kw["standby"] = True

@@ -12,7 +12,7 @@ from ..bench.hub_parts import (MAX_BAUD, MAX_SECONDS, MIN_BAUD, HubError, check_
                                parse_baud, parse_drop)
 from ..bench.radio_hub import RadioHub
 from ..bench.runner import take_stop_signals
-from .common import UserError, file_name
+from .common import UserError, distinct_outputs, file_name
 
 
 def cmd_radio_hub(a: argparse.Namespace) -> int:
@@ -87,6 +87,8 @@ def run_hub_cli(nodes: int, baud: int = 9600, ber: float = 0.0, noise: bool = Fa
                 writer = PcapWriter(stream, *hub.capture_interfaces(), tsresol=9, live=True)
             except OSError as e:
                 hub.close()
+                if pcap == "-" and isinstance(e, BrokenPipeError):
+                    raise                # stdout's reader gone already: as every command ends
                 raise ValueError(f"cannot write capture {pcap}: {e.strerror or e}") from None
             hub.capture(writer)
         # SIGHUP too: a closed terminal must not leave links to ptys the next one is given
@@ -176,6 +178,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main_radio_hub(args: argparse.Namespace) -> int:
     """Entry for the parsed ``radio-hub`` subcommand (see ``add_arguments``)."""
+    distinct_outputs(pcap=getattr(args, "pcap", None))     # (not a serial port: it would send)
     baud = args.baud
     if isinstance(baud, float) and baud.is_integer():
         baud = int(baud)

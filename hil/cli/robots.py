@@ -20,7 +20,7 @@ def cmd_child(a: argparse.Namespace) -> int:
     runner = Runner()
     try:
         station, child = build_child(runner, a.id, a.radio, a.can, txen=a.txen,
-                                     config=mac_config(a), can_log=a.can_log,
+                                     config=mac_config(a, a.id), can_log=a.can_log,
                                      events=sys.stdout if a.events else None, pcap=a.pcap)
     except RunError as exc:
         runner.run(0)
@@ -141,6 +141,8 @@ def cmd_father(a: argparse.Namespace) -> int:
     from ..view.father import HELP_WORDS, FatherConsole, Tee, order_help
     if a.json and a.quiet:
         raise UserError("--json and --quiet: choose one")
+    if sys.stdin is None:
+        a.no_input = True          # (started with its standard input closed: no orders to read)
     distinct_outputs(log=a.log, pcap=a.pcap)
     log = None
     if a.log:
@@ -169,7 +171,7 @@ def cmd_father(a: argparse.Namespace) -> int:
         console = FatherConsole(out, "json" if a.json else "quiet" if a.quiet else "human")
     try:
         station = build_father(runner, a.radio, txen=a.txen, standby=a.standby,
-                               config=mac_config(a), events=out if a.json else None,
+                               config=mac_config(a, 0), events=out if a.json else None,
                                pc=a.pc, pcap=a.pcap)
     except RunError as exc:
         runner.run(0)

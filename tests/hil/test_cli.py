@@ -1357,7 +1357,8 @@ def test_a_capture_that_cannot_be_written_or_would_transmit_is_refused():
 
 def test_a_capture_whose_reader_goes_away_stops():
     """``rprs capture --pcap - | head -c 300``: it said ``capture stopped: Broken pipe`` only
-    when killed, listening on (holding the port) meanwhile. It stops now, status 1."""
+    when killed, listening on (holding the port) meanwhile. It stops now, status 1, as every
+    command whose reader has gone (its summary line on stderr, no error)."""
     from firmware_model.radio.frame import Frame
     master, slave = os.openpty()
     try:
@@ -1371,10 +1372,9 @@ def test_a_capture_whose_reader_goes_away_stops():
             time.sleep(0.1)
         assert p.poll() == 1, "still capturing with its reader gone"
         err = p.stderr.read()
-        # (gone before the header was all written: it ends as every command then does,
-        # quietly; after: it says the capture stopped)
-        assert b"Traceback" not in err and (b"capture stopped: [Errno 32] Broken pipe" in err
-                                            or b"rprs: error" not in err), err
+        # as every command whose standard output's reader has gone: status 1, no error line
+        # (it said "capture stopped: [Errno 32] Broken pipe" once the header was written)
+        assert b"Traceback" not in err and b"rprs: error" not in err, err
     finally:
         if p.poll() is None:
             p.kill()
@@ -1575,3 +1575,92 @@ def test_a_child_says_how_many_bytes_came_while_its_radio_was_deaf():
     assert p.returncode == 0, err
     assert re.search(r"robot 1: .*, \d+ bytes came while its radio sent or switched "
                      r"\(deaf: dropped\)", out + err), out + err
+
+
+@pytest.mark.parametrize("command", [
+    ["capture", "--radio", "PORT", "--pcap", "PTY", "--duration", "1"],
+    ["sim", "--robots", "1,2", "--duration", "1", "--pcap", "PTY"],
+    ["child", "--id", "1", "--radio", "loop://", "--pcap", "PTY", "--duration", "1"],
+    ["father", "--radio", "loop://", "--pcap", "PTY", "--no-input", "--duration", "1"],
+    ["radio-hub", "--nodes", "2", "--pcap", "PTY"],
+], ids=["capture", "sim", "child", "father", "radio-hub"])
+def test_a_capture_onto_a_serial_port_is_refused(command, capsys):
+    """``rprs capture --radio node3 --pcap node2``: the listener that "sends nothing" wrote
+    its pcapng onto another radio's pty, which the radio transmitted (and it heard itself).
+    Any output that is a terminal, pty or serial port is refused, from its device number:
+    the port is not opened (that raises DTR, which may key a radio)."""
+    master, slave = os.openpty()
+    m2, s2 = os.openpty()
+    try:
+        args = [os.ttyname(slave) if x == "PTY" else os.ttyname(s2) if x == "PORT" else x
+                for x in command]
+        code, out, err = rprs(capsys, *args)
+    finally:
+        for fd in (master, slave, m2, s2):
+            os.close(fd)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("rprs: error: --pcap ") and \
+        "is a terminal or a serial port: what is written there would be sent" in err
+
+
+def test_is_terminal_tells_ttys_from_files_and_other_devices(tmp_path):
+    from hil.cli.common import is_terminal
+    master, slave = os.openpty()
+    try:
+        assert is_terminal(os.ttyname(slave))
+    finally:
+        os.close(master)
+        os.close(slave)
+    (tmp_path / "f").write_text("")
+    assert not is_terminal(str(tmp_path / "f")) and not is_terminal(str(tmp_path / "none"))
+    assert not is_terminal(os.devnull)
+    r, w = os.pipe()
+    try:
+        assert not is_terminal(f"/proc/self/fd/{w}")
+    finally:
+        os.close(r)
+        os.close(w)
+
+
+@pytest.mark.parametrize("command", [["child", "--id", "1", "--team", "2,3"],
+                                     ["father", "--team", "1,2", "--no-input"]])
+def test_a_team_without_the_robots_own_id_is_refused(command, capsys):
+    """``--team 2,3`` for robot 1 (or ``1,2`` for the father, ID 0): the station claimed the
+    channel and formed a ring of itself outside the team it was told."""
+    code, out, err = rprs(capsys, *command, "--radio", "loop://", "--duration", "1")
+    own = "1" if command[0] == "child" else "0"
+    assert (code, err) == (2, f"rprs: error: --team {command[command.index('--team') + 1]} "
+                              f"leaves out this robot's own ID {own}: give the team it "
+                              f"belongs to\n")
+
+
+def test_a_closed_standard_input_is_no_traceback():
+    """Started with standard input closed (``0<&-``): ``decode --stream`` says so in one
+    line (it was an AttributeError traceback); the father reads no orders, as with
+    ``--no-input`` (its input thread died in a traceback)."""
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "decode", "--stream"],
+                       stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
+                       preexec_fn=lambda: os.close(0))
+    assert (p.returncode, p.stderr) == (2, "rprs: error: standard input is closed: --stream "
+                                           "reads the bytes from it\n")
+    p = subprocess.run([sys.executable, "-m", "hil.cli", "father", "--radio", "loop://",
+                        "--duration", "1", "--plain"], stdin=subprocess.DEVNULL,
+                       capture_output=True, text=True, timeout=60,
+                       preexec_fn=lambda: os.close(0))
+    assert p.returncode == 0 and "Traceback" not in p.stderr and "Exception" not in p.stderr
+    assert p.stderr.splitlines()[-1].startswith("orders: 0"), p.stderr
+
+
+def test_a_hub_whose_capture_reader_is_gone_at_start_ends_quietly():
+    """``rprs radio-hub --pcap - | true``: "cannot write capture -: Broken pipe", status 2;
+    now as every command whose standard output's reader has gone: status 1, and nothing on
+    stderr but what the hub says there in place of stdout (its ports, its summary)."""
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        p = subprocess.run([sys.executable, "-m", "hil.cli", "radio-hub", "--nodes", "2",
+                            "--pcap", "-"], stdout=w, stderr=subprocess.PIPE, text=True,
+                           timeout=60)
+    finally:
+        os.close(w)
+    assert p.returncode == 1 and "error" not in p.stderr, p.stderr
