@@ -40,7 +40,16 @@ def cmd_encode(a: argparse.Namespace) -> int:
     if a.fresh is not None and a.auth_key is None:
         raise UserError("--fresh goes with --auth-key (the freshness value of a signed frame)")
     try:
-        parse_content(content)
+        commands = parse_content(content)
+        if (a.checksum or a.auth_key is not None) and CRC_TAIL.search(content):
+            raise UserError("the Content already ends with crc(...); "
+                            f"{'--checksum' if a.checksum else '--auth-key'} seals it itself: "
+                            "give the Content without it (or leave the option out to send it "
+                            "as it is)")
+        written = "".join(c.text() for c in commands if c.name != "crc")
+        if written != CRC_TAIL.sub(b"", content).decode("ascii"):
+            print(f"rprs encode: note: a sender writes numbers as {written!r} (docs/protocol.md "
+                  f"clause 17); receivers must still take these", file=sys.stderr)
         if a.auth_key is not None:
             # the authenticated profile's last command, sealed as a station does (clause 52)
             frame = auth.seal(a.auth_key, a.dst, a.src, a.num, a.type, content, a.fresh or 0)

@@ -222,6 +222,9 @@ def cpu_costs(a: argparse.Namespace):
         return DEFAULT_COSTS
     try:
         return load_costs(path)
+    except UnicodeDecodeError:
+        raise UserError(f"cannot read the cost table {path}: not a text file (a TOML table "
+                        f"of cycle costs, docs/cpu.md)") from None
     except ValueError as exc:
         raise UserError(str(exc)) from None
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import load_rate, positive, progress_bars, robot_list
+from .common import UserError, load_rate, positive, progress_bars, robot_list
 from .sim import cpu_costs, cpu_option
 
 def _hours(text: str) -> float:
@@ -20,6 +20,10 @@ def _hours(text: str) -> float:
 
 def cmd_soak(a: argparse.Namespace) -> int:
     from ..sim.soak import report, run_soaks
+    if len(a.robots) < 2:
+        raise UserError(f"--robots {','.join(map(str, a.robots))}: a soak needs at least two "
+                        f"robots (its traffic goes between them; one alone ends with nothing "
+                        f"checked)")
     modes = {"on": [True], "off": [False], "both": [True, False]}[a.checksum_mode]
     # one bar per run (with --checksum both, the two run side by side on two CPUs)
     updates, close = progress_bars(a.hours * 3600, [f"soak, checksum {'on' if ck else 'off'}"

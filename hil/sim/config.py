@@ -19,6 +19,11 @@ if TYPE_CHECKING:
     from firmware_model.radio.peer_macs import PeerConfig
 
 
+
+MAX_DURATION_S = 1e9
+"""The longest run (simulated s, about 31 years; 1.6e16 ticks): the idle ring leaps a day in
+a fraction of a second, and a duration of 1e300 s ran with float ticks."""
+
 class ConfigError(ValueError):
     """A simulation setting that cannot work (bad robot list, fault time, load ...)."""
 
@@ -115,6 +120,9 @@ class SimConfig:
             raise ConfigError(f"robot IDs repeat in {list(self.robots)}")
         if not self.duration > 0:
             raise ConfigError(f"duration must be positive, got {self.duration}")
+        if self.duration > MAX_DURATION_S:
+            raise ConfigError(f"duration {self.duration:g} s is more than {MAX_DURATION_S:.0e} s "
+                              f"(about 31 years), the longest run simulated")
         if s_to_ticks(self.duration) < 1:
             raise ConfigError(f"duration {self.duration:g} s is shorter than one tick (62.5 ns): "
                               f"nothing would run")

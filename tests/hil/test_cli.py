@@ -1664,3 +1664,41 @@ def test_a_hub_whose_capture_reader_is_gone_at_start_ends_quietly():
     finally:
         os.close(w)
     assert p.returncode == 1 and "error" not in p.stderr, p.stderr
+
+
+@pytest.mark.parametrize("args,line", [
+    (["encode", "--src", "1", "--dst", "2", "--checksum", "movex(1)crc(12345)"],
+     "rprs: error: the Content already ends with crc(...); --checksum seals it itself: give "
+     "the Content without it (or leave the option out to send it as it is)\n"),
+    (["sim", "--duration", "1e300"],
+     "rprs: error: duration 1e+300 s is more than 1e+09 s (about 31 years), the longest run "
+     "simulated\n"),
+    (["soak", "--robots", "1"],
+     "rprs: error: --robots 1: a soak needs at least two robots (its traffic goes between "
+     "them; one alone ends with nothing checked)\n"),
+], ids=["encode crc twice", "sim 1e300 s", "soak of one"])
+def test_more_user_mistakes_are_one_line(args, line, capsys):
+    """``encode --checksum`` on a Content that has its crc wrote two (clause 20: once, last);
+    ``sim --duration 1e300`` ran with float ticks and 300-digit counts; ``soak --robots 1``
+    ran an hour of nothing and ended with its invariants empty."""
+    code, out, err = rprs(capsys, *args)
+    assert (code, out, err) == (2, "", line)
+
+
+def test_encode_notes_numbers_a_sender_never_writes(capsys):
+    """``rprs encode 'movex(1.50)'`` encodes what it is given (receivers must take it) and
+    notes how a sender writes it (docs/protocol.md clause 17)."""
+    code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "2", "movex(1.50)")
+    assert code == 0 and bytes.fromhex(out.strip())[12:-2] == b"movex(1.50)"
+    assert err == ("rprs encode: note: a sender writes numbers as 'movex(1.5)' "
+                   "(docs/protocol.md clause 17); receivers must still take these\n")
+    code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "2", "movex(1.5)")
+    assert code == 0 and err == ""
+
+
+def test_a_cost_table_that_is_not_text_is_named(tmp_path, capsys):
+    bad = tmp_path / "costs.toml"
+    bad.write_bytes(b"\xff\xfe\x00")
+    code, out, err = rprs(capsys, "sim", "--duration", "1", "--cpu-costs", str(bad))
+    assert (code, err) == (2, f"rprs: error: cannot read the cost table {bad}: not a text file "
+                              f"(a TOML table of cycle costs, docs/cpu.md)\n")
