@@ -178,12 +178,13 @@ class Air:
     # -- the radios' side -----------------------------------------------------------------
 
     def transmit(self, radio: AirRadio, data: bytes, t0: int, bt: int) -> None:
+        tx = Transmission(radio, data, t0, bt)
         if radio in self.carrier:            # the frame goes on after a gap
             self.carrier.discard(radio)
+            tx.continued = True
             for r in self.radios:
                 if r.noise_from < t0:
                     r.noise_from = t0
-        tx = Transmission(radio, data, t0, bt)
         self.occupations += 1
         if radio not in self.uncounted:
             self.sent[radio.robot] = self.sent.get(radio.robot, 0) + 1
@@ -646,6 +647,7 @@ class Air:
         """The sender died at ``now`` (or, ``carrier``, paused with its carrier on): only
         bytes complete by then were on air."""
         tx.aborted = True
+        tx.paused = carrier
         for r in self.radios:
             rx = r.rx
             if rx is not None and rx.tx is tx:

@@ -132,6 +132,8 @@ class FrameOnAir(TraceEvent):
     bytes: int
     collided: bool
     aborted: bool
+    paused: bool | None = _tag()
+    continued: bool | None = _tag()
     pc: int | None = _tag()
     extra: int | None = _tag()
 

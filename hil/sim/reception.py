@@ -65,7 +65,8 @@ class ByteStream:
 class Transmission:
     """One burst on air from ``radio``: byte i occupies [t0 + i*bt, t0 + (i+1)*bt)."""
 
-    __slots__ = ("radio", "data", "t0", "bt", "end", "collided", "aborted", "n")
+    __slots__ = ("radio", "data", "t0", "bt", "end", "collided", "aborted", "n", "paused",
+                 "continued")
 
     def __init__(self, radio: AirRadio, data: bytes, t0: int, bt: int) -> None:
         self.radio = radio
@@ -76,6 +77,12 @@ class Transmission:
         self.end = t0 + len(data) * bt
         self.collided = False
         self.aborted = False
+        """Cut short: its sender's radio died, or (``paused``) its UART ran dry mid-frame."""
+        self.paused = False
+        """Cut by a pause, not a death: the sender's transmit handler was late, its carrier
+        stays on and the frame goes on in the sender's next transmission (``continued``)."""
+        self.continued = False
+        """The rest of a paused frame."""
 
 
 class Reception:

@@ -520,8 +520,12 @@ class World:
             self.quiet_ring.heard(tx)
         if self.pcap is not None:
             sent = tx.data if not tx.aborted else tx.data[:(tx.end - tx.t0) // tx.bt]
-            marks = [w for w, on in (("collided", tx.collided), ("aborted: the sender's radio "
-                                     "died", tx.aborted)) if on]
+            marks = [w for w, on in (
+                ("continued: the rest of a paused frame", tx.continued),
+                ("collided", tx.collided),
+                ("aborted: the sender's radio died", tx.aborted and not tx.paused),
+                ("paused: the sender's transmit handler was late; the frame goes on in its "
+                 "next packet", tx.paused)) if on]
             if r < 0:
                 marks.insert(0, "a transmitter that is no robot")
             packet = {"key": self._radio_key.get(tx.radio, "foreign"), "end": tx.end,
@@ -555,7 +559,9 @@ class World:
             t=self.sched.now, src=r, dst=dst, num=num, type=typ, len=n, kind=kind,
             start=tx.t0, end=tx.end,
             bytes=len(d) if not tx.aborted else (tx.end - tx.t0) // tx.bt,
-            collided=tx.collided, aborted=tx.aborted, pc=pc, extra=extra))
+            collided=tx.collided, aborted=tx.aborted and not tx.paused,
+            paused=True if tx.paused else None, continued=True if tx.continued else None,
+            pc=pc, extra=extra))
 
     def _on_collision(self, t0: int, robots: list[int]) -> None:
         self.collisions += 1

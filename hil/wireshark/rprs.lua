@@ -68,6 +68,10 @@ f.early = ProtoField.bool("rprs.analysis.early",
                           "Sent before Ttrans had passed since the previous frame ended")
 f.collided = ProtoField.bool("rprs.analysis.collided", "Collided with another transmission")
 f.aborted = ProtoField.bool("rprs.analysis.aborted", "Cut short: the sender's radio died")
+f.paused = ProtoField.bool("rprs.analysis.paused",
+                           "Paused: the sender's transmit handler was late; the frame goes on "
+                           .. "in its next packet")
+f.continued = ProtoField.bool("rprs.analysis.continued", "Continued: the rest of a paused frame")
 
 local e_header = ProtoExpert.new("rprs.header.bad", "No Header 0F 0A 05: garbage or a cut frame",
                                  expert.group.MALFORMED, expert.severity.ERROR)
@@ -96,8 +100,13 @@ local e_collided = ProtoExpert.new("rprs.analysis.collided.expert",
 local e_aborted = ProtoExpert.new("rprs.analysis.aborted.expert",
                                   "Cut short: the sender's radio died mid-frame",
                                   expert.group.MALFORMED, expert.severity.ERROR)
+local e_piece = ProtoExpert.new("rprs.analysis.piece.expert",
+                                "A piece of a frame its sender paused (its transmit handler "
+                                .. "was late, the CPU model): the frame is this interface's "
+                                .. "packets from the first paused to the last continued",
+                                expert.group.SEQUENCE, expert.severity.NOTE)
 rprs.experts = { e_header, e_digit, e_length, e_end, e_crc, e_auth, e_retrans, e_early,
-                 e_collided, e_aborted }
+                 e_collided, e_aborted, e_piece }
 
 -- Preferences (Edit > Preferences > Protocols > RPRS; tshark -o rprs.NAME:VALUE)
 rprs.prefs.check_crc = Pref.bool("Verify crc() checksums", true,
@@ -288,8 +297,10 @@ local function mark_comment(tvb, t, info, a)
     local comment = comment_field()
     if comment == nil then return info end
     local text = tostring(comment.value)
-    for _, mark in ipairs({ { "collided", f.collided, e_collided, "[collided] " },
-                            { "aborted", f.aborted, e_aborted, "[cut short] " } }) do
+    for _, mark in ipairs({ { "continued", f.continued, e_piece, "[continued] " },
+                            { "collided", f.collided, e_collided, "[collided] " },
+                            { "aborted", f.aborted, e_aborted, "[cut short] " },
+                            { "paused", f.paused, e_piece, "[paused] " } }) do
         if text:find(mark[1]) then
             a = a or t:add(rprs, tvb(), "Analysis")
             local item = a:add(mark[2], true)
@@ -310,6 +321,16 @@ function rprs.dissector(tvb, pinfo, tree)
         -- the packet, and says so in its comment)
         pinfo.cols.info = mark_comment(tvb, t, "no byte sent")
         return 0
+    end
+    local comment = comment_field()
+    local text = comment ~= nil and tostring(comment.value) or ""
+    if text:find("paused") or text:find("continued") then
+        -- a piece of a frame sent with gaps (the capture's comment says so): its bytes are
+        -- the frame's, in pieces; none of them is malformed for being a piece
+        t:add(f.content, tvb())
+        pinfo.cols.info = mark_comment(tvb, t, string.format("piece of a paused frame "
+                                                             .. "(%d bytes)", n))
+        return n
     end
     if n < 3 or tvb(0, 3):bytes():tohex() ~= "0F0A05" then
         t:add_proto_expert_info(e_header)

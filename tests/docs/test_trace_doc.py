@@ -6,10 +6,11 @@ table cannot drift from hil/sim/world.py."""
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 
 import pytest
 
-from firmware_model.cycle_costs import DEFAULT_COSTS
+from firmware_model.cycle_costs import DEFAULT_COSTS, Cost
 from firmware_model.radio.mac import MacConfig
 from hil.sim.events import KINDS as EVENT_KINDS, from_record, meta_from_record
 from hil.sim.faults import KINDS, parse_fault
@@ -39,6 +40,9 @@ RUNS = {
                      faults=faults("busoff:1@1", "stuck:2@1-1.2", "silent:1.JOINT2@1-2",
                                    "stall:1.JOINT1@1-2", "noisy:2.MCU@1.5-2")),
     "sequence": SimConfig(robots=(1, 2), duration=3.0, seed=1, can=True, sequence=((1, 2), 1)),
+    # a transmit handler slower than a byte time: frames go out in pieces (paused, continued)
+    "paused": SimConfig(robots=(0, 1, 2), duration=3.0, seed=1, load=1.0,
+                        cpu=replace(DEFAULT_COSTS, uart_tx_byte=Cost(20_000, "test", "test"))),
     "paper": SimConfig(robots=(1, 2, 3), duration=3.0, seed=1, load=2.0,
                        mac=MacConfig(profile="paper")),
     "aloha": SimConfig(robots=(1, 2, 3), duration=3.0, seed=1, load=2.0, mac_kind="aloha"),

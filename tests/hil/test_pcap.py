@@ -862,3 +862,35 @@ def test_a_burst_that_collided_is_marked_collided_though_it_is_no_frame(tmp_path
     rows = _tshark_rows(path, "-Y", "rprs.analysis.collided", "-T", "fields", "-e",
                         "frame.interface_name", "-e", "_ws.col.Info")
     assert any(r.startswith("foreign transmitters\t[collided] not a frame") for r in rows), rows
+
+
+def test_a_frame_sent_in_pieces_is_paused_not_aborted(tmp_path):
+    """A transmit handler slower than a byte time (docs/cpu.md's ``uart_tx_byte = 20000``)
+    sends each child frame in pieces, its carrier kept on. The trace called each piece
+    ``aborted`` ("the sender's radio died") and the capture commented it so; tshark counted
+    11,916 frames cut short. The pieces are now ``paused`` and ``continued``; the dissector
+    shows them as pieces, a note, not an error."""
+    costs = tmp_path / "slow.toml"
+    costs.write_text("[costs]\nuart_tx_byte = 20000\n")
+    trace, path = tmp_path / "t.jsonl", tmp_path / "p.pcapng"
+    p = rprs("sim", "--robots", "0,1,2", "--duration", "6", "--seed", "1", "--load", "1",
+             "--cpu", "estimated", "--cpu-costs", str(costs), "--no-progress", "--trace",
+             str(trace), "--pcap", str(path))
+    assert p.returncode == 0, p.stderr
+    frames = [e for e in map(json.loads, trace.read_text().splitlines()) if e["ev"] == "frame"]
+    pieces = [e for e in frames if e.get("paused") or e.get("continued")]
+    assert pieces and not any(e["aborted"] for e in frames)
+    # each child's paused piece is followed, on that child, by a continued one
+    for e in pieces:
+        if e.get("paused"):
+            nxt = next((f for f in frames if f["src"] == e["src"] and f["start"] > e["start"]),
+                       None)
+            assert nxt is None or (nxt.get("continued") and nxt["start"] >= e["end"]), (e, nxt)
+    if TSHARK is None:
+        return
+    rows = _tshark_rows(path, "-Y", "rprs.analysis.aborted or rprs.header.bad "
+                        "or rprs.len.bad", "-T", "fields", "-e", "frame.number")
+    assert rows == [] or rows == [""], rows[:5]
+    pieces_seen = _tshark_rows(path, "-Y", "rprs.analysis.paused or rprs.analysis.continued",
+                               "-T", "fields", "-e", "frame.number")
+    assert len([r for r in pieces_seen if r]) == len(pieces)
