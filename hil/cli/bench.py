@@ -31,6 +31,7 @@ def cmd_bench(a: argparse.Namespace) -> int:
             robots = sorted({f.src for f in res.frames})
             ok = bool(res.frames)
             report = {"bytes": res.bytes, "frames": len(res.frames), "garbage_bytes": res.garbage,
+                      "joined_mid_frame_bytes": res.joined_mid_frame,
                       "failed_frames": res.failed, "robots_heard": robots, "link_ok": ok,
                       "seconds": res.seconds, "error": res.error}
             if a.json:
@@ -39,7 +40,9 @@ def cmd_bench(a: argparse.Namespace) -> int:
                 verdict = "OK" if ok else "NO FRAMES" if res.bytes else "SILENT"
                 print(f"link {verdict}: {res.bytes} bytes in {secs} s, "
                       f"{len(res.frames)} good frames from robots {robots or 'none'}, "
-                      f"{res.garbage} garbage bytes, {res.failed} broken frames")
+                      f"{res.garbage} garbage bytes, {res.failed} broken frames"
+                      + (f", {res.joined_mid_frame} bytes of a frame it began to hear mid-way"
+                         if res.joined_mid_frame else ""))
             return went_away() if res.error else 0 if ok else 1
         rep = bench.cycle_report(res)
         if a.json:

@@ -164,6 +164,10 @@ def test_bench_scripts_against_the_hub(hub, tmp_path):
                               capture_output=True, text=True, timeout=60)
         rep = json.loads(link.stdout)
         assert link.returncode == 0 and rep["link_ok"]
+        # every byte read is accounted for: a good frame's, garbage, or the tail of the frame
+        # it began to hear mid-way (bench link left the last out of its report)
+        frame_bytes = rep["bytes"] - rep["garbage_bytes"] - rep["joined_mid_frame_bytes"]
+        assert 0 <= frame_bytes and rep["joined_mid_frame_bytes"] <= 576, rep
         cyc = subprocess.run([sys.executable, "-m", "hil.cli", "bench", "cycle", "--radio",
                               hub.paths[4], "--duration", "3"],
                              capture_output=True, text=True, timeout=60)
