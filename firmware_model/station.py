@@ -20,8 +20,8 @@ from .mcu.reload_timer import ReloadTimer
 from .mcu.scheduler import Scheduler
 from .mcu.uart import Uart
 from .radio.deframer import Deframer, FrameFailed, FrameReceived, Garbage
-from .radio.mac import (SEND, Deliver, MacConfig, NumberBehind, Refused, RotationalMac,
-                         Transmit, TxEnable)
+from .radio.mac import (SEND, BadChecksum, Deliver, MacConfig, NumberBehind, Refused,
+                         RotationalMac, Transmit, TxEnable)
 from .radio.station_mac import StationMac
 
 if TYPE_CHECKING:
@@ -83,6 +83,9 @@ class RadioStation:
         48a, with the checksum), ``ring`` (the ring's other rules, clause 38)."""
         self.behind = 0
         """Message frames whose Number went backwards (clause 48a), refused or not."""
+        self.bad_checksum = 0
+        """Frames whose crc() was missing or wrong (with the checksum extension: clause 43,
+        failed frames; ``frames_heard`` counts them too, as the deframer took them whole)."""
         self._stall = max(cfg.stall_gap, 2 * uart.byte_ticks)
         self._promise: int | None = None
         """The End a failed frame's Length promised, while its turn is to close there: if its
@@ -429,6 +432,8 @@ class RadioStation:
                     self.refused[k] = self.refused.get(k, 0) + 1
                 elif t is NumberBehind:
                     self.behind += 1
+                elif t is BadChecksum:
+                    self.bad_checksum += 1
                 if obs is not None:
                     obs(self, a, now)
 

@@ -31,8 +31,9 @@ from firmware_model.mcu.can_controller import CanController
 from firmware_model.radio.content import parse_content
 from firmware_model.radio.errors import WireError
 from firmware_model.radio.mac import (
-    UNACKNOWLEDGED, Deliver, Disable, DuplicateId, ForeignRing, Join, MacConfig, Message, Miss,
-    ModeChange, NumberBehind, Outcome, Refused, RotationalMac, SubmitError, Transmit, TxEnable,
+    UNACKNOWLEDGED, BadChecksum, Deliver, Disable, DuplicateId, ForeignRing, Join, MacConfig,
+    Message, Miss, ModeChange, NumberBehind, Outcome, Refused, RotationalMac, SubmitError,
+    Transmit, TxEnable,
 )
 from firmware_model.radio.auth import FreshnessExhausted, clock_freshness
 from firmware_model.station import RadioStation, Stalled, build_station
@@ -143,7 +144,19 @@ def _events_printer(out: TextSink | None, robot: int,
                 raise
             on_failed(f"cannot write the events: {why}")
 
+    crc_said = False
+
+    def say(line: str | None) -> None:
+        if line is None:
+            return
+        try:
+            (err or sys.stderr).write(f"rprs: {line}\n")
+            (err or sys.stderr).flush()
+        except (BrokenPipeError, ValueError):
+            pass
+
     def observe(st: RadioStation, a: object, now: int) -> None:
+        nonlocal crc_said
         if isinstance(a, Transmit):
             f = a.frame
             emit({"t": now, "ev": "tx", "robot": robot, "dst": f.dst, "num": f.num,
@@ -174,17 +187,19 @@ def _events_printer(out: TextSink | None, robot: int,
         elif isinstance(a, Late):
             emit({"t": now, "ev": "late", "robot": robot, "late": a.late})
         elif isinstance(a, (DuplicateId, ForeignRing)):
-            line = identity_line(robot, a)
-            try:
-                (err or sys.stderr).write(f"rprs: {line}\n")
-                (err or sys.stderr).flush()
-            except (BrokenPipeError, ValueError):
-                pass
+            say(identity_line(robot, a))
             if isinstance(a, DuplicateId):
                 emit({"t": now, "ev": "duplicate_id", "robot": robot, "yielding": a.yielding})
             else:
                 emit({"t": now, "ev": "foreign_ring", "robot": robot, "robots": list(a.robots),
                       "member": a.member})
+        elif isinstance(a, BadChecksum):
+            if not crc_said and st.bad_checksum >= CRC_SAY_AFTER and \
+                    st.bad_checksum == st.frames_heard:
+                crc_said = True
+                say(f"robot {robot}: the {st.bad_checksum} frames heard all failed the "
+                    f"checksum (--checksum: a missing or wrong crc(), docs/protocol.md clause "
+                    f"20): does the ring run without the checksum extension?")
         elif isinstance(a, Refused):
             emit({"t": now, "ev": "refused", "src": a.src, "num": a.num, "to": robot,
                   "reason": a.reason, **({"kind": a.kind} if a.kind else {})})
@@ -192,6 +207,11 @@ def _events_printer(out: TextSink | None, robot: int,
             emit({"t": now, "ev": "behind", "src": a.src, "num": a.num, "last": a.last,
                   "to": robot, "refused": a.refused})
     return observe
+
+
+CRC_SAY_AFTER = 3
+"""Frames heard, every one failing the checksum, before a station with ``--checksum`` says
+that the ring may run without the extension (once a run)."""
 
 
 class Late(NamedTuple):
@@ -597,8 +617,9 @@ def summary_line(station: RadioStation) -> str:
     r = station.refused
     auth = f"forged {r.get('forged', 0)}, replayed {r.get('replayed', 0)}, " \
         if m.cfg.auth is not None else ""
+    crc = f" (checksum failed {station.bad_checksum})" if m.cfg.checksum else ""
     line = (f"robot {station.id}: {m.mode}, ring {list(m.ring)}, frames sent {m.frames_sent}, "
-            f"heard {station.frames_heard}, bad frames {station.frames_failed}, "
+            f"heard {station.frames_heard}, bad frames {station.frames_failed}{crc}, "
             f"refused {sum(r.values())} ({auth}out of turn {r.get('out_of_turn', 0)}, own ID "
             f"{r.get('own_id', 0)}), numbers behind {station.behind}, pending {m.pending}")
     deaf = getattr(getattr(station.uart.line, "channel", None), "bytes_deaf", 0)

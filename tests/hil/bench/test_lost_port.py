@@ -90,3 +90,30 @@ def test_a_closer_that_raises_is_said_and_the_others_still_run(capsys):
     assert closed == ["first"] and runner.troubles == 1
     assert capsys.readouterr().err == ("rprs: while closing: ValueError: CAN 2.0A id must be "
                                        "in 0..0x7FF, got 0x800\n")
+
+
+def test_frames_failing_the_checksum_are_counted_and_said_once():
+    """A father with ``--checksum`` on a ring without it heard 50 frames, "bad frames 0,
+    refused 0", and never joined, with no word why. Frames failing the checksum (clause 43:
+    failed frames) are counted in the closing line, and once every frame heard has failed
+    it (three or more) the station says so in one line."""
+    import io
+    from firmware_model.radio.frame import Frame
+    from firmware_model.radio.mac import MacConfig
+    from firmware_model.station import build_station
+    from hil.bench.runner import _events_printer, summary_line
+    from hil.sim.realtime import RealTimeScheduler
+    err = io.StringIO()
+    observer = _events_printer(None, 0, err=err)
+    station, _ = build_station(0, RealTimeScheduler(), config=MacConfig(checksum=True),
+                               observer=observer)
+    t = 0
+    for k in range(4):                                     # heartbeats without crc()
+        data = Frame(dst=7, src=1, num=k, type=3, content=b"").encode()
+        station.uart.receive(data, t, 16640)
+        t += 20 * 16640 + 200_000
+    assert station.bad_checksum == station.frames_heard >= 3, (station.bad_checksum,
+                                                               station.frames_heard)
+    assert err.getvalue().count("\n") == 1
+    assert "frames heard all failed the checksum" in err.getvalue()
+    assert f"bad frames 0 (checksum failed {station.bad_checksum})" in summary_line(station)
