@@ -355,8 +355,15 @@ class OrderBook:
             if not (_submodules(p) or set()) & mine or p.state == "queued":
                 continue
             if p.dst == o.dst and not p.finished:
-                self._set(p, "unreported", now, f"replaced by #{o.id} before it was carried "
-                          f"out: the robot reports no order a newer one replaced")
+                acked = _tick_of(p, "acknowledged")
+                dropped = self._dropped.get(p.dst) if p.dst is not None else None
+                if acked is not None and dropped is not None and dropped >= acked:
+                    # the robot left the ring after taking it (restarted, or stopped): its
+                    # report may have been lost, not the order replaced
+                    self._set(p, "unreported", now, self._why_unreported(p, acked))
+                else:
+                    self._set(p, "unreported", now, f"replaced by #{o.id} before it was "
+                              f"carried out: the robot reports no order a newer one replaced")
             elif p.dst == BROADCAST and o.dst in p.expect:
                 del p.expect[o.dst]           # its answer to the broadcast will not come
 

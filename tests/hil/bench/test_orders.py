@@ -265,6 +265,27 @@ def test_a_report_ends_an_older_order_it_replaced_and_a_repeat_gets_its_own_repo
     assert seen[-1][:2] == (3, "done") and not book.open_orders()
 
 
+def test_an_order_replaced_after_its_robot_was_dropped_says_the_drop():
+    """``1 joint(1,150)``; robot 1 restarts mid-move (dropped, rejoins), its submodules carry
+    the move out; then ``1 joint(1,0)``, reported: the first order was said "replaced ...
+    before it was carried out", though it was carried out and only its report was lost. The
+    drop, which the father saw first, is its reason."""
+    from firmware_model.radio.mac import Disable
+    seen = []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state, o.reason)))
+    first = _msg(book, 1, cmd("joint", 1, 150), dst=1)
+    _sent(book, first, 10)
+    book.observe(Outcome(first, True, ""), 20)
+    book.observe(Disable(1), 100)                          # dropped after acknowledging it
+    second = _msg(book, 2, cmd("joint", 1, 0), dst=1)
+    _sent(book, second, 200)
+    book.observe(Outcome(second, True, ""), 210)
+    book.observe(Deliver(1, 0, 5, 3, (cmd("done"), cmd("joint", 1, 0))), 300)
+    reason = next(r for i, st, r in seen if i == 1 and st == "unreported")
+    assert "the ring dropped robot 1 after it acknowledged it" in reason, reason
+    assert "replaced" not in reason
+
+
 def test_an_order_left_unreported_says_what_the_father_saw():
     """A move cut by ``stop()``, and one whose robot the ring dropped, ended ``unreported``
     with "a move to where the arm already is, or ... replaced": false in both cases."""
