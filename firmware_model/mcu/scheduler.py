@@ -113,6 +113,22 @@ class Scheduler:
             heapq.heappush(heap, (when, self._seq, e))
         return ev
 
+    def reserve(self) -> int:
+        """A sequence number taken now, for events scheduled later (:meth:`at_seq`) that must
+        run, among the events due at their tick, where events scheduled now would: after
+        those scheduled before, before those scheduled after."""
+        self._seq += 1
+        return self._seq
+
+    def at_seq(self, when: int, seq: int, fn: Callable[..., Any], *args: Any) -> Event:
+        """Like :meth:`at`, in the place of sequence number ``seq`` (:meth:`reserve`); the
+        caller has at most one event pending per tick under one ``seq``."""
+        if when < self.now:
+            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
+        ev = Event(when, fn, args)
+        heapq.heappush(self._heap, (when, seq, ev))
+        return ev
+
     def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
         """Run ``fn(*args)`` ``delay`` ticks from now."""
         return self.at(self.now + delay, fn, *args)

@@ -220,6 +220,10 @@ class Air:
                     else:
                         rx = r.rx = Reception(data, t0, bt, tx.n, tx, lead=r.uart.rx_lead(bt))
                         late = self._lazy(r, rx, tx.n, data, t0)
+                        if late:
+                            # its bytes may yet come one by one (on_time): in the place of
+                            # the events each byte has here when none comes late
+                            rx.seq = self.sched.reserve()
                         # late: only the last byte has an event (at its RDRF)
                         self._bytewise(r, rx, tx.n if late else 0, tx.n - 1, ends)
                 else:
@@ -460,7 +464,14 @@ class Air:
         """The next byte of ``rx``'s clean prefix at its tick (not its last byte: the end
         event delivers that)."""
         if rx.pos < min(rx.lazy, rx.n - 1):
-            self.sched.at(rx.t0 + (rx.pos + 1) * rx.bt - rx.lead, self._on_time_byte, r, rx)
+            t = rx.t0 + (rx.pos + 1) * rx.bt - rx.lead
+            if rx.seq is None:
+                self.sched.at(t, self._on_time_byte, r, rx)
+            else:
+                # at its tick where the frame-by-frame run's byte event is: among the
+                # receivers of one byte, in the radios' order (not in the order their CPUs
+                # were first asked for something)
+                self.sched.at_seq(t, rx.seq, self._on_time_byte, r, rx)
 
     def _on_time_byte(self, r: AirRadio, rx: Reception) -> None:
         """A byte of a clean prefix completes now: at its tick if the receiver's CPU is still

@@ -93,7 +93,10 @@ class Reception:
     ``data`` is None for collision garbage (drawn from the radio's garbage stream)."""
 
     __slots__ = ("data", "t0", "bt", "pos", "n", "tx", "stream", "holes", "quiet", "lazy",
-                 "lead")
+                 "lead", "seq")
+    NOT_STATE = ("seq",)
+    """The scheduler's sequence number is its bookkeeping, not the reception's state
+    (hil/sim/state_walk.py)."""
 
     def __init__(self, data: bytes | None, t0: int, bt: int, n: int,
                  tx: Transmission | None = None, stream: ByteStream | None = None,
@@ -102,6 +105,9 @@ class Reception:
         self.t0 = t0
         self.bt = bt
         self.lead = lead
+        self.seq: int | None = None
+        """The scheduler's sequence number reserved when its bytes were to come one by one
+        from the start (hil/sim/air.py ``Air._on_time_next``), or None."""
         self.pos = 0
         self.n = n
         self.tx = tx

@@ -21,6 +21,10 @@ ones), and an int inside a tuple is written
 by replacing the tuple in its holder (:class:`InTuple`): a tick in ``(robot, end)`` or in an
 event's arguments moves on like any other.
 
+A class may name slots that are no state of its own in ``NOT_STATE``: the scheduler's
+bookkeeping (a sequence number it holds for events to come, hil/sim/reception.py), which two
+runs of one world number differently and a period does not move on; they are not walked.
+
 An object of a ``latest`` type holds the latest of something the part rewrites every period
 before it reads it (a record of a submodule's last status frame): its fields are *free*
 positions. Two snapshots whose free values differ are still periodic, but the period's own
@@ -152,7 +156,8 @@ def _fields_plan(t: type) -> tuple[tuple, bool, tuple[str, ...], Any]:
     ``__dict__``: asking for it would cost an AttributeError per object."""
     plain = t.__getattribute__ is object.__getattribute__ and not hasattr(t, "__getattr__")
     has_dict = not plain or any("__dict__" in vars(c) for c in t.__mro__)
-    slots = _all_slots(t)
+    skip = getattr(t, "NOT_STATE", ())
+    slots = tuple(n for n in _all_slots(t) if n not in skip)
     getter = operator.attrgetter(*slots) if len(slots) > 1 else None
     return ("obj", t), has_dict, slots, getter
 

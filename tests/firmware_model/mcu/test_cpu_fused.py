@@ -327,6 +327,11 @@ CASES = {
         robots=(0, 1, 2, 3), duration=10.0, can=True, load=1.0, seed=5,
         faults=("burst@3:0.05", "foreign@4.5:40", "foreign@6:x0f0a05", "busoff:1@5",
                 "drop@7-9:0.01")),
+    # two children's CAN frames end at one tick, their radio bytes then come one by one:
+    # each receiver's at its tick in the radios' order, not in the order their CPUs were
+    # first asked for something (a user's cost table; the two submits swapped in the trace)
+    "one tick's bytes on two busy CPUs, a slow RETI": dict(
+        robots=(0, 1, 2, 3), duration=21.0, can=True, load=1.0, seed=51, reti=300),
     "a robot fails and recovers, a stolen turn": dict(robots=(1, 2, 3, 4), duration=12.0,
                                                       load=2.0, seed=6,
                                                       faults=("fail:2@3", "recover:2@6",
@@ -343,8 +348,13 @@ def _world(case: str, fast: bool):
         from firmware_model.radio.mac import MacConfig
         kw["mac"] = MacConfig(auth=RingKey(bytes(range(16))))
     kw["faults"] = tuple(parse_fault(f) for f in kw.get("faults", ()))
+    costs = DEFAULT_COSTS
+    if "reti" in kw:
+        from dataclasses import replace
+        from firmware_model.cycle_costs import Cost
+        costs = replace(costs, reti=Cost(kw.pop("reti"), "a test's", "-"))
     records: list = []
-    w = World(SimConfig(cpu=DEFAULT_COSTS, fast_paths=fast, **kw), listeners=[records.append])
+    w = World(SimConfig(cpu=costs, fast_paths=fast, **kw), listeners=[records.append])
     w.run()
     return w, records
 
