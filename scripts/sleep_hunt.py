@@ -2,7 +2,7 @@
 (hil/sim/quiet_can.py) and ring leaps (hil/sim/quiet_ring.py) against the same world with both
 off, on random rings, faults, loads, byte errors and run segments.
 
-    python scripts/sleep_hunt.py [--seed 0] [--runs 100] [--cpu]
+    python scripts/sleep_hunt.py [--seed 0] [--runs 100] [--cpu [--cpu-costs FILE]]
 
 Each run draws a world from its seed (robots, duration, CAN sides, the standby father, the
 soak's random faults at a random spacing, a load that may stop half-way, byte errors, the
@@ -118,14 +118,14 @@ def cpu_figures(w: World) -> dict:
             for r, c in sorted(w.cpus.items())}
 
 
-def same_cpu_run(cfg: SimConfig, cuts: list[tuple[int, bool]]) -> bool:
+def same_cpu_run(cfg: SimConfig, cuts: list[tuple[int, bool]], costs=None) -> bool:
     """On the CPU model: does the run with the fast paths (lone handlers, late bytes on an
     idle CPU: docs/fast-paths.md), cut at ``cuts``, give the events, summary and CPU figures
     of the run with every byte at its tick and every handler on the general path, and, once
     every station has looked at its UART, its state but for the CPUs and the fast paths' own
-    forms (:func:`cpu_state`)?"""
+    forms (:func:`cpu_state`)? ``costs``: a cost table (default: the shipped one)."""
     from firmware_model.cycle_costs import DEFAULT_COSTS
-    cfg = replace(cfg, cpu=DEFAULT_COSTS)
+    cfg = replace(cfg, cpu=costs or DEFAULT_COSTS)
     slow_events: list[dict] = []
     fast_events: list[dict] = []
     slow = World(replace(cfg, fast_paths=False), on_event=slow_events.append)
@@ -193,14 +193,14 @@ def looked_at(w: World) -> None:
             r.uart.sync(w.sched.now)
 
 
-def same_sleeping_cpu_run(cfg: SimConfig, cuts: list[tuple[int, bool]]) -> bool:
+def same_sleeping_cpu_run(cfg: SimConfig, cuts: list[tuple[int, bool]], costs=None) -> bool:
     """On the CPU model, untraced: does the run whose CAN sides sleep (their interrupts raised
     as ghosts: hil/sim/can_ghosts.py), cut at ``cuts``, end where the run whose CAN sides
     never sleep does, cut alike: summary, state and every handler's figures? (Cut alike: on
     the CPU model a cut hands the bytes an idle CPU holds over then, which moves the count of
     late bytes, a figure of the fast path's, and nothing else.)"""
     from firmware_model.cycle_costs import DEFAULT_COSTS
-    cfg = replace(cfg, cpu=DEFAULT_COSTS)
+    cfg = replace(cfg, cpu=costs or DEFAULT_COSTS)
     slow = World(replace(cfg, can_sleep=False))
     fast = World(cfg)
     for w in (slow, fast):
@@ -217,12 +217,25 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=100, help="worlds to draw (default 100)")
     ap.add_argument("--cpu", action="store_true", help="the CPU model's fast paths instead: "
                     "each world on --cpu estimated with and without the fast paths")
+    ap.add_argument("--cpu-costs", metavar="FILE", default=None,
+                    help="with --cpu: this cost table (TOML, as rprs sim --cpu-costs) instead "
+                    "of the shipped one; slow handlers meet where the shipped ones do not")
     a = ap.parse_args(argv)
+    costs = None
+    if a.cpu_costs is not None:
+        if not a.cpu:
+            ap.error("--cpu-costs goes with --cpu")
+        from firmware_model.cycle_costs import load_costs
+        try:
+            costs = load_costs(a.cpu_costs)
+        except (OSError, ValueError) as exc:
+            ap.error(str(exc))
     bad = 0
     for seed in range(a.seed, a.seed + a.runs):
         cfg, cuts, traced = random_world(seed)
         t = time.perf_counter()
-        ok = (same_cpu_run(cfg, cuts) and same_sleeping_cpu_run(cfg, cuts)) if a.cpu \
+        ok = (same_cpu_run(cfg, cuts, costs) and same_sleeping_cpu_run(cfg, cuts, costs)) \
+            if a.cpu \
             else same_run(cfg, cuts, traced) and same_bytewise_run(cfg)
         bad += not ok
         print(f"seed {seed}: {'same run' if ok else 'DIFFERENT'} ({time.perf_counter() - t:.1f} s)"
