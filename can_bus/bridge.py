@@ -210,6 +210,11 @@ SHARED_IDS = frozenset({0x010})
 ``cansend vcan0 010#01`` as much as the child's)."""
 
 
+ECHO_LOOKAHEAD = 64
+"""How far behind the oldest own frame not yet heard back an echo may be matched (its
+predecessors' echoes lost): a bus hands frames back in order."""
+
+
 def _echoes_own_frames(bus: can.BusABC) -> bool:
     """Whether ``bus`` hands this process back the frames it sends: python-can's
     ``udp_multicast`` does (multicast loopback, which the other processes on the machine need;
@@ -296,6 +301,8 @@ class PythonCanBus:
                                                   if _echoes_own_frames(bus) else None)
         """Own frames sent and not yet heard back, on a bus that hands a process its own
         frames (``udp_multicast``: multicast loopback); None on the others."""
+        self.echoes_lost = 0
+        """Own frames that never came back (``_echo``)."""
         self.clashes: set[int] = set()
         """Identifiers this process sends that another node sent too (data frames): two
         nodes of one kind on the bus, e.g. a second ``rprs child`` on it. Said once each."""
@@ -582,10 +589,23 @@ class PythonCanBus:
         return self._echo(frame)
 
     def _echo(self, frame: CanFrame) -> bool:
-        """``frame`` is our own frame back (in order): sent, not heard."""
-        if self._echoes and frame == self._echoes[0]:
-            self._echoes.popleft()
+        """``frame`` is our own frame back (in order): sent, not heard. One that comes back
+        after later ones of ours were heard back is lost (a multicast datagram the socket's
+        buffer dropped): those before it are forgotten (``echoes_lost``), or every later
+        frame of ours would be taken for another node's, a clash."""
+        echoes = self._echoes
+        if not echoes:
+            return False
+        if frame == echoes[0]:
+            echoes.popleft()
             return True
+        for k in range(1, min(len(echoes), ECHO_LOOKAHEAD)):
+            if frame == echoes[k]:
+                for _ in range(k):
+                    echoes.popleft()
+                echoes.popleft()
+                self.echoes_lost += k
+                return True
         return False
 
     # -- the log ------------------------------------------------------------------------------

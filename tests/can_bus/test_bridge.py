@@ -944,3 +944,19 @@ def test_frames_a_stalled_peer_could_not_take_are_said_in_the_closing_line(tmp_p
     assert dropped > 0
     assert f"{dropped} frames sent dropped for a peer that was not reading (its queue " \
         "full)" in bus_notes(bus)
+
+
+def test_an_own_echo_lost_does_not_make_every_later_own_frame_another_nodes():
+    """On udp_multicast a process hears its own frames back, matched in order to the frames
+    it sent. One echo lost (a datagram a full socket buffer dropped) left every later own
+    frame unmatched: counted received, logged twice, handed to the nodes and said to clash
+    with another node. A later echo now matches past the lost one."""
+    from can_bus.frames import CanFrame
+    bus = PythonCanBus.__new__(PythonCanBus)
+    import collections
+    bus._echoes = collections.deque(CanFrame(0x181 + k, bytes([k])) for k in range(4))
+    bus.echoes_lost = 0
+    assert bus._echo(CanFrame(0x182, bytes([1])))            # the first echo was lost
+    assert bus.echoes_lost == 1 and bus._echo(CanFrame(0x183, bytes([2])))
+    assert not bus._echo(CanFrame(0x1FF, b""))               # no frame of ours: heard
+    assert bus._echo(CanFrame(0x184, bytes([3]))) and not bus._echoes
