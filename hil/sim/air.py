@@ -27,9 +27,8 @@ per-radio stream consumed in byte order. ``byte_by_byte=True`` delivers every by
 own tick; the tests check both give the same trace.
 
 Over 500 lines on purpose: receptions, collisions, idle noise and aborted senders share each
-radio's reception state and its delivery order; split apart, that state would have to be
-public. What one radio hears of one transmission (``Reception``) and the radios' side of
-the air (``AirRadio``) are in hil/sim/reception.py."""
+radio's reception state and its delivery order (split apart, it would have to be public).
+``Reception``, ``AirRadio``: hil/sim/reception.py."""
 from __future__ import annotations
 
 import math
@@ -220,10 +219,7 @@ class Air:
                     else:
                         rx = r.rx = Reception(data, t0, bt, tx.n, tx, lead=r.uart.rx_lead(bt))
                         late = self._lazy(r, rx, tx.n, data, t0)
-                        if late:
-                            # its bytes may yet come one by one (on_time): in the place of
-                            # the events each byte has here when none comes late
-                            rx.seq = self.sched.reserve()
+                        rx.seq = self.sched.reserve() if late else None    # (on_time)
                         # late: only the last byte has an event (at its RDRF)
                         self._bytewise(r, rx, tx.n if late else 0, tx.n - 1, ends)
                 else:
@@ -332,10 +328,9 @@ class Air:
             return
 
     def pause(self, radio: AirRadio, now: int) -> None:
-        """``radio``'s UART ran out of bytes at ``now``, a byte boundary, in the middle of a
-        frame (its transmit handler was late): the burst on air stops there. The radio still
-        transmits its carrier, an idle line (mark), so the others hear neither bytes nor
-        noise until the frame goes on (``transmit``) or TXEN drops (``carrier_off``)."""
+        """``radio``'s UART ran dry at ``now`` (a byte boundary) mid-frame, its transmit
+        handler late: the burst stops there, its carrier (an idle line) on, so the others
+        hear no byte or noise until the frame goes on (``transmit``) or TXEN drops."""
         for tx in self.active:
             if tx.radio is radio and not tx.aborted and tx.t0 < now < tx.end:
                 self.carrier.add(radio)
@@ -464,14 +459,8 @@ class Air:
         """The next byte of ``rx``'s clean prefix at its tick (not its last byte: the end
         event delivers that)."""
         if rx.pos < min(rx.lazy, rx.n - 1):
-            t = rx.t0 + (rx.pos + 1) * rx.bt - rx.lead
-            if rx.seq is None:
-                self.sched.at(t, self._on_time_byte, r, rx)
-            else:
-                # at its tick where the frame-by-frame run's byte event is: among the
-                # receivers of one byte, in the radios' order (not in the order their CPUs
-                # were first asked for something)
-                self.sched.at_seq(t, rx.seq, self._on_time_byte, r, rx)
+            rx.at_byte_place(self.sched, rx.t0 + (rx.pos + 1) * rx.bt - rx.lead,
+                             self._on_time_byte, r, rx)
 
     def _on_time_byte(self, r: AirRadio, rx: Reception) -> None:
         """A byte of a clean prefix completes now: at its tick if the receiver's CPU is still
@@ -655,8 +644,8 @@ class Air:
                 self._idle_from(r, cend)
 
     def _abort(self, tx: Transmission, now: int, carrier: bool = False) -> None:
-        """The sender died at ``now`` (or, ``carrier``, paused with its carrier on): only
-        bytes complete by then were on air."""
+        """The sender died at ``now`` (``carrier``: paused, its carrier on): bytes complete by
+        then were on air."""
         tx.aborted = True
         tx.paused = carrier
         for r in self.radios:

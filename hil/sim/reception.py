@@ -5,7 +5,7 @@ listening in the middle of a transmission picks it up. Ticks throughout (16 MHz)
 from __future__ import annotations
 
 import random
-from typing import Any, Protocol
+from typing import Any, Callable, Protocol
 
 
 class AirRadio(Protocol):
@@ -106,8 +106,8 @@ class Reception:
         self.bt = bt
         self.lead = lead
         self.seq: int | None = None
-        """The scheduler's sequence number reserved when its bytes were to come one by one
-        from the start (hil/sim/air.py ``Air._on_time_next``), or None."""
+        """The scheduler's sequence number reserved when the reception began, for its bytes
+        that may yet come one by one (:meth:`at_byte_place`), or None."""
         self.pos = 0
         self.n = n
         self.tx = tx
@@ -120,6 +120,16 @@ class Reception:
         self.lazy = quiet
         """The clean prefix's end: how far ``quiet`` may reach again once the CPU is idle."""
 
+
+    def at_byte_place(self, sched: Any, when: int, fn: Callable[..., Any], *args: Any) -> None:
+        """``fn(*args)`` at ``when``, in the place the frame-by-frame run's byte events have
+        among the events of that tick (``seq``: scheduled as the reception began): one
+        byte's receivers in the radios' order, not in the order their CPUs were first asked
+        for something (hil/sim/air.py ``Air.on_time``)."""
+        if self.seq is None:
+            sched.at(when, fn, *args)
+        else:
+            sched.at_seq(when, self.seq, fn, *args)
     def flush(self, radio: AirRadio, now: int) -> None:
         """Deliver every byte handed over by ``now`` (its stop bit ended, less ``lead``)."""
         pos = self.pos
