@@ -28,7 +28,7 @@ import time
 from typing import Sequence
 
 from ..bench.stdout import GuardedStdout, StdoutFailed
-from .common import Parser, Terminated, UserError, say_closing, stdout_gone
+from .common import READ_FILES, Parser, Terminated, UserError, say_closing, stdout_gone
 
 EXTRA_OF = {"matplotlib": "plot", "textual": "ui", "dask": "campaign", "distributed": "campaign",
             "numpy": "campaign", "pyarrow": "campaign"}
@@ -228,6 +228,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     old_handlers = _terminate_on_signals()
     raw_stdout = sys.stdout
+    READ_FILES.clear()
     if raw_stdout is not None and not isinstance(raw_stdout, GuardedStdout):
         sys.stdout = GuardedStdout(raw_stdout)       # (a full disk: one line, not a traceback)
     try:

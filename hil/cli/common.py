@@ -101,6 +101,9 @@ def distinct_outputs(**paths: str | None) -> None:
         if not path or path == "-":
             continue
         key, name = os.path.realpath(path), opt.replace("_", "-")
+        if key in READ_FILES:
+            raise UserError(f"--{name} {path} is the file --{READ_FILES[key]} reads: give the "
+                            f"output another name (it would be overwritten)")
         if is_terminal(path):
             raise UserError(f"--{name} {path} is a terminal or a serial port: what is written "
                             f"there would be sent (a radio on it would transmit it); give a "
@@ -271,9 +274,17 @@ def auth_key(text: str):
     wrong with the file."""
     from firmware_model.radio.auth import KeyFileError, load_key
     try:
-        return load_key(text)
+        key = load_key(text)
     except KeyFileError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+    READ_FILES[os.path.realpath(text)] = "auth-key"
+    return key
+
+
+READ_FILES: dict[str, str] = {}
+"""Files this command reads (real path -> its option, without ``--``), which no output of it
+may name (:func:`distinct_outputs`): ``--trace k.key`` overwrote the ring key it was given.
+Emptied as each command starts (hil/cli/__init__.py, ``main``)."""
 
 
 def auth_option(p: argparse.ArgumentParser) -> None:

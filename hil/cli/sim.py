@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from typing import Iterable
@@ -15,9 +16,9 @@ from ..sim.config import ConfigError, SimConfig
 from ..sim.faults import Fault
 from ..sim.world import World
 from .common import (
-    UserError, auth_option, checked_mac_config, digit, distinct_outputs, file_name, profile_option,
-    fault_spec, id_at, load_spec, output_path, positive, probability, robot_list, stderr_console,
-    stdout_console)
+    READ_FILES, UserError, auth_option, checked_mac_config, digit, distinct_outputs, file_name,
+    profile_option, fault_spec, id_at, load_spec, output_path, positive, probability, robot_list,
+    stderr_console, stdout_console)
 
 
 def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
@@ -221,7 +222,9 @@ def cpu_costs(a: argparse.Namespace):
     if not path:
         return DEFAULT_COSTS
     try:
-        return load_costs(path)
+        costs = load_costs(path)
+        READ_FILES[os.path.realpath(path)] = "cpu-costs"
+        return costs
     except UnicodeDecodeError:
         raise UserError(f"cannot read the cost table {path}: not a text file (a TOML table "
                         f"of cycle costs, docs/cpu.md)") from None

@@ -1702,3 +1702,27 @@ def test_a_cost_table_that_is_not_text_is_named(tmp_path, capsys):
     code, out, err = rprs(capsys, "sim", "--duration", "1", "--cpu-costs", str(bad))
     assert (code, err) == (2, f"rprs: error: cannot read the cost table {bad}: not a text file "
                               f"(a TOML table of cycle costs, docs/cpu.md)\n")
+
+
+@pytest.mark.parametrize("args,name", [
+    (["--auth-key", "KEY", "--trace", "KEY"], "--trace {} is the file --auth-key reads"),
+    (["--cpu-costs", "COSTS", "--pcap", "COSTS"], "--pcap {} is the file --cpu-costs reads"),
+], ids=["trace over the ring key", "capture over the cost table"])
+def test_an_output_over_a_file_the_command_reads_is_refused(args, name, tmp_path, capsys):
+    """``rprs sim --auth-key k.key --trace k.key`` overwrote the ring key with the trace; the
+    file is kept and the command refused in one line."""
+    key, costs = tmp_path / "k.key", tmp_path / "c.toml"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
+    costs.write_text("[costs]\nreti = 12\n")
+    paths = {"KEY": str(key), "COSTS": str(costs)}
+    before = {p: open(p).read() for p in paths.values()}
+    code, out, err = rprs(capsys, "sim", "--robots", "1,2", "--duration", "1",
+                          *[paths.get(x, x) for x in args])
+    target = paths[args[-1]]
+    assert (code, err) == (2, f"rprs: error: {name.format(target)}: give the output another "
+                              f"name (it would be overwritten)\n")
+    assert {p: open(p).read() for p in paths.values()} == before
+    # and the next command in the process is not refused for the last one's inputs
+    code, out, err = rprs(capsys, "sim", "--robots", "1,2", "--duration", "1", "--trace",
+                          target)
+    assert code == 0, err
