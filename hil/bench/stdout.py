@@ -3,7 +3,7 @@ line and status 1 for every command (hil/cli/__init__.py, ``main``), as a reader
 (BrokenPipeError) ends every command quietly."""
 from __future__ import annotations
 
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 __all__ = ["GuardedStdout", "StdoutFailed"]
 
@@ -23,20 +23,10 @@ class GuardedStdout:
         self.raw = raw
 
     def write(self, s: str) -> int:
-        try:
-            return self.raw.write(s)
-        except BrokenPipeError:
-            raise
-        except OSError as exc:
-            raise StdoutFailed(exc.strerror or str(exc)) from None
+        return _guarded(self.raw.write, s)
 
     def flush(self) -> None:
-        try:
-            self.raw.flush()
-        except BrokenPipeError:
-            raise
-        except OSError as exc:
-            raise StdoutFailed(exc.strerror or str(exc)) from None
+        _guarded(self.raw.flush)
 
     def writelines(self, lines: Iterable[str]) -> None:
         for line in lines:
@@ -44,3 +34,14 @@ class GuardedStdout:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.raw, name)
+
+
+def _guarded(call: Callable[..., Any], *args: Any) -> Any:
+    """``call(*args)`` on the stream: BrokenPipeError as it is, any other OSError as
+    :class:`StdoutFailed`."""
+    try:
+        return call(*args)
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        raise StdoutFailed(exc.strerror or str(exc)) from None
