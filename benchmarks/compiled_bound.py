@@ -1,7 +1,7 @@
 """What a compiled hot path could give at most: each workload's run split by the module whose
 own code was running, and the speed-up if a set of modules cost nothing (issue 14).
 
-    python benchmarks/compiled_bound.py [--rate 400] [--seconds 300]
+    python benchmarks/compiled_bound.py [--rate 400] [--seconds 300] [--only loaded,soak]
 
 Each workload runs in its own process under ``py-spy record --format raw`` (needs the bench
 extra: ``pip install -e '.[bench]'``). A sample is charged to the module of its innermost
@@ -61,17 +61,23 @@ WORKLOADS: dict[str, str] = {
     "rprs soak --hours 0.1 --seed 11": (
         "from hil.sim.soak import run_soak\n"
         "run_soak(0.1, 11)\n"),
+    "loaded 5-ring, --can (--load 2 --seed 1)": (
+        "from hil.sim.world import SimConfig, World\n"
+        "World(SimConfig(robots=(0, 1, 2, 3, 4), duration={seconds}, can=True, load=2.0, "
+        "seed=1)).run()\n"),
 }
 
 NEEDED = {
     "idle 7-robot ring, radio only": ("25x the SimPy peer", 25 / 12.8),
     "saturated 7-robot ring, --can": ("CAN on / off >= 0.5", 0.5 / 0.43),
     "rprs soak --hours 0.1 --seed 11": ("4x the issue's main", 4 / 1.59),
+    "loaded 5-ring, --can (--load 2 --seed 1)": ("radio / can >= 0.3 a radio frame", 0.3 / 0.11),
 }
 """The speed-up each target still needs, from the last measured figures (docs/performance.md:
 radio only 12.8x the SimPy peer, saturated on/off 0.43 over 60 s
-(0.49 over 600 s, 0.56 over 1200 s), soak 1.59x the issue's main); update them with the figures of
-``speed_targets.py`` and ``soak_against.py``."""
+(0.49 over 600 s, 0.56 over 1200 s), soak 1.59x the issue's main, the loaded ring's radio / can
+0.11); update them with the figures of ``speed_targets.py``, ``soak_against.py`` and
+``can_traffic.py``."""
 
 
 def own_time(raw_lines: Iterable[str], root: str, inside: str = "World.run") -> Counter:
@@ -138,14 +144,20 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--rate", type=int, default=400, help="py-spy samples a second")
     p.add_argument("--seconds", type=float, default=300.0,
-                   help="simulated seconds of the two ring workloads")
+                   help="simulated seconds of the ring workloads")
+    p.add_argument("--only", default="", help="comma-separated words; run only the workloads "
+                   "whose name holds one of them (e.g. --only loaded)")
     a = p.parse_args()
+    words = [w for w in a.only.split(",") if w]
+    chosen = {n: c for n, c in WORKLOADS.items() if not words or any(w in n for w in words)}
+    if not chosen:
+        p.error(f"--only {a.only!r} names no workload: {', '.join(WORKLOADS)}")
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     if py_spy() is None:
         print("py-spy is not installed: pip install -e '.[bench]'", file=sys.stderr)
         return 2
     rows = []
-    for name, code in WORKLOADS.items():
+    for name, code in chosen.items():
         samples = profile(code.format(ring=RING, seconds=a.seconds), a.rate, root)
         rows.append((name, sum(samples.values()), group_shares(samples)))
     cols = [*GROUPS, "the rest"]
