@@ -61,9 +61,10 @@ class KeyFileError(ValueError):
 
 
 class FreshnessExhausted(RuntimeError):
-    """A station's freshness counter passed ``ffffffff`` under its key: it may send nothing
-    more under that key (a value would repeat, clause 52); the ring key must be rotated
-    (clause 54)."""
+    """A station can give no fresh value under its key: its counter passed ``ffffffff`` (a
+    value would repeat: the ring key must be rotated, clause 54), or, a PC, its clock is
+    before the key's epoch (its clock-seeded values would start again at 0 every time it
+    starts, clause 52)."""
 
 
 @dataclass(frozen=True)
@@ -146,8 +147,16 @@ def clock_freshness(unix_time: float, epoch: int = CLOCK_EPOCH) -> int:
     """The first freshness value of a station with no flash started at ``unix_time``, under
     a key whose epoch is ``epoch`` (clause 52). Raises FreshnessExhausted from
     ``epoch`` + 4.25 years on, when the values left would not last (the key is due for
-    rotation, clause 54)."""
-    fresh = max(0, int((unix_time - epoch) * CLOCK_RATE))
+    rotation, clause 54), and before ``epoch`` (the values would repeat at every start)."""
+    if unix_time < epoch:
+        day = datetime.datetime.fromtimestamp(epoch, datetime.timezone.utc).date()
+        now = datetime.datetime.fromtimestamp(unix_time, datetime.timezone.utc)
+        raise FreshnessExhausted(
+            f"this PC's clock ({now:%Y-%m-%d %H:%M} UTC) is before the ring key's epoch "
+            f"({day} 00:00 UTC): its freshness values would start at 0 again every time it "
+            f"starts, and be refused as replayed; set the clock, or give the key file the "
+            f"'epoch = ' line of a day that has begun in UTC (docs/protocol.md clauses 52, 54)")
+    fresh = int((unix_time - epoch) * CLOCK_RATE)
     if fresh >= FRESH_MAX:
         day = datetime.datetime.fromtimestamp(epoch, datetime.timezone.utc).date()
         raise FreshnessExhausted(

@@ -28,15 +28,6 @@ def cmd_encode(a: argparse.Namespace) -> int:
         # never cut (clause 14). `rprs inject --hex` writes any bytes, an invalid frame too.
         raise UserError(f"Content is {len(content)} bytes, more than a frame carries "
                         f"({MAX_CONTENT}, docs/protocol.md clause 11)")
-    pc_max = max_content_bytes(PC_BYTE_TICKS)
-    if a.dst in (8, 9) or a.type >= 7 or (a.dst == a.src) or (a.src == 0 and
-                                                                len(content) > pc_max):
-        what = ("Destination '8' and '9' are reserved" if a.dst in (8, 9) else
-                f"Type '{a.type}' is reserved" if a.type >= 7 else
-                "a station never sends to its own ID" if a.dst == a.src else
-                f"a PC sends at most {pc_max} Content bytes (its bytes are longer; clause 14)")
-        print(f"rprs encode: note: {what}: no station sends this frame (docs/protocol.md "
-              f"§3); receivers must still take it", file=sys.stderr)
     if a.fresh is not None and a.auth_key is None:
         raise UserError("--fresh goes with --auth-key (the freshness value of a signed frame)")
     try:
@@ -46,10 +37,17 @@ def cmd_encode(a: argparse.Namespace) -> int:
                             f"{'--checksum' if a.checksum else '--auth-key'} seals it itself: "
                             "give the Content without it (or leave the option out to send it "
                             "as it is)")
-        written = "".join(c.text() for c in commands if c.name != "crc")
-        if written != CRC_TAIL.sub(b"", content).decode("ascii"):
+        crcs = [i for i, c in enumerate(commands) if c.name == "crc"]
+        if crcs and crcs[-1] != len(commands) - 1 or len(crcs) > 1:
+            print("rprs encode: note: crc(...) comes once, last, in a Content (docs/protocol.md "
+                  "clause 20): a receiver with the checksum extension takes this frame as "
+                  "failed", file=sys.stderr)
+        # a crc's number is written in five digits, zero padded (clause 20)
+        written = "".join(f"crc({c.args[0]:05d})" if c.name == "crc" else c.text()
+                          for c in commands)
+        if written != content.decode("ascii"):
             print(f"rprs encode: note: a sender writes numbers as {written!r} (docs/protocol.md "
-                  f"clause 17); receivers must still take these", file=sys.stderr)
+                  f"clauses 17, 20); receivers must still take these", file=sys.stderr)
         if a.auth_key is not None:
             # the authenticated profile's last command, sealed as a station does (clause 52)
             frame = auth.seal(a.auth_key, a.dst, a.src, a.num, a.type, content, a.fresh or 0)
@@ -57,6 +55,23 @@ def cmd_encode(a: argparse.Namespace) -> int:
             frame = integrity.seal(a.dst, a.src, a.num, a.type, content)      # clause 20
         else:
             frame = Frame(dst=a.dst, src=a.src, num=a.num, type=a.type, content=content)
+        if len(frame.content) > MAX_CONTENT:
+            # Length counts the crc() or auth() the seal adds (clauses 11, 20, 52): refused,
+            # never cut (clause 14)
+            raise UserError(f"Content is {len(content)} bytes, {len(frame.content)} with the "
+                            f"{'auth()' if a.auth_key is not None else 'crc()'} it ends with: "
+                            f"more than a frame carries ({MAX_CONTENT}, docs/protocol.md "
+                            f"clause 11)")
+        pc_max = max_content_bytes(PC_BYTE_TICKS)
+        if a.dst in (8, 9) or a.type >= 7 or a.dst == a.src or (
+                a.src == 0 and len(frame.content) > pc_max):
+            what = ("Destination '8' and '9' are reserved" if a.dst in (8, 9) else
+                    f"Type '{a.type}' is reserved" if a.type >= 7 else
+                    "a station never sends to its own ID" if a.dst == a.src else
+                    f"a PC sends at most {pc_max} Content bytes, its crc() or auth() counted "
+                    f"(its bytes are longer; clause 14)")
+            print(f"rprs encode: note: {what}: no station sends this frame (docs/protocol.md "
+                  f"§3); receivers must still take it", file=sys.stderr)
         data = frame.encode()
     except WireError as exc:
         raise UserError(str(exc)) from None

@@ -1691,9 +1691,50 @@ def test_encode_notes_numbers_a_sender_never_writes(capsys):
     code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "2", "movex(1.50)")
     assert code == 0 and bytes.fromhex(out.strip())[12:-2] == b"movex(1.50)"
     assert err == ("rprs encode: note: a sender writes numbers as 'movex(1.5)' "
-                   "(docs/protocol.md clause 17); receivers must still take these\n")
+                   "(docs/protocol.md clauses 17, 20); receivers must still take these\n")
     code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "2", "movex(1.5)")
     assert code == 0 and err == ""
+
+
+@pytest.mark.parametrize("content,said", [
+    ("crc(1)", "writes numbers as 'crc(00001)'"),
+    ("crc(000001)", "writes numbers as 'crc(00001)'"),
+    ("movex(1)crc(00012)", None),
+    ("crc(00001)movex(1)", "crc(...) comes once, last"),
+    ("stop()crc(07426)ack(1,2)", "crc(...) comes once, last"),
+])
+def test_encode_notes_a_crc_as_clause_20_writes_it(content, said, capsys):
+    """A crc's number is five digits, zero padded, and the crc comes last (clause 20): the
+    note said a sender writes ``crc(1)`` as '' (the crc left out), and called a canonical
+    Content with its crc in the middle a matter of clause 17's numbers."""
+    code, out, err = rprs(capsys, "encode", "--src", "4", "--dst", "1", content)
+    assert code == 0 and bytes.fromhex(out.strip())[12:-2] == content.encode()
+    if said is None:
+        assert err == ""
+    else:
+        assert said in err and "''" not in err
+
+
+@pytest.mark.parametrize("seal", ["--checksum", "--auth-key"])
+def test_encode_counts_the_seal_in_the_562_bytes(seal, tmp_path, capsys):
+    """Length counts the crc() or auth() the seal adds (clauses 11, 20, 52): 560 bytes of
+    Content sealed made a frame of Length 570 or 583, which ``rprs decode`` refuses, with
+    status 0. Refused now, as a message too long is (clause 14); 552 bytes with a crc fit."""
+    key = tmp_path / "ring.key"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\n")
+    opts = [seal] if seal == "--checksum" else [seal, str(key)]
+    code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "2", *opts,
+                          "stop()" * 92 + "movex(1)")
+    total = 570 if seal == "--checksum" else 583
+    assert (code, out) == (2, "") and err == (
+        f"rprs: error: Content is 560 bytes, {total} with the "
+        f"{'crc()' if seal == '--checksum' else 'auth()'} it ends with: more than a frame "
+        f"carries (562, docs/protocol.md clause 11)\n")
+    fits = "stop()" * (92 if seal == "--checksum" else 89)
+    code, out, err = rprs(capsys, "encode", "--src", "1", "--dst", "2", *opts, fits)
+    assert code == 0 and err == ""
+    code, out, _ = rprs(capsys, "decode", out.strip())
+    assert code == 0 and "content_error" not in json.loads(out)["frame"]
 
 
 def test_a_cost_table_that_is_not_text_is_named(tmp_path, capsys):
@@ -1726,3 +1767,24 @@ def test_an_output_over_a_file_the_command_reads_is_refused(args, name, tmp_path
     code, out, err = rprs(capsys, "sim", "--robots", "1,2", "--duration", "1", "--trace",
                           target)
     assert code == 0, err
+
+
+@pytest.mark.parametrize("command", [["child", "--id", "1", "--team", "1,2"], ["father"]])
+def test_a_bench_pc_with_a_key_whose_epoch_is_to_come_refuses_to_start(command, tmp_path,
+                                                                       capsys):
+    """A bench process seeds its freshness values from its clock since the key's epoch
+    (clause 52): with an ``epoch =`` day still to come every start gave 0, and a restarted
+    child's frames were refused as replayed by the ring, which it never knew. One line,
+    status 2, before it sends anything."""
+    key = tmp_path / "future.key"
+    key.write_text("key = 000102030405060708090a0b0c0d0e0f\nepoch = 2099-01-01\n")
+    master, slave = os.openpty()
+    try:
+        code, out, err = rprs(capsys, *command, "--radio", os.ttyname(slave), "--auth-key",
+                              str(key), "--duration", "1")
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert code == 2 and out == ""
+    assert err.startswith("rprs: error: this PC's clock (") and err.count("\n") == 1
+    assert "before the ring key's epoch (2099-01-01 00:00 UTC)" in err

@@ -779,3 +779,20 @@ def test_rprs_sim_says_who_refused_what(capsys):
     out = capsys.readouterr().out
     assert "frames refused (docs/mac.md): father 0 1 (own ID 1); R1 1 (out of turn 1); " \
         "R2 1 (out of turn 1)" in out, out
+
+
+def test_a_pc_whose_clock_is_before_its_keys_epoch_refuses_to_start(tmp_path):
+    """Clause 52: a PC's first freshness value is 32 a second since its key's epoch. An
+    ``epoch =`` day still to come (a date written east of UTC before UTC's midnight, or a
+    wrong clock) gave 0 at every start: the restarted PC's frames were refused as replayed
+    by every station that had heard it, while it counted itself a member. Refused in one
+    line now; the day itself counts from its first instant."""
+    epoch = 4_070_908_800                                   # 2099-01-01 00:00 UTC
+    with pytest.raises(auth.FreshnessExhausted, match=r"before the ring key's epoch "
+                       r"\(2099-01-01 00:00 UTC\).*would start at 0 again"):
+        auth.clock_freshness(epoch - 1, epoch)
+    with pytest.raises(auth.FreshnessExhausted, match="epoch"):
+        auth.clock_freshness(auth.CLOCK_EPOCH - 0.001)      # the default epoch, a clock behind
+    assert auth.clock_freshness(epoch, epoch) == 0
+    assert auth.clock_freshness(epoch + 1, epoch) == 32
+
