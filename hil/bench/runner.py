@@ -144,7 +144,7 @@ def _events_printer(out: TextSink | None, robot: int,
                 raise
             on_failed(f"cannot write the events: {why}")
 
-    crc_said = False
+    crc_said = forged_said = False
 
     def say(line: str | None) -> None:
         if line is None:
@@ -156,7 +156,7 @@ def _events_printer(out: TextSink | None, robot: int,
             pass
 
     def observe(st: RadioStation, a: object, now: int) -> None:
-        nonlocal crc_said
+        nonlocal crc_said, forged_said
         if isinstance(a, Transmit):
             f = a.frame
             emit({"t": now, "ev": "tx", "robot": robot, "dst": f.dst, "num": f.num,
@@ -203,6 +203,13 @@ def _events_printer(out: TextSink | None, robot: int,
         elif isinstance(a, Refused):
             emit({"t": now, "ev": "refused", "src": a.src, "num": a.num, "to": robot,
                   "reason": a.reason, **({"kind": a.kind} if a.kind else {})})
+            forged = st.refused.get("forged", 0)
+            if a.kind == "forged" and not forged_said and forged >= CRC_SAY_AFTER and \
+                    forged == st.frames_heard:
+                forged_said = True
+                say(f"robot {robot}: the {forged} frames heard all failed the authentication "
+                    f"tag (--auth-key, docs/protocol.md clause 53): does the ring run with "
+                    f"another key, or without the authenticated profile?")
         elif isinstance(a, NumberBehind):
             emit({"t": now, "ev": "behind", "src": a.src, "num": a.num, "last": a.last,
                   "to": robot, "refused": a.refused})
@@ -210,8 +217,9 @@ def _events_printer(out: TextSink | None, robot: int,
 
 
 CRC_SAY_AFTER = 3
-"""Frames heard, every one failing the checksum, before a station with ``--checksum`` says
-that the ring may run without the extension (once a run)."""
+"""Frames heard, every one failing the checksum (or the authentication tag), before a station
+with ``--checksum`` (``--auth-key``) says that the ring may run without the extension (with
+another key, or without the profile), once a run."""
 
 
 class Late(NamedTuple):

@@ -117,3 +117,39 @@ def test_frames_failing_the_checksum_are_counted_and_said_once():
     assert err.getvalue().count("\n") == 1
     assert "frames heard all failed the checksum" in err.getvalue()
     assert f"bad frames 0 (checksum failed {station.bad_checksum})" in summary_line(station)
+
+
+def test_frames_failing_the_tag_are_said_once_when_every_one_did():
+    """A child with ``--auth-key`` on a ring under another key sat in LISTEN; only its
+    closing line's ``refused 183 (forged 183 ...)`` hinted why. Once every frame heard (three
+    or more) failed the tag, the station says so in one line, as with the checksum."""
+    import io
+    from firmware_model.radio import auth
+    from firmware_model.radio.mac import MacConfig
+    from firmware_model.station import build_station
+    from hil.bench.runner import _events_printer
+    from hil.sim.realtime import RealTimeScheduler
+    ours = auth.RingKey(bytes(range(16)))
+    theirs = auth.RingKey(bytes(range(1, 17)))
+    err = io.StringIO()
+    observer = _events_printer(None, 2, err=err)
+    station, _ = build_station(2, RealTimeScheduler(), config=MacConfig(auth=ours),
+                               observer=observer)
+    t = 0
+    for k in range(5):                                     # heartbeats under another key
+        data = auth.seal(theirs, 7, 1, k, 3, b"", k).encode()
+        station.uart.receive(data, t, 16640)
+        t += 40 * 16640 + 200_000
+    assert station.refused.get("forged") == station.frames_heard >= 3, (station.refused,
+                                                                       station.frames_heard)
+    assert err.getvalue().count("\n") == 1, err.getvalue()
+    assert "frames heard all failed the authentication tag" in err.getvalue()
+    # a ring whose frames pass the tag is not told so, whatever else it refuses
+    err2 = io.StringIO()
+    station, _ = build_station(2, RealTimeScheduler(), config=MacConfig(auth=ours),
+                               observer=_events_printer(None, 2, err=err2))
+    t = 0
+    for k in range(5):
+        station.uart.receive(auth.seal(ours, 7, 1, k, 3, b"", k + 1).encode(), t, 16640)
+        t += 40 * 16640 + 200_000
+    assert "authentication tag" not in err2.getvalue()
