@@ -94,7 +94,7 @@ def output_path(text: str) -> str:
 
 def distinct_outputs(**paths: str | None) -> None:
     """Two output options naming one file would overwrite each other (the later writer wins,
-    or the two renames of PATH.partial fail after the run): a UserError before anything runs.
+    or the two renames of PATH.PID.partial fail after the run): a UserError before anything runs.
     ``paths``: option name (``_`` for ``-``) -> the path given, or None."""
     seen: dict[str, str] = {}
     for opt, path in paths.items():
@@ -112,12 +112,13 @@ def distinct_outputs(**paths: str | None) -> None:
             raise UserError(f"--{seen[key]} and --{name} name the same file {path}: give each "
                             f"its own")
         seen[key] = name
-    # each is written to PATH.partial first and renamed at the end (trace.py, pcap.py)
+    # each is written to PATH.PID.partial first and renamed at the end (trace.py)
+    from hil.sim.trace import partial_name
     for key, name in list(seen.items()):
-        other = seen.get(key + ".partial")
+        other = seen.get(partial_name(key))
         if other is not None:
-            raise UserError(f"--{name}'s file, written as {key}.partial first, is --{other}'s: "
-                            f"give each a name of its own")
+            raise UserError(f"--{name}'s file, written as {partial_name(key)} first, is "
+                            f"--{other}'s: give each a name of its own")
 
 
 def is_terminal(path: str) -> bool:
@@ -202,9 +203,11 @@ def probability(text: str) -> float:
 
 
 
-def load_spec(text: str) -> str | float:
+def load_spec(text: str, words: bool = True) -> str | float:
+    """``--load``: idle, saturate or a rate in messages/s per robot (``words`` False: a rate
+    only, and the errors offer nothing else)."""
     from hil.sim.config import LOAD_MAX
-    if text in ("idle", "saturate"):
+    if words and text in ("idle", "saturate"):
         return text
     try:
         v = float(text)
@@ -212,21 +215,22 @@ def load_spec(text: str) -> str | float:
         v = -1.0
     if not v > 0 or v == float("inf"):
         raise argparse.ArgumentTypeError(
-            f"{text!r} is not idle, saturate or a positive rate in messages/s per robot")
+            f"{text!r} is not {'idle, saturate or ' if words else ''}a positive rate in "
+            f"messages/s per robot")
     if v > LOAD_MAX:
+        far = ("so any rate far above that is 'saturate' (which runs as fast; a rate costs "
+               "the simulator each message it offers)" if words else
+               "so any rate far above that only costs the simulator each message it offers")
         raise argparse.ArgumentTypeError(
             f"{text} messages/s per robot is more than {LOAD_MAX:g}: the channel carries a few "
-            f"dozen short messages a second in all, so any rate far above that is 'saturate' "
-            f"(which runs as fast; a rate costs the simulator each message it offers)")
+            f"dozen short messages a second in all, {far}")
     return v
 
 
 def load_rate(text: str) -> float:
     """A load given as a rate only (``rprs soak --rate``): positive, at most LOAD_MAX."""
-    v = load_spec(text)
-    if isinstance(v, str):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a positive rate in messages/s per "
-                                         f"robot")
+    v = load_spec(text, words=False)
+    assert isinstance(v, float)
     return v
 
 

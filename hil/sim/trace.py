@@ -41,8 +41,16 @@ class _OutputRaw(io.FileIO):
             raise
 
 
+def partial_name(path: str) -> str:
+    """The file an output to ``path`` is written to first: ``PATH.PID.partial``, this
+    process's own, so that two runs writing one output each write a whole file of their own
+    and the last to finish renames it over ``path`` (with one ``PATH.partial`` for both, their
+    bytes mixed, or the first rename took the file from under the second)."""
+    return f"{path}.{os.getpid()}.partial"
+
+
 class OutputFile:
-    """An output that appears whole or not at all: written to ``PATH.partial`` beside the file
+    """An output that appears whole or not at all: written to ``PATH.PID.partial`` beside the file
     ``path`` names (through a symlink: the link stays), renamed over it at :meth:`commit`,
     removed at :meth:`discard`. A ``path`` that names a device or a FIFO (``/dev/null``, a pipe
     to a reader) is written straight: a file renamed over it would replace it (as root,
@@ -63,7 +71,7 @@ class OutputFile:
             raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), path)
         self.direct = mode is not None and not stat.S_ISREG(mode)
         self.final = path if self.direct else os.path.realpath(path)
-        self.tmp = self.final if self.direct else f"{self.final}.partial"
+        self.tmp = self.final if self.direct else partial_name(self.final)
         # open(tmp, "wb" or "w") but over _OutputRaw: the same buffer, the same bytes
         raw = _OutputRaw(self.tmp, path)
         try:
@@ -95,7 +103,7 @@ class OutputFile:
                 os.replace(self.tmp, self.final)
         except BaseException as exc:
             self.discard()
-            if isinstance(exc, OSError):   # the rename names PATH.partial: name the output
+            if isinstance(exc, OSError):   # the rename names the partial file: name the output
                 exc.filename, exc.filename2 = self.path, None
             raise
 

@@ -21,7 +21,7 @@ lands on its exact tick. Signals (scope ``rprs``):
 
 Frames and CAN frames are logged at their end (``t`` = ``end``), so changes are reordered
 through a bounded look-back buffer (twice Tmax): memory does not grow with the trace length.
-The output is written to ``PATH.partial`` and renamed when complete, so a failed run leaves no
+The output is written to ``PATH.PID.partial`` and renamed when complete, so a failed run leaves no
 partial file (a device or a FIFO is written straight: ``hil.sim.trace.OutputFile``).
 """
 from __future__ import annotations

@@ -1499,12 +1499,39 @@ def test_a_listing_that_is_no_utf8_text_is_one_line_naming_it(capsys, tmp_path):
 
 def test_a_trace_and_a_capture_whose_partial_names_meet_are_refused(capsys, tmp_path,
                                                                     monkeypatch):
-    """``--trace x.partial --pcap x``: the capture, written to x.partial first, was renamed
-    over by the trace, which took the capture's name; exit 0, no capture anywhere."""
+    """``--trace x.PID.partial --pcap x``: the capture, written to x.PID.partial first, was
+    renamed over by the trace, which took the capture's name; exit 0, no capture anywhere."""
     monkeypatch.chdir(tmp_path)
-    code, _, err = rprs(capsys, "sim", "--duration", "1", "--trace", "x.partial", "--pcap", "x")
-    assert code == 2 and err.count("\n") == 1 and "x.partial" in err, err
+    partial = f"x.{os.getpid()}.partial"           # (main() runs in this process)
+    code, _, err = rprs(capsys, "sim", "--duration", "1", "--trace", partial, "--pcap", "x")
+    assert code == 2 and err.count("\n") == 1 and partial in err, err
     assert not list(tmp_path.iterdir())
+    code, _, err = rprs(capsys, "sim", "--duration", "1", "--trace", "x.partial", "--pcap", "x")
+    assert code == 0 and sorted(p.name for p in tmp_path.iterdir()) == ["x", "x.partial"]
+
+
+def test_two_runs_writing_one_trace_leave_one_whole_run(tmp_path):
+    """Two ``rprs sim`` runs given one ``--trace``: both wrote ``FILE.partial``, so the file
+    left mixed the two runs' lines (refused by ``rprs plot``), or was the other seed's behind
+    the run that said it wrote it, while the other run said "cannot write trace: No such
+    file". Each run writes a partial file of its own now: both succeed, and the file is one
+    whole run's, byte for byte."""
+    out = tmp_path / "t.jsonl"
+    runs = [subprocess.Popen([sys.executable, "-m", "hil.cli", "sim", "--duration", "60",
+                              "--load", "1", "--seed", str(seed), "--no-progress", "--trace",
+                              str(out)], cwd=ROOT, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.PIPE, text=True) for seed in (1, 2)]
+    errs = [r.communicate(timeout=300)[1] for r in runs]
+    assert [r.returncode for r in runs] == [0, 0], errs
+    assert not list(tmp_path.glob("*.partial"))
+    alone = {}
+    for seed in (1, 2):
+        one = tmp_path / f"alone{seed}.jsonl"
+        subprocess.run([sys.executable, "-m", "hil.cli", "sim", "--duration", "60", "--load",
+                        "1", "--seed", str(seed), "--no-progress", "--trace", str(one)],
+                       cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+        alone[seed] = one.read_bytes()
+    assert out.read_bytes() in (alone[1], alone[2])
 
 
 def test_the_fathers_log_and_capture_naming_one_file_are_refused(capsys, tmp_path,
@@ -1676,11 +1703,19 @@ def test_a_hub_whose_capture_reader_is_gone_at_start_ends_quietly():
     (["soak", "--robots", "1"],
      "rprs: error: --robots 1: a soak needs at least two robots (its traffic goes between "
      "them; one alone ends with nothing checked)\n"),
-], ids=["encode crc twice", "sim 1e300 s", "soak of one"])
+    (["soak", "--rate", "0"],
+     "rprs: error: argument --rate: '0' is not a positive rate in messages/s per robot (see "
+     "'rprs soak --help')\n"),
+    (["soak", "--rate", "1e6"],
+     "rprs: error: argument --rate: 1e6 messages/s per robot is more than 1000: the channel "
+     "carries a few dozen short messages a second in all, so any rate far above that only "
+     "costs the simulator each message it offers (see 'rprs soak --help')\n"),
+], ids=["encode crc twice", "sim 1e300 s", "soak of one", "soak rate 0", "soak rate 1e6"])
 def test_more_user_mistakes_are_one_line(args, line, capsys):
     """``encode --checksum`` on a Content that has its crc wrote two (clause 20: once, last);
     ``sim --duration 1e300`` ran with float ticks and 300-digit counts; ``soak --robots 1``
-    ran an hour of nothing and ended with its invariants empty."""
+    ran an hour of nothing and ended with its invariants empty; ``soak --rate`` takes a rate
+    only, and its errors offered ``idle`` and ``saturate``, which it refuses."""
     code, out, err = rprs(capsys, *args)
     assert (code, out, err) == (2, "", line)
 
