@@ -251,6 +251,9 @@ def plot(points: list[dict[str, Any]], rows: list[dict[str, Any]], directory) ->
             err = [[max(0.0, a[1] - a[2]) for a in pts], [max(0.0, a[3] - a[1]) for a in pts]]
             ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=label)
         ax.set_xlabel("byte error rate")
+        # BERs are small: in plain decimals their ticks (0.000250, ...) ran into each other
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(nbins=5))
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3), useMathText=True)
         ax.set_ylabel("messages failed (Wilson 95 %)")
         ax.legend(title="grid point but ber", fontsize=6)
         f = d / "failure_vs_ber.png"

@@ -28,6 +28,12 @@ READ_METRICS = frozenset({"submitted", "failed", "duplicates", "misdelivered",
 (hil/campaign/runs.py ``metrics_of`` writes them all): a row without one is damaged."""
 
 
+OTHER_METRICS = frozenset({"delivered", "pending", "collisions", "membership_changes",
+                           "reformations"})
+"""The other numbers ``metrics_of`` writes, which ``export`` writes out and a report may
+read: each, if there, a number (a row edited by hand to hold text in one is damaged)."""
+
+
 STATUSES = frozenset({"ok", "crashed", "lost"})
 """A stored run's ``status`` (the module docstring)."""
 
@@ -38,12 +44,15 @@ def _number(v: Any) -> bool:
 
 def _sound_metrics(m: Any) -> bool:
     """Are an ``ok`` run's metrics what ``metrics_of`` writes, in what the report reads: every
-    READ_METRICS entry a number (``reform_max_s`` None without a re-formation), the latency
+    READ_METRICS entry a number (``reform_max_s`` None without a re-formation), each of
+    OTHER_METRICS there a number, the latency
     histogram {number as text: count}, the throughput a number, the custom ones numbers?"""
     if not isinstance(m, dict) or not READ_METRICS <= m.keys():
         return False
     if not all(_number(m[k]) for k in READ_METRICS - {"reform_max_s"}) or not (
             m["reform_max_s"] is None or _number(m["reform_max_s"])):
+        return False
+    if not all(_number(m[k]) for k in OTHER_METRICS if k in m):
         return False
     lat = m.get("latency_ms")
     if lat is not None:
@@ -85,6 +94,7 @@ class Store:
             return
         try:
             self.db = sqlite3.connect(self.path)
+            self._refuse_foreign()
             self.db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
             self.db.execute(
                 "CREATE TABLE IF NOT EXISTS runs (run_key TEXT PRIMARY KEY, point_key TEXT, "
@@ -98,6 +108,20 @@ class Store:
             self._columns = set(COLUMNS)
         except sqlite3.DatabaseError as e:
             raise StoreError(f"{path}: not a campaign results file ({e})") from None
+
+    def _refuse_foreign(self) -> None:
+        """A file that holds tables but not a campaign's (``meta``, and ``runs`` with its
+        columns) is someone else's database: refused, nothing in it changed (it used to get
+        the campaign's tables beside its own, or a column added to its ``runs``)."""
+        tables = {n for (n,) in self.db.execute(
+            "SELECT name FROM sqlite_master WHERE type = 'table'")}
+        if not tables:
+            return
+        columns = {row[1] for row in self.db.execute("PRAGMA table_info(runs)")}
+        if "meta" not in tables or not set(COLUMNS) - {"code"} <= columns:
+            self.db.close()
+            raise StoreError(f"{self.path}: not a campaign results file (it holds other "
+                             f"tables: {', '.join(sorted(tables))}): give --db another file")
 
     def _open_to_read(self) -> None:
         if not self.path.is_file():

@@ -75,6 +75,31 @@ def test_wilson_interval_matches_published_values():
         assert wilson(k, n) == pytest.approx((lo, hi), abs=5e-5)
 
 
+def test_the_ber_plots_ticks_do_not_run_into_each_other(tmp_path, monkeypatch):
+    """A grid of ``ber = [0.0, 0.00025, ..., 0.002]`` drew its x ticks as 0.000000,
+    0.000250, ... side by side, one unreadable string. Each tick label's box is apart from
+    the next one's now."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    points = [{"point": {"robots": "1,2", "ber": b / 4000}, "failed_rate": b / 400,
+               "failed_ci95": (0.0, 0.1)} for b in range(9)]
+    boxes: list = []
+    savefig = plt.Figure.savefig
+
+    def keep(fig, *a, **k):
+        savefig(fig, *a, **k)              # drawn: the tick labels have their places
+        ax = fig.axes[0]
+        renderer = fig.canvas.get_renderer()
+        boxes.extend(t.get_window_extent(renderer) for t in ax.get_xticklabels()
+                     if t.get_text() and t.get_visible())
+    monkeypatch.setattr(plt.Figure, "savefig", keep)
+    assert plot(points, [], tmp_path) == [str(tmp_path / "failure_vs_ber.png")]
+    boxes.sort(key=lambda b: b.x0)
+    assert len(boxes) >= 3
+    assert all(a.x1 < b.x0 for a, b in zip(boxes, boxes[1:])), [(b.x0, b.x1) for b in boxes]
+
+
 def test_the_ber_plot_draws_one_line_per_rest_of_point_labelled_with_what_varies(tmp_path,
                                                                                 monkeypatch):
     # robots and load both vary besides ber: four lines, none merging two loads of one ring
@@ -1050,6 +1075,8 @@ def _stored(db, damage: str | None = None) -> None:
     "metrics = json_set(metrics, '$.latency_ms', json('[1, 2]'))",
     "metrics = json_set(metrics, '$.latency_ms', json('{\"a\": 1}'))",
     "metrics = json_set(metrics, '$.throughput', 'x')",
+    "metrics = json_set(metrics, '$.delivered', 'x')",
+    "metrics = json_set(metrics, '$.membership_changes', 'x')",
     "metrics = json_set(metrics, '$.custom', json('{\"m\": \"x\"}'))"])
 @pytest.mark.parametrize("command", ["report", "export"])
 def test_a_damaged_results_row_is_one_line_naming_it(tmp_path, capsys, damage, command):
@@ -1102,6 +1129,37 @@ def test_a_file_with_no_campaign_in_it_is_refused_and_left_as_it_was(tmp_path, c
         assert code == 2 and err.count("\n") == 1 and "no campaign in it" in err, err
         assert db.read_bytes() == before
     assert not (tmp_path / "o.csv").exists()
+
+
+@pytest.mark.parametrize("schema", ["CREATE TABLE runs (a, b)", "CREATE TABLE foo (x)",
+                                    "CREATE TABLE meta (key, value)"])
+def test_campaign_run_refuses_another_programs_database_and_leaves_it_as_it_was(tmp_path,
+                                                                                schema):
+    """``campaign run --db other.sqlite`` on a file with a ``runs`` table of its own died in a
+    traceback (no such column) after adding a ``code`` column and a ``meta`` table to it; a
+    file with other tables got the campaign's beside them. Refused in one line now, before
+    anything is written; an empty file, and a campaign's own file from before the ``code``
+    column, are still taken."""
+    import sqlite3
+    db = tmp_path / "other.sqlite"
+    con = sqlite3.connect(db)
+    con.execute(schema)
+    con.commit()
+    con.close()
+    before = db.read_bytes()
+    with pytest.raises(StoreError, match=r"not a campaign results file \(it holds other "
+                       r"tables: .*\): give --db another file"):
+        Store(db)
+    assert db.read_bytes() == before
+    Store(tmp_path / "new.sqlite").close()
+    old = tmp_path / "old.sqlite"
+    _stored(old)
+    con = sqlite3.connect(old)
+    con.execute("ALTER TABLE runs DROP COLUMN code")
+    con.commit()
+    con.close()
+    store = Store(old)
+    assert len(store.rows()) == 1 and store.rows()[0]["code"] is None
 
 
 @pytest.mark.parametrize("grid", ['duration = [1, 1.0]', 'robots = ["0,1", "00,1"]',
