@@ -104,7 +104,7 @@ class Fault:
 
 
 _NUM = r"[0-9]+(?:\.[0-9]*)?"
-_SPEC = re.compile(rf"^(?P<kind>[a-z]+)(?::(?P<robot>[0-6])(?:\.(?P<node>[A-Z0-9]+))?)?"
+_SPEC = re.compile(rf"^(?P<kind>[a-z]+)(?::(?P<robot>-?[0-9]+)(?:\.(?P<node>[A-Z0-9]+))?)?"
                    rf"(?:@(?P<at>{_NUM})(?:-(?P<until>{_NUM}))?)?"
                    rf"(?::(?:x(?P<hex>\S*)|(?P<value>-?{_NUM})))?$")
 
@@ -122,6 +122,9 @@ def parse_fault(text: str) -> Fault:
     if m["hex"] is not None and kind != "foreign":
         raise FaultError(f"{kind} takes no bytes (only foreign@T:xHEX does)")
     robot = int(m["robot"]) if m["robot"] is not None else None
+    if robot is not None and (not 0 <= robot <= 6 or m["robot"] != str(robot)):
+        raise FaultError(f"{text!r}: robot {m['robot']} is no robot ID (0 the father, 1-6 "
+                         f"the children)")
     node = m["node"]
     at = float(m["at"]) if m["at"] is not None else None
     until = float(m["until"]) if m["until"] is not None else None

@@ -110,3 +110,14 @@ def test_a_config_with_a_load_that_is_no_rate_is_refused_in_words(load):
     value, never a TypeError from comparing it."""
     with pytest.raises(ConfigError, match="load"):
         World(SimConfig(robots=(0, 1), duration=1.0, load=load))
+
+
+@pytest.mark.parametrize("spec,robot", [("fail:9@5", "9"), ("fail:-1@5", "-1"),
+                                        ("stuck:01@3-6", "01"), ("busoff:7@2", "7")])
+def test_a_fault_on_no_robot_id_says_which_robot(spec, robot):
+    """``--fault fail:9@5`` was "not a fault spec like fail:1@5, ...", as if its form were
+    wrong; it names the robot ID that is none now (0-6, written as such)."""
+    with pytest.raises(FaultError, match=rf"robot {robot} is no robot ID \(0 the father, "
+                                         rf"1-6 the children\)"):
+        parse_fault(spec)
+    assert parse_fault(spec.replace(robot, "1")).robot == 1
