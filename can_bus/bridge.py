@@ -21,6 +21,7 @@ candump shows.
 from __future__ import annotations
 
 import collections
+import copy
 import errno
 import logging
 import threading
@@ -314,6 +315,10 @@ class PythonCanBus:
         id, CAN FD, an error frame): for a capture, which shows what the bus carried."""
         self.log = log
         self._writer = open_log(log) if log else None
+        self._log_stamp = 0.0
+        """The latest stamp logged: a frame logged after a later-stamped one takes its stamp
+        (an own frame sent as another's came in, stamped apart), so no format's stamps go
+        back (python-can's ASC and BLF writers write them as given)."""
         self._drops0 = kernel_drops(bus)
         self._drops_seen = self._drops0
         self._in_flight: dict[int, can.Message] = {}
@@ -622,6 +627,12 @@ class PythonCanBus:
         """``msg`` to the log; a write that fails (a full disk) ends the log in one line, and
         the bus goes on."""
         assert self._writer is not None           # the callers check that there is a log
+        ts = msg.timestamp or 0.0
+        if ts < self._log_stamp:
+            msg = copy.copy(msg)                  # (the nodes keep the frame as it came)
+            msg.timestamp = self._log_stamp
+        else:
+            self._log_stamp = ts
         try:
             self._writer.on_message_received(msg)
         except (OSError, ValueError) as exc:

@@ -103,11 +103,21 @@ def _targets(config: Any) -> list[str]:
     robot = config.getoption("rprs_dut_id")
     if not str(robot).isdigit() or not 1 <= int(robot) <= 6:
         raise pytest.UsageError(f"--dut-id {robot}: a child's ID is 1-6")
-    if "board" in names and not (config.getoption("rprs_radio") and
-                                 config.getoption("rprs_can")):
-        raise pytest.UsageError("--target board needs --radio PORT and --can "
-                                "INTERFACE:CHANNEL: the bench radio's serial port and the "
-                                "flashed child's CAN bus (docs/acceptance.md)")
+    if "board" in names:
+        missing = [what for opt, what in (
+            ("rprs_radio", "--radio PORT (the bench radio's serial port)"),
+            ("rprs_can", "--can INTERFACE:CHANNEL (the flashed child's CAN bus)"))
+            if not config.getoption(opt)]
+        if missing:
+            raise pytest.UsageError(f"--target board needs {' and '.join(missing)} "
+                                    f"(docs/acceptance.md)")
+    can_spec = config.getoption("rprs_can") or ""
+    if can_spec.partition(":")[0] == "virtual" and {"process", "board"} & set(names):
+        # (the CLI's note, made an error here: the tests would fail as if the child were
+        # broken, the bench's submodules talking to themselves)
+        raise pytest.UsageError(f"--can {can_spec} is python-can's in-process bus: the child "
+                                f"under test (--target process or board) cannot reach it; "
+                                f"use rprs_unix:DIR, udp_multicast:GROUP or socketcan:vcan0")
     return names
 
 

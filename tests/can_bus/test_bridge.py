@@ -681,6 +681,37 @@ def test_frames_received_before_closing_are_in_the_log(tmp_path):
     assert bus.received == 0 and bus.not_ours == 0
 
 
+@pytest.mark.parametrize("ext", ["asc", "blf", "log"])
+def test_no_log_format_has_a_stamp_that_goes_back(tmp_path, ext):
+    """The child's own command, sent as a status frame came in, was stamped a few hundred
+    microseconds after the status frame logged after it: the .log took the later stamp, but
+    the .asc and .blf (python-can's writers) went back in time, which tools that assume
+    sorted stamps trip on (2 of 76,472 frames, 1 of 1,095). Every format now logs a frame
+    that comes after a later-stamped one at that stamp; the frame the nodes got is kept."""
+    channel = f"rprs-{os.getpid()}-back-{ext}"
+    log = tmp_path / f"r1.{ext}"
+    bus = PythonCanBus(RealTimeScheduler(), open_bus(f"virtual:{channel}"), log=str(log),
+                       channel=channel)
+    late = can.Message(timestamp=1000.000179, arbitration_id=0x186, data=bytes(6),
+                       is_extended_id=False, is_rx=True)
+    try:
+        bus._log(can.Message(timestamp=1000.000549, arbitration_id=0x103, data=bytes(3),
+                             is_extended_id=False, is_rx=False))
+        bus._log(late)
+        bus._log(can.Message(timestamp=1000.001, arbitration_id=0x181, data=bytes(6),
+                             is_extended_id=False, is_rx=True))
+    finally:
+        bus.close()
+    assert late.timestamp == 1000.000179
+    reader = {"asc": lambda p: can.ASCReader(p, relative_timestamp=False),
+              "blf": can.BLFReader, "log": can.LogReader}[ext]
+    back = list(reader(str(log)))
+    assert [m.arbitration_id for m in back] == [0x103, 0x186, 0x181]
+    stamps = [m.timestamp for m in back]
+    assert stamps == sorted(stamps) and stamps[1] == pytest.approx(stamps[0], abs=2e-6)
+    assert stamps[2] - stamps[0] == pytest.approx(0.000451, abs=2e-6)
+
+
 def _runner_of(sched):
     """A bench ``Runner`` around an existing scheduler (``_run_until`` drives a runner)."""
     from hil.bench.runner import Runner
