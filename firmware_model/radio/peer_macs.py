@@ -68,6 +68,12 @@ _ACK_TEXT_MAX = len("ack(6,99)")
 _GUARD_TICKS = 64
 """Slack added to a slot (and to waits) for the reload timer's even-tick rounding."""
 
+_LATE_TICKS = 40_000
+"""How late (ticks, 2.5 ms: half the paper's Ttrans) a slotted station's timer handler may
+come and still send in the slot it was armed for (:class:`SlottedAlohaMac`): its frame
+starts as late, and ends before the next slot's first byte (a slot holds Ttrans after its
+longest frame)."""
+
 
 def default_slot(frame_bytes: int, ttrans: int) -> int:
     """A slot for frames of up to ``frame_bytes``: the longest such frame at the slower (father
@@ -555,9 +561,22 @@ class AlohaMac(PeerMac):
 
 
 class SlottedAlohaMac(PeerMac):
-    """Slotted ALOHA: frames start only at ``k x slot`` (every robot counts from tick 0)."""
+    """Slotted ALOHA: frames start only at ``k x slot`` (every robot counts from tick 0).
+
+    The timer is armed for a slot's TXEN tick (its boundary less Ttrans). A handler that
+    comes late for it (the MB90F549 model takes a timer interrupt about 300 ticks after it
+    is due) still sends in that slot, TXEN now and the frame Ttrans later, when it is at
+    most :data:`_LATE_TICKS` late: taken for the next slot instead, every try came as late
+    and no frame ever went (``--mac slotted`` on the CPU model sent nothing)."""
 
     kind = "slotted"
+    _armed: int | None = None
+    """The slot TXEN tick the timer was last armed for (:meth:`_arm`), or None."""
+
+    def _arm(self, now: int) -> None:
+        super()._arm(now)
+        self._armed = self._start_time(now) if self.mode == MEMBER and self.phase == RX \
+            else None
 
     def _boundary(self, t: int) -> int:
         """First slot boundary b with b - Ttrans >= t."""
@@ -576,6 +595,9 @@ class SlottedAlohaMac(PeerMac):
             return
         # The reload timer may fire a tick late (it counts machine clock / 2): still this slot.
         b = self._boundary(max(t, now - _GUARD_TICKS))
+        due = self._armed
+        if due is not None and t <= due < b - self.cfg.ttrans and now - due <= _LATE_TICKS:
+            b = due + self.cfg.ttrans         # a late handler: the slot it was armed for
         if b - self.cfg.ttrans <= now:
             self._switch(now, out, tx_at=max(b, now + self.cfg.ttrans))
 
