@@ -132,9 +132,9 @@ class MacConfig:
         if self.profile not in PROFILES:
             raise ValueError(f"profile must be one of {', '.join(PROFILES)}, "
                              f"got {self.profile!r}")
-        if self.profile == "paper" and (self.checksum or self.standby):
-            raise ValueError("the paper profile has no checksum extension and no standby PC "
-                             "(both are this project's extensions)")
+        if self.profile == "paper" and (self.checksum or self.standby or self.paired):
+            raise ValueError("the paper profile has no checksum extension and no father pair "
+                             "(a standby PC, --pc: both are this project's extensions)")
         if self.profile == "paper" and self.auth is not None:
             raise ValueError("the paper profile has no authenticated profile (this project's "
                              "extension)")

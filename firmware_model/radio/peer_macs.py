@@ -65,6 +65,8 @@ SWITCH = "switch"    # TXEN high; the frame goes out at ``_tx_at``
 SEND = "send"        # a frame is on air; ``on_tx_done`` ends it
 
 _ACK_TEXT_MAX = len("ack(6,99)")
+MIN_FRAME_BYTES = FRAME_OVERHEAD + _ACK_TEXT_MAX
+"""The smallest ``frame_bytes`` (23): a frame that holds one ack."""
 _GUARD_TICKS = 64
 """Slack added to a slot (and to waits) for the reload timer's even-tick rounding."""
 
@@ -110,8 +112,8 @@ class PeerConfig:
     ``max_attempts`` attempts at the longest waits, see ``PeerMac.__init__``)."""
 
     def __post_init__(self) -> None:
-        if not FRAME_OVERHEAD + _ACK_TEXT_MAX <= self.frame_bytes <= 576:
-            raise ValueError(f"frame_bytes must be {FRAME_OVERHEAD + _ACK_TEXT_MAX}-576, "
+        if not MIN_FRAME_BYTES <= self.frame_bytes <= 576:
+            raise ValueError(f"frame_bytes must be {MIN_FRAME_BYTES}-576, "
                              f"got {self.frame_bytes}")
         if self.window < 1:
             raise ValueError(f"window must be at least 1, got {self.window}")

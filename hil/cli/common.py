@@ -326,6 +326,8 @@ def mac_config(a: argparse.Namespace, own: int):
         kw["team"] = frozenset(a.team)
     if getattr(a, "standby", False):
         kw["standby"] = True
+    if getattr(a, "pc", None) is not None:
+        kw["paired"] = True           # --pc: one of a pair (build_father sets it too)
     return checked_mac_config(**kw)
 
 

@@ -8,6 +8,7 @@ import sys
 import time
 from typing import Iterable
 
+from firmware_model.radio.peer_macs import MIN_FRAME_BYTES
 from firmware_model.timing import TICK_HZ, ms_to_ticks, ticks_to_ms, ticks_to_s
 
 from ..sim.events import Listener, TraceEvent
@@ -74,8 +75,9 @@ def add_sim_options(p: argparse.ArgumentParser, demo: bool = False,
                        "sends, TXEN low to the first it hears (default: the nRF401 data "
                        "sheet's 1 and 3 ms; not the protocol's Ttrans, 5 ms); repeatable, "
                        "e.g. 1:1,5 (docs/cpu.md)")
-        p.add_argument("--frame-bytes", type=digit(14, 576, "frame size"), metavar="N",
-                       help="peer MACs: frame size of the load (default 80)")
+        p.add_argument("--frame-bytes", type=digit(MIN_FRAME_BYTES, 576, "frame size"),
+                       metavar="N", help="peer MACs: frame size of the load (default 80; "
+                       f"{MIN_FRAME_BYTES}-576, a frame that holds an ack at least)")
         p.add_argument("--vcd", type=output_path, metavar="FILE",
                        help="write a waveform (GTKWave) here")
         p.add_argument("--cpu-costs", type=file_name, metavar="FILE",

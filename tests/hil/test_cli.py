@@ -1718,12 +1718,17 @@ def test_a_hub_whose_capture_reader_is_gone_at_start_ends_quietly():
      "rprs: error: argument --rate: 1e6 messages/s per robot is more than 1000: the channel "
      "carries a few dozen short messages a second in all, so any rate far above that only "
      "costs the simulator each message it offers (see 'rprs soak --help')\n"),
-], ids=["encode crc twice", "sim 1e300 s", "soak of one", "soak rate 0", "soak rate 1e6"])
+    (["sim", "--mac", "aloha", "--frame-bytes", "14", "--duration", "1"],
+     "rprs: error: argument --frame-bytes: frame size must be 23-576, got 14 (see 'rprs sim "
+     "--help')\n"),
+], ids=["encode crc twice", "sim 1e300 s", "soak of one", "soak rate 0", "soak rate 1e6",
+        "frame bytes 14"])
 def test_more_user_mistakes_are_one_line(args, line, capsys):
     """``encode --checksum`` on a Content that has its crc wrote two (clause 20: once, last);
     ``sim --duration 1e300`` ran with float ticks and 300-digit counts; ``soak --robots 1``
     ran an hour of nothing and ended with its invariants empty; ``soak --rate`` takes a rate
-    only, and its errors offered ``idle`` and ``saturate``, which it refuses."""
+    only, and its errors offered ``idle`` and ``saturate``, which it refuses; ``--frame-bytes``
+    14-22 passed the command line and died in a traceback (a peer MAC's frame holds an ack)."""
     code, out, err = rprs(capsys, *args)
     assert (code, out, err) == (2, "", line)
 
@@ -1831,3 +1836,21 @@ def test_a_bench_pc_with_a_key_whose_epoch_is_to_come_refuses_to_start(command, 
     assert code == 2 and out == ""
     assert err.startswith("rprs: error: this PC's clock (") and err.count("\n") == 1
     assert "before the ring key's epoch (2099-01-01 00:00 UTC)" in err
+
+
+@pytest.mark.parametrize("pair", [["--pc", "1"], ["--pc", "2"], ["--standby"]])
+def test_a_paper_profile_father_is_no_pair(pair, capsys):
+    """``rprs father --profile paper --pc 1`` was taken, and the father pair's probation
+    (clause 50, this project's) put its takeover Header 75 ms after E + Tmax, where the paper
+    puts it at Ttrans: a paper robot's conformance run failed clause 24. Refused in one
+    line, as ``--standby`` was."""
+    master, slave = os.openpty()
+    try:
+        code, out, err = rprs(capsys, "father", "--radio", os.ttyname(slave), "--profile",
+                              "paper", "--no-input", "--duration", "0.2", *pair)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert (code, out) == (2, "") and err == (
+        "rprs: error: --profile paper: the paper profile has no checksum extension and no "
+        "father pair (a standby PC, --pc: both are this project's extensions)\n")
