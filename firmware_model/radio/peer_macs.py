@@ -218,7 +218,7 @@ class PeerMac:
         """Queue a message; raises SubmitError if it can never be sent."""
         commands, content = check_submission(self.id, dst, commands, type)
         crc = CRC_TEXT_LEN if self.cfg.checksum else 0
-        limit = self._content_limit() - crc
+        limit = self.content_limit
         if len(content) > limit:
             raise SubmitError(
                 f"Content of {len(content)} bytes makes a {len(content) + crc + FRAME_OVERHEAD}"
@@ -237,6 +237,12 @@ class PeerMac:
 
     def _content_limit(self) -> int:
         return self.max_content
+
+    @property
+    def content_limit(self) -> int:
+        """The longest Content of a message this MAC takes (bytes; a slotted frame fits its
+        slot, its crc() counted)."""
+        return self._content_limit() - (CRC_TEXT_LEN if self.cfg.checksum else 0)
 
     def _limit_why(self) -> str:
         return " (Tmax)"

@@ -444,6 +444,11 @@ def print_summary(world: World, wall: float, as_json: bool, membership: bool = T
     con.print(f"messages: submitted {s['submitted']}, delivered {s['delivered']}, "
               f"failed {s['failed']}, {unacked}pending {s['pending']}, "
               f"duplicate deliveries {s['duplicate_deliveries']}")
+    refused = sum(v.get("refused", 0) for v in s["robots"].values())
+    if refused:
+        # the load's messages a MAC would not take (World.submit counts them)
+        con.print(f"messages refused at submit: {refused} (longer than the MAC sends, or "
+                  f"its queue full: docs/peer-macs.md, docs/mac.md)")
     if s["speed"]:
         con.print(f"[dim]{sim_s:g} simulated s in {wall:.2f} wall s: {s['speed']:.0f}x "
                   f"real time[/dim]")

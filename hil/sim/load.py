@@ -111,8 +111,10 @@ class Load:
             return
         st = self.stations[r]
         dst = self.rngs[r].choice(others)
-        size = self.payload if self.payload is not None else \
-            st.mac.max_content - st.mac.cfg.mac_reserve
+        # (a peer MAC may take less: a slotted frame fits its slot)
+        size = self.payload if self.payload is not None else min(
+            st.mac.max_content - st.mac.cfg.mac_reserve,
+            getattr(st.mac, "content_limit", st.mac.max_content))
         try:
             self.submit(r, dst, filled_commands(size))
         except SubmitError:

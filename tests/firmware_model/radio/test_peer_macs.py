@@ -172,6 +172,32 @@ def test_slotted_aloha_delivers_on_the_cpu_model():
     assert s["delivered"] > 0 and w.air.occupations > 10, (s["delivered"], w.air.occupations)
 
 
+@pytest.mark.parametrize("kind,checksum", [("slotted", False), ("slotted", True),
+                                           ("aloha", True)])
+def test_a_saturated_peer_ring_sends_messages_its_mac_takes(kind, checksum):
+    """``--load saturate`` made every message the rotational MAC's largest: a slotted frame
+    must fit its slot, and with the checksum an ALOHA frame its crc, so every one was
+    refused at submit and the run reported an idle channel (submitted 0, exit 0). The load
+    fills a message to what the MAC takes."""
+    w = _world(kind, load="saturate", load_until=None, duration=6.0,
+               mac=MacConfig(checksum=checksum))
+    w.run()
+    s = w.summary()
+    assert s["submitted"] > 5 and w.air.occupations > 5, (s["submitted"], w.air.occupations)
+    assert sum(v["refused"] for v in s["robots"].values()) == 0
+
+
+def test_the_summary_says_how_many_messages_a_mac_refused(capsys):
+    """``rprs sim --mac slotted --frame-bytes 23 --load 1``: most of the load's messages do
+    not fit a 23-byte frame; the run said nothing of them."""
+    from hil.cli import main
+    assert main(["sim", "--mac", "slotted", "--frame-bytes", "23", "--load", "1", "--cpu",
+                 "ideal", "--duration", "3", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    line = next(ln for ln in out.splitlines() if ln.startswith("messages refused at submit: "))
+    assert int(line.split()[4]) > 0
+
+
 def test_csma_senses_bytes_and_defers_at_random():
     mac = CsmaMac(1, MacConfig(team=frozenset({1, 2})), seed=0)
     mac.power_on(0)
