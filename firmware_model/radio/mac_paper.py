@@ -80,6 +80,13 @@ def _paper_frame(self: RotationalMac, frame: Frame, first: int, end: int, now: i
         self._admit(src, out)
     elif self.phase == WAIT and src != self.owner:
         skipped = self._takeover(src, first)
+        if skipped is None:
+            # Not a takeover by its timing (it came sooner than a Tmax a robot skipped): the
+            # owner is whoever sends all the same, and the robots it passed over, but us, did
+            # not send in their turns. Else a robot powered on after the others, whose ring
+            # still held a robot they had dropped, waited for that robot for ever, never
+            # counting it missing, and never had a turn (a silent "member").
+            skipped = _passed_over(self, src)
         if skipped:
             self._count_skipped(skipped, out)
     self._last_heard = (src, end)
@@ -113,3 +120,15 @@ def _paper_build(self: RotationalMac, now: int, out: list) -> tuple[Frame, bytes
         return frame, frame.encode()
     frame = self._frame(BROADCAST, self._last_num, FrameType.BROADCAST_INFO, b"")
     return frame, frame.encode()
+
+
+def _passed_over(self: RotationalMac, src: int) -> list[int]:
+    """The ring's robots from the owner we waited for up to ``src`` (not included), but us:
+    those whose turns ``src``'s frame passed over (paper profile)."""
+    out: list[int] = []
+    o = self.owner
+    while o is not None and o != src and len(out) <= len(self.ring):
+        if o != self.id:
+            out.append(o)
+        o = self.succ(o)
+    return out if o == src else []

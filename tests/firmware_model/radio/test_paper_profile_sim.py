@@ -68,6 +68,24 @@ def test_in_simulation_a_robot_powered_on_after_its_drop_tries_its_slot_twice():
          "our slot is taken: the ring dropped us (the paper profile has no rejoin)"]
 
 
+def test_a_late_robot_whose_predecessor_was_dropped_takes_its_slot_and_stays_out():
+    """R4 powered on at 5 s in a ring whose R3 never came (R1 and R2 dropped it): its ring
+    still held R3, and R1, sending at once after R2, was no takeover by its timing, so R4
+    counted R3 missing never, waited for it for ever and was a silent "member" (sent 0,
+    every order pending). The owner is whoever sends (paper §IV.C): R3 is counted missing
+    when passed over, dropped after three turns, and R4 then tries its slot twice, colliding,
+    and stays out, as §9.1 says of a robot powered on after the others."""
+    w, evs = _paper_world(robots=(1, 2, 3, 4), power_on={4: 5.0}, duration=20.0, load=0.2,
+                          faults=(Fault("fail", robot=3, at=0.0),))
+    w.run()
+    assert [e for e in evs if e["ev"] == "miss" and e.get("by") == 4 and
+            e["robot"] == 3][:3], "R4 never counted R3 missing"
+    assert len([e for e in evs if e["ev"] == "collision"]) == 2
+    assert [e["reason"] for e in evs if e["ev"] == "mode" and e["robot"] == 4][-1] == \
+        "our slot is taken: the ring dropped us (the paper profile has no rejoin)"
+    assert w.ring_views()[1] == w.ring_views()[2] == (1, 2)
+
+
 def test_in_simulation_the_same_seed_gives_the_same_trace():
     a = _paper_world()[0]
     b = _paper_world()[0]
