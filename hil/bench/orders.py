@@ -224,11 +224,17 @@ class OrderBook:
                     o.expect.clear()
 
     def _why_unreported(self, o: Order, acked: int) -> str:
+        """What the father saw after ``o``'s acknowledgement that explains a missing report
+        (:meth:`_explained`); else the cases in which a robot reports nothing."""
+        return self._explained(o, acked) or (
+            "the robot reports none for a move to where the arm already is, or for an order a "
+            "newer one replaced")
+
+    def _explained(self, o: Order, acked: int) -> str | None:
         """What the father saw after ``o``'s acknowledgement that explains a missing report,
         the first of them: a later order to the robot that commands what ``o`` did (it
         replaced ``o``), a ``stop()``, the ring dropping the robot, the father itself out of
-        the ring (a report sent then was not heard); else the cases in which a robot reports
-        nothing."""
+        the ring (a report sent then was not heard); None if nothing."""
         seen: list[tuple[int, str]] = []
         mine = _submodules(o)
         for p in self.orders:
@@ -256,18 +262,23 @@ class OrderBook:
                                   f"report sent then was not heard"))
         if seen:
             return min(seen, key=lambda x: x[0])[1]
-        return ("the robot reports none for a move to where the arm already is, or for an "
-                "order a newer one replaced")
+        return None
 
     def close(self, now: int, why: str) -> None:
         """The father stops (``why``: the radio port went away, a signal, the duration): every
         order still open gets its final state, as every order line gets one. One never sent
-        fails; one sent ends ``unreported``."""
+        fails; one sent ends ``unreported``, with what the father saw first that explains a
+        missing report, if anything (the ring dropped the robot)."""
         for o in self.open_orders():
             if o.state == "queued":
                 self._set(o, "failed", now, f"never sent: {why}")
-            else:
-                self._set(o, "unreported", now, f"{why} before the robot reported on it")
+                continue
+            acked = _tick_of(o, "acknowledged")
+            seen = self._explained(o, acked) if acked is not None else None
+            # what the father saw first explains it better than its own stop (the ring
+            # dropped the robot, then the port went: the drop is the reason)
+            self._set(o, "unreported", now, f"{why} before the robot reported on it" +
+                      (f"; before that, {seen}" if seen else ""))
 
     def _acknowledged(self, o: Order, now: int) -> None:
         self._set(o, "acknowledged", now)

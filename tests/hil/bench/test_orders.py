@@ -389,3 +389,20 @@ def test_orders_open_when_the_father_stops_each_get_a_final_state():
     assert book.counts()["open"] == 0
     book.close(200, "again")                              # once only
     assert len([s for s in seen if s[1] in ("unreported", "failed")]) == 2
+
+
+def test_an_order_open_at_the_stop_names_the_drop_the_father_saw_first():
+    """An order acknowledged, its robot killed and dropped by the ring, then the radio hub
+    gone: the order ended "the radio port ... went away before the robot reported on it",
+    the drop that explains it unsaid. It says both now, the stop first."""
+    from firmware_model.radio.mac import Disable
+    seen = []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state, o.reason)))
+    m = _msg(book, 1, cmd("joint", 1, 0), dst=1)
+    book.observe(Outcome(m, True, ""), 10)
+    book.observe(Disable(1), 3 * TICK_HZ)
+    book.close(9 * TICK_HZ, "the radio port /tmp/air/node0 went away (read failed)")
+    (end,) = [r for i, st, r in seen if st == "unreported"]
+    assert end.startswith("the radio port /tmp/air/node0 went away (read failed) before the "
+                          "robot reported on it; before that, the ring dropped robot 1 after "
+                          "it acknowledged it"), end
