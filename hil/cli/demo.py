@@ -207,7 +207,7 @@ def add_action_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0,
                    help="the same seed gives the same run (default %(default)s)")
     p.add_argument("--ber", type=probability, default=0.0, metavar="P",
-                   help="bit error rate on the air (default 0)")
+                   help="probability that a received byte is corrupted (default 0)")
     p.add_argument("--noise", action="store_true",
                    help="radios hear random bytes when idle")
     p.add_argument("--timeout", type=positive, default=300.0, metavar="SECONDS",
