@@ -1131,6 +1131,17 @@ def test_a_file_with_no_campaign_in_it_is_refused_and_left_as_it_was(tmp_path, c
     assert not (tmp_path / "o.csv").exists()
 
 
+def _stored_before_the_code_column(db):
+    """A results file of one run as written before runs had a ``code`` column."""
+    import sqlite3
+    _stored(db)
+    con = sqlite3.connect(db)
+    con.execute("ALTER TABLE runs DROP COLUMN code")
+    con.commit()
+    con.close()
+    return db
+
+
 @pytest.mark.parametrize("schema", ["CREATE TABLE runs (a, b)", "CREATE TABLE foo (x)",
                                     "CREATE TABLE meta (key, value)"])
 def test_campaign_run_refuses_another_programs_database_and_leaves_it_as_it_was(tmp_path,
@@ -1152,12 +1163,7 @@ def test_campaign_run_refuses_another_programs_database_and_leaves_it_as_it_was(
         Store(db)
     assert db.read_bytes() == before
     Store(tmp_path / "new.sqlite").close()
-    old = tmp_path / "old.sqlite"
-    _stored(old)
-    con = sqlite3.connect(old)
-    con.execute("ALTER TABLE runs DROP COLUMN code")
-    con.commit()
-    con.close()
+    old = _stored_before_the_code_column(tmp_path / "old.sqlite")
     store = Store(old)
     assert len(store.rows()) == 1 and store.rows()[0]["code"] is None
 
@@ -1177,14 +1183,8 @@ def test_one_point_spelled_two_ways_is_refused(tmp_path, grid):
 def test_a_results_file_from_before_the_code_column_is_reported_as_it_is(tmp_path, capsys):
     """Reading opens the file read-only, so it no longer adds the ``code`` column a file
     written before it lacks: its rows read with no code, and the file is left as it was."""
-    import sqlite3
     from hil.cli import main
-    db = tmp_path / "old.sqlite"
-    _stored(db)
-    con = sqlite3.connect(db)
-    con.execute("ALTER TABLE runs DROP COLUMN code")
-    con.commit()
-    con.close()
+    db = _stored_before_the_code_column(tmp_path / "old.sqlite")
     before = db.read_bytes()
     rows = Store(db, read_only=True).rows()
     assert len(rows) == 1 and rows[0]["code"] is None and rows[0]["metrics"]["submitted"] == 3
