@@ -282,7 +282,9 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
         except ValueError as exc:
             box.append((runner.sched.now, exc))
         ev.set()
-    rtt, ack, failed = [], [], []
+    rtt: list[float] = []
+    ack: list[float] = []
+    failed: list[str] = []
     sent = 0
     ended = getattr(runner, "finished", None)      # the runner stopped (its port went away)
     for i in range(count):
@@ -300,13 +302,16 @@ def latency(runner: Any, station: Any, dst: int, count: int, timeout: float,
         sent += 1
         end = time.monotonic() + timeout
 
-        def answer(msg: Any = msg, t_sub: int = t_sub, n_rep: int = n_rep) -> int | None:
-            """The tick of this request's reply: the first from ``dst`` heard no earlier
-            than the frame that acknowledged the request (the robot answers what it has
-            taken: a reply heard before that is a late one to an earlier request that timed
-            out); unacknowledged, the first since it was submitted."""
-            since = next((t for t, o in list(outcomes) if o.message is msg and o.delivered),
-                         t_sub)
+        def answer(msg: Any = msg, t_sub: int = t_sub, n_rep: int = n_rep,
+                   owed: bool = sent > len(rtt) + 1) -> int | None:
+            """The tick of this request's reply: the first from ``dst`` since it was
+            submitted; but while an earlier request went unanswered (``owed``), the first
+            heard no earlier than the frame that acknowledged this one (the robot answers
+            what it has taken: a reply heard before that is a late one to the earlier
+            request). A reply heard before its own acknowledgement, whose first copy the
+            father missed (a lost frame, a starved process), is this request's."""
+            since = t_sub if not owed else next(
+                (t for t, o in list(outcomes) if o.message is msg and o.delivered), t_sub)
             return next((t for t, _ in replies[n_rep:] if t >= since), None)
         while time.monotonic() < end and (answer() is None or msg.state == "sent"
                                           or msg.state == "queued") and \

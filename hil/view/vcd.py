@@ -12,7 +12,8 @@ lands on its exact tick. Signals (scope ``rprs``):
 ``rprs.can_<r>``    11-bit ID of the CAN frame on child ``r``'s bus from SOF to end of EOF, ``z``
                     between frames (only in a ``--can`` trace).
 ``rprs.R<r>.txen``  the robot's TXEN pin (``pc2_txen`` too for the father's standby PC).
-``rprs.R<r>.tx``    1 from the first bit of the robot's frame to the last bit of its End.
+``rprs.R<r>.tx``    1 from the first bit of the robot's frame to the last bit of its End
+                    (``pc2_tx`` for the father's standby PC's frames: ``tx`` is PC1's).
 ``rprs.R<r>.rx``    1 while another robot's frame is on air and this robot's TXEN is low;
                     ``x`` when what is on air is garbage (a collision, interference), ``z``
                     while the robot's radio is failed (``fault`` fail .. recover).
@@ -169,6 +170,7 @@ class VcdTraceWriter:
             self.v_txen[(r, 1)] = w.register_var(sc, "txen", "wire", size=1, init="x")
             if r == 0:
                 self.v_txen[(0, 2)] = w.register_var(sc, "pc2_txen", "wire", size=1, init="z")
+                self.v_pc2_tx = w.register_var(sc, "pc2_tx", "wire", size=1, init=0)
             self.v_tx[r] = w.register_var(sc, "tx", "wire", size=1, init=0)
             self.v_rx[r] = w.register_var(sc, "rx", "wire", size=1, init=0)
             self.v_miss[r] = w.register_var(sc, "miss", "event")
@@ -210,8 +212,9 @@ class VcdTraceWriter:
             self._fid += 1
             self.frames += 1
             self.collided += ev.collided
-            q.push(start, ("fs", self._fid, src), 1, n)
-            q.push(end, ("fe", self._fid, src), 0, n)
+            fid = -self._fid if src == 0 and ev.pc == 2 else self._fid   # (< 0: PC2's)
+            q.push(start, ("fs", fid, src), 1, n)
+            q.push(end, ("fe", fid, src), 0, n)
         elif kind is TxenEdge:
             r = self._robot(ev.robot, "txen", n)
             q.push(t, ("txen", (r, 2 if ev.pc == 2 and r == 0 else 1), ev.on), 2, n)
@@ -307,9 +310,15 @@ class VcdTraceWriter:
         elif busy >= 2:
             self.owner = "x"
         w.change(self.v_owner, ts, self.owner)
+        pc2 = any(fid < 0 for fid in self.on_air)
         for r in self.robots:
             mine = r in srcs
-            w.change(self.v_tx[r], ts, int(mine))
+            if r == 0 and 0 in self.v_tx:
+                w.change(self.v_pc2_tx, ts, int(pc2))
+                w.change(self.v_tx[0], ts, int(any(fid > 0 and src == 0
+                                                   for fid, src in self.on_air.items())))
+            else:
+                w.change(self.v_tx[r], ts, int(mine))
             others = busy - srcs.count(r)
             if r in self.dead:
                 rx: int | str = "z"
@@ -343,7 +352,7 @@ class VcdTraceWriter:
                 "robots": self.robots, "frames": self.frames, "collided_frames": self.collided,
                 "misses": self.misses, "can_frames": self.can_frames,
                 "interference": self.interference, "end_tick": end,
-                "signals": 3 + len(self.buses) + 4 * len(self.robots) + (0 in self.robots)}
+                "signals": 3 + len(self.buses) + 4 * len(self.robots) + 2 * (0 in self.robots)}
 
     def discard(self) -> None:
         """Drop the partial file."""

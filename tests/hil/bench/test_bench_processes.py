@@ -177,7 +177,7 @@ def test_bench_scripts_against_the_hub(hub, tmp_path):
                               "--json"], capture_output=True, text=True, timeout=120)
         assert lat.returncode == 0, lat.stdout + lat.stderr
         r = json.loads(lat.stdout)
-        assert r["replies"] == r["sent"] == 5 and r["loss"] == 0
+        assert r["replies"] == r["sent"] == 5 and r["loss"] == 0, r
         assert 20 < r["round_trip_ms_median"] <= r["round_trip_ms_p99"] < 1000
         assert r["refused"] == 0, r["refusal"]
     finally:

@@ -214,6 +214,37 @@ def test_a_late_reply_to_a_request_that_timed_out_is_not_the_next_ones():
     assert r.round_trip_ms == [40.0]
 
 
+def test_a_reply_heard_before_its_acknowledgement_is_the_requests_when_none_is_owed():
+    """The father missed the frame that acknowledged a request (a starved process on a busy
+    host); the robot's reply came, then the acknowledgement again: the reply, heard before
+    the acknowledgement, was taken for a late one to an earlier request that had none
+    outstanding, and ``bench latency`` reported 4 replies of 5 with no loss to explain it.
+    It is this request's while every earlier one was answered."""
+    from types import SimpleNamespace
+
+    from firmware_model.radio.content import cmd
+    from firmware_model.radio.mac import Deliver, Outcome
+
+    station = _Station()
+    sched = SimpleNamespace(now=0)
+
+    def submit(dst, commands, type_):
+        msg = SimpleNamespace(state="delivered")
+        t = sched.now
+        station.tell(Deliver(2, 0, 1, 3, (cmd("joint", 1, 0),)), t + 30 * MS)   # the reply
+        station.tell(Outcome(msg, True, ""), t + 60 * MS)    # the acknowledgement, again
+        return msg
+
+    def post(fn, *args):
+        sched.now += 1000 * MS
+        fn(*args)
+    sched.post = post
+    station.submit = submit
+    r = bench.latency(SimpleNamespace(sched=sched), station, 2, 2, 0.05)
+    assert (r.sent, r.replies) == (2, 2)
+    assert r.round_trip_ms == [30.0, 30.0]
+
+
 def test_a_listener_whose_port_goes_away_stops_and_says_so(capsys, monkeypatch):
     """The radio hub stopped under 'rprs bench link': it once listened on to the end of
     --duration and reported a whole run, exit 0."""

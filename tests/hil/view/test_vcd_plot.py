@@ -147,6 +147,28 @@ def test_vcd_tx_rx_owner_follow_the_frames(fault_run, tmp_path):
     assert value_at(ch, "rprs.R1.txen", s - 80_000 * UNITS) == "1"
 
 
+def test_the_standby_pcs_frames_have_a_signal_of_their_own(tmp_path):
+    """PC1's and PC2's frames were one signal, ``R0.tx``: a failover could not be seen in
+    the waveform. ``R0.tx`` is PC1's, ``R0.pc2_tx`` PC2's, each following its frames."""
+    evs = _sim(robots=(0, 1, 2), duration=12.0, father_standby=True,
+               faults=(Fault("fail", 0, 4.0), Fault("recover", 0, 8.0)))
+    out = tmp_path / "pair.vcd"
+    write_vcd(evs, str(out))
+    _, ch, decls = parse_vcd(out)
+    assert "rprs.R0.pc2_tx" in decls
+    by_pc2 = [f for f in frames(evs) if f["src"] == 0 and f.get("pc") == 2 and
+              not f["collided"]]
+    by_pc1 = [f for f in frames(evs) if f["src"] == 0 and f.get("pc") != 2 and
+              not f["collided"]]
+    assert by_pc1 and by_pc2
+    for f in by_pc2[:5] + by_pc2[-3:]:
+        assert value_at(ch, "rprs.R0.pc2_tx", f["start"] * UNITS) == "1"
+        assert value_at(ch, "rprs.R0.tx", f["start"] * UNITS) == "0"
+    for f in by_pc1[:5] + by_pc1[-3:]:
+        assert value_at(ch, "rprs.R0.tx", f["start"] * UNITS) == "1"
+        assert value_at(ch, "rprs.R0.pc2_tx", f["start"] * UNITS) == "0"
+
+
 def test_vcd_shows_the_collision(fault_run, tmp_path):
     out = tmp_path / "run.vcd"
     s = write_vcd(fault_run, str(out))
