@@ -1,0 +1,38 @@
+"""The seeded tables of docs/performance.md are what their benchmarks print today: they are
+the same on any machine, so a row that differs is a stale figure (the checksum and peer-MAC
+tables once drifted by a few messages each, unnoticed)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from paths import ROOT
+
+DOC = (ROOT / "docs" / "performance.md").read_text()
+
+
+def _rows(script: str) -> list[str]:
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / script)], cwd=ROOT,
+                         capture_output=True, text=True, check=True, timeout=600).stdout
+    return [line for line in out.splitlines() if line.startswith("| ") and
+            not line.startswith(("| BER |", "| MAC |"))]
+
+
+def test_the_checksum_table_is_todays():
+    rows = _rows("checksum_effect.py")
+    assert len(rows) == 6
+    stale = [r for r in rows if r not in DOC]
+    assert not stale, stale
+
+
+@pytest.mark.slow
+def test_the_peer_mac_rows_shown_are_todays():
+    """The doc shows some of the rows (nine of 18 peer rows and the rotational one): each
+    shown is printed today, and at least nine are shown."""
+    rows = _rows("peer_macs.py")
+    shown = [r for r in rows if any(line.startswith(" | ".join(r.split(" | ")[:2]) + " |")
+                                    for line in DOC.splitlines())]
+    assert len(shown) >= 9, shown
+    stale = [r for r in shown if r not in DOC]
+    assert not stale, stale
