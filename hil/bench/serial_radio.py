@@ -75,6 +75,18 @@ def open_port(spec: str, baud: int = 9600) -> serial.Serial:
     return port
 
 
+def txen_low(port: serial.Serial, txen: str) -> None:
+    """Drive ``port``'s TXEN line (``rts`` or ``dtr``) low: the radio listens. PortError,
+    one line, for a port that has no such line (a pty: a radio hub node)."""
+    try:
+        setattr(port, txen, False)
+    except (serial.SerialException, OSError, ValueError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc)
+        raise PortError(f"--txen {txen}: {port.name} has no {txen.upper()} line to "
+                        f"drive ({why}); a pty, such as a radio hub node, has no "
+                        f"modem lines: use --txen none") from None
+
+
 class SerialChannel:
     """The air as one robot's serial port sees it. ``attach(radio)`` wires a Ptr2000 model."""
 
@@ -85,13 +97,7 @@ class SerialChannel:
         self.port = port
         self.txen = txen
         if txen != "none":             # a port without modem lines (a pty) is refused now
-            try:
-                setattr(port, txen, False)
-            except (serial.SerialException, OSError, ValueError) as exc:
-                why = getattr(exc, "strerror", None) or str(exc)
-                raise PortError(f"--txen {txen}: {port.name} has no {txen.upper()} line to "
-                                f"drive ({why}); a pty, such as a radio hub node, has no "
-                                f"modem lines: use --txen none") from None
+            txen_low(port, txen)
         self.radio: Ptr2000 | None = None
         self.bytes_out = 0
         self.bytes_in = 0

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from .common import (UserError, auth_option, file_name, digit, output_file, port_name, positive,
-                     robot_list, stdout_console)
+                     robot_list, stdout_console, txen_option)
 
 
 VERDICT_STYLE = {"pass": "[green]pass[/green]", "FAIL": "[red]FAIL[/red]", "n/a": "[dim]n/a[/dim]"}
@@ -30,7 +30,7 @@ def cmd_conformance(a: argparse.Namespace) -> int:
         t = Tester(a.radio, a.id, a.profile, a.tester, a.tolerance_ms, a.turns,
                    progress=None if quiet else lambda s: print(s, file=sys.stderr, flush=True),
                    key=a.auth_key, team=tuple(a.team) if a.team else tuple(range(7)),
-                   checksum=a.checksum, wrap=a.wrap)
+                   checksum=a.checksum, wrap=a.wrap, txen=a.txen)
     except (PortError, ValueError, FreshnessExhausted) as exc:
         raise UserError(str(exc)) from None
     try:
@@ -72,6 +72,7 @@ def add(sub) -> None:
                    help="the serial port of this PC's radio (or a radio-hub pty)")
     p.add_argument("--id", type=digit(0, 6, "robot ID"), required=True,
                    help="the ID of the robot under test")
+    txen_option(p)
     p.add_argument("--profile", choices=("rprs", "paper"), default="rprs",
                    help="the profile the robot runs (docs/protocol.md; §9.1 for paper)")
     p.add_argument("--tester", type=digit(0, 6, "tester ID"), default=None,

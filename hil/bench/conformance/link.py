@@ -9,7 +9,7 @@ from typing import Protocol
 from firmware_model.timing import PC_BYTE_TICKS, TICK_HZ
 
 from ..runner import REALTIME_MARGINS
-from ..serial_radio import open_port
+from ..serial_radio import TXEN_LINES, PortError, open_port, txen_low
 
 MS = TICK_HZ // 1000
 TTRANS = 5 * MS
@@ -63,8 +63,23 @@ class SerialLink:
     the port's 50 ms timeout); :meth:`idle` waits for the time given or the next byte,
     whichever comes first, so bytes are read, and stamped, as they come."""
 
-    def __init__(self, port: str) -> None:
+    lead = 0
+    """Ticks before a frame's first bit that :meth:`write` must be called: Ttrans with a TXEN
+    line (the radio is keyed then), else 0 (a self-switching module, the pty hub)."""
+
+    def __init__(self, port: str, txen: str = "none") -> None:
         self.port = open_port(port)
+        self.txen = txen
+        if txen != "none":
+            if txen not in TXEN_LINES:
+                raise PortError(f"TXEN line must be one of {', '.join(TXEN_LINES)}, got "
+                                f"{txen!r}")
+            try:
+                txen_low(self.port, txen)
+            except PortError:
+                self.port.close()
+                raise
+            self.lead = TTRANS
         self.t0 = time.monotonic_ns()
         try:
             self._fd: int | None = self.port.fileno()
@@ -84,8 +99,23 @@ class SerialLink:
         return [(data, self.now() - (len(data) - 1) * BYTE, BYTE)]
 
     def write(self, data: bytes) -> int:
+        """Put ``data`` on air; the tick its first bit goes out. With a TXEN line: the line
+        up now, the bytes Ttrans later (the radio's switch, docs/protocol.md clause 23), the
+        line down once they have left the UART (the kit is deaf meanwhile, as its radio)."""
+        if self.txen == "none":
+            start = self.now()
+            self.port.write(data)
+            return start
+        setattr(self.port, self.txen, True)
+        due = self.now() + TTRANS
+        while self.now() < due:
+            time.sleep(max(0, due - self.now()) / TICK_HZ)
         start = self.now()
-        self.port.write(data)
+        try:
+            self.port.write(data)
+            self.port.flush()                 # every byte out of the UART, then the line down
+        finally:
+            setattr(self.port, self.txen, False)
         return start
 
     def idle(self, ticks: int) -> None:
@@ -95,4 +125,9 @@ class SerialLink:
             select.select([self._fd], [], [], ticks / TICK_HZ)
 
     def close(self) -> None:
+        if self.txen != "none":
+            try:
+                setattr(self.port, self.txen, False)
+            except (OSError, ValueError):
+                pass
         self.port.close()

@@ -35,7 +35,7 @@ class Tester:
                  tester: int | None = None, tolerance_ms: float = 15.0, turns: int = 20,
                  progress: Callable[[str], None] | None = None, key=None,
                  team: tuple[int, ...] = tuple(range(7)), checksum: bool = False,
-                 wrap: bool = False) -> None:
+                 wrap: bool = False, txen: str = "none") -> None:
         if not 0 <= robot <= 6:
             raise ValueError(f"robot ID must be 0-6, got {robot}")
         self.robot = robot
@@ -57,7 +57,9 @@ class Tester:
         self.tol = int(tolerance_ms * MS)
         self.turns = turns
         self.progress = progress or (lambda s: None)
-        self.link: TesterLink = SerialLink(port) if isinstance(port, str) else port
+        self.link: TesterLink = SerialLink(port, txen) if isinstance(port, str) else port
+        self.lead = getattr(self.link, "lead", 0)
+        """Ticks our writes come before our Headers (a radio keyed by a TXEN line: Ttrans)."""
         self.deframer = Deframer(byte_ticks=BYTE)
         self.heard: list[Heard] = []
         self.bad = 0                      # failed frames heard (not in our own air time)
@@ -308,7 +310,7 @@ class Tester:
         If this PC itself woke after the robot took our turn over (its frame, or a Header,
         came first), we send nothing and take its frame (a turn missed too)."""
         at = self._turn_at(h) if at is None else at
-        while self.now() < at:
+        while self.now() < at - self.lead:          # (a keyed radio: TXEN Ttrans before)
             self._poll_rx()
             self.link.idle(POLL_SEND)
         self._poll_rx()
@@ -551,7 +553,7 @@ class Tester:
             built = frames()
             for f in built[:-1]:
                 end = self._write(f)
-                while self.now() < end + TTRANS:
+                while self.now() < end + TTRANS - self.lead:
                     self._poll_rx()
                     self.link.idle(POLL_SEND)
             return built[-1]

@@ -120,6 +120,64 @@ def test_the_kits_serial_link_never_waits_in_a_read_and_wakes_for_a_byte():
         os.close(slave)
 
 
+@pytest.mark.parametrize("line", ["rts", "dtr"])
+def test_the_kit_keys_a_radio_wired_to_txen_ttrans_before_its_frame(line, monkeypatch):
+    """``rprs conformance`` had no ``--txen``: with a PTR2000 whose TXEN is wired to the
+    adapter's RTS or DTR, as docs/bench.md wires one, the kit never keyed its radio and no
+    frame of its left it. With ``--txen``: the line goes up, the bytes Ttrans later, the
+    line down once they have left the UART; the kit's waits end Ttrans earlier (``lead``)."""
+    from hil.bench.conformance import link as link_mod
+    from hil.bench.conformance.link import TTRANS, SerialLink
+    events = []
+
+    class Port:
+        name = "/dev/ttyUSB-fake"
+
+        def __setattr__(self, key, value):
+            if key in ("rts", "dtr"):
+                events.append((key, value, time.monotonic()))
+            object.__setattr__(self, key, value)
+
+        def write(self, data):
+            events.append(("write", data, time.monotonic()))
+
+        def flush(self):
+            events.append(("flush", None, time.monotonic()))
+
+        def fileno(self):
+            raise OSError("no descriptor")
+
+        def close(self):
+            events.append(("close", None, time.monotonic()))
+
+    monkeypatch.setattr(link_mod, "open_port", lambda name: Port())
+    link = SerialLink("/dev/ttyUSB-fake", line)
+    assert link.lead == TTRANS and events == [(line, False, events[0][2])]   # listening
+    link.write(b"\x0f\x0a\x05")
+    kinds = [(k, v) for k, v, _ in events[1:]]
+    assert kinds == [(line, True), ("write", b"\x0f\x0a\x05"), ("flush", None),
+                     (line, False)]
+    keyed, wrote = events[1][2], events[2][2]
+    assert wrote - keyed >= TTRANS / 16e6 * 0.99                     # the radio's switch
+    assert SerialLink.lead == 0                                       # no line: no lead
+    link.close()
+    assert [(k, v) for k, v, _ in events[-2:]] == [(line, False), ("close", None)]
+
+
+def test_conformance_with_txen_on_a_pty_is_one_line(capsys):
+    """A pty (a radio hub node) has no modem lines: said as the child and father say it."""
+    from hil.cli import main
+    master, slave = os.openpty()
+    try:
+        code = main(["conformance", "--radio", os.ttyname(slave), "--id", "1", "--txen",
+                     "dtr"])
+    finally:
+        os.close(master)
+        os.close(slave)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "has no DTR line to drive" in err, err
+
+
 def test_a_clause_not_applicable_is_skipped_in_junit_with_its_reason_and_fails_nothing():
     rep = Report(1, "rprs", [Check("34", "answers", True, "Type '6'"),
                              Check("29", "a BOOT frame is Number '00'", True,
