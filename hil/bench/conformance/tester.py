@@ -58,8 +58,7 @@ class Tester:
         self.turns = turns
         self.progress = progress or (lambda s: None)
         self.link: TesterLink = SerialLink(port, txen) if isinstance(port, str) else port
-        self.lead = getattr(self.link, "lead", 0)
-        """Ticks our writes come before our Headers (a radio keyed by a TXEN line: Ttrans)."""
+
         self.deframer = Deframer(byte_ticks=BYTE)
         self.heard: list[Heard] = []
         self.bad = 0                      # failed frames heard (not in our own air time)
@@ -185,6 +184,12 @@ class Tester:
         of the robot's cut after 4 bytes, its Header stamped a few ms after ours began.)"""
         return any(first < s + self.tol and s <= at <= e + self.tol
                    for s, e in self.on_air[-4:])
+
+    @property
+    def lead(self) -> int:
+        """Ticks our writes come before our Headers (a radio keyed by a TXEN line: Ttrans;
+        a link without one, as the simulator's, 0)."""
+        return getattr(self.link, "lead", 0)
 
     def _write(self, data: bytes) -> int:
         """Put ``data`` on air now; the tick its End leaves the air. Our radio is deaf from
