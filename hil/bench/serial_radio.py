@@ -44,13 +44,15 @@ def open_port(spec: str, baud: int = 9600) -> serial.Serial:
             raise PortError(f"serial port {spec} is a symlink to nothing (a dangling link, or "
                             f"a loop of links)")
         raise PortError(f"serial port {spec} does not exist")
-    if spec.startswith("socket://"):
+    scheme = next((s for s in ("socket://", "rfc2217://") if spec.startswith(s)), None)
+    if scheme is not None:
         # pyserial says "'debug|info|warning|error'" of a port out of range or missing
-        host, _, rest = spec[len("socket://"):].partition(":")
+        # (socket://), or compares None with a number (rfc2217://)
+        host, _, rest = spec[len(scheme):].partition(":")
         port_text = rest.split("?", 1)[0].rstrip("/")
         if not (port_text.isdigit() and 0 < int(port_text) < 65536):
-            raise PortError(f"cannot open serial port {spec}: socket:// needs HOST:PORT with "
-                            f"PORT 1-65535 (e.g. socket://localhost:7777), got {port_text!r}")
+            raise PortError(f"cannot open serial port {spec}: {scheme} needs HOST:PORT with "
+                            f"PORT 1-65535 (e.g. {scheme}localhost:7777), got {port_text!r}")
     try:
         port = serial.serial_for_url(spec, baudrate=baud, bytesize=8, parity="N", stopbits=1,
                                      timeout=0.05, write_timeout=2.0, exclusive=True) \

@@ -987,7 +987,7 @@ def test_a_late_header_after_a_burst_in_the_hand_over_costs_nobody_a_miss_on_the
 
 @pytest.mark.parametrize("spec,words", [
     ("socket://:99999", "PORT 1-65535"), ("socket://localhost", "needs HOST:PORT"),
-    ("socket://host:port", "got 'port'")])
+    ("socket://host:port", "got 'port'"), ("rfc2217://", "rfc2217:// needs HOST:PORT")])
 def test_a_socket_url_without_a_port_it_can_use_says_so(spec, words):
     """pyserial answers these with "'debug|info|warning|error'" (an outside check)."""
     from hil.bench.serial_radio import PortError, open_port
