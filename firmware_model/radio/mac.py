@@ -54,9 +54,8 @@ import random
 from bisect import bisect_right
 from typing import Any, Sequence
 
-from ..timing import max_content_bytes, protocol_max_content
-from ..timing import (  # still importable from here, as before MacConfig moved out
-    CHILD_BYTE_TICKS as CHILD_BYTE_TICKS,
+from ..timing import (max_content_bytes, protocol_max_content,  # the rest importable here,
+    CHILD_BYTE_TICKS as CHILD_BYTE_TICKS,                        # as before MacConfig moved
     MISS_LIMIT as MISS_LIMIT,
     PC_BYTE_TICKS as PC_BYTE_TICKS,
     TMAX_TICKS as TMAX_TICKS,
@@ -167,6 +166,7 @@ class RotationalMac:
         self._next_num = 0
         self._last_num = 0               # Number a control frame repeats: the last one sent
         self._acks: list[tuple[int, int]] = []
+        self._failed_sent: dict[int, int] = {}   # robot -> our last Number to it failed sent
         self._acks_deferred = False
         self._last_rx: dict[int, int] = {}
         self._rx_armed: set[int] = set()

@@ -170,6 +170,15 @@ class BadChecksum:
 
 
 @dataclass(frozen=True, slots=True)
+class LateAck:
+    """``src`` acknowledged our message ``num`` after it had failed unacknowledged (its
+    acknowledgements lost, or we deaf): ``src`` has it after all, and may answer it."""
+
+    src: int
+    num: int
+
+
+@dataclass(frozen=True, slots=True)
 class Outcome:
     """A submitted message ended: ``delivered`` (acknowledged) or failed with ``reason``."""
 

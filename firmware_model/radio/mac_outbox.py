@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING, Iterable
 
 from ..timing import FRAME_OVERHEAD
 from .content import Command
-from .frame import FrameType
+from .frame import BROADCAST, FrameType
 from .mac_config import check_submission
-from .mac_events import Message, Outcome, QueueFull, StandingBy, SubmitError
+from .mac_events import LateAck, Message, Outcome, QueueFull, StandingBy, SubmitError
 
 if TYPE_CHECKING:
     from .mac import RotationalMac
@@ -78,6 +78,9 @@ def _on_ack(self: RotationalMac, src: int, num: int, now: int, out: list) -> Non
         return
     m = self._inflight
     if m is None or m.num != num or src not in m.awaiting:
+        if self._failed_sent.get(src) == num:
+            del self._failed_sent[src]
+            out.append(LateAck(src, num))
         return
     m.awaiting.discard(src)
     m.acked.add(src)
@@ -88,6 +91,8 @@ def _on_ack(self: RotationalMac, src: int, num: int, now: int, out: list) -> Non
 def _finish(self: RotationalMac, m: Message, delivered: bool, reason: str, out: list) -> None:
     m.state = "delivered" if delivered else "failed"
     m.reason = reason
+    if not delivered and m.attempts and m.dst != BROADCAST:
+        self._failed_sent[m.dst] = m.num     # it went out: its robot may have it (LateAck)
     if self._inflight is m:
         self._inflight = None
     elif m in self._queue:

@@ -30,6 +30,7 @@ from firmware_model.radio.frame import BROADCAST
 from firmware_model.radio.mac import (
     UNACKNOWLEDGED, Deliver, Disable, Message, ModeChange, Outcome, Transmit,
 )
+from firmware_model.radio.mac_events import LateAck
 from firmware_model.timing import TICK_HZ
 
 FAIL_REASONS = {
@@ -200,6 +201,15 @@ class OrderBook:
                 self._set(ended, "failed", now, a.reason)
         elif isinstance(a, Deliver):
             self._news(a, now)
+        elif isinstance(a, LateAck):
+            # a failed order the robot has after all: its answer is owed to it (news), not
+            # to the robot's next order
+            for o in self.orders:
+                if o.dst == a.src and o.state == "failed" and o.message is not None and \
+                        o.message.num == a.num and o.message.state == "failed":
+                    owed = [c.text() for c in o.message.commands]
+                    if owed:
+                        o.expect = {a.src: owed}
         elif isinstance(a, Disable):
             self._dropped[a.robot] = now
         elif isinstance(a, ModeChange) and a.mode == "listen":
@@ -391,7 +401,7 @@ class OrderBook:
                 continue
             if o.dst == robot and not o.finished and pred(o, o.open_parts):
                 return o
-            if o.dst == BROADCAST:
+            if o.dst == BROADCAST or o.expect:      # (a failed order acknowledged late)
                 parts = o.expect.get(robot)
                 if parts and pred(o, parts):
                     if part in parts:

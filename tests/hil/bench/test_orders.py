@@ -406,3 +406,43 @@ def test_an_order_open_at_the_stop_names_the_drop_the_father_saw_first():
     assert end.startswith("the radio port /tmp/air/node0 went away (read failed) before the "
                           "robot reported on it; before that, the ring dropped robot 1 after "
                           "it acknowledged it"), end
+
+
+def test_an_answer_to_a_failed_order_acknowledged_late_is_news_not_the_next_orders():
+    """A USB adapter stalled 2 s: #2 ``status()`` failed (R1 dropped after 2 attempts), yet
+    R1 had it and answered; that answer ended #3 ``status()``, whose own answer then came as
+    news (with a CAN side, #3 would show #2's older values). R1's acknowledgement of #2,
+    heard late (the MAC's ``LateAck``), marks #2 owed its answer: the first answer is news,
+    #3 gets its own."""
+    from firmware_model.radio.mac_events import LateAck
+    seen = []
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state, o.reason, now)))
+    first = _msg(book, 2, cmd("status"))
+    _sent(book, first, 10)
+    first.state = "failed"
+    book.observe(Outcome(first, False, "destination 1 dropped from the ring after 2 "
+                                       "attempt(s)"), 100)
+    second = _msg(book, 3, cmd("status"))
+    _sent(book, second, 110)
+    book.observe(LateAck(1, 2), 150)
+    book.observe(Outcome(second, True, ""), 160)
+    answer = (cmd("joint", 1, 0), cmd("joint", 2, 45), cmd("joint", 3, -90),
+              cmd("joint", 4, 45), cmd("wheel", 0), cmd("paw", 1))
+    old = (cmd("joint", 1, 10),) + answer[1:]
+    book.observe(Deliver(1, 0, 4, 4, old), 200)          # #2's answer
+    book.observe(Deliver(1, 0, 5, 4, answer), 300)       # #3's
+    ends = {i: (st, t) for i, st, _, t in seen if st in ("replied", "failed")}
+    assert ends[1][0] == "failed" and ends[2] == ("replied", 300), seen
+    assert "joint 1 0 deg" in book.orders[1].reply, book.orders[1].reply
+    # without the late acknowledgement, as before, the first answer is #3's
+    seen.clear()
+    book = OrderBook(on_change=lambda o, now: seen.append((o.id, o.state, o.reason, now)))
+    first = _msg(book, 2, cmd("status"))
+    _sent(book, first, 10)
+    first.state = "failed"
+    book.observe(Outcome(first, False, "dropped"), 100)
+    second = _msg(book, 3, cmd("status"))
+    _sent(book, second, 110)
+    book.observe(Outcome(second, True, ""), 160)
+    book.observe(Deliver(1, 0, 4, 4, old), 200)
+    assert ("replied", 200) in [(st, t) for i, st, _, t in seen if i == 2]
