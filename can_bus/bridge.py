@@ -315,6 +315,7 @@ class PythonCanBus:
         id, CAN FD, an error frame): for a capture, which shows what the bus carried."""
         self.log = log
         self._writer = open_log(log) if log else None
+        self._blf = isinstance(self._writer, can.BLFWriter)
         self._log_stamp = 0.0
         """The latest stamp logged: a frame logged after a later-stamped one takes its stamp
         (an own frame sent as another's came in, stamped apart), so no format's stamps go
@@ -633,6 +634,13 @@ class PythonCanBus:
             msg.timestamp = self._log_stamp
         else:
             self._log_stamp = ts
+        if self._blf:
+            # a .blf numbers channels 1-65535 from the name's digits ("rprs_unix:/tmp/can70000"
+            # gave 70001 and a struct.error that ended the log): others are its default, 1
+            ch = can.util.channel2int(msg.channel)
+            if ch is not None and not 0 <= ch < 65535:
+                msg = copy.copy(msg)
+                msg.channel = None
         try:
             self._writer.on_message_received(msg)
         except (OSError, ValueError) as exc:
