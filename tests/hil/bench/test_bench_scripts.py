@@ -178,6 +178,19 @@ def test_latency_tells_a_refusal_from_a_status_reply_and_skips_broadcasts():
     assert station.observers == []           # it stopped watching when it was done
 
 
+def _latency_a_second_apart(station, sched, submit):
+    """``bench.latency`` for two requests to robot 2, each a second after the last, its
+    answers what ``submit`` tells the station (an ack wait of 50 ms)."""
+    from types import SimpleNamespace
+
+    def post(fn, *args):
+        sched.now += 1000 * MS
+        fn(*args)
+    sched.post = post
+    station.submit = submit
+    return bench.latency(SimpleNamespace(sched=sched), station, 2, 2, 0.05)
+
+
 def test_a_late_reply_to_a_request_that_timed_out_is_not_the_next_ones():
     """``latency`` took the first message from the robot after a request for its reply: the
     late reply to a request that had timed out, heard after the next request went out, was
@@ -204,12 +217,7 @@ def test_a_late_reply_to_a_request_that_timed_out_is_not_the_next_ones():
             station.tell(Deliver(2, 0, 2, 3, (cmd("joint", 1, 0),)), t + 40 * MS)
         return msg
 
-    def post(fn, *args):
-        sched.now += 1000 * MS
-        fn(*args)
-    sched.post = post
-    station.submit = submit
-    r = bench.latency(SimpleNamespace(sched=sched), station, 2, 2, 0.05)
+    r = _latency_a_second_apart(station, sched, submit)
     assert (r.sent, r.replies) == (2, 1)
     assert r.round_trip_ms == [40.0]
 
@@ -235,12 +243,7 @@ def test_a_reply_heard_before_its_acknowledgement_is_the_requests_when_none_is_o
         station.tell(Outcome(msg, True, ""), t + 60 * MS)    # the acknowledgement, again
         return msg
 
-    def post(fn, *args):
-        sched.now += 1000 * MS
-        fn(*args)
-    sched.post = post
-    station.submit = submit
-    r = bench.latency(SimpleNamespace(sched=sched), station, 2, 2, 0.05)
+    r = _latency_a_second_apart(station, sched, submit)
     assert (r.sent, r.replies) == (2, 2)
     assert r.round_trip_ms == [30.0, 30.0]
 
