@@ -384,9 +384,8 @@ class RotationalMac:
             frame.type in (FrameType.BOOT, FrameType.JOIN)
         if not answering and self.mode == MEMBER and self.lone and self.phase == HOLD and \
                 src == self._sent_poll and frame.type in (FrameType.BOOT, FrameType.JOIN):
-            # A lone member's invitation answered after its window, before its next frame:
-            # the answer of a PC that heard the poll late (clause 31). The answerer already
-            # counts us a member; going back to LISTEN would cost it our turns, as misses.
+            # A lone member's invitation answered late, before its next frame (a PC that heard
+            # the poll late, clause 31): the answerer counts us a member already.
             answering = True
         if self.mode == MEMBER and self.lone and not answering:
             self._to_listen(out, now, "heard another robot while alone")
@@ -408,11 +407,9 @@ class RotationalMac:
             last = self._last_rx[src]
             back = (last - frame.num) % 100
             if back and back <= BEHIND_WINDOW:
-                # A message Number that went backwards (clause 48a): no genuine sender's does
-                # (stop and wait, +1 a message). A recorded frame sent again, or a forger's.
-                # Reported; with the checksum (the Number is the one sent) refused, taken as
-                # an unreadable frame is (clause 43), for the timing only, so members that
-                # judge it otherwise stay in step.
+                # A Number that went backwards (clause 48a; no genuine sender's does): a replay
+                # or a forger's. Reported; with the checksum refused as an unreadable frame is
+                # (clause 43), for the timing only, so members that judge it otherwise agree.
                 refuse = self.cfg.checksum
                 out.append(NumberBehind(src, frame.num, last, refuse))
                 if refuse:
@@ -486,6 +483,9 @@ class RotationalMac:
                 return out
             self._heard_disabled.pop(src, None)
             self._admit(src, out)
+        elif out_of_turn and any(p.args[1] == 1 << src for p in polls):
+            self._next_turn(src, end, now, out)   # a lone member's frame: resync (clause 31)
+            return out
         elif out_of_turn:
             self.misses[src] = 0
             self._refuse_in_slot(src, frame.num, f"out of turn: it was robot {self.owner}'s "

@@ -39,13 +39,14 @@ def _admit(self: RotationalMac, robot: int, out: list) -> None:
 
 
 def _refuse_in_slot(self: RotationalMac, src: int, num: int, reason: str, end: int, now: int,
-                    out: list, kind: str = "") -> None:
+                    out: list, kind: str = "", miss: bool = True) -> None:
     """A clean frame refused in someone else's slot (out of turn, or with our own ID):
-    nothing in it is acted on, but it sets the timing (clause 39)."""
+    nothing in it is acted on, but it sets the timing (clause 39). ``miss``: the slot's
+    owner missed its turn (not so for the other PC's frame, clause 50)."""
     out.append(Refused(src, num, reason, kind))
     self._tell_view = True                 # our views may differ (rule R-view)
     o = self.owner
-    if self.phase == WAIT and o in self.ring and o != self.id:
+    if miss and self.phase == WAIT and o in self.ring and o != self.id:
         # A clean frame in o's slot means o did not send (its frame would have collided
         # with this one): o missed its turn, as at E + Tmax. Otherwise a member that never
         # heard o join could take o's slot for ever.
@@ -84,9 +85,11 @@ def _own_id_heard(self: RotationalMac, num: int, end: int, now: int, out: list) 
         return
     if self.phase in (WAIT, WINDOW, QUIET, HOLD, WATCH):
         # WATCH: PC1 on probation heard the other PC's whole frame while it watched its
-        # turn; the members took it as ID 0's, so the next turn is robot succ(0)'s
+        # turn; the members took it as ID 0's, so the next turn is robot succ(0)'s. The
+        # other PC's frame is ID 0's turn to the members, whatever slot we thought it was:
+        # its owner did not miss it (we were deaf, or out of step; clause 50).
         self._refuse_in_slot(self.id, num, "our own robot ID from the air", end, now, out,
-                             "own_id")
+                             "own_id", miss=not (self.id == 0 and self._pair))
     else:
         out.append(Refused(self.id, num, "our own robot ID from the air", "own_id"))
 
@@ -288,7 +291,12 @@ def _active_frame(self: RotationalMac, frame: Frame, end: int, now: int, out: li
     if not self.standby:
         lone_other = any(c.name == "poll" and c.args[1] == 1 for c in mac_cmds)
         if self.mode == MEMBER and not self.lone and lone_other:
-            return out                     # the other PC claimed alone: it will listen
+            # The other PC claimed alone (back from a deaf radio, say): it will listen once
+            # it hears a member. The children only resynchronise on a lone member's frame
+            # (clause 31), so we do too, or we wait for a turn they have passed on and count
+            # its healthy owner missing (clause 50).
+            self._next_turn(self.id, end, now, out)
+            return out
         if self.mode == LISTEN or self.lone or self.cfg.pc > 1 or (
                 self.phase == WATCH and self._deaf_check):
             if self.lone:

@@ -267,7 +267,7 @@ class Receiver:
 
 
 class StrangerRobot:
-    """A station of docs/protocol.md, version 3.4, that joins rings: clauses 1-19a, 21-27,
+    """A station of docs/protocol.md, version 3.5, that joins rings: clauses 1-19a, 21-27,
     29-49 and 51, the jam case of clause 44 simplified (its stagger runs from the quiet
     closure), and with ``checksum`` clause 20 (every frame it sends sealed, a frame without
     the right seal a failed frame, clause 43); with ``key`` (read by ``read_key``, clause 54)
@@ -440,6 +440,9 @@ class StrangerRobot:
                 self.next_turn(f.src, f.end)
                 return
         elif self.phase in ("WAIT", "WINDOW") and f.src != self.owner and not answering:
+            if any(mask == 1 << f.src for _, mask in polls):        # clauses 38.4, 39
+                self.next_turn(f.src, f.end)
+                return
             if not self.takeover(f):                                # clause 39
                 self.misses[f.src] = 0
                 self.tell_view = True                               # clause 51.1

@@ -559,6 +559,29 @@ def test_a_father_pc_back_from_a_short_outage_leaves_delivery_to_the_active_pc(
                and e["t"] > s_to_ticks(back) and "standing by" in e["reason"] for e in evs)
 
 
+@pytest.mark.parametrize("seed, back", [(6, 3.0), (9, 5.0), (29, 5.0)])
+def test_a_father_pc_back_from_an_outage_costs_no_healthy_robot_a_miss(seed, back):
+    """``rprs sim --robots 0,1,2 --father-standby --fault fail:0@2 --recover 0@BACK --load 1
+    --checksum``. Back at 3 s, PC1 (still active, waiting for robot 1's turn) heard PC2's
+    frame and counted robot 1 missing; the members had taken it as ID 0's turn (clause 50).
+    Back at 5 s, PC1 had dropped everyone and claimed alone: its lone frames landed in robot
+    2's slot, and PC2, which ignored them, or robot 1, which refused one as out of turn,
+    counted robot 2 missing, where the others resynchronised on them (clause 31). Nobody's
+    radio failed but PC1's: no robot is counted missing once it is back."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(0, 1, 2), duration=8.0, seed=seed, load=1.0,
+                        father_standby=True, mac=MacConfig(checksum=True),
+                        faults=(Fault("fail", 0, 2.0), Fault("recover", 0, back))),
+              on_event=evs.append)
+    w.run()
+    after = s_to_ticks(back)
+    assert [e for e in evs if e["ev"] == "miss" and e["t"] > after] == []
+    assert w.summary()["duplicate_deliveries"] == 0
+    # PC1 came back into the ring's turns: it stands by for PC2
+    assert any(e["ev"] == "mode" and e["robot"] == 0 and "pc" not in e and e["t"] > after
+               and "standing by" in e["reason"] for e in evs)
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_two_active_father_pcs_in_a_ring_of_two_meet(seed):
     """``--robots 0,1 --father-standby --fault fail:0@5 --recover 0@5.4 --load 1 --checksum``:
