@@ -520,16 +520,12 @@ class RotationalMac:
             if app_cmds and not self._check_turns:
                 # (A PC2 on probation after a takeover leaves new messages alone: PC1 may still
                 # be active and take them; the sender retries if nobody acknowledges.)
-                # A sender keeps one message in flight, so a retransmission repeats the Number
-                # of the last message frame heard from it, whoever that frame was for.
-                fresh = self._last_rx.get(src) != frame.num
-                self._last_rx[src] = frame.num
-                self._rx_armed.add(src)
+                fresh = self._message_heard(src, frame.num)      # (a retransmission: not)
                 if frame.dst == self.id or frame.dst == BROADCAST:
                     self._acks.append((src, frame.num))
                     if not fresh:
                         out.append(Duplicate(src, frame.num))
-                    elif not self.standby:     # the active PC delivers; its standby only
+                    else:      # the active PC delivers (a pair's, as its ack goes out, clause 50)
                         self._deliver(Deliver(src, frame.dst, frame.num, frame.type, app_cmds), out)
 
         invited = [p.args[0] for p in polls if p.args[0] not in self.ring]
@@ -646,8 +642,9 @@ class RotationalMac:
     # -- turn machinery (mac_turns.py) -------------------------------------------------------
 
     force_turn = _turns.force_turn
-    _watch_ticks, _heard_after_tx, _deliver = (_turns._watch_ticks, _turns._heard_after_tx,
-                                                _turns._deliver)
+    _watch_ticks, _heard_after_tx, _deliver, _forget_held, _message_heard = (
+        _turns._watch_ticks, _turns._heard_after_tx, _turns._deliver, _turns._forget_held,
+        _turns._message_heard)
     _takeover, _count_skipped, _pair_floor = (_turns._takeover, _turns._count_skipped,
                                               _turns._pair_floor)
     _next_turn = _turns._next_turn

@@ -54,9 +54,12 @@ def _deadline_watch(self: RotationalMac, now: int, rx_busy: bool, last_rx: int |
         # Watched with a radio that hears: the check is done. The deliveries it held go out
         # with our acknowledgements, or, if the other PC is sending, are its to make.
         self._deaf_check = False
-        if not rx_busy:
-            out.extend(self._held)
-        self._held = []
+        if not self.standby:       # (a standby's replicas stay, or go at a takeover below)
+            if rx_busy:
+                self._forget_held()
+            else:
+                out.extend(self._held)
+                self._held = []
     if rx_busy:                    # the active PC is sending: follow it
         if not self.standby:
             self.standby = True
@@ -68,6 +71,10 @@ def _deadline_watch(self: RotationalMac, now: int, rx_busy: bool, last_rx: int |
     if self.standby:
         self.standby = False
         self._check_turns = 3      # probation: a takeover may have been mistaken
+        # What the active PC never acknowledged on the air is not ours to acknowledge: on
+        # probation we deliver nothing new, and an acknowledgement without a delivery is a
+        # message lost; forgotten, it is retried, and new to us (clause 50).
+        self._forget_held()
         out.append(ModeChange(MEMBER, "took over ID 0's turn: the active PC is silent"))
     elif self._check_turns > 0:
         self._check_turns -= 1

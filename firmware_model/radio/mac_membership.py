@@ -242,7 +242,7 @@ def _to_listen(self: RotationalMac, out: list, now: int, reason: str,
     self._passed_invite = False
     self._check_turns = 0             # back only invited (no PC is ID 0) or as a standby
     self._deaf_check = False
-    self._held = []                   # our acknowledgements are not sent: not ours to deliver
+    self._forget_held()               # our acknowledgements are not sent: not ours to deliver
     self._fail_run = None             # clause 41a counts again from our next ring
     self._rejoining = False
     self.deadline = now + self._claim_ticks()
@@ -306,10 +306,7 @@ def _active_frame(self: RotationalMac, frame: Frame, end: int, now: int, out: li
             self.standby = True            # the other PC is active: stand by for it
             self._check_turns = 0          # a standby keeps the Numbers (clause 50)
             self._deaf_check = False
-            if self._held:                 # not delivered, so not acknowledged (clause 50)
-                held = {(d.src, d.num) for d in self._held}
-                self._acks = [a for a in self._acks if a not in held]
-                self._held = []
+            self._forget_held()            # not delivered, so not acknowledged (clause 50)
         else:
             # PC1 stays active (a PC2 that is active too will yield); the frame, PC2's or
             # a forger's, is refused and closes the slot it was sent in. Heard after a miss
@@ -337,6 +334,8 @@ def _active_frame(self: RotationalMac, frame: Frame, end: int, now: int, out: li
         out.append(ModeChange(MEMBER, "standing by for the active PC (ID 0)"))
     sent_acks = {(c.args[0], c.args[1]) for c in mac_cmds if c.name == "ack"}
     self._acks = [a for a in self._acks if a not in sent_acks]
+    if self._held:                         # the active PC delivered these (clause 50)
+        self._held = [d for d in self._held if (d.src, d.num) not in sent_acks]
     if app_cmds:                           # keep our Numbers after the active PC's
         self._last_num = frame.num
         self._next_num = (frame.num + 1) % 100

@@ -49,9 +49,45 @@ def _heard_after_tx(self: RotationalMac, first: int, good: bool) -> None:
 
 
 def _deliver(self: RotationalMac, d: Deliver, out: list) -> None:
-    """Deliver a new message, or, while we check after a possible deafness, hold it until our
-    watched turn finds no other PC on the air and our acknowledgement goes out (clause 50)."""
-    (self._held if self._deaf_check else out).append(d)
+    """Deliver a new message, or hold it (clause 50): while we check after a possible
+    deafness, until our watched turn finds no other PC on the air and our acknowledgement
+    goes out; as a standby, as a replica, which the active PC's acknowledgement on the air
+    drops; one it never acknowledged, a takeover neither delivers nor acknowledges but
+    forgets (``_forget_held``), so the sender retries: no PC acknowledges a message it did
+    not deliver. What we held of a sender's earlier message went as its next one came
+    (``_message_heard``)."""
+    if self._deaf_check or self.standby:
+        self._held.append(d)
+    else:
+        out.append(d)
+
+
+def _message_heard(self: RotationalMac, src: int, num: int) -> bool:
+    """A message frame from ``src`` (to anyone) accepted: is it new, not a retransmission?
+    A sender keeps one message in flight, so a retransmission repeats the Number of the
+    last message frame heard from it, whoever it was for; and its new message means the
+    last one ended at the sender, so a delivery we held of it goes (clause 50)."""
+    fresh = self._last_rx.get(src) != num
+    self._last_rx[src] = num
+    self._rx_armed.add(src)
+    if fresh and self._held:
+        self._held = [d for d in self._held if d.src != src]
+    return fresh
+
+
+def _forget_held(self: RotationalMac) -> None:
+    """Drop the deliveries we held (clause 50) with the acknowledgements we owed for them,
+    and forget having received them: their senders retry, and a retry must be new to us,
+    not a duplicate acknowledged and never delivered."""
+    if not self._held:
+        return
+    held = {(d.src, d.num) for d in self._held}
+    self._acks = [a for a in self._acks if a not in held]
+    for d in self._held:
+        if self._last_rx.get(d.src) == d.num:
+            del self._last_rx[d.src]
+            self._rx_armed.discard(d.src)
+    self._held = []
 
 
 def _takeover(self: RotationalMac, src: int, first: int) -> list[int] | None:

@@ -36,3 +36,11 @@ def test_the_peer_mac_rows_shown_are_todays():
     assert len(shown) >= 9, shown
     stale = [r for r in shown if r not in DOC]
     assert not stale, stale
+
+
+@pytest.mark.slow
+def test_the_father_pair_table_is_todays():
+    """docs/guarantees.md's seeded father-pair row (200 runs, a few minutes of CPU)."""
+    rows = [r for r in _rows("father_pair.py") if not r.startswith("| seeded")]
+    assert len(rows) == 1
+    assert rows[0] in (ROOT / "docs" / "guarantees.md").read_text(), rows

@@ -582,6 +582,28 @@ def test_a_father_pc_back_from_an_outage_costs_no_healthy_robot_a_miss(seed, bac
                and "standing by" in e["reason"] for e in evs)
 
 
+@pytest.mark.parametrize("ring, seed, faults", [
+    ((0, 1, 2), 135, (Fault("fail", 0, 8.461), Fault("recover", 0, 9.988))),
+    ((0, 1, 2, 3), 20, (Fault("fail", 0, 13.868), Fault("recover", 0, 15.99)))])
+def test_no_father_pc_acknowledges_a_message_it_did_not_deliver(ring, seed, faults):
+    """``rprs sim --robots 0,1,2 --father-standby --duration 20 --seed 135 --load 1 --checksum
+    --fault fail:0@8.461 --fault recover:0@9.988``: PC1's radio died, PC2, standing by, heard
+    R1's message 13 and delivered nothing (clause 50), then took over and sent the
+    acknowledgement it had replicated: R1 was told ``delivered``, and neither PC delivered it.
+    The PC that takes over now forgets what the other never acknowledged on the air; the
+    sender retries, and the retry is delivered (or fails at the sender, said so)."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=ring, duration=20.0, seed=seed, load=1.0, father_standby=True,
+                        mac=MacConfig(checksum=True), faults=faults), on_event=evs.append)
+    w.run()
+    to_father = {(e["src"], e["num"]) for e in evs if e["ev"] == "submit" and e["dst"] == 0}
+    told = [(e["src"], e["num"]) for e in evs
+            if e["ev"] == "delivered" and (e["src"], e["num"]) in to_father]
+    given = {(e["src"], e["num"]) for e in evs if e["ev"] == "deliver" and e["to"] == 0}
+    assert told and [m for m in told if m not in given] == []
+    assert w.summary()["duplicate_deliveries"] == 0
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_two_active_father_pcs_in_a_ring_of_two_meet(seed):
     """``--robots 0,1 --father-standby --fault fail:0@5 --recover 0@5.4 --load 1 --checksum``:
