@@ -147,8 +147,9 @@ class Cpu:
         self.entry = 0 if costs is None else costs.entry.cycles
         self.reti = 0 if costs is None else costs.reti.cycles
         self.stats: dict[str, HandlerStats] = {}
-        self._pending: list[tuple[int, int, int, Vector, int, Any, Any, tuple]] = []
-        """Requests waiting, in the order they came: (level, number, tick, ...)."""
+        self._pending: list[tuple[int, int, int, Vector, int, Any, Any, tuple, bool, bool]] = []
+        """Requests waiting, in the order they came: (level, number, tick, ..., alone,
+        enter_now)."""
         self._stack: list[_Frame] = []
         self._tasks: list[tuple[str, int, Any, tuple, int]] = []
         self._ev: Event | None = None
@@ -232,7 +233,7 @@ class Cpu:
             return
         assert at is None, "a request in the past needs an idle CPU (lone_past)"
         self._pending.append((vector.level, vector.number, now, vector, body, enter, fn,
-                              args))
+                              args, alone, enter_now))
         self._dispatch()
 
     def task(self, name: str, body: int, fn: Callable[..., None], *args: Any) -> None:
@@ -280,13 +281,24 @@ class Cpu:
             best = min(self._pending, key=_rank)
             if best[0] < self.ilm:
                 self._pending.remove(best)
-                level, _, req, vec, body, enter, fn, args = best
+                level, _, req, vec, body, enter, fn, args, alone, enter_now = best
                 s = self._stats(vec.name, level)
                 s.calls += 1
                 lat = now - req
                 s.latency[lat] += 1
                 if lat > s.worst_latency:
                     s.worst_latency = lat
+                if alone and not stack and not self._pending and not self._tasks and \
+                        self.fuse:
+                    # the CPU idle once it is taken (a request that waited for a handler's
+                    # RETI): it runs alone from now, its entry's event scheduled now, as the
+                    # general path schedules its milestone (``irq``'s lone handler)
+                    f = _Frame(s, level, enter, fn, args, self.entry, body, self.reti, req)
+                    self._alone = f
+                    self._alone_t = now
+                    self._enter_now = enter_now
+                    self._alone_ev = self.sched.at(now + f.entry, self._alone_entry)
+                    return
                 stack.append(_Frame(s, level, enter, fn, args, self.entry, body, self.reti,
                                     req))
                 stack[-1].since = now
