@@ -209,13 +209,21 @@ class Cpu:
             return
         self._touch(True)
         now = self.sched.now
-        if self._alone is not None:
-            self._settle(now)
+        f = self._alone
+        if f is not None:              # (``_settle``'s count of one that is over, inlined)
+            if f.fn is None and now > self._alone_t + f.end:
+                self._alone = None
+                f.stats.busy += f.end
+                self._busy += f.end
+            else:
+                self._settle(now)
         if alone and self.fuse and not self._stack and not self._pending and \
                 not self._tasks and not self._in_callback and \
                 not (enter_now and at is not None):
             t = now if at is None else at
-            s = self._stats(vector.name, vector.level)
+            s = self.stats.get(vector.name)
+            if s is None:
+                s = self._stats(vector.name, vector.level)
             s.calls += 1
             s.latency[0] += 1
             f = _Frame(s, vector.level, enter, fn, args, self.entry, body, self.reti, t)
@@ -290,9 +298,7 @@ class Cpu:
                     s.worst_latency = lat
                 if alone and not stack and not self._pending and not self._tasks and \
                         self.fuse:
-                    # the CPU idle once it is taken (a request that waited for a handler's
-                    # RETI): it runs alone from now, its entry's event scheduled now, as the
-                    # general path schedules its milestone (``irq``'s lone handler)
+                    # the CPU idle once it is taken: alone from now (``irq``'s lone handler)
                     f = _Frame(s, level, enter, fn, args, self.entry, body, self.reti, req)
                     self._alone = f
                     self._alone_t = now

@@ -461,11 +461,18 @@ class Uart:
         its tick (``on_time``), as their handlers now meet others."""
         if self._late_tdre is not None:    # (sending: nothing held, the radio deaf)
             self._tx_touched(now)
-        self.sync(now)
-        if busy and self.line is not None:
-            on_time = getattr(self.line, "on_time", None)
-            if on_time is not None:
-                on_time(now)
+        # ``sync``, inlined (every request on the CPU model comes here)
+        if self._held is not None:
+            self._give_held()
+        line = self.line
+        if line is not None:
+            line.sync(now)
+            if self._held is not None:
+                self._give_held()
+            if busy:
+                on_time = getattr(line, "on_time", None)
+                if on_time is not None:
+                    on_time(now)
 
     def _late_clear(self, now: int, until: int) -> bool:
         """No handler of this UART counted late (a late TDRE's, a byte handed over late)
