@@ -41,7 +41,7 @@ from firmware_model.mcu.scheduler import Scheduler
 from firmware_model.timing import PC_BYTE_TICKS
 
 from .reception import (AirRadio, ByteStream, Reception, Transmission, first_byte_heard,
-                        flush_ends)
+                        flush_ends, hand_over_end)
 
 
 HEADER = b"\x0f\x0a\x05"
@@ -684,17 +684,7 @@ class Air:
         if tx.aborted:
             return
         self.active.remove(tx)
-        now = tx.end
         if not tx.collided:
-            noise = self.noise
-            for r in self.radios:
-                rx = r.rx
-                if rx is not None and rx.tx is tx:
-                    rx.finish(r)
-                    r.rx = None
-                    if noise:
-                        self._idle_from(r, now)
-                    elif now > r.noise_from:
-                        r.noise_from = now
+            hand_over_end(tx, self.radios, self._idle_from if self.noise else None)
         if self.on_transmission is not None:
             self.on_transmission(tx)

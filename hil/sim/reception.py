@@ -7,6 +7,9 @@ from __future__ import annotations
 import random
 from typing import Any, Callable, Protocol
 
+from firmware_model.mcu.ptr2000 import Ptr2000
+from firmware_model.mcu.uart import Uart
+
 
 class AirRadio(Protocol):
     """What the air drives of a radio: a PTR2000 model (``firmware_model.mcu.ptr2000``), the
@@ -241,3 +244,33 @@ def flush_ends(ends: list) -> None:
     for t, r, rx in ends:
         if r.rx is rx:
             rx.flush(r, t)
+
+
+def hand_over_end(tx: Transmission, radios: list,
+                  idle_from: Callable[[Any, int], None] | None) -> None:
+    """``tx`` ended without a collision: each radio receiving it gets the rest of it
+    (``Reception.finish``) and hears the air idle from its end (``idle_from``: the air's, with
+    idle noise; else only ``noise_from`` moves on). A whole clean reception to a PTR2000 whose
+    UART has no CPU model (the ideal CPU) goes straight to the firmware's ``on_rx``, as
+    ``finish`` -> ``Ptr2000.deliver`` -> ``Uart.receive`` would give it (docs/fast-paths.md,
+    "The air's direct hand-over")."""
+    now = tx.end
+    for r in radios:
+        rx = r.rx
+        if rx is not None and rx.tx is tx:
+            u = r.uart
+            data = rx.data
+            if not rx.pos and not rx.quiet and not rx.lead and rx.holes is None and \
+                    data is not None and type(u) is Uart and u.cpu is None and \
+                    type(r) is Ptr2000:
+                rx.pos = rx.n
+                u.bytes_received += len(data)
+                if u.on_rx is not None:
+                    u.on_rx(data, rx.t0 + rx.bt, rx.bt)
+            else:
+                rx.finish(r)
+            r.rx = None
+            if idle_from is not None:
+                idle_from(r, now)
+            elif now > r.noise_from:
+                r.noise_from = now
