@@ -72,13 +72,6 @@ class ReloadTimer:
         if now is None:
             now = self.sched.now
         ev = self._ev
-        if ev is not None and ev.when <= when and when > now and not ev.cancelled:
-            # Common case (re-armed later every turn): keep the pending event.
-            delay = when - now
-            delay += delay & 1
-            self.delay = delay
-            self.expiry = now + delay
-            return
         if when <= now:
             when = now
         else:
@@ -86,9 +79,12 @@ class ReloadTimer:
             delay = when - now
             delay += delay & 1
             self.delay = delay
+            if ev is not None and ev.when <= when and not ev.cancelled:
+                # Common case (re-armed later every turn): keep the pending event.
+                self.expiry = now + delay
+                return
             when = now + delay
         self.expiry = when
-        ev = self._ev
         if ev is not None and not ev.cancelled:
             if ev.when <= when:
                 return  # keep the earlier event; it moves itself on when it fires

@@ -292,7 +292,7 @@ class RotationalMac:
         """A valid frame was heard; its first header byte ended at ``first``, its End at ``end``."""
         src = frame.src
         phase = self.phase
-        if phase == SWITCH or phase == SEND:
+        if phase != WAIT and (phase == SWITCH or phase == SEND):   # (WAIT first: most frames)
             return _NOTHING            # deaf while switching or sending (only raw input gets here)
         self._promised = None          # a good frame: the turn is whoever sends it
         if self._paper:
