@@ -18,6 +18,7 @@ form: no observer's place in the tick depends on when it was scheduled.
 from __future__ import annotations
 
 import heapq
+from heapq import heappush as _heappush
 from typing import Any, Callable, Protocol
 
 
@@ -76,8 +77,8 @@ class Scheduler:
         if when < self.now:
             raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
         ev = Event(when, fn, args)
-        self._seq += 1
-        heapq.heappush(self._heap, (when, self._seq, ev))
+        seq = self._seq = self._seq + 1
+        _heappush(self._heap, (when, seq, ev))
         return ev
 
     def at_top(self, when: int, fn: Callable[..., Any], *args: Any,

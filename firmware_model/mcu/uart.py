@@ -355,6 +355,8 @@ class Uart:
         if self.on_rx is None:
             return
         if self.cpu is None:
+            # the simulator's air takes these two steps itself for a whole clean frame
+            # (docs/fast-paths.md, "The air's direct hand-over")
             self.on_rx(data, t0, dt)
             return
         now = self.sched.now
