@@ -528,6 +528,18 @@ def test_pc1_on_probation_that_hears_the_other_pcs_frame_while_it_watches_yields
     assert not any(isinstance(a, TxEnable) for a in mac.on_timer(start + 35 * 16_000))
 
 
+def _pc1_outage(seed: int, back: float, duration: float, checksum: bool):
+    """``rprs sim --robots 0,1,2 --father-standby --fault fail:0@2 --recover 0@BACK --load 1``:
+    the world run, and its events."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=(0, 1, 2), duration=duration, seed=seed, load=1.0,
+                        father_standby=True, mac=MacConfig(checksum=checksum),
+                        faults=(Fault("fail", 0, 2.0), Fault("recover", 0, back))),
+              on_event=evs.append)
+    w.run()
+    return w, evs
+
+
 # -- found by seeded failover runs: a father PC back from a short outage delivered twice -----
 
 @pytest.mark.parametrize("seed, checksum, back", [(0, True, 3.0), (3, False, 3.0),
@@ -541,12 +553,7 @@ def test_a_father_pc_back_from_a_short_outage_leaves_delivery_to_the_active_pc(
     could not tell them apart: PC2's ``deliver`` events carried no ``"pc": 2``. A father PC
     that missed two turns with nothing at all heard, or that hears the other PC after a miss
     with no frame accepted since, is now on probation (clause 50): it stands by for PC2."""
-    evs: list[dict] = []
-    w = World(SimConfig(robots=(0, 1, 2), duration=30.0, seed=seed, load=1.0,
-                        father_standby=True, mac=MacConfig(checksum=checksum),
-                        faults=(Fault("fail", 0, 2.0), Fault("recover", 0, back))),
-              on_event=evs.append)
-    w.run()
+    w, evs = _pc1_outage(seed, back, 30.0, checksum)
     assert w.summary()["duplicate_deliveries"] == 0
     took = next(e["t"] for e in evs if e["ev"] == "mode" and e.get("pc") == 2
                 and "took over" in e["reason"])
@@ -568,12 +575,7 @@ def test_a_father_pc_back_from_an_outage_costs_no_healthy_robot_a_miss(seed, bac
     2's slot, and PC2, which ignored them, or robot 1, which refused one as out of turn,
     counted robot 2 missing, where the others resynchronised on them (clause 31). Nobody's
     radio failed but PC1's: no robot is counted missing once it is back."""
-    evs: list[dict] = []
-    w = World(SimConfig(robots=(0, 1, 2), duration=8.0, seed=seed, load=1.0,
-                        father_standby=True, mac=MacConfig(checksum=True),
-                        faults=(Fault("fail", 0, 2.0), Fault("recover", 0, back))),
-              on_event=evs.append)
-    w.run()
+    w, evs = _pc1_outage(seed, back, 8.0, True)
     after = s_to_ticks(back)
     assert [e for e in evs if e["ev"] == "miss" and e["t"] > after] == []
     assert w.summary()["duplicate_deliveries"] == 0
