@@ -6,7 +6,8 @@ import argparse
 import json
 
 from .common import UserError, load_rate, positive, progress_bars, robot_list
-from .sim import cpu_costs, cpu_option
+from .common import output_path
+from .sim import close_writers, cpu_costs, cpu_option, open_writers, write_failed
 
 def _hours(text: str) -> float:
     from ..sim.soak import DRAIN_S, MIN_HOURS
@@ -25,15 +26,25 @@ def cmd_soak(a: argparse.Namespace) -> int:
                         f"robots (its traffic goes between them; one alone ends with nothing "
                         f"checked)")
     modes = {"on": [True], "off": [False], "both": [True, False]}[a.checksum_mode]
+    if a.trace is not None and len(modes) > 1:
+        raise UserError(f"--trace {a.trace}: a trace is one run's, and --checksum both makes "
+                        f"two; give --checksum on or off")
+    trace, _ = open_writers(a.trace, None)
     # one bar per run (with --checksum both, the two run side by side on two CPUs)
     updates, close = progress_bars(a.hours * 3600, [f"soak, checksum {'on' if ck else 'off'}"
                                                     for ck in modes])
+    ok = False
     try:
+        extra = {} if trace is None else {"trace": trace}
         results = run_soaks(a.hours, a.seed, modes, robots=a.robots, can=not a.no_can,
                             load=a.rate, cpu=cpu_costs(a), progress=None if updates is None else
-                            (lambda i, s: updates[i](s)))
+                            (lambda i, s: updates[i](s)), **extra)
+        ok = True
+    except OSError as exc:           # the trace could not be written (a full disk)
+        raise write_failed(exc, trace=a.trace) from None
     finally:
         close()
+        close_writers(trace, None, ok)
     if a.json:
         print(json.dumps([{"checksum": r.checksum, "invariants": r.invariants,
                            "promised": {k: r.checksum or k not in r.CHECKSUM_ONLY
@@ -67,4 +78,7 @@ def add(sub) -> None:
     so.add_argument("--no-can", action="store_true", help="radio only (faster; no CAN faults)")
     cpu_option(so)
     so.add_argument("--json", action="store_true", help="print the summary as JSON")
+    so.add_argument("--trace", type=output_path, metavar="FILE",
+                    help="write the run's JSON Lines trace here (docs/trace.md; one run: "
+                    "--checksum on or off)")
     so.set_defaults(func=cmd_soak)

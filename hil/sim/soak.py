@@ -35,6 +35,8 @@ from .world import SimConfig, World
 if TYPE_CHECKING:
     from firmware_model.cycle_costs import CycleCosts
 
+    from .trace import TraceWriter
+
 REFORM_BOUND_S = 15.0
 """Documented bound (docs/guarantees.md): the ring is whole again within this long after the
 last fault ends. Start-up claim |team| x Tmax (4.2 s for 7) + invitations (P x gap cycles)."""
@@ -241,11 +243,13 @@ def _step_seeing(now: int, step: int, end_s: float | None, last: int) -> int:
 def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
              checksum: bool = True, can: bool = True, load: float = 0.5,
              progress=None, faults: list[Fault] | None = None,
-             can_sleep: bool = True, cpu: CycleCosts | None = None) -> SoakResult:
+             can_sleep: bool = True, cpu: CycleCosts | None = None,
+             trace: TraceWriter | None = None) -> SoakResult:
     """Run the soak; ``progress(simulated_s)`` is called as it goes. ``can_sleep``: see
     SimConfig (the result is the same either way); ``cpu``: the children's cycle costs (None:
-    the ideal CPU; ``rprs soak`` gives the CPU model unless ``--cpu ideal``). ``hours`` below
-    :data:`MIN_HOURS`: a ValueError."""
+    the ideal CPU; ``rprs soak`` gives the CPU model unless ``--cpu ideal``); ``trace``: the
+    run's events are written there (docs/trace.md), its meta line carrying the configuration.
+    ``hours`` below :data:`MIN_HOURS`: a ValueError."""
     if not hours >= MIN_HOURS:
         raise ValueError(f"a soak lasts at least {MIN_HOURS:g} h ({MIN_HOURS * 3600:g} s): "
                          f"faults begin {SETTLE_S:g} s in and stop {DRAIN_S:g} s before the "
@@ -261,7 +265,7 @@ def run_soak(hours: float, seed: int, robots: tuple[int, ...] = (0, 1, 2, 3, 4),
                     faults=tuple(faults), mac=MacConfig(checksum=checksum,
                                                         max_age=s_to_ticks(MAX_AGE_S)))
     t0 = time.perf_counter()
-    w = World(cfg)
+    w = World(cfg, trace)
     reform, not_reformed = run_timing_reformations(w, faults, progress)
     w.wake_can()
     counts: dict[str, int] = {}

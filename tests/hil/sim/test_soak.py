@@ -70,6 +70,28 @@ def test_soak_command_json(capsys):
     assert out[0]["checksum"] and all(out[0]["invariants"].values())
 
 
+def test_soak_writes_the_trace_of_its_run(tmp_path, capsys):
+    """``rprs soak --trace FILE``: an outside checker reads the run itself (its meta line, its
+    faults, every delivery) instead of rebuilding the soak's configuration; the trace says
+    what the summary counts. Two runs (``--checksum both``) are refused, and nothing is
+    written."""
+    path = tmp_path / "soak.jsonl"
+    assert main(["soak", "--hours", "0.05", "--seed", "2", "--no-can", "--json", "--trace",
+                 str(path)]) == 0
+    summary = json.loads(capsys.readouterr().out)[0]["summary"]
+    evs = [json.loads(line) for line in path.read_text().splitlines()]
+    assert evs[0]["ev"] == "meta" and evs[0]["seed"] == 2 and evs[0]["robots"] == [0, 1, 2, 3, 4]
+    # (a frame's event comes at its end: one may still be on air when the run ends)
+    assert summary["occupations"] - sum(e["ev"] == "frame" for e in evs) in (0, 1)
+    assert sum(e["ev"] == "submit" for e in evs) == summary["submitted"]
+    assert sum(e["ev"] == "delivered" for e in evs) == summary["delivered"]
+    assert {e["kind"] for e in evs if e["ev"] == "fault"}
+    other = tmp_path / "both.jsonl"
+    assert main(["soak", "--hours", "0.05", "--checksum", "both", "--trace", str(other)]) == 2
+    assert "--checksum both makes two" in capsys.readouterr().err
+    assert not other.exists()
+
+
 def _stepwise(w, faults) -> tuple[list[float], int]:
     """The re-formation timer as it was first written: the world run in steps of SAMPLE_S,
     the ring checked at every step after a fault ends with no other active (from the last
