@@ -28,7 +28,9 @@ libpython's symbols were stripped nothing would be counted, and the script says 
 * ``soak-0.1``: ``run_soak(0.1 h, seed 11)``, the same with a larger share of traffic (not
   run unless named in ``--only``: 20-60 min under callgrind);
 * ``loaded`` and ``loaded-every-frame``: 2 robots, a message a second, 960 s, in the default
-  mode and with every fast path off: the default must not cost more (only with ``--only``).
+  mode and with every fast path off: the default must not cost more (only with ``--only``);
+* ``loaded-can`` and ``loaded-can-ideal``: benchmarks/cpu_cost.py's ``loaded-can`` (5 robots,
+  CAN sides, load 2, 30 s) on the CPU model and on the ideal CPU (only with ``--only``).
 
 ``--base COMMIT`` counts the same workloads in a temporary worktree of that commit too
 (benchmarks/base_tree.py) and prints the ratio base / this tree. Needs valgrind (Debian's
@@ -99,6 +101,22 @@ every = {"fast_paths": False} if "fast_paths" in SimConfig.__dataclass_fields__ 
 w = World(SimConfig(robots=(1, 2), duration=960.0, load=1.0, seed=1, **every))
 run = w.run
 done = lambda: (960.0, w.air.occupations)
+""",
+    # the CPU model where it costs most against the ideal CPU (benchmarks/cpu_cost.py's
+    # ``loaded-can``): the 5-ring, the father at load 2, CAN sides, 30 s; and on the ideal CPU
+    "loaded-can": """
+from hil.sim.world import SimConfig, World
+from firmware_model.cycle_costs import DEFAULT_COSTS
+w = World(SimConfig(robots=(0, 1, 2, 3, 4), duration=30.0, can=True, load=2.0, seed=1,
+                    cpu=DEFAULT_COSTS))
+run = w.run
+done = lambda: (30.0, w.air.occupations)
+""",
+    "loaded-can-ideal": """
+from hil.sim.world import SimConfig, World
+w = World(SimConfig(robots=(0, 1, 2, 3, 4), duration=30.0, can=True, load=2.0, seed=1))
+run = w.run
+done = lambda: (30.0, w.air.occupations)
 """,
     # twice as long: 240 s of traffic and faults, 110 s of drain (the 0.05 h soak has 70 s
     # of traffic and 110 s of drain, which a ring that leaps over idle stretches runs cheaply)
@@ -176,7 +194,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--base", help="also count a commit's tree and give the ratio")
     p.add_argument("--only", default=",".join(w for w in WORKLOADS
                                               if w not in ("soak-0.1", "loaded",
-                                                           "loaded-every-frame")),
+                                                           "loaded-every-frame", "loaded-can",
+                                                           "loaded-can-ideal")),
                    help="comma-separated workloads (default: %(default)s)")
     a = p.parse_args(argv)
     names = [w for w in a.only.split(",") if w]
