@@ -525,7 +525,7 @@ class RotationalMac:
                     self._acks.append((src, frame.num))
                     if not fresh:
                         out.append(Duplicate(src, frame.num))
-                    else:      # the active PC delivers (a pair's, as its ack goes out, clause 50)
+                    else:      # delivered, or held (a standby, a check: clause 50)
                         self._deliver(Deliver(src, frame.dst, frame.num, frame.type, app_cmds), out)
 
         invited = [p.args[0] for p in polls if p.args[0] not in self.ring]

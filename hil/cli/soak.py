@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from .common import UserError, load_rate, positive, progress_bars, robot_list
-from .common import output_path
+from .common import UserError, load_rate, output_path, positive, progress_bars, robot_list
 from .sim import close_writers, cpu_costs, cpu_option, open_writers, write_failed
 
 def _hours(text: str) -> float:
@@ -35,10 +34,9 @@ def cmd_soak(a: argparse.Namespace) -> int:
                                                     for ck in modes])
     ok = False
     try:
-        extra = {} if trace is None else {"trace": trace}
         results = run_soaks(a.hours, a.seed, modes, robots=a.robots, can=not a.no_can,
                             load=a.rate, cpu=cpu_costs(a), progress=None if updates is None else
-                            (lambda i, s: updates[i](s)), **extra)
+                            (lambda i, s: updates[i](s)), trace=trace)
         ok = True
     except OSError as exc:           # the trace could not be written (a full disk)
         raise write_failed(exc, trace=a.trace) from None

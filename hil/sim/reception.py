@@ -258,11 +258,10 @@ def hand_over_end(tx: Transmission, radios: list,
     for r in radios:
         rx = r.rx
         if rx is not None and rx.tx is tx:
-            u = r.uart
             data = rx.data
+            u = r.uart if type(r) is Ptr2000 else None
             if not rx.pos and not rx.quiet and not rx.lead and rx.holes is None and \
-                    data is not None and type(u) is Uart and u.cpu is None and \
-                    type(r) is Ptr2000:
+                    data is not None and type(u) is Uart and u.cpu is None:
                 rx.pos = rx.n
                 u.bytes_received += len(data)
                 if u.on_rx is not None:
