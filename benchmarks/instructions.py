@@ -118,6 +118,21 @@ w = World(SimConfig(robots=(0, 1, 2, 3, 4), duration=30.0, can=True, load=2.0, s
 run = w.run
 done = lambda: (30.0, w.air.occupations)
 """,
+    # the CPU model target's loaded radio-only ring (benchmarks/cpu_cost.py's
+    # ``loaded-radio``): 4 robots with the father at load 1, 300 s; and on the ideal CPU
+    "loaded-radio": """
+from hil.sim.world import SimConfig, World
+from firmware_model.cycle_costs import DEFAULT_COSTS
+w = World(SimConfig(robots=(0, 1, 2, 3), duration=300.0, load=1.0, seed=1, cpu=DEFAULT_COSTS))
+run = w.run
+done = lambda: (300.0, w.air.occupations)
+""",
+    "loaded-radio-ideal": """
+from hil.sim.world import SimConfig, World
+w = World(SimConfig(robots=(0, 1, 2, 3), duration=300.0, load=1.0, seed=1))
+run = w.run
+done = lambda: (300.0, w.air.occupations)
+""",
     # twice as long: 240 s of traffic and faults, 110 s of drain (the 0.05 h soak has 70 s
     # of traffic and 110 s of drain, which a ring that leaps over idle stretches runs cheaply)
     "soak-0.1": """
@@ -195,7 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", default=",".join(w for w in WORKLOADS
                                               if w not in ("soak-0.1", "loaded",
                                                            "loaded-every-frame", "loaded-can",
-                                                           "loaded-can-ideal")),
+                                                           "loaded-can-ideal", "loaded-radio",
+                                                           "loaded-radio-ideal")),
                    help="comma-separated workloads (default: %(default)s)")
     a = p.parse_args(argv)
     names = [w for w in a.only.split(",") if w]

@@ -25,8 +25,9 @@ model runs no instructions); ``CycleCosts.sample_wait_max`` bounds them in the r
 
 **A handler alone on the CPU** (``irq(..., alone=True)``: its ``enter`` only reads what
 nothing but its own body looks at) that finds the CPU idle runs without the dispatcher: an
-event at its entry's end and one at its body's end, scheduled when the general path schedules
-its milestones, and its RETI counted when the CPU is next asked anything. Whatever touches
+event at its body's end, in the place of the one the general path schedules at the entry's
+end (``Scheduler.at_later``; an event at the entry's end where that place differs), and its
+RETI counted when the CPU is next asked anything. Whatever touches
 the CPU while it runs (a request, a task, ``extend``) first puts it on the stack in the phase
 it has reached, so what follows is the general path's to the tick. Bytes received while the
 CPU is idle may be handled late, all at once (``lone_past``, Uart.receive's ``late_ok``).
@@ -41,88 +42,12 @@ request, exactly as the firmware model ran before there was a CPU (the paper's t
 """
 from __future__ import annotations
 
-from collections import Counter
-from dataclasses import dataclass
 from typing import Any, Callable
 
+from .handler import MAIN_LEVEL, HandlerStats, Vector, _Frame
 from .scheduler import Clock, Event
 
-MAIN_LEVEL = 7
-"""ILM while the main loop runs: every enabled interrupt (levels 0-6) is accepted."""
-
-
-@dataclass(frozen=True)
-class Vector:
-    """One interrupt source as the firmware programs it: its ICR level (0 highest, 7
-    disabled) and its interrupt number (the lower wins among requests of one level)."""
-
-    name: str
-    level: int
-    number: int
-
-    def __post_init__(self) -> None:
-        if not 0 <= self.level <= 7:
-            raise ValueError(f"{self.name}: interrupt level must be 0-7 (ICR IL2-IL0), "
-                             f"got {self.level}")
-
-
-class HandlerStats:
-    """What one handler cost: calls, busy cycles (entry, body and RETI, preemptions not
-    included), latency (request to acceptance) and response (request to its effects): ticks,
-    counted per value (a few distinct values however long the run)."""
-
-    STEADY_COUNTERS = ("calls", "busy", "latency", "response")
-    """Handler calls, their cycles and their latency and response counts: counts only
-    (hil/sim/steady.py); the worst figures are values, which a steady ring no longer moves."""
-
-    __slots__ = ("name", "level", "calls", "busy", "latency", "response", "worst_latency",
-                 "worst_response")
-
-    def __init__(self, name: str, level: int) -> None:
-        self.name = name
-        self.level = level
-        self.calls = 0
-        self.busy = 0
-        self.latency: Counter[int] = Counter()
-        self.response: Counter[int] = Counter()
-        self.worst_latency = 0
-        self.worst_response = 0
-
-    def responded(self, ticks: int, n: int = 1) -> None:
-        """``n`` calls whose effects came ``ticks`` after their request."""
-        self.response[ticks] += n
-        if ticks > self.worst_response:
-            self.worst_response = ticks
-
-
-class _Frame:
-    """A handler (or main-loop task) on the CPU: its milestones in cycles of its own work."""
-
-    __slots__ = ("stats", "level", "enter", "fn", "args", "entry", "body_end", "end", "done",
-                 "since", "requested", "phase", "body_at")
-
-    def __init__(self, stats: HandlerStats, level: int, enter, fn, args, entry: int,
-                 body: int, reti: int, requested: int) -> None:
-        self.stats = stats
-        self.level = level
-        self.enter = enter
-        self.fn = fn
-        self.args = args
-        self.entry = entry
-        self.body_end = entry + body
-        self.end = entry + body + reti
-        self.done = 0          # cycles of its own work done
-        self.since = 0         # tick it last resumed
-        self.requested = requested
-        self.phase = 0         # 0 entry, 1 body, 2 RETI
-        self.body_at = -1      # the tick its body's end was last scheduled (its event made)
-
-    def next_milestone(self) -> int:
-        return (self.entry, self.body_end, self.end)[self.phase]
-
-    def atomic(self) -> bool:
-        """The entry sequence and RETI cannot be interrupted."""
-        return self.phase != 1
+__all__ = ["MAIN_LEVEL", "Cpu", "HandlerStats", "Vector"]
 
 
 class Cpu:
@@ -159,6 +84,9 @@ class Cpu:
         self._alone: _Frame | None = None
         """The lone handler running without the dispatcher (module docstring), or None."""
         self._alone_ev: Event | None = None
+        self._alone_later: tuple | None = None
+        """Its body's end standing in for its entry's (``_alone_start``), or None."""
+        self._later_ok = getattr(sched, "positions", False) and hasattr(sched, "at_later")
         self._alone_t = 0          # the tick it was accepted at
         self._enter_now = False    # its ``enter`` runs at the entry's end (``irq``)
         self.on_touch: Callable[[int, bool], None] | None = None
@@ -232,8 +160,9 @@ class Cpu:
             self._enter_now = enter_now
             # the entry's end, then the body's, each scheduled when the general path would
             # schedule its milestone, so that events due at the same tick keep their order
+            # (the body's alone, standing in for both, where the two places are one)
             if t + f.entry > now:
-                self._alone_ev = self.sched.at(t + f.entry, self._alone_entry)
+                self._alone_start(f, t)
             else:
                 f.phase = 1
                 f.body_at = now
@@ -303,7 +232,7 @@ class Cpu:
                     self._alone = f
                     self._alone_t = now
                     self._enter_now = enter_now
-                    self._alone_ev = self.sched.at(now + f.entry, self._alone_entry)
+                    self._alone_start(f, now)
                     return
                 stack.append(_Frame(s, level, enter, fn, args, self.entry, body, self.reti,
                                     req))
@@ -366,6 +295,36 @@ class Cpu:
 
     # -- a lone handler, without the dispatcher --------------------------------------------
 
+    def _alone_start(self, f: _Frame, t: int) -> None:
+        """The lone handler ``f``, accepted at ``t``, its entry still to end: an event at its
+        entry's end, or, where its ``enter`` waits for the body (not ``enter_now``) and the
+        scheduler keeps places (``Scheduler.at_later``), one at its body's end standing in
+        for the one its entry's end would schedule (``_alone_met``: not where the two
+        places differ)."""
+        sched = self.sched
+        if self._enter_now or not self._later_ok:
+            self._alone_ev = sched.at(t + f.entry, self._alone_entry)
+            return
+        f.body_at = t + f.entry
+        later = sched.at_later(t + f.body_end, t + f.entry,   # type: ignore[attr-defined]
+                               self._alone_body, self._alone_met)
+        self._alone_later = later
+        self._alone_ev = later[2]
+
+    def _alone_met(self, seq: int, sched: Any) -> None:
+        """The body's end may stand where the event its entry's end would schedule does not
+        (``Scheduler.at_later``, on ``sched``): before the entry's end, that becomes an
+        event in its own place; after it, the stand-in is the body's event."""
+        later = self._alone_later
+        if later is None or later[1] != seq:
+            return                     # (replaced, or the lone handler it stood for is over)
+        self._alone_later = None
+        if sched.reached(later[0], seq):
+            self._alone.phase = 1                # type: ignore[union-attr]
+            return
+        later[2].cancel()
+        self._alone_ev = sched.at_seq(later[0], seq, self._alone_entry)
+
     def _alone_entry(self) -> None:
         """The lone handler's entry sequence ends: its ``enter`` waits for the body's end,
         unless others see what it does (``irq``'s ``enter_now``): then it runs now, and the
@@ -400,6 +359,10 @@ class Cpu:
         assert f is not None
         self._alone_ev = None
         now = self.sched.now
+        if self._alone_later is not None:
+            self._alone_later = None
+            f.phase = 1
+            self.sched.passed(now)               # type: ignore[attr-defined]
         self._in_callback = True
         try:
             if f.enter is not None:
@@ -444,6 +407,16 @@ class Cpu:
             return
         ev = self._alone_ev
         self._alone_ev = None
+        later = self._alone_later
+        if later is not None:
+            # its body's end a stand-in: in its entry, the entry's end becomes the milestone
+            self._alone_later = None
+            sched: Any = self.sched
+            if f.fn is not None and not sched.reached(later[0], later[1]):
+                later[2].cancel()
+                ev = sched.at_seq(later[0], later[1], self._alone_entry)
+            else:
+                f.phase = 1
         self._alone = None
         f.since = t
         self._stack.append(f)

@@ -51,6 +51,14 @@ class Event:
         return f"<Event t={self.when} {getattr(self.fn, '__qualname__', self.fn)}{state}>"
 
 
+Later = tuple
+"""A stand-in (:meth:`Scheduler.at_later`): (``after``, ``seq``, the event, ``met``)."""
+
+_WATCHED = 32
+"""Ticks of stand-ins kept before those past are dropped (``at_later``; then twice as many
+as are left)."""
+
+
 class Clock(Protocol):
     """What a part that only schedules needs of its clock (ticks): ``now``, and ``at(when,
     fn, *args)`` giving the :class:`Event`. A :class:`Scheduler` is one; so is the clock of a
@@ -65,12 +73,23 @@ class Clock(Protocol):
 class Scheduler:
     """A heap of (tick, sequence, Event). ``now`` only moves forward."""
 
-    __slots__ = ("now", "_heap", "_seq")
+    __slots__ = ("now", "_heap", "_seq", "cur", "_later", "_watched")
+
+    positions = True
+    """Events run in (tick, sequence) order and ``cur`` says where the run is: an event may
+    stand in for one to be scheduled later (:meth:`at_later`). A real-time scheduler, whose
+    inputs run between events, says False."""
 
     def __init__(self, start: int = 0) -> None:
         self.now = start
         self._heap: list[tuple[int, int, Event]] = []
         self._seq = 0
+        self.cur = 0
+        """The sequence number of the event running (with ``now``, where the run is)."""
+        self._later: dict[int, list[Later]] = {}
+        """Stand-ins (:meth:`at_later`) by tick, while their places may differ from those of
+        the events they stand in for (and some whose events have run, dropped in time)."""
+        self._watched = _WATCHED
 
     def at(self, when: int, fn: Callable[..., Any], *args: Any) -> Event:
         """Run ``fn(*args)`` at tick ``when`` (which must not be in the past)."""
@@ -79,7 +98,77 @@ class Scheduler:
         ev = Event(when, fn, args)
         seq = self._seq = self._seq + 1
         _heappush(self._heap, (when, seq, ev))
+        if when in self._later:
+            self._met(when, None)
         return ev
+
+    def at_later(self, when: int, after: int, fn: Callable[..., Any],
+                 met: Callable[[int, Scheduler], None], *args: Any) -> Later:
+        """Run ``fn(*args)`` at tick ``when``, in the place among the events due then of an
+        event that would be scheduled at the run's position (``after``, s), s a sequence
+        number taken now: a stand-in scheduled now, which saves the event that would schedule
+        the other (a CPU's lone handler: its body's end, scheduled at its entry's end,
+        firmware_model/mcu/cpu.py). The two places are one unless an ordinary event due at
+        ``when`` is scheduled before the run reaches (``after``, s) (the event at another
+        stand-in's position counts, as scheduled when that stand-in is), or another stand-in
+        for ``when`` whose position comes earlier: then ``met(s, self)`` is called at once,
+        and the caller replaces the stand-in by the event at (``after``, s) (:meth:`at_seq`)
+        if the run has not reached that position (``reached``). ``met`` may be called again
+        (a later meeting, :meth:`settle_later`): the caller ignores a stand-in it replaced
+        or whose event ran. Returns (``after``, s, the event, ``met``)."""
+        if when < self.now:
+            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
+        seq = self._seq = self._seq + 1
+        ev = Event(when, fn, args)
+        _heappush(self._heap, (when, seq, ev))
+        later = (after, seq, ev, met)
+        watch = self._later
+        if after in watch:
+            self._met(after, None)     # the event at (after, seq) is scheduled now, in effect
+        mates = watch.get(when)
+        if mates is None:
+            if len(watch) >= self._watched:
+                now = self.now
+                for tick in [t for t in watch if t < now]:
+                    del watch[tick]
+                self._watched = max(_WATCHED, 2 * len(watch))
+            watch[when] = [later]
+        else:
+            self._met(when, later)
+            mates.append(later)
+        return later
+
+    def passed(self, when: int) -> None:
+        """A stand-in due at ``when`` runs now: every stand-in due then has reached its
+        position (earlier than ``when``), none is watched any longer."""
+        self._later.pop(when, None)
+
+    def settle_later(self) -> None:
+        """Every stand-in (:meth:`at_later`) met now, as if an event due at its tick had been
+        scheduled: one whose position the run has reached is its event from now on, the others
+        replaced. Before the heap's events are taken out or compared (hil/sim/quiet_ring.py)."""
+        watch = self._later
+        self._later = {}
+        for mates in watch.values():
+            for later in mates:
+                later[3](later[1], self)
+
+    def reached(self, tick: int, seq: int) -> bool:
+        """Has the run reached the position (``tick``, ``seq``) of an ordinary event (the
+        event running now comes before it if its own is earlier)?"""
+        return self.now > tick or (self.now == tick and self.cur > seq)
+
+    def _met(self, when: int, new: Later | None) -> None:
+        """An event due at ``when`` was just scheduled, at the run's position, or ``new``, a
+        stand-in at its own: each stand-in due then whose position the run has not reached
+        and comes after that one's is met (:meth:`at_later`)."""
+        now = self.now
+        for later in self._later[when]:
+            after = later[0]
+            if now > after or (now == after and self.cur > later[1]):
+                continue               # reached (or its event ran)
+            if new is None or after > new[0]:
+                later[3](later[1], self)
 
     def at_top(self, when: int, fn: Callable[..., Any], *args: Any,
                owner: object = None) -> Event:
@@ -117,13 +206,22 @@ class Scheduler:
     def reserve(self) -> int:
         """A sequence number taken now, for events scheduled later (:meth:`at_seq`) that must
         run, among the events due at their tick, where events scheduled now would: after
-        those scheduled before, before those scheduled after."""
+        those scheduled before, before those scheduled after. Every stand-in whose position
+        the run has not reached is met (:meth:`at_later`): an event in the place of this
+        number may be scheduled after the run reached it."""
         self._seq += 1
+        if self._later:
+            now = self.now
+            for mates in self._later.values():
+                for later in mates:
+                    if not (now > later[0] or (now == later[0] and self.cur > later[1])):
+                        later[3](later[1], self)
         return self._seq
 
     def at_seq(self, when: int, seq: int, fn: Callable[..., Any], *args: Any) -> Event:
         """Like :meth:`at`, in the place of sequence number ``seq`` (:meth:`reserve`); the
-        caller has at most one event pending per tick under one ``seq``."""
+        caller has at most one event pending per tick under one ``seq``. (It meets no
+        stand-in, :meth:`at_later`: ``seq`` was taken where one would have been met.)"""
         if when < self.now:
             raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
         ev = Event(when, fn, args)
@@ -146,10 +244,11 @@ class Scheduler:
         heap = self._heap
         pop = heapq.heappop
         while heap and heap[0][0] <= end:
-            when, _, ev = pop(heap)
+            when, seq, ev = pop(heap)
             if ev.cancelled:
                 continue
             self.now = when
+            self.cur = seq
             ev.fn(*ev.args)
         if end > self.now:
             self.now = end
@@ -159,8 +258,9 @@ class Scheduler:
         t = self.next_time()
         if t is None:
             return False
-        when, _, ev = heapq.heappop(self._heap)
+        when, seq, ev = heapq.heappop(self._heap)
         self.now = when
+        self.cur = seq
         ev.fn(*ev.args)
         return True
 

@@ -58,6 +58,7 @@ class SimScheduler(Scheduler):
     def take(self, owner: object) -> list[Event]:
         """Remove ``owner``'s live events from the heap; they come back in the order they
         would have run."""
+        self.settle_later()            # (a stand-in keeps its place only in this heap)
         mine = self._mine(owner)
         if mine:
             # in place: run_until holds the list

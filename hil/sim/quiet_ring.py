@@ -277,6 +277,7 @@ class QuietRing:
             self._hold_until = due
             return
         sched = self.world.sched
+        sched.settle_later()           # the CPUs' lone handlers as the general path has them
         events = sched.pending(None)
         if len(events) != len(sched):          # another owner's events (a domain): not ours
             self._last = None
@@ -422,6 +423,7 @@ def _run_alone(st: "RadioStation", private: SimScheduler, end: int, ring: QuietR
         sent = st.mac.frames_sent
         now = private.now
         activity = world.activity()
+        private.settle_later()
         events = private.pending(None)
         try:
             snap = snapshot([_own_parts(st), events], walls, rng_state=True)
