@@ -282,13 +282,69 @@ class Deframer:
         self.last_tick = end
         return True
 
-    def _advance(self, data: bytes, i: int, t0: int, dt: int, out: list) -> int:
-        """Take ``data[i]`` as :meth:`_step` does (byte ``j`` completed at ``t0 + j*dt``), or,
-        in a frame's Content, every byte from ``i`` up to the Content's end at once if all
-        are printable (what :meth:`_step` does with each, without a call a byte). Returns the
-        index of the next byte."""
+    def _fixed(self, data: bytes, i: int, t0: int, dt: int, out: list) -> int:
+        """In a Header (a whole one at ``i`` if ``_pos`` is 0) or a frame's fixed fields: take
+        every byte from ``i`` up to the Content (or the chunk's end) at once, if that completes
+        the Header and every byte is one :meth:`_step` accepts (Header, digits, Source '0'-'6',
+        the Length's value within ``_limits``), leaving the state (and the garbage flushed at
+        the Header) that stepping each would leave. Returns the next index, or ``i`` with
+        nothing changed (a bad byte, fewer than 2 bytes): then :meth:`_step` reports it."""
         pos = self._pos
-        if pos >= CONTENT_OFFSET:
+        m = len(data) - i
+        if m > CONTENT_OFFSET - pos:
+            m = CONTENT_OFFSET - pos
+        stop = pos + m
+        if m < 2 or stop < 3:
+            return i
+        run = data[i:i + m]
+        d = 3 - pos if pos < 3 else 0                 # run[d:] are digit fields
+        if (d and run[:d] != HEADER[pos:]) or (stop > 3 and not run[d:].isdigit()) \
+                or (pos <= 4 < stop and run[4 - pos] > 0x36):
+            return i
+        if stop > 8:
+            # all Length prefixes are within their limits iff the last is (limits[k + 1] is at
+            # most 10 * limits[k] + 9: length_limits), so one check does
+            digits = run[8 - pos:] if pos < 8 else run
+            partial = (self._partial if pos > 8 else 0) * 10 ** len(digits) + int(digits)
+            if partial > self._limits[stop - 9]:
+                return i
+        if d:
+            if not pos:
+                self._hdr_t = t0 + i * dt
+            self._emit_garbage(out)
+            self.in_frame = True
+            self.first = self._hdr_t
+            raw = self._raw
+            raw.clear()
+            raw += HEADER[:pos]
+            raw += run
+            self._src = self._len = None
+            self._partial = 0
+        else:
+            self._raw += run
+        if pos <= 4 < stop:
+            self._src = run[4 - pos] - 0x30
+        if stop > 8:
+            self._partial = partial
+            if stop == CONTENT_OFFSET:
+                self._len = partial
+        self._pos = stop
+        self.last_tick = t0 + (i + m - 1) * dt
+        return i + m
+
+    def _advance(self, data: bytes, i: int, t0: int, dt: int, out: list) -> int:
+        """Take ``data[i]`` as :meth:`_step` does (byte ``j`` completed at ``t0 + j*dt``), or
+        several bytes at once, as :meth:`_step` would take each, without a call a byte: in a
+        Header or the fixed fields, those up to the Content if all are good (:meth:`_fixed`);
+        in a frame's Content, every byte up to the Content's end if all are printable. Returns
+        the index of the next byte."""
+        pos = self._pos
+        if pos < CONTENT_OFFSET:
+            if pos < CONTENT_OFFSET - 1 and len(data) - i > 1:
+                k = self._fixed(data, i, t0, dt, out)
+                if k != i:
+                    return k
+        else:
             m = CONTENT_OFFSET + self._len - pos        # type: ignore[operator]
             if m > len(data) - i:
                 m = len(data) - i
@@ -380,7 +436,8 @@ class Deframer:
 
         Same events as :meth:`feed_byte` on each byte followed by :meth:`flush`. Fast path:
         while hunting, ``bytes.find`` locates the Header and a complete frame in the chunk is
-        parsed in one go by :func:`parse_frame_cached`; anything else goes byte by byte.
+        parsed in one go by :func:`parse_frame_cached`; anything else goes through
+        :meth:`_advance`, in runs of good bytes where it can, else byte by byte.
         """
         if not isinstance(data, bytes):
             data = bytes(data)
@@ -435,7 +492,7 @@ class Deframer:
                             out.append(FrameReceived(frame, t0 + j * dt, t0 + (e - 1) * dt))
                             i = e
                             continue
-            # Slow path: byte by byte until the machine is hunting with nothing held again.
+            # Slow path: by runs or bytes until the machine is hunting with nothing held again.
             while i < n:
                 i = advance(data, i, t0, dt, out)
                 if not self._pos:

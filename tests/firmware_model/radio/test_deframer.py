@@ -1,6 +1,8 @@
 """Byte-at-a-time deframer and its bulk fast path (docs/protocol.md §3.2)."""
 from __future__ import annotations
 
+import copy
+
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -372,3 +374,106 @@ def test_a_frame_taken_whole_leaves_what_feeding_it_leaves(before, f, split):
             assert of(events, FrameReceived)
         states.append(_state(d))
     assert states[0] == states[1] == states[2]
+
+
+@st.composite
+def fixed_field_splits(draw):
+    """A Length limit, and a stream of frames (some with one Header or fixed-field byte
+    replaced: a digit, a Header byte or any byte; some with a Source at the range's edge or
+    past it, or another Length, at the limit or past it), with a partial Header or junk
+    between them, and the chunk sizes (1-10 bytes, as a receiver on the CPU model gets them,
+    and a few longer) to feed it in: chunks start anywhere in the Header and fixed fields."""
+    # frames of longer Content fail at Length; a Length digit replaced may then fit a large limit
+    max_content = draw(st.one_of(st.integers(0, 45), st.integers(1000, 9999)))
+    data = bytearray(draw(st.sampled_from([b"", b"\x0f", b"\x0f\x0a", b"x\x0f"])))
+    for f in draw(st.lists(frames, min_size=1, max_size=4)):
+        b = bytearray(f.encode())
+        how = draw(st.sampled_from(["good", "byte", "source", "length"]))
+        if how == "byte":
+            b[draw(st.integers(0, 11))] = draw(st.one_of(
+                st.integers(0x30, 0x39), st.sampled_from(HEADER), st.integers(0, 255)))
+        elif how == "source":                       # '6' the last good one
+            b[4] = draw(st.sampled_from(b"6789"))
+        elif how == "length":                       # a Length that may fit, and lie
+            b[8:12] = b"%04d" % draw(st.one_of(
+                st.integers(max(0, max_content - 1), min(9999, max_content + 1)),
+                st.integers(0, max_content), st.integers(0, 9999)))
+        data += b + draw(st.sampled_from([b"", b"\x0f", b"\x0f\x0a", b"\x0f\x0f\x0a", b"?"]))
+    sizes = draw(st.lists(st.one_of(st.integers(1, 10), st.integers(11, 40)),
+                          min_size=1, max_size=40))
+    return max_content, bytes(data), sizes
+
+
+def _live(d: Deframer) -> dict:
+    """Every slot but those nothing reads before setting them afresh: the Header tick while
+    hunting with no partial Header, the frame's bytes, Source, Length and partial Length while
+    no frame is in progress (the hunt's bulk paths leave them as they were; a byte at a time
+    may not)."""
+    state = _state(d)
+    if not d._pos:
+        del state["_hdr_t"]
+    if not d.in_frame:
+        for k in ("_raw", "_src", "_len", "_partial"):
+            del state[k]
+    return state
+
+
+@settings(max_examples=500, deadline=None)
+@given(fixed_field_splits(), st.integers(1, 50))
+def test_chunks_cut_in_the_fixed_fields_leave_what_bytes_one_at_a_time_leave(split, dt):
+    """Chunks of 1-10 bytes starting anywhere in a frame's Header and fixed fields, the
+    frame good or with a bad field byte (Source above 6, a Length over the limit...),
+    report what its bytes one at a time report and leave the state they leave, after every
+    chunk; and ``_advance`` over a chunk leaves every slot as ``_step`` on each byte does."""
+    max_content, data, sizes = split
+    bulk, ref = Deframer(max_content=max_content), Deframer(max_content=max_content)
+    a = k = 0
+    while a < len(data):
+        b = min(len(data), a + sizes[k % len(sizes)])
+        k += 1
+        fast, slow = copy.deepcopy(bulk), copy.deepcopy(bulk)
+        fast_out: list = []
+        slow_out: list = []
+        i = a
+        while i < b:
+            i = fast._advance(data[:b], i, 0, dt, fast_out)
+        for i in range(a, b):
+            slow._step(data[i], i * dt, slow_out)
+        assert fast_out == slow_out and _state(fast) == _state(slow), (a, b)
+        got = bulk.feed(data[a:b], a * dt, dt)
+        want = []
+        for i in range(a, b):
+            want += ref.feed_byte(data[i], i * dt)
+        want += ref.flush()
+        assert got == want, (a, b)
+        assert _live(bulk) == _live(ref), (a, b)
+        a = b
+
+
+def test_fixed_fields_are_taken_without_a_call_a_byte(monkeypatch):
+    """A frame's Header and fixed fields cut in chunks are taken in one go per chunk (no
+    ``_step`` call), Source and Length at their limits, to the state its bytes one at a time
+    leave, the garbage before the Header reported; a bad Source byte goes the byte-at-a-time
+    way and is reported at its offset."""
+    f = Frame(dst=9, src=6, num=99, type=9, content=b"edge(1234)")
+    data = f.encode()
+    limit = len(f.content)
+    ref = Deframer(max_content=limit)
+    want = per_byte(ref, b"junk", -4 * BT, BT)
+    for i, b in enumerate(data[:12]):
+        want += ref.feed_byte(b, i * BT)
+
+    def no_step(*args):
+        raise AssertionError("_step called")
+    monkeypatch.setattr(Deframer, "_step", no_step)
+    d = Deframer(max_content=limit)
+    got = d.feed(b"junk" + data[:5], -4 * BT, BT)
+    got += d.feed(data[5:9], 5 * BT, BT) + d.feed(data[9:12], 9 * BT, BT)
+    monkeypatch.undo()
+    assert got == want == [Garbage(4, -4 * BT, -BT)]
+    assert _state(d) == _state(ref) and (d._src, d._len, d.in_frame) == (6, limit, True)
+    bad = data[:4] + b"7" + data[5:]
+    d = Deframer()
+    ev = d.feed(bad[:3], 0, BT) + d.feed(bad[3:8], 3 * BT, BT)
+    assert [type(e) for e in ev] == [FrameFailed, Garbage]
+    assert ev[0].error.offset == 4 and ev[0].at == 4 * BT and ev[0].error.field == "source"
