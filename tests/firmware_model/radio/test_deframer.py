@@ -286,15 +286,9 @@ def test_feed_byte_never_raises(values):
 
 
 def _state(d: Deframer) -> dict:
-    """What the deframer holds that anything reads: the frame's fields while one is in
-    progress, the partial Header's tick while one is held (both are set afresh before they
-    are read again)."""
-    live = {"in_frame", "first", "last_tick", "_pos", "_g_count", "_g_first", "_g_last"}
-    if d._pos:
-        live.add("_hdr_t")
-    if d.in_frame:
-        live |= {"_raw", "_src", "_len", "_partial"}
-    return {k: (bytes(getattr(d, k)) if k == "_raw" else getattr(d, k)) for k in live}
+    """Everything a deframer holds (its slots), the last frame's leftovers included."""
+    return {k: (bytes(v) if isinstance(v, bytearray) else v)
+            for k in type(d).__slots__ if hasattr(d, k) for v in (getattr(d, k),)}
 
 
 @SETTINGS
@@ -339,12 +333,6 @@ def test_a_frame_but_its_last_byte_takes_the_door_and_an_unknown_one_the_long_wa
     assert a.feed(forged[-1:], (len(forged) - 1) * BT, BT) == \
         [FrameReceived(Frame(dst=2, src=1, num=5, type=2, content=b"movex(77)"), 0,
                        (len(forged) - 1) * BT)]
-
-
-def _state(d: Deframer) -> dict:
-    """Everything a deframer holds (its slots), the last frame's leftovers included."""
-    return {k: (bytes(v) if isinstance(v, bytearray) else v)
-            for k in type(d).__slots__ if hasattr(d, k) for v in (getattr(d, k),)}
 
 
 @SETTINGS
