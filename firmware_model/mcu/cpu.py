@@ -26,7 +26,8 @@ model runs no instructions); ``CycleCosts.sample_wait_max`` bounds them in the r
 **A handler alone on the CPU** (``irq(..., alone=True)``: its ``enter`` only reads what
 nothing but its own body looks at) that finds the CPU idle runs without the dispatcher: an
 event at its body's end, in the place of the one the general path schedules at the entry's
-end (``Scheduler.at_later``; an event at the entry's end where that place differs), and its
+end (``PlacedScheduler.at_later``; an event at the entry's end where that place differs, or
+on a scheduler that does not keep places), and its
 RETI counted when the CPU is next asked anything. Whatever touches
 the CPU while it runs (a request, a task, ``extend``) first puts it on the stack in the phase
 it has reached, so what follows is the general path's to the tick. Bytes received while the
@@ -86,7 +87,9 @@ class Cpu:
         self._alone_ev: Event | None = None
         self._alone_later: tuple | None = None
         """Its body's end standing in for its entry's (``_alone_start``), or None."""
-        self._later_ok = getattr(sched, "positions", False) and hasattr(sched, "at_later")
+        self._later_ok = getattr(sched, "positions", False)
+        """The scheduler keeps places (``PlacedScheduler``; a station's CPU moved to another
+        scheduler moves to one of its kind: hil/sim/quiet_ring.py)."""
         self._alone_t = 0          # the tick it was accepted at
         self._enter_now = False    # its ``enter`` runs at the entry's end (``irq``)
         self.on_touch: Callable[[int, bool], None] | None = None
@@ -298,7 +301,7 @@ class Cpu:
     def _alone_start(self, f: _Frame, t: int) -> None:
         """The lone handler ``f``, accepted at ``t``, its entry still to end: an event at its
         entry's end, or, where its ``enter`` waits for the body (not ``enter_now``) and the
-        scheduler keeps places (``Scheduler.at_later``), one at its body's end standing in
+        scheduler keeps places (``PlacedScheduler.at_later``), one at its body's end standing in
         for the one its entry's end would schedule (``_alone_met``: not where the two
         places differ)."""
         sched = self.sched
@@ -313,7 +316,7 @@ class Cpu:
 
     def _alone_met(self, seq: int, sched: Any) -> None:
         """The body's end may stand where the event its entry's end would schedule does not
-        (``Scheduler.at_later``, on ``sched``): before the entry's end, that becomes an
+        (``PlacedScheduler.at_later``, on ``sched``): before the entry's end, that becomes an
         event in its own place; after it, the stand-in is the body's event."""
         later = self._alone_later
         if later is None or later[1] != seq:

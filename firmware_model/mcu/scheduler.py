@@ -14,6 +14,11 @@ A physical step of a model (a wheel's 1 ms control step) may be scheduled with
 that model during tick T sees the state after the step at T. That is what lets a model skip
 its steps while they only repeat (a cruising wheel) and give the state at any tick in closed
 form: no observer's place in the tick depends on when it was scheduled.
+
+:class:`PlacedScheduler` also knows where the run is (the tick and the running event's
+sequence number), so that an event scheduled now may stand in for one that would be
+scheduled later, in its place among the events of its tick (:meth:`PlacedScheduler.at_later`:
+the CPU model's lone handler, one event where the general path has two).
 """
 from __future__ import annotations
 
@@ -52,7 +57,7 @@ class Event:
 
 
 Later = tuple
-"""A stand-in (:meth:`Scheduler.at_later`): (``after``, ``seq``, the event, ``met``)."""
+"""A stand-in (:meth:`PlacedScheduler.at_later`): (``after``, ``seq``, the event, ``met``)."""
 
 _WATCHED = 32
 """Ticks of stand-ins kept before those past are dropped (``at_later``; then twice as many
@@ -73,17 +78,130 @@ class Clock(Protocol):
 class Scheduler:
     """A heap of (tick, sequence, Event). ``now`` only moves forward."""
 
-    __slots__ = ("now", "_heap", "_seq", "cur", "_later", "_watched")
+    __slots__ = ("now", "_heap", "_seq")
 
-    positions = True
-    """Events run in (tick, sequence) order and ``cur`` says where the run is: an event may
-    stand in for one to be scheduled later (:meth:`at_later`). A real-time scheduler, whose
-    inputs run between events, says False."""
+    positions = False
+    """No event stands in for one scheduled later (:class:`PlacedScheduler` has them)."""
 
     def __init__(self, start: int = 0) -> None:
         self.now = start
         self._heap: list[tuple[int, int, Event]] = []
         self._seq = 0
+
+    def at(self, when: int, fn: Callable[..., Any], *args: Any) -> Event:
+        """Run ``fn(*args)`` at tick ``when`` (which must not be in the past)."""
+        if when < self.now:
+            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
+        ev = Event(when, fn, args)
+        seq = self._seq = self._seq + 1
+        _heappush(self._heap, (when, seq, ev))
+        return ev
+
+    def settle_later(self) -> None:
+        """No stand-ins here (:meth:`PlacedScheduler.settle_later`)."""
+
+    def at_top(self, when: int, fn: Callable[..., Any], *args: Any,
+               owner: object = None) -> Event:
+        """Like :meth:`at`, for a model's physical step: at its tick it runs before every
+        other event, domain events included (module docstring). ``owner``: the domain the
+        step belongs to, if any."""
+        if when < self.now:
+            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
+        ev = Event(when, fn, args, owner, 2)
+        self._seq += 1
+        heapq.heappush(self._heap, (when, self._seq - 2 * _FIRST, ev))
+        return ev
+
+    def at_before(self, when: int, fn: Callable[..., Any], first: Callable[[Event], bool],
+                  *args: Any) -> Event:
+        """Like :meth:`at`, but before the first live ordinary event due at ``when`` for which
+        ``first(event)`` holds: for an event that stands for one scheduled earlier (a CPU's
+        milestone, firmware_model/mcu/cpu.py ``Cpu._reti_in_place``). The events due then
+        from that one on keep their order after it."""
+        heap = self._heap
+        due = sorted((e for e in heap if e[0] == when and e[2].rank == 0
+                      and not e[2].cancelled), key=lambda e: e[1])
+        i = next((i for i, e in enumerate(due) if first(e[2])), None)
+        if i is None:
+            return self.at(when, fn, *args)
+        moved = {id(e[2]) for e in due[i:]}
+        heap[:] = [e for e in heap if id(e[2]) not in moved]      # in place: run_until holds it
+        heapq.heapify(heap)
+        ev = self.at(when, fn, *args)
+        for _, _, e in due[i:]:
+            self._seq += 1
+            heapq.heappush(heap, (when, self._seq, e))
+        return ev
+
+    def reserve(self) -> int:
+        """A sequence number taken now, for events scheduled later (:meth:`at_seq`) that must
+        run, among the events due at their tick, where events scheduled now would: after
+        those scheduled before, before those scheduled after."""
+        self._seq += 1
+        return self._seq
+
+    def at_seq(self, when: int, seq: int, fn: Callable[..., Any], *args: Any) -> Event:
+        """Like :meth:`at`, in the place of sequence number ``seq`` (:meth:`reserve`); the
+        caller has at most one event pending per tick under one ``seq``. (It meets no
+        stand-in, :meth:`PlacedScheduler.at_later`: ``seq`` was taken where one would have
+        been met.)"""
+        if when < self.now:
+            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
+        ev = Event(when, fn, args)
+        heapq.heappush(self._heap, (when, seq, ev))
+        return ev
+
+    def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
+        """Run ``fn(*args)`` ``delay`` ticks from now."""
+        return self.at(self.now + delay, fn, *args)
+
+    def next_time(self) -> int | None:
+        """Tick of the earliest live event, or None when nothing is scheduled."""
+        heap = self._heap
+        while heap and heap[0][2].cancelled:
+            heapq.heappop(heap)
+        return heap[0][0] if heap else None
+
+    def run_until(self, end: int) -> None:
+        """Run every event with tick <= ``end``; afterwards ``now == end``."""
+        heap = self._heap
+        pop = heapq.heappop
+        while heap and heap[0][0] <= end:
+            when, _, ev = pop(heap)
+            if ev.cancelled:
+                continue
+            self.now = when
+            ev.fn(*ev.args)
+        if end > self.now:
+            self.now = end
+
+    def step(self) -> bool:
+        """Run the next live event; False when there is none."""
+        t = self.next_time()
+        if t is None:
+            return False
+        when, _, ev = heapq.heappop(self._heap)
+        self.now = when
+        ev.fn(*ev.args)
+        return True
+
+    def __len__(self) -> int:
+        return sum(1 for _, _, ev in self._heap if not ev.cancelled)
+
+
+class PlacedScheduler(Scheduler):
+    """A :class:`Scheduler` that knows where the run is (``now`` and ``cur``, the running
+    event's sequence number), so that an event may stand in for one to be scheduled later
+    (:meth:`at_later`): the CPU model's (firmware_model/mcu/cpu.py, a lone handler). Each
+    scheduling looks for stand-ins due at its tick; the ideal CPU's worlds run on the plain
+    :class:`Scheduler`, which does not."""
+
+    __slots__ = ("cur", "_later", "_watched")
+
+    positions = True
+
+    def __init__(self, start: int = 0) -> None:
+        super().__init__(start)
         self.cur = 0
         """The sequence number of the event running (with ``now``, where the run is)."""
         self._later: dict[int, list[Later]] = {}
@@ -170,45 +288,10 @@ class Scheduler:
             if new is None or after > new[0]:
                 later[3](later[1], self)
 
-    def at_top(self, when: int, fn: Callable[..., Any], *args: Any,
-               owner: object = None) -> Event:
-        """Like :meth:`at`, for a model's physical step: at its tick it runs before every
-        other event, domain events included (module docstring). ``owner``: the domain the
-        step belongs to, if any."""
-        if when < self.now:
-            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
-        ev = Event(when, fn, args, owner, 2)
-        self._seq += 1
-        heapq.heappush(self._heap, (when, self._seq - 2 * _FIRST, ev))
-        return ev
-
-    def at_before(self, when: int, fn: Callable[..., Any], first: Callable[[Event], bool],
-                  *args: Any) -> Event:
-        """Like :meth:`at`, but before the first live ordinary event due at ``when`` for which
-        ``first(event)`` holds: for an event that stands for one scheduled earlier (a CPU's
-        milestone, firmware_model/mcu/cpu.py ``Cpu._reti_in_place``). The events due then
-        from that one on keep their order after it."""
-        heap = self._heap
-        due = sorted((e for e in heap if e[0] == when and e[2].rank == 0
-                      and not e[2].cancelled), key=lambda e: e[1])
-        i = next((i for i, e in enumerate(due) if first(e[2])), None)
-        if i is None:
-            return self.at(when, fn, *args)
-        moved = {id(e[2]) for e in due[i:]}
-        heap[:] = [e for e in heap if id(e[2]) not in moved]      # in place: run_until holds it
-        heapq.heapify(heap)
-        ev = self.at(when, fn, *args)
-        for _, _, e in due[i:]:
-            self._seq += 1
-            heapq.heappush(heap, (when, self._seq, e))
-        return ev
-
     def reserve(self) -> int:
-        """A sequence number taken now, for events scheduled later (:meth:`at_seq`) that must
-        run, among the events due at their tick, where events scheduled now would: after
-        those scheduled before, before those scheduled after. Every stand-in whose position
-        the run has not reached is met (:meth:`at_later`): an event in the place of this
-        number may be scheduled after the run reached it."""
+        """:meth:`Scheduler.reserve`; every stand-in whose position the run has not reached
+        is met (:meth:`at_later`): an event in the place of this number may be scheduled
+        after the run reached it."""
         self._seq += 1
         if self._later:
             now = self.now
@@ -217,27 +300,6 @@ class Scheduler:
                     if not (now > later[0] or (now == later[0] and self.cur > later[1])):
                         later[3](later[1], self)
         return self._seq
-
-    def at_seq(self, when: int, seq: int, fn: Callable[..., Any], *args: Any) -> Event:
-        """Like :meth:`at`, in the place of sequence number ``seq`` (:meth:`reserve`); the
-        caller has at most one event pending per tick under one ``seq``. (It meets no
-        stand-in, :meth:`at_later`: ``seq`` was taken where one would have been met.)"""
-        if when < self.now:
-            raise ValueError(f"cannot schedule at tick {when}: now is tick {self.now}")
-        ev = Event(when, fn, args)
-        heapq.heappush(self._heap, (when, seq, ev))
-        return ev
-
-    def after(self, delay: int, fn: Callable[..., Any], *args: Any) -> Event:
-        """Run ``fn(*args)`` ``delay`` ticks from now."""
-        return self.at(self.now + delay, fn, *args)
-
-    def next_time(self) -> int | None:
-        """Tick of the earliest live event, or None when nothing is scheduled."""
-        heap = self._heap
-        while heap and heap[0][2].cancelled:
-            heapq.heappop(heap)
-        return heap[0][0] if heap else None
 
     def run_until(self, end: int) -> None:
         """Run every event with tick <= ``end``; afterwards ``now == end``."""
@@ -263,6 +325,3 @@ class Scheduler:
         self.cur = seq
         ev.fn(*ev.args)
         return True
-
-    def __len__(self) -> int:
-        return sum(1 for _, _, ev in self._heap if not ev.cancelled)

@@ -17,9 +17,9 @@ from __future__ import annotations
 import heapq
 from typing import Any, Callable
 
-from firmware_model.mcu.scheduler import _FIRST, Event, Scheduler
+from firmware_model.mcu.scheduler import _FIRST, Event, PlacedScheduler, Scheduler
 
-__all__ = ["SimScheduler"]
+__all__ = ["PlacedSimScheduler", "SimScheduler"]
 
 _DOMAIN = 1 << 52
 """Added to a domain's event's sequence number per unit of its owner's ``order``: a domain's
@@ -87,3 +87,10 @@ class SimScheduler(Scheduler):
             raise ValueError(f"cannot skip from tick {self.now} to {tick}: "
                              f"an event is due at tick {nxt}")
         self.now = tick
+
+
+class PlacedSimScheduler(PlacedScheduler, SimScheduler):
+    """The simulator's scheduler for worlds on the CPU model: domains, and stand-ins
+    (``PlacedScheduler.at_later``: a lone handler's one event)."""
+
+    __slots__ = ()

@@ -381,7 +381,7 @@ def _carry(ring: QuietRing, deaf: list["RadioStation"], clocked: set[int],
     if not mine:
         return taken
     ids = {id(e) for e in mine}
-    private = SimScheduler(start)
+    private = type(world.sched)(start)    # (the CPU model's keeps places: PlacedScheduler)
     private.put_back(mine)
     selves = {id(getattr(e.fn, "__self__", None)) for e in mine}
     owners = [st for st in deaf if any(id(p) in selves for p in st.clocked_parts())]

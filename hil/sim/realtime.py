@@ -58,10 +58,6 @@ LATES_KEPT = 1024
 class RealTimeScheduler(SimScheduler):
     """Runs events at their wall-clock tick; ``post`` is the thread-safe way in."""
 
-    positions = False
-    """Inputs run between events, and late events at the wall's tick: no event stands in
-    for one scheduled later (``Scheduler.at_later``)."""
-
     __slots__ = ("_t0", "_inbox", "_stop", "max_late", "late_events", "_started", "epoch_ns",
                  "_at_start", "stall_ticks", "stalls", "_on_stall", "_beat", "_stalled",
                  "_beater", "_beat_stop", "_settled", "_pending", "_seq", "late_ticks", "lates",

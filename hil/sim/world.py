@@ -45,7 +45,7 @@ from .load import Load
 from .can_ghosts import CanCpuPort, CruisingWheel
 from .quiet_can import PERIOD as CAN_PERIOD, QuietCan, notes_only, refuses_only
 from .quiet_ring import QuietRing
-from .domains import SimScheduler
+from .domains import PlacedSimScheduler, SimScheduler
 from . import events as E
 from .events import Listener, RecordListener
 from .realtime import RealTimeScheduler
@@ -82,7 +82,9 @@ class World:
         line's object (:class:`hil.sim.events.RecordListener`)."""
         config.validate()
         self.cfg = config
-        self.sched = RealTimeScheduler() if config.realtime else SimScheduler()
+        # (on the CPU model, a lone handler's one event stands in for two: PlacedScheduler)
+        self.sched = RealTimeScheduler() if config.realtime else \
+            PlacedSimScheduler() if config.cpu is not None else SimScheduler()
         self.trace = trace
         self.listeners: list[Listener] = []
         """Called with every event, in order (python-can's ``Notifier`` is the model): the

@@ -11,7 +11,7 @@ import pytest
 
 from firmware_model.cycle_costs import DEFAULT_COSTS
 from firmware_model.mcu.cpu import Cpu, Vector
-from firmware_model.mcu.scheduler import Scheduler
+from firmware_model.mcu.scheduler import PlacedScheduler, Scheduler
 
 RX = Vector("rx", level=1, number=37)
 TOP = Vector("top", level=0, number=5)
@@ -51,7 +51,7 @@ def _run(fuse: bool, other: Vector | None, at: int, task: bool = False,
     """A lone handler requested at tick 1000 and, ``at`` ticks later, another request of
     ``other`` (or a main-loop task): what happened when, each handler's figures, busy.
     ``defer``: the lone handler's request taken without an event (``Cpu.defer``)."""
-    sched = Scheduler()
+    sched = PlacedScheduler()      # (the CPU model's: lone handlers stand in)
     cpu = Cpu(sched, DEFAULT_COSTS)
     cpu.fuse = fuse
     seen: list[tuple[str, int]] = []
@@ -119,7 +119,7 @@ def test_a_request_taken_without_an_event_is_counted_as_on_the_general_path(othe
 
 
 def test_a_request_is_not_taken_without_an_event_where_something_may_meet_it():
-    sched = Scheduler()
+    sched = PlacedScheduler()      # (the CPU model's: lone handlers stand in)
     cpu = Cpu(sched, DEFAULT_COSTS)
     owner = _Deferred(sched, [])
     sched.at(100, lambda: cpu.irq(RX, BODY, lambda: None, alone=True))
@@ -157,7 +157,7 @@ def test_a_lone_handler_alone_costs_what_the_general_path_says():
 def test_busy_counts_a_lone_handler_once_its_reti_event_would_have_run(fuse):
     """Readers scheduled before the body ended see the handler running at the tick its RETI
     ends (the general path's RETI event comes after them); after that tick it is counted."""
-    sched = Scheduler()
+    sched = PlacedScheduler()      # (the CPU model's: lone handlers stand in)
     cpu = Cpu(sched, DEFAULT_COSTS)
     cpu.fuse = fuse
     cpu.irq(RX, BODY, lambda: None, alone=True)
@@ -176,7 +176,7 @@ def _two_receivers(fuse: bool, how: str, a_touched: int, a_first: bool) -> tuple
     (``how``: taken without an event, ``Cpu.defer``; or a byte handed over late at the
     touch, ``Cpu.lone_past``), as a sleeping CAN side's ghost or a quiet reception's byte
     is. What each CPU's request did when, in the order it was done, and the figures."""
-    sched = Scheduler()
+    sched = PlacedScheduler()      # (the CPU model's: lone handlers stand in)
     a = Cpu(sched, DEFAULT_COSTS, "A", order=1 if a_first else 5)
     b = Cpu(sched, DEFAULT_COSTS, "B", order=5 if a_first else 1)
     a.fuse = b.fuse = fuse
@@ -246,7 +246,7 @@ def _send(fuse: bool, at: int | None, level: Vector = LOW,
     falls): what reached the line, the End's handler, every handler's figures."""
     from firmware_model.interrupts import TX_END, UART0_RX, UART0_TX
     from firmware_model.mcu.uart import Uart
-    sched = Scheduler()
+    sched = PlacedScheduler()      # (the CPU model's: lone handlers stand in)
     cpu = Cpu(sched, DEFAULT_COSTS)
     cpu.fuse = fuse
     log: list = []

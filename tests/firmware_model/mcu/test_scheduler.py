@@ -2,7 +2,7 @@
 on, and nothing the simulator's fast paths alone need (hil/sim/domains.py has that)."""
 from __future__ import annotations
 
-from firmware_model.mcu.scheduler import Scheduler
+from firmware_model.mcu.scheduler import PlacedScheduler, Scheduler
 from hil.sim.domains import SimScheduler
 
 DOMAIN_API = {"at_first", "pending", "take", "put_back", "skip_to"}
@@ -45,7 +45,7 @@ def _run(ops: list[tuple[str, int, int, int]], stand_in: bool) -> list[tuple[int
     further in its place (``at_seq``); ``settle``, ``d1`` ticks on meets every stand-in
     (``settle_later``, as a probe of the ring does). Returns the outputs in the order they
     ran."""
-    s = Scheduler()
+    s = PlacedScheduler()
     out: list[tuple[int, str]] = []
 
     def emit(label: str) -> None:
@@ -67,7 +67,7 @@ def _run(ops: list[tuple[str, int, int, int]], stand_in: bool) -> list[tuple[int
             return
         held: dict = {}
 
-        def met(seq: int, sched: Scheduler) -> None:
+        def met(seq: int, sched: PlacedScheduler) -> None:
             later = held.pop("later", None)
             if later is None or sched.reached(entry, seq):
                 return
@@ -111,7 +111,7 @@ def test_a_stand_in_met_by_an_event_scheduled_before_its_position_is_replaced():
 
 
 def test_settling_the_stand_ins_meets_each_and_keeps_none():
-    s = Scheduler()
+    s = PlacedScheduler()
     out: list[str] = []
     mets: list[int] = []
     later = s.at_later(10, 4, out.append, lambda seq, sched: mets.append(seq), "body")
@@ -138,3 +138,12 @@ def test_settling_a_stand_in_whose_position_the_run_passed_at_its_tick_keeps_it(
     ops = [("lone", 0, 2, 2), ("plain", 1, 1, 3), ("settle", 1, 1, 1)]
     assert _run(ops, True) == _run(ops, False) == [(4, "body 0"), (4, "plain 1"),
                                                    (5, "after 0")]
+
+
+def test_only_the_cpu_models_worlds_keep_places():
+    """The ideal CPU's worlds schedule on the plain kernel (no look for stand-ins at each
+    scheduling); the CPU model's keep places, and its private schedulers too."""
+    from firmware_model.cycle_costs import DEFAULT_COSTS
+    from hil.sim.world import SimConfig, World
+    assert not World(SimConfig(robots=(1, 2))).sched.positions
+    assert World(SimConfig(robots=(1, 2), cpu=DEFAULT_COSTS)).sched.positions
