@@ -558,3 +558,23 @@ def test_the_ideal_cpu_path_still_sends_one_burst_and_ends_on_the_tick():
     u.send(b"\x01\x02")
     sched.run_until(100_000)
     assert u.line.log == [("burst", 0, b"\x01\x02")] and done == [(33280, 33280)]
+
+
+def test_a_lone_handler_on_the_cpu_models_scheduler_is_one_event():
+    """A handler alone on an idle CPU, its ``enter`` for its body only: one event, at its
+    body's end, on the scheduler that keeps places (the CPU model's worlds); two (the
+    entry's end, then the body's) on the plain kernel. The same effects either way."""
+    from firmware_model.mcu.scheduler import PlacedScheduler
+    runs = []
+    for sched in (PlacedScheduler(), Scheduler()):
+        cpu = Cpu(sched, DEFAULT_COSTS)
+        seen: list = []
+        ran = 0
+        cpu.irq(LOW_A, 100, lambda s=sched, seen=seen: seen.append(("effect", s.now)),
+                enter=lambda s=sched, seen=seen: seen.append(("enter", s.now)), alone=True)
+        while sched.step():
+            ran += 1
+        sched.run_until(1000)          # (its RETI, counted when next asked, is over)
+        runs.append((ran, seen, cpu.busy))
+    assert runs[0] == (1, [("enter", 124), ("effect", 124)], 135)
+    assert runs[1] == (2, [("enter", 124), ("effect", 124)], 135)
