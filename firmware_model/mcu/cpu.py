@@ -321,12 +321,21 @@ class Cpu:
         later = self._alone_later
         if later is None or later[1] != seq:
             return                     # (replaced, or the lone handler it stood for is over)
+        ev = self._alone_unstand(sched)
+        if ev is not None:
+            self._alone_ev = ev
+
+    def _alone_unstand(self, sched: Any) -> Event | None:
+        """The stand-in given up: before the run reached the entry's end, the entry's event
+        in its own place (returned); after, the stand-in is the body's event (phase 1)."""
+        later = self._alone_later
+        assert later is not None and self._alone is not None
         self._alone_later = None
-        if sched.reached(later[0], seq):
-            self._alone.phase = 1                # type: ignore[union-attr]
-            return
+        if sched.reached(later[0], later[1]):
+            self._alone.phase = 1
+            return None
         later[2].cancel()
-        self._alone_ev = sched.at_seq(later[0], seq, self._alone_entry)
+        return sched.at_seq(later[0], later[1], self._alone_entry)
 
     def _alone_entry(self) -> None:
         """The lone handler's entry sequence ends: its ``enter`` waits for the body's end,
@@ -410,16 +419,9 @@ class Cpu:
             return
         ev = self._alone_ev
         self._alone_ev = None
-        later = self._alone_later
-        if later is not None:
+        if self._alone_later is not None:
             # its body's end a stand-in: in its entry, the entry's end becomes the milestone
-            self._alone_later = None
-            sched: Any = self.sched
-            if f.fn is not None and not sched.reached(later[0], later[1]):
-                later[2].cancel()
-                ev = sched.at_seq(later[0], later[1], self._alone_entry)
-            else:
-                f.phase = 1
+            ev = self._alone_unstand(self.sched) or ev
         self._alone = None
         f.since = t
         self._stack.append(f)

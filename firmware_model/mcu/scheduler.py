@@ -280,12 +280,8 @@ class PlacedScheduler(Scheduler):
         """An event due at ``when`` was just scheduled, at the run's position, or ``new``, a
         stand-in at its own: each stand-in due then whose position the run has not reached
         and comes after that one's is met (:meth:`at_later`)."""
-        now = self.now
         for later in self._later[when]:
-            after = later[0]
-            if now > after or (now == after and self.cur > later[1]):
-                continue               # reached (or its event ran)
-            if new is None or after > new[0]:
+            if not self.reached(later[0], later[1]) and (new is None or later[0] > new[0]):
                 later[3](later[1], self)
 
     def reserve(self) -> int:
@@ -293,16 +289,16 @@ class PlacedScheduler(Scheduler):
         is met (:meth:`at_later`): an event in the place of this number may be scheduled
         after the run reached it."""
         self._seq += 1
-        if self._later:
-            now = self.now
-            for mates in self._later.values():
-                for later in mates:
-                    if not (now > later[0] or (now == later[0] and self.cur > later[1])):
-                        later[3](later[1], self)
+        for mates in self._later.values():
+            for later in mates:
+                if not self.reached(later[0], later[1]):
+                    later[3](later[1], self)
         return self._seq
 
     def run_until(self, end: int) -> None:
-        """Run every event with tick <= ``end``; afterwards ``now == end``."""
+        """:meth:`Scheduler.run_until`, noting each event's sequence number (``cur``): the
+        kernel's loop with one store more, kept apart so that the plain kernel's stays as
+        it is."""
         heap = self._heap
         pop = heapq.heappop
         while heap and heap[0][0] <= end:
@@ -316,12 +312,8 @@ class PlacedScheduler(Scheduler):
             self.now = end
 
     def step(self) -> bool:
-        """Run the next live event; False when there is none."""
-        t = self.next_time()
-        if t is None:
+        """:meth:`Scheduler.step`, noting the event's sequence number (``cur``)."""
+        if self.next_time() is None:
             return False
-        when, seq, ev = heapq.heappop(self._heap)
-        self.now = when
-        self.cur = seq
-        ev.fn(*ev.args)
-        return True
+        self.cur = self._heap[0][1]
+        return super().step()

@@ -35,7 +35,8 @@ _OP = st.tuples(st.sampled_from(("plain", "lone", "reserve", "settle")), st.inte
 events meet at one tick."""
 
 
-def _run(ops: list[tuple[str, int, int, int]], stand_in: bool) -> list[tuple[int, str]]:
+def _run(ops: list[tuple[str, int, int, int]], stand_in: bool,
+         by_step: bool = False) -> list[tuple[int, str]]:
     """Run ``ops``, each a first event at its tick that: ``plain``, ``d1`` ticks on runs an
     event that schedules an output ``d2 - 1`` ticks further (0: at its own tick); ``lone``, a
     lone handler whose entry ends ``d1`` ticks on and schedules its body's output ``d2``
@@ -43,8 +44,8 @@ def _run(ops: list[tuple[str, int, int, int]], stand_in: bool) -> list[tuple[int
     ``at_later``, replaced by the entry's event where it is met, as the CPU model does);
     ``reserve``, takes a sequence number and ``d1`` ticks on schedules an output ``d2``
     further in its place (``at_seq``); ``settle``, ``d1`` ticks on meets every stand-in
-    (``settle_later``, as a probe of the ring does). Returns the outputs in the order they
-    ran."""
+    (``settle_later``, as a probe of the ring does). Run to tick 100, or ``by_step``, an
+    event at a time. Returns the outputs in the order they ran."""
     s = PlacedScheduler()
     out: list[tuple[int, str]] = []
 
@@ -89,7 +90,11 @@ def _run(ops: list[tuple[str, int, int, int]], stand_in: bool) -> list[tuple[int
             s.at(t, reserve, i, d1, d2)
         else:
             s.at(t, lambda d1=d1: s.at(s.now + d1, s.settle_later))
-    s.run_until(100)
+    if by_step:
+        while s.step():
+            pass
+    else:
+        s.run_until(100)
     return out
 
 
@@ -99,7 +104,7 @@ def test_a_stand_in_runs_where_the_event_it_stands_for_would(ops):
     """Events meeting at a tick in every order: an event scheduled with ``at_later`` (and
     replaced where it is met) runs where the one scheduled at its position would, among
     ordinary events, sequence numbers taken early and other stand-ins."""
-    assert _run(ops, True) == _run(ops, False)
+    assert _run(ops, True) == _run(ops, False) == _run(ops, True, by_step=True)
 
 
 def test_a_stand_in_met_by_an_event_scheduled_before_its_position_is_replaced():
