@@ -626,7 +626,7 @@ class RotationalMac:
     _finish = _outbox._finish
     _expire = _outbox._expire
     _unawait = _outbox._unawait
-    _rebooted = _outbox._rebooted
+    _rebooted, _others_number = _outbox._rebooted, _outbox._others_number
 
     # -- deadlines, one handler per state (mac_deadlines.py) ---------------------------------
 

@@ -288,6 +288,8 @@ def _active_frame(self: RotationalMac, frame: Frame, end: int, now: int, out: li
         mac_cmds, app_cmds = _layers(content) if content else ((), ())
     except ContentError:
         mac_cmds, app_cmds = (), ()
+    if app_cmds:                           # the other PC's own message: its Number is taken
+        self._others_number(frame.num, out)
     if not self.standby:
         lone_other = any(c.name == "poll" and c.args[1] == 1 for c in mac_cmds)
         if self.mode == MEMBER and not self.lone and lone_other:

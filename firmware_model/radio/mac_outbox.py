@@ -111,3 +111,17 @@ def _expire(self: RotationalMac, now: int, out: list) -> None:
     while self._queue and self._queue[0].submitted < limit:
         self._finish(self._queue[0], False, f"expired: not sent within "
                      f"{self.cfg.max_age // 16_000} ms", out)
+
+
+def _others_number(self: RotationalMac, num: int, out: list) -> None:
+    """The other PC of the father's pair sent its own message of Number ``num`` (clause 50:
+    the pair shares ID 0's Numbers, and a PC never sends the other's message). An ``ack`` of
+    ``num`` no longer tells the two apart: ours of that Number, in flight or queued, fails
+    (it may have reached its destination: failed, not sent again), and a late ``ack`` of it
+    is not taken for ours (``LateAck``)."""
+    for m in [m for m in self.outbox if m.num == num]:
+        self._finish(m, False, f"the other PC sent its own message {num:02d}: an "
+                     f"acknowledgement of {num:02d} cannot say whose (after {m.attempts} "
+                     f"attempt(s))", out)
+    for r in [r for r, n in self._failed_sent.items() if n == num]:
+        del self._failed_sent[r]

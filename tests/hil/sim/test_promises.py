@@ -606,6 +606,46 @@ def test_no_father_pc_acknowledges_a_message_it_did_not_deliver(ring, seed, faul
     assert w.summary()["duplicate_deliveries"] == 0
 
 
+def _father_told_delivered_unsent(evs: list[dict]) -> list[tuple]:
+    """The father's messages (either PC's) that ended ``delivered`` with no delivery from a
+    frame of the PC that sent them: (PC, Number, destination). Both PCs are ID 0; a frame
+    and the deliveries it causes share its End's tick, and PC2's carry ``"pc": 2``."""
+    sent_by = {}
+    for e in evs:
+        if e["ev"] == "frame" and e["src"] == 0:
+            sent_by.setdefault((e["t"], e["num"]), set()).add(e.get("pc", 1))
+    given = {(pc, e["num"], e["to"]) for e in evs if e["ev"] == "deliver" and e["src"] == 0
+             for pc in sent_by.get((e["t"], e["num"]), ())}
+    return [(e.get("pc", 1), e["num"], e["dst"]) for e in evs
+            if e["ev"] == "delivered" and e["src"] == 0
+            and not any(pc == e.get("pc", 1) and num == e["num"] and e["dst"] in (to, 7)
+                        for pc, num, to in given)]
+
+
+@pytest.mark.parametrize("ring, seed, load, faults", [
+    ((0, 1), 199, 2.0, (Fault("fail", 0, 7.612), Fault("recover", 0, 9.365))),
+    ((0, 1, 2), 1, 1.0, (Fault("fail", 0, 4.612), Fault("recover", 0, 7.185)))])
+def test_no_father_pc_takes_the_other_pcs_acknowledgement_for_its_own(ring, seed, load,
+                                                                      faults):
+    """``rprs sim --robots 0,1 --father-standby --duration 20 --seed 199 --load 2 --checksum
+    --fault fail:0@7.612 --fault recover:0@9.365 --cpu ideal``: PC1 queued its message 09
+    while its radio was deaf (sent twice, never on the air), came back and stood by; PC2,
+    numbering after PC1's last frame it heard (08), sent its own 09, and R1's ack(0,09) ended
+    both ``delivered``: PC1's never reached R1 (the father pair's seed 1: PC1's 06 so, by
+    PC2's broadcast 06). The pair shares ID 0's Numbers: a PC that hears the other PC's
+    message of Number N now fails its own N (clause 50)."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=ring, duration=20.0, seed=seed, load=load,
+                        father_standby=True, mac=MacConfig(checksum=True), faults=faults),
+              on_event=evs.append)
+    w.run()
+    assert any(e["ev"] == "delivered" and e["src"] == 0 for e in evs)
+    assert _father_told_delivered_unsent(evs) == []
+    clash = [e for e in evs if e["ev"] == "fail" and e["src"] == 0 and "pc" not in e
+             and "the other PC sent its own message" in e["reason"]]
+    assert clash and all(e["t"] > s_to_ticks(faults[1].at) for e in clash)
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_two_active_father_pcs_in_a_ring_of_two_meet(seed):
     """``--robots 0,1 --father-standby --fault fail:0@5 --recover 0@5.4 --load 1 --checksum``:
