@@ -13,6 +13,12 @@ how many ``deliver`` events (either PC's) it had:
   delivered it (clause 50: no PC acknowledges what it did not deliver);
 * **delivered twice**: both PCs delivered it.
 
+And for every message of the father's (either PC's, ``"pc": 2`` on PC2's events) that ended
+``delivered``, whether a frame of the PC that sent it delivered it: **acknowledged, delivered
+from no frame of its PC** is one told ``delivered`` by the acknowledgement of the other PC's
+message of the same Number (clause 50: the pair shares ID 0's Numbers). A frame and the
+deliveries it causes at the children share its End's tick.
+
 Messages are told apart by (Source, Number) within a run: a 20 s run sends far fewer than 99
 messages a child, so no Number wraps.
 """
@@ -54,7 +60,23 @@ def check(events: list[dict]) -> dict[str, int]:
             acked += 1
             lost += deliveries[(e["src"], e["num"])] == 0
     twice = sum(n - 1 for n in deliveries.values() if n > 1)
-    return {"acknowledged": acked, "lost": lost, "twice": twice}
+    return {"acknowledged": acked, "lost": lost, "twice": twice, **_fathers(events)}
+
+
+def _fathers(events: list[dict]) -> dict[str, int]:
+    """The father's messages that ended ``delivered``, and those of them no frame of the PC
+    that sent them delivered (to their destination, or to anyone for a broadcast)."""
+    pcs: dict[tuple[int, int], set[int]] = {}     # (End, Number) -> PCs whose frame ended then
+    for e in events:
+        if e["ev"] == "frame" and e["src"] == 0:
+            pcs.setdefault((e["t"], e["num"]), set()).add(e.get("pc", 1))
+    given = {(pc, e["num"], e["to"]) for e in events if e["ev"] == "deliver" and e["src"] == 0
+             for pc in pcs.get((e["t"], e["num"]), ())}
+    told = [(e.get("pc", 1), e["num"], e["dst"]) for e in events
+            if e["ev"] == "delivered" and e["src"] == 0]
+    unsent = sum(not any(g[:2] == (pc, num) and dst in (g[2], 7) for g in given)
+                 for pc, num, dst in told)
+    return {"father_acknowledged": len(told), "father_unsent": unsent}
 
 
 def run(seed: int, duration: float) -> dict[str, int]:
@@ -77,20 +99,24 @@ def main() -> None:
         first, last = (int(x) for x in a.seeds.split("-"))
     except ValueError:
         ap.error(f"--seeds {a.seeds!r}: {RANGE_HELP}, e.g. 0-199")
-    total = {"acknowledged": 0, "lost": 0, "twice": 0}
+    total = {"acknowledged": 0, "lost": 0, "twice": 0, "father_acknowledged": 0,
+             "father_unsent": 0}
     bad = []
     for seed in range(first, last + 1):
         r = run(seed, a.duration)
         for k in total:
             total[k] += r[k]
-        if r["lost"] or r["twice"]:
-            bad.append(f"{seed} (lost {r['lost']}, twice {r['twice']})")
+        if r["lost"] or r["twice"] or r["father_unsent"]:
+            bad.append(f"{seed} (lost {r['lost']}, twice {r['twice']}, the father's "
+                       f"unsent {r['father_unsent']})")
     n = last - first + 1
     print("| seeded father-pair runs | messages to the father acknowledged | acknowledged, "
-          "delivered by neither PC | delivered twice | runs with either |")
-    print("|---|---|---|---|---|")
+          "delivered by neither PC | delivered twice | the father's messages acknowledged | "
+          "acknowledged, delivered from no frame of its PC | runs with any |")
+    print("|---|---|---|---|---|---|---|")
     print(f"| {n} (seeds {first}-{last}, {a.duration:g} s) | {total['acknowledged']:,} | "
-          f"{total['lost']} | {total['twice']} | {len(bad)} |")
+          f"{total['lost']} | {total['twice']} | {total['father_acknowledged']:,} | "
+          f"{total['father_unsent']} | {len(bad)} |")
     if bad:
         print("\nruns: " + ", ".join(bad))
 
