@@ -216,7 +216,7 @@ class RotationalMac:
         """The freshness value of our next frame (authenticated profile): kept in flash across
         reboots on a child; a PC seeds it from its clock (auth.clock_freshness)."""
         self._auth_rx: dict[int, int] = {}  # Source -> freshness of the last frame accepted
-        self._tx_end = 0                  # End of our own last frame
+        self._tx_end = self._rx_quiet = 0  # End of our own last frame, of a failed one heard
         self._noise_since_tx = False      # garbage or a failed frame heard since our frame
         self._rejected = 0                # paper profile: our frames not heard, in a row
         self._own_heard: tuple[int, int] | None = None   # (frames, last End) with our own ID
@@ -647,7 +647,7 @@ class RotationalMac:
         _turns._message_heard)
     _takeover, _count_skipped, _pair_floor = (_turns._takeover, _turns._count_skipped,
                                               _turns._pair_floor)
-    _next_turn = _turns._next_turn
+    _next_turn, _missed_on_a_frame = _turns._next_turn, _turns._missed_on_a_frame
     _window = _turns._window
     _after_window = _turns._after_window
     _hold = _turns._hold

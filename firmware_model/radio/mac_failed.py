@@ -21,7 +21,7 @@ def on_corrupt(self: RotationalMac, first: int, src: int | None, expected_end: i
     out: list = []
     if self.phase == SWITCH or self.phase == SEND:
         return out
-    self._heard_after_tx(first, good=False)
+    self._heard_after_tx(first, good=False, last=now)
     if self.mode == LISTEN:
         self.deadline = now + self._claim_ticks()
         return out
@@ -77,7 +77,7 @@ def on_garbage(self: RotationalMac, first: int, last: int, now: int) -> Sequence
     """Bytes that form no frame were heard. In the owner's slot they are probably its frame
     with a corrupted Header: if the channel then falls quiet the turn closes (no miss);
     if it never does (idle noise), the owner misses at E + Tmax as usual."""
-    self._heard_after_tx(first, good=False)
+    self._heard_after_tx(first, good=False, last=last)
     if self.mode == MEMBER and self.phase == WAIT and self.owner is not None and \
             last > self.turn_start + self.cfg.ttrans:
         self._tell_view = True

@@ -53,6 +53,7 @@ def _refuse_in_slot(self: RotationalMac, src: int, num: int, reason: str, end: i
         n = self.misses.get(o, 0) + 1
         self.misses[o] = n
         out.append(Miss(o))
+        self._missed_on_a_frame()
         if n >= self.cfg.miss_limit:
             self._drop(o, out)
     self._next_turn(src, end, now, out)    # the owner is whoever is sending

@@ -23,29 +23,35 @@ def _watch_ticks(self: RotationalMac) -> int:
     w = max(4 * self.cfg.byte_ticks, self.cfg.standby_watch)
     if self.standby:
         return 2 * self.cfg.ttrans + (self.cfg.pc + 2) * w
-    if self._deaf_check and self.cfg.pc == 1:
-        # PC1 back from a possible deafness watches past the Header of a PC2 that checks
-        # its own turn first (TXEN at Ttrans + W, Header Ttrans later), and still sends
-        # early enough for a standby PC2 to hear it (2 Ttrans + 4 W).
+    if (self._deaf_check or self._check_turns) and self.cfg.pc == 1:
+        # PC1 back from a possible deafness, or on probation, watches past the Header of a
+        # PC2 that watches its own turn first (TXEN at Ttrans + W, Header Ttrans later), and
+        # still sends early enough for a standby PC2 to hear it (2 Ttrans + 4 W). With the
+        # same watch, two PCs on probation would send at one tick, each deaf to the other.
         return 2 * (self.cfg.ttrans + w)
     return self.cfg.ttrans + w
 
 
-def _heard_after_tx(self: RotationalMac, first: int, good: bool) -> None:
+def _heard_after_tx(self: RotationalMac, first: int, good: bool,
+                    last: int | None = None) -> None:
     """Something was heard, its first byte in at ``first``: a good frame (``good``), or a
-    failed one or garbage. The first thing heard since our own frame, by an active PC of a
-    pair after more silence than a live successor's Header can take (Ttrans + 6 Tslot + 5 B:
-    its latest R-stagger, clause 44, and a byte), says our radio may have been deaf while the
-    other PC took over: we check (clause 50)."""
+    failed one or garbage, its last byte in by ``last``. Heard by an active PC of a pair
+    with no good frame since its own, after more silence (since its own frame, or the last
+    failed reception) than a live successor's Header can take (Ttrans + 6 Tslot + 5 B: its
+    latest R-stagger, clause 44, and a byte), it says our radio may have been deaf while the
+    other PC took over (a radio that died in the middle of a frame hears it fail, then
+    nothing): we check (clause 50)."""
     cfg = self.cfg
-    if not self._heard_since_tx and not self._noise_since_tx and self.id == 0 and \
+    if not self._heard_since_tx and self.id == 0 and \
             cfg.paired and not self.standby and self.mode == MEMBER and \
-            first - self._tx_end > cfg.ttrans + 6 * cfg.tslot + 5 * cfg.byte_ticks:
+            first - max(self._tx_end, self._rx_quiet) > \
+            cfg.ttrans + 6 * cfg.tslot + 5 * cfg.byte_ticks:
         self._deaf_check = True
     if good:
         self._heard_since_tx = True
     else:
         self._noise_since_tx = True
+        self._rx_quiet = max(self._rx_quiet, first if last is None else last)
 
 
 def _deliver(self: RotationalMac, d: Deliver, out: list) -> None:
@@ -123,12 +129,25 @@ def _takeover(self: RotationalMac, src: int, first: int) -> list[int] | None:
 def _count_skipped(self: RotationalMac, skipped: list[int], out: list) -> None:
     """A takeover seen late: the robots it skipped missed their turns (clause 39)."""
     cfg = self.cfg
+    self._missed_on_a_frame()
     for r in skipped:
         n = self.misses.get(r, 0) + 1
         self.misses[r] = n
         out.append(Miss(r))
         if n >= cfg.miss_limit:
             self._drop(r, out)
+
+
+def _missed_on_a_frame(self: RotationalMac) -> None:
+    """A robot counted missing on a frame heard in its slot or after it (clause 39). An
+    active PC of a pair that has accepted no frame since its own may have been deaf: its
+    radio back in the middle of a frame (garbage, then a robot later than the one awaited),
+    or in its own watched turn, while the other PC took over and ended its probation. Both
+    would send in ID 0's slot, each deaf to the other: we check our next turn (clause 50)."""
+    heard = self._last_heard
+    if self.id == 0 and self.cfg.paired and not self.standby and self.mode == MEMBER and \
+            (heard is None or heard[1] <= self._tx_end):
+        self._deaf_check = True
 
 
 def force_turn(self: RotationalMac, now: int) -> list:

@@ -755,10 +755,17 @@ def test_a_standby_pcs_frames_are_fresh_to_every_member_after_it_takes_over():
             e["reason"]]
     assert len(took) == 1, took
     after = [e for e in evs if e.get("t", 0) > took[0]["t"]]
-    refused = [e for e in after if e["ev"] == "refused"]
+    # PC1, deaf, dropped everyone and claimed alone; back, the frames it sends until it hears
+    # PC2 carry its freshness from before the takeover: refused as replayed (clause 52), as
+    # they must be. A frame's refusals share its End's tick.
+    pc1_ends = {e["t"] for e in after if e["ev"] == "frame" and e["src"] == 0
+                and "pc" not in e and not e["collided"]}
+    refused = [e for e in after if e["ev"] == "refused" and e["t"] not in pc1_ends]
     # (PC1, back from a dead radio, first refuses robot 1 as a robot it dropped: clause 38.3)
     assert not [e for e in refused if e["to"] != 0 or
                 e["reason"].startswith(("forged", "replayed"))], refused
+    assert all(e["reason"].startswith("replayed") for e in after
+               if e["ev"] == "refused" and e["t"] in pc1_ends)
     assert not [e for e in evs if e["ev"] in ("miss", "disable") and e["robot"] == 0
                 and e["by"] != 0]
     pc2_sent = [e for e in after if e["ev"] == "frame" and e["src"] == 0]

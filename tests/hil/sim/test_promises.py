@@ -606,6 +606,42 @@ def test_no_father_pc_acknowledges_a_message_it_did_not_deliver(ring, seed, faul
     assert w.summary()["duplicate_deliveries"] == 0
 
 
+@pytest.mark.parametrize("ring, seed, fail, back", [
+    ((0, 1, 2, 3), 118, 11.532, 12.243),   # a frame from a robot after the one awaited
+    ((0, 1, 2, 3), 58, 9.969, 10.745),     # the same, after PC1's own frame collided
+    ((0, 1, 2), 221, 5.946, 6.408),        # garbage long after the frame that failed
+    ((0, 1, 2), 655, 12.838, 13.566)])     # a miss at E + Tmax after a frame failed
+def test_a_father_pc_whose_radio_died_in_a_frame_checks_before_it_delivers(ring, seed, fail,
+                                                                            back):
+    """The father-pair runs of ``python benchmarks/father_pair.py`` (``--checksum --load 1``,
+    ID 0's radio failing at FAIL and back at BACK) where both PCs delivered the same
+    messages: PC2 took over and ended its probation, and PC1, back, was still active and sent
+    in ID 0's slot at the tick PC2 did, each deaf to the other, until PC2's listening turn.
+    PC1 never checked (clause 50): its radio died in the middle of a frame, which failed, so
+    it had "heard something" since its own frame; or back in the middle of another robot's
+    frame, it took a later robot's frame for the one awaited and counted a miss, which a
+    frame does not make a sign of deafness. A PC with no good frame since its own now checks
+    after a miss with nothing heard for Tmax, after silence before garbage or a failed frame
+    longer than a live Header can take, and after a miss counted on a frame."""
+    evs: list[dict] = []
+    w = World(SimConfig(robots=ring, duration=20.0, seed=seed, load=1.0, father_standby=True,
+                        mac=MacConfig(checksum=True),
+                        faults=(Fault("fail", 0, fail), Fault("recover", 0, back))),
+              on_event=evs.append)
+    w.run()
+    to_father: dict[tuple[int, int], int] = {}
+    for e in evs:
+        if e["ev"] == "submit" and e["dst"] == 0:
+            to_father[(e["src"], e["num"])] = 0
+        elif e["ev"] == "deliver" and e["to"] == 0 and (e["src"], e["num"]) in to_father:
+            to_father[(e["src"], e["num"])] += 1
+    assert sum(n > 0 for n in to_father.values()) >= 10
+    assert [m for m, n in to_father.items() if n > 1] == []
+    # PC1, back, stands by for PC2 (which had taken over while PC1 was deaf)
+    assert any(e["ev"] == "mode" and e["robot"] == 0 and "pc" not in e
+               and e["t"] > s_to_ticks(back) and "standing by" in e["reason"] for e in evs)
+
+
 def _father_told_delivered_unsent(evs: list[dict]) -> list[tuple]:
     """The father's messages (either PC's) that ended ``delivered`` with no delivery from a
     frame of the PC that sent them: (PC, Number, destination). Both PCs are ID 0; a frame
@@ -644,6 +680,33 @@ def test_no_father_pc_takes_the_other_pcs_acknowledgement_for_its_own(ring, seed
     clash = [e for e in evs if e["ev"] == "fail" and e["src"] == 0 and "pc" not in e
              and "the other PC sent its own message" in e["reason"]]
     assert clash and all(e["t"] > s_to_ticks(faults[1].at) for e in clash)
+
+
+def test_two_father_pcs_on_probation_do_not_send_at_one_tick():
+    """``rprs sim --robots 0,1,2,3,4,5,6 --duration 30 --seed 2095 --checksum --father-standby
+    --cpu ideal --load 2`` with noise and byte errors, no fault on the father: PC1, a turn
+    behind after losing R5's frame in noise, heard PC2's takeover frame after the miss and
+    went on probation while still active. Both PCs on probation watched their turn for
+    Ttrans + W and sent at one tick, each deaf to the other, and both delivered for 5 s (6
+    messages twice). PC1 on probation now watches 2 (Ttrans + W), as when it may have been
+    deaf, and hears PC2 (clause 50)."""
+    faults = tuple(parse_fault(f) for f in (
+        "skew:2:0.012", "noise@15.535-18.911", "noise@14.017-20.299",
+        "ber@4.398-8.13:0.0027", "drop@10.328-17.804:0.0071", "noise@3.159-8.011"))
+    evs: list[dict] = []
+    w = World(SimConfig(robots=tuple(range(7)), duration=30.0, seed=2095, load=2.0,
+                        father_standby=True, cpu=None, mac=MacConfig(checksum=True),
+                        faults=faults), on_event=evs.append)
+    w.run()
+    s = w.summary()
+    assert s["duplicate_deliveries"] == 0 and s["collisions"] <= 2
+    modes = [e for e in evs if e["ev"] == "mode" and e["robot"] == 0]
+    late = [e for e in modes if e["t"] > s_to_ticks(18.0)]
+    # PC2 takes over at 18.12 s; PC1 (no "pc" key) hears it within a second and stands by
+    assert [("pc" in e, e["reason"]) for e in late] == [
+        (True, "took over ID 0's turn: the active PC is silent"),
+        (False, "the other PC is still active: standing by")]
+    assert late[1]["t"] - late[0]["t"] < s_to_ticks(1.5)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
