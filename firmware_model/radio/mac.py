@@ -627,6 +627,7 @@ class RotationalMac:
     _expire = _outbox._expire
     _unawait = _outbox._unawait
     _rebooted, _others_number = _outbox._rebooted, _outbox._others_number
+    _number_after_others = _outbox._number_after_others
 
     # -- deadlines, one handler per state (mac_deadlines.py) ---------------------------------
 

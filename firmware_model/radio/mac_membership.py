@@ -323,7 +323,7 @@ def _active_frame(self: RotationalMac, frame: Frame, end: int, now: int, out: li
             # a duplicate (clause 48), acknowledged and never delivered
             if 0 < (frame.num - self._last_num) % 100 < 50:
                 self._last_num = frame.num
-                self._next_num = (frame.num + 1) % 100
+                self._next_num = self._number_after_others(frame.num)
             self._own_id_heard(frame.num, end, now, out)
             return out
     if self.mode == LISTEN:
@@ -341,7 +341,7 @@ def _active_frame(self: RotationalMac, frame: Frame, end: int, now: int, out: li
         self._held = [d for d in self._held if (d.src, d.num) not in sent_acks]
     if app_cmds:                           # keep our Numbers after the active PC's
         self._last_num = frame.num
-        self._next_num = (frame.num + 1) % 100
+        self._next_num = self._number_after_others(frame.num)
     self.misses[self.id] = 0
     self._silent = 0
     invited = [c.args[0] for c in mac_cmds if c.name == "poll" and c.args[0] not in self.ring]

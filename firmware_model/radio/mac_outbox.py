@@ -125,3 +125,16 @@ def _others_number(self: RotationalMac, num: int, out: list) -> None:
                      f"attempt(s))", out)
     for r in [r for r, n in self._failed_sent.items() if n == num]:
         del self._failed_sent[r]
+
+
+def _number_after_others(self: RotationalMac, num: int) -> int:
+    """Our next Number after the other PC's ``num`` (clause 50): after it, and after each of
+    our own messages still in the outbox, which keep their Numbers. Numbered ``num + 1``
+    alone, a new message could repeat a queued one's Number (a PC that numbered messages
+    while deaf, then stood by with them), and a destination that had the first would take
+    the second for a duplicate (clause 48): acknowledged, never delivered."""
+    nxt = (num + 1) % 100
+    for m in self.outbox:                  # in the order they were numbered
+        if (m.num - nxt) % 100 < 50:       # at or ahead of nxt (Numbers wrap at 100)
+            nxt = (m.num + 1) % 100
+    return nxt
