@@ -20,9 +20,11 @@ def _rows(script: str) -> list[str]:
 
 
 def test_the_checksum_table_is_todays():
+    """docs/performance.md's table, and docs/mac.md's copy of it."""
     rows = _rows("checksum_effect.py")
     assert len(rows) == 6
-    stale = [r for r in rows if r not in DOC]
+    mac = (ROOT / "docs" / "mac.md").read_text()
+    stale = [r for r in rows if r not in DOC or r not in mac]
     assert not stale, stale
 
 
