@@ -21,7 +21,7 @@ from firmware_model.radio.frame import Frame
 from hil.bench import scripts as bench
 from hil.bench.radio_hub import RadioHub
 from hil.sim.world import ConfigError, SimConfig, World
-from processes import heard, ring_is, sigstop, spawn, stop, wait_for
+from processes import ATTEMPTS, heard, ring_is, sigstop, spawn, stop, wait_for
 
 S = 16_000_000
 
@@ -214,25 +214,77 @@ def _all_lines(stream, into: list) -> None:
         into.extend(stream)
 
 
-@pytest.fixture
-def hub():
-    h = RadioHub(nodes=6, seed=1).start()
-    yield h
-    h.stop()
-    h.close()
+STALLED = " stalled: it did not run for "
+"""What a bench process says on stderr when it did not run for more than Tslot (80 ms), beyond
+the margins (hil/bench/runner.py): it resynchronises (docs/guarantees.md, "Stalls and restarts
+at the bench")."""
 
 
-def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going(hub):
+def _stalls(lines: list[str], who: str) -> list[str]:
+    """``who``'s stall lines among its stderr ``lines``, shortened."""
+    return [f"{who}: {ln.partition(STALLED)[2].split()[0]} s" for ln in lines
+            if STALLED in ln]
+
+
+def _sniffer_stalls(sniffer) -> list[str]:
+    return [f"the sniffer (this test process): {(b - a) / 16e6:.2f} s"
+            for a, b in sniffer.result.stalls]
+
+
+def _hub_runs(new_hub, scenario) -> None:
+    """Runs ``scenario(hub, stalls)`` on a fresh hub (``new_hub()``) until a run passes.
+
+    A host that stops every process of the ring for more than Tslot at once (a busy laptop,
+    a VM whose cores were taken away) makes every member resynchronise: none takes a turn on
+    what it knew before the stall (clause 5), so the ring falls silent until they go back to
+    LISTEN and one claims, about 2 x Tclaim. In that silence the robot of team {4, 5} claims
+    the channel (its Tclaim, 1.6 s, is the shortest), and a twin that yielded forgets after
+    Tclaim that its ID is on the air and answers R2's invitation: it may become robot 2 and
+    the original say "has ID 2" too. That is the stall handling the bench documents, outside
+    the margins these checks assume (no process more than 20 ms late, docs/guarantees.md).
+    So ``scenario`` appends to ``stalls`` every stall beyond the margins in its run (the
+    children's stall lines, the sniffer's own, none it causes itself); a run that fails a
+    check with such a stall was disturbed and runs again, up to ``ATTEMPTS`` runs in all; a
+    failed check in a run without one fails at once. The failure lists every run."""
+    runs = []
+    for attempt in range(1, ATTEMPTS + 1):
+        stalls: list[str] = []
+        hub = new_hub()
+        try:
+            scenario(hub, stalls)
+            return
+        except AssertionError as exc:
+            runs.append(f"run {attempt}: {exc}\nstalls beyond the margins: {stalls or 'none'}")
+            if not stalls:
+                break
+            if attempt < ATTEMPTS:
+                print(f"run {attempt} failed a check and was disturbed ({stalls}): run again")
+        finally:
+            hub.stop()
+            hub.close()
+    pytest.fail("\n\n".join(runs))
+
+
+def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going():
     """Issue 40, findings 6 and 7, with processes: a ring of R1-R3; then a second
     ``rprs child --id 2`` and an ``rprs child --id 5 --team 4,5`` start on spare nodes. Each
-    prints its one line within seconds; neither ever transmits, and the ring keeps its order."""
+    prints its one line within seconds; neither ever transmits, and the ring keeps its order.
+    (A run in which the host stalled the processes is run again: ``_hub_runs``.)"""
+    _hub_runs(lambda: RadioHub(nodes=6, seed=1).start(), _twin_and_stranger)
+
+
+def _twin_and_stranger(hub, stalls: list[str]) -> None:
     kids = [spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", "1,2,3")
             for i in (1, 2, 3)]
+    errs: dict[int, list[str]] = {i: [] for i in (1, 2, 3)}
+    for i, k in zip((1, 2, 3), kids):
+        _lines(k, errs[i])                # (every pipe read: a full one would block a child)
     sniffer = bench.Sniffer(hub.paths[5]).start()
     extra = []
     twin_err: list[str] = []
     twin_events: list[str] = []
     stranger_err: list[str] = []
+    reader = None
     try:
         assert wait_for(lambda: ring_is(sniffer, [1, 2, 3]), 40.0)
         twin = spawn("child", "--id", "2", "--radio", hub.paths[3], "--team", "1,2,3",
@@ -257,10 +309,15 @@ def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going(hub)
         frames = [f for f in sniffer.snapshot() if f.start >= t0 * 16e6]
     finally:
         sniffer.stop()
-        stop(kids + extra)
+        rest = stop(kids + extra)
+        for (who, lines), more in zip([(f"R{i}", errs[i]) for i in (1, 2, 3)] +
+                                      [("twin", twin_err), ("stranger", stranger_err)], rest):
+            stalls += _stalls(lines + more.splitlines(), who)
+        stalls += _sniffer_stalls(sniffer)
     dup = [ln for ln in twin_err if "has ID 2" in ln]
     assert dup == ["rprs: robot 2: another robot on the air has ID 2: this one yields "
-                   "(listens, answers no invitation while it is heard)\n"]
+                   "(listens, answers no invitation while it is heard)\n"], twin_err
+    assert reader is not None
     reader.join(10.0)
     said = [json.loads(ln) for ln in twin_events if '"duplicate_id"' in ln]
     assert [(e["robot"], e["yielding"]) for e in said] == [(2, True)], twin_events[-5:]
@@ -275,7 +332,7 @@ def test_a_twin_process_and_a_stranger_team_say_so_and_the_ring_keeps_going(hub)
     # the twin never transmitted: every frame with Source 2 is one turn in the ring's order
     order = [f.src for f in frames]
     good = sum(1 for a, b in zip(order, order[1:]) if b == a % 3 + 1)
-    assert good >= 0.98 * (len(order) - 1)
+    assert good >= 0.98 * (len(order) - 1), order
 
 
 # -- the MAC's rule for its own ID, event by event -----------------------------------------
@@ -361,12 +418,17 @@ def test_a_foreign_robot_heard_once_is_not_yet_said_and_a_forged_source_never():
     assert said == [M.ForeignRing((0, 1, 2), False)]
 
 
-def test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring(hub):
+def test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring():
     """Issue 40, finding 6, as found: R2's process stops (SIGSTOP) while a twin ``--id 2``
     starts on a spare node; the ring drops R2 and invites the twin in; then R2 resumes
     (SIGCONT) believing it is a member. One of the two prints its duplicate-ID line and
     yields; the ring goes on 1, 2, 3 in order (no pair of frames from 2 in one turn, no
-    collisions every cycle: before, 1 run in 5 stayed in lock-step, 51 collisions in 24 s)."""
+    collisions every cycle: before, 1 run in 5 stayed in lock-step, 51 collisions in 24 s).
+    (A run in which the host stalled the processes besides is run again: ``_hub_runs``.)"""
+    _hub_runs(lambda: RadioHub(nodes=6, seed=1).start(), _original_back_beside_twin)
+
+
+def _original_back_beside_twin(hub, stalls: list[str]) -> None:
     import signal
     kids = {i: spawn("child", "--id", str(i), "--radio", hub.paths[i - 1], "--team", "1,2,3")
             for i in (1, 2, 3)}
@@ -397,7 +459,16 @@ def test_a_stalled_original_back_beside_its_twin_leaves_one_robot_2_in_the_ring(
         bad = sniffer.result.failed + sniffer.result.garbage - bad_before
     finally:
         sniffer.stop()
-        stop(list(kids.values()) + ([twin] if twin else []))
+        rest = stop([kids[1], kids[2], kids[3]] + ([twin] if twin else []))
+        for who, more in zip(("R1", "original", "R3", "twin"), rest):
+            errs[who] += more.splitlines(keepends=True)
+        for who, lines in errs.items():
+            mine = _stalls(lines, who)
+            if who == "original" and mine:
+                # its SIGSTOP: the longest of its stalls, seconds long (the scenario's own)
+                mine.remove(max(mine, key=lambda x: float(x.split()[1])))
+            stalls += mine
+        stalls += _sniffer_stalls(sniffer)
     assert len(said()) == 1, errs          # one of the two yields, the other keeps the ID
     order = [f.src for f in frames]
     good = sum(1 for a, b in zip(order, order[1:]) if b == a % 3 + 1)
