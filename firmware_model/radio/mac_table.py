@@ -240,6 +240,8 @@ TRANSITIONS: tuple[Transition, ...] = (
        "deafness: read its Source first", "designed"),
     _T("WATCH", "frame", "WATCH", "a member's frame while we check: the turn after it is "
        "ours, watched again", "designed"),
+    _T("WATCH", "frame", "HOLD", "the other PC's frame while we check, alone in our ring (our "
+       "radio deaf, we dropped everyone): stand by; ID 0's next turn follows", "designed"),
     _T("WATCH", "deadline", "SWITCH", "no Header from the active PC: take ID 0's turn; or "
        "none in our first turn after a stall: the ring still has us, take it", "designed"),
     # -- a bench station after a stall (clause 5) -----------------------------------------

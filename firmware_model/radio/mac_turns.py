@@ -35,16 +35,19 @@ def _watch_ticks(self: RotationalMac) -> int:
 def _heard_after_tx(self: RotationalMac, first: int, good: bool,
                     last: int | None = None) -> None:
     """Something was heard, its first byte in at ``first``: a good frame (``good``), or a
-    failed one or garbage, its last byte in by ``last``. Heard by an active PC of a pair
-    with no good frame since its own, after more silence (since its own frame, or the last
-    failed reception) than a live successor's Header can take (Ttrans + 6 Tslot + 5 B: its
-    latest R-stagger, clause 44, and a byte), it says our radio may have been deaf while the
-    other PC took over (a radio that died in the middle of a frame hears it fail, then
-    nothing): we check (clause 50)."""
+    failed one or garbage, its last byte in by ``last`` (a good frame is told here only when
+    it is the first since our own). Heard by an active PC of a pair after more silence than
+    a live successor's Header can take (Ttrans + 6 Tslot + 5 B: its latest R-stagger, clause
+    44, and a byte), counted from the last thing heard (our own frame's End, the last
+    accepted frame's End, or the quiet after the last failed reception: its last byte and
+    the quiet gap, where that turn closes, clause 42), it says our radio may have been deaf
+    while the other PC took over (a radio that died in the middle of a frame hears it fail,
+    then nothing; one back in the middle of a frame hears garbage): we check (clause 50)."""
     cfg = self.cfg
-    if not self._heard_since_tx and self.id == 0 and \
-            cfg.paired and not self.standby and self.mode == MEMBER and \
-            first - max(self._tx_end, self._rx_quiet) > \
+    heard = self._last_heard
+    if self.id == 0 and cfg.paired and not self.standby and self.mode == MEMBER and \
+            first - max(self._tx_end, self._rx_quiet + cfg.quiet_gap,
+                        0 if heard is None else heard[1]) > \
             cfg.ttrans + 6 * cfg.tslot + 5 * cfg.byte_ticks:
         self._deaf_check = True
     if good:

@@ -501,6 +501,19 @@ def _father_paths() -> None:
     heard(mac, 0, mac.turn_start + 30 * B)               # the other PC's: stand by, -> WAIT
     assert (mac.phase, mac.owner) == (M.WAIT, 1) and mac.standby   # it checked (clause 50)
 
+    # PC1 alone in its ring (it claimed, its radio deaf), bytes heard long after its frame:
+    # it checks its next turn, and the other PC's frame there stands it by, alone: -> HOLD
+    mac = M.RotationalMac(0, M.MacConfig(team=frozenset({0, 1, 2}), paired=True, pc=1))
+    mac.power_on(0)
+    mac.on_timer(mac.deadline)                           # LISTEN: claims -> SWITCH
+    t = _sent(mac)                                       # -> HOLD, a lone member's pause
+    mac.on_garbage(t + 600 * B, t + 610 * B, t + 610 * B)   # long after our frame: check
+    assert mac._deaf_check
+    mac.on_timer(mac.deadline)                           # our turn, watched
+    assert mac.phase == M.WATCH
+    heard(mac, 0, mac.turn_start + 30 * B)               # the other PC's frame: -> HOLD
+    assert mac.phase == M.HOLD and mac.standby and mac.ring == (0,)
+
 
 HOOKS = {"on_frame": "frame", "on_corrupt": "failed frame", "on_garbage": "garbage",
          "on_timer": "deadline", "on_tx_done": "tx done", "power_on": "power on",

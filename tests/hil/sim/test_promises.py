@@ -606,13 +606,14 @@ def test_no_father_pc_acknowledges_a_message_it_did_not_deliver(ring, seed, faul
     assert w.summary()["duplicate_deliveries"] == 0
 
 
-@pytest.mark.parametrize("ring, seed, fail, back", [
-    ((0, 1, 2, 3), 118, 11.532, 12.243),   # a frame from a robot after the one awaited
-    ((0, 1, 2, 3), 58, 9.969, 10.745),     # the same, after PC1's own frame collided
-    ((0, 1, 2), 221, 5.946, 6.408),        # garbage long after the frame that failed
-    ((0, 1, 2), 655, 12.838, 13.566)])     # a miss at E + Tmax after a frame failed
+@pytest.mark.parametrize("ring, seed, fail, back, cpu", [
+    ((0, 1, 2, 3), 118, 11.532, 12.243, False),   # a frame from a robot after the one awaited
+    ((0, 1, 2, 3), 58, 9.969, 10.745, False),     # the same, after PC1's own frame collided
+    ((0, 1, 2), 221, 5.946, 6.408, False),        # garbage long after the frame that failed
+    ((0, 1, 2), 655, 12.838, 13.566, False),      # a miss at E + Tmax after a frame failed
+    ((0, 1, 2, 3), 218, 6.604, 7.109, True)])     # garbage long after a good frame (CPU model)
 def test_a_father_pc_whose_radio_died_in_a_frame_checks_before_it_delivers(ring, seed, fail,
-                                                                            back):
+                                                                            back, cpu):
     """The father-pair runs of ``python benchmarks/father_pair.py`` (``--checksum --load 1``,
     ID 0's radio failing at FAIL and back at BACK) where both PCs delivered the same
     messages: PC2 took over and ended its probation, and PC1, back, was still active and sent
@@ -622,10 +623,12 @@ def test_a_father_pc_whose_radio_died_in_a_frame_checks_before_it_delivers(ring,
     frame, it took a later robot's frame for the one awaited and counted a miss, which a
     frame does not make a sign of deafness. A PC with no good frame since its own now checks
     after a miss with nothing heard for Tmax, after silence before garbage or a failed frame
-    longer than a live Header can take, and after a miss counted on a frame."""
+    longer than a live Header can take (also after a good frame: seed 218 on the CPU model,
+    whose radio died after a frame heard since its own), and after a miss counted on a frame."""
+    from firmware_model.cycle_costs import DEFAULT_COSTS
     evs: list[dict] = []
     w = World(SimConfig(robots=ring, duration=20.0, seed=seed, load=1.0, father_standby=True,
-                        mac=MacConfig(checksum=True),
+                        mac=MacConfig(checksum=True), cpu=DEFAULT_COSTS if cpu else None,
                         faults=(Fault("fail", 0, fail), Fault("recover", 0, back))),
               on_event=evs.append)
     w.run()
