@@ -649,6 +649,7 @@ class RotationalMac:
     _takeover, _count_skipped, _pair_floor = (_turns._takeover, _turns._count_skipped,
                                               _turns._pair_floor)
     _next_turn, _missed_on_a_frame = _turns._next_turn, _turns._missed_on_a_frame
+    _active_pc_of_pair = _turns._active_pc_of_pair
     _window = _turns._window
     _after_window = _turns._after_window
     _hold = _turns._hold

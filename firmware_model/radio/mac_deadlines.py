@@ -185,11 +185,11 @@ def _deadline_wait(self: RotationalMac, now: int, rx_busy: bool, last_rx: int | 
     # An active father PC that missed two turns with nothing at all heard since its own
     # frame may have been deaf while its standby took ID 0's turn (clause 50): if its radio
     # comes back before it goes to LISTEN, both PCs are active and both would deliver.
-    deaf = self.id == 0 and self.cfg.paired and not self.standby and \
-        self._silent >= 2 and not self._heard_since_tx and not self._noise_since_tx
-    if self.id == 0 and self.cfg.paired and not self.standby and \
-            not self._heard_since_tx and now - max(self._tx_end, self._rx_quiet) >= \
-            self.cfg.tmax:
+    pair = self._active_pc_of_pair()
+    deaf = pair and self._silent >= 2 and not self._heard_since_tx and \
+        not self._noise_since_tx
+    if pair and not self._heard_since_tx and \
+            now - max(self._tx_end, self._rx_quiet) >= self.cfg.tmax:
         # An active PC that missed a turn with no good frame since its own and nothing at
         # all heard for Tmax (a radio that died in the middle of a frame heard it fail) may
         # have been deaf while the other PC took over (clause 50): it delivers nothing new

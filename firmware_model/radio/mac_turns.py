@@ -45,8 +45,7 @@ def _heard_after_tx(self: RotationalMac, first: int, good: bool,
     then nothing; one back in the middle of a frame hears garbage): we check (clause 50)."""
     cfg = self.cfg
     heard = self._last_heard
-    if self.id == 0 and cfg.paired and not self.standby and self.mode == MEMBER and \
-            first - max(self._tx_end, self._rx_quiet + cfg.quiet_gap,
+    if self._active_pc_of_pair() and first - max(self._tx_end, self._rx_quiet + cfg.quiet_gap,
                         0 if heard is None else heard[1]) > \
             cfg.ttrans + 6 * cfg.tslot + 5 * cfg.byte_ticks:
         self._deaf_check = True
@@ -148,9 +147,14 @@ def _missed_on_a_frame(self: RotationalMac) -> None:
     or in its own watched turn, while the other PC took over and ended its probation. Both
     would send in ID 0's slot, each deaf to the other: we check our next turn (clause 50)."""
     heard = self._last_heard
-    if self.id == 0 and self.cfg.paired and not self.standby and self.mode == MEMBER and \
-            (heard is None or heard[1] <= self._tx_end):
+    if self._active_pc_of_pair() and (heard is None or heard[1] <= self._tx_end):
         self._deaf_check = True
+
+
+def _active_pc_of_pair(self: RotationalMac) -> bool:
+    """An active member PC of the father's pair: the one that checks after a possible
+    deafness (clause 50; a lone father has nobody to deliver twice with)."""
+    return self.id == 0 and self.cfg.paired and not self.standby and self.mode == MEMBER
 
 
 def force_turn(self: RotationalMac, now: int) -> list:
