@@ -30,7 +30,9 @@ libpython's symbols were stripped nothing would be counted, and the script says 
 * ``loaded`` and ``loaded-every-frame``: 2 robots, a message a second, 960 s, in the default
   mode and with every fast path off: the default must not cost more (only with ``--only``);
 * ``loaded-can`` and ``loaded-can-ideal``: benchmarks/cpu_cost.py's ``loaded-can`` (5 robots,
-  CAN sides, load 2, 30 s) on the CPU model and on the ideal CPU (only with ``--only``).
+  CAN sides, load 2, 30 s) on the CPU model and on the ideal CPU (only with ``--only``);
+* ``idle-can-cpu``: benchmarks/cpu_cost.py's ``idle-can`` (the idle 7-robot ring with CAN
+  sides, 60 s) on the CPU model (only with ``--only``).
 
 ``--base COMMIT`` counts the same workloads in a temporary worktree of that commit too
 (benchmarks/base_tree.py) and prints the ratio base / this tree. Needs valgrind (Debian's
@@ -117,6 +119,16 @@ from hil.sim.world import SimConfig, World
 w = World(SimConfig(robots=(0, 1, 2, 3, 4), duration=30.0, can=True, load=2.0, seed=1))
 run = w.run
 done = lambda: (30.0, w.air.occupations)
+""",
+    # the CPU model with CAN sides on an idle ring (benchmarks/cpu_cost.py's ``idle-can``):
+    # the 7-ring, 60 s; its sleeping CAN sides' interrupts come as ghosts, and the ring
+    # runs every frame (docs/fast-paths.md, "Sleeping CAN domains")
+    "idle-can-cpu": """
+from hil.sim.world import SimConfig, World
+from firmware_model.cycle_costs import DEFAULT_COSTS
+w = World(SimConfig(robots=(0, 1, 2, 3, 4, 5, 6), duration=60.0, can=True, cpu=DEFAULT_COSTS))
+run = w.run
+done = lambda: (60.0, w.air.occupations)
 """,
     # the CPU model target's loaded radio-only ring (benchmarks/cpu_cost.py's
     # ``loaded-radio``): 4 robots with the father at load 1, 300 s; and on the ideal CPU
@@ -211,7 +223,8 @@ def main(argv: list[str] | None = None) -> int:
                                               if w not in ("soak-0.1", "loaded",
                                                            "loaded-every-frame", "loaded-can",
                                                            "loaded-can-ideal", "loaded-radio",
-                                                           "loaded-radio-ideal")),
+                                                           "loaded-radio-ideal",
+                                                           "idle-can-cpu")),
                    help="comma-separated workloads (default: %(default)s)")
     a = p.parse_args(argv)
     names = [w for w in a.only.split(",") if w]

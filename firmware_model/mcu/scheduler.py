@@ -289,10 +289,26 @@ class PlacedScheduler(Scheduler):
         is met (:meth:`at_later`): an event in the place of this number may be scheduled
         after the run reached it."""
         self._seq += 1
-        for mates in self._later.values():
-            for later in mates:
-                if not self.reached(later[0], later[1]):
-                    later[3](later[1], self)
+        watch = self._later
+        if watch:
+            now = self.now
+            past = None
+            for when, mates in watch.items():
+                if when < now:
+                    # due before now: its position is reached (it is at or before its tick);
+                    # dropped here, as ``at_later`` would drop it later, so that every
+                    # reservation does not walk the ticks of stand-ins long over
+                    if past is None:
+                        past = [when]
+                    else:
+                        past.append(when)
+                    continue
+                for later in mates:
+                    if not self.reached(later[0], later[1]):
+                        later[3](later[1], self)
+            if past is not None:
+                for when in past:
+                    del watch[when]
         return self._seq
 
     def run_until(self, end: int) -> None:
