@@ -152,3 +152,21 @@ def test_only_the_cpu_models_worlds_keep_places():
     from hil.sim.world import SimConfig, World
     assert not World(SimConfig(robots=(1, 2))).sched.positions
     assert World(SimConfig(robots=(1, 2), cpu=DEFAULT_COSTS)).sched.positions
+
+
+def test_a_reservation_drops_the_stand_ins_long_over():
+    """A stand-in replaced by its entry's event never runs to drop its tick (``passed``):
+    the first reservation after that tick drops it, so that reservations, one per late byte
+    on the CPU model, do not walk ever more ticks of stand-ins over."""
+    s = PlacedScheduler()
+    out: list[str] = []
+
+    def met(seq: int, sched: PlacedScheduler) -> None:
+        later[2].cancel()
+        sched.at_seq(4, seq, out.append, "entry")
+    later = s.at_later(10, 4, out.append, met, "body")
+    s.at(1, lambda: s.at(10, out.append, "plain"))     # due at 10, before the position 4
+    s.run_until(12)
+    assert out == ["entry", "plain"] and 10 in s._later
+    seq = s.reserve()
+    assert seq > later[1] and not s._later
