@@ -13,6 +13,8 @@ taken within the run:
 * ``idle-can``: the idle 7-robot ring with every child's CAN side, 60 s (the CAN sides sleep
   on both CPUs, on the CPU model their interrupts raised as ghosts; there their handlers meet
   the radio's on one CPU at ticks no ring cycle repeats, so the ring does not leap);
+* ``idle-can-hour``: the same for an hour, where users leave a ring running: the ideal CPU's
+  ring leaps, the CPU model's runs every frame, so the ratio grows with the run's length;
 * ``loaded-can``: the 5-robot ring with the father at ``--load 2`` with CAN sides, 30 s
   (benchmarks/can_traffic.py's ``can`` and ``can + cpu``).
 
@@ -33,6 +35,7 @@ WORKLOADS: dict[str, tuple[tuple[int, ...], float, dict]] = {
     "idle-radio": ((0, 1, 2, 3, 4, 5, 6), 3600.0, {}),
     "loaded-radio": ((0, 1, 2, 3), 300.0, dict(load=1.0)),
     "idle-can": ((0, 1, 2, 3, 4, 5, 6), 60.0, dict(can=True)),
+    "idle-can-hour": ((0, 1, 2, 3, 4, 5, 6), 3600.0, dict(can=True)),
     "loaded-can": ((0, 1, 2, 3, 4), 30.0, dict(can=True, load=2.0)),
 }
 

@@ -205,8 +205,9 @@ def cpu_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cpu", choices=("ideal", "estimated"), default=None,
                    help="the children's CPU: estimated (the default: the MB90F549 model, "
                    "every handler and the main loop take their cycles, docs/cpu.md) or ideal "
-                   "(every handler in zero time, the paper's idealisation; faster with --can "
-                   "over long runs: an idle child's CAN side sleeps)")
+                   "(every handler in zero time, the paper's idealisation; far faster with "
+                   "--can over long runs: only there does an idle ring leap over its cycles "
+                   "while the CAN sides sleep, docs/cpu.md)")
 
 
 def cpu_costs(a: argparse.Namespace):
