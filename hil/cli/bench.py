@@ -7,6 +7,8 @@ import statistics
 import sys
 import time
 
+from firmware_model.timing import TICK_HZ
+
 from .common import (Parser, UserError, digit, port_name, positive, progress_bar, robot_list,
                      stopped_by_itself, txen_option)
 
@@ -113,12 +115,16 @@ def cmd_bench(a: argparse.Namespace) -> int:
     med = lambda v: f"{statistics.median(v):.1f}" if v else "-"  # noqa: E731
     p99 = lambda v: f"{bench.percentile(v, 99):.1f}" if v else "-"  # noqa: E731
     rtt = r.round_trip_ms
+    # (each stall: the process did not run for more than a Tslot; it resynchronised, and a
+    # request across it may take a retry or a missed turn: its round trip is the host's)
+    stalls = list(runner.sched.stalls)
     rep = {"sent": r.sent, "replies": r.replies, "loss": 1 - r.replies / r.sent if r.sent else 1,
            "round_trip_ms_median": statistics.median(rtt) if rtt else None,
            "round_trip_ms_p99": bench.percentile(rtt, 99) if rtt else None,
            "ack_ms_median": statistics.median(r.ack_ms) if r.ack_ms else None,
            "failed": r.failed, "refused": len(r.refusals),
-           "refusal": r.refusals[0] if r.refusals else None}
+           "refusal": r.refusals[0] if r.refusals else None, "stalls": len(stalls),
+           "stalled_s": round(sum(late for _, late in stalls) / TICK_HZ, 3)}
     if a.json:
         print(json.dumps(rep))
     else:
@@ -130,6 +136,11 @@ def cmd_bench(a: argparse.Namespace) -> int:
               f"{med(r.ack_ms)} ms (median); loss {rep['loss']:.1%}")
         for why in r.failed[:5]:
             print(f"  failed: {why}")
+        if stalls:
+            print(f"this bench process stalled {len(stalls)} time"
+                  f"{'s' if len(stalls) > 1 else ''} ({rep['stalled_s']:g} s in all: it did "
+                  f"not run, a stopped or starved process): the round trips across a stall "
+                  f"are the host's, not the ring's")
     if stopped_by_itself(runner):                  # the report covers what came until then
         return 1
     return 0 if r.replies else 1

@@ -156,8 +156,11 @@ def test_bench_scripts_against_the_hub(hub, tmp_path):
     # (virtual: alone, every answer was fail(30), "no submodule answers", and was timed)
     can = f"rprs_unix:{tmp_path / 'can1'}"
     kids = [spawn("child", "--id", "1", "--radio", hub.paths[1], "--team", "0,1,2", "--can",
-                  can), spawn("submodules", "--can", can),
-            spawn("child", "--id", "2", "--radio", hub.paths[2], "--team", "0,1,2")]
+                  can, "--events", stdout=subprocess.PIPE),
+            spawn("child", "--id", "2", "--radio", hub.paths[2], "--team", "0,1,2", "--events",
+                  stdout=subprocess.PIPE)]
+    lines = _event_lines(kids)
+    kids.append(spawn("submodules", "--can", can))
     try:
         link = subprocess.run([sys.executable, "-m", "hil.cli", "bench", "link", "--radio",
                                hub.paths[4], "--duration", "5", "--json"],
@@ -172,16 +175,57 @@ def test_bench_scripts_against_the_hub(hub, tmp_path):
                               hub.paths[4], "--duration", "3"],
                              capture_output=True, text=True, timeout=60)
         assert cyc.returncode == 0 and "turn hand-over" in cyc.stdout, cyc.stdout + cyc.stderr
-        lat = subprocess.run([sys.executable, "-m", "hil.cli", "bench", "latency", "--radio",
-                              hub.paths[0], "--dst", "1", "--count", "5", "--team", "0,1,2",
-                              "--json"], capture_output=True, text=True, timeout=120)
-        assert lat.returncode == 0, lat.stdout + lat.stderr
-        r = json.loads(lat.stdout)
-        assert r["replies"] == r["sent"] == 5 and r["loss"] == 0, r
-        assert 20 < r["round_trip_ms_median"] <= r["round_trip_ms_p99"] < 1000
-        assert r["refused"] == 0, r["refusal"]
+
+        def latency():
+            """Five status() round trips, each under a second, none lost: what the ring
+            gives an undisturbed bench. A child or the bench process that did not run for a
+            Tslot (a stall: a starved process, about one run in 16 beside two busy loops on 2
+            cores) costs a request a retry or a missed turn (0.25-0.6 s each), and a stall of
+            a second drops robot 1 and fails a request: such a run is run again
+            (``_judged``), named in the report."""
+            mark = [len(ls) for ls in lines]
+            probe = SchedulingLatency().__enter__()
+            lat = subprocess.run([sys.executable, "-m", "hil.cli", "bench", "latency",
+                                  "--radio", hub.paths[0], "--dst", "1", "--count", "5",
+                                  "--team", "0,1,2", "--json"],
+                                 capture_output=True, text=True, timeout=120)
+            events = [[e for _, e in ls[m:]] for ls, m in zip(lines, mark)]
+            why = disturbed(events, (), probe)
+            try:
+                r = json.loads(lat.stdout)
+            except json.JSONDecodeError:
+                return [f"no report (exit status {lat.returncode})"], why, lat.stderr[-2000:]
+            if r["stalls"]:
+                why.append(f"the bench process stalled {r['stalls']} times "
+                           f"({r['stalled_s']} s)")
+            checks = {
+                "exit status 0": lat.returncode == 0,
+                "5 requests, 5 replies, none lost": r["replies"] == r["sent"] == 5
+                and r["loss"] == 0,
+                "round trips 20 ms-1 s": r["round_trip_ms_median"] is not None
+                and 20 < r["round_trip_ms_median"] <= r["round_trip_ms_p99"] < 1000,
+                "no refusal": r["refused"] == 0,
+            }
+            return [name for name, ok in checks.items() if not ok], why, dict(
+                report=r, disturbed=why)
+        _judged(latency)
     finally:
         stop(kids)
+
+
+def _event_lines(procs, tag=lambda: None) -> list[list[tuple[object, dict]]]:
+    """The ``--events`` lines of ``procs`` (each started with its stdout a pipe), per process,
+    as they come (a reader thread each), each line as ``(tag(), event)`` when it arrived."""
+    import threading
+    lines: list[list[tuple[object, dict]]] = [[] for _ in procs]
+
+    def read(p, out):
+        with p.stdout:
+            for line in p.stdout:
+                out.append((tag(), json.loads(line)))
+    for p, out in zip(procs, lines):
+        threading.Thread(target=read, args=(p, out), daemon=True).start()
+    return lines
 
 
 def test_runner_errors_are_one_line(tmp_path):
@@ -558,20 +602,9 @@ def _children_on_hub(hub, ids, team: str, tag=lambda: None):
     """``rprs child --events`` for each robot of ``ids`` on the hub's nodes in order; returns
     the processes and, per child, its event lines as they come (a reader thread each), each
     line as ``(tag(), event)`` when it arrived (``tag`` says e.g. whether bursts had begun)."""
-    import threading
-    kids = [subprocess.Popen([sys.executable, "-m", "hil.cli", "child", "--id", str(r),
-                              "--radio", hub.paths[i], "--team", team, "--events"],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-            for i, r in enumerate(ids)]
-    lines: list[list[tuple[object, dict]]] = [[] for _ in ids]
-
-    def read(p, out):
-        with p.stdout:
-            for line in p.stdout:
-                out.append((tag(), json.loads(line)))
-    for p, out in zip(kids, lines):
-        threading.Thread(target=read, args=(p, out), daemon=True).start()
-    return kids, lines
+    kids = [spawn("child", "--id", str(r), "--radio", hub.paths[i], "--team", team, "--events",
+                  stdout=subprocess.PIPE) for i, r in enumerate(ids)]
+    return kids, _event_lines(kids, tag)
 
 
 def _ring_of_three_formed(air) -> bool:

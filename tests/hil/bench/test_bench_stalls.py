@@ -255,3 +255,29 @@ def test_a_father_restarted_on_a_live_ring_acts_only_on_what_it_heard_listening(
     end = [e for e in evs if e.get("ev") == "order" and e["state"] in ("failed", "replied",
                                                                         "unreported")]
     assert len(end) == 1 and end[0]["state"] == "failed" and "fail(42)" in end[0]["reason"], end
+
+
+def test_bench_latency_says_when_it_stalled(recorded_hub):
+    """``rprs bench latency`` stopped (SIGSTOP) for 0.5 s while it asks robot 1, then
+    continued: its report counts the stall (``stalls``, ``stalled_s``: it did not run for more
+    than a Tslot), so that round trips across it are read as the host's, not the ring's."""
+    hub, _ = recorded_hub
+    kid = spawn("child", "--id", "1", "--radio", hub.paths[1], "--team", "0,1")
+    lat = subprocess.Popen([sys.executable, "-m", "hil.cli", "bench", "latency", "--radio",
+                            hub.paths[0], "--dst", "1", "--count", "40", "--team", "0,1",
+                            "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           text=True)
+    sniffer = bench.Sniffer(hub.paths[5]).start()
+    try:
+        assert wait_for(lambda: heard(sniffer, 0) and heard(sniffer, 1), 40.0), \
+            "no ring of 0 and 1"
+        time.sleep(0.5)                       # requests under way (40: about 3 s)
+        lat.send_signal(signal.SIGSTOP)
+        time.sleep(0.5)
+        lat.send_signal(signal.SIGCONT)
+        out, err = lat.communicate(timeout=120)
+    finally:
+        sniffer.stop()
+        stop([kid, lat])
+    r = json.loads(out)
+    assert r["sent"] == 40 and r["stalls"] >= 1 and r["stalled_s"] >= 0.4, (r, err)
