@@ -246,9 +246,7 @@ class PlacedScheduler(Scheduler):
         mates = watch.get(when)
         if mates is None:
             if len(watch) >= self._watched:
-                now = self.now
-                for tick in [t for t in watch if t < now]:
-                    del watch[tick]
+                self._drop_past()
                 self._watched = max(_WATCHED, 2 * len(watch))
             watch[when] = [later]
         else:
@@ -289,27 +287,21 @@ class PlacedScheduler(Scheduler):
         is met (:meth:`at_later`): an event in the place of this number may be scheduled
         after the run reached it."""
         self._seq += 1
-        watch = self._later
-        if watch:
-            now = self.now
-            past = None
-            for when, mates in watch.items():
-                if when < now:
-                    # due before now: its position is reached (it is at or before its tick);
-                    # dropped here, as ``at_later`` would drop it later, so that every
-                    # reservation does not walk the ticks of stand-ins long over
-                    if past is None:
-                        past = [when]
-                    else:
-                        past.append(when)
-                    continue
+        if self._later:
+            # (the ticks before now first: their stand-ins' positions are reached, and every
+            # reservation, one a late byte on the CPU model, would walk them again)
+            self._drop_past()
+            for mates in self._later.values():
                 for later in mates:
                     if not self.reached(later[0], later[1]):
                         later[3](later[1], self)
-            if past is not None:
-                for when in past:
-                    del watch[when]
         return self._seq
+
+    def _drop_past(self) -> None:
+        """Forget the stand-ins due before now: each ran, or was replaced or given up."""
+        watch, now = self._later, self.now
+        for tick in [t for t in watch if t < now]:
+            del watch[tick]
 
     def run_until(self, end: int) -> None:
         """:meth:`Scheduler.run_until`, noting each event's sequence number (``cur``): the
